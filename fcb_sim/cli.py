@@ -1,0 +1,79 @@
+"""`fcb-sim`: the simulated flight-control board from the command line.
+
+Argument parsing and wiring only; each subcommand's work lives in the module that owns it. Errors a user can
+cause (a missing file, a bad option) end in one line on stderr and exit status 2, never a traceback.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Sequence
+
+
+class UsageError(Exception):
+    """A problem the user can fix; its message is printed as one line."""
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="fcb-sim",
+        description="The Quadrupel flight-control board as software: headless flights, IMU replay, "
+        "profiling, and a board served over a pseudo-terminal (and a virtual BLE radio).",
+    )
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    # --- run: headless scenarios (owner: fcb_sim/scenarios.py) ---
+    run = sub.add_parser("run", help="fly a scripted scenario as fast as possible and print metrics")
+    run.add_argument("--scenario", default="hover", help="scenario name (see --list)")
+    run.add_argument("--duration", type=float, default=10.0, help="simulated seconds (default 10)")
+    run.add_argument("--seed", type=int, default=1, help="noise seed: the same seed flies the same flight")
+    run.add_argument("--json", action="store_true", help="print one JSON object as the last line")
+    run.add_argument("--list", action="store_true", help="list the scenarios and exit")
+    run.set_defaults(handler="fcb_sim.scenarios:cmd_run")
+
+    # --- replay-imu: RAW-path filters over recorded data (owner: fcb_sim/estimation/replay.py) ---
+    rep = sub.add_parser("replay-imu", help="run an attitude filter over recorded IMU data (CSV)")
+    rep.add_argument("input", nargs="?", help="CSV or CSV.gz with columns t, gx gy gz (rad/s), ax ay az (m/s²)")
+    rep.add_argument("--filter", default=None, help="filter name (default: the best one); see --list-filters")
+    rep.add_argument("--fixed-point", action="store_true", help="run the Q16.16 fixed-point variant")
+    rep.add_argument("--out", help="output CSV: t, roll, pitch, yaw (rad), qw, qx, qy, qz")
+    rep.add_argument("--list-filters", action="store_true", help="list the filters and exit")
+    rep.set_defaults(handler="fcb_sim.estimation.replay:cmd_replay")
+
+    # --- profile: the board's task timing (owner: fcb_sim/board.py) ---
+    prof = sub.add_parser("profile", help="profile the firmware loop with the Cortex-M0 cycle-cost model")
+    prof.add_argument("--mode", choices=["raw", "dmp"], default="raw", help="sensor path (default raw)")
+    prof.add_argument("--scheduler", choices=["round-robin", "priority"], default="round-robin")
+    prof.add_argument("--seconds", type=float, default=30.0, help="simulated seconds (default 30)")
+    prof.add_argument("--seed", type=int, default=1)
+    prof.add_argument("--json", action="store_true", help="print one JSON object as the last line")
+    prof.set_defaults(handler="fcb_sim.board:cmd_profile")
+
+    # --- serve: the board in real time behind a pseudo-terminal (owner: fcb_sim/serve.py) ---
+    serve = sub.add_parser("serve", help="run the board in real time behind a pseudo-terminal")
+    serve.add_argument("--pty", action="store_true", help="expose the UART on a fresh pseudo-terminal")
+    serve.add_argument("--seed", type=int, default=1)
+    serve.add_argument("--scenario", default="bench", help="initial conditions and disturbances")
+    serve.add_argument("--link-timeout", type=float, default=0.5, help="seconds of silence before PANIC")
+    serve.add_argument("--ble-hci", default=None, metavar="TRANSPORT",
+                       help="also expose the board's BLE radio, e.g. tcp-server:127.0.0.1:PORT")
+    serve.set_defaults(handler="fcb_sim.serve:cmd_serve")
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    module_name, func_name = args.handler.split(":")
+    try:
+        module = __import__(module_name, fromlist=[func_name])
+        return int(getattr(module, func_name)(args) or 0)
+    except UsageError as exc:
+        print(f"fcb-sim: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())
