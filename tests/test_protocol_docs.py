@@ -1,0 +1,35 @@
+"""docs/protocol.md and the test vectors are generated from the packet table: check they are up to date."""
+
+from __future__ import annotations
+
+import importlib.util
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def _generator():
+    spec = importlib.util.spec_from_file_location("gen_protocol", ROOT / "docs" / "gen_protocol.py")
+    assert spec and spec.loader
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_protocol_doc_is_up_to_date() -> None:
+    gen = _generator()
+    current = gen.DOC.read_text()
+    assert current == gen.render_doc(current), "run: .venv/bin/python docs/gen_protocol.py"
+
+
+def test_vectors_are_up_to_date() -> None:
+    gen = _generator()
+    assert gen.VECTORS.read_text() == gen.vectors_json(), "run: .venv/bin/python docs/gen_protocol.py"
+
+
+def test_doc_names_every_packet() -> None:
+    from term import protocol as p
+
+    doc = (ROOT / "docs" / "protocol.md").read_text()
+    for spec in p.PACKETS.values():
+        assert f"`{spec.type_id:#04x}` {spec.cls.__name__}" in doc
