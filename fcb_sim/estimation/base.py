@@ -1,0 +1,71 @@
+"""What every attitude filter shares: the protocol, Euler/quaternion conversion, accelerometer angles.
+
+Conventions (docs/architecture.md): the chip's z-up frame, gyro in rad/s, specific force in m/s² (+9.81 on z
+when level), ZYX Euler angles (roll about x, pitch about y, yaw about z), quaternion body-to-earth (w, x, y, z)
+with earth z up. Everything here is plain scalar ``math``: filters run 400 times per simulated second.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Protocol, runtime_checkable
+
+
+@runtime_checkable
+class AttitudeFilter(Protocol):
+    """An attitude estimator fed one IMU sample at a time."""
+
+    roll: float
+    pitch: float
+    yaw: float
+
+    def update(self, gx: float, gy: float, gz: float, ax: float, ay: float, az: float, dt: float) -> None:
+        """Advance by one sample: gyro rad/s, specific force m/s² (chip frame, z up), dt seconds."""
+
+    def quaternion(self) -> tuple[float, float, float, float]:
+        """Attitude as a unit quaternion (w, x, y, z), body-to-earth, earth z up."""
+
+    def reset(self) -> None:
+        """Forget all state; the next sample starts the filter again."""
+
+
+def euler_to_quaternion(roll: float, pitch: float, yaw: float) -> tuple[float, float, float, float]:
+    """ZYX Euler angles (rad) to the body-to-earth unit quaternion (w, x, y, z)."""
+    cr, sr = math.cos(0.5 * roll), math.sin(0.5 * roll)
+    cp, sp = math.cos(0.5 * pitch), math.sin(0.5 * pitch)
+    cy, sy = math.cos(0.5 * yaw), math.sin(0.5 * yaw)
+    return (
+        cr * cp * cy + sr * sp * sy,
+        sr * cp * cy - cr * sp * sy,
+        cr * sp * cy + sr * cp * sy,
+        cr * cp * sy - sr * sp * cy,
+    )
+
+
+def accel_roll_pitch(ax: float, ay: float, az: float) -> tuple[float, float]:
+    """Roll and pitch (rad) from specific force alone, valid when the body is not accelerating.
+
+    Level reads (0, 0, +g). Rolling right side down (positive roll about x) gives +ay, pitching nose down
+    (positive pitch about y, which points left) gives -ax.
+    """
+    return math.atan2(ay, az), math.atan2(-ax, math.sqrt(ay * ay + az * az))
+
+
+def wrap_pi(a: float) -> float:
+    """Wrap an angle (rad) into (-π, π]."""
+    if a > math.pi:
+        return a - 2.0 * math.pi
+    if a <= -math.pi:
+        return a + 2.0 * math.pi
+    return a
+
+
+class EulerFilterMixin:
+    """Quaternion output for the per-axis filters, which keep roll, pitch and yaw as their state."""
+
+    roll: float
+    pitch: float
+    yaw: float
+
+    def quaternion(self) -> tuple[float, float, float, float]:
+        return euler_to_quaternion(self.roll, self.pitch, self.yaw)
