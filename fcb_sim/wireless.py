@@ -1,0 +1,589 @@
+"""The board's wireless link (report section 3.9): the handover states, 20-byte notification batching, and the
+radio that carries them (the Nordic UART Service on a bumble device).
+
+Two layers, so the rules can be tested at full speed without a radio:
+
+- ``WirelessLink`` is sans-IO: connection events, received bytes and outgoing frames in; bytes for the parser,
+  notifications and state out. It keeps the report's Figure 12:
+
+  ``DISCONNECTED`` --wireless key in SAFE, with a connection--> ``STARTING`` --data over BLE--> ``STARTED``,
+  and from either, a lost connection --> ``DISCONNECTED`` (the board PANICs if it was flying over BLE).
+
+  A connection alone changes nothing. In STARTING the board keeps talking over the UART and also sends its
+  heartbeats over BLE; the phone answers them, and that first data moves the link to STARTED: from then the
+  parser reads only BLE and every reply goes to BLE. Over BLE the telemetry is reduced to the phone's
+  ``Compact`` packet.
+
+  Transmit batching: frames wait in the BLE tx queue until 20 bytes are ready, then leave as full 20-byte
+  notifications (a frame may span two: the decoder is a stream decoder); a heartbeat flushes the queue at once.
+
+- ``BoardRadio`` (async edge) puts a ``WirelessLink`` on the air: a bumble ``Device`` named "Quadrupel <id>"
+  with the NUS service, on a bumble ``LocalLink`` of virtual controllers, optionally with a second controller
+  served as an HCI transport over TCP so a bumble host in another process (``term --ble``, bumble's own tools)
+  can scan, connect and fly. ``start_radio()`` is the one call for ``fcb-sim serve``.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import logging
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+from term.protocol import (
+    TELEMETRY,
+    Encoder,
+    Heartbeat,
+    Nak,
+    WirelessState,
+)
+
+log = logging.getLogger(__name__)
+
+# The Nordic UART Service: the phone writes RX, the board notifies TX.
+NUS_SERVICE = "6E400001-B5A3-F393-E0A9-E50E24DCCA9E"
+NUS_RX = "6E400002-B5A3-F393-E0A9-E50E24DCCA9E"
+NUS_TX = "6E400003-B5A3-F393-E0A9-E50E24DCCA9E"
+NAME_PREFIX = "Quadrupel"
+ATT_MTU = 23  # the nRF51's S110 SoftDevice never negotiates more
+NOTIFY_PAYLOAD = ATT_MTU - 3  # 20 bytes of value per notification
+# Compact telemetry rate over BLE. With the 10 Hz heartbeat, three 16-byte Compact frames and one 12-byte
+# heartbeat make exactly 60 bytes between flushes: three full notifications (10 Hz would leave 28 bytes: 70 %).
+BLE_TELEMETRY_HZ = 30.0
+
+
+def board_name(board_id: int) -> str:
+    return f"{NAME_PREFIX} {board_id}"
+
+
+# --- the sans-IO link ---------------------------------------------------------------------------------------
+
+
+@dataclass
+class WirelessStats:
+    notifications: int = 0  # notifications handed to the radio
+    payload_bytes: int = 0  # bytes in them
+    largest: int = 0  # the largest notification (never above NOTIFY_PAYLOAD)
+    urgent_flushes: int = 0  # flushes forced by a heartbeat
+    frames_queued: int = 0
+    tx_dropped: int = 0  # bytes queued while no phone was connected, or thrown away at a disconnection
+    rx_bytes: int = 0  # bytes the phone wrote
+    rx_ignored: int = 0  # bytes written before the handover (DISCONNECTED): the board does not read them
+    payload: int = NOTIFY_PAYLOAD
+
+    @property
+    def fill_pct(self) -> float:
+        """Mean notification fill: payload bytes per notification over the 20 a notification can carry."""
+        if not self.notifications:
+            return 0.0
+        return 100.0 * self.payload_bytes / (self.notifications * self.payload)
+
+
+class WirelessLink:
+    """The board's side of the BLE handover and its transmit queue. Sans-IO: no clock, no radio.
+
+    The board calls:
+
+    - ``connected()`` / ``disconnected()`` when the radio reports them (``disconnected()`` returns True if the
+      board was being flown over BLE: it must PANIC if it is flying);
+    - ``request_start()`` for ``Command(op=Op.WIRELESS, arg=1)`` once its own mode check (SAFE) passed, and
+      ``request_stop()`` for ``arg=0`` after the Ack went out;
+    - ``ble_receive(data)`` with what the phone wrote: the bytes for the parser, or ``b''`` while the board
+      does not read BLE;
+    - ``send(pkt)`` for every packet it sends (heartbeats, acks, events, Compact): the link decides whether it
+      goes over BLE; ``reads_uart`` / ``writes_uart`` say whether the cable is still in use;
+    - ``notifications()`` for what the radio must send now (the radio does this itself, woken by ``on_ready``).
+    """
+
+    def __init__(self, payload: int = NOTIFY_PAYLOAD, on_ready: Callable[[], None] | None = None) -> None:
+        if payload < 1:
+            raise ValueError("payload must be at least one byte")
+        self.payload = payload
+        self.on_ready = on_ready  # called when notifications are waiting (the radio's wake-up)
+        self.encoder = Encoder()  # BLE has its own sequence numbers: the phone sees no gaps from UART frames
+        self.stats = WirelessStats(payload=payload)
+        self._state = WirelessState.DISCONNECTED
+        self._connected = False
+        self._tx = bytearray()  # the ble_tx_queue
+        self._ready: list[bytes] = []  # whole notifications waiting for the radio
+        self.transitions: list[tuple[WirelessState, WirelessState]] = []  # drained by the board (events)
+
+    # --- state ----------------------------------------------------------------------------------------------
+
+    @property
+    def state(self) -> WirelessState:
+        return self._state
+
+    @property
+    def is_connected(self) -> bool:
+        """A phone holds a BLE connection (the firmware's valid m_conn_handle)."""
+        return self._connected
+
+    @property
+    def reads_uart(self) -> bool:
+        """The parser reads the UART; once STARTED it reads only BLE."""
+        return self._state is not WirelessState.STARTED
+
+    @property
+    def writes_uart(self) -> bool:
+        """Replies and telemetry go to the UART; once STARTED they go only to BLE."""
+        return self._state is not WirelessState.STARTED
+
+    @property
+    def writes_ble(self) -> bool:
+        """Replies go to BLE (STARTED). In STARTING only heartbeats do (see ``send``)."""
+        return self._state is WirelessState.STARTED
+
+    def _set(self, new: WirelessState) -> None:
+        if new is not self._state:
+            self.transitions.append((self._state, new))
+            self._state = new
+
+    def take_transitions(self) -> list[tuple[WirelessState, WirelessState]]:
+        """State changes since the last call, oldest first (for the board's WIRELESS_STATE events)."""
+        out, self.transitions = self.transitions, []
+        return out
+
+    # --- events from the radio ------------------------------------------------------------------------------
+
+    def connected(self) -> None:
+        """A phone connected. Nothing else changes: the pilot still has to press the wireless key."""
+        self._connected = True
+
+    def disconnected(self) -> bool:
+        """The connection is gone: back to DISCONNECTED, the UART resumes, the tx queue is dropped. Returns True
+        if the board was reading its commands from BLE (STARTED): a flying board must PANIC."""
+        was_started = self._state is WirelessState.STARTED
+        self._connected = False
+        self.stats.tx_dropped += len(self._tx) + sum(len(n) for n in self._ready)
+        self._tx.clear()
+        self._ready.clear()
+        self._set(WirelessState.DISCONNECTED)
+        return was_started
+
+    def ble_receive(self, data: bytes) -> bytes:
+        """Bytes the phone wrote. Returns what the parser must read (all of it once STARTING or STARTED; the
+        first data in STARTING moves to STARTED), or ``b''`` before the handover."""
+        self.stats.rx_bytes += len(data)
+        if not data:
+            return b""
+        if not self._connected or self._state is WirelessState.DISCONNECTED:
+            self.stats.rx_ignored += len(data)
+            return b""
+        if self._state is WirelessState.STARTING:
+            self._set(WirelessState.STARTED)
+        return bytes(data)
+
+    # --- commands -------------------------------------------------------------------------------------------
+
+    def request_start(self) -> Nak:
+        """The wireless key (``Op.WIRELESS`` arg 1), after the board checked it is in SAFE. Needs a connection;
+        moves DISCONNECTED to STARTING (already STARTING or STARTED: accepted, nothing changes)."""
+        if not self._connected:
+            return Nak.NO_BLE_CONNECTION
+        if self._state is WirelessState.DISCONNECTED:
+            self._set(WirelessState.STARTING)
+        return Nak.OK
+
+    def request_stop(self) -> Nak:
+        """Hand control back to the cable (``Op.WIRELESS`` arg 0). The connection stays; the handover can be
+        repeated. Call it after the Ack was sent, so that the Ack still goes where the command came from."""
+        self.flush()
+        self._set(WirelessState.DISCONNECTED)
+        return Nak.OK
+
+    # --- transmit -------------------------------------------------------------------------------------------
+
+    def ble_wants(self, pkt: Any) -> bool:
+        """Whether ``pkt`` goes over BLE now: heartbeats from STARTING on; in STARTED everything except the full
+        UART telemetry (the phone shows only the Compact packet)."""
+        if not self._connected:
+            return False
+        kind = type(pkt)
+        if kind is Heartbeat:
+            return self._state is not WirelessState.DISCONNECTED
+        return self._state is WirelessState.STARTED and kind not in TELEMETRY
+
+    def send(self, pkt: Any) -> bool:
+        """Encode ``pkt`` with the BLE encoder and queue it if it goes over BLE (``ble_wants``); heartbeats
+        flush the queue at once. Returns True if it was queued."""
+        if not self.ble_wants(pkt):
+            return False
+        self.queue(self.encoder.encode(pkt), urgent=type(pkt) is Heartbeat)
+        return True
+
+    def queue(self, frame: bytes, urgent: bool = False) -> None:
+        """Queue an encoded frame for BLE. Full 20-byte notifications are cut as soon as they are ready; the rest
+        waits, unless ``urgent`` (a heartbeat), which sends everything queued at once."""
+        if not self._connected:
+            self.stats.tx_dropped += len(frame)
+            return
+        self.stats.frames_queued += 1
+        self._tx += frame
+        n = self.payload
+        cut = len(self._tx) - len(self._tx) % n
+        if urgent and len(self._tx) > cut:
+            cut = len(self._tx)
+            self.stats.urgent_flushes += 1
+        if cut:
+            self._emit(cut)
+
+    def flush(self) -> None:
+        """Send whatever is queued now, even a partial notification."""
+        if self._tx:
+            self._emit(len(self._tx))
+
+    def _emit(self, cut: int) -> None:
+        n = self.payload
+        data = bytes(self._tx[:cut])
+        del self._tx[:cut]
+        chunks = [data[i : i + n] for i in range(0, len(data), n)]
+        st = self.stats
+        st.notifications += len(chunks)
+        st.payload_bytes += len(data)
+        st.largest = max(st.largest, max(len(c) for c in chunks))
+        self._ready.extend(chunks)
+        if self.on_ready is not None:
+            self.on_ready()
+
+    @property
+    def pending(self) -> int:
+        """Bytes waiting in the tx queue for a full notification."""
+        return len(self._tx)
+
+    def notifications(self) -> list[bytes]:
+        """The notifications to send now, in order; each at most ``payload`` (20) bytes."""
+        out, self._ready = self._ready, []
+        return out
+
+
+# --- the radio (async edge) ---------------------------------------------------------------------------------
+# bumble is imported inside the functions below: importing it costs half a second that the headless
+# simulator (which only needs WirelessLink) should not pay.
+
+
+def board_address(board_id: int) -> str:
+    """The board's static random address: the top two bits set (static), the id in the last two bytes."""
+    return f"F0:5A:00:00:{(board_id >> 8) & 0xFF:02X}:{board_id & 0xFF:02X}"
+
+
+class BoardRadio:
+    """The board's BLE radio: a bumble ``Device`` named "Quadrupel <id>" advertising the Nordic UART Service,
+    on a bumble controller attached to ``local_link`` (a fresh ``LocalLink`` if None), wired to ``link``.
+
+    - a connection or disconnection goes to ``link.connected()`` / ``link.disconnected()``; after a
+      disconnection ``on_disconnect(was_started)`` is called (the board PANICs if it was flying over BLE);
+    - what the phone writes on RX goes through ``link.ble_receive()``; the bytes for the parser are passed to
+      ``on_data``;
+    - the link's notifications are sent on TX as soon as the link has them (``link.on_ready``).
+
+    One phone at a time (like the nRF51's S110): advertising stops while connected and restarts after.
+    """
+
+    def __init__(
+        self,
+        link: WirelessLink,
+        *,
+        board_id: int = 1,
+        on_data: Callable[[bytes], None] | None = None,
+        on_disconnect: Callable[[bool], None] | None = None,
+        local_link: Any = None,
+        advertising_interval_ms: float = 20.0,
+    ) -> None:
+        self.link = link
+        self.board_id = board_id
+        self.name = board_name(board_id)
+        self.address = board_address(board_id)
+        self.on_data = on_data
+        self.on_disconnect = on_disconnect
+        self.advertising_interval_ms = advertising_interval_ms
+        self.local_link = local_link
+        self.device: Any = None
+        self.controller: Any = None
+        self.connection: Any = None
+        self.hci: HciTcpServer | None = None  # the second controller's HCI server, if exposed
+        self._transport: Any = None  # a real HCI transport for the board's own controller, if used
+        self._tx_char: Any = None
+        self._wake = asyncio.Event()
+        self._sender: asyncio.Task[None] | None = None
+        self.notify_errors = 0
+
+    async def start(self, hci_transport: str | None = None) -> None:
+        """Power the radio on and advertise. ``hci_transport`` puts the board's own radio on a real HCI
+        transport (e.g. ``usb:0``: a phone can connect to the simulator); None: a virtual controller."""
+        from bumble.controller import Controller
+        from bumble.device import Device
+        from bumble.gatt import Characteristic, CharacteristicValue, Service
+        from bumble.hci import Address
+        from bumble.link import LocalLink
+
+        if hci_transport is None:
+            if self.local_link is None:
+                self.local_link = LocalLink()
+            self.controller = Controller(f"board-{self.board_id}", link=self.local_link)
+            source = sink = self.controller
+        else:
+            from bumble.transport import open_transport
+
+            self._transport = await open_transport(hci_transport)
+            source, sink = self._transport.source, self._transport.sink
+        device = Device.with_hci(self.name, Address(self.address), source, sink)
+        device.gatt_server.max_mtu = ATT_MTU  # the S110 keeps the default MTU: 20-byte notifications
+        rx = Characteristic(
+            NUS_RX,
+            Characteristic.WRITE_WITHOUT_RESPONSE | Characteristic.WRITE,
+            Characteristic.WRITEABLE,
+            CharacteristicValue(write=self._on_write),
+        )
+        self._tx_char = Characteristic(NUS_TX, Characteristic.NOTIFY, Characteristic.READABLE, b"")
+        device.add_service(Service(NUS_SERVICE, [rx, self._tx_char]))
+        device.on("connection", self._on_connection)
+        self.device = device
+        self.link.on_ready = self._wake.set
+        await device.power_on()
+        await self._advertise()
+        self._sender = asyncio.create_task(self._send_loop(), name=f"{self.name} notifications")
+
+    async def _advertise(self) -> None:
+        from bumble.core import UUID, AdvertisingData
+
+        # Name and flags in the advertisement, the NUS UUID in the scan response (31 bytes hold not both),
+        # as Nordic's ble_app_uart does.
+        adv = AdvertisingData(
+            [
+                (AdvertisingData.FLAGS, bytes([0x06])),  # LE general discoverable, BR/EDR not supported
+                (AdvertisingData.COMPLETE_LOCAL_NAME, self.name.encode()),
+            ]
+        )
+        scan_rsp = AdvertisingData(
+            [(AdvertisingData.COMPLETE_LIST_OF_128_BIT_SERVICE_CLASS_UUIDS, bytes(UUID(NUS_SERVICE)))]
+        )
+        await self.device.start_advertising(
+            advertising_data=bytes(adv),
+            scan_response_data=bytes(scan_rsp),
+            auto_restart=True,
+            advertising_interval_min=self.advertising_interval_ms,
+            advertising_interval_max=self.advertising_interval_ms,
+        )
+
+    def _on_connection(self, connection: Any) -> None:
+        if self.connection is not None:  # one phone at a time
+            asyncio.ensure_future(connection.disconnect())
+            return
+        self.connection = connection
+        connection.on("disconnection", lambda reason: self._on_disconnection(connection, reason))
+        self.link.connected()
+
+    def _on_disconnection(self, connection: Any, reason: int) -> None:
+        if connection is not self.connection:
+            return
+        self.connection = None
+        was_started = self.link.disconnected()
+        log.info("%s: phone disconnected (reason %#x)%s", self.name, reason, ", was flying over BLE" * was_started)
+        if self.on_disconnect is not None:
+            self.on_disconnect(was_started)
+
+    def _on_write(self, connection: Any, value: bytes) -> None:
+        if connection is not self.connection:
+            return
+        data = self.link.ble_receive(bytes(value))
+        if data and self.on_data is not None:
+            self.on_data(data)
+
+    async def _send_loop(self) -> None:
+        while True:
+            await self._wake.wait()
+            self._wake.clear()
+            for note in self.link.notifications():
+                connection = self.connection
+                if connection is None:
+                    break
+                try:
+                    await self.device.notify_subscriber(connection, self._tx_char, note)
+                except Exception as exc:  # a connection torn down under us: the disconnection event follows
+                    self.notify_errors += 1
+                    log.debug("%s: notification failed: %s", self.name, exc)
+
+    async def expose_hci(self, spec: str) -> str:
+        """Attach a second virtual controller to the radio's LocalLink and serve it as an HCI transport on
+        ``spec`` (``tcp-server:HOST:PORT``, PORT 0 for any free port). Returns the transport a bumble host
+        uses to reach it (``tcp-client:HOST:PORT``)."""
+        if self.local_link is None:
+            raise RuntimeError("start the radio first (with a virtual controller)")
+        host, port = _parse_tcp_server(spec)
+        self.hci = HciTcpServer(self.local_link, name=f"phone-side of {self.name}")
+        await self.hci.start(host, port)
+        return self.hci.client_spec
+
+    async def close(self) -> None:
+        if self._sender is not None:
+            self._sender.cancel()
+            with contextlib.suppress(asyncio.CancelledError):
+                await self._sender
+            self._sender = None
+        if self.hci is not None:
+            await self.hci.close()
+            self.hci = None
+        if self.device is not None:
+            with contextlib.suppress(Exception):
+                await self.device.power_off()
+        if self._transport is not None:
+            await self._transport.close()
+            self._transport = None
+        self.link.on_ready = None
+
+
+class HciTcpServer:
+    """A virtual bumble controller on ``local_link``, served as an H4 HCI transport over TCP to one host at a
+    time, like bumble's ``tcp-server`` transport but aware of the host: when the host goes away (the terminal
+    quit or crashed), its BLE connections are dropped as a real radio's supervision timeout would, so the
+    board sees the disconnection; its scanning and advertising stop."""
+
+    def __init__(self, local_link: Any, name: str = "hci") -> None:
+        from bumble.controller import Controller
+        from bumble.transport.common import StreamPacketSource
+
+        self._source = StreamPacketSource()
+        self._peer: asyncio.Transport | None = None
+        self.controller = Controller(name, host_source=self._source, host_sink=self, link=local_link)
+        self._server: asyncio.Server | None = None
+        self.host = ""
+        self.port = 0
+        self.hosts_served = 0
+
+    @property
+    def client_spec(self) -> str:
+        return f"tcp-client:{self.host}:{self.port}"
+
+    # The controller's host sink: HCI packets to the host.
+    def on_packet(self, packet: bytes) -> None:
+        if self._peer is not None:
+            self._peer.write(packet)
+
+    async def start(self, host: str, port: int) -> None:
+        from fcb_sim.cli import UsageError
+
+        server = self
+
+        class _Host(asyncio.Protocol):
+            transport: asyncio.Transport | None = None
+
+            def connection_made(self, transport: asyncio.BaseTransport) -> None:
+                if server._peer is not None:  # one host per controller
+                    transport.close()
+                    return
+                self.transport = transport  # type: ignore[assignment]
+                server._attach(self.transport)  # type: ignore[arg-type]
+
+            def data_received(self, data: bytes) -> None:
+                if self.transport is not None and server._peer is self.transport:
+                    server._source.data_received(data)
+
+            def connection_lost(self, exc: Exception | None) -> None:
+                if self.transport is not None and server._peer is self.transport:
+                    server._detach()
+
+        try:
+            self._server = await asyncio.get_running_loop().create_server(_Host, host, port)
+        except OSError as exc:
+            raise UsageError(f"cannot serve the BLE HCI on {host}:{port}: {exc.strerror or exc}") from None
+        self.host = host
+        self.port = self._server.sockets[0].getsockname()[1]
+
+    def _attach(self, transport: asyncio.Transport) -> None:
+        self._peer = transport
+        self._source = _fresh_source(self.controller)  # a new host starts a new H4 stream
+        self.hosts_served += 1
+
+    def _detach(self) -> None:
+        self._peer = None
+        drop_host_state(self.controller)
+
+    async def close(self) -> None:
+        if self._peer is not None:
+            self._peer.close()
+            self._detach()
+        if self._server is not None:
+            self._server.close()
+            with contextlib.suppress(Exception):
+                await self._server.wait_closed()
+            self._server = None
+        if self.controller.link is not None:
+            with contextlib.suppress(KeyError):
+                self.controller.link.remove_controller(self.controller)
+
+
+def _fresh_source(controller: Any) -> Any:
+    from bumble.transport.common import StreamPacketSource
+
+    source = StreamPacketSource()
+    source.set_packet_sink(controller)
+    return source
+
+
+def drop_host_state(controller: Any) -> None:
+    """What a controller loses with its host: its LE connections (the peer sees a connection timeout), its
+    advertising, scanning and pending connection."""
+    from bumble import hci, ll
+
+    for connection in list(controller.le_connections.values()):
+        connection.send_ll_control_pdu(ll.TerminateInd(hci.HCI_CONNECTION_TIMEOUT_ERROR))
+        controller.on_le_disconnected(connection, hci.HCI_CONNECTION_TIMEOUT_ERROR)
+    controller.le_legacy_advertiser.stop()
+    for adv_set in controller.advertising_sets.values():
+        adv_set.stop()
+    controller.le_scan_enable = False
+    controller.pending_le_connection = None
+
+
+def _parse_tcp_server(spec: str) -> tuple[str, int]:
+    from fcb_sim.cli import UsageError
+
+    kind, _, rest = spec.partition(":")
+    host, _, port = rest.rpartition(":")
+    if kind != "tcp-server" or not host or not port.isdigit():
+        raise UsageError(f"--ble-hci {spec!r}: expected tcp-server:HOST:PORT, e.g. tcp-server:127.0.0.1:9000")
+    return host, int(port)
+
+
+async def start_radio(
+    link: WirelessLink,
+    *,
+    board_id: int = 1,
+    hci: str | None = None,
+    on_data: Callable[[bytes], None] | None = None,
+    on_disconnect: Callable[[bool], None] | None = None,
+) -> BoardRadio:
+    """The one call for ``fcb-sim serve``: put the board's radio on the air, wired to ``link``.
+
+    - ``hci=None``: a virtual radio on a fresh LocalLink (``radio.local_link``; in-process centrals attach
+      their own ``Controller`` to it);
+    - ``hci="tcp-server:HOST:PORT"`` (``--ble-hci``): the same, plus a second virtual controller on that link
+      served as an HCI transport; ``radio.hci.client_spec`` is what to give ``term --ble ... --hci``
+      (PORT 0 picks a free port);
+    - any other bumble transport (``usb:0``, ``serial:...``): the board's radio is that real controller, so a
+      phone can connect to the simulator.
+
+    ``on_data(bytes)`` receives what the parser must read from BLE; ``on_disconnect(was_started)`` is called
+    after a lost connection. Close with ``await radio.close()``.
+    """
+    radio = BoardRadio(link, board_id=board_id, on_data=on_data, on_disconnect=on_disconnect)
+    if hci is not None and hci.startswith("tcp-server:"):
+        _parse_tcp_server(hci)  # a bad spec fails before anything starts
+        await radio.start()
+        try:
+            await radio.expose_hci(hci)
+        except BaseException:
+            await radio.close()
+            raise
+    else:
+        try:
+            await radio.start(hci)
+        except Exception as exc:
+            from fcb_sim.cli import UsageError
+
+            await radio.close()
+            raise UsageError(f"cannot open the BLE radio {hci!r}: {exc}") from None
+    return radio

@@ -1,0 +1,386 @@
+"""The board's wireless link: the handover states of the report's Figure 12, 20-byte notification batching, and
+the NUS peripheral on a real bumble stack (virtual controllers on a LocalLink, a bumble central)."""
+
+from __future__ import annotations
+
+import asyncio
+
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from fcb_sim.wireless import (
+    NOTIFY_PAYLOAD,
+    NUS_RX,
+    NUS_SERVICE,
+    NUS_TX,
+    WirelessLink,
+    board_name,
+    start_radio,
+)
+from term.protocol import (
+    Ack,
+    Attitude,
+    Compact,
+    Decoder,
+    Encoder,
+    Event,
+    Heartbeat,
+    HeartbeatAck,
+    Joystick,
+    Motion,
+    Nak,
+    Op,
+    Status,
+    WirelessState,
+)
+
+S = WirelessState
+HB = Heartbeat(1, 100)
+COMPACT = Compact(0, 2, 100, -200, 300, 1200)
+
+# --- the state machine --------------------------------------------------------------------------------------
+
+
+def test_a_connection_alone_changes_nothing() -> None:
+    link = WirelessLink()
+    link.connected()
+    assert link.is_connected and link.state is S.DISCONNECTED
+    assert link.reads_uart and link.writes_uart and not link.writes_ble
+    # Data from a phone that was not handed control is not read, and nothing goes out over BLE.
+    assert link.ble_receive(b"\x01\x02") == b""
+    assert link.stats.rx_ignored == 2
+    assert not link.send(HB)
+    assert link.notifications() == []
+
+
+def test_the_wireless_key_needs_a_connection() -> None:
+    link = WirelessLink()
+    assert link.request_start() is Nak.NO_BLE_CONNECTION
+    assert link.state is S.DISCONNECTED
+
+
+def test_handover_then_connection_lost() -> None:
+    link = WirelessLink()
+    link.connected()
+    assert link.request_start() is Nak.OK
+    assert link.state is S.STARTING
+    # STARTING: the UART keeps working; heartbeats also go over BLE, nothing else does.
+    assert link.reads_uart and link.writes_uart and not link.writes_ble
+    assert link.send(HB)
+    assert not link.send(Ack(1, Op.WIRELESS, 0, 1))
+    [note] = link.notifications()
+    assert Decoder().feed(note) == [HB]
+    # The phone answers: data over BLE moves to STARTED and goes to the parser.
+    answer = Encoder().encode(HeartbeatAck(1, 100))
+    assert link.ble_receive(answer) == answer
+    assert link.state is S.STARTED
+    assert not link.reads_uart and not link.writes_uart and link.writes_ble
+    assert link.request_start() is Nak.OK and link.state is S.STARTED  # pressing 8 again changes nothing
+    # Connection lost while flying over BLE: back to DISCONNECTED, the UART resumes, the caller is told.
+    assert link.disconnected() is True
+    assert link.state is S.DISCONNECTED and not link.is_connected
+    assert link.reads_uart and link.writes_uart
+    assert link.take_transitions() == [
+        (S.DISCONNECTED, S.STARTING),
+        (S.STARTING, S.STARTED),
+        (S.STARTED, S.DISCONNECTED),
+    ]
+    assert link.take_transitions() == []
+
+
+def test_connection_lost_in_starting_is_not_a_flight_loss() -> None:
+    link = WirelessLink()
+    link.connected()
+    link.request_start()
+    assert link.disconnected() is False
+    assert link.state is S.DISCONNECTED
+    # The procedure has to be repeated: a new connection alone does not restore STARTING.
+    link.connected()
+    assert link.state is S.DISCONNECTED
+
+
+def test_hand_back_to_the_cable_keeps_the_connection() -> None:
+    link = WirelessLink()
+    link.connected()
+    link.request_start()
+    link.ble_receive(b"\x00")
+    link.send(Ack(3, Op.WIRELESS, 0, 0))  # the Ack of the hand-back command goes out over BLE first
+    assert link.request_stop() is Nak.OK
+    assert link.state is S.DISCONNECTED and link.is_connected and link.reads_uart
+    assert Decoder().feed(b"".join(link.notifications())) == [Ack(3, Op.WIRELESS, 0, 0)]
+    assert link.request_start() is Nak.OK and link.state is S.STARTING
+
+
+# --- batching -----------------------------------------------------------------------------------------------
+
+
+def started() -> WirelessLink:
+    link = WirelessLink()
+    link.connected()
+    link.request_start()
+    link.ble_receive(b"\x00")
+    return link
+
+
+def test_frames_wait_until_twenty_bytes_are_ready() -> None:
+    link = started()
+    assert link.send(COMPACT)  # 16 bytes: waits
+    assert link.notifications() == [] and link.pending == 16
+    assert link.send(COMPACT)  # 32 bytes: one full notification, 12 wait
+    notes = link.notifications()
+    assert [len(n) for n in notes] == [20] and link.pending == 12
+
+
+def test_heartbeats_go_at_once_and_flush_the_queue() -> None:
+    link = started()
+    link.send(COMPACT)
+    link.send(HB)
+    notes = link.notifications()
+    assert [len(n) for n in notes] == [20, 8]  # 16 + 12 bytes, in order
+    assert link.pending == 0
+    assert Decoder().feed(b"".join(notes)) == [COMPACT, HB]
+    assert link.stats.urgent_flushes == 1
+
+
+def test_full_telemetry_stays_on_the_cable() -> None:
+    link = started()
+    assert not link.send(Attitude(0, 1, 2, 3, 4, 5, 6))
+    assert not link.send(Motion(0, 0, 0, 0, 0, 0, 0))
+    assert not link.send(Status(0, 0, 0, 0, 0, 0, 0, 2))
+    assert link.send(COMPACT) and link.send(Event(11, 2, 5))
+
+
+def test_thirty_hertz_compact_fills_every_notification() -> None:
+    """Three Compact frames and a heartbeat per 100 ms are exactly three notifications."""
+    link = started()
+    for counter in range(50):
+        for _ in range(3):
+            link.send(COMPACT)
+        link.send(Heartbeat(counter, counter * 100))
+    assert link.stats.fill_pct == 100.0
+    assert link.stats.notifications == 150
+
+
+def test_a_heartbeat_is_never_held_back() -> None:
+    link = started()
+    link.send(COMPACT)
+    link.send(Heartbeat(7, 700))
+    assert HB.__class__ in {type(p) for p in Decoder().feed(b"".join(link.notifications()))}
+
+
+@given(st.lists(st.sampled_from(["compact", "hb", "ack", "event"]), max_size=200))
+def test_every_notification_is_at_most_twenty_bytes_and_the_stream_is_intact(kinds: list[str]) -> None:
+    packets = {"compact": COMPACT, "hb": HB, "ack": Ack(1, 1, 0, 2), "event": Event(3, 4, 5)}
+    link = started()
+    sent = []
+    notes: list[bytes] = []
+    dec = Decoder()
+    got = []
+    for kind in kinds:
+        pkt = packets[kind]
+        assert link.send(pkt)
+        sent.append(pkt)
+        batch = link.notifications()
+        notes += batch
+        got += dec.feed(b"".join(batch))
+        if kind == "hb":  # everything up to a heartbeat has been delivered
+            assert got == sent
+    assert all(0 < len(n) <= NOTIFY_PAYLOAD for n in notes)
+    assert link.stats.largest <= NOTIFY_PAYLOAD
+    # Everything but the unfilled tail has been delivered; a flush delivers that too.
+    link.flush()
+    got += dec.feed(b"".join(link.notifications()))
+    assert got == sent
+    assert dec.stats.seq_gaps == 0  # BLE has its own sequence numbers
+
+
+def test_a_disconnection_drops_the_queue() -> None:
+    link = started()
+    link.send(COMPACT)
+    link.disconnected()
+    assert link.pending == 0 and link.notifications() == []
+    assert link.stats.tx_dropped == 16
+
+
+def test_on_ready_is_called_when_notifications_wait() -> None:
+    calls = []
+    link = started()
+    link.on_ready = lambda: calls.append(link.pending)
+    link.send(COMPACT)
+    assert calls == []
+    link.send(HB)
+    assert calls == [0]
+
+
+# --- the radio on a real bumble stack -----------------------------------------------------------------------
+
+
+class Phone:
+    """A bumble central on the radio's LocalLink, the way the Android app uses the NUS service."""
+
+    def __init__(self, local_link: object, address: str = "C0:00:00:00:00:01") -> None:
+        from bumble.controller import Controller
+        from bumble.device import Device
+        from bumble.hci import Address
+
+        self.controller = Controller("phone", link=local_link)
+        self.device = Device.with_hci("phone", Address(address), self.controller, self.controller)
+        self.notes: list[bytes] = []
+        self.note_event = asyncio.Event()
+        self.connection = None
+
+    async def connect(self, address: str) -> None:
+        from bumble.core import UUID
+        from bumble.device import Peer
+
+        await self.device.power_on()
+        self.connection = await self.device.connect(address, timeout=5.0)
+        self.peer = Peer(self.connection)
+        await self.peer.discover_services([UUID(NUS_SERVICE)])
+        await self.peer.discover_characteristics()
+        [self.rx] = self.peer.get_characteristics_by_uuid(UUID(NUS_RX))
+        [self.tx] = self.peer.get_characteristics_by_uuid(UUID(NUS_TX))
+        await self.peer.subscribe(self.tx, self._on_note)
+
+    def _on_note(self, value: bytes) -> None:
+        self.notes.append(bytes(value))
+        self.note_event.set()
+
+    async def next_notes(self, count: int) -> list[bytes]:
+        while len(self.notes) < count:
+            self.note_event.clear()
+            await asyncio.wait_for(self.note_event.wait(), 5.0)
+        out, self.notes = self.notes[:count], self.notes[count:]
+        return out
+
+    async def write(self, data: bytes) -> None:
+        await self.peer.write_value(self.rx, data, with_response=False)
+
+
+async def until(condition, timeout: float = 5.0) -> None:
+    """Wait (bounded) for something the stack does asynchronously."""
+    async with asyncio.timeout(timeout):
+        while not condition():
+            await asyncio.sleep(0.001)
+
+
+async def test_nus_peripheral_handover_over_bumble() -> None:
+    link = WirelessLink()
+    parsed: list[bytes] = []
+    lost: list[bool] = []
+    radio = await start_radio(link, board_id=7, on_data=parsed.append, on_disconnect=lost.append)
+    try:
+        assert radio.name == board_name(7) == "Quadrupel 7"
+        phone = Phone(radio.local_link)
+        await phone.connect(radio.address)
+        await until(lambda: link.is_connected)
+        assert phone.connection.att_mtu == 23
+        assert link.state is S.DISCONNECTED  # a connection alone changes nothing
+
+        # Before the handover, what the phone writes is not read.
+        await phone.write(b"\x01\x02\x03")
+        await until(lambda: link.stats.rx_bytes == 3)
+        assert parsed == []
+
+        assert link.request_start() is Nak.OK
+        assert not link.send(COMPACT)  # STARTING: telemetry stays on the cable...
+        assert link.send(HB)  # ...heartbeats also go over BLE
+        notes = await phone.next_notes(1)
+        assert Decoder().feed(b"".join(notes)) == [HB]
+
+        answer = Encoder().encode(HeartbeatAck(HB.counter, HB.board_ms))
+        await phone.write(answer)
+        await until(lambda: bool(parsed))
+        assert parsed == [answer] and link.state is S.STARTED
+
+        js = Encoder().encode(Joystick(0, 0, 0, 0, 0))
+        await phone.write(js)
+        await until(lambda: len(parsed) == 2)
+        assert parsed[1] == js
+
+        # The phone goes away: the board is told, the link is DISCONNECTED and the UART resumes.
+        await phone.connection.disconnect()
+        await until(lambda: bool(lost))
+        assert lost == [True] and link.state is S.DISCONNECTED and link.reads_uart
+        assert radio.connection is None
+    finally:
+        await radio.close()
+
+
+async def test_notifications_larger_than_a_frame_never_leave_the_radio() -> None:
+    """A long burst of frames arrives intact in notifications of at most 20 bytes."""
+    link = WirelessLink()
+    radio = await start_radio(link)
+    try:
+        phone = Phone(radio.local_link)
+        await phone.connect(radio.address)
+        await until(lambda: link.is_connected)
+        link.request_start()
+        link.ble_receive(b"\x00")
+        sent = [Compact(0, 2, i, -i, i * 2, 1100 + i) for i in range(30)] + [HB]
+        for pkt in sent:
+            link.send(pkt)
+        expected = link.stats.notifications
+        notes = await phone.next_notes(expected)
+        assert all(len(n) <= NOTIFY_PAYLOAD for n in notes)
+        assert Decoder().feed(b"".join(notes)) == sent
+    finally:
+        await radio.close()
+
+
+async def test_hci_over_tcp_reaches_the_radio_and_a_lost_host_drops_the_connection() -> None:
+    """A bumble host on the exposed HCI transport scans, connects and writes; when it goes away the board sees
+    the disconnection, as if the phone had walked out of range."""
+    from bumble.core import UUID, AdvertisingData
+    from bumble.device import Device, Peer
+    from bumble.hci import Address
+    from bumble.transport import open_transport
+
+    link = WirelessLink()
+    parsed: list[bytes] = []
+    lost: list[bool] = []
+    radio = await start_radio(
+        link, board_id=3, hci="tcp-server:127.0.0.1:0", on_data=parsed.append, on_disconnect=lost.append
+    )
+    try:
+        spec = radio.hci.client_spec
+        assert spec.startswith("tcp-client:127.0.0.1:") and radio.hci.port > 0
+        transport = await open_transport(spec)
+        host = Device.with_hci("pc", Address("C0:00:00:00:00:02"), transport.source, transport.sink)
+        await host.power_on()
+        found: asyncio.Future = asyncio.get_running_loop().create_future()
+
+        def on_adv(adv) -> None:
+            if adv.data.get(AdvertisingData.COMPLETE_LOCAL_NAME) == "Quadrupel 3" and not found.done():
+                found.set_result(adv.address)
+
+        host.on("advertisement", on_adv)
+        await host.start_scanning()
+        address = await asyncio.wait_for(found, 5.0)
+        await host.stop_scanning()
+        assert str(address) == radio.address
+        connection = await host.connect(address, timeout=5.0)
+        peer = Peer(connection)
+        await peer.discover_services([UUID(NUS_SERVICE)])
+        await peer.discover_characteristics()
+        [rx] = peer.get_characteristics_by_uuid(UUID(NUS_RX))
+        await until(lambda: link.is_connected)
+        link.request_start()
+        await peer.write_value(rx, b"\x05\x06", with_response=False)
+        await until(lambda: bool(parsed))
+        assert link.state is S.STARTED
+
+        await transport.close()  # the terminal quits without disconnecting
+        await until(lambda: bool(lost))
+        assert lost == [True] and link.state is S.DISCONNECTED
+        assert radio.hci.controller.le_connections == {}
+    finally:
+        await radio.close()
+
+
+async def test_bad_hci_spec_is_a_usage_error() -> None:
+    from fcb_sim.cli import UsageError
+
+    with pytest.raises(UsageError, match="tcp-server:HOST:PORT"):
+        await start_radio(WirelessLink(), hci="tcp-server:nowhere")
