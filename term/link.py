@@ -54,6 +54,7 @@ from term.protocol import (
 ROLE_TERMINAL = 0
 ROLE_BOARD = 1
 RTT_SAMPLES = 200  # RTT mean and p95 are over the last this many samples
+_EPS = 1e-9  # s: float slack for schedules computed by repeated addition
 HB_DELAY_WINDOW = 10.0  # s: the baseline (smallest) heartbeat delay is taken over this window
 
 
@@ -219,7 +220,8 @@ class LinkSession:
 
         self._js: Joystick | None = None
         self._js_sent: Joystick | None = None
-        self._js_last = -math.inf
+        self._js_last = -math.inf  # when the joystick was last sent
+        self._js_next = -math.inf  # the earliest time the next one may go (the rate limit)
 
         self._last_frame: float | None = None
         self._last_hb: float | None = None
@@ -293,9 +295,12 @@ class LinkSession:
         if now is not None:
             self._now = now
         cmd_id = self._alloc_id()
+        reason = self._refusal()
+        if cmd_id is None:  # 256 commands waiting: the board is not answering and retries are not over yet
+            cmd_id = self._next_id
+            reason = "too many commands waiting for the board: wait for its answers"
         pending = _Pending(cmd_id, _as_op(op), int(arg))  # type: ignore[arg-type]
         self._commands_sent += 1
-        reason = self._refusal()
         if reason is not None:
             self._failed += 1
             self._events.append(CommandFailed(cmd_id, pending.op, pending.arg, reason, None))
@@ -332,6 +337,13 @@ class LinkSession:
             parts.append(enc.encode(js))
             self._js_sent = js
             self._js_last = now
+            # Keep a steady grid when a send is a little late (a timer wakes up late), so the rate stays at
+            # joystick_rate instead of drifting down; after a longer pause start a new grid. Either way two
+            # sends are at least half an interval apart.
+            late = now - self._js_next
+            self._js_next = self._js_next + self.joystick_interval if late < self.joystick_interval / 2 else (
+                now + self.joystick_interval
+            )
         if not parts:
             return b""
         out = b"".join(parts)
@@ -421,14 +433,14 @@ class LinkSession:
     def _silence_start(self) -> float:
         return self._start if self._last_frame is None else self._last_frame
 
-    def _alloc_id(self) -> int:
+    def _alloc_id(self) -> int | None:
         busy = self._inflight.keys() | {p.cmd_id for p in self._new}
         for _ in range(256):
             cmd_id = self._next_id
             self._next_id = (self._next_id + 1) & 0xFF
             if cmd_id not in busy:
                 return cmd_id
-        raise RuntimeError("256 commands in flight: the board is not answering")  # cannot happen with timeouts
+        return None
 
     def _refusal(self) -> str | None:
         if self._mismatch is not None:
@@ -509,15 +521,15 @@ class LinkSession:
     def _joystick_due(self, now: float) -> bool:
         if self._js is None or self._mismatch is not None:
             return False
-        if now < self._js_last + self.joystick_interval:
+        if now < self._js_next - _EPS:
             return False
         if self.change_only and self._js == self._js_sent:
-            return now >= self._js_last + self.keepalive
+            return now >= self._js_last + self.keepalive - _EPS
         return True
 
     def _joystick_deadline(self) -> float | None:
         if self._js is None or self._mismatch is not None:
             return None
         if self.change_only and self._js == self._js_sent:
-            return self._js_last + self.keepalive
-        return self._js_last + self.joystick_interval
+            return max(self._js_next, self._js_last + self.keepalive)
+        return self._js_next

@@ -1,0 +1,268 @@
+"""Shared fixtures: a real pseudo-terminal pair, and a small scripted board peer speaking term.protocol.
+
+The scripted board is not the simulated board (fcb_sim.board): it is the least that exercises the link: it
+sends heartbeats, answers Hello with Hello and every Command with an Ack (or a chosen NAK), executing a retried
+command only once, and it can stream numbered filler frames so loss can be counted.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import os
+import termios
+import tty
+from collections.abc import Callable, Iterator
+
+import pytest
+
+from term.protocol import (
+    PROTOCOL_VERSION,
+    Ack,
+    Command,
+    Decoder,
+    Encoder,
+    Heartbeat,
+    HeartbeatAck,
+    Hello,
+    Joystick,
+    Nak,
+    Status,
+)
+
+# --- a real pseudo-terminal ---------------------------------------------------------------------------------
+
+
+@pytest.fixture
+def pty_pair() -> Iterator[tuple[int, str]]:
+    """A pseudo-terminal, both sides raw from the start: yields (master_fd, slave_path), closes both after.
+
+    The slave stays open here (so the master never sees a hang-up before the test opens it); pyserial opens
+    the slave path like any serial device. Close ``master_fd`` early (os.close) to simulate the board going
+    away; the fixture then skips it.
+    """
+    master, slave = os.openpty()
+    for fd in (master, slave):
+        tty.setraw(fd, termios.TCSANOW)  # raw at once: no echo, no line discipline eating bytes
+    path = os.ttyname(slave)
+    try:
+        yield master, path
+    finally:
+        for fd in (master, slave):
+            with contextlib.suppress(OSError):
+                os.close(fd)
+
+
+# --- a scripted board peer (sans-IO) ------------------------------------------------------------------------
+
+
+class ScriptedBoard:
+    """The board's side of the link, as little as tests need; time is passed in, like the session's."""
+
+    def __init__(
+        self,
+        *,
+        heartbeat_period: float | None = 0.1,
+        filler_period: float | None = None,
+        protocol: int = PROTOCOL_VERSION,
+        answer: bool = True,
+        nak: Callable[[Command], Nak] | None = None,
+        start: float = 0.0,
+    ) -> None:
+        self.encoder = Encoder()
+        self.decoder = Decoder()
+        self.heartbeat_period = heartbeat_period
+        self.filler_period = filler_period
+        self.protocol = protocol
+        self.answer = answer
+        self.nak = nak
+        self.silent = False  # stop everything outgoing (the board hangs)
+        self.received: list[object] = []
+        self.commands: list[Command] = []  # every Command frame that arrived, retries included
+        self.executed: list[Command] = []  # each command once
+        self.hb_acks: list[HeartbeatAck] = []
+        self.joysticks: list[Joystick] = []
+        self.hellos: list[Hello] = []
+        self._acks: dict[int, tuple[Command, Ack]] = {}
+        self._counter = 0
+        self._next_hb = start
+        self._next_filler = start
+        self._filler = 0
+
+    def receive(self, data: bytes, now: float) -> bytes:
+        """Bytes from the terminal; returns the board's immediate replies."""
+        out = []
+        for pkt in self.decoder.feed(data):
+            self.received.append(pkt)
+            kind = type(pkt)
+            if kind is Command:
+                self.commands.append(pkt)
+                ack = self._on_command(pkt, now)
+                if ack is not None and self.answer and not self.silent:
+                    out.append(ack)
+            elif kind is HeartbeatAck:
+                self.hb_acks.append(pkt)
+            elif kind is Joystick:
+                self.joysticks.append(pkt)
+            elif kind is Hello:
+                self.hellos.append(pkt)
+                if not self.silent:
+                    out.append(Hello(self.protocol, 1, 0, 1, 42))
+        return self.encoder.encode_many(out)
+
+    def _on_command(self, cmd: Command, now: float) -> Ack | None:
+        done = self._acks.get(cmd.cmd_id)
+        if done is not None and done[0] == cmd:
+            return done[1]  # a retry of a command already executed: answer again, do not execute again
+        status = self.nak(cmd) if self.nak is not None else Nak.OK
+        self.executed.append(cmd)
+        ack = Ack(cmd.cmd_id, cmd.op, int(status), cmd.arg * 10 if status == Nak.OK else 0)
+        self._acks[cmd.cmd_id] = (cmd, ack)
+        return ack
+
+    def tick(self, now: float) -> bytes:
+        """Periodic output due by ``now``: heartbeats and filler frames."""
+        out = []
+        if self.heartbeat_period is not None:
+            while self._next_hb <= now:
+                if not self.silent:
+                    out.append(Heartbeat(self._counter & 0xFFFF, int(self._next_hb * 1000) & 0xFFFFFFFF))
+                self._counter += 1
+                self._next_hb += self.heartbeat_period
+        if self.filler_period is not None:
+            while self._next_filler <= now:
+                if not self.silent:
+                    out.append(Status(0, self._filler & 0x7FFF, 0, 0, 0, 0, 0, 0))
+                self._filler += 1
+                self._next_filler += self.filler_period
+        return self.encoder.encode_many(out)
+
+    def next_deadline(self) -> float:
+        times = []
+        if self.heartbeat_period is not None:
+            times.append(self._next_hb)
+        if self.filler_period is not None:
+            times.append(self._next_filler)
+        return min(times, default=float("inf"))
+
+
+@pytest.fixture
+def scripted_board() -> Callable[..., ScriptedBoard]:
+    return ScriptedBoard
+
+
+# --- the scripted board on a pty master, on the asyncio loop ------------------------------------------------
+
+
+class PtyBoard:
+    """Runs a ScriptedBoard on a pty's master fd: non-blocking reads via the loop, heartbeats on a task."""
+
+    def __init__(self, master_fd: int, board: ScriptedBoard, clock: Callable[[], float]) -> None:
+        self.fd = master_fd
+        self.board = board
+        self.clock = clock
+        self.changed = asyncio.Event()  # set whenever something arrives: tests wait on conditions with it
+        self._task: asyncio.Task[None] | None = None
+        self._reading = False
+
+    async def start(self) -> None:
+        os.set_blocking(self.fd, False)
+        asyncio.get_running_loop().add_reader(self.fd, self._on_readable)
+        self._reading = True
+        self._task = asyncio.create_task(self._ticker())
+
+    def _on_readable(self) -> None:
+        try:
+            data = os.read(self.fd, 4096)
+        except BlockingIOError:
+            return
+        except OSError:  # EIO while the terminal side is not open: nothing to read
+            data = b""
+        if not data:
+            return
+        reply = self.board.receive(data, self.clock())
+        if reply:
+            self._write(reply)
+        self.changed.set()
+
+    def _write(self, data: bytes) -> None:
+        with contextlib.suppress(OSError):
+            os.write(self.fd, data)
+
+    async def _ticker(self) -> None:
+        while True:
+            out = self.board.tick(self.clock())
+            if out:
+                self._write(out)
+            await asyncio.sleep(max(0.0, self.board.next_deadline() - self.clock()))
+
+    async def wait_for(self, cond: Callable[[], bool], timeout: float = 5.0) -> None:
+        """Wait until ``cond()`` holds; fails the test after ``timeout`` seconds."""
+        async with asyncio.timeout(timeout):
+            while not cond():
+                self.changed.clear()
+                await self.changed.wait()
+
+    async def stop(self, close_fd: bool = False) -> None:
+        if self._reading:
+            asyncio.get_running_loop().remove_reader(self.fd)
+            self._reading = False
+        if self._task is not None:
+            self._task.cancel()
+            with contextlib.suppress(asyncio.CancelledError):
+                await self._task
+            self._task = None
+        if close_fd:
+            os.close(self.fd)
+
+
+# --- a discrete-event run of session + channels + board on a fake clock -------------------------------------
+
+
+class LinkSim:
+    """A LinkSession and a ScriptedBoard joined by two FaultyChannels, advanced on a fake clock.
+
+    Every step goes to the next instant anything is due (a session deadline, a board tick, a byte arriving),
+    so a run of simulated seconds costs milliseconds and is exactly repeatable.
+    """
+
+    def __init__(self, session, board: ScriptedBoard, up=None, down=None, now: float = 0.0) -> None:  # noqa: ANN001
+        from term.transports.loopback import FaultyChannel
+
+        self.session = session
+        self.board = board
+        self.up = up if up is not None else FaultyChannel()  # terminal -> board
+        self.down = down if down is not None else FaultyChannel()  # board -> terminal
+        self.now = now
+        self.events: list[object] = []
+        self.up.send(session.hello(), now)
+
+    def step(self, t: float) -> None:
+        s = self.session
+        self.now = t
+        self.events += s.poll(t)
+        self.up.send(s.data_to_send(t), t)
+        data = self.up.receive(t)
+        reply = self.board.receive(data, t) if data else b""
+        self.down.send(reply + self.board.tick(t), t)
+        data = self.down.receive(t)
+        if data:
+            self.events += s.receive(data, t)
+            self.up.send(s.data_to_send(t), t)
+
+    def run_until(self, end: float, stop: Callable[[], bool] | None = None) -> None:
+        while self.now < end:
+            if stop is not None and stop():
+                return
+            times = [self.session.next_deadline(), self.board.next_deadline(), end]
+            for ch in (self.up, self.down):
+                nxt = ch.next_arrival()
+                if nxt is not None:
+                    times.append(nxt)
+            t = min(max(x, self.now) for x in times)
+            if t <= self.now:
+                t = self.now + 1e-6  # something was already due: take it a microsecond later
+            self.step(min(t, end))
+
+    def of_type(self, kind: type) -> list:
+        return [e for e in self.events if type(e) is kind]

@@ -1,0 +1,448 @@
+"""LinkSession on a fake clock: heartbeats, commands (ACK, retry, NAK, failure), joystick policy, statistics,
+link loss and the version handshake. No I/O, no sleeps: time is a number passed in."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from term.link import (
+    CommandAcked,
+    CommandFailed,
+    LinkLost,
+    LinkRestored,
+    LinkSession,
+    PacketReceived,
+    VersionMismatch,
+)
+from term.protocol import (
+    NAK_TEXT,
+    PROTOCOL_VERSION,
+    Ack,
+    Command,
+    Decoder,
+    Encoder,
+    Heartbeat,
+    HeartbeatAck,
+    Hello,
+    Joystick,
+    Nak,
+    Op,
+    Status,
+)
+from tests.conftest import LinkSim, ScriptedBoard
+
+
+def packets(data: bytes) -> list:
+    dec = Decoder()
+    out = dec.feed(data)
+    assert dec.stats.frames_bad == 0 and dec.stats.bytes_skipped == 0
+    return out
+
+
+class Board:
+    """Just an encoder for frames the board would send."""
+
+    def __init__(self) -> None:
+        self.enc = Encoder()
+
+    def __call__(self, *pkts: object) -> bytes:
+        return self.enc.encode_many(pkts)
+
+
+def of(events: list, kind: type) -> list:
+    return [e for e in events if type(e) is kind]
+
+
+# --- handshake and heartbeats -------------------------------------------------------------------------------
+
+
+def test_hello_is_our_version() -> None:
+    s = LinkSession(0.0)
+    (hello,) = packets(s.hello())
+    assert hello == Hello(PROTOCOL_VERSION, 0, hello.major, hello.minor, 0)
+    assert s.stats.tx_bytes == s.encoder.bytes  # the Hello counted as sent
+
+
+def test_heartbeat_answered_in_the_same_step_ahead_of_everything() -> None:
+    s = LinkSession(0.0)
+    board = Board()
+    s.set_joystick(Joystick(1, 2, 3, 4, 0))
+    s.send_command(Op.MODE, 2, 0.0)
+    events = s.receive(board(Heartbeat(7, 123456)), 0.01)
+    assert of(events, PacketReceived) == [PacketReceived(Heartbeat(7, 123456))]
+    out = packets(s.data_to_send(0.01))
+    assert out[0] == HeartbeatAck(7, 123456)
+    assert [type(p) for p in out] == [HeartbeatAck, Command, Joystick]
+    assert s.data_to_send(0.01) == b""  # each thing once
+
+
+def test_every_heartbeat_in_a_chunk_gets_its_ack_in_order() -> None:
+    s = LinkSession(0.0)
+    board = Board()
+    s.receive(board(Heartbeat(1, 100), Status(0, 0, 0, 0, 0, 0, 0, 0), Heartbeat(2, 200)), 0.2)
+    assert packets(s.data_to_send(0.2)) == [HeartbeatAck(1, 100), HeartbeatAck(2, 200)]
+    st = s.stats_at(0.5)
+    assert st.heartbeats == 2 and st.since_last_heartbeat_s == pytest.approx(0.3)
+
+
+def test_a_heartbeat_split_across_reads_is_answered_when_whole() -> None:
+    s = LinkSession(0.0)
+    frame = Board()(Heartbeat(9, 900))
+    s.receive(frame[:5], 0.1)
+    assert s.data_to_send(0.1) == b""
+    s.receive(frame[5:], 0.1)
+    assert packets(s.data_to_send(0.1)) == [HeartbeatAck(9, 900)]
+
+
+# --- commands -----------------------------------------------------------------------------------------------
+
+
+def test_command_acked_with_value_and_rtt() -> None:
+    s = LinkSession(0.0)
+    board = Board()
+    cmd_id = s.send_command(Op.TRIM_LIFT, 1, 0.5)
+    assert packets(s.data_to_send(0.5)) == [Command(cmd_id, Op.TRIM_LIFT, 1)]
+    events = s.receive(board(Ack(cmd_id, Op.TRIM_LIFT, Nak.OK, 250)), 0.512)
+    assert of(events, CommandAcked) == [CommandAcked(cmd_id, Op.TRIM_LIFT, 1, 250)]
+    assert s.stats.rtt_last_ms == pytest.approx(12.0)
+    assert s.stats.commands_sent == 1 and s.stats.command_retries == 0
+
+
+def test_retried_on_timeout_then_failed_with_reason() -> None:
+    s = LinkSession(0.0, command_timeout=0.25, command_retries=3, link_timeout=10.0)
+    cmd_id = s.send_command(Op.MODE, 2, 0.0)
+    sent_at = []
+    events: list = []
+    t = 0.0
+    while t < 2.0:  # 1 ms steps: retries must come exactly at the timeouts, not earlier
+        events += s.poll(t)
+        for p in packets(s.data_to_send(t)):
+            assert p == Command(cmd_id, Op.MODE, 2)
+            sent_at.append(t)
+        t = round(t + 0.001, 6)
+    assert sent_at == pytest.approx([0.0, 0.25, 0.5, 0.75])
+    (failed,) = of(events, CommandFailed)
+    assert failed.cmd_id == cmd_id and failed.op == Op.MODE and failed.arg == 2 and failed.nak is None
+    assert "no answer from the board after 4 tries" in failed.reason
+    assert s.stats.command_retries == 3 and s.stats.commands_failed == 1
+    assert s.next_deadline() == 10.0  # only the link timeout is left
+
+
+def test_failure_time_follows_next_deadline() -> None:
+    s = LinkSession(0.0, command_timeout=0.1, command_retries=1, link_timeout=10.0)
+    s.send_command(Op.LOG_STATUS, 0, 0.0)
+    s.data_to_send(0.0)
+    assert s.next_deadline() == pytest.approx(0.1)
+    assert s.poll(0.0999) == [] and s.data_to_send(0.0999) == b""
+    assert packets(s.data_to_send(0.1))  # the retry
+    assert s.next_deadline() == pytest.approx(0.2)
+    assert of(s.poll(0.2), CommandFailed)
+
+
+def test_nak_reason_reaches_the_caller() -> None:
+    s = LinkSession(0.0)
+    board = Board()
+    cmd_id = s.send_command(Op.MODE, 4, 0.0)
+    s.data_to_send(0.0)
+    events = s.receive(board(Ack(cmd_id, Op.MODE, Nak.NOT_CALIBRATED, 0)), 0.01)
+    (failed,) = of(events, CommandFailed)
+    assert failed.nak is Nak.NOT_CALIBRATED
+    assert failed.reason == NAK_TEXT[Nak.NOT_CALIBRATED]
+    assert s.stats.commands_failed == 0  # the link delivered it: a refusal is not a link failure
+    assert s.stats.rtt_last_ms == pytest.approx(10.0)  # a NAK is a round trip too
+
+
+def test_unknown_nak_code_still_gives_a_reason() -> None:
+    s = LinkSession(0.0)
+    cmd_id = s.send_command(Op.MODE, 4, 0.0)
+    s.data_to_send(0.0)
+    (failed,) = of(s.receive(Board()(Ack(cmd_id, Op.MODE, 200, 0)), 0.01), CommandFailed)
+    assert failed.nak is None and "200" in failed.reason
+
+
+def test_late_ack_after_a_retry_is_accepted_once_and_gives_no_rtt_sample() -> None:
+    s = LinkSession(0.0, link_timeout=10.0)
+    board = Board()
+    cmd_id = s.send_command(Op.GAIN_P1, 1, 0.0)
+    s.data_to_send(0.0)
+    s.data_to_send(0.25)  # the retry
+    ack = Ack(cmd_id, Op.GAIN_P1, Nak.OK, 5)
+    assert of(s.receive(board(ack), 0.26), CommandAcked) == [CommandAcked(cmd_id, Op.GAIN_P1, 1, 5)]
+    assert of(s.receive(board(ack), 0.27), CommandAcked) == []  # the board's answer to the retry: ignored
+    assert s.stats.rtt_last_ms is None  # Karn: which attempt was answered is unknown
+    assert not of(s.poll(5.0), CommandFailed)  # answered: no retries run out later
+
+
+def test_ack_for_another_op_does_not_match() -> None:
+    s = LinkSession(0.0, link_timeout=10.0)
+    cmd_id = s.send_command(Op.MODE, 2, 0.0)
+    s.data_to_send(0.0)
+    assert not of(s.receive(Board()(Ack(cmd_id, Op.TRIM_LIFT, Nak.OK, 0)), 0.01), CommandAcked)
+
+
+def test_cmd_ids_are_distinct_while_in_flight_and_wrap() -> None:
+    s = LinkSession(0.0, link_timeout=100.0, command_timeout=50.0)
+    ids = [s.send_command(Op.TRIM_ROLL, 1, 0.0) for _ in range(300)]
+    assert len(set(ids[:256])) == 256
+    assert all(0 <= i < 256 for i in ids)
+    failed = of(s.poll(0.0), CommandFailed)  # no id left: the rest fail at once, with a reason
+    assert len(failed) == 44 and "too many commands" in failed[0].reason
+    assert len(packets(s.data_to_send(0.0))) == 256
+
+
+# --- joystick -----------------------------------------------------------------------------------------------
+
+
+def test_joystick_latest_wins_at_most_rate() -> None:
+    s = LinkSession(0.0, joystick_rate=100.0, link_timeout=100.0)
+    sent: list[tuple[float, Joystick]] = []
+    latest = None
+    for ms in range(1000):  # 1 s of 1 kHz stick updates, the session asked every ms
+        t = ms / 1000
+        latest = Joystick(ms, -ms, 0, ms % 32767, 0)
+        s.set_joystick(latest)
+        for p in packets(s.data_to_send(t)):
+            assert p == latest  # never a stale value
+            sent.append((t, p))
+    assert len(sent) == 100
+    gaps = [b[0] - a[0] for a, b in zip(sent, sent[1:], strict=False)]
+    assert min(gaps) >= 0.01 - 1e-9
+
+
+def test_joystick_rate_holds_when_the_timer_wakes_late() -> None:
+    s = LinkSession(0.0, joystick_rate=100.0, link_timeout=100.0)
+    s.set_joystick(Joystick(0, 0, 0, 0, 0))
+    t, sent = 0.0, []
+    while t < 10.0:  # a timer that wakes 0.3 ms after every deadline must not slow the stream down
+        if packets(s.data_to_send(t)):
+            sent.append(t)
+        t = s.next_deadline() + 0.0003
+    assert len(sent) == 1000
+    gaps = [b - a for a, b in zip(sent, sent[1:], strict=False)]
+    assert min(gaps) >= 0.005
+
+
+def test_joystick_not_sent_before_set_and_streams_unchanged_without_change_only() -> None:
+    s = LinkSession(0.0, joystick_rate=50.0, link_timeout=100.0)
+    assert s.data_to_send(0.0) == b""
+    s.set_joystick(Joystick(0, 0, 0, 0, 0))
+    n = sum(len(packets(s.data_to_send(ms / 1000))) for ms in range(1000))
+    assert n == 50  # the cable stream repeats the same value: it also keeps the board's link timer alive
+
+
+def test_change_only_sends_on_change_plus_keepalive() -> None:
+    s = LinkSession(0.0, joystick_rate=100.0, change_only=True, keepalive=0.5, link_timeout=100.0)
+    s.set_joystick(Joystick(0, 0, 0, 0, 0))
+    times = []
+    for ms in range(2000):
+        t = ms / 1000
+        if ms == 1234:
+            s.set_joystick(Joystick(0, 0, 0, 1000, 0))
+        if ms == 1236:  # changes again within the rate limit: held, then the latest one goes out
+            s.set_joystick(Joystick(0, 0, 0, 2000, 0))
+        for p in packets(s.data_to_send(t)):
+            times.append((ms, p.lift))
+    assert times == [(0, 0), (500, 0), (1000, 0), (1234, 1000), (1244, 2000), (1744, 2000)]
+
+
+def test_joystick_deadline_drives_the_timer() -> None:
+    s = LinkSession(0.0, joystick_rate=100.0, change_only=True, keepalive=0.5, link_timeout=100.0)
+    assert s.next_deadline() == 100.0  # only the link timeout
+    s.set_joystick(Joystick(0, 0, 0, 0, 0))
+    assert s.next_deadline() == -math.inf  # never sent: due now
+    s.data_to_send(1.0)
+    assert s.next_deadline() == pytest.approx(1.5)  # keep-alive
+    s.set_joystick(Joystick(1, 0, 0, 0, 0))
+    assert s.next_deadline() == pytest.approx(1.01)  # the change, at the rate limit
+
+
+# --- statistics ---------------------------------------------------------------------------------------------
+
+
+def test_rtt_last_mean_p95() -> None:
+    s = LinkSession(0.0, link_timeout=1000.0)
+    board = Board()
+    t = 0.0
+    for k in range(1, 21):  # RTTs of 1..20 ms
+        cmd_id = s.send_command(Op.TRIM_YAW, 1, t)
+        s.data_to_send(t)
+        s.receive(board(Ack(cmd_id, Op.TRIM_YAW, 0, 0)), t + k / 1000)
+        t += 1.0
+    st = s.stats
+    assert st.rtt_last_ms == pytest.approx(20.0)
+    assert st.rtt_mean_ms == pytest.approx(10.5)
+    assert st.rtt_p95_ms == pytest.approx(19.0)  # nearest rank: the 19th of 20
+
+
+def test_loss_from_sequence_gaps_windowed_and_total() -> None:
+    s = LinkSession(0.0, link_timeout=1000.0, stats_window=2.0)
+    board = Board()
+    for k in range(1000):  # 10 s at 100 Hz; every 10th frame lost in the first 5 s only
+        frame = board(Status(0, k, 0, 0, 0, 0, 0, 0))
+        if k < 500 and k % 10 == 5:
+            continue
+        s.receive(frame, k / 100)
+    st = s.stats_at(9.995)
+    assert st.loss_pct == 0.0  # the last 2 s were clean
+    assert st.loss_pct_total == pytest.approx(5.0)  # 50 of 1000
+    assert st.frames_ok == 950
+    s2 = LinkSession(0.0, link_timeout=1000.0, stats_window=2.0)
+    board2 = Board()
+    for k in range(400):
+        frame = board2(Status(0, k, 0, 0, 0, 0, 0, 0))
+        if k % 4 != 0:
+            s2.receive(frame, k / 100)
+    assert s2.stats_at(3.995).loss_pct == pytest.approx(25.0, abs=1.0)
+
+
+def test_corrupted_frames_are_counted_bad_and_as_loss() -> None:
+    s = LinkSession(0.0, link_timeout=1000.0)
+    board = Board()
+    data = bytearray(board(*(Status(0, k, 0, 0, 0, 0, 0, 0) for k in range(10))))
+    data[25] ^= 0x40  # inside the second frame (frames are 19 bytes)
+    s.receive(bytes(data), 0.1)
+    st = s.stats
+    assert st.frames_ok == 9 and st.frames_bad == 1 and st.loss_pct_total == pytest.approx(10.0)
+
+
+def test_bytes_per_second_each_way() -> None:
+    s = LinkSession(0.0, joystick_rate=100.0, link_timeout=1000.0, stats_window=2.0)
+    board = Board()
+    s.set_joystick(Joystick(0, 0, 0, 0, 0))
+    rx = 0
+    for ms in range(0, 4000, 10):
+        t = ms / 1000
+        frame = board(Status(0, 0, 0, 0, 0, 0, 0, 0))
+        rx += len(frame)
+        s.receive(frame, t)
+        s.data_to_send(t)
+    st = s.stats_at(3.99)
+    js_frame = len(Encoder().encode(Joystick(0, 0, 0, 0, 0)))
+    assert st.tx_bytes_per_s == pytest.approx(100 * js_frame, rel=0.02)
+    assert st.rx_bytes_per_s == pytest.approx(100 * len(frame), rel=0.02)
+    assert st.rx_bytes == rx
+
+
+def test_heartbeat_delay_is_relative_to_the_fastest() -> None:
+    s = LinkSession(0.0, link_timeout=1000.0)
+    board = Board()
+    offset = 123.0  # the board booted long before us: the offset must cancel
+    for k, extra_ms in enumerate([5, 1, 3, 40, 2]):
+        board_t = k * 0.1
+        s.receive(board(Heartbeat(k, int((board_t + offset) * 1000))), board_t + extra_ms / 1000)
+        s.data_to_send(board_t)
+    assert s.stats.heartbeat_delay_ms == pytest.approx(1.0, abs=1e-6)  # 2 ms against the best 1 ms
+    assert s.stats.rtt_last_ms is None  # heartbeats alone give no RTT
+
+
+def test_time_since_last_frame() -> None:
+    s = LinkSession(0.0)
+    assert s.stats_at(0.3).since_last_frame_s is None
+    s.receive(Board()(Status(0, 0, 0, 0, 0, 0, 0, 0)), 0.4)
+    assert s.stats_at(0.7).since_last_frame_s == pytest.approx(0.3)
+    assert s.stats_at(0.7).since_last_heartbeat_s is None
+
+
+# --- link lost and restored ---------------------------------------------------------------------------------
+
+
+def test_link_lost_after_timeout_then_restored() -> None:
+    s = LinkSession(0.0, link_timeout=1.0)
+    board = Board()
+    s.receive(board(Heartbeat(0, 0)), 0.5)
+    s.data_to_send(0.5)
+    assert s.next_deadline() == pytest.approx(1.5)
+    assert s.poll(1.49) == []
+    events = s.poll(1.5)
+    assert events == [LinkLost(pytest.approx(1.0))]
+    assert s.stats.lost and s.poll(3.0) == []  # reported once
+    events = s.receive(board(Heartbeat(1, 100)), 4.0)
+    assert events[0] == LinkRestored(pytest.approx(3.5))
+    assert not s.stats.lost
+    out = packets(s.data_to_send(4.0))
+    assert [type(p) for p in out] == [Hello, HeartbeatAck]  # handshake again: the board may have restarted
+
+
+def test_no_board_at_all_is_a_lost_link() -> None:
+    s = LinkSession(10.0, link_timeout=1.0)
+    assert s.poll(10.99) == []
+    assert of(s.poll(11.0), LinkLost)
+
+
+def test_commands_in_flight_fail_when_the_link_is_lost_and_new_ones_fail_fast() -> None:
+    s = LinkSession(0.0, link_timeout=1.0, command_timeout=0.4, command_retries=5)
+    s.receive(Board()(Heartbeat(0, 0)), 0.0)
+    a = s.send_command(Op.MODE, 2, 0.5)
+    s.data_to_send(0.5)
+    events = s.poll(1.0)
+    assert [type(e) for e in events] == [LinkLost, CommandFailed]
+    assert events[1].cmd_id == a and events[1].reason.startswith("link lost")
+    b = s.send_command(Op.MODE, 0, 1.2)
+    assert s.data_to_send(1.2) == b""  # nothing sent to a lost link
+    assert s.next_deadline() == -math.inf  # the failure is due at once
+    (failed,) = s.poll(1.2)
+    assert failed.cmd_id == b and failed.reason == "link lost: nothing from the board for 1.2 s"
+
+
+def test_silence_then_data_reports_lost_and_restored_in_order() -> None:
+    s = LinkSession(0.0, link_timeout=1.0)
+    events = s.receive(Board()(Status(0, 0, 0, 0, 0, 0, 0, 0)), 5.0)  # nobody polled in between
+    assert [type(e) for e in events] == [LinkLost, LinkRestored, PacketReceived]
+
+
+def test_sequence_jump_across_an_outage_is_not_counted_as_loss() -> None:
+    s = LinkSession(0.0, link_timeout=1.0)
+    board = Board()
+    s.receive(board(Status(0, 0, 0, 0, 0, 0, 0, 0)), 0.0)
+    for _ in range(100):
+        board(Status(0, 0, 0, 0, 0, 0, 0, 0))  # sent while the cable was out
+    s.poll(2.0)
+    s.receive(board(Status(0, 0, 0, 0, 0, 0, 0, 0)), 3.0)
+    assert s.stats.loss_pct_total == 0.0
+
+
+# --- version handshake --------------------------------------------------------------------------------------
+
+
+def test_version_mismatch_is_reported_and_stops_commands_and_sticks() -> None:
+    s = LinkSession(0.0)
+    s.set_joystick(Joystick(0, 0, 0, 0, 0))
+    waiting = s.send_command(Op.MODE, 2, 0.0)
+    events = s.receive(Board()(Hello(PROTOCOL_VERSION + 1, 1, 2, 0, 7)), 0.01)
+    assert VersionMismatch(PROTOCOL_VERSION + 1, PROTOCOL_VERSION) in events
+    (failed,) = of(events, CommandFailed)
+    assert failed.cmd_id == waiting and f"v{PROTOCOL_VERSION + 1}" in failed.reason
+    assert s.data_to_send(0.02) == b""  # neither the command nor the stick goes to a board that may misread
+    s.send_command(Op.MODE, 0, 0.03)
+    (again,) = s.poll(0.03)
+    assert "protocol" in again.reason
+    assert s.stats.board_version == PROTOCOL_VERSION + 1
+
+
+def test_matching_hello_is_quiet() -> None:
+    s = LinkSession(0.0)
+    events = s.receive(Board()(Hello(PROTOCOL_VERSION, 1, 0, 1, 7)), 0.01)
+    assert [type(e) for e in events] == [PacketReceived]
+    assert s.board_hello == Hello(PROTOCOL_VERSION, 1, 0, 1, 7)
+
+
+# --- the whole loop against a scripted board ----------------------------------------------------------------
+
+
+def test_session_against_scripted_board_keeps_the_link_and_answers_every_heartbeat() -> None:
+    s = LinkSession(0.0)
+    board = ScriptedBoard(heartbeat_period=0.1)
+    sim = LinkSim(s, board)
+    s.set_joystick(Joystick(0, 0, 0, 0, 0))
+    sim.run_until(0.5)
+    cmd = s.send_command(Op.MODE, 2, sim.now)
+    sim.run_until(9.95)
+    assert not sim.of_type(LinkLost)
+    assert board.hellos and s.board_hello is not None
+    assert [a.counter for a in board.hb_acks] == list(range(len(board.hb_acks)))
+    assert len(board.hb_acks) == 100  # heartbeats at 0.0 .. 9.9
+    assert sim.of_type(CommandAcked) == [CommandAcked(cmd, Op.MODE, 2, 20)]
+    assert 990 <= len(board.joysticks) <= 1000
+    assert s.stats.loss_pct_total == 0.0 and s.stats.frames_bad == 0
