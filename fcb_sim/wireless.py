@@ -437,9 +437,9 @@ class BoardRadio:
 
 class HciTcpServer:
     """A virtual bumble controller on ``local_link``, served as an H4 HCI transport over TCP to one host at a
-    time, like bumble's ``tcp-server`` transport but aware of the host: when the host goes away (the terminal
-    quit or crashed), its BLE connections are dropped as a real radio's supervision timeout would, so the
-    board sees the disconnection; its scanning and advertising stop."""
+    time (the latest to connect), like bumble's ``tcp-server`` transport but aware of the host: when the host
+    goes away (the terminal quit or crashed), its BLE connections are dropped as a real radio's supervision
+    timeout would, so the board sees the disconnection; its scanning and advertising stop."""
 
     def __init__(self, local_link: Any, name: str = "hci") -> None:
         from bumble.controller import Controller
@@ -471,9 +471,10 @@ class HciTcpServer:
             transport: asyncio.Transport | None = None
 
             def connection_made(self, transport: asyncio.BaseTransport) -> None:
-                if server._peer is not None:  # one host per controller
-                    transport.close()
-                    return
+                # One host per controller: a new host takes it over (the old one may not have closed yet).
+                if server._peer is not None:
+                    server._peer.close()
+                    server._detach()
                 self.transport = transport  # type: ignore[assignment]
                 server._attach(self.transport)  # type: ignore[arg-type]
 
