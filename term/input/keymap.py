@@ -1,0 +1,160 @@
+"""The pilot's key map: one table from keys to actions. It drives the app's bindings and generates the help screen.
+
+Board actions carry the protocol ``Op`` and ``arg`` they send; terminal actions (help, log download, ...) carry a
+``local`` name the app dispatches. The lab's map (DESIGN.md) comes first; the extras (height gains, log, profile,
+help) use keys the lab left free. A config file may rebind any action by name (``[keys]`` in term.toml).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass, replace
+
+from term.protocol import Mode, Op
+
+
+@dataclass(frozen=True, slots=True)
+class Action:
+    """What a key does. Exactly one of ``op`` (a board command) or ``local`` (a terminal action) is set."""
+
+    name: str  # stable id used by the config file and the command palette
+    description: str
+    group: str
+    op: Op | None = None
+    arg: int = 0
+    local: str | None = None
+
+
+@dataclass(frozen=True, slots=True)
+class KeyBinding:
+    keys: tuple[str, ...]  # Textual key names, e.g. "1", "escape", "left", "f2"
+    action: Action
+
+
+def _mode(mode: Mode, keys: tuple[str, ...], text: str) -> KeyBinding:
+    return KeyBinding(keys, Action(f"mode_{mode.name.lower()}", text, "Modes", Op.MODE, int(mode)))
+
+
+def _step(name: str, key: str, text: str, group: str, op: Op, arg: int) -> KeyBinding:
+    return KeyBinding((key,), Action(name, text, group, op, arg))
+
+
+def _local(name: str, keys: tuple[str, ...], text: str, group: str) -> KeyBinding:
+    return KeyBinding(keys, Action(name, text, group, local=name))
+
+
+DEFAULT_KEYMAP: tuple[KeyBinding, ...] = (
+    _mode(Mode.SAFE, ("0",), "SAFE: motors off"),
+    _mode(Mode.PANIC, ("1", "escape"), "PANIC: controlled descent, then SAFE"),
+    _mode(Mode.MANUAL, ("2",), "MANUAL: sticks straight to the motors"),
+    _mode(Mode.CALIBRATION, ("3",), "CALIBRATION: zero the sensors (board level, still)"),
+    _mode(Mode.YAW, ("4",), "YAW control"),
+    _mode(Mode.FULL, ("5",), "FULL control (roll, pitch, yaw)"),
+    _mode(Mode.RAW, ("6",), "RAW: unfiltered sensors, on-board filter"),
+    _mode(Mode.HEIGHT, ("7",), "HEIGHT hold"),
+    KeyBinding(("8",), Action("wireless", "WIRELESS handover to BLE (in SAFE)", "Modes", Op.WIRELESS, 1)),
+    _step("lift_up", "a", "lift up", "Trims", Op.TRIM_LIFT, +1),
+    _step("lift_down", "z", "lift down", "Trims", Op.TRIM_LIFT, -1),
+    _step("roll_up", "left", "roll up", "Trims", Op.TRIM_ROLL, +1),
+    _step("roll_down", "right", "roll down", "Trims", Op.TRIM_ROLL, -1),
+    _step("pitch_down", "up", "pitch down (nose down)", "Trims", Op.TRIM_PITCH, -1),
+    _step("pitch_up", "down", "pitch up (nose up)", "Trims", Op.TRIM_PITCH, +1),
+    _step("yaw_down", "q", "yaw down (left)", "Trims", Op.TRIM_YAW, -1),
+    _step("yaw_up", "w", "yaw up (right)", "Trims", Op.TRIM_YAW, +1),
+    _step("yaw_p_up", "u", "yaw P up", "Gains", Op.GAIN_YAW_P, +1),
+    _step("yaw_p_down", "j", "yaw P down", "Gains", Op.GAIN_YAW_P, -1),
+    _step("p1_up", "i", "roll/pitch P1 up", "Gains", Op.GAIN_P1, +1),
+    _step("p1_down", "k", "roll/pitch P1 down", "Gains", Op.GAIN_P1, -1),
+    _step("p2_up", "o", "roll/pitch P2 up", "Gains", Op.GAIN_P2, +1),
+    _step("p2_down", "l", "roll/pitch P2 down", "Gains", Op.GAIN_P2, -1),
+    _step("height_p_up", "t", "height P up", "Gains", Op.GAIN_HEIGHT_P, +1),
+    _step("height_p_down", "g", "height P down", "Gains", Op.GAIN_HEIGHT_P, -1),
+    _step("height_d_up", "y", "height D up", "Gains", Op.GAIN_HEIGHT_D, +1),
+    _step("height_d_down", "h", "height D down", "Gains", Op.GAIN_HEIGHT_D, -1),
+    KeyBinding(("f2",), Action("log_start", "log: start recording", "Log", Op.LOG_START)),
+    KeyBinding(("f3",), Action("log_stop", "log: stop recording", "Log", Op.LOG_STOP)),
+    KeyBinding(("f4",), Action("log_reset", "log: erase the flash (SAFE only)", "Log", Op.LOG_RESET)),
+    _local("log_download", ("f5",), "log: download to CSV (SAFE only)", "Log"),
+    _local("profile", ("f6",), "profile: ask the board for task timings", "Screen"),
+    _local("help", ("f1", "question_mark"), "this help", "Screen"),
+    _local("show_flight", ("f7",), "flight panel", "Screen"),
+    _local("show_plots", ("f8",), "live plots", "Screen"),
+    _local("show_profile", ("f9",), "profiling table", "Screen"),
+    _local("clear_events", ("ctrl+l",), "clear the events list", "Screen"),
+)
+
+# Keys Textual itself gives meaning to; shown in the help table, not rebound.
+APP_KEYS: tuple[tuple[str, str], ...] = (
+    ("ctrl+p", "command palette: every action by name"),
+    ("ctrl+q", "quit (the board sees the link drop and goes to PANIC if flying)"),
+)
+
+JOYSTICK_HELP: tuple[tuple[str, str], ...] = (
+    ("joystick fire", "PANIC"),
+    ("joystick axes", "0 roll, 1 pitch, 2 yaw (twist), 3 throttle (lift); trims add to them"),
+)
+
+
+class KeymapError(ValueError):
+    """A key map from the config that cannot be used; the message is one line."""
+
+
+def build_keymap(overrides: Mapping[str, Sequence[str] | str] | None = None) -> tuple[KeyBinding, ...]:
+    """The default map with ``overrides`` (action name -> key or keys) applied; refuses clashes and typos."""
+    table = list(DEFAULT_KEYMAP)
+    by_name = {b.action.name: i for i, b in enumerate(table)}
+    for name, keys in (overrides or {}).items():
+        if name not in by_name:
+            raise KeymapError(f"unknown action {name!r} in [keys]; known: {', '.join(sorted(by_name))}")
+        keys_t = (keys,) if isinstance(keys, str) else tuple(keys)
+        if not keys_t or not all(isinstance(k, str) and k for k in keys_t):
+            raise KeymapError(f"[keys] {name}: give a key name or a list of key names")
+        table[by_name[name]] = replace(table[by_name[name]], keys=keys_t)
+    seen: dict[str, str] = {}
+    for b in table:
+        for k in b.keys:
+            if k in seen:
+                raise KeymapError(f"key {k!r} is bound to both {seen[k]} and {b.action.name}")
+            seen[k] = b.action.name
+    for k, _ in APP_KEYS:
+        if k in seen:
+            raise KeymapError(f"key {k!r} is reserved ({dict(APP_KEYS)[k]})")
+    return tuple(table)
+
+
+def action_for_key(keymap: Iterable[KeyBinding], key: str) -> Action | None:
+    for b in keymap:
+        if key in b.keys:
+            return b.action
+    return None
+
+
+def action_by_name(keymap: Iterable[KeyBinding], name: str) -> Action | None:
+    for b in keymap:
+        if b.action.name == name:
+            return b.action
+    return None
+
+
+_PRETTY = {"escape": "ESC", "left": "←", "right": "→", "up": "↑", "down": "↓", "question_mark": "?"}
+
+
+def pretty_key(key: str) -> str:
+    return _PRETTY.get(key, key.upper() if key.startswith("f") and key[1:].isdigit() else key)
+
+
+def help_rows(keymap: Iterable[KeyBinding]) -> list[tuple[str, str, str]]:
+    """(group, keys, description) rows for the help screen and the user guide, in table order."""
+    rows = [(b.action.group, ", ".join(pretty_key(k) for k in b.keys), b.action.description) for b in keymap]
+    rows += [("Joystick", k, d) for k, d in JOYSTICK_HELP]
+    rows += [("App", pretty_key(k), d) for k, d in APP_KEYS]
+    return rows
+
+
+def help_markdown(keymap: Iterable[KeyBinding] = DEFAULT_KEYMAP) -> str:
+    """The key table as Markdown (docs/user-guide.md carries it; a test keeps the two in sync)."""
+    lines = ["| group | key | action |", "|---|---|---|"]
+    for group, keys, text in help_rows(keymap):
+        cell = keys.replace("|", "\\|")
+        lines.append(f"| {group} | {cell} | {text} |")
+    return "\n".join(lines)

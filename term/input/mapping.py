@@ -1,0 +1,194 @@
+"""Joystick mapping, pure logic: raw axis values (-1..1) and buttons in, a protocol ``Joystick`` packet out.
+
+No pygame here, so every rule is testable with plain numbers. The lab's stick (Logitech Extreme 3D Pro): axis 0
+roll, 1 pitch, 2 yaw (twist), 3 throttle; the fire button (0) is PANIC. Other sticks get name-matched presets
+(as MAVProxy and cfclient do), and a config file may add its own mappings, which win over the presets.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+from term.protocol import Button, Joystick
+
+FULL = 32767
+
+
+@dataclass(frozen=True, slots=True)
+class AxisMap:
+    """One logical axis from one raw axis.
+
+    ``kind`` "center": a self-centring axis, -1..1 → -32767..32767. "throttle": a lever whose whole travel is
+    lift, -1..1 → 0..32767 (with ``invert`` the lab's lever: -1 pushed forward is full lift). "half": a
+    self-centring stick used as throttle, only its upper half gives lift (pushed up, -1, is full lift).
+    """
+
+    index: int
+    invert: bool = False
+    deadzone: float = 0.05
+    kind: str = "center"
+
+    def value(self, axes: Sequence[float]) -> int:
+        raw = float(axes[self.index]) if 0 <= self.index < len(axes) else 0.0
+        raw = max(-1.0, min(1.0, -raw if self.invert else raw))
+        if self.kind == "throttle":
+            return round(_dead((raw + 1.0) / 2.0, self.deadzone) * FULL)
+        if self.kind == "half":
+            return round(_dead(max(0.0, -raw), self.deadzone) * FULL)
+        mag = _dead(abs(raw), self.deadzone)
+        return round(mag * FULL) if raw >= 0 else -round(mag * FULL)
+
+
+def _dead(x: float, dz: float) -> float:
+    """Deadzone on a magnitude 0..1, rescaled so the output still spans 0..1 without a jump at the edge."""
+    if x <= dz:
+        return 0.0
+    return min(1.0, (x - dz) / (1.0 - dz)) if dz < 1.0 else 0.0
+
+
+@dataclass(frozen=True, slots=True)
+class StickMapping:
+    name: str
+    match: tuple[str, ...]  # case-insensitive substrings of the joystick's name; empty matches nothing
+    roll: AxisMap
+    pitch: AxisMap
+    yaw: AxisMap
+    lift: AxisMap
+    fire: tuple[int, ...] = (0,)
+
+    def to_packet(self, axes: Sequence[float], buttons: Sequence[bool]) -> Joystick:
+        fire = any(0 <= b < len(buttons) and buttons[b] for b in self.fire)
+        return Joystick(
+            roll=self.roll.value(axes),
+            pitch=self.pitch.value(axes),
+            yaw=self.yaw.value(axes),
+            lift=self.lift.value(axes),
+            buttons=int(Button.FIRE) if fire else 0,
+        )
+
+
+LAB = StickMapping(
+    "lab (Logitech Extreme 3D Pro)",
+    ("extreme 3d", "logitech attack"),
+    roll=AxisMap(0),
+    pitch=AxisMap(1),
+    yaw=AxisMap(2, deadzone=0.08),
+    lift=AxisMap(3, invert=True, deadzone=0.02, kind="throttle"),
+    fire=(0,),
+)
+
+# Game pads as SDL exposes them on Linux (axes 0 LX, 1 LY, 2 LT, 3 RX, 4 RY, 5 RT); "mode 2": left stick
+# yaw and lift, right stick roll and pitch; A/cross is fire.
+_PAD = dict(
+    roll=AxisMap(3, deadzone=0.08),
+    pitch=AxisMap(4, deadzone=0.08),
+    yaw=AxisMap(0, deadzone=0.1),
+    lift=AxisMap(1, deadzone=0.05, kind="half"),
+    fire=(0,),
+)
+XBOX = StickMapping("Xbox pad (mode 2)", ("xbox", "x-box", "xinput", "microsoft x"), **_PAD)  # type: ignore[arg-type]
+PLAYSTATION = StickMapping(
+    "PlayStation pad (mode 2)", ("playstation", "dualshock", "dualsense", "ps4", "ps5", "wireless controller"),
+    **_PAD,  # type: ignore[arg-type]
+)
+
+PRESETS: tuple[StickMapping, ...] = (LAB, XBOX, PLAYSTATION)
+
+
+def choose_mapping(name: str, custom: Iterable[StickMapping] = ()) -> StickMapping:
+    """The mapping for a joystick called ``name``: a custom one that matches, else a preset, else the lab's."""
+    low = name.lower()
+    for m in (*custom, *PRESETS):
+        if any(s.lower() in low for s in m.match if s):
+            return m
+    return LAB
+
+
+class MappingError(ValueError):
+    """A joystick mapping from the config that cannot be used; the message is one line."""
+
+
+def mapping_from_dict(name: str, d: Mapping[str, Any]) -> StickMapping:
+    """A mapping from its TOML table: ``match = [...]``, ``roll = {axis = 0, invert = false, deadzone = 0.05}``,
+    ``lift = {axis = 3, invert = true, kind = "throttle"}``, ``fire = [0]``. Missing axes default to the lab's."""
+    def axis(key: str, default: AxisMap) -> AxisMap:
+        t = d.get(key)
+        if t is None:
+            return default
+        if not isinstance(t, Mapping) or not isinstance(t.get("axis", default.index), int):
+            raise MappingError(f"joystick mapping {name!r}: {key} needs {{axis = N, ...}}")
+        kind = t.get("kind", default.kind)
+        if kind not in ("center", "throttle", "half"):
+            raise MappingError(f"joystick mapping {name!r}: {key}.kind must be center, throttle or half")
+        dz = t.get("deadzone", default.deadzone)
+        if not isinstance(dz, int | float) or not 0 <= dz < 1:
+            raise MappingError(f"joystick mapping {name!r}: {key}.deadzone must be in [0, 1)")
+        return AxisMap(int(t.get("axis", default.index)), bool(t.get("invert", default.invert)), float(dz), kind)
+
+    match = d.get("match", [name])
+    fire = d.get("fire", [0])
+    if isinstance(match, str):
+        match = [match]
+    if not isinstance(fire, list) or not all(isinstance(b, int) for b in fire):
+        raise MappingError(f"joystick mapping {name!r}: fire must be a list of button numbers")
+    return StickMapping(
+        name, tuple(str(m) for m in match),
+        roll=axis("roll", LAB.roll), pitch=axis("pitch", LAB.pitch), yaw=axis("yaw", LAB.yaw),
+        lift=axis("lift", LAB.lift), fire=tuple(fire),
+    )
+
+
+NEUTRAL = Joystick(0, 0, 0, 0, 0)
+
+
+@dataclass
+class StickState:
+    """Change detection: ``update`` returns the new packet only when the mapped value changed.
+
+    Values are quantised to ``resolution`` stick units first, so sensor jitter below that is not a change.
+    """
+
+    mapping: StickMapping = LAB
+    resolution: int = 64
+    current: Joystick = NEUTRAL
+    _last_key: tuple[int, ...] = field(default=(0, 0, 0, 0, 0), repr=False)
+
+    def update(self, axes: Sequence[float], buttons: Sequence[bool]) -> Joystick | None:
+        pkt = self.mapping.to_packet(axes, buttons)
+        r = self.resolution
+        key = (pkt.roll // r, pkt.pitch // r, pkt.yaw // r, pkt.lift // r, pkt.buttons)
+        if pkt == self.current:
+            return None
+        # Within one quantum it is jitter, unless a value just reached zero or full deflection: those matter to
+        # the guards and the pilot, so they always go out.
+        if key == self._last_key and not any(
+            a != b and b in _EDGES for a, b in zip(self.current, pkt, strict=True)
+        ):
+            return None
+        self._last_key = key
+        self.current = pkt
+        return pkt
+
+    def reset(self) -> None:
+        self.current = NEUTRAL
+        self._last_key = (0, 0, 0, 0, 0)
+
+
+_EDGES = (0, FULL, -FULL)
+
+
+LIFT_ZERO = 512  # stick units: below this the throttle counts as down (the board has its own, exact guard)
+
+
+def leave_safe_refusal(current_mode: int, requested_mode: int, stick: Joystick) -> str | None:
+    """Why the terminal refuses to ask the board to leave SAFE now, or None. The board guards too; this one
+    answers at once and names the fix."""
+    from term.protocol import Mode
+
+    leaving_safe = current_mode == Mode.SAFE and requested_mode not in (Mode.SAFE, Mode.PANIC, Mode.WIRELESS)
+    if leaving_safe and stick.lift > LIFT_ZERO:
+        pct = round(100 * stick.lift / FULL)
+        return f"throttle is up ({pct} %): pull it fully down before leaving SAFE"
+    return None

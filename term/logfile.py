@@ -1,0 +1,129 @@
+"""The flash log on the PC side: reassembling a download from ``LogChunk`` packets, checking it end to end, and
+writing it as CSV. Pure (time passed in); the app feeds it packets and writes the result.
+
+A download (``Op.LOG_DOWNLOAD``, arg = first chunk) streams chunk i = bytes 12i..12i+11 of the used flash, plus
+``LogStatus`` packets that give the total ``used`` and the ``crc32`` of those bytes. Chunks may be lost on the way:
+``missing()`` names the first gap, and a new ``LOG_DOWNLOAD`` with that index resumes from it.
+
+The record format inside the bytes is the board's (``fcb_sim/flash_log.py``, documented there); the terminal
+must not import ``fcb_sim``, so ``decode_records`` follows that documented layout. Until a decoder for the
+layout is known, ``write_csv`` falls back to a hex dump of the raw bytes, one 12-byte chunk per row, so a
+download is never lost.
+"""
+
+from __future__ import annotations
+
+import csv
+import zlib
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from term.protocol import LOG_CHUNK_BYTES, LogChunk, LogStatus
+
+
+@dataclass
+class LogDownload:
+    """One download in progress. ``feed`` packets; ``done`` when every chunk up to ``used`` bytes is here."""
+
+    started: float
+    used: int | None = None  # bytes, from the first LogStatus
+    crc32: int | None = None
+    records: int | None = None
+    chunks: dict[int, bytes] = field(default_factory=dict)
+    last_progress: float = 0.0
+    bytes_received: int = 0  # including duplicates: the transfer rate counts what crossed the link
+
+    @property
+    def total_chunks(self) -> int | None:
+        if self.used is None:
+            return None
+        return (self.used + LOG_CHUNK_BYTES - 1) // LOG_CHUNK_BYTES
+
+    def feed(self, pkt: Any, now: float) -> bool:
+        """Take a LogStatus or LogChunk; returns True if it was one (and so changed the progress)."""
+        if type(pkt) is LogStatus:
+            self.used, self.crc32, self.records = pkt.used, pkt.crc32, pkt.records
+            return True
+        if type(pkt) is LogChunk:
+            self.chunks[pkt.index] = pkt.data
+            self.bytes_received += len(pkt.data)
+            self.last_progress = now
+            return True
+        return False
+
+    @property
+    def fraction(self) -> float:
+        total = self.total_chunks
+        if not total:
+            return 1.0 if total == 0 else 0.0
+        return min(1.0, sum(1 for i in self.chunks if i < total) / total)
+
+    def rate_kBps(self, now: float) -> float:
+        span = max(now - self.started, 1e-6)
+        return self.bytes_received / span / 1000.0
+
+    @property
+    def done(self) -> bool:
+        total = self.total_chunks
+        return total is not None and all(i in self.chunks for i in range(total))
+
+    def missing(self) -> int | None:
+        """The first chunk not received (where a resumed download starts), or None."""
+        total = self.total_chunks
+        if total is None:
+            return 0 if not self.chunks else None
+        for i in range(total):
+            if i not in self.chunks:
+                return i
+        return None
+
+    def data(self) -> bytes:
+        """The used bytes, padding cut off; call when ``done``."""
+        total = self.total_chunks or 0
+        raw = b"".join(self.chunks[i] for i in range(total))
+        return raw[: self.used or 0]
+
+    def verify(self) -> str | None:
+        """None if the data matches the board's CRC-32, else why not (one line)."""
+        if not self.done:
+            return f"incomplete: chunk {self.missing()} of {self.total_chunks} missing"
+        got = zlib.crc32(self.data())
+        if self.crc32 is not None and got != self.crc32:
+            return f"CRC-32 mismatch: board {self.crc32:#010x}, received {got:#010x}"
+        return None
+
+
+# --- CSV ------------------------------------------------------------------------------------------------------
+
+Decoder = Callable[[bytes], tuple[Sequence[str], Iterable[Sequence[Any]]]]
+
+
+def hex_rows(data: bytes) -> tuple[list[str], list[list[Any]]]:
+    """The fallback: raw bytes, one chunk per row (offset, hex)."""
+    rows = [[off, data[off : off + LOG_CHUNK_BYTES].hex()] for off in range(0, len(data), LOG_CHUNK_BYTES)]
+    return ["offset", "hex"], rows
+
+
+def write_csv(data: bytes, path: Path, decoder: Decoder | None = None) -> int:
+    """Write the log to ``path`` as CSV (decoded records if a decoder is given); returns the rows written."""
+    header, rows = (decoder or hex_rows)(data)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    n = 0
+    with path.open("w", newline="", encoding="utf-8") as f:
+        w = csv.writer(f)
+        w.writerow(header)
+        for row in rows:
+            w.writerow(row)
+            n += 1
+    return n
+
+
+def log_filename(stamp: str) -> str:
+    return f"quadrupel-log-{stamp}.csv"
+
+
+def decode_to_rows(data: bytes) -> tuple[list[str], list[list[Any]]]:
+    """Decoded records if the bytes hold the board's segment format, else the hex fallback."""
+    return hex_rows(data)

@@ -1,0 +1,300 @@
+"""What the screen shows, as plain data: updated from link events and packets, rendered by the widgets at a steady
+rate. No Textual here, no clock reads: every update takes ``now`` (seconds, the app's monotonic clock).
+
+``version`` increases on every change so the renderer can skip frames when nothing happened.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from dataclasses import dataclass, field
+from typing import Any
+
+from term.link import (
+    CommandAcked,
+    CommandFailed,
+    LinkLost,
+    LinkRestored,
+    LinkStats,
+    PacketReceived,
+    VersionMismatch,
+)
+from term.logfile import LogDownload
+from term.protocol import (
+    Attitude,
+    Compact,
+    Event,
+    EventCode,
+    Flag,
+    Gains,
+    Height,
+    Hello,
+    Joystick,
+    LogChunk,
+    LogState,
+    LogStatus,
+    Mode,
+    Motion,
+    Nak,
+    Op,
+    Profile,
+    Status,
+    WirelessState,
+)
+
+GYRO_LSB_PER_DPS = 16.4
+ACC_LSB_PER_G = 16384.0
+BATTERY_PANIC_V = 10.5  # the board's PANIC threshold while flying (DESIGN.md)
+BATTERY_WARN_V = 11.1  # a 3S LiPo at its nominal voltage: time to land
+BATTERY_FULL_V = 12.6
+HISTORY = 3000  # samples kept per plotted series (60 s at 50 Hz)
+
+FLIGHT_MODES = (Mode.MANUAL, Mode.YAW, Mode.FULL, Mode.RAW, Mode.HEIGHT)
+
+
+def mode_name(mode: int | None) -> str:
+    if mode is None:
+        return "—"
+    try:
+        return Mode(mode).name
+    except ValueError:
+        return f"MODE {mode}"
+
+
+def op_text(op: int, arg: int) -> str:
+    """A command in words, for the events list."""
+    try:
+        o = Op(op)
+    except ValueError:
+        return f"op {op}"
+    if o is Op.MODE:
+        return f"mode {mode_name(arg)}"
+    if o is Op.WIRELESS:
+        return "wireless handover" if arg else "wireless hand-back"
+    name = o.name.lower().replace("_", " ")
+    if o.name.startswith(("TRIM_", "GAIN_")):
+        return f"{name} {'+' if arg > 0 else ''}{arg}"
+    return name
+
+
+def event_text(code: int, arg: int) -> tuple[str, str]:
+    """(severity, text) for a board Event."""
+    try:
+        c = EventCode(code)
+    except ValueError:
+        return "warning", f"board event {code} ({arg})"
+    if c is EventCode.BOOT:
+        return "info", f"board booted (protocol v{arg})"
+    if c is EventCode.MODE_CHANGED:
+        return "info", f"mode {mode_name(arg >> 8)} → {mode_name(arg & 0xFF)}"
+    if c is EventCode.REFUSED:
+        try:
+            why = _nak_text(Nak(arg >> 8))
+        except ValueError:
+            why = f"reason {arg >> 8}"
+        return "error", f"board refused {mode_name(arg & 0xFF)}: {why}"
+    if c is EventCode.LOW_BATTERY:
+        return "error", f"LOW BATTERY {arg / 100:.2f} V"
+    if c is EventCode.LINK_TIMEOUT:
+        return "error", f"board saw link timeout ({arg} ms silent): PANIC"
+    if c is EventCode.TILT_LIMIT:
+        return "error", f"tilt limit {arg / 100:.1f}°: PANIC"
+    if c is EventCode.PANIC_DONE:
+        return "info", "panic done: motors off, SAFE"
+    if c is EventCode.CALIBRATION_DONE:
+        return "info", f"calibration done ({arg} samples)"
+    if c is EventCode.LOG_FULL:
+        return "warning", f"log flash full ({arg} bytes)"
+    if c is EventCode.LOG_DONE:
+        return "info", f"log download sent ({arg} chunks)"
+    if c is EventCode.WIRELESS_STATE:
+        try:
+            return "info", f"wireless {WirelessState(arg).name}"
+        except ValueError:
+            return "info", f"wireless state {arg}"
+    if c is EventCode.DEADLINE_MISS:
+        return "warning", f"deadline miss (period {arg} µs)"
+    if c is EventCode.SENSOR_FAULT:
+        return "error", f"sensor fault (sensor {arg})"
+    if c is EventCode.OVERFLOW:
+        return "warning", f"board receive queue overflow ({arg} bytes dropped)"
+    return "info", f"{c.name.lower()} ({arg})"
+
+
+def _nak_text(nak: Nak) -> str:
+    from term.protocol import NAK_TEXT
+
+    return NAK_TEXT.get(nak, nak.name)
+
+
+@dataclass(frozen=True, slots=True)
+class LogEntry:
+    t: float  # seconds since the terminal started
+    severity: str  # "info", "warning", "error"
+    source: str  # "board", "nak", "link", "term", "joystick"
+    text: str
+
+
+@dataclass
+class Model:
+    start: float = 0.0
+    version: int = 0
+    # board state
+    mode: int | None = None
+    attitude: Attitude | None = None
+    motion: Motion | None = None
+    height: Height | None = None
+    status: Status | None = None
+    gains: Gains | None = None
+    hello: Hello | None = None
+    board_ms: int | None = None
+    profiles: dict[int, Profile] = field(default_factory=dict)
+    log_status: LogStatus | None = None
+    # terminal state
+    stick: Joystick = field(default_factory=lambda: Joystick(0, 0, 0, 0, 0))
+    joystick_name: str | None = None
+    joystick_mapping: str = ""
+    link: LinkStats | None = None
+    link_lost: bool = False
+    link_name: str = ""
+    version_mismatch: VersionMismatch | None = None
+    download: LogDownload | None = None
+    download_note: str = ""
+    events: deque[LogEntry] = field(default_factory=lambda: deque(maxlen=500))
+    history: dict[str, deque[tuple[float, float]]] = field(default_factory=dict)
+    pending: int = 0  # commands sent and not yet answered
+
+    # --- updates ------------------------------------------------------------------------------------------
+
+    def note(self, now: float, severity: str, source: str, text: str) -> None:
+        self.events.append(LogEntry(now - self.start, severity, source, text))
+        self.version += 1
+
+    def apply(self, event: Any, now: float) -> None:
+        """One LinkEvent from the session."""
+        kind = type(event)
+        if kind is PacketReceived:
+            self.apply_packet(event.packet, now)
+            return
+        self.version += 1
+        if kind is CommandAcked:
+            self.pending = max(0, self.pending - 1)
+        elif kind is CommandFailed:
+            self.pending = max(0, self.pending - 1)
+            what = op_text(event.op, event.arg)
+            if event.nak is not None:
+                self.note(now, "error", "nak", f"NAK {what}: {event.reason}")
+            else:
+                self.note(now, "error", "link", f"{what} failed: {event.reason}")
+        elif kind is LinkLost:
+            self.link_lost = True
+            self.note(now, "error", "link", f"LINK LOST: nothing from the board for {event.silent_s:.1f} s")
+        elif kind is LinkRestored:
+            self.link_lost = False
+            self.note(now, "info", "link", f"link restored after {event.lost_for_s:.1f} s")
+        elif kind is VersionMismatch:
+            self.version_mismatch = event
+            self.note(now, "error", "link", f"board speaks protocol v{event.board_version}, terminal "
+                      f"v{event.our_version}: update one of them")
+
+    def apply_packet(self, pkt: Any, now: float) -> None:
+        kind = type(pkt)
+        t = now - self.start
+        if kind is Attitude:
+            self.attitude = pkt
+            self._set_mode(pkt.mode, now)
+            self._push(t, phi=pkt.phi / 100, theta=pkt.theta / 100, psi=pkt.psi / 100,
+                       sp=pkt.sp / GYRO_LSB_PER_DPS, sq=pkt.sq / GYRO_LSB_PER_DPS, sr=pkt.sr / GYRO_LSB_PER_DPS)
+        elif kind is Motion:
+            self.motion = pkt
+            self._push(t, ae1=pkt.ae1, ae2=pkt.ae2, ae3=pkt.ae3, ae4=pkt.ae4)
+        elif kind is Height:
+            self.height = pkt
+            self._push(t, height=pkt.height / 1000, setpoint=pkt.setpoint / 1000, vz=pkt.vz / 1000,
+                       pressure=float(pkt.pressure), battery=pkt.battery / 100)
+        elif kind is Status:
+            self.status = pkt
+        elif kind is Gains:
+            self.gains = pkt
+        elif kind is Compact:
+            self._set_mode(pkt.mode, now)
+        elif kind is Event:
+            self.board_ms = pkt.board_ms
+            severity, text = event_text(pkt.code, pkt.arg)
+            self.note(now, severity, "board", f"[{pkt.board_ms / 1000:.3f}] {text}")
+            if pkt.code == EventCode.MODE_CHANGED:
+                self._set_mode(pkt.arg & 0xFF, now)
+        elif kind is Profile:
+            self.profiles[pkt.task] = pkt
+        elif kind is Hello:
+            self.hello = pkt
+        elif kind in (LogStatus, LogChunk):
+            if kind is LogStatus:
+                self.log_status = pkt
+            if self.download is not None:
+                self.download.feed(pkt, now)
+        else:
+            return  # heartbeats and acks change nothing on screen (the link panel shows their stats)
+        self.version += 1
+
+    def _set_mode(self, mode: int, now: float) -> None:
+        self.mode = mode
+
+    def _push(self, t: float, **values: float) -> None:
+        h = self.history
+        for name, v in values.items():
+            d = h.get(name)
+            if d is None:
+                d = h[name] = deque(maxlen=HISTORY)
+            d.append((t, v))
+
+    def set_link_stats(self, stats: LinkStats, now: float) -> None:
+        prev = self.link
+        self.link = stats
+        self.link_lost = stats.lost
+        if stats.rtt_last_ms is not None and (prev is None or prev.commands_sent != stats.commands_sent
+                                              or prev.rtt_last_ms != stats.rtt_last_ms):
+            self._push(now - self.start, rtt=stats.rtt_last_ms)
+        self.version += 1
+
+    def set_stick(self, stick: Joystick) -> None:
+        if stick != self.stick:
+            self.stick = stick
+            self.version += 1
+
+    # --- derived views ------------------------------------------------------------------------------------
+
+    @property
+    def flags(self) -> Flag:
+        return Flag(self.status.flags) if self.status else Flag(0)
+
+    @property
+    def flying(self) -> bool:
+        return self.mode in FLIGHT_MODES
+
+    @property
+    def battery_v(self) -> float | None:
+        return self.height.battery / 100 if self.height else None
+
+    @property
+    def log_state(self) -> LogState | None:
+        if self.log_status is None:
+            return None
+        try:
+            return LogState(self.log_status.state)
+        except ValueError:
+            return None
+
+    def series(self, name: str, window: float, now: float) -> tuple[list[float], list[float]]:
+        """(t, values) of one plotted series over the last ``window`` seconds, t relative to now (<= 0)."""
+        d = self.history.get(name)
+        if not d:
+            return [], []
+        t_now = now - self.start
+        lo = t_now - window
+        xs, ys = [], []
+        for t, v in d:
+            if t >= lo:
+                xs.append(t - t_now)
+                ys.append(v)
+        return xs, ys

@@ -1,0 +1,53 @@
+"""Battery gauge with its thresholds: the board PANICs under 10.5 V while flying; under 11.1 V it is time to land."""
+
+from __future__ import annotations
+
+from rich.console import RenderableType
+from rich.text import Text
+
+from term.model import BATTERY_FULL_V, BATTERY_PANIC_V, BATTERY_WARN_V, Model
+from term.widgets.bars import hbar
+from term.widgets.base import ModelView
+
+LOW_END_V = 10.0
+
+
+def battery_style(volts: float) -> str:
+    if volts < BATTERY_PANIC_V:
+        return "bold red"
+    if volts < BATTERY_WARN_V:
+        return "yellow"
+    return "green"
+
+
+def threshold_ruler(width: int) -> Text:
+    """Marks under the bar where the thresholds sit."""
+    cells = [" "] * width
+    for v, mark in ((BATTERY_PANIC_V, "▲"), (BATTERY_WARN_V, "△")):
+        col = round((v - LOW_END_V) / (BATTERY_FULL_V - LOW_END_V) * width)
+        if 0 <= col < width:
+            cells[col] = mark
+    return Text("".join(cells), style="dim")
+
+
+class BatteryGauge(ModelView):
+    def render_model(self, model: Model, now: float) -> RenderableType:
+        v = model.battery_v
+        width = max(10, (self.content_size.width or 30) - 10)
+        out = Text()
+        if v is None:
+            out.append("battery  —")
+            return out
+        style = battery_style(v)
+        out.append_text(hbar(v, LOW_END_V, BATTERY_FULL_V, width, style))
+        out.append(f" {v:5.2f} V", style=style)
+        out.append("\n")
+        out.append_text(threshold_ruler(width))
+        out.append("\n")
+        if v < BATTERY_PANIC_V:
+            out.append(f"BELOW {BATTERY_PANIC_V} V: land now", style="bold red")
+        elif v < BATTERY_WARN_V:
+            out.append(f"under {BATTERY_WARN_V} V: time to land", style="yellow")
+        else:
+            out.append(f"▲ {BATTERY_PANIC_V} V panic  △ {BATTERY_WARN_V} V land", style="dim")
+        return out

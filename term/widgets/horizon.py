@@ -1,0 +1,94 @@
+"""The artificial horizon (roll and pitch) with a heading tape, drawn in half-block cells.
+
+Signs (docs/architecture.md): roll positive right side down, pitch positive nose up, yaw positive nose right. As in
+an aircraft's attitude indicator the world moves, not the aircraft: banking right tilts the horizon's right end
+up; nose up moves the horizon down.
+"""
+
+from __future__ import annotations
+
+import math
+
+from rich.console import RenderableType
+from rich.text import Text
+
+from term.model import Model
+from term.widgets.base import ModelView
+
+SKY = "rgb(40,110,200)"
+GROUND = "rgb(140,90,40)"
+PITCH_SPAN = 30.0  # degrees from the centre to the top edge
+
+
+def horizon_rows(width: int, height: int, roll_deg: float, pitch_deg: float) -> list[Text]:
+    """Rows of half-block cells: each cell's top and bottom halves are sky or ground."""
+    width, height = max(5, width), max(3, height)
+    cx = (width - 1) / 2
+    half_rows = height  # vertical resolution in half-cells, counted from the centre: ±height
+    t = math.tan(math.radians(max(-89.0, min(89.0, roll_deg))))
+    shift = pitch_deg / PITCH_SPAN * half_rows  # in half-cells; positive moves the horizon down
+    rows = []
+    for y in range(height):
+        text = Text()
+        for x in range(width):
+            dx = x - cx  # a cell is about twice as tall as wide: one column is about one half-cell
+            line = dx * t - shift  # horizon height (half-cells above centre) at this column
+            top = (height - 2 * y) - 0.5  # the centre of the cell's top half, in half-cells above centre
+            bottom = top - 1
+            text.append("▀", style=f"{SKY if top > line else GROUND} on {SKY if bottom > line else GROUND}")
+        rows.append(text)
+    # the aircraft symbol, fixed in the centre
+    mid = height // 2
+    wing = max(1, width // 6)
+    start = int(cx) - wing - 1
+    symbol = "━" * wing + " ◆ " + "━" * wing
+    rows[mid] = rows[mid][:start] + Text(symbol, style="bold yellow") + rows[mid][start + len(symbol):]
+    return rows
+
+
+def heading_tape(width: int, psi_deg: float) -> Text:
+    """A compass tape centred on the heading, 3° per column, cardinal letters and labels every 30°."""
+    width = max(11, width)
+    per_col = 3.0
+    cx = width // 2
+    cells = [" "] * width
+    for col in range(width):
+        lo = psi_deg + (col - cx - 0.5) * per_col
+        ten = math.ceil(lo / 10) * 10  # the first multiple of 10° in this column's span
+        if ten < lo + per_col:
+            cells[col] = "┃" if ten % 30 == 0 else "|"
+    out = Text("".join(cells), style="dim")
+    # labels every 30°
+    first = math.floor((psi_deg - cx * per_col) / 30) * 30
+    for deg in range(int(first), int(psi_deg + cx * per_col) + 31, 30):
+        col = round(cx + (deg - psi_deg) / per_col)
+        label = {0: "N", 90: "E", 180: "S", 270: "W"}.get(deg % 360, f"{deg % 360:03d}")
+        pos = col - len(label) // 2
+        if 0 <= pos and pos + len(label) <= width:
+            out = out[:pos] + Text(label, style="bold") + out[pos + len(label):]
+    return out
+
+
+class Horizon(ModelView):
+    def render_model(self, model: Model, now: float) -> RenderableType:
+        w = max(20, self.content_size.width or 36)
+        h = max(5, (self.content_size.height or 12) - 3)
+        a = model.attitude
+        roll = a.phi / 100 if a else 0.0
+        pitch = a.theta / 100 if a else 0.0
+        yaw = a.psi / 100 if a else 0.0
+        out = Text()
+        for row in horizon_rows(w, h, roll, pitch):
+            out.append_text(row)
+            out.append("\n")
+        out.append_text(heading_tape(w, yaw))
+        out.append("\n")
+        hdg = f"{yaw % 360:05.1f}"
+        out.append("▲ ".rjust(w // 2 - len(hdg) // 2 + 1), style="bold")
+        out.append(f"{hdg}°", style="bold")
+        out.append("\n")
+        if a is None:
+            out.append("no attitude yet", style="dim")
+        else:
+            out.append(f"roll {roll:+6.1f}°   pitch {pitch:+6.1f}°")
+        return out

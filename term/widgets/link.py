@@ -1,0 +1,46 @@
+"""The link panel: RTT, loss, bytes/s, frame errors, time since the last heartbeat, and a clear LINK LOST."""
+
+from __future__ import annotations
+
+from rich.console import RenderableType
+from rich.text import Text
+
+from term.model import Model
+from term.widgets.base import ModelView
+
+
+def _ms(v: float | None) -> str:
+    return "—" if v is None else f"{v:.1f}"
+
+
+class LinkPanel(ModelView):
+    TIME_DEPENDENT = True  # ages grow without new data
+
+    def render_model(self, model: Model, now: float) -> RenderableType:
+        s = model.link
+        out = Text()
+        if model.link_lost:
+            out.append("  L I N K   L O S T  ", style="bold blink white on red")
+            out.append("\n")
+        elif s is None or s.since_last_frame_s is None:
+            out.append("waiting for the board…", style="yellow")
+            out.append("\n")
+        else:
+            out.append("link OK", style="bold green")
+            out.append(f"  {model.link_name}\n" if model.link_name else "\n", style="dim")
+        if s is None:
+            return out
+        out.append(f"RTT  {_ms(s.rtt_last_ms)} ms  mean {_ms(s.rtt_mean_ms)}  p95 {_ms(s.rtt_p95_ms)}\n")
+        loss = "—" if s.loss_pct is None else f"{s.loss_pct:.1f}"
+        loss_style = "red" if s.loss_pct and s.loss_pct > 5 else ""
+        out.append(f"loss {loss} % (total {s.loss_pct_total:.1f} %)\n", style=loss_style)
+        out.append(f"rx {s.rx_bytes_per_s:7.0f} B/s  tx {s.tx_bytes_per_s:6.0f} B/s\n")
+        out.append(f"frames ok {s.frames_ok}  bad ", style="")
+        out.append(f"{s.frames_bad}", style="red" if s.frames_bad else "")
+        out.append(f"  retries {s.command_retries}  failed {s.commands_failed}\n")
+        hb = s.since_last_heartbeat_s
+        hb_style = "red" if hb is None or hb > 0.5 else ""
+        out.append(f"heartbeat {'—' if hb is None else f'{hb * 1000:.0f} ms ago'}", style=hb_style)
+        if s.heartbeat_delay_ms is not None:
+            out.append(f"  delay {s.heartbeat_delay_ms:.1f} ms")
+        return out

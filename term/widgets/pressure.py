@@ -1,0 +1,42 @@
+"""The pressure indicator: pressure and temperature, estimated height and its set point, vertical speed."""
+
+from __future__ import annotations
+
+from rich.console import RenderableType
+from rich.text import Text
+
+from term.model import Model
+from term.protocol import Flag, Mode
+from term.widgets.bars import cbar, hbar
+from term.widgets.base import ModelView
+
+HEIGHT_SPAN_M = 3.0
+VZ_SPAN = 2.0
+
+
+class PressureIndicator(ModelView):
+    def render_model(self, model: Model, now: float) -> RenderableType:
+        h = model.height
+        out = Text()
+        if h is None:
+            out.append("pressure  —\nheight    —\nvz        —")
+            return out
+        width = max(8, (self.content_size.width or 40) - 20)
+        height_m, sp_m, vz = h.height / 1000, h.setpoint / 1000, h.vz / 1000
+        out.append(f"pressure {h.pressure:7d} Pa  {h.temperature / 100:5.1f} °C\n")
+        out.append("height   ")
+        out.append_text(hbar(max(0.0, height_m), 0.0, HEIGHT_SPAN_M, width, "cyan"))
+        out.append(f" {height_m:+6.2f} m\n")
+        hold = model.mode == Mode.HEIGHT or bool(model.flags & Flag.HEIGHT_HOLD)
+        out.append("set pt   ")
+        if hold:
+            out.append_text(hbar(max(0.0, sp_m), 0.0, HEIGHT_SPAN_M, width, "magenta"))
+            out.append(f" {sp_m:+6.2f} m\n")
+        else:
+            out.append("(HEIGHT mode)".ljust(width)[:width], style="dim")
+            out.append(f" {sp_m:+6.2f} m\n", style="dim")
+        arrow = "↑" if vz > 0.05 else "↓" if vz < -0.05 else "·"
+        out.append("vz       ")
+        out.append_text(cbar(vz, VZ_SPAN, (width - 2) | 1, "cyan"))
+        out.append(f" {vz:+5.2f}m/s{arrow}")
+        return out
