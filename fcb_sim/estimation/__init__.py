@@ -7,7 +7,8 @@ then ``roll``, ``pitch``, ``yaw`` (rad, ZYX) and ``quaternion()`` (w, x, y, z, b
 
 The report's RAW-path filters come in float and in Q16.16 fixed point (``fixed_point=True``):
 ``complementary`` (K_gyro 0.999, as flown), ``complementary-0.9`` (Table 2), ``kalman`` ([13], Table 2),
-``kalman-cov`` (TKJ with noise covariance, Table 2). The DMP path is :mod:`.dmp`, the height estimator
+``kalman-cov`` (TKJ with noise covariance, Table 2). Beyond the report, ``qgate`` (the default, ``BEST``) is a
+quaternion filter with gyro-bias estimation and accelerometer gating, built for real data. The DMP path is :mod:`.dmp`, the height estimator
 :mod:`.height`.
 """
 
@@ -21,12 +22,14 @@ from .dmp import quaternion_to_euler
 from .height import HeightEstimator
 from .kalman import KalmanFilter, KalmanFilterQ16
 from .kalman_cov import KalmanCovFilter, KalmanCovFilterQ16
+from .qgate import QGateFilter
 
 _FLOAT: dict[str, Callable[[], AttitudeFilter]] = {
     "complementary": lambda: ComplementaryFilter(K_GYRO_FLOWN),
     "complementary-0.9": lambda: ComplementaryFilter(K_GYRO_TABLE2),
     "kalman": KalmanFilter,
     "kalman-cov": KalmanCovFilter,
+    "qgate": QGateFilter,
 }
 _FIXED: dict[str, Callable[[], AttitudeFilter]] = {
     "complementary": lambda: ComplementaryFilterQ16(K_GYRO_FLOWN),
@@ -36,13 +39,14 @@ _FIXED: dict[str, Callable[[], AttitudeFilter]] = {
 }
 
 FILTERS: tuple[str, ...] = tuple(_FLOAT)
-BEST: str = "complementary"
+BEST: str = "qgate"
 
 DESCRIPTIONS: dict[str, str] = {
     "complementary": "report eq. 1, K_gyro 0.999 (as flown)",
     "complementary-0.9": "report eq. 1, K_gyro 0.9 (Table 2)",
     "kalman": "QR Controller Theory filter [13], C1 10, C2 100 (Table 2)",
     "kalman-cov": "TKJ Kalman with noise covariance, Q_angle 0.01, Q_bias 0.001, R 1 (Table 2)",
+    "qgate": "quaternion, earth-frame accelerometer low-pass and gate, gyro bias in motion and at rest (float only)",
 }
 
 

@@ -5,7 +5,8 @@ bench-tuned value); the board flew with 0.999 (section 3.7.2) after 0.9 made it 
 accelerometer time constants of 22.5 ms (a 7.1 Hz cut-off, Table 3's 7.2 Hz) and 2.5 s.
 
 Like the firmware, the gyro's body rates drive the angles directly (the small-angle form of the Euler
-kinematics) and yaw is the integrated z rate. Beyond the report, the first sample initialises roll and pitch
+kinematics) and yaw is the integrated z rate. Fine for a quad in flight; wrong for large rotations
+(the benchmark on hand-held real data shows it). Beyond the report, the first sample initialises roll and pitch
 from the accelerometer instead of from zero (with K_gyro = 0.999 a start from zero takes 10 s to settle).
 """
 
@@ -37,9 +38,13 @@ class ComplementaryFilter(EulerFilterMixin):
         if not self._started:
             self.roll, self.pitch, self._started = roll_acc, pitch_acc, True
             return
-        k = self.k_gyro
-        self.roll = k * (self.roll + gx * dt) + (1.0 - k) * roll_acc
-        self.pitch = k * (self.pitch + gy * dt) + (1.0 - k) * pitch_acc
+        ka = 1.0 - self.k_gyro
+        # eq. 1 as "prediction + K_acce (measurement - prediction)", with the difference wrapped so a roll
+        # through ±180° does not average +179° and -179° into 0 (identical to eq. 1 otherwise).
+        roll = self.roll + gx * dt
+        self.roll = wrap_pi(roll + ka * wrap_pi(roll_acc - roll))
+        pitch = self.pitch + gy * dt
+        self.pitch = pitch + ka * (pitch_acc - pitch)
         self.yaw = wrap_pi(self.yaw + gz * dt)
 
 
@@ -51,8 +56,7 @@ class ComplementaryFilterQ16(EulerFilterMixin):
     """
 
     def __init__(self, k_gyro: float = K_GYRO_FLOWN, *, correct_atan2: bool = True) -> None:
-        self.k = fx.from_float(k_gyro)
-        self.k_acc = fx.ONE - self.k
+        self.k_acc = fx.ONE - fx.from_float(k_gyro)
         self.correct_atan2 = correct_atan2
         self.reset()
 
@@ -74,15 +78,17 @@ class ComplementaryFilterQ16(EulerFilterMixin):
 
     def update(self, gx: float, gy: float, gz: float, ax: float, ay: float, az: float, dt: float) -> None:
         f = fx.from_float
-        smul, sadd = fx.smul, fx.sadd
+        smul, sadd, ssub = fx.smul, fx.sadd, fx.ssub
         roll_acc, pitch_acc = fx.accel_roll_pitch(f(ax), f(ay), f(az), self.correct_atan2)
         if not self._started:
             self.r, self.p, self._started = roll_acc, pitch_acc, True
             return
         fdt = f(dt)
-        k, ka = self.k, self.k_acc
-        self.r = sadd(smul(k, sadd(self.r, smul(f(gx), fdt))), smul(ka, roll_acc))
-        self.p = sadd(smul(k, sadd(self.p, smul(f(gy), fdt))), smul(ka, pitch_acc))
+        ka = self.k_acc
+        r = sadd(self.r, smul(f(gx), fdt))
+        self.r = fx.wrap_pi(sadd(r, smul(ka, fx.wrap_pi(ssub(roll_acc, r)))))
+        p = sadd(self.p, smul(f(gy), fdt))
+        self.p = sadd(p, smul(ka, ssub(pitch_acc, p)))
         self.y = fx.wrap_pi(self.y + smul(f(gz), fdt))
 
 

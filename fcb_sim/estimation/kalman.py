@@ -46,8 +46,8 @@ class KalmanFilter(EulerFilterMixin):
             return
         c1, c2 = self.c1, self.c2
         phi = self.roll + (gx - self.bias_x) * dt
-        e = phi - sphi
-        self.roll = phi - e / c1
+        e = wrap_pi(phi - sphi)  # wrapped: roll may pass ±180° (identical to [13] otherwise)
+        self.roll = wrap_pi(phi - e / c1)
         self.bias_x += e / c2
         theta = self.pitch + (gy - self.bias_y) * dt
         e = theta - stheta
@@ -91,8 +91,8 @@ class KalmanFilterQ16(EulerFilterMixin):
         fdt = f(dt)
         c1, c2 = self.c1, self.c2
         phi = sadd(self.r, smul(ssub(f(gx), self.bx), fdt))
-        e = ssub(phi, sphi)
-        self.r = ssub(phi, sdiv(e, c1))
+        e = fx.wrap_pi(ssub(phi, sphi))
+        self.r = fx.wrap_pi(ssub(phi, sdiv(e, c1)))
         self.bx = sadd(self.bx, sdiv(e, c2))
         theta = sadd(self.p, smul(ssub(f(gy), self.by), fdt))
         e = ssub(theta, stheta)

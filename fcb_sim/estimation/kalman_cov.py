@@ -68,8 +68,8 @@ class KalmanCovFilter(EulerFilterMixin):
         p11 += self.q_bias * dt
         inv_s = 1.0 / (p00 + self.r_measure)
         k0, k1 = p00 * inv_s, p10 * inv_s
-        y = new_angle - s.angle
-        s.angle += k0 * y
+        y = wrap_pi(new_angle - s.angle)  # wrapped: roll may pass ±180°
+        s.angle = wrap_pi(s.angle + k0 * y)
         s.bias += k1 * y
         s.p00 = p00 - k0 * p00
         s.p01 = p01 - k0 * p01
@@ -139,8 +139,8 @@ class KalmanCovFilterQ16(EulerFilterMixin):
         p11 = sadd(p11, smul(self.q_bias, dt))
         sden = sadd(p00, self.r_measure)
         k0, k1 = sdiv(p00, sden), sdiv(p10, sden)
-        y = ssub(new_angle, s.angle)
-        s.angle = sadd(s.angle, smul(k0, y))
+        y = fx.wrap_pi(ssub(new_angle, s.angle))
+        s.angle = fx.wrap_pi(sadd(s.angle, smul(k0, y)))
         s.bias = sadd(s.bias, smul(k1, y))
         s.p00 = ssub(p00, smul(k0, p00))
         s.p01 = ssub(p01, smul(k0, p01))
