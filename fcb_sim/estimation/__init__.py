@@ -7,9 +7,9 @@ then ``roll``, ``pitch``, ``yaw`` (rad, ZYX) and ``quaternion()`` (w, x, y, z, b
 
 The report's RAW-path filters come in float and in Q16.16 fixed point (``fixed_point=True``):
 ``complementary`` (K_gyro 0.999, as flown), ``complementary-0.9`` (Table 2), ``kalman`` ([13], Table 2),
-``kalman-cov`` (TKJ with noise covariance, Table 2). Beyond the report, ``qgate`` (the default, ``BEST``) is a
-quaternion filter with gyro-bias estimation and accelerometer gating, built for real data. The DMP path is :mod:`.dmp`, the height estimator
-:mod:`.height`.
+``kalman-cov`` (TKJ with noise covariance, Table 2). Beyond the report, ``qgate`` (the default, ``BEST``)
+is a quaternion filter with gyro-bias estimation and accelerometer gating, built for real data. The DMP
+path is :mod:`.dmp`, the height estimator :mod:`.height`.
 """
 
 from __future__ import annotations
@@ -46,7 +46,8 @@ DESCRIPTIONS: dict[str, str] = {
     "complementary-0.9": "report eq. 1, K_gyro 0.9 (Table 2)",
     "kalman": "QR Controller Theory filter [13], C1 10, C2 100 (Table 2)",
     "kalman-cov": "TKJ Kalman with noise covariance, Q_angle 0.01, Q_bias 0.001, R 1 (Table 2)",
-    "qgate": "quaternion, earth-frame accelerometer low-pass and gate, gyro bias in motion and at rest (float only)",
+    "qgate": "quaternion, earth-frame accelerometer low-pass and gate, gyro bias in motion and at rest "
+    "(float only)",
 }
 
 
