@@ -117,6 +117,11 @@ class BumbleHost:
         try:
             self.transport = await open_transport(self.spec)
         except Exception as exc:
+            if self.spec.startswith(("usb", "pyusb")):
+                raise BleakError(
+                    f"cannot open the Bluetooth adapter {self.spec}: no usable USB dongle ({_reason(exc)}); plug "
+                    "one in, and on Linux detach it from the kernel's driver or give yourself access to it"
+                ) from None
             raise BleakError(f"cannot open the Bluetooth adapter {self.spec}: {_reason(exc)}") from None
         self.device = Device.with_hci(
             "Quadrupel terminal", Address.generate_static_address(), self.transport.source, self.transport.sink

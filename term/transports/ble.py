@@ -1,0 +1,205 @@
+"""A board over Bluetooth LE as a Transport, on bleak's API: the Nordic UART Service the board's nRF51 offers.
+
+- writes go to RX (6E400002) as write-without-response commands of at most 20 bytes (ATT MTU 23);
+- notifications from TX (6E400003) are the read chunks: the same stream decoder as the UART takes them, so a
+  frame spanning two notifications is no problem;
+- the platform's Bluetooth stack (BlueZ, CoreBluetooth, WinRT) by default; with ``hci`` our bleak backend on
+  bumble (``term.transports.bumble_backend``): ``tcp-client:HOST:PORT`` reaches the simulator's radio
+  (``fcb-sim serve --ble-hci tcp-server:HOST:PORT``), ``usb:0`` a USB dongle driven by bumble directly.
+
+Every failure (no adapter, no such board, not a board, a dropped connection) is one TransportError line. A
+transport that failed or was closed can be opened again: that is the reconnect path.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+from dataclasses import dataclass
+from typing import Any
+
+from term.transports.base import Transport, TransportClosed, TransportError
+
+NUS_SERVICE = "6e400001-b5a3-f393-e0a9-e50e24dcca9e"
+NUS_RX = "6e400002-b5a3-f393-e0a9-e50e24dcca9e"  # we write
+NUS_TX = "6e400003-b5a3-f393-e0a9-e50e24dcca9e"  # the board notifies
+NAME_PREFIX = "Quadrupel"
+MAX_WRITE = 20  # ATT MTU 23 minus the 3-byte ATT header: what the nRF51 takes in one write
+
+
+def _backend_kwargs(hci: str | None) -> dict[str, Any]:
+    if not hci:
+        return {}
+    from term.transports.bumble_backend import BumbleClient, BumbleScanner
+
+    return {"backend": (BumbleScanner, BumbleClient), "hci": hci}
+
+
+def _one_line(exc: BaseException) -> str:
+    text = str(exc).strip() or type(exc).__name__
+    return text.splitlines()[0]
+
+
+def _adapter_error(exc: BaseException, hci: str | None) -> TransportError:
+    """One line for a failure to reach the Bluetooth adapter at all."""
+    from bleak.exc import BleakBluetoothNotAvailableError
+
+    if hci:
+        return TransportError(f"{_one_line(exc)}: check --hci (e.g. tcp-client:127.0.0.1:9000, usb:0)")
+    if isinstance(exc, BleakBluetoothNotAvailableError):
+        return TransportError(f"Bluetooth is not available: {_one_line(exc)}; switch it on, or use --hci usb:0")
+    return TransportError(
+        f"no Bluetooth adapter reachable ({_one_line(exc)}): is bluetoothd running? "
+        "Or drive a USB dongle directly with --hci usb:0"
+    )
+
+
+class BleTransport(Transport):
+    """``BleTransport("F0:5A:00:00:00:01")`` (platform stack) or ``BleTransport(addr, hci="tcp-client:...")``."""
+
+    def __init__(self, address: str, hci: str | None = None, *, timeout: float = 10.0) -> None:
+        self.address = address
+        self.hci = hci
+        self.timeout = timeout
+        self.name = f"BLE {address}" + (f" via {hci}" if hci else "")
+        self._client: Any = None
+        self._rx: Any = None
+        self._queue: asyncio.Queue[bytes | BaseException] = asyncio.Queue()
+        self._write_lock = asyncio.Lock()
+        self._closed = True
+        self._error: TransportError | None = None
+        # counters for the pilot's link view and the benchmarks
+        self.writes = 0
+        self.bytes_written = 0
+        self.notifications = 0
+        self.bytes_read = 0
+
+    @property
+    def is_open(self) -> bool:
+        return not self._closed and self._error is None
+
+    async def open(self) -> None:
+        if self.is_open:
+            return
+        from bleak import BleakClient
+        from bleak.exc import BleakDeviceNotFoundError, BleakError
+
+        self._queue = asyncio.Queue()
+        self._error = None
+        kwargs = _backend_kwargs(self.hci)
+        if kwargs:
+            kwargs["backend"] = kwargs["backend"][1]
+        try:
+            client = BleakClient(self.address, self._on_disconnect, timeout=self.timeout, **kwargs)
+        except (BleakError, OSError, ValueError) as exc:
+            raise _adapter_error(exc, self.hci) from None
+        try:
+            await client.connect()
+        except BleakDeviceNotFoundError:
+            raise TransportError(
+                f"no board with address {self.address} found nearby: is it on and not connected to another "
+                "phone? ('term scan' lists the boards in range)"
+            ) from None
+        except TimeoutError:
+            raise TransportError(f"BLE connection to {self.address} timed out: is the board in range?") from None
+        except BleakError as exc:
+            if "adapter" in str(exc).lower() or "bluetooth" in str(exc).lower():
+                raise _adapter_error(exc, self.hci) from None
+            raise TransportError(f"cannot connect to {self.address} over BLE: {_one_line(exc)}") from None
+        except Exception as exc:  # D-Bus missing, OS errors: the stack itself is not there
+            raise _adapter_error(exc, self.hci) from None
+        try:
+            service = client.services.get_service(NUS_SERVICE)
+            rx = service.get_characteristic(NUS_RX) if service else None
+            tx = service.get_characteristic(NUS_TX) if service else None
+            if rx is None or tx is None:
+                raise TransportError(f"{self.address} is not a Quadrupel board: it has no Nordic UART Service")
+            await client.start_notify(tx, self._on_notify)
+        except BaseException as exc:
+            with contextlib.suppress(Exception):
+                await client.disconnect()
+            if isinstance(exc, TransportError | asyncio.CancelledError):
+                raise
+            raise TransportError(f"BLE link to {self.address} failed while starting: {_one_line(exc)}") from None
+        self._client = client
+        self._rx = rx
+        self._closed = False
+
+    def _on_notify(self, _characteristic: Any, data: bytearray) -> None:
+        if data:
+            self.notifications += 1
+            self.bytes_read += len(data)
+            self._queue.put_nowait(bytes(data))
+
+    def _on_disconnect(self, _client: Any) -> None:
+        if self._closed:
+            return
+        self._error = TransportError(
+            f"BLE connection to {self.address} lost: out of range or the board reset; reconnect to continue"
+        )
+        self._queue.put_nowait(self._error)
+
+    async def close(self) -> None:
+        if self._closed and self._client is None:
+            return
+        self._closed = True
+        self._queue.put_nowait(TransportClosed(f"{self.name} closed"))
+        client, self._client = self._client, None
+        if client is not None:
+            with contextlib.suppress(Exception):
+                await asyncio.wait_for(client.disconnect(), 5.0)
+
+    async def read(self) -> bytes:
+        if self._closed and self._queue.empty():
+            raise TransportClosed(f"{self.name} closed")
+        item = await self._queue.get()
+        if isinstance(item, BaseException):
+            self._queue.put_nowait(item)  # every later read fails the same way
+            raise item
+        return item
+
+    async def write(self, data: bytes) -> None:
+        if self._closed:
+            raise TransportClosed(f"{self.name} closed")
+        if self._error is not None:
+            raise self._error
+        async with self._write_lock:  # chunks of two writes never interleave: frames stay whole
+            for i in range(0, len(data), MAX_WRITE):
+                chunk = data[i : i + MAX_WRITE]
+                try:
+                    await self._client.write_gatt_char(self._rx, chunk, response=False)
+                except Exception as exc:
+                    if self._error is not None:
+                        raise self._error from None
+                    raise TransportError(f"BLE write to {self.address} failed: {_one_line(exc)}") from None
+                self.writes += 1
+                self.bytes_written += len(chunk)
+
+
+@dataclass(frozen=True, slots=True)
+class BoardInfo:
+    address: str
+    name: str
+    rssi: int
+
+
+async def scan(hci: str | None = None, timeout: float = 3.0) -> list[BoardInfo]:
+    """The boards advertising nearby (name starting with "Quadrupel"), strongest first."""
+    from bleak import BleakScanner
+    from bleak.exc import BleakError
+
+    kwargs = _backend_kwargs(hci)
+    if kwargs:
+        kwargs["backend"] = kwargs["backend"][0]
+    try:
+        found = await BleakScanner.discover(timeout, return_adv=True, **kwargs)
+    except (BleakError, OSError, ValueError) as exc:
+        raise _adapter_error(exc, hci) from None
+    except Exception as exc:
+        raise _adapter_error(exc, hci) from None
+    boards = [
+        BoardInfo(device.address, adv.local_name or device.name or "", adv.rssi)
+        for device, adv in found.values()
+        if (adv.local_name or device.name or "").startswith(NAME_PREFIX)
+    ]
+    return sorted(boards, key=lambda b: (-b.rssi, b.name))
