@@ -1,0 +1,291 @@
+"""The firmware's control step: calibrated sensor samples and sticks in, motor commands out.
+
+``FlightCore`` is sans-IO and clock-free: the caller passes samples and time steps. The board's tasks call it
+(fcb_sim/board.py); the headless scenarios call it directly (fcb_sim/scenarios.py).
+
+API for the board::
+
+    fc = FlightCore(filter_name=None, fixed_point=False)    # RAW filter: estimation.BEST unless named
+    fc.set_calibration(cal)                                  # a Calibration (means from CALIBRATION mode)
+    fc.imu_sample(gx, gy, gz, ax, ay, az, dt)                # raw int16 chip words, every IMU read (400 Hz)
+    fc.dmp_sample(w, x, y, z)                                # each new DMP quaternion (World.dmp() not None)
+    fc.baro_sample(pressure_pa, dt)                          # each barometer read, dt since the previous one
+    ae1, ae2, ae3, ae4 = fc.control(mode, roll, pitch, yaw, lift, dt)   # sticks + trims, int16 / 0..32767
+    fc.panic_scale = s                                       # PANIC: the mode machine ramps 1 -> 0 over time
+
+- ``control`` notices a mode change by itself (HEIGHT captures the height set point and the lift stick at entry;
+  PANIC restarts at full descent level); ``enter_mode(mode, lift)`` does it explicitly.
+- Per mode: SAFE, CALIBRATION, WIRELESS: motors 0. PANIC: ``panic_motors(panic_scale)``, all four at
+  ``panic_ae`` (just under hover) times the scale, levelled by the attitude loops when calibrated. MANUAL:
+  sticks straight to Z/L/M/N. YAW: MANUAL plus yaw-rate control. FULL: cascaded roll/pitch on the DMP angles,
+  yaw rate, lift from the stick. RAW: FULL on the on-board filter (``estimation.make_filter``, float or Q16.16).
+  HEIGHT: FULL plus the height PD on the height estimator, the lift stick (relative to its position at entry)
+  moving the set point at up to ``HEIGHT_STICK_RATE`` m/s.
+- Gains: ``fc.gains`` (params.Gains: yaw_p, p1, p2, height_p, height_d) may be changed at any time;
+  ``adjust_gain(name, steps)`` applies the key steps of params.GAIN_STEPS and returns the new value.
+- Outputs for telemetry: ``phi, theta, psi`` (rad, FRD, of the path the mode uses), ``sp, sq, sr`` (calibrated
+  body rates, gyro LSB), ``sax, say, saz`` (body accelerations, accel LSB, saz about -16384 at rest), ``height``
+  and ``vz`` (m, m/s, up), ``setpoint`` (m), ``ae`` (last motor commands), ``attitude_centideg()``.
+
+Chip-to-body mapping is done here, once, where samples enter (docs/architecture.md): ``p = gx, q = -gy,
+r = -gz``; the z-up estimators' angles become ``phi = roll, theta = -pitch, psi = -yaw``. control.py explains
+why this removes the sign puzzle of the report's Table 1.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from fcb_sim import control as C
+from fcb_sim import params as P
+from fcb_sim.estimation import BEST, HeightEstimator, make_filter, quaternion_to_euler
+from term.protocol import Mode
+
+HEIGHT_STICK_RATE = 0.5  # m/s of set-point change at full lift deflection away from the entry position
+HEIGHT_STICK_DEADBAND = 1500  # stick units around the entry position that leave the set point alone
+
+_SAFE, _PANIC, _MANUAL, _CAL = int(Mode.SAFE), int(Mode.PANIC), int(Mode.MANUAL), int(Mode.CALIBRATION)
+_YAW, _FULL, _RAW, _HEIGHT = int(Mode.YAW), int(Mode.FULL), int(Mode.RAW), int(Mode.HEIGHT)
+
+
+@dataclass(frozen=True)
+class Calibration:
+    """Means measured at rest in CALIBRATION mode. Gyro and accelerometer in raw chip words; ``dmp_phi`` and
+    ``dmp_theta`` the DMP's angles at rest (rad, FRD); ``pressure`` the barometer's mean (Pa)."""
+
+    gyro: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    accel: tuple[float, float, float] = (0.0, 0.0, P.ACC_LSB_PER_G)
+    dmp_phi: float = 0.0
+    dmp_theta: float = 0.0
+    pressure: float = P.P0
+
+
+class CalibrationAccumulator:
+    """Sums the samples of CALIBRATION mode (the report's 64-bit sums and a counter) and gives the means."""
+
+    def __init__(self) -> None:
+        self.g = [0, 0, 0]
+        self.a = [0, 0, 0]
+        self.n_imu = 0
+        self.dmp = [0.0, 0.0]
+        self.n_dmp = 0
+        self.pressure = 0
+        self.n_baro = 0
+
+    def add_imu(self, gx: int, gy: int, gz: int, ax: int, ay: int, az: int) -> None:
+        g, a = self.g, self.a
+        g[0] += gx
+        g[1] += gy
+        g[2] += gz
+        a[0] += ax
+        a[1] += ay
+        a[2] += az
+        self.n_imu += 1
+
+    def add_dmp(self, w: float, x: float, y: float, z: float) -> None:
+        roll, pitch, _ = quaternion_to_euler(w, x, y, z)
+        self.dmp[0] += roll
+        self.dmp[1] += -pitch
+        self.n_dmp += 1
+
+    def add_baro(self, pressure_pa: int) -> None:
+        self.pressure += pressure_pa
+        self.n_baro += 1
+
+    def result(self) -> Calibration:
+        """The means; raises ValueError when no IMU sample was collected."""
+        if self.n_imu == 0:
+            raise ValueError("no IMU samples collected")
+        n = self.n_imu
+        nd = max(1, self.n_dmp)
+        return Calibration(
+            gyro=(self.g[0] / n, self.g[1] / n, self.g[2] / n),
+            accel=(self.a[0] / n, self.a[1] / n, self.a[2] / n),
+            dmp_phi=self.dmp[0] / nd,
+            dmp_theta=self.dmp[1] / nd,
+            pressure=self.pressure / self.n_baro if self.n_baro else P.P0,
+        )
+
+
+class FlightCore:
+    """One control step per call, per mode, in the firmware's units (module docstring)."""
+
+    def __init__(self, *, gains: P.Gains | None = None, filter_name: str | None = None,
+                 fixed_point: bool = False, height_estimator: HeightEstimator | None = None) -> None:
+        self.gains = gains if gains is not None else P.Gains()
+        self.filter_name = filter_name or BEST
+        self.fixed_point = fixed_point
+        self.filter = make_filter(self.filter_name, fixed_point=fixed_point)
+        self.height_est = height_estimator if height_estimator is not None else HeightEstimator()
+        self.run_filter = True  # the RAW filter runs on every IMU sample (it must be converged on entering RAW)
+        self.run_height = True  # so does the height estimator
+        self.panic_ae = P.PANIC_AE
+        self.panic_scale = 1.0
+        self.calibration = Calibration()
+        self.calibrated = False
+        self.mode = _SAFE
+        # calibrated samples, body FRD: rates in gyro LSB, accelerations in accel LSB
+        self.sp = self.sq = self.sr = 0.0
+        self.sax = self.say = 0.0
+        self.saz = -P.ACC_LSB_PER_G
+        # attitude of both paths, rad FRD
+        self.dmp_phi = self.dmp_theta = self.dmp_psi = 0.0
+        self.raw_phi = self.raw_theta = self.raw_psi = 0.0
+        self.phi = self.theta = self.psi = 0.0
+        self._q = (1.0, 0.0, 0.0, 0.0)  # latest attitude quaternion for the height estimator (z up)
+        self._have_dmp = False
+        self.height = 0.0
+        self.vz = 0.0
+        self.setpoint = 0.0
+        self._z_base = 0.0
+        self._lift_entry = 0
+        self.ae = (0, 0, 0, 0)
+        self._g_off = (0.0, 0.0, 0.0)
+        self._a_off = (0.0, 0.0, 0.0)
+
+    # ---- configuration ---------------------------------------------------------------------------------------
+    def set_calibration(self, cal: Calibration) -> None:
+        """Apply calibration means: gyro offsets, accelerometer offsets (gravity kept on z), DMP angle offsets,
+        the pressure reference of the height estimator. Restarts the estimators."""
+        self.calibration = cal
+        self._g_off = cal.gyro
+        self._a_off = (cal.accel[0], cal.accel[1], cal.accel[2] - P.ACC_LSB_PER_G)
+        self.calibrated = True
+        self.filter.reset()
+        self.height_est.reset(cal.pressure)
+        self.height = self.vz = 0.0
+
+    def adjust_gain(self, name: str, steps: int) -> float:
+        """Change a gain by ``steps`` key presses (params.GAIN_STEPS), not below 0; returns the new value."""
+        step = P.GAIN_STEPS[name]
+        value = max(0.0, getattr(self.gains, name) + steps * step)
+        setattr(self.gains, name, value)
+        return value
+
+    def set_filter(self, name: str, *, fixed_point: bool = False) -> None:
+        """Switch the RAW-path filter (a fresh one)."""
+        self.filter = make_filter(name, fixed_point=fixed_point)
+        self.filter_name = name
+        self.fixed_point = fixed_point
+
+    # ---- samples ---------------------------------------------------------------------------------------------
+    def imu_sample(self, gx: int, gy: int, gz: int, ax: int, ay: int, az: int, dt: float) -> None:
+        """A raw MPU6050 sample (chip words) and the time since the previous one (s)."""
+        go, ao = self._g_off, self._a_off
+        cgx, cgy, cgz = gx - go[0], gy - go[1], gz - go[2]
+        cax, cay, caz = ax - ao[0], ay - ao[1], az - ao[2]
+        self.sp, self.sq, self.sr = cgx, -cgy, -cgz
+        self.sax, self.say, self.saz = cax, -cay, -caz
+        if dt <= 0.0:
+            return
+        k = 1.0 / P.RATE_LSB_PER_RAD_S
+        s = 1.0 / P.ACC_LSB_PER_MS2
+        axs, ays, azs = cax * s, cay * s, caz * s
+        if self.run_filter:
+            f = self.filter
+            f.update(cgx * k, cgy * k, cgz * k, axs, ays, azs, dt)
+            self.raw_phi, self.raw_theta, self.raw_psi = f.roll, -f.pitch, -f.yaw
+            if not self._have_dmp:
+                self._q = f.quaternion()
+        if self.run_height:
+            qw, qx, qy, qz = self._q
+            h = self.height_est
+            h.update_imu(axs, ays, azs, qw, qx, qy, qz, dt)
+            self.height, self.vz = h.height, h.vz
+
+    def dmp_sample(self, w: float, x: float, y: float, z: float) -> None:
+        """A new DMP quaternion (body-to-earth, earth z up)."""
+        roll, pitch, yaw = quaternion_to_euler(w, x, y, z)
+        cal = self.calibration
+        self.dmp_phi = roll - cal.dmp_phi
+        self.dmp_theta = -pitch - cal.dmp_theta
+        self.dmp_psi = -yaw
+        self._q = (w, x, y, z)
+        self._have_dmp = True
+
+    def baro_sample(self, pressure_pa: float, dt: float) -> None:
+        """A barometer reading (Pa) and the time since the previous one (s)."""
+        if self.run_height:
+            self.height_est.update_baro(pressure_pa, dt)
+
+    # ---- modes and control -----------------------------------------------------------------------------------
+    def enter_mode(self, mode: int, lift: int = 0) -> None:
+        """Mode entry actions of the control law (the board's mode machine decides whether it may)."""
+        mode = int(mode)
+        if mode == _HEIGHT:
+            self.setpoint = self.height
+            self._lift_entry = lift
+            self._z_base = C.lift_to_z(lift)
+        elif mode == _PANIC:
+            self.panic_scale = 1.0
+        if mode == _RAW:
+            # the DMP is off in RAW mode: the height estimator follows the on-board filter
+            self._have_dmp = False
+        self.mode = mode
+
+    def panic_motors(self, scale: float = 1.0) -> tuple[int, int, int, int]:
+        """PANIC: all motors at the descent level times ``scale`` (0..1; the board ramps it down)."""
+        level = int(self.panic_ae * max(0.0, min(1.0, scale)))
+        if self.calibrated and level > 0:
+            g = self.gains
+            phi, theta = (self.raw_phi, self.raw_theta) if self.mode == _RAW else (self.dmp_phi, self.dmp_theta)
+            a = C.ANGLE_LSB_PER_RAD
+            lm = C.cascade(0.0, phi * a, self.sp, g.p1, g.p2)
+            mm = C.cascade(0.0, theta * a, self.sq, g.p1, g.p2)
+            nm = C.yaw_rate(0.0, self.sr, g.yaw_p)
+            return C.mix(-4 * level * level, lm, mm, nm, armed=False)
+        return level, level, level, level
+
+    def control(self, mode: int, roll: int, pitch: int, yaw: int, lift: int,
+                dt: float = 0.0025) -> tuple[int, int, int, int]:
+        """The control law of ``mode`` for these sticks (trims included); returns ae1..ae4 and keeps them in
+        ``self.ae``. ``dt`` is the control period (s), used by HEIGHT's moving set point."""
+        mode = int(mode)
+        if mode != self.mode:
+            self.enter_mode(mode, lift)
+        g = self.gains
+        if mode == _FULL or mode == _HEIGHT or mode == _RAW:
+            if mode == _RAW:
+                phi, theta, psi = self.raw_phi, self.raw_theta, self.raw_psi
+            else:
+                phi, theta, psi = self.dmp_phi, self.dmp_theta, self.dmp_psi
+            self.phi, self.theta, self.psi = phi, theta, psi
+            a = C.ANGLE_LSB_PER_RAD
+            p2 = g.p2
+            p1 = g.p1
+            # cascade inlined: L = P2 (P1 (phi_sp - phi) - p)
+            lm = p2 * (p1 * ((roll >> C.STICK_ANGLE_SHIFT) - phi * a) - self.sp)
+            mm = p2 * (p1 * ((pitch >> C.STICK_ANGLE_SHIFT) - theta * a) - self.sq)
+            nm = g.yaw_p * ((yaw >> C.STICK_YAW_SHIFT) - self.sr)
+            if mode == _HEIGHT:
+                d = lift - self._lift_entry
+                if d > HEIGHT_STICK_DEADBAND or d < -HEIGHT_STICK_DEADBAND:
+                    self.setpoint += d / 32767.0 * HEIGHT_STICK_RATE * dt
+                z = C.height_pd(self._z_base, self.setpoint * 1000.0, self.height * 1000.0, self.vz * 1000.0,
+                                g.height_p, g.height_d)
+                if z > 0.0:
+                    z = 0.0
+            else:
+                z = C.lift_to_z(lift)
+            out = C.mix(z, lm, mm, nm)
+        elif mode == _MANUAL or mode == _YAW:
+            self.phi, self.theta, self.psi = self.dmp_phi, self.dmp_theta, self.dmp_psi
+            lm = roll * C.MANUAL_LM_GAIN
+            mm = pitch * C.MANUAL_LM_GAIN
+            if mode == _YAW:
+                nm = C.yaw_rate(yaw >> C.STICK_YAW_SHIFT, self.sr, g.yaw_p)
+            else:
+                nm = yaw * C.MANUAL_N_GAIN
+            out = C.mix(C.lift_to_z(lift), lm, mm, nm)
+        elif mode == _PANIC:
+            out = self.panic_motors(self.panic_scale)
+        else:  # SAFE, CALIBRATION, WIRELESS: motors off
+            out = (0, 0, 0, 0)
+        self.ae = out
+        return out
+
+    # ---- telemetry helpers -----------------------------------------------------------------------------------
+    def attitude_centideg(self) -> tuple[int, int, int]:
+        """phi, theta, psi in 0.01 deg (the Attitude packet's unit)."""
+        k = 18000.0 / 3.141592653589793
+        return round(self.phi * k), round(self.theta * k), round(self.psi * k)

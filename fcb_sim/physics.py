@@ -1,0 +1,362 @@
+"""The world the simulated board flies in: a 6-DOF quadrotor, its motors, battery, sensors and disturbances.
+
+Frames and signs follow docs/architecture.md: earth NED, body FRD, plus frame (ae1 front, ae2 right, ae3 back,
+ae4 left; motors 1 and 3 turn clockwise seen from above). Constants and their sources: params.py.
+
+Model, integrated at a fixed step (default 1 kHz, ``physics_hz`` may be raised):
+
+- motors: first-order speed response (time constant MOTOR_TAU, discretised exactly so any step is stable) towards
+  ``ae * OMEGA_PER_AE * V_loaded / V_REF``; thrust ``B_ROTOR w²`` along -z, yaw torque ``D_ROTOR w²``, so that
+  Z, L, M, N are the mixing of DESIGN.md with b = B_ROTOR (and l = ARM), d = D_ROTOR;
+- rigid body: Newton in NED and Euler's equations in FRD (with the gyroscopic term w x Iw), linear drag against
+  the air's velocity (wind), rotational drag; semi-implicit Euler (velocity, then position), quaternion attitude
+  renormalised each step. Stable at 1 kHz: the fastest mode (motor lag, 30 ms) is integrated exactly and the
+  drag time constants are seconds;
+- ground contact at h = 0: the quadrotor rests level on its feet until the thrust lifts it, lands inelastically
+  (vertical and horizontal speed to zero, levelled on its legs), and never goes below the floor;
+- 3S LiPo: resting voltage against state of charge, internal resistance (the voltage sags with the motors'
+  current, which slows the motors for the same command), charge drawn by the motors' electrical power;
+- disturbances: wind (mean plus Ornstein-Uhlenbeck gusts), pushes (a force and torque for a while), a motor stuck
+  low (its command capped).
+
+API (the seam of docs/architecture.md): ``advance_to(t)``, ``set_motors(ae1, ae2, ae3, ae4)``, ``imu()``,
+``dmp()``, ``baro()``, ``battery()``, ``truth``. All noise comes from ``World.rng``, one ``random.Random(seed)``.
+"""
+
+from __future__ import annotations
+
+import math
+import random
+from typing import NamedTuple
+
+from fcb_sim import params as P
+from fcb_sim.sensors import BatteryAdc, Dmp, Mpu6050, Ms5611, NoiseTable
+
+SLOW_EVERY = 10  # physics steps between updates of the slow parts (battery, wind, pushes)
+
+
+class Truth(NamedTuple):
+    """The true state at ``t`` (s). Position NED (m) with ``h = -d`` up; velocity NED (m/s); attitude ZYX Euler
+    angles (rad, FRD signs) and the body-to-NED quaternion; body rates (rad/s); rotor speeds (rad/s)."""
+
+    t: float
+    n: float
+    e: float
+    h: float
+    vn: float
+    ve: float
+    vd: float
+    phi: float
+    theta: float
+    psi: float
+    p: float
+    q: float
+    r: float
+    qw: float
+    qx: float
+    qy: float
+    qz: float
+    omega: tuple[float, float, float, float]
+    volts: float
+    current: float
+    soc: float
+    on_ground: bool
+
+
+def quat_to_euler(w: float, x: float, y: float, z: float) -> tuple[float, float, float]:
+    """ZYX Euler angles (phi, theta, psi) of a body-to-earth quaternion."""
+    phi = math.atan2(2.0 * (w * x + y * z), 1.0 - 2.0 * (x * x + y * y))
+    s = 2.0 * (w * y - z * x)
+    theta = math.asin(-1.0 if s < -1.0 else 1.0 if s > 1.0 else s)
+    psi = math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+    return phi, theta, psi
+
+
+def euler_to_quat(phi: float, theta: float, psi: float) -> tuple[float, float, float, float]:
+    """Body-to-earth quaternion of ZYX Euler angles."""
+    cr, sr = math.cos(phi / 2), math.sin(phi / 2)
+    cp, sp = math.cos(theta / 2), math.sin(theta / 2)
+    cy, sy = math.cos(psi / 2), math.sin(psi / 2)
+    return (cr * cp * cy + sr * sp * sy, sr * cp * cy - cr * sp * sy,
+            cr * sp * cy + sr * cp * sy, cr * cp * sy - sr * sp * cy)
+
+
+class World:
+    """The quadrotor, its sensors and its surroundings, advanced in fixed steps to the board's clock."""
+
+    def __init__(self, seed: int = 1, *, physics_hz: float = 1000.0, height: float = 0.0, airborne: bool = False,
+                 phi: float = 0.0, theta: float = 0.0, psi: float = 0.0, soc: float = P.BATTERY_SOC_START,
+                 drag: bool = True, ground: bool = True, baro_spikes: bool = True, vibration: float = 1.0,
+                 dmp_latency: float = P.DMP_LATENCY) -> None:
+        if physics_hz < 1000.0:
+            raise ValueError("physics_hz must be at least 1000")
+        self.rng = random.Random(seed)
+        self.dt = 1.0 / physics_hz
+        self.k = 0  # physics steps taken; time = k * dt
+        self.t = 0.0
+        self.ground_enabled = ground
+        self.drag_lin = P.DRAG_LINEAR if drag else 0.0
+        self.drag_xy = P.DRAG_ROT_XY if drag else 0.0
+        self.drag_z = P.DRAG_ROT_Z if drag else 0.0
+        # state
+        self.n = self.e = 0.0
+        self.d = -height
+        self.vn = self.ve = self.vd = 0.0
+        self.qw, self.qx, self.qy, self.qz = euler_to_quat(phi, theta, psi)
+        self.p = self.q = self.r = 0.0
+        self.acc_n = self.acc_e = self.acc_d = 0.0  # acceleration NED of the last step (m/s²)
+        self.on_ground = ground and height <= 0.0 and not airborne
+        if self.on_ground:
+            self.d = 0.0
+            self.qw, self.qx, self.qy, self.qz = euler_to_quat(0.0, 0.0, psi)
+        self.soc = soc
+        self.current = P.AVIONICS_CURRENT
+        self.volts = P.ocv(soc) - self.current * P.R_INTERNAL
+        self.cmd = [0, 0, 0, 0]
+        self.stuck: list[int | None] = [None, None, None, None]
+        w0 = 0.0
+        if airborne:
+            # rotors at hover speed, battery at the matching load
+            w0 = P.OMEGA_HOVER
+            self.current = 4.0 * P.POWER_COEF * w0**3 / self.volts + P.AVIONICS_CURRENT
+            self.volts = P.ocv(soc) - self.current * P.R_INTERNAL
+            self.cmd = [round(w0 / (P.OMEGA_PER_AE * self.volts / P.V_REF))] * 4
+        self.w1 = self.w2 = self.w3 = self.w4 = w0
+        self.landings: list[tuple[float, float]] = []  # (time, vertical impact speed m/s)
+        # disturbances
+        self.wind_mean = (0.0, 0.0, 0.0)
+        self.gust_std = 0.0
+        self.gust_tau = 1.0
+        self.gust = [0.0, 0.0, 0.0]
+        self.pushes: list[tuple[float, float, tuple[float, ...]]] = []
+        self.ext = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)  # force NED (N), torque body (N m) now acting
+        # sensors, all drawing from self.rng
+        self.noise = NoiseTable(self.rng)
+        self.mpu = Mpu6050(self.rng, self.noise, vibration=vibration)
+        self.dmp_model = Dmp(self.rng, self.noise, latency=dmp_latency)
+        self.baro_model = Ms5611(self.rng, self.noise, spikes=baro_spikes)
+        self.adc = BatteryAdc(self.noise)
+        self._dmp_every = max(1, round(physics_hz / P.DMP_RATE_HZ))
+        self._alpha = 1.0 - math.exp(-self.dt / P.MOTOR_TAU)
+        self._targets = [0.0, 0.0, 0.0, 0.0]
+        self._update_targets()
+        self.dmp_model.sample(0.0, self.qw, self.qx, self.qy, self.qz)
+
+    # ---- commands and disturbances ---------------------------------------------------------------------------
+    def set_motors(self, ae1: int, ae2: int, ae3: int, ae4: int) -> None:
+        """Motor commands 0..1000 (clamped), as the firmware writes them."""
+        c = self.cmd
+        for i, v in enumerate((ae1, ae2, ae3, ae4)):
+            v = 0 if v < 0 else P.AE_MAX if v > P.AE_MAX else v
+            s = self.stuck[i]
+            c[i] = v if s is None or v < s else s
+        self._update_targets()
+
+    def stick_motor(self, index: int, level: int | None) -> None:
+        """Motor ``index`` (1..4) can no longer exceed ``level`` (a failing ESC or motor); None frees it."""
+        self.stuck[index - 1] = level
+        self.set_motors(*self.cmd)
+
+    def set_wind(self, n: float = 0.0, e: float = 0.0, d: float = 0.0, *, gust_std: float = 0.0,
+                 gust_tau: float = 1.0) -> None:
+        """Mean wind (NED, m/s) plus gusts: each axis an Ornstein-Uhlenbeck process of std ``gust_std`` m/s
+        and correlation time ``gust_tau`` s."""
+        self.wind_mean = (n, e, d)
+        self.gust_std = gust_std
+        self.gust_tau = gust_tau
+
+    def push(self, fn: float = 0.0, fe: float = 0.0, fd: float = 0.0, duration: float = 0.1, *,
+             tx: float = 0.0, ty: float = 0.0, tz: float = 0.0, start: float | None = None) -> None:
+        """Apply a force (NED, N) and a torque (body, N m) from ``start`` (default now) for ``duration`` s."""
+        t0 = self.t if start is None else start
+        self.pushes.append((t0, t0 + duration, (fn, fe, fd, tx, ty, tz)))
+
+    # ---- sensors ---------------------------------------------------------------------------------------------
+    def imu(self) -> tuple[int, int, int, int, int, int]:
+        """MPU6050 raw words (gx, gy, gz, ax, ay, az), chip frame, at the current time."""
+        fx, fy, fz = self._specific_force()
+        w2 = (self.w1 * self.w1 + self.w2 * self.w2 + self.w3 * self.w3 + self.w4 * self.w4) * 0.25
+        return self.mpu.read(self.t, self.p, self.q, self.r, fx, fy, fz, w2 / (P.OMEGA_HOVER * P.OMEGA_HOVER))
+
+    def dmp(self) -> tuple[float, float, float, float] | None:
+        """The DMP's newest quaternion (w, x, y, z), body-to-earth with earth z up, or None if none is new."""
+        return self.dmp_model.read(self.t)
+
+    def baro(self) -> tuple[int, int]:
+        """MS5611: (pressure Pa, temperature 0.01 degC)."""
+        return self.baro_model.read(self.t, -self.d)
+
+    def battery(self) -> int:
+        """Pack voltage in 10 mV units."""
+        return self.adc.read(self.volts)
+
+    @property
+    def truth(self) -> Truth:
+        phi, theta, psi = quat_to_euler(self.qw, self.qx, self.qy, self.qz)
+        return Truth(self.t, self.n, self.e, -self.d, self.vn, self.ve, self.vd, phi, theta, psi,
+                     self.p, self.q, self.r, self.qw, self.qx, self.qy, self.qz,
+                     (self.w1, self.w2, self.w3, self.w4), self.volts, self.current, self.soc, self.on_ground)
+
+    def energy(self) -> float:
+        """Kinetic plus potential energy (J), for checks of the integrator."""
+        v2 = self.vn * self.vn + self.ve * self.ve + self.vd * self.vd
+        rot = P.IXX * self.p * self.p + P.IYY * self.q * self.q + P.IZZ * self.r * self.r
+        return 0.5 * P.MASS * v2 + 0.5 * rot - P.MASS * P.G * (-self.d)
+
+    def _specific_force(self) -> tuple[float, float, float]:
+        # f = R^T (a - g), body FRD
+        w, x, y, z = self.qw, self.qx, self.qy, self.qz
+        an, ae, ad = self.acc_n, self.acc_e, self.acc_d - P.G
+        fx = (1 - 2 * (y * y + z * z)) * an + 2 * (x * y + w * z) * ae + 2 * (x * z - w * y) * ad
+        fy = 2 * (x * y - w * z) * an + (1 - 2 * (x * x + z * z)) * ae + 2 * (y * z + w * x) * ad
+        fz = 2 * (x * z + w * y) * an + 2 * (y * z - w * x) * ae + (1 - 2 * (x * x + y * y)) * ad
+        return fx, fy, fz
+
+    # ---- integration -----------------------------------------------------------------------------------------
+    def _update_targets(self) -> None:
+        k = P.OMEGA_PER_AE * self.volts / P.V_REF
+        c = self.cmd
+        self._targets = [c[0] * k, c[1] * k, c[2] * k, c[3] * k]
+
+    def _slow(self, dt: float) -> None:
+        """Battery, wind and pushes, every SLOW_EVERY steps."""
+        w1, w2, w3, w4 = self.w1, self.w2, self.w3, self.w4
+        power = P.POWER_COEF * (w1 * w1 * w1 + w2 * w2 * w2 + w3 * w3 * w3 + w4 * w4 * w4)
+        self.current = power / max(self.volts, 1.0) + P.AVIONICS_CURRENT
+        self.soc = max(0.0, self.soc - self.current * dt / (3600.0 * P.CAPACITY_AH))
+        self.volts = max(0.0, P.ocv(self.soc) - self.current * P.R_INTERNAL)
+        self._update_targets()
+        if self.gust_std > 0.0:
+            nt = self.noise
+            i = nt.take(3)
+            a = dt / self.gust_tau
+            s = self.gust_std * math.sqrt(2.0 * a)
+            g = self.gust
+            for j in range(3):
+                g[j] += -g[j] * a + s * nt.tab[i + j]
+        if self.pushes:
+            t = self.t
+            tot = [0.0] * 6
+            keep = []
+            for t0, t1, f in self.pushes:
+                if t < t1:
+                    keep.append((t0, t1, f))
+                    if t >= t0:
+                        for j in range(6):
+                            tot[j] += f[j]
+            self.pushes = keep
+            self.ext = tuple(tot)
+        elif self.ext != (0.0, 0.0, 0.0, 0.0, 0.0, 0.0):
+            self.ext = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+
+    def advance_to(self, t: float) -> None:
+        """Integrate in fixed steps up to time ``t`` (s); a time in the past does nothing."""
+        dt = self.dt
+        k_end = int(t / dt + 1e-9)
+        k = self.k
+        if k_end <= k:
+            return
+        # locals: CPython is much faster with them than with attribute access in the hot loop
+        n, e, d = self.n, self.e, self.d
+        vn, ve, vd = self.vn, self.ve, self.vd
+        qw, qx, qy, qz = self.qw, self.qx, self.qy, self.qz
+        p, q, r = self.p, self.q, self.r
+        w1, w2, w3, w4 = self.w1, self.w2, self.w3, self.w4
+        an = ae = ad = 0.0
+        on_ground = self.on_ground
+        ground = self.ground_enabled
+        alpha = self._alpha
+        c1, c2, c3, c4 = self._targets
+        kb, lkb, kdr = P.B_ROTOR, P.B_ROTOR * P.ARM, P.D_ROTOR
+        klin, kxy, kz = self.drag_lin, self.drag_xy, self.drag_z
+        inv_m = 1.0 / P.MASS
+        g = P.G
+        ixx, iyy, izz = P.IXX, P.IYY, P.IZZ
+        iyz, izx, ixy = (izz - iyy), (ixx - izz), (iyy - ixx)
+        hdt = 0.5 * dt
+        wmn, wme, wmd = self.wind_mean
+        gu = self.gust
+        wn, we, wd = wmn + gu[0], wme + gu[1], wmd + gu[2]
+        fxn, fxe, fxd, txb, tyb, tzb = self.ext
+        dmp_every = self._dmp_every
+        next_dmp = (k // dmp_every + 1) * dmp_every
+        next_slow = (k // SLOW_EVERY + 1) * SLOW_EVERY
+        next_evt = next_dmp if next_dmp < next_slow else next_slow
+        while k < k_end:
+            k += 1
+            # motors: exact first-order response
+            w1 += (c1 - w1) * alpha
+            w2 += (c2 - w2) * alpha
+            w3 += (c3 - w3) * alpha
+            w4 += (c4 - w4) * alpha
+            s1, s2, s3, s4 = w1 * w1, w2 * w2, w3 * w3, w4 * w4
+            thrust = kb * (s1 + s2 + s3 + s4)
+            # translational: thrust along body -z, rotated to NED
+            r02 = 2.0 * (qx * qz + qw * qy)
+            r12 = 2.0 * (qy * qz - qw * qx)
+            r22 = 1.0 - 2.0 * (qx * qx + qy * qy)
+            an = (-thrust * r02 - klin * (vn - wn) + fxn) * inv_m
+            ae = (-thrust * r12 - klin * (ve - we) + fxe) * inv_m
+            ad = (-thrust * r22 - klin * (vd - wd) + fxd) * inv_m + g
+            if on_ground and ad >= 0.0:
+                an = ae = ad = 0.0  # resting on the feet: the floor carries what the rotors do not
+            else:
+                on_ground = False  # (take-off when the thrust beats the weight)
+                vn += an * dt
+                ve += ae * dt
+                vd += ad * dt
+                n += vn * dt
+                e += ve * dt
+                d += vd * dt
+                # rotational: Euler's equations in the body frame
+                mx = lkb * (s4 - s2) - kxy * p + txb
+                my = lkb * (s1 - s3) - kxy * q + tyb
+                mz = kdr * (s2 + s4 - s1 - s3) - kz * r + tzb
+                p += (mx - iyz * q * r) / ixx * dt
+                q += (my - izx * r * p) / iyy * dt
+                r += (mz - ixy * p * q) / izz * dt
+                hp, hq, hr = p * hdt, q * hdt, r * hdt
+                qw, qx, qy, qz = (qw - qx * hp - qy * hq - qz * hr, qx + qw * hp + qy * hr - qz * hq,
+                                  qy + qw * hq + qz * hp - qx * hr, qz + qw * hr + qx * hq - qy * hp)
+                inv = 1.0 / math.sqrt(qw * qw + qx * qx + qy * qy + qz * qz)
+                qw *= inv
+                qx *= inv
+                qy *= inv
+                qz *= inv
+                if ground and d > 0.0:
+                    # touch-down: inelastic, levelled on the legs, yaw kept
+                    self.landings.append((k * dt, vd))
+                    d = 0.0
+                    vn = ve = vd = 0.0
+                    an = ae = ad = 0.0
+                    p = q = r = 0.0
+                    psi = math.atan2(2.0 * (qw * qz + qx * qy), 1.0 - 2.0 * (qy * qy + qz * qz))
+                    qw, qx, qy, qz = math.cos(psi / 2), 0.0, 0.0, math.sin(psi / 2)
+                    on_ground = True
+            if k == next_evt:
+                self.n, self.e, self.d = n, e, d
+                self.vn, self.ve, self.vd = vn, ve, vd
+                self.qw, self.qx, self.qy, self.qz = qw, qx, qy, qz
+                self.p, self.q, self.r = p, q, r
+                self.w1, self.w2, self.w3, self.w4 = w1, w2, w3, w4
+                self.k = k
+                self.t = k * dt
+                if k == next_dmp:
+                    self.dmp_model.sample(k * dt, qw, qx, qy, qz)
+                    next_dmp += dmp_every
+                if k == next_slow:
+                    self._slow(SLOW_EVERY * dt)
+                    c1, c2, c3, c4 = self._targets
+                    wn, we, wd = wmn + gu[0], wme + gu[1], wmd + gu[2]
+                    fxn, fxe, fxd, txb, tyb, tzb = self.ext
+                    next_slow += SLOW_EVERY
+                next_evt = next_dmp if next_dmp < next_slow else next_slow
+        self.n, self.e, self.d = n, e, d
+        self.vn, self.ve, self.vd = vn, ve, vd
+        self.qw, self.qx, self.qy, self.qz = qw, qx, qy, qz
+        self.p, self.q, self.r = p, q, r
+        self.w1, self.w2, self.w3, self.w4 = w1, w2, w3, w4
+        self.acc_n, self.acc_e, self.acc_d = an, ae, ad
+        self.on_ground = on_ground
+        self.k = k
+        self.t = k * dt

@@ -1,0 +1,370 @@
+"""Headless scripted flights: ``fcb-sim run --scenario NAME --duration S [--seed N] [--json]``.
+
+Every scenario flies the same firmware path as the board: the World (physics at 1 kHz and the sensors) and the
+FlightCore at 400 Hz (IMU every tick, DMP at 100 Hz, barometer at 20 Hz as the report's ADC+Baro task), with a
+scripted pilot. The common prologue: 1 s of CALIBRATION on the floor, then the flight mode, and a pilot who knows
+the hover stick takes off to 1 m (lift stick on the true height, as a pilot's eyes would) by t = 5 s. The
+scenario's action starts at t = 6 s; metrics cover t >= 6 s (``measure_from``).
+
+Metrics: ``attitude_rms_deg``/``attitude_max_deg``: the true tilt error (roll and pitch against the commanded
+angles, combined); ``height_rms_m``: true height against the held height (the pilot's 1 m, or HEIGHT's set point);
+``settle_time_s``: from the step or push until the response stays within its band (10 % of a step, 1 deg after a
+push); plus what a scenario adds. ``realtime_factor`` is simulated seconds per wall second.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+from fcb_sim import control as C
+from fcb_sim import params as P
+from fcb_sim.cli import UsageError
+from fcb_sim.flight import CalibrationAccumulator, FlightCore
+from fcb_sim.physics import World
+from term.protocol import Mode
+
+CONTROL_HZ = 400.0
+BARO_EVERY = 20  # control ticks per barometer read (20 Hz)
+CALIBRATE_UNTIL = 1.0
+TAKEOFF_HEIGHT = 1.0
+ACTION_AT = 6.0
+MIN_DURATION = 8.0
+MAX_DURATION = 3600.0
+DEG = math.pi / 180.0
+
+
+class Sim:
+    """A World and a FlightCore wired like the board's loop, ticked at CONTROL_HZ by a script."""
+
+    def __init__(self, seed: int = 1, *, world: World | None = None, core: FlightCore | None = None,
+                 world_kw: dict | None = None, core_kw: dict | None = None) -> None:
+        self.world = world if world is not None else World(seed, **(world_kw or {}))
+        self.fc = core if core is not None else FlightCore(**(core_kw or {}))
+        self.dtc = 1.0 / CONTROL_HZ
+        self.k = 0
+        self.t = 0.0
+        self.mode = int(Mode.SAFE)
+        self.sticks = [0, 0, 0, 0]  # roll, pitch, yaw, lift
+        self.pilot_target: float | None = None  # the pilot holds this true height with the lift stick
+        self.cal = CalibrationAccumulator()
+        self.on_tick: Callable[[Sim], None] | None = None
+
+    def hover_lift(self) -> int:
+        """The lift stick a trained pilot uses to hover with the present battery voltage."""
+        ae = P.AE_HOVER_NOMINAL * P.V_REF / max(self.world.volts, 1.0)
+        return C.z_to_lift(-4.0 * ae * ae)
+
+    def _pilot(self) -> None:
+        tr = self.world
+        h, vz = -tr.d, -tr.vd
+        a = 2.0 * (self.pilot_target - h) - 2.5 * vz  # m/s² the pilot asks for
+        a = max(-4.0, min(4.0, a))
+        ae = P.AE_HOVER_NOMINAL * P.V_REF / max(tr.volts, 1.0) * math.sqrt(max(0.0, 1.0 + a / P.G))
+        self.sticks[3] = max(0, min(32767, round(ae * 32767 / C.LIFT_AE_MAX)))
+
+    def set_mode(self, mode: int) -> None:
+        mode = int(mode)
+        if self.mode == int(Mode.CALIBRATION) and mode != self.mode:
+            self.fc.set_calibration(self.cal.result())
+        if mode == int(Mode.CALIBRATION):
+            self.cal = CalibrationAccumulator()
+        self.mode = mode
+
+    def run_until(self, t_end: float) -> None:
+        world, fc = self.world, self.fc
+        dtc = self.dtc
+        baro_dt = BARO_EVERY * dtc
+        cal_mode = int(Mode.CALIBRATION)
+        raw_mode = int(Mode.RAW)
+        k_end = int(t_end / dtc + 1e-9)
+        while self.k < k_end:
+            self.k += 1
+            k = self.k
+            t = k * dtc
+            self.t = t
+            world.advance_to(t)
+            imu = world.imu()
+            fc.imu_sample(imu[0], imu[1], imu[2], imu[3], imu[4], imu[5], dtc)
+            mode = self.mode
+            q = world.dmp()
+            if q is not None and mode != raw_mode:
+                fc.dmp_sample(q[0], q[1], q[2], q[3])
+            if k % BARO_EVERY == 0:
+                pa = world.baro()[0]
+                fc.baro_sample(pa, baro_dt)
+                if mode == cal_mode:
+                    self.cal.add_baro(pa)
+            if mode == cal_mode:
+                self.cal.add_imu(*imu)
+                if q is not None:
+                    self.cal.add_dmp(*q)
+            if self.pilot_target is not None and k % 8 == 0:
+                self._pilot()
+            s = self.sticks
+            ae = fc.control(mode, s[0], s[1], s[2], s[3], dtc)
+            world.set_motors(ae[0], ae[1], ae[2], ae[3])
+            if self.on_tick is not None:
+                self.on_tick(self)
+
+    def prologue(self, mode: int = Mode.FULL) -> None:
+        """Calibrate on the floor for 1 s, then take off in ``mode`` to TAKEOFF_HEIGHT."""
+        self.set_mode(Mode.CALIBRATION)
+        self.run_until(CALIBRATE_UNTIL)
+        self.set_mode(mode)
+        self.pilot_target = TAKEOFF_HEIGHT
+        self._pilot()
+
+
+@dataclass
+class Recorder:
+    """Samples the truth at 100 Hz from ``start`` on; ``phi_sp``/``theta_sp`` (rad) are the commanded angles."""
+
+    start: float
+    phi_sp: float = 0.0
+    theta_sp: float = 0.0
+    h_ref: float = TAKEOFF_HEIGHT
+    t: list[float] = field(default_factory=list)
+    tilt_err: list[float] = field(default_factory=list)
+    phi: list[float] = field(default_factory=list)
+    r: list[float] = field(default_factory=list)
+    h_err: list[float] = field(default_factory=list)
+
+    def __call__(self, sim: Sim) -> None:
+        if sim.k % 4 or sim.t < self.start:
+            return
+        tr = sim.world.truth
+        self.t.append(tr.t)
+        self.tilt_err.append(math.hypot(tr.phi - self.phi_sp, tr.theta - self.theta_sp))
+        self.phi.append(tr.phi)
+        self.r.append(tr.r)
+        self.h_err.append(tr.h - self.h_ref)
+
+    def metrics(self) -> dict[str, float]:
+        n = max(1, len(self.t))
+        return {
+            "attitude_rms_deg": math.sqrt(sum(e * e for e in self.tilt_err) / n) / DEG,
+            "attitude_max_deg": max(self.tilt_err, default=0.0) / DEG,
+            "height_rms_m": math.sqrt(sum(e * e for e in self.h_err) / n),
+        }
+
+
+def settle_time(ts: list[float], values: list[float], target: float, band: float, t0: float) -> float | None:
+    """Seconds from ``t0`` until ``values`` stay within ``band`` of ``target``; None if they never do."""
+    last_out = None
+    for t, v in zip(ts, values, strict=True):
+        if t >= t0 and abs(v - target) > band:
+            last_out = t
+    if ts and ts[-1] - (last_out or t0) < 0.5:
+        return None  # still outside (or only just inside) at the end
+    return (last_out if last_out is not None else t0) - t0
+
+
+def _roll_stick(angle_rad: float) -> int:
+    return round(angle_rad * C.ANGLE_LSB_PER_RAD) << C.STICK_ANGLE_SHIFT
+
+
+def _yaw_stick(rate_rad_s: float) -> int:
+    return round(rate_rad_s * C.RATE_LSB_PER_RAD_S) << C.STICK_YAW_SHIFT
+
+
+# ---- scenarios: each flies ``duration`` simulated seconds and returns its metrics --------------------------------
+
+def _hover(seed: int, duration: float, mode: int = Mode.FULL, **core_kw) -> dict:
+    sim = Sim(seed, core_kw=core_kw)
+    rec = Recorder(ACTION_AT)
+    sim.on_tick = rec
+    sim.prologue(mode)
+    sim.run_until(duration)
+    return rec.metrics()
+
+
+def hover(seed: int, duration: float) -> dict:
+    """FULL mode (DMP path), still air, the pilot holding 1 m."""
+    return _hover(seed, duration)
+
+
+def raw_hover(seed: int, duration: float) -> dict:
+    """RAW mode: the same hover on the on-board filter (estimation.BEST) instead of the DMP."""
+    return _hover(seed, duration, Mode.RAW)
+
+
+def raw_hover_fixed(seed: int, duration: float) -> dict:
+    """RAW mode with the Q16.16 fixed-point variant of the on-board filter."""
+    return _hover(seed, duration, Mode.RAW, fixed_point=True)
+
+
+def step_roll(seed: int, duration: float) -> dict:
+    """FULL mode: a 10 deg roll step on the stick at t = 6 s, held; settle = within 1 deg (10 %)."""
+    sim = Sim(seed)
+    rec = Recorder(ACTION_AT)
+    sim.on_tick = rec
+    sim.prologue()
+    sim.run_until(ACTION_AT)
+    step = 10.0 * DEG
+    sim.sticks[0] = _roll_stick(step)
+    rec.phi_sp = sim.sticks[0] / (1 << C.STICK_ANGLE_SHIFT) / C.ANGLE_LSB_PER_RAD
+    sim.run_until(duration)
+    m = rec.metrics()
+    st = settle_time(rec.t, rec.phi, rec.phi_sp, 0.1 * step, ACTION_AT)
+    m["settle_time_s"] = st if st is not None else float("nan")
+    m["final_roll_deg"] = rec.phi[-1] / DEG if rec.phi else float("nan")
+    return m
+
+
+def step_yaw(seed: int, duration: float) -> dict:
+    """FULL mode: a 45 deg/s yaw-rate step on the twist at t = 6 s; settle = within 10 % of the rate."""
+    sim = Sim(seed)
+    rec = Recorder(ACTION_AT)
+    sim.on_tick = rec
+    sim.prologue()
+    sim.run_until(ACTION_AT)
+    sim.sticks[2] = _yaw_stick(45.0 * DEG)
+    target = sim.sticks[2] / (1 << C.STICK_YAW_SHIFT) / C.RATE_LSB_PER_RAD_S
+    sim.run_until(duration)
+    m = rec.metrics()
+    st = settle_time(rec.t, rec.r, target, 0.1 * target, ACTION_AT)
+    m["settle_time_s"] = st if st is not None else float("nan")
+    m["final_yaw_rate_dps"] = rec.r[-1] / DEG if rec.r else float("nan")
+    return m
+
+
+def height_hold(seed: int, duration: float) -> dict:
+    """HEIGHT mode from t = 5 s with the noisy, spiky barometer; the pilot lets go of the lift stick."""
+    sim = Sim(seed)
+    rec = Recorder(ACTION_AT)
+    sim.on_tick = rec
+    sim.prologue()
+    sim.run_until(5.0)
+    sim.pilot_target = None
+    rec.h_ref = -sim.world.d  # HEIGHT holds the height it was entered at
+    sim.set_mode(Mode.HEIGHT)
+    sim.run_until(duration)
+    m = rec.metrics()
+    m["baro_spikes"] = sim.world.baro_model.spike_count
+    m["estimate_error_m"] = sim.fc.height - sim.fc.setpoint - (-sim.world.d - rec.h_ref)
+    return m
+
+
+def gusts(seed: int, duration: float) -> dict:
+    """FULL mode hover in wind: 2 m/s from the north plus gusts of 1.5 m/s rms (0.5 s) from t = 5 s."""
+    sim = Sim(seed)
+    rec = Recorder(ACTION_AT)
+    sim.on_tick = rec
+    sim.prologue()
+    sim.run_until(5.0)
+    sim.world.set_wind(2.0, 0.0, 0.0, gust_std=1.5, gust_tau=0.5)
+    sim.run_until(duration)
+    return rec.metrics()
+
+
+def push(seed: int, duration: float) -> dict:
+    """FULL mode hover, a shove at t = 6 s: 0.3 N m about x and 3 N sideways for 0.1 s; settle = back within
+    1 deg of level."""
+    sim = Sim(seed)
+    rec = Recorder(ACTION_AT)
+    sim.on_tick = rec
+    sim.prologue()
+    sim.run_until(ACTION_AT)
+    sim.world.push(0.0, 3.0, 0.0, 0.1, tx=0.3)
+    sim.run_until(duration)
+    m = rec.metrics()
+    st = settle_time(rec.t, rec.tilt_err, 0.0, 1.0 * DEG, ACTION_AT)
+    m["settle_time_s"] = st if st is not None else float("nan")
+    return m
+
+
+def motor_stuck(seed: int, duration: float) -> dict:
+    """FULL mode hover, then the back motor (ae3) cannot exceed 330 from t = 6 s: the attitude loops trade the
+    other motors against it (watch the tilt and the yaw rate)."""
+    sim = Sim(seed)
+    rec = Recorder(ACTION_AT)
+    sim.on_tick = rec
+    sim.prologue()
+    sim.run_until(ACTION_AT)
+    sim.world.stick_motor(3, 330)
+    sim.run_until(duration)
+    m = rec.metrics()
+    m["final_yaw_rate_dps"] = rec.r[-1] / DEG if rec.r else float("nan")
+    m["landed"] = float(sim.world.on_ground)
+    return m
+
+
+def panic(seed: int, duration: float) -> dict:
+    """FULL mode hover, PANIC at t = 6 s: descent level for 2 s, ramp to 0 over 1 s (as the board's mode
+    machine times it), SAFE. Reports the touch-down speed."""
+    sim = Sim(seed)
+    rec = Recorder(ACTION_AT)
+    sim.on_tick = rec
+    sim.prologue()
+    sim.run_until(ACTION_AT)
+    sim.pilot_target = None
+    sim.set_mode(Mode.PANIC)
+    hold, ramp = 2.0, 1.0
+    while sim.t < ACTION_AT + hold + ramp and sim.t < duration:
+        frac = (sim.t - ACTION_AT - hold) / ramp
+        sim.fc.panic_scale = 1.0 if frac <= 0.0 else max(0.0, 1.0 - frac)
+        sim.run_until(min(duration, sim.t + 0.01))
+    if sim.t < duration:
+        sim.set_mode(Mode.SAFE)
+        sim.run_until(duration)
+    m = rec.metrics()
+    lands = [v for t, v in sim.world.landings if t >= ACTION_AT]
+    m["landing_speed_m_s"] = lands[0] if lands else float("nan")
+    m["landed"] = float(sim.world.on_ground)
+    return m
+
+
+SCENARIOS: dict[str, Callable[[int, float], dict]] = {
+    "hover": hover,
+    "raw-hover": raw_hover,
+    "raw-hover-fixed": raw_hover_fixed,
+    "step-roll": step_roll,
+    "step-yaw": step_yaw,
+    "height-hold": height_hold,
+    "gusts": gusts,
+    "push": push,
+    "motor-stuck": motor_stuck,
+    "panic": panic,
+}
+
+
+def run_scenario(name: str, duration: float = 10.0, seed: int = 1) -> dict:
+    """Fly a scenario and return its metrics (with sim_seconds, wall_seconds, realtime_factor)."""
+    if name not in SCENARIOS:
+        raise UsageError(f"unknown scenario {name!r}; try one of: {', '.join(SCENARIOS)} (see --list)")
+    if not (math.isfinite(duration) and MIN_DURATION <= duration <= MAX_DURATION):
+        raise UsageError(f"--duration must be between {MIN_DURATION:g} and {MAX_DURATION:g} s, got {duration:g}")
+    t0 = time.perf_counter()
+    metrics = SCENARIOS[name](seed, duration)
+    wall = time.perf_counter() - t0
+    out = {"scenario": name, "seed": seed, "sim_seconds": duration, "wall_seconds": wall,
+           "realtime_factor": duration / wall if wall > 0 else float("inf")}
+    out.update(metrics)
+    return out
+
+
+def _json_value(v: object) -> object:
+    if isinstance(v, float) and not math.isfinite(v):
+        return None
+    return v
+
+
+def cmd_run(args) -> int:
+    """``fcb-sim run``."""
+    if args.list:
+        for name, fn in SCENARIOS.items():
+            print(f"{name:16s} {(fn.__doc__ or '').splitlines()[0]}")
+        return 0
+    m = run_scenario(args.scenario, args.duration, args.seed)
+    for key, value in m.items():
+        if isinstance(value, float):
+            print(f"{key}: {value:.4g}")
+        else:
+            print(f"{key}: {value}")
+    if args.json:
+        print(json.dumps({k: _json_value(v) for k, v in m.items()}))
+    return 0
