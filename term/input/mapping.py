@@ -31,7 +31,9 @@ class AxisMap:
     kind: str = "center"
 
     def value(self, axes: Sequence[float]) -> int:
-        raw = float(axes[self.index]) if 0 <= self.index < len(axes) else 0.0
+        if not 0 <= self.index < len(axes):
+            return 0  # a stick without this axis: centred, and never lift
+        raw = float(axes[self.index])
         raw = max(-1.0, min(1.0, -raw if self.invert else raw))
         if self.kind == "throttle":
             return round(_dead((raw + 1.0) / 2.0, self.deadzone) * FULL)

@@ -1,0 +1,318 @@
+"""`term`: the pilot's terminal from the command line. Parsing and wiring only; the one place that knows every part.
+
+    term --serial /dev/ttyUSB0 [--baud 115200]    fly the real board (or any pty)
+    term --sim [--seed N] [--scenario NAME]       start `fcb-sim serve --pty` and fly it over that real pty
+    term --ble ADDR [--hci TRANSPORT]             fly over BLE (the wireless transport)
+    term scan [--hci TRANSPORT]                   list BLE boards nearby
+    term plot LOG.csv -o out.png                  draw a downloaded flight log
+
+Errors a user can cause end in one line on stderr and a non-zero exit, never a traceback: 2 for bad arguments,
+a missing port or a board that will not start; 3 for a board that speaks another protocol version.
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import contextlib
+import os
+import signal
+import subprocess
+import sys
+import tempfile
+import threading
+from collections.abc import Sequence
+from pathlib import Path
+from typing import IO, Any, NoReturn
+
+EXIT_USAGE = 2
+EXIT_VERSION = 3
+SIM_START_TIMEOUT = 15.0  # s for the child board to print its pty
+
+
+class UsageError(Exception):
+    """A problem the user can fix; printed as one line."""
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message: str) -> NoReturn:  # one line, not usage + message
+        raise UsageError(f"{message} (see {self.prog} --help)")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = _Parser(
+        prog="term",
+        description="Ground station for the Quadrupel quadcopter: fly the board (or its simulator) with keyboard "
+        "and joystick; gauges, link health, events, plots and log download.",
+        epilog="more: 'term plot LOG.csv -o out.png' draws a downloaded log; 'term scan' lists BLE boards. "
+        "Keys: press F1 in the terminal. Config: 'term --config-path' shows where term.toml is read from.",
+    )
+    src = p.add_mutually_exclusive_group()
+    src.add_argument("--serial", metavar="PATH", help="the board's serial port (or any pty), e.g. /dev/ttyUSB0")
+    src.add_argument("--sim", action="store_true", help="start the simulated board (fcb-sim serve --pty) and fly it")
+    src.add_argument("--ble", metavar="ADDR", help="the board's BLE address (wireless transport)")
+    p.add_argument("--baud", type=int, default=None, help="serial speed (default 115200)")
+    p.add_argument("--hci", metavar="TRANSPORT", default=None,
+                   help="BLE through a bumble HCI transport instead of the system's radio, e.g. usb:0")
+    p.add_argument("--seed", type=int, default=1, help="--sim: noise seed (same seed, same flight)")
+    p.add_argument("--scenario", default=None, help="--sim: initial conditions and disturbances")
+    p.add_argument("--config", type=Path, default=None, help="config file (default: the platform's, see below)")
+    p.add_argument("--config-path", action="store_true", help="print where the config file is read from and exit")
+    p.add_argument("--link-timeout", type=float, default=None, help="seconds without data before LINK LOST")
+    p.add_argument("--log-dir", type=Path, default=None, help="where downloaded logs are written as CSV")
+    p.add_argument("--no-joystick", action="store_true", help="keyboard only; do not look for a joystick")
+    return p
+
+
+def build_plot_parser() -> argparse.ArgumentParser:
+    p = _Parser(prog="term plot", description="Draw a downloaded flight log (CSV) to an image.")
+    p.add_argument("log", type=Path, help="a CSV written by the terminal's log download (F5)")
+    p.add_argument("-o", "--output", type=Path, required=True, help="image to write (.png, .svg, .pdf)")
+    p.add_argument("--signals", default=None, help="comma-separated columns to draw (default: all groups)")
+    return p
+
+
+def build_scan_parser() -> argparse.ArgumentParser:
+    p = _Parser(prog="term scan", description="List BLE boards advertising the board's service.")
+    p.add_argument("--hci", metavar="TRANSPORT", default=None, help="bumble HCI transport instead of the system's")
+    p.add_argument("--timeout", type=float, default=5.0, help="seconds to scan")
+    return p
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    try:
+        if argv and argv[0] == "plot":
+            from term.plot import PlotError, plot_log
+
+            a = build_plot_parser().parse_args(argv[1:])
+            try:
+                plot_log(a.log, a.output, a.signals.split(",") if a.signals else None)
+            except PlotError as exc:
+                raise UsageError(str(exc)) from None
+            print(f"wrote {a.output}")
+            return 0
+        if argv and argv[0] == "scan":
+            a = build_scan_parser().parse_args(argv[1:])
+            return _scan(a)
+        return _fly(build_parser().parse_args(argv))
+    except UsageError as exc:
+        print(f"term: {exc}", file=sys.stderr)
+        return EXIT_USAGE
+    except KeyboardInterrupt:
+        return 130
+
+
+# --- flying ---------------------------------------------------------------------------------------------------
+
+
+def _fly(args: argparse.Namespace) -> int:
+    from term.config import ConfigError, default_path, load_config
+
+    if args.config_path:
+        print(args.config or default_path())
+        return 0
+    try:
+        cfg = load_config(args.config, required=args.config is not None)
+    except ConfigError as exc:
+        raise UsageError(str(exc)) from None
+    if args.link_timeout is not None:
+        if args.link_timeout <= 0:
+            raise UsageError("--link-timeout must be positive")
+        cfg.link_timeout = args.link_timeout
+    baud = args.baud if args.baud is not None else cfg.baud
+    if baud <= 0:
+        raise UsageError("--baud must be positive")
+    if args.scenario is not None and not args.sim:
+        raise UsageError("--scenario needs --sim")
+
+    sim: SimBoard | None = None
+    with _terminate_on_signals():
+        try:
+            if args.sim:
+                sim = SimBoard(seed=args.seed, scenario=args.scenario, link_timeout=None)
+                port = sim.start()
+                transport = _serial(port, baud)
+            elif args.ble:
+                transport = _ble(args.ble, args.hci)
+            else:
+                port = args.serial or cfg.port
+                if not port:
+                    raise UsageError("no board given: use --serial PATH, --sim or --ble ADDR "
+                                     "(or set [connection] port in the config)")
+                if not os.path.exists(port) and not port.upper().startswith("COM"):
+                    raise UsageError(f"serial port {port} not found: check the cable and the name "
+                                     "(ls /dev/tty*), or try --sim")
+                transport = _serial(port, baud)
+            return asyncio.run(_run_app(transport, cfg, args))
+        finally:
+            if sim is not None:
+                sim.stop()
+
+
+def _serial(port: str, baud: int) -> Any:
+    from term.transports.serial import SerialTransport
+
+    return SerialTransport(port, baud)
+
+
+def _ble(address: str, hci: str | None) -> Any:
+    """The wireless engineer's transport (term/transports/ble.py): ``BleTransport(address, hci=...)``."""
+    try:
+        from term.transports.ble import BleTransport  # type: ignore[import-not-found,unused-ignore]
+    except ImportError as exc:
+        raise UsageError(f"BLE transport not available ({exc})") from None
+    return BleTransport(address, hci=hci)
+
+
+def _scan(args: argparse.Namespace) -> int:
+    try:
+        from term.transports.ble import scan  # type: ignore[import-not-found,unused-ignore]
+    except ImportError as exc:
+        raise UsageError(f"BLE scanning not available ({exc})") from None
+    found = asyncio.run(scan(timeout=args.timeout, hci=args.hci))
+    for line in found:
+        print(line)
+    return 0
+
+
+async def _run_app(transport: Any, cfg: Any, args: argparse.Namespace) -> int:
+    from term.app import TermApp
+    from term.transports.base import TransportError
+
+    try:
+        await transport.open()  # fail here, in one line, before the screen is taken over
+    except TransportError as exc:
+        raise UsageError(str(exc)) from None
+    app = TermApp(transport, config=cfg, joystick=not args.no_joystick, log_directory=args.log_dir)
+    try:
+        result = await app.run_async()
+    finally:
+        await app.shutdown()
+        with contextlib.suppress(Exception):
+            await transport.close()
+    if app.exit_message:
+        print(f"term: {app.exit_message}", file=sys.stderr)
+    code = app.return_code
+    return int(code if code is not None else (result or 0))
+
+
+@contextlib.contextmanager
+def _terminate_on_signals() -> Any:
+    """SIGTERM and SIGHUP (terminal closed) unwind like Ctrl+C, so the child board is stopped on the way out."""
+    def raise_exit(signum: int, frame: object) -> None:
+        raise SystemExit(128 + signum)
+
+    old = {}
+    for sig in (signal.SIGTERM, signal.SIGHUP):
+        with contextlib.suppress(ValueError, OSError):
+            old[sig] = signal.signal(sig, raise_exit)
+    try:
+        yield
+    finally:
+        for sig, handler in old.items():
+            with contextlib.suppress(ValueError, OSError):
+                signal.signal(sig, handler)
+
+
+# --- the simulated board as a child process --------------------------------------------------------------------
+
+
+def _die_with_parent() -> None:
+    """In the child, before exec: ask Linux to SIGTERM it when term dies, even by SIGKILL."""
+    try:
+        import ctypes
+
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(1, signal.SIGTERM)  # PR_SET_PDEATHSIG
+    except Exception:
+        pass
+    os.setsid()  # its own session: the terminal's Ctrl+C or SIGHUP goes to term, which stops it in order
+
+
+class SimBoard:
+    """`fcb-sim serve --pty` in a child process; ``start()`` returns the pty path it printed first."""
+
+    def __init__(self, *, seed: int = 1, scenario: str | None = None, link_timeout: float | None = None,
+                 extra: Sequence[str] = ()) -> None:
+        self.cmd = [sys.executable, "-m", "fcb_sim.cli", "serve", "--pty", "--seed", str(seed)]
+        if scenario:
+            self.cmd += ["--scenario", scenario]
+        if link_timeout is not None:
+            self.cmd += ["--link-timeout", str(link_timeout)]
+        self.cmd += list(extra)
+        self.proc: subprocess.Popen[bytes] | None = None
+        self._stderr: IO[bytes] | None = None
+
+    def start(self, timeout: float = SIM_START_TIMEOUT) -> str:
+        self._stderr = tempfile.TemporaryFile()
+        env = dict(os.environ, PYTHONUNBUFFERED="1")
+        self.proc = subprocess.Popen(
+            self.cmd, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=self._stderr, env=env,
+            preexec_fn=_die_with_parent if sys.platform.startswith("linux") else None,
+        )
+        line = _readline_with_timeout(self.proc, timeout)
+        if not line.startswith("pty: "):
+            why = self._child_error() or (line.strip() or "no output")
+            self.stop()
+            raise UsageError(f"the simulated board did not start: {why}")
+        # Drain its stdout from now on, so a chatty child never blocks on a full pipe.
+        threading.Thread(target=_drain, args=(self.proc.stdout,), daemon=True).start()
+        return line[len("pty: "):].strip()
+
+    def _child_error(self) -> str:
+        if self._stderr is None:
+            return ""
+        with contextlib.suppress(Exception):
+            if self.proc is not None and self.proc.poll() is None:
+                return ""
+            self._stderr.seek(0)
+            lines = [ln for ln in self._stderr.read().decode(errors="replace").splitlines() if ln.strip()]
+            return lines[-1].strip() if lines else ""
+        return ""
+
+    def stop(self) -> None:
+        proc = self.proc
+        if proc is None:
+            return
+        if proc.poll() is None:
+            proc.terminate()
+            try:
+                proc.wait(3.0)
+            except subprocess.TimeoutExpired:
+                proc.kill()
+                proc.wait(3.0)
+        if proc.stdout is not None:
+            with contextlib.suppress(Exception):
+                proc.stdout.close()
+        if self._stderr is not None:
+            self._stderr.close()
+            self._stderr = None
+        self.proc = None
+
+
+def _readline_with_timeout(proc: subprocess.Popen[bytes], timeout: float) -> str:
+    result: list[bytes] = []
+
+    def read() -> None:
+        assert proc.stdout is not None
+        result.append(proc.stdout.readline())
+
+    t = threading.Thread(target=read, daemon=True)
+    t.start()
+    t.join(timeout)
+    if not result:
+        return ""
+    return result[0].decode(errors="replace")
+
+
+def _drain(stream: IO[bytes] | None) -> None:
+    if stream is None:
+        return
+    with contextlib.suppress(Exception):
+        while stream.read(4096):
+            pass
+
+
+if __name__ == "__main__":
+    sys.exit(main())
