@@ -1,0 +1,561 @@
+"""The board's mode state machine: a table of transitions with guards, and tables of enter and leave actions.
+
+The report (3.2) kept two arrays of function pointers, one called when a mode is left and one when a mode is
+entered, and a check that decides whether a transition is valid. Here the same three things are data:
+
+- ``TRANSITIONS``: one row per allowed (source, target) pair, with the guards that must all pass and what
+  triggers it (a pilot's request, or the machine itself: a timer, a safety monitor);
+- ``ENTER`` and ``LEAVE``: per mode, the action run on entering and on leaving it.
+
+The mode diagram in docs/modes.md is generated from these tables (``mermaid()``), so it cannot drift.
+
+Safety rules (DESIGN.md): leaving SAFE needs neutral sticks and zero lift; modes 4 and up need a finished
+calibration; from a flight mode the way out is SAFE (with the lift at zero) or PANIC; PANIC is reachable from
+every mode that can turn the motors, holds a level just under hover for a few seconds, ramps the motors to zero
+and then returns to SAFE by itself; link silence, a low battery while flying and excessive tilt mean PANIC; the
+motors are zero in SAFE and CALIBRATION. Every refused request returns a ``Nak`` reason.
+
+Sans-IO: time (``now``, seconds) is passed in; the machine reads no clock. Pilot inputs (joystick, trims),
+the battery and the motor level are pushed in by the board; events for the PC come out of ``events``.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+
+from term.protocol import EventCode, Joystick, Mode, Nak
+
+# Modes in which the motors may turn (the board drives them from the flight core or the PANIC profile).
+FLIGHT_MODES = frozenset({Mode.MANUAL, Mode.YAW, Mode.FULL, Mode.RAW, Mode.HEIGHT})
+MOTORS_OFF_MODES = frozenset({Mode.SAFE, Mode.CALIBRATION})
+
+STICK_NEUTRAL = 1000  # |roll|, |pitch|, |yaw| at most this (3 % of full deflection) counts as neutral
+LIFT_ZERO = 500  # joystick lift plus lift trim at most this (1.5 %) counts as zero lift
+STICK_MAX = 32767
+TRIM_STEP = {"roll": 256, "pitch": 256, "yaw": 256, "lift": 328}  # per key press (lift: 1 %)
+TRIM_LIMIT = 8192  # roll/pitch/yaw trims stay within a quarter of full deflection
+LOW_BATTERY = 1050  # 10 mV units: 10.5 V
+LOW_BATTERY_HOLD_S = 0.2  # the voltage must stay low this long (sag under a motor step is not a flat battery)
+
+
+@dataclass
+class ModeConfig:
+    """Tunables of the machine; the defaults are the team's safety decisions."""
+
+    link_timeout_s: float = 0.5
+    panic_level: int = 350  # motor command held in PANIC: just under hover (about 400)
+    panic_hold_s: float = 2.0
+    panic_ramp_s: float = 1.5
+    calibration_s: float = 1.0  # CALIBRATION averages this long, then returns to SAFE by itself
+    calibration_min_samples: int = 50
+    tilt_limit_cdeg: int = 5000  # 50°
+    low_battery: int = LOW_BATTERY
+
+
+class Calibration:
+    """Sums of sensor samples in unbounded integers (the report used 64-bit sums to avoid overflow; Python's
+    ints cannot overflow at all); the means are taken when CALIBRATION is left."""
+
+    def __init__(self, names: Sequence[str] = ()) -> None:
+        self.names = tuple(names)
+        self.sums = [0] * len(self.names)
+        self.count = 0
+
+    def reset(self) -> None:
+        self.sums = [0] * len(self.names)
+        self.count = 0
+
+    def add(self, values: Sequence[int]) -> None:
+        if len(values) != len(self.names):
+            raise ValueError(f"calibration sample has {len(values)} values, expected {len(self.names)}")
+        self.sums = [s + int(v) for s, v in zip(self.sums, values, strict=True)]
+        self.count += 1
+
+    def means(self) -> dict[str, int]:
+        """Rounded-to-nearest integer means: exact integer arithmetic, as the board's would be."""
+        n = self.count
+        if n == 0:
+            return {name: 0 for name in self.names}
+        return {name: (2 * s + n) // (2 * n) for name, s in zip(self.names, self.sums, strict=True)}
+
+
+@dataclass
+class Trims:
+    """Keyboard trims: they add to the joystick (which is absolute)."""
+
+    roll: int = 0
+    pitch: int = 0
+    yaw: int = 0
+    lift: int = 0
+
+
+@dataclass(frozen=True)
+class Guard:
+    """A transition condition: ``check(machine)`` returns Nak.OK or the reason the transition is refused."""
+
+    label: str
+    check: Callable[[ModeMachine], Nak]
+
+
+@dataclass(frozen=True)
+class Transition:
+    source: Mode
+    target: Mode
+    guards: tuple[Guard, ...] = ()
+    trigger: str = "request"  # "request": the pilot asks; "auto": the machine takes it by itself
+    note: str = ""
+
+
+@dataclass
+class ModeChange:
+    old: Mode
+    new: Mode
+    now: float
+    reason: str  # "request", "panic:<why>", "auto"
+
+
+# --- guards -------------------------------------------------------------------------------------------------
+
+
+def _zero_lift(m: ModeMachine) -> Nak:
+    return Nak.OK if m.lift <= LIFT_ZERO else Nak.LIFT_NOT_ZERO
+
+
+def _neutral_sticks(m: ModeMachine) -> Nak:
+    js = m.joystick
+    ok = abs(js.roll) <= STICK_NEUTRAL and abs(js.pitch) <= STICK_NEUTRAL and abs(js.yaw) <= STICK_NEUTRAL
+    return Nak.OK if ok else Nak.STICKS_NOT_NEUTRAL
+
+
+def _calibrated(m: ModeMachine) -> Nak:
+    return Nak.OK if m.calibrated else Nak.NOT_CALIBRATED
+
+
+def _battery_ok(m: ModeMachine) -> Nak:
+    return Nak.OK if m.battery is None or m.battery >= m.config.low_battery else Nak.BATTERY_LOW
+
+
+def _from_base(m: ModeMachine) -> Nak:
+    # HEIGHT flies on top of FULL or RAW; it may only fall back to the one it was entered from.
+    return Nak.OK if m.height_base == m.pending_target else Nak.INVALID_TRANSITION
+
+
+def _panic_done(m: ModeMachine) -> Nak:
+    return Nak.OK if m.panic_finished() else Nak.PANIC_ACTIVE
+
+
+def _calibration_time_up(m: ModeMachine) -> Nak:
+    return Nak.OK if m.calibration_elapsed() >= m.config.calibration_s else Nak.BUSY
+
+
+ZERO_LIFT = Guard("lift zero", _zero_lift)
+NEUTRAL = Guard("sticks neutral", _neutral_sticks)
+CALIBRATED = Guard("calibrated", _calibrated)
+BATTERY = Guard("battery ok", _battery_ok)
+FROM_BASE = Guard("entered from it", _from_base)
+PANIC_DONE = Guard("motors ramped to zero", _panic_done)
+CAL_TIME = Guard("averaging time up", _calibration_time_up)
+
+_ARM = (ZERO_LIFT, NEUTRAL, BATTERY)
+
+TRANSITIONS: tuple[Transition, ...] = (
+    Transition(Mode.SAFE, Mode.MANUAL, _ARM),
+    Transition(Mode.SAFE, Mode.CALIBRATION, (ZERO_LIFT, NEUTRAL)),
+    Transition(Mode.SAFE, Mode.YAW, (*_ARM, CALIBRATED)),
+    Transition(Mode.SAFE, Mode.FULL, (*_ARM, CALIBRATED)),
+    Transition(Mode.SAFE, Mode.RAW, (*_ARM, CALIBRATED)),
+    Transition(Mode.CALIBRATION, Mode.SAFE, (CAL_TIME,), "auto", "means taken"),
+    Transition(Mode.CALIBRATION, Mode.SAFE, (), "request", "means taken"),
+    Transition(Mode.FULL, Mode.HEIGHT, (), "request", "hold the current height"),
+    Transition(Mode.RAW, Mode.HEIGHT, (), "request", "hold the current height"),
+    Transition(Mode.HEIGHT, Mode.FULL, (FROM_BASE,)),
+    Transition(Mode.HEIGHT, Mode.RAW, (FROM_BASE,)),
+    *(Transition(m, Mode.SAFE, (ZERO_LIFT,)) for m in sorted(FLIGHT_MODES)),
+    *(Transition(m, Mode.PANIC, (), "request", "key 1, ESC, fire; or safety")
+      for m in sorted(FLIGHT_MODES | {Mode.CALIBRATION})),
+    Transition(Mode.PANIC, Mode.SAFE, (PANIC_DONE,), "auto"),
+)
+
+_ROWS: dict[tuple[Mode, Mode, str], Transition] = {(t.source, t.target, t.trigger): t for t in TRANSITIONS}
+
+
+# --- enter and leave actions --------------------------------------------------------------------------------
+
+
+def _enter_safe(m: ModeMachine, now: float) -> None:
+    # Lift trim is a flying set point: a fresh flight starts from zero (the report zeroed it on leaving SAFE).
+    m.trims.lift = 0
+
+
+def _enter_calibration(m: ModeMachine, now: float) -> None:
+    m.calibration.reset()
+    m.calibration_started = now
+
+
+def _leave_calibration(m: ModeMachine, now: float) -> None:
+    n = m.calibration.count
+    if n >= m.config.calibration_min_samples:
+        m.offsets = m.calibration.means()
+        m.calibrated = True
+        m.emit(EventCode.CALIBRATION_DONE, n, now)
+    # Too few samples (left at once, or a PANIC): the previous calibration, if any, stays in force.
+
+
+def _enter_panic(m: ModeMachine, now: float) -> None:
+    m.panic_started = now
+    # Never spin motors up to enter PANIC: hold whichever is lower, the panic level or what they ran at.
+    m.panic_start_level = min(m.config.panic_level, max(0, m.motor_level))
+
+
+def _leave_panic(m: ModeMachine, now: float) -> None:
+    m.emit(EventCode.PANIC_DONE, 0, now)
+
+
+def _enter_height(m: ModeMachine, now: float) -> None:
+    m.height_base = m.previous
+
+
+def _nothing(m: ModeMachine, now: float) -> None:
+    pass
+
+
+ENTER: dict[Mode, Callable[[ModeMachine, float], None]] = {
+    Mode.SAFE: _enter_safe,
+    Mode.PANIC: _enter_panic,
+    Mode.MANUAL: _nothing,
+    Mode.CALIBRATION: _enter_calibration,
+    Mode.YAW: _nothing,
+    Mode.FULL: _nothing,
+    Mode.RAW: _nothing,
+    Mode.HEIGHT: _enter_height,
+}
+
+LEAVE: dict[Mode, Callable[[ModeMachine, float], None]] = {
+    Mode.SAFE: _nothing,
+    Mode.PANIC: _leave_panic,
+    Mode.MANUAL: _nothing,
+    Mode.CALIBRATION: _leave_calibration,
+    Mode.YAW: _nothing,
+    Mode.FULL: _nothing,
+    Mode.RAW: _nothing,
+    Mode.HEIGHT: _nothing,
+}
+
+
+# --- the machine --------------------------------------------------------------------------------------------
+
+
+@dataclass
+class ModeMachine:
+    """The mode state machine with the pilot inputs it guards on. Drive it with ``request``, ``tick`` and
+    ``supervise``; read ``mode``, ``motors_enabled``, ``panic_motor_level``, ``offsets``; drain ``events``."""
+
+    config: ModeConfig = field(default_factory=ModeConfig)
+    calibration_names: Sequence[str] = ()
+    mode: Mode = Mode.SAFE
+    previous: Mode = Mode.SAFE
+    calibrated: bool = False
+    offsets: dict[str, int] = field(default_factory=dict)
+    joystick: Joystick = Joystick(0, 0, 0, 0, 0)
+    trims: Trims = field(default_factory=Trims)
+    battery: int | None = None  # 10 mV units, from the ADC task
+    motor_level: int = 0  # mean motor command, from the control task
+    height_base: Mode = Mode.FULL
+    events: list[tuple[EventCode, int, float]] = field(default_factory=list)
+    changes: list[ModeChange] = field(default_factory=list)  # every change, for the board's listeners and tests
+    link_timed_out: bool = False
+
+    def __post_init__(self) -> None:
+        self.calibration = Calibration(self.calibration_names)
+        self.calibration_started = 0.0
+        self.panic_started = 0.0
+        self.panic_start_level = 0
+        self.pending_target: Mode | None = None
+        self._low_battery_since: float | None = None
+        self.listeners: list[Callable[[ModeChange], None]] = []
+        self._now = 0.0
+
+    # --- inputs -------------------------------------------------------------------------------------------
+
+    @property
+    def lift(self) -> int:
+        """Effective lift: joystick plus lift trim."""
+        return max(0, min(STICK_MAX, self.joystick.lift + self.trims.lift))
+
+    def sticks(self) -> tuple[int, int, int, int]:
+        """Effective (roll, pitch, yaw, lift): joystick plus trims, clipped to the stick range."""
+        js, t = self.joystick, self.trims
+
+        def clip(v: int) -> int:
+            return max(-STICK_MAX, min(STICK_MAX, v))
+
+        return clip(js.roll + t.roll), clip(js.pitch + t.pitch), clip(js.yaw + t.yaw), self.lift
+
+    def adjust_trim(self, axis: str, steps: int) -> int:
+        """Move one trim by ``steps`` key presses; returns the new value."""
+        if axis == "lift":
+            self.trims.lift = max(0, min(STICK_MAX, self.trims.lift + steps * TRIM_STEP["lift"]))
+            return self.trims.lift
+        value = getattr(self.trims, axis) + steps * TRIM_STEP[axis]
+        value = max(-TRIM_LIMIT, min(TRIM_LIMIT, value))
+        setattr(self.trims, axis, value)
+        return value
+
+    @property
+    def motors_enabled(self) -> bool:
+        return self.mode not in MOTORS_OFF_MODES
+
+    @property
+    def flying(self) -> bool:
+        return self.mode in FLIGHT_MODES
+
+    def emit(self, code: EventCode, arg: int, now: float) -> None:
+        self.events.append((code, int(arg), now))
+
+    # --- transitions --------------------------------------------------------------------------------------
+
+    def check(self, target: Mode, trigger: str = "request") -> Nak:
+        """Would a transition to ``target`` be allowed now? Nak.OK or the first failing guard's reason."""
+        if target == self.mode:
+            return Nak.OK
+        if self.mode == Mode.PANIC and trigger == "request":
+            return Nak.PANIC_ACTIVE
+        row = _ROWS.get((self.mode, target, trigger))
+        if row is None:
+            return Nak.INVALID_TRANSITION
+        self.pending_target = target
+        try:
+            for guard in row.guards:
+                reason = guard.check(self)
+                if reason != Nak.OK:
+                    return reason
+        finally:
+            self.pending_target = None
+        return Nak.OK
+
+    def request(self, target: int, now: float) -> Nak:
+        """The pilot asks for a mode. Returns Nak.OK (done, or already there) or the reason it is refused;
+        a refusal also emits an ``EventCode.REFUSED`` event."""
+        try:
+            target = Mode(target)
+        except ValueError:
+            return Nak.BAD_ARGUMENT
+        if target == Mode.WIRELESS:
+            return Nak.BAD_ARGUMENT  # a handover, not a mode: the board routes Op.WIRELESS itself
+        if target == Mode.PANIC and self.mode in (Mode.SAFE, Mode.PANIC):
+            return Nak.OK  # already safe (motors off) or already descending
+        reason = self.check(target)
+        if reason != Nak.OK:
+            self.emit(EventCode.REFUSED, (int(reason) << 8) | int(target), now)
+            return reason
+        self._change(target, now, "request")
+        return Nak.OK
+
+    def panic(self, now: float, why: str = "request") -> bool:
+        """Enter PANIC if the motors may turn; returns whether the machine is now in PANIC."""
+        if self.mode in FLIGHT_MODES or self.mode == Mode.CALIBRATION:
+            self._change(Mode.PANIC, now, f"panic:{why}")
+        return self.mode == Mode.PANIC
+
+    def _change(self, target: Mode, now: float, reason: str) -> None:
+        old = self.mode
+        LEAVE[old](self, now)
+        self.previous = old
+        self.mode = target
+        ENTER[target](self, now)
+        change = ModeChange(old, target, now, reason)
+        self.changes.append(change)
+        self.emit(EventCode.MODE_CHANGED, (int(old) << 8) | int(target), now)
+        for listener in self.listeners:
+            listener(change)
+
+    # --- timers and safety --------------------------------------------------------------------------------
+
+    def calibration_elapsed(self) -> float:
+        return self._now - self.calibration_started
+
+    def panic_elapsed(self) -> float:
+        return self._now - self.panic_started
+
+    def panic_finished(self) -> bool:
+        if self.panic_start_level == 0:
+            return True
+        return self.panic_elapsed() >= self.config.panic_hold_s + self.config.panic_ramp_s
+
+    def panic_motor_level(self, now: float) -> int:
+        """The motor command the PANIC profile asks for at ``now``: hold, then a linear ramp to zero."""
+        if self.mode != Mode.PANIC:
+            return 0
+        t = now - self.panic_started
+        cfg = self.config
+        if t < cfg.panic_hold_s:
+            return self.panic_start_level
+        if t < cfg.panic_hold_s + cfg.panic_ramp_s:
+            return int(self.panic_start_level * (1.0 - (t - cfg.panic_hold_s) / cfg.panic_ramp_s))
+        return 0
+
+    def tick(self, now: float) -> None:
+        """Take the automatic transitions whose guards pass (PANIC done, calibration time up)."""
+        self._now = now
+        if (self.mode, Mode.SAFE, "auto") in _ROWS and self.check(Mode.SAFE, "auto") == Nak.OK:
+            self._change(Mode.SAFE, now, "auto")
+
+    def calibration_sample(self, values: Sequence[int]) -> None:
+        """Add one sensor sample to the sums (only in CALIBRATION)."""
+        if self.mode == Mode.CALIBRATION:
+            self.calibration.add(values)
+
+    def supervise(self, now: float, *, link_silent_s: float, battery: int | None = None,
+                  phi_cdeg: int = 0, theta_cdeg: int = 0) -> EventCode | None:
+        """The safety monitor: PANIC on link silence, a low battery while flying, or excessive tilt.
+        Returns the cause if it triggered PANIC."""
+        self._now = now
+        cfg = self.config
+        if battery is not None:
+            self.battery = battery
+        timed_out = link_silent_s > cfg.link_timeout_s
+        if timed_out and not self.link_timed_out:
+            self.emit(EventCode.LINK_TIMEOUT, int(link_silent_s * 1000), now)
+        self.link_timed_out = timed_out
+        if self.battery is not None and self.battery < cfg.low_battery:
+            if self._low_battery_since is None:
+                self._low_battery_since = now
+        else:
+            self._low_battery_since = None
+        if self.mode not in FLIGHT_MODES:
+            return None
+        if timed_out:
+            self.panic(now, "link")
+            return EventCode.LINK_TIMEOUT
+        if self._low_battery_since is not None and now - self._low_battery_since >= LOW_BATTERY_HOLD_S:
+            self.emit(EventCode.LOW_BATTERY, self.battery or 0, now)
+            self.panic(now, "battery")
+            return EventCode.LOW_BATTERY
+        tilt = tilt_cdeg(phi_cdeg, theta_cdeg)
+        if tilt > cfg.tilt_limit_cdeg:
+            self.emit(EventCode.TILT_LIMIT, tilt, now)
+            self.panic(now, "tilt")
+            return EventCode.TILT_LIMIT
+        return None
+
+    def drain_events(self) -> list[tuple[EventCode, int, float]]:
+        out, self.events = self.events, []
+        return out
+
+
+def tilt_cdeg(phi_cdeg: int, theta_cdeg: int) -> int:
+    """Angle between the body z axis and the vertical, from roll and pitch (centidegrees)."""
+    phi, theta = math.radians(phi_cdeg / 100), math.radians(theta_cdeg / 100)
+    c = max(-1.0, min(1.0, math.cos(phi) * math.cos(theta)))
+    return round(math.degrees(math.acos(c)) * 100)
+
+
+# --- the diagram, generated from the tables -----------------------------------------------------------------
+
+
+def mermaid() -> str:
+    """The mode diagram as a Mermaid stateDiagram, from ``TRANSITIONS``."""
+    lines = ["stateDiagram-v2", "    [*] --> SAFE"]
+    for t in TRANSITIONS:
+        label = [g.label for g in t.guards]
+        if t.trigger == "auto":
+            label.insert(0, "auto")
+        if t.note:
+            label.append(t.note)
+        text = ": " + ", ".join(label) if label else ""
+        lines.append(f"    {t.source.name} --> {t.target.name}{text}")
+    lines.append("    SAFE --> SAFE: 8 BLE handover (stays SAFE)")
+    return "\n".join(lines)
+
+
+def transition_table_markdown() -> str:
+    """The same table as Markdown, for readers without a Mermaid renderer."""
+    lines = ["| from | to | trigger | guards (all must pass) | note |", "|---|---|---|---|---|"]
+    for t in TRANSITIONS:
+        guards = ", ".join(g.label for g in t.guards) or "none"
+        lines.append(f"| {t.source.name} | {t.target.name} | {t.trigger} | {guards} | {t.note} |")
+    return "\n".join(lines)
+
+
+_DOC_HEAD = """# Board modes
+
+Generated by `python -m fcb_sim.modes` from the tables in `fcb_sim/modes.py` (`TRANSITIONS`, `ENTER`, `LEAVE`);
+a test fails if this file is out of date. Do not edit by hand.
+
+The machine follows the report's design (section 3.2): a check decides whether a transition is valid (the
+guards below, each refusal answered by a NAK with its reason), then the leave action of the old mode and the
+enter action of the new one run. The motors are zero in SAFE and CALIBRATION; they may turn in every other mode.
+
+- Leaving SAFE needs the sticks neutral (|roll|, |pitch|, |yaw| <= {neutral}) and the lift at zero (joystick lift
+  plus lift trim <= {lift}); YAW, FULL and RAW also need a finished calibration, and no flight mode starts on a
+  low battery (< {battery} V).
+- From a flight mode the way out is SAFE (only with the lift at zero, so a key press cannot cut the motors in the
+  air) or PANIC. HEIGHT is entered from FULL or RAW (it holds the height it had) and falls back to the one it
+  came from.
+- PANIC is reachable from every mode that can turn the motors (a PANIC request in SAFE is accepted and changes
+  nothing: the motors are already off). It holds the motors at {panic} (just under hover; never more than they
+  ran at) for {hold} s, ramps them to zero over {ramp} s, and then returns to SAFE by itself.
+- The safety monitor (checked at the heartbeat rate, 10 Hz) enters PANIC from a flight mode on link silence
+  longer than the link timeout (default {timeout} s), a battery under {battery} V for {bat_hold} s, or a tilt past
+  {tilt}°.
+- CALIBRATION sums the sensor samples in unbounded integers for {cal} s with the board still, then returns to
+  SAFE by itself; leaving it (by itself or on request) takes the means, which are subtracted from every later
+  sample. Leaving with fewer than {cal_min} samples keeps the previous calibration.
+- Key 8 (`Op.WIRELESS`, arg 1) is a BLE handover, not a mode: accepted only in SAFE, the board stays in SAFE and
+  `Status.wireless` moves DISCONNECTED -> STARTING -> STARTED (see docs/wireless.md).
+
+## Diagram
+
+```mermaid
+{diagram}
+```
+
+## Transitions
+
+{table}
+
+## Enter and leave actions
+
+| mode | on enter | on leave |
+|---|---|---|
+{actions}
+"""
+
+
+def modes_doc() -> str:
+    """The whole of docs/modes.md."""
+    cfg = ModeConfig()
+    actions = []
+    for mode in ENTER:
+        enter = (ENTER[mode].__name__.lstrip("_").replace("_", " ") if ENTER[mode] is not _nothing else "-")
+        leave = (LEAVE[mode].__name__.lstrip("_").replace("_", " ") if LEAVE[mode] is not _nothing else "-")
+        enter_doc = _ACTION_TEXT.get(ENTER[mode], enter)
+        leave_doc = _ACTION_TEXT.get(LEAVE[mode], leave)
+        actions.append(f"| {mode.name} | {enter_doc} | {leave_doc} |")
+    return _DOC_HEAD.format(
+        neutral=STICK_NEUTRAL, lift=LIFT_ZERO, battery=cfg.low_battery / 100, panic=cfg.panic_level,
+        hold=cfg.panic_hold_s, ramp=cfg.panic_ramp_s, timeout=cfg.link_timeout_s, bat_hold=LOW_BATTERY_HOLD_S,
+        tilt=cfg.tilt_limit_cdeg / 100, cal=cfg.calibration_s, cal_min=cfg.calibration_min_samples,
+        diagram=mermaid(), table=transition_table_markdown(), actions="\n".join(actions),
+    )
+
+
+_ACTION_TEXT: dict[Callable[[ModeMachine, float], None], str] = {
+    _nothing: "-",
+    _enter_safe: "lift trim to zero",
+    _enter_calibration: "sums and count to zero, start the averaging timer",
+    _leave_calibration: "means = sums / count (rounded); calibrated; event CALIBRATION_DONE",
+    _enter_panic: "start the PANIC timer; hold level = min(panic level, current motor level)",
+    _leave_panic: "event PANIC_DONE",
+    _enter_height: "remember FULL or RAW as the base; the flight core holds the current height",
+}
+
+
+if __name__ == "__main__":
+    import pathlib
+
+    out = pathlib.Path(__file__).resolve().parent.parent / "docs" / "modes.md"
+    out.write_text(modes_doc())
+    print(f"wrote {out}")
