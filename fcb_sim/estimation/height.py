@@ -71,15 +71,17 @@ class HeightEstimator:
         alpha_velocity: float = ALPHA_VELOCITY,
         alpha_position: float = ALPHA_POSITION,
         alpha_rate_hz: float = ALPHA_RATE_HZ,
-        highpass_hz: float = HIGHPASS_HZ,
+        acc_highpass_hz: float = HIGHPASS_HZ,
+        baro_highpass_hz: float = HIGHPASS_HZ,
         baro_lowpass_s: float = BARO_LOWPASS_S,
         median3: bool = True,
         temperature_k: float = T_ROOM,
     ) -> None:
         self.tau_v = _alpha_to_tau(alpha_velocity, alpha_rate_hz)
         self.tau_p = _alpha_to_tau(alpha_position, alpha_rate_hz)
-        # First-order high-pass time constant; 0 Hz disables it.
-        self.tau_hp = 1.0 / (2.0 * math.pi * highpass_hz) if highpass_hz > 0.0 else math.inf
+        # First-order high-pass time constants; 0 Hz disables a high-pass.
+        self.tau_hp_acc = 1.0 / (2.0 * math.pi * acc_highpass_hz) if acc_highpass_hz > 0.0 else math.inf
+        self.tau_hp_baro = 1.0 / (2.0 * math.pi * baro_highpass_hz) if baro_highpass_hz > 0.0 else math.inf
         self.baro_lowpass_s = baro_lowpass_s
         self.median3 = median3
         self.temperature_k = temperature_k
@@ -120,7 +122,7 @@ class HeightEstimator:
             a, b, c = hist
             h = max(min(a, b), min(max(a, b), c))
         # High-pass: y = k (y + x - x_prev), k = tau / (tau + dt).
-        k = self.tau_hp / (self.tau_hp + dt) if self.tau_hp != math.inf else 1.0
+        k = self.tau_hp_baro / (self.tau_hp_baro + dt) if self.tau_hp_baro != math.inf else 1.0
         self._hp_b_out = k * (self._hp_b_out + h - self._hp_b_in)
         self._hp_b_in = h
         # Low-pass, then the difference quotient as the baro's vertical speed.
@@ -146,7 +148,7 @@ class HeightEstimator:
             # Start the high-pass at its input so a constant offset does not kick the velocity.
             self._hp_a_in = a_up
             self._a_primed = True
-        k = self.tau_hp / (self.tau_hp + dt) if self.tau_hp != math.inf else 1.0
+        k = self.tau_hp_acc / (self.tau_hp_acc + dt) if self.tau_hp_acc != math.inf else 1.0
         self._hp_a_out = k * (self._hp_a_out + a_up - self._hp_a_in)
         self._hp_a_in = a_up
         a = self._hp_a_out
