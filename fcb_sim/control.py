@@ -32,6 +32,7 @@ from fcb_sim import params as P
 
 ANGLE_LSB_PER_RAD = P.ANGLE_LSB_PER_RAD
 RATE_LSB_PER_RAD_S = P.RATE_LSB_PER_RAD_S
+AE_MAX = P.AE_MAX
 
 # Stick scaling (sticks are int16, lift 0..32767): full roll/pitch stick asks for 32767 >> 3 = 4096 angle LSB
 # (22.5 deg), full yaw twist for 32767 >> 4 = 2048 rate LSB (125 deg/s), full lift for ae 800 on every motor.
@@ -83,19 +84,23 @@ def mix(z: float, l: float, m: float, n: float, *, armed: bool = True,
     Negative squares become 0; results are clamped to 0..1000 and, while armed, to at least ``idle``.
     """
     s = -int(z)
-    li = int(l)
-    mi = int(m)
+    li = 2 * int(l)
+    mi = 2 * int(m)
     ni = int(n)
-    a1 = (s - ni + 2 * mi) >> 2
-    a2 = (s + ni - 2 * li) >> 2
-    a3 = (s - ni - 2 * mi) >> 2
-    a4 = (s + ni + 2 * li) >> 2
     lo = idle if armed else 0
-    hi = P.AE_MAX
-    out = []
-    for a in (a1, a2, a3, a4):
-        v = isqrt_nr(a) if a > 0 else 0
-        out.append(lo if v < lo else hi if v > hi else v)
+    out = [(s - ni + mi) >> 2, (s + ni - li) >> 2, (s - ni - mi) >> 2, (s + ni + li) >> 2]
+    for j in range(4):
+        a = out[j]
+        if a > 0:
+            # isqrt_nr inlined (this runs 400 times per simulated second)
+            v = 1 << (a.bit_length() >> 1)
+            v = (v + a // v) >> 1
+            v = (v + a // v) >> 1
+            if v * v > a:
+                v -= 1
+        else:
+            v = 0
+        out[j] = lo if v < lo else AE_MAX if v > AE_MAX else v
     return out[0], out[1], out[2], out[3]
 
 

@@ -46,6 +46,11 @@ HEIGHT_STICK_DEADBAND = 1500  # stick units around the entry position that leave
 
 _SAFE, _PANIC, _MANUAL, _CAL = int(Mode.SAFE), int(Mode.PANIC), int(Mode.MANUAL), int(Mode.CALIBRATION)
 _YAW, _FULL, _RAW, _HEIGHT = int(Mode.YAW), int(Mode.FULL), int(Mode.RAW), int(Mode.HEIGHT)
+_ANGLE = C.ANGLE_LSB_PER_RAD
+_SHIFT = C.STICK_ANGLE_SHIFT
+_YSHIFT = C.STICK_YAW_SHIFT
+_mix = C.mix
+_lift_to_z = C.lift_to_z
 
 
 @dataclass(frozen=True)
@@ -250,13 +255,12 @@ class FlightCore:
             else:
                 phi, theta, psi = self.dmp_phi, self.dmp_theta, self.dmp_psi
             self.phi, self.theta, self.psi = phi, theta, psi
-            a = C.ANGLE_LSB_PER_RAD
             p2 = g.p2
             p1 = g.p1
-            # cascade inlined: L = P2 (P1 (phi_sp - phi) - p)
-            lm = p2 * (p1 * ((roll >> C.STICK_ANGLE_SHIFT) - phi * a) - self.sp)
-            mm = p2 * (p1 * ((pitch >> C.STICK_ANGLE_SHIFT) - theta * a) - self.sq)
-            nm = g.yaw_p * ((yaw >> C.STICK_YAW_SHIFT) - self.sr)
+            # control.cascade and control.yaw_rate inlined: L = P2 (P1 (phi_sp - phi) - p), N = P (r_sp - r)
+            lm = p2 * (p1 * ((roll >> _SHIFT) - phi * _ANGLE) - self.sp)
+            mm = p2 * (p1 * ((pitch >> _SHIFT) - theta * _ANGLE) - self.sq)
+            nm = g.yaw_p * ((yaw >> _YSHIFT) - self.sr)
             if mode == _HEIGHT:
                 d = lift - self._lift_entry
                 if d > HEIGHT_STICK_DEADBAND or d < -HEIGHT_STICK_DEADBAND:
@@ -266,8 +270,8 @@ class FlightCore:
                 if z > 0.0:
                     z = 0.0
             else:
-                z = C.lift_to_z(lift)
-            out = C.mix(z, lm, mm, nm)
+                z = _lift_to_z(lift)
+            out = _mix(z, lm, mm, nm)
         elif mode == _MANUAL or mode == _YAW:
             self.phi, self.theta, self.psi = self.dmp_phi, self.dmp_theta, self.dmp_psi
             lm = roll * C.MANUAL_LM_GAIN

@@ -62,8 +62,8 @@ class Mpu6050:
         # per-part offsets in LSB (chip frame)
         self.gyro_bias = [u(-g, g), u(-g, g), u(-g, g)]
         self.acc_bias = [u(-a, a), u(-a, a), u(-a, a)]
-        self.gyro_sigma = P.GYRO_NOISE_DPS * P.GYRO_LSB_PER_DPS
-        self.acc_sigma = P.ACC_NOISE_G * P.ACC_LSB_PER_G
+        self.gyro_var = (P.GYRO_NOISE_DPS * P.GYRO_LSB_PER_DPS) ** 2
+        self.acc_var = (P.ACC_NOISE_G * P.ACC_LSB_PER_G) ** 2
         self.vib_gyro = P.VIB_GYRO_DPS * P.GYRO_LSB_PER_DPS * vibration
         self.vib_acc = P.VIB_ACC_G * P.ACC_LSB_PER_G * vibration
         self._walk_t = 0.0
@@ -81,34 +81,38 @@ class Mpu6050:
         squared rotor speed relative to hover (vibration)."""
         last = self._last_t
         self._last_t = t
-        dt = 0.0025 if last is None else t - last
-        if dt < 0.0:
-            dt = 0.0
+        f = self._f
         k = P.RATE_LSB_PER_RAD_S
         s = P.ACC_LSB_PER_MS2
-        # chip frame: x forward, y left, z up
-        tg0, tg1, tg2 = p * k, -q * k, -r * k
-        ta0, ta1, ta2 = fx * s, -fy * s, -fz * s
-        f = self._f
         if last is None:
-            f[:] = [tg0, tg1, tg2, ta0, ta1, ta2]
+            # chip frame: x forward, y left, z up
+            f[:] = [p * k, -q * k, -r * k, fx * s, -fy * s, -fz * s]
+            dt = 0.0
         else:
+            dt = t - last
             # first-order stand-in for the DLPF (4.8 ms group delay)
-            a = dt / (P.DLPF_DELAY + dt)
-            f[0] += (tg0 - f[0]) * a
-            f[1] += (tg1 - f[1]) * a
-            f[2] += (tg2 - f[2]) * a
-            f[3] += (ta0 - f[3]) * a
-            f[4] += (ta1 - f[4]) * a
-            f[5] += (ta2 - f[5]) * a
+            a = dt / (P.DLPF_DELAY + dt) if dt > 0.0 else 0.0
+            ka, sa_ = k * a, s * a
+            b = 1.0 - a
+            f[0] = f[0] * b + p * ka
+            f[1] = f[1] * b - q * ka
+            f[2] = f[2] * b - r * ka
+            f[3] = f[3] * b + fx * sa_
+            f[4] = f[4] * b - fy * sa_
+            f[5] = f[5] * b - fz * sa_
         self._walk_t += dt
         if self._walk_t >= 0.1:
             self._walk(self._walk_t)
             self._walk_t = 0.0
-        sg = math.sqrt(self.gyro_sigma * self.gyro_sigma + (self.vib_gyro * rotor_sq) ** 2)
-        sa = math.sqrt(self.acc_sigma * self.acc_sigma + (self.vib_acc * rotor_sq) ** 2)
+        vg = self.vib_gyro * rotor_sq
+        va = self.vib_acc * rotor_sq
+        sg = math.sqrt(self.gyro_var + vg * vg)
+        sa = math.sqrt(self.acc_var + va * va)
         nt = self.noise
-        i = nt.take(6)
+        i = nt.i
+        if i > nt.limit:
+            i = nt.rng.randrange(nt.limit)
+        nt.i = i + 6
         tab = nt.tab
         gb = self.gyro_bias
         ab = self.acc_bias

@@ -1,0 +1,116 @@
+"""FlightCore: per-mode control laws, calibration, gains, HEIGHT set point, PANIC, RAW flight."""
+
+from __future__ import annotations
+
+import pytest
+
+from fcb_sim import params as P
+from fcb_sim.flight import Calibration, CalibrationAccumulator, FlightCore
+from fcb_sim.physics import World
+from fcb_sim.scenarios import run_scenario
+from term.protocol import Mode
+
+
+def _calibrated() -> FlightCore:
+    fc = FlightCore()
+    fc.set_calibration(Calibration(gyro=(40.0, -30.0, 10.0), accel=(200.0, -100.0, 16500.0), pressure=101300.0))
+    return fc
+
+
+@pytest.mark.parametrize("mode", [Mode.SAFE, Mode.CALIBRATION, Mode.WIRELESS])
+def test_motors_off_outside_flight_modes(mode):
+    fc = _calibrated()
+    assert fc.control(mode, 5000, -3000, 2000, 20000) == (0, 0, 0, 0)
+
+
+def test_calibration_offsets_are_subtracted_in_the_body_frame():
+    fc = _calibrated()
+    fc.imu_sample(40 + 164, -30 + 328, 10 - 492, 200, -100, 16500, 0.0025)
+    assert (fc.sp, fc.sq, fc.sr) == (164.0, -328.0, 492.0)  # p = gx, q = -gy, r = -gz
+    assert (fc.sax, fc.say, fc.saz) == (0.0, 0.0, -P.ACC_LSB_PER_G)  # gravity kept, saz about -16384
+
+
+def test_calibration_accumulator_means():
+    acc = CalibrationAccumulator()
+    w = World(3)
+    for i in range(1, 401):
+        w.advance_to(i * 0.0025)
+        acc.add_imu(*w.imu())
+        q = w.dmp()
+        if q is not None:
+            acc.add_dmp(*q)
+        if i % 20 == 0:
+            acc.add_baro(w.baro()[0])
+    cal = acc.result()
+    assert cal.gyro[0] == pytest.approx(w.mpu.gyro_bias[0], abs=3.0)
+    assert cal.accel[2] == pytest.approx(16384 + w.mpu.acc_bias[2], abs=10.0)
+    assert cal.pressure == pytest.approx(P.P0, abs=3.0)
+    with pytest.raises(ValueError):
+        CalibrationAccumulator().result()
+
+
+def test_manual_maps_sticks_to_moments():
+    fc = _calibrated()
+    hover = 16384  # lift stick for ae 400 on every motor
+    assert fc.control(Mode.MANUAL, 0, 0, 0, hover) == (400, 400, 400, 400)
+    ae = fc.control(Mode.MANUAL, 10000, 0, 0, hover)
+    assert ae[3] > 400 > ae[1]  # roll right: left motor up
+    ae = fc.control(Mode.MANUAL, 0, 10000, 0, hover)
+    assert ae[0] > 400 > ae[2]  # stick back: nose up, front motor up
+    ae = fc.control(Mode.MANUAL, 0, 0, 10000, hover)
+    assert ae[1] > 400 > ae[0]  # twist right: motors 2 and 4 up
+    assert fc.control(Mode.MANUAL, 0, 0, 0, 0) == (P.AE_IDLE,) * 4  # armed idle
+
+
+def test_yaw_mode_closes_the_yaw_rate_loop():
+    fc = _calibrated()
+    fc.imu_sample(40, -30, 10 - 500, 200, -100, 16500, 0.0025)  # turning nose right at 500 LSB
+    ae = fc.control(Mode.YAW, 0, 0, 0, 16384)
+    assert ae[0] > ae[1]  # asks for a negative N to stop the turn
+
+
+def test_gains_settable_and_key_steps():
+    fc = FlightCore()
+    assert (fc.gains.yaw_p, fc.gains.p1, fc.gains.p2) == (800.0, 0.4, 111.0)  # Table 1 magnitudes
+    assert fc.adjust_gain("p1", 2) == pytest.approx(0.5)
+    assert fc.adjust_gain("p2", -100) == 0.0
+    fc.gains.yaw_p = 500.0
+    fc.imu_sample(0, 0, -100, 0, 0, 16384, 0.0025)
+    a = fc.control(Mode.YAW, 0, 0, 0, 16384)
+    fc.gains.yaw_p = 1000.0
+    b = fc.control(Mode.YAW, 0, 0, 0, 16384)
+    assert b[0] - b[1] > a[0] - a[1] > 0
+
+
+def test_panic_level_and_ramp():
+    fc = FlightCore()
+    assert fc.control(Mode.PANIC, 0, 0, 0, 0) == (P.PANIC_AE,) * 4
+    assert P.PANIC_AE < P.AE_HOVER_NOMINAL
+    fc.panic_scale = 0.5
+    assert fc.control(Mode.PANIC, 0, 0, 0, 0) == (P.PANIC_AE // 2,) * 4
+    assert fc.panic_motors(0.0) == (0, 0, 0, 0)
+    fc.control(Mode.SAFE, 0, 0, 0, 0)
+    fc.control(Mode.PANIC, 0, 0, 0, 0)
+    assert fc.panic_scale == 1.0  # entering PANIC restarts the descent level
+
+
+def test_height_mode_captures_the_set_point_and_the_stick_moves_it():
+    fc = _calibrated()
+    fc.height = 1.2
+    fc.control(Mode.HEIGHT, 0, 0, 0, 16384)
+    assert fc.setpoint == pytest.approx(1.2)
+    for _ in range(400):
+        fc.control(Mode.HEIGHT, 0, 0, 0, 32767, 0.0025)  # lift stick pushed up for 1 s
+    assert fc.setpoint > 1.4
+    ae_high = fc.control(Mode.HEIGHT, 0, 0, 0, 16384)
+    assert min(ae_high) > 400  # below the raised set point: more lift
+
+
+def test_raw_mode_hovers_on_the_on_board_filter():
+    m = run_scenario("raw-hover", 9.0, seed=4)
+    assert m["attitude_rms_deg"] < 1.0
+
+
+def test_height_hold_keeps_its_height():
+    m = run_scenario("height-hold", 12.0, seed=5)
+    assert m["height_rms_m"] < 0.3
