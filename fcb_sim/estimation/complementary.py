@@ -51,6 +51,11 @@ class ComplementaryFilter(EulerFilterMixin):
 class ComplementaryFilterQ16(EulerFilterMixin):
     """The same filter in Q16.16 (libfixmath semantics, saturating), with the corrected fixed-point atan2.
 
+    With K_gyro = 0.999, K_acce is 66 LSB (0.001007), and the rounded product K_acce * (acc - angle) is 0
+    for |acc - angle| < 0.5 / 0.001007 LSB = 0.0076 rad: a dead band of ±0.43° in which the accelerometer
+    stops correcting (eq. 1 written literally, K (phi + p dt) + K_acce acc, has the same dead band). The board
+    flew with it; the tests pin it.
+
     Inputs are converted to fix16 at the door (as the firmware would scale its integer samples); the state
     stays in fix16; ``roll``/``pitch``/``yaw`` are read back as floats.
     """
