@@ -1,0 +1,276 @@
+"""BLE link figures: notification fill at telemetry load, and the PC's writes per second with the stick still and
+moving (change-only joystick sends, report section 3.9).
+
+Two measurements:
+
+- **simulated** (exact, deterministic): the board's ``WirelessLink`` (STARTED) and the PC's ``LinkSession``
+  (``change_only=True``) exchange bytes on a 1 ms simulated clock for ``--seconds``: the board sends a 10 Hz
+  heartbeat, Compact telemetry (30 Hz, and 10 Hz for comparison) and an Ack per command; the pilot presses a
+  key every 2 s; the stick is still, or moving (a slow sweep sampled at 100 Hz, as the joystick poller does);
+  the PC's output is cut into ATT writes of at most 20 bytes, as ``BleTransport`` does.
+- **radio** (real time, real stack): the same board stand-in behind the bumble radio (``start_radio`` with the
+  phone-side controller on 127.0.0.1) and the terminal's ``Connection(BleTransport(..., hci=...),
+  LinkSession(change_only=True))`` through our bleak backend: writes per second still and moving, notification
+  fill and size as received, heartbeat round trip. Stick-to-motor latency over BLE needs the board
+  integration and is not measured here.
+
+``python -m bench.ble [--seconds 20] [--radio-seconds 1.5] [--no-radio]``; one JSON object on the last line.
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import json
+import math
+import statistics
+import time
+from dataclasses import dataclass, field
+
+from fcb_sim.wireless import BLE_TELEMETRY_HZ, NOTIFY_PAYLOAD, WirelessLink, start_radio
+from term.link import LinkSession
+from term.protocol import (
+    Ack,
+    Command,
+    Compact,
+    Decoder,
+    Heartbeat,
+    HeartbeatAck,
+    Joystick,
+    Mode,
+    Op,
+    WirelessState,
+)
+
+HEARTBEAT_HZ = 10.0
+KEY_EVERY_S = 2.0
+STICK_HZ = 100.0  # the joystick poller's rate
+
+
+def stick_at(t: float, moving: bool) -> Joystick:
+    """Neutral, or a slow sweep of roll and pitch (a pilot flying gentle circles), quantised like pygame's."""
+    if not moving:
+        return Joystick(0, 0, 0, 8000, 0)
+    return Joystick(int(9000 * math.sin(1.3 * t)), int(9000 * math.cos(1.3 * t)), 0, 8000, 0)
+
+
+class BoardStandIn:
+    """The BLE half of the board: the WirelessLink handed over and STARTED, a heartbeat and Compact schedule,
+    an Ack for every command. Enough to load the link as the board will; not the firmware."""
+
+    def __init__(self, link: WirelessLink, compact_hz: float) -> None:
+        self.link = link
+        self.compact_period = 1.0 / compact_hz
+        self.decoder = Decoder()
+        self.next_hb = 0.0
+        self.next_compact = 0.0
+        self.hb_counter = 0
+        self.hb_sent: dict[int, float] = {}
+        self.hb_rtt: list[float] = []
+        self.joysticks = 0
+        self.commands = 0
+
+    def tick(self, now: float) -> None:
+        # Compact first at a shared instant: the heartbeat then flushes a whole batch.
+        while now >= self.next_compact - 1e-9:
+            t = self.next_compact
+            self.link.send(Compact(Mode.SAFE, self.link.state, int(500 * math.sin(t)), 0, 0, 1150))
+            self.next_compact += self.compact_period
+        while now >= self.next_hb - 1e-9:
+            self.hb_counter = (self.hb_counter + 1) & 0xFFFF
+            self.hb_sent[self.hb_counter] = now
+            self.link.send(Heartbeat(self.hb_counter, int(now * 1000)))
+            self.next_hb += 1.0 / HEARTBEAT_HZ
+
+    def receive(self, data: bytes, now: float) -> None:
+        for pkt in self.decoder.feed(self.link.ble_receive(data)):
+            kind = type(pkt)
+            if kind is HeartbeatAck:
+                sent = self.hb_sent.pop(pkt.counter, None)
+                if sent is not None:
+                    self.hb_rtt.append(now - sent)
+            elif kind is Joystick:
+                self.joysticks += 1
+            elif kind is Command:
+                self.commands += 1
+                self.link.send(Ack(pkt.cmd_id, pkt.op, 0, pkt.arg))
+
+
+def started_link() -> WirelessLink:
+    link = WirelessLink()
+    link.connected()
+    link.request_start()
+    link.ble_receive(b"\x00")  # the phone's first bytes: STARTED
+    return link
+
+
+def att_writes(data: bytes) -> int:
+    return -(-len(data) // NOTIFY_PAYLOAD)
+
+
+@dataclass
+class SimResult:
+    writes: int = 0
+    write_bytes: int = 0
+    joysticks: int = 0
+    fill_pct: float = 0.0
+    notifications: int = 0
+    largest: int = 0
+    extra: dict = field(default_factory=dict)
+
+
+def simulate(seconds: float, compact_hz: float, moving: bool) -> SimResult:
+    """Board and PC on one 1 ms simulated clock; bytes pass at once (the radio's delay does not change counts)."""
+    link = started_link()
+    board = BoardStandIn(link, compact_hz)
+    session = LinkSession(0.0, change_only=True)
+    res = SimResult()
+    next_stick = 0.0
+    next_key = KEY_EVERY_S / 2
+    steps = int(seconds * 1000)
+    for step in range(steps + 1):
+        now = step / 1000.0
+        board.tick(now)
+        notes = link.notifications()
+        if notes:
+            session.receive(b"".join(notes), now)
+        if now >= next_stick - 1e-9:
+            session.set_joystick(stick_at(now, moving))
+            next_stick += 1.0 / STICK_HZ
+        if now >= next_key - 1e-9:
+            session.send_command(Op.TRIM_LIFT, 1, now)
+            next_key += KEY_EVERY_S
+        session.poll(now)
+        out = session.data_to_send(now)
+        if out:
+            res.writes += att_writes(out)
+            res.write_bytes += len(out)
+            board.receive(out, now)
+    st = link.stats
+    res.joysticks = board.joysticks
+    res.fill_pct = st.fill_pct
+    res.notifications = st.notifications
+    res.largest = st.largest
+    return res
+
+
+async def _wait_for(condition, conn, what: str, timeout: float = 10.0) -> None:
+    """Wait for the stack; a benchmark fails with a reason rather than hanging."""
+    deadline = time.monotonic() + timeout
+    while not condition():
+        if time.monotonic() > deadline or (conn.error is not None) or (conn.crash is not None):
+            raise RuntimeError(f"{what} (connection error: {conn.error or conn.crash})")
+        await asyncio.sleep(0.001)
+
+
+async def radio_run(seconds: float) -> dict:
+    """The same exchange over the bumble radio in real time, through the terminal's own BLE path."""
+    from term.connection import Connection
+    from term.transports.ble import BleTransport
+
+    link = WirelessLink()
+    board = BoardStandIn(link, BLE_TELEMETRY_HZ)
+    clock = time.monotonic
+    radio = await start_radio(
+        link, board_id=1, hci="tcp-server:127.0.0.1:0", on_data=lambda d: board.receive(d, clock())
+    )
+    transport = BleTransport(radio.address, hci=radio.hci.client_spec, timeout=5.0)
+    session = LinkSession(clock(), change_only=True)
+    conn = Connection(transport, session, clock=clock, on_event=lambda ev: None)
+    note_sizes: list[int] = []
+    try:
+        await conn.start()
+        await _wait_for(lambda: link.is_connected, conn, "the radio never saw the connection")
+        link.request_start()  # the wireless key, as the cable would have delivered it
+        t0 = clock()
+        board.next_hb = board.next_compact = t0
+
+        async def board_loop() -> None:
+            while True:
+                board.tick(clock())
+                await asyncio.sleep(0.001)
+
+        task = asyncio.create_task(board_loop())
+        await _wait_for(lambda: link.state is WirelessState.STARTED, conn, "the handover never reached STARTED")
+        results = {}
+        for label, moving in (("still", False), ("moving", True)):
+            w0, j0, n0, b0 = transport.writes, board.joysticks, transport.notifications, transport.bytes_read
+            start = clock()
+            next_key = start + KEY_EVERY_S / 2
+            while (now := clock()) - start < seconds:
+                conn.set_joystick(stick_at(now - t0, moving))
+                if now >= next_key:
+                    conn.send_command(Op.TRIM_LIFT, 1)
+                    next_key += KEY_EVERY_S
+                await asyncio.sleep(1.0 / STICK_HZ)
+            span = clock() - start
+            notes = transport.notifications - n0
+            results[label] = {
+                "writes_per_s": round((transport.writes - w0) / span, 1),
+                "joysticks_per_s": round((board.joysticks - j0) / span, 1),
+                "notifications_per_s": round(notes / span, 1),
+                "fill_pct": round(100.0 * (transport.bytes_read - b0) / (notes * NOTIFY_PAYLOAD), 1) if notes else 0,
+            }
+        task.cancel()
+        note_sizes.append(link.stats.largest)
+        rtt = board.hb_rtt
+        return {
+            "still": results["still"],
+            "moving": results["moving"],
+            "largest_notification": max(note_sizes),
+            "heartbeat_rtt_ms_median": round(1000 * statistics.median(rtt), 2) if rtt else None,
+            "heartbeat_rtt_ms_max": round(1000 * max(rtt), 2) if rtt else None,
+            "seconds_each": seconds,
+        }
+    finally:
+        await conn.stop()
+        await radio.close()
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m bench.ble", description=__doc__.splitlines()[0])
+    parser.add_argument("--seconds", type=float, default=20.0, help="simulated seconds per case (default 20)")
+    parser.add_argument("--radio-seconds", type=float, default=1.5, help="real seconds per radio case")
+    parser.add_argument("--no-radio", action="store_true", help="skip the real-time run over the bumble radio")
+    args = parser.parse_args(argv)
+
+    out: dict = {"bench": "ble", "notification_payload": NOTIFY_PAYLOAD, "seconds": args.seconds}
+    fill = {}
+    for hz in (BLE_TELEMETRY_HZ, 10.0):
+        r = simulate(args.seconds, hz, moving=False)
+        fill[f"compact_{hz:g}hz"] = {
+            "fill_pct": round(r.fill_pct, 1),
+            "notifications_per_s": round(r.notifications / args.seconds, 1),
+            "largest": r.largest,
+        }
+        print(f"notification fill, Compact {hz:g} Hz + heartbeat 10 Hz + acks: {r.fill_pct:5.1f} % "
+              f"({r.notifications / args.seconds:.1f} notifications/s, largest {r.largest} B)")
+    out["fill"] = fill
+    out["fill_goal_met"] = fill[f"compact_{BLE_TELEMETRY_HZ:g}hz"]["fill_pct"] >= 90.0
+    writes = {}
+    for label, moving in (("still", False), ("moving", True)):
+        r = simulate(args.seconds, BLE_TELEMETRY_HZ, moving)
+        writes[label] = {
+            "writes_per_s": round(r.writes / args.seconds, 1),
+            "joysticks_per_s": round(r.joysticks / args.seconds, 1),
+            "bytes_per_s": round(r.write_bytes / args.seconds, 1),
+        }
+        print(f"PC writes, stick {label:6s}: {r.writes / args.seconds:6.1f} writes/s "
+              f"({r.joysticks / args.seconds:.1f} joystick frames/s, {r.write_bytes / args.seconds:.0f} B/s)")
+    out["writes_simulated"] = writes
+    if not args.no_radio:
+        radio = asyncio.run(radio_run(args.radio_seconds))
+        out["radio"] = radio
+        for label in ("still", "moving"):
+            r = radio[label]
+            print(f"over the bumble radio, stick {label:6s}: {r['writes_per_s']:6.1f} writes/s, "
+                  f"{r['notifications_per_s']:.1f} notifications/s at {r['fill_pct']} % fill")
+        print(f"heartbeat round trip over the radio: median {radio['heartbeat_rtt_ms_median']} ms, "
+              f"largest notification {radio['largest_notification']} B")
+    out["stick_to_motor_latency_ms"] = None  # needs the board integration (fcb_sim.board)
+    print(json.dumps(out))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
