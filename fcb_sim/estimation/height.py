@@ -5,9 +5,15 @@ Pipeline, one step per sample:
 
 * Barometer (``update_baro``): pressure -> height by the linearised barometric formula (eq. 3) relative to
   the pressure at ``reset`` -> median of the last three samples (beyond the report: removes the single-sample
-  spikes of Figure 9 at the cost of one sample of delay; ``median3=False`` turns it off) -> 0.1 Hz high-pass
-  (removes slow drift: temperature, supply, weather) -> low-pass (the report's "low pass filtered barometer
-  readings", about 0.3 s) = ``baro_height``; its difference quotient is ``baro_vz``.
+  spikes of Figure 9 at the cost of one sample of delay; ``median3=False`` turns it off). Then two paths, as
+  the report's text describes them:
+  - velocity path: 0.1 Hz high-pass (removes slow drift: temperature, supply, weather) -> low-pass (the
+    report's "low pass filtered barometer readings", about 0.3 s) -> difference quotient = ``baro_vz``;
+  - position path: the *absolute* reading ("combined with the absolute barometer reading to obtain the
+    current position") -> the same low-pass = ``baro_height``.
+  A high-pass on the position path too (``position_highpass_hz``, default off) would make every lasting
+  height change decay with tau = 1.6 s: a HEIGHT hold around a captured set point then climbs or sinks
+  without end (tried in the simulator: +2 m in 15 s), so the default follows the report's text.
 * Accelerometer (``update_imu``): chip-frame specific force rotated into the earth frame with the attitude
   quaternion, gravity removed -> 0.1 Hz high-pass (absorbs a calibration offset or a tilted calibration).
 * Velocity complementary filter: ``vz = a_v (vz + a dt) + (1 - a_v) baro_vz``, α_velocity = 0.995.
@@ -73,6 +79,7 @@ class HeightEstimator:
         alpha_rate_hz: float = ALPHA_RATE_HZ,
         acc_highpass_hz: float = HIGHPASS_HZ,
         baro_highpass_hz: float = HIGHPASS_HZ,
+        position_highpass_hz: float = 0.0,
         baro_lowpass_s: float = BARO_LOWPASS_S,
         median3: bool = True,
         temperature_k: float = T_ROOM,
@@ -82,6 +89,7 @@ class HeightEstimator:
         # First-order high-pass time constants; 0 Hz disables a high-pass.
         self.tau_hp_acc = 1.0 / (2.0 * math.pi * acc_highpass_hz) if acc_highpass_hz > 0.0 else math.inf
         self.tau_hp_baro = 1.0 / (2.0 * math.pi * baro_highpass_hz) if baro_highpass_hz > 0.0 else math.inf
+        self.tau_hp_pos = 1.0 / (2.0 * math.pi * position_highpass_hz) if position_highpass_hz > 0.0 else math.inf
         self.baro_lowpass_s = baro_lowpass_s
         self.median3 = median3
         self.temperature_k = temperature_k
@@ -97,11 +105,13 @@ class HeightEstimator:
         self.vz = 0.0
         self.az_earth = 0.0  # linear vertical acceleration after the high-pass, m/s² (for telemetry)
         self.baro_raw = 0.0  # eq. 3 height of the last pressure sample
-        self.baro_height = 0.0  # after median, high-pass and low-pass
-        self.baro_vz = 0.0
+        self.baro_height = 0.0  # position path: after median and low-pass
+        self.baro_vz = 0.0  # velocity path: after median, high-pass, low-pass and difference quotient
         self._hist = [0.0, 0.0, 0.0]
         self._hp_b_in = 0.0
         self._hp_b_out = 0.0
+        self._lp_v = 0.0
+        self._hp_p_out = 0.0
         self._hp_a_in = 0.0
         self._hp_a_out = 0.0
         self._a_primed = False
@@ -121,15 +131,22 @@ class HeightEstimator:
             hist[0], hist[1], hist[2] = hist[1], hist[2], h
             a, b, c = hist
             h = max(min(a, b), min(max(a, b), c))
-        # High-pass: y = k (y + x - x_prev), k = tau / (tau + dt).
+        lp = dt / (self.baro_lowpass_s + dt) if self.baro_lowpass_s > 0.0 else 1.0
+        # Velocity path. High-pass: y = k (y + x - x_prev), k = tau / (tau + dt); then low-pass; then d/dt.
         k = self.tau_hp_baro / (self.tau_hp_baro + dt) if self.tau_hp_baro != math.inf else 1.0
         self._hp_b_out = k * (self._hp_b_out + h - self._hp_b_in)
+        prev = self._lp_v
+        self._lp_v = prev + lp * (self._hp_b_out - prev)
+        self.baro_vz = (self._lp_v - prev) / dt
+        # Position path: the absolute reading (optionally high-passed too), low-passed.
+        if self.tau_hp_pos != math.inf:
+            k = self.tau_hp_pos / (self.tau_hp_pos + dt)
+            self._hp_p_out = k * (self._hp_p_out + h - self._hp_b_in)
+            x = self._hp_p_out
+        else:
+            x = h
         self._hp_b_in = h
-        # Low-pass, then the difference quotient as the baro's vertical speed.
-        lp = dt / (self.baro_lowpass_s + dt) if self.baro_lowpass_s > 0.0 else 1.0
-        prev = self.baro_height
-        self.baro_height = prev + lp * (self._hp_b_out - prev)
-        self.baro_vz = (self.baro_height - prev) / dt
+        self.baro_height += lp * (x - self.baro_height)
 
     def update_imu(
         self, ax: float, ay: float, az: float, qw: float, qx: float, qy: float, qz: float, dt: float
