@@ -105,3 +105,25 @@ def test_acceleration_is_rotated_properly() -> None:
     for _ in range(int(0.5 / DT)):
         he.update_imu(0.0, f * math.sin(roll), f * math.cos(roll), *q, DT)
     assert he.vz == pytest.approx(0.5, abs=0.01)
+
+
+def test_spike_gate_skips_a_baro_spike_but_accepts_a_lasting_change() -> None:
+    """A Figure-9 spike: +12 Pa (about -1 m) for 0.3 s at constant height. Gated, the estimate moves < 0.1 m;
+    ungated it dips by more than 0.3 m. A lasting 1 m step in the baro is accepted after spike_hold_s."""
+
+    def run(gate: float, step_forever: bool = False) -> list[float]:
+        he = HeightEstimator(spike_gate_m=gate, spike_hold_s=1.0)
+        he.reset(P0)
+        out = []
+        for n in range(int(8.0 / DT)):
+            t = n * DT
+            he.update_imu(0.0, 0.0, G, 1, 0, 0, 0, DT)
+            if n % 20 == 0:
+                spike = (2.0 <= t < 2.3) or (step_forever and t >= 2.0)
+                he.update_baro(P0 + (12.0 if spike else 0.0), 20 * DT)
+            out.append(he.height)
+        return out
+
+    assert min(run(0.3)) > -0.1
+    assert min(run(0.0)) < -0.3
+    assert run(0.3, step_forever=True)[-1] == pytest.approx(-12.0 / pa_per_metre(P0), abs=0.1)
