@@ -112,6 +112,7 @@ async def test_a_dropped_connection_is_one_line_and_reopen_reconnects(board) -> 
 async def test_scan_lists_the_board(board) -> None:
     boards = await scan(hci=board.hci.client_spec, timeout=0.2)
     assert [(b.address, b.name) for b in boards] == [(board.address, "Quadrupel 9")]
+    assert str(boards[0]) == f"Quadrupel 9      {board.address}  -50 dBm"
 
 
 async def test_unknown_address(board) -> None:

@@ -182,6 +182,9 @@ class BoardInfo:
     name: str
     rssi: int
 
+    def __str__(self) -> str:
+        return f"{self.name:<16} {self.address}  {self.rssi} dBm"
+
 
 async def scan(hci: str | None = None, timeout: float = 3.0) -> list[BoardInfo]:
     """The boards advertising nearby (name starting with "Quadrupel"), strongest first."""
