@@ -48,6 +48,8 @@ def build_parser() -> argparse.ArgumentParser:
     prof.add_argument("--seconds", type=float, default=30.0, help="simulated seconds (default 30)")
     prof.add_argument("--seed", type=int, default=1)
     prof.add_argument("--json", action="store_true", help="print one JSON object as the last line")
+    prof.add_argument("--log-scheme", choices=["delta8", "rice"], default="delta8",
+                      help="flash log codec while profiling (default delta8, the report's)")
     prof.set_defaults(handler="fcb_sim.board:cmd_profile")
 
     # --- serve: the board in real time behind a pseudo-terminal (owner: fcb_sim/serve.py) ---

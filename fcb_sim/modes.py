@@ -22,7 +22,7 @@ the battery and the motor level are pushed in by the board; events for the PC co
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 
 from term.protocol import EventCode, Joystick, Mode, Nak
@@ -56,29 +56,38 @@ class ModeConfig:
 
 class Calibration:
     """Sums of sensor samples in unbounded integers (the report used 64-bit sums to avoid overflow; Python's
-    ints cannot overflow at all); the means are taken when CALIBRATION is left."""
+    ints cannot overflow at all), one sum and one count per named variable (sensors come at different rates);
+    the means are taken when CALIBRATION is left."""
 
     def __init__(self, names: Sequence[str] = ()) -> None:
         self.names = tuple(names)
-        self.sums = [0] * len(self.names)
-        self.count = 0
+        self.sums: dict[str, int] = {}
+        self.counts: dict[str, int] = {}
+        self.reset()
 
     def reset(self) -> None:
-        self.sums = [0] * len(self.names)
-        self.count = 0
+        self.sums = {name: 0 for name in self.names}
+        self.counts = {name: 0 for name in self.names}
 
-    def add(self, values: Sequence[int]) -> None:
-        if len(values) != len(self.names):
-            raise ValueError(f"calibration sample has {len(values)} values, expected {len(self.names)}")
-        self.sums = [s + int(v) for s, v in zip(self.sums, values, strict=True)]
-        self.count += 1
+    @property
+    def count(self) -> int:
+        """Samples of the first (primary, fastest) variable: what the minimum-sample rule looks at."""
+        return self.counts[self.names[0]] if self.names else 0
+
+    def add(self, values: Mapping[str, int]) -> None:
+        for name, v in values.items():
+            if name not in self.sums:
+                raise KeyError(f"{name!r} is not calibrated (known: {', '.join(self.names)})")
+            self.sums[name] += int(v)
+            self.counts[name] += 1
 
     def means(self) -> dict[str, int]:
         """Rounded-to-nearest integer means: exact integer arithmetic, as the board's would be."""
-        n = self.count
-        if n == 0:
-            return {name: 0 for name in self.names}
-        return {name: (2 * s + n) // (2 * n) for name, s in zip(self.names, self.sums, strict=True)}
+        out = {}
+        for name in self.names:
+            n, s = self.counts[name], self.sums[name]
+            out[name] = (2 * s + n) // (2 * n) if n else 0
+        return out
 
 
 @dataclass
@@ -199,6 +208,7 @@ def _leave_calibration(m: ModeMachine, now: float) -> None:
     if n >= m.config.calibration_min_samples:
         m.offsets = m.calibration.means()
         m.calibrated = True
+        m.calibration_generation += 1
         m.emit(EventCode.CALIBRATION_DONE, n, now)
     # Too few samples (left at once, or a PANIC): the previous calibration, if any, stays in force.
 
@@ -266,6 +276,7 @@ class ModeMachine:
     events: list[tuple[EventCode, int, float]] = field(default_factory=list)
     changes: list[ModeChange] = field(default_factory=list)  # every change, for the board's listeners and tests
     link_timed_out: bool = False
+    calibration_generation: int = 0  # counts finished calibrations (the board applies each new one)
 
     def __post_init__(self) -> None:
         self.calibration = Calibration(self.calibration_names)
@@ -402,8 +413,8 @@ class ModeMachine:
         if (self.mode, Mode.SAFE, "auto") in _ROWS and self.check(Mode.SAFE, "auto") == Nak.OK:
             self._change(Mode.SAFE, now, "auto")
 
-    def calibration_sample(self, values: Sequence[int]) -> None:
-        """Add one sensor sample to the sums (only in CALIBRATION)."""
+    def calibration_sample(self, values: Mapping[str, int]) -> None:
+        """Add one sensor sample (some or all of the calibrated variables) to the sums (only in CALIBRATION)."""
         if self.mode == Mode.CALIBRATION:
             self.calibration.add(values)
 
