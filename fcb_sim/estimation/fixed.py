@@ -59,11 +59,9 @@ def wrap32(a: int) -> int:
 def from_float(x: float) -> int:
     """fix16_from_float: round half away from zero; saturating (beyond libfixmath, which is undefined)."""
     t = x * 65536.0
-    if t >= 2147483647.0:
-        return MAXIMUM
-    if t <= -2147483648.0:
-        return MINIMUM
-    return int(t + 0.5) if t >= 0.0 else int(t - 0.5)
+    if t >= 0.0:
+        return int(t + 0.5) if t < 2147483647.0 else MAXIMUM
+    return int(t - 0.5) if t > -2147483648.0 else MINIMUM
 
 
 def to_float(a: int) -> float:
@@ -107,11 +105,18 @@ def mul(a: int, b: int) -> int:
 
 
 def smul(a: int, b: int) -> int:
-    """fix16_smul: rounded product, saturating."""
-    r = mul(a, b)
-    if r == OVERFLOW:
+    """fix16_smul: rounded product, saturating (fix16_mul inlined: this is the filters' hot path)."""
+    p = a * b
+    if p < 0:
+        if (p >> 47) != -1:
+            return MAXIMUM if (a >= 0) == (b >= 0) else MINIMUM
+        p -= 1
+    elif p >> 47:
         return MAXIMUM if (a >= 0) == (b >= 0) else MINIMUM
-    return r
+    r = (p >> 16) + ((p & 0x8000) >> 15)
+    # Rounding up past the top (r == 2**31) wraps in fix16_mul to 0x80000000, which is the overflow flag, so
+    # fix16_smul saturates it.
+    return r if r <= MAXIMUM else MAXIMUM
 
 
 def div(a: int, b: int) -> int:
@@ -127,10 +132,13 @@ def div(a: int, b: int) -> int:
 
 def sdiv(a: int, b: int) -> int:
     """fix16_sdiv: saturating divide (libfixmath's: division by zero gives ``MINIMUM``, as fix16_div)."""
-    r = div(a, b)
-    if r == OVERFLOW:
+    if b == 0:
+        return MINIMUM
+    q = ((a if a >= 0 else -a) << 17) // (b if b >= 0 else -b)
+    if q >= 0xFFFFFFFF:
         return MAXIMUM if (a >= 0) == (b >= 0) else MINIMUM
-    return r
+    r = (q + 1) >> 1
+    return -r if (a < 0) != (b < 0) else r
 
 
 def sqrt(a: int) -> int:
@@ -177,6 +185,7 @@ ATAN2_CORRECTION: tuple[int, ...] = (
 )
 _HALF_PI = PI // 2 + 1  # 102944
 _QUARTER_PI = PI_DIV_4
+_LAST_SEGMENT = len(ATAN2_KNOTS) - 2
 
 
 def _fold(m: int) -> tuple[int, bool]:
@@ -191,10 +200,13 @@ def atan2_corrected(y: int, x: int) -> int:
     """fix16_atan2 plus the fitted piecewise-linear error correction (the report's section 3.10)."""
     a = atan2(y, x)
     m = -a if a < 0 else a
-    u, mirrored = _fold(m)
+    u = m % _HALF_PI
+    mirrored = u > _QUARTER_PI
+    if mirrored:
+        u = _HALF_PI - u
     i = bisect_right(ATAN2_KNOTS, u) - 1
-    if i >= len(ATAN2_KNOTS) - 1:
-        i = len(ATAN2_KNOTS) - 2
+    if i >= _LAST_SEGMENT:
+        i = _LAST_SEGMENT
     k0 = ATAN2_KNOTS[i]
     c0 = ATAN2_CORRECTION[i]
     c = c0 + (ATAN2_CORRECTION[i + 1] - c0) * (u - k0) // (ATAN2_KNOTS[i + 1] - k0)
