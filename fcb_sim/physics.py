@@ -10,7 +10,7 @@ Model, integrated at a fixed step (default 1 kHz, ``physics_hz`` may be raised):
   Z, L, M, N are the mixing of DESIGN.md with b = B_ROTOR (and l = ARM), d = D_ROTOR;
 - rigid body: Newton in NED and Euler's equations in FRD (with the gyroscopic term w x Iw), linear drag against
   the air's velocity (wind), rotational drag; semi-implicit Euler (velocity, then position), quaternion attitude
-  renormalised each step. Stable at 1 kHz: the fastest mode (motor lag, 30 ms) is integrated exactly and the
+  renormalised every 10 steps. Stable at 1 kHz: the fastest mode (motor lag, 30 ms) is integrated exactly and the
   drag time constants are seconds;
 - ground contact at h = 0: the quadrotor rests level on its feet until the thrust lifts it, lands inelastically
   (vertical and horizontal speed to zero, levelled on its legs), and never goes below the floor;
@@ -114,6 +114,7 @@ class World:
         self.volts = P.ocv(soc) - self.current * P.R_INTERNAL
         self.cmd = [0, 0, 0, 0]  # motor commands in effect (after a stuck motor's cap)
         self.stuck: list[int | None] = [None, None, None, None]
+        self._any_stuck = False
         w0 = 0.0
         if airborne:
             # rotors at hover speed, battery at the matching load
@@ -147,17 +148,21 @@ class World:
     # ---- commands and disturbances ---------------------------------------------------------------------------
     def set_motors(self, ae1: int, ae2: int, ae3: int, ae4: int) -> None:
         """Motor commands 0..1000 (clamped), as the firmware writes them."""
-        c = self.cmd
         self.requested = (ae1, ae2, ae3, ae4)
-        for i, v in enumerate(self.requested):
-            v = 0 if v < 0 else P.AE_MAX if v > P.AE_MAX else v
-            s = self.stuck[i]
-            c[i] = v if s is None or v < s else s
-        self._update_targets()
+        hi = P.AE_MAX
+        c = [0 if v < 0 else hi if v > hi else v for v in self.requested]
+        if self._any_stuck:
+            for i, s in enumerate(self.stuck):
+                if s is not None and c[i] > s:
+                    c[i] = s
+        self.cmd = c
+        k = self._omega_per_ae
+        self._targets = [c[0] * k, c[1] * k, c[2] * k, c[3] * k]
 
     def stick_motor(self, index: int, level: int | None) -> None:
         """Motor ``index`` (1..4) can no longer exceed ``level`` (a failing ESC or motor); None frees it."""
         self.stuck[index - 1] = level
+        self._any_stuck = any(s is not None for s in self.stuck)
         self.set_motors(*self.requested)
 
     def set_wind(self, n: float = 0.0, e: float = 0.0, d: float = 0.0, *, gust_std: float = 0.0,
@@ -223,7 +228,7 @@ class World:
 
     # ---- integration -----------------------------------------------------------------------------------------
     def _update_targets(self) -> None:
-        k = P.OMEGA_PER_AE * self.volts / P.V_REF
+        k = self._omega_per_ae = P.OMEGA_PER_AE * self.volts / P.V_REF  # the ESC's speed scales with the supply
         c = self.cmd
         self._targets = [c[0] * k, c[1] * k, c[2] * k, c[3] * k]
 
@@ -291,7 +296,7 @@ class World:
         gu = self.gust
         wn, we, wd = wmn + gu[0], wme + gu[1], wmd + gu[2]
         ext = self.ext
-        fxn, fxe, fxd = ext[0] * inv_m, ext[1] * inv_m, ext[2] * inv_m
+        fxn, fxe, fxdg = ext[0] * inv_m, ext[1] * inv_m, ext[2] * inv_m + g
         txb, tyb, tzb = ext[3] / P.IXX * dt, ext[4] / P.IYY * dt, ext[5] / P.IZZ * dt
         dmp_every = self._dmp_every
         next_dmp = (k // dmp_every + 1) * dmp_every
@@ -309,10 +314,11 @@ class World:
             s3 = w3 * w3
             s4 = w4 * w4
             ta = kbm * (s1 + s2 + s3 + s4)
+            t2 = ta + ta
             # translational: thrust along body -z (third column of R), drag against the air, in NED
-            an = -ta * 2.0 * (qx * qz + qw * qy) - klm * (vn - wn) + fxn
-            ae = -ta * 2.0 * (qy * qz - qw * qx) - klm * (ve - we) + fxe
-            ad = -ta * (1.0 - 2.0 * (qx * qx + qy * qy)) - klm * (vd - wd) + fxd + g
+            an = fxn - t2 * (qx * qz + qw * qy) - klm * (vn - wn)
+            ae = fxe - t2 * (qy * qz - qw * qx) - klm * (ve - we)
+            ad = fxdg - ta + t2 * (qx * qx + qy * qy) - klm * (vd - wd)
             if on_ground and ad >= 0.0:
                 an = ae = ad = 0.0  # resting on the feet: the floor carries what the rotors do not
             else:
@@ -332,12 +338,6 @@ class World:
                 hr = r * hdt
                 qw, qx, qy, qz = (qw - qx * hp - qy * hq - qz * hr, qx + qw * hp + qy * hr - qz * hq,
                                   qy + qw * hq + qz * hp - qx * hr, qz + qw * hr + qx * hq - qy * hp)
-                # renormalise: one Newton step for 1/sqrt(n2), exact to O((n2-1)²) as n2 stays within 1e-6 of 1
-                f = 1.5 - 0.5 * (qw * qw + qx * qx + qy * qy + qz * qz)
-                qw *= f
-                qx *= f
-                qy *= f
-                qz *= f
                 if ground and d > 0.0:
                     # touch-down: inelastic, levelled on the legs, yaw kept
                     self.landings.append((k * dt, vd))
@@ -349,6 +349,12 @@ class World:
                     qw, qx, qy, qz = math.cos(psi / 2), 0.0, 0.0, math.sin(psi / 2)
                     on_ground = True
             if k == next_evt:
+                # renormalise every 10 steps: one Newton step for 1/sqrt(n2) (n2 stays within 1e-5 of 1)
+                f = 1.5 - 0.5 * (qw * qw + qx * qx + qy * qy + qz * qz)
+                qw *= f
+                qx *= f
+                qy *= f
+                qz *= f
                 self.n, self.e, self.d = n, e, d
                 self.vn, self.ve, self.vd = vn, ve, vd
                 self.qw, self.qx, self.qy, self.qz = qw, qx, qy, qz
@@ -364,7 +370,7 @@ class World:
                     c1, c2, c3, c4 = self._targets
                     wn, we, wd = wmn + gu[0], wme + gu[1], wmd + gu[2]
                     ext = self.ext
-                    fxn, fxe, fxd = ext[0] * inv_m, ext[1] * inv_m, ext[2] * inv_m
+                    fxn, fxe, fxdg = ext[0] * inv_m, ext[1] * inv_m, ext[2] * inv_m + g
                     txb, tyb, tzb = ext[3] / P.IXX * dt, ext[4] / P.IYY * dt, ext[5] / P.IZZ * dt
                     next_slow += SLOW_EVERY
                 next_evt = next_dmp if next_dmp < next_slow else next_slow
