@@ -329,21 +329,33 @@ class Board:
 
     def ble_disconnected(self) -> None:
         """The phone went away: a board flown over BLE must PANIC."""
-        was_started = self.wireless.disconnected()
-        self._ble_rx.clear()
-        if was_started and self.modes.flying:
-            self.modes.panic(self.now / 1e6, "ble")
-        self._wireless_events()
+        self.ble_lost(self.wireless.disconnected())
 
     def ble_receive(self, data: bytes) -> None:
         """What the phone wrote (through the WirelessLink: ignored before the handover)."""
-        data = self.wireless.ble_receive(data)
+        self.ble_data(self.wireless.ble_receive(data))
+
+    # The radio (fcb_sim.wireless.BoardRadio) drives the WirelessLink itself and calls these two:
+
+    def ble_data(self, data: bytes) -> None:
+        """Parser bytes from BLE that already went through ``wireless.ble_receive`` (the radio's ``on_data``)."""
         room = RX_QUEUE_BYTES - len(self._ble_rx)
         if len(data) > room:
             self.rx_overflow += len(data) - max(room, 0)
             data = data[: max(room, 0)]
         self._ble_rx += data
         self._wireless_events()
+
+    def ble_lost(self, was_started: bool) -> None:
+        """The radio lost its phone after calling ``wireless.disconnected()`` (the radio's ``on_disconnect``)."""
+        self._ble_rx.clear()
+        if was_started and self.modes.flying:
+            self.modes.panic(self.now / 1e6, "ble")
+        self._wireless_events()
+
+    def next_tick_us(self) -> int:
+        """The board time of the next timer interrupt (when a real-time driver should wake up next)."""
+        return min(self._next.values())
 
     @property
     def mode(self) -> Mode:

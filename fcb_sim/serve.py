@@ -1,0 +1,294 @@
+"""`fcb-sim serve --pty`: the board in real time behind a fresh pseudo-terminal (and optionally a BLE radio).
+
+The edge around the sans-IO ``Board``: it owns the wall clock and the file descriptors. The board's clock is
+paced to the wall clock: the server sleeps until the board's next timer interrupt (or until bytes arrive), then
+advances the board to the present, so every task runs at its board time as soon as the wall clock reaches it.
+A pseudo-terminal from ``os.openpty`` (both sides raw at once) is a real serial device: ``term --serial PATH``
+or any pyserial program talks to it. The first line on stdout is ``pty: /dev/pts/N`` (flushed).
+
+Robustness: reads are bounded per wake-up and the board's receive queue is bounded (a flood is dropped and
+counted, never queued without end); garbage and half frames only cost the decoder a resync; a client that stops
+reading cannot block the board (writes are non-blocking, and what does not fit waits in a bounded buffer).
+SIGTERM and SIGINT end the loop cleanly (exit status 0).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import os
+import signal
+import sys
+import termios
+import threading
+import time
+import tty
+from collections import deque
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+from fcb_sim.board import Board, BoardConfig
+from fcb_sim.physics import World
+
+READ_BYTES = 4096  # per wake-up
+PENDING_TX_LIMIT = 16384  # bytes kept for a client that does not read; older ones are dropped
+MAX_LAG_S = 0.5  # further behind the wall clock than this (a suspended process): slip instead of catching up
+MAX_SLEEP_S = 0.01
+
+
+@dataclass(frozen=True)
+class ServeScenario:
+    doc: str
+    world: dict[str, Any] = field(default_factory=dict)
+    wind: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    gust_std: float = 0.0
+
+
+SCENARIOS: dict[str, ServeScenario] = {
+    "bench": ServeScenario("on the floor, still air, battery charged (default)"),
+    "breeze": ServeScenario("a 1.5 m/s breeze from the north with light gusts", wind=(-1.5, 0.0, 0.0),
+                            gust_std=0.5),
+    "gusty": ServeScenario("3 m/s wind with strong gusts", wind=(-3.0, 1.0, 0.0), gust_std=1.5),
+    "low-battery": ServeScenario("a nearly flat battery: it sags under 10.5 V when the motors pull",
+                                 world={"soc": 0.06}),
+    "no-spikes": ServeScenario("still air and a barometer without pressure spikes", world={"baro_spikes": False}),
+}
+
+
+def make_board(seed: int = 1, scenario: str = "bench", link_timeout: float = 0.5, **config: Any) -> Board:
+    """A board in its world for a serve scenario; UsageError for an unknown scenario or a bad timeout."""
+    from fcb_sim.cli import UsageError
+
+    sc = SCENARIOS.get(scenario)
+    if sc is None:
+        raise UsageError(f"unknown scenario {scenario!r}; choose one of: {', '.join(SCENARIOS)}")
+    if not (0.05 <= link_timeout <= 60.0):
+        raise UsageError(f"--link-timeout must be between 0.05 and 60 s, got {link_timeout:g}")
+    world = World(seed, **sc.world)
+    if sc.wind != (0.0, 0.0, 0.0) or sc.gust_std:
+        world.set_wind(*sc.wind, gust_std=sc.gust_std)
+    return Board(BoardConfig(seed=seed, link_timeout_s=link_timeout, **config), world=world)
+
+
+def open_pty() -> tuple[int, int, str]:
+    """A fresh pseudo-terminal, both sides raw at once; the master non-blocking. Returns (master, slave, path).
+    The slave stays open here so the master never sees a hang-up between clients."""
+    master, slave = os.openpty()
+    for fd in (master, slave):
+        tty.setraw(fd, termios.TCSANOW)
+    os.set_blocking(master, False)
+    return master, slave, os.ttyname(slave)
+
+
+@dataclass
+class PacingStats:
+    """How late each control step ran against the wall clock (for bench/pacing.py)."""
+
+    lateness_us: deque[float] = field(default_factory=lambda: deque(maxlen=200_000))
+    wall_periods_us: deque[float] = field(default_factory=lambda: deque(maxlen=200_000))
+    slips: int = 0
+    wakeups: int = 0
+    _last_wall: float | None = None
+
+    def control_ran(self, board_start_us: int, wall_us: float) -> None:
+        self.lateness_us.append(wall_us - board_start_us)
+        if self._last_wall is not None:
+            self.wall_periods_us.append(wall_us - self._last_wall)
+        self._last_wall = wall_us
+
+
+class PtyServer:
+    """Serves one ``Board`` on a pseudo-terminal in real time."""
+
+    def __init__(self, board: Board, *, clock: Callable[[], float] = time.monotonic) -> None:
+        self.board = board
+        self.clock = clock
+        self.master, self.slave, self.path = open_pty()
+        self.pacing = PacingStats()
+        self.tx_dropped = 0
+        self.bytes_in = 0
+        self.bytes_out = 0
+        self._pending = bytearray()
+        self._wake: asyncio.Event | None = None
+        self._stop: asyncio.Event | None = None
+        self._t0 = 0.0
+        self.closed = False
+
+    # --- the loop -----------------------------------------------------------------------------------------
+
+    async def serve(self, stop: asyncio.Event | None = None) -> None:
+        """Run until ``stop`` is set (or ``request_stop()``)."""
+        loop = asyncio.get_running_loop()
+        self._stop = stop or asyncio.Event()
+        self._wake = asyncio.Event()
+        board = self.board
+        self._t0 = self.clock() - board.now / 1e6
+        loop.add_reader(self.master, self._on_readable)
+        try:
+            while not self._stop.is_set():
+                self._step()
+                wait = (board.next_tick_us() - board.now) / 1e6
+                wait = min(MAX_SLEEP_S, max(0.0, wait - (self._wall_us() - board.now) / 1e6))
+                if self._pending:
+                    wait = min(wait, 0.002)
+                if wait > 0:
+                    with contextlib.suppress(TimeoutError):
+                        await asyncio.wait_for(self._wake.wait(), wait)
+                else:
+                    await asyncio.sleep(0)
+                self._wake.clear()
+        finally:
+            loop.remove_reader(self.master)
+
+    def request_stop(self) -> None:
+        if self._stop is not None:
+            self._stop.set()
+
+    def _wall_us(self) -> float:
+        return (self.clock() - self._t0) * 1e6
+
+    def _step(self) -> None:
+        board = self.board
+        self.pacing.wakeups += 1
+        wall = self._wall_us()
+        if wall - board.now > MAX_LAG_S * 1e6:
+            self.pacing.slips += 1  # we were not scheduled for a long time: do not replay it in a burst
+            self._t0 = self.clock() - board.now / 1e6
+            wall = float(board.now)
+        ctl = board.stats["control"]
+        n0 = ctl.n
+        board.advance(int(wall))
+        if ctl.n != n0 and ctl.last_start is not None:
+            self.pacing.control_ran(ctl.last_start, self._wall_us())
+        self._write(board.uart_transmit())
+
+    def _on_readable(self) -> None:
+        try:
+            data = os.read(self.master, READ_BYTES)
+        except (BlockingIOError, InterruptedError):
+            return
+        except OSError:
+            return  # EIO: no client at the moment
+        if data:
+            self.bytes_in += len(data)
+            # bytes arrive at the present: bring the board up to now first, so they are not dated in the past
+            self.board.advance(int(self._wall_us()))
+            self.board.uart_receive(data)
+            if self._wake is not None:
+                self._wake.set()
+
+    def _write(self, data: bytes) -> None:
+        if data:
+            self._pending += data
+        if not self._pending:
+            return
+        try:
+            n = os.write(self.master, self._pending)
+        except (BlockingIOError, InterruptedError):
+            n = 0
+        except OSError:
+            n = len(self._pending)  # nobody there: the bytes are gone, as on a real unplugged UART
+        self.bytes_out += n
+        del self._pending[:n]
+        if len(self._pending) > PENDING_TX_LIMIT:
+            drop = len(self._pending) - PENDING_TX_LIMIT
+            del self._pending[:drop]
+            self.tx_dropped += drop
+
+    def close(self) -> None:
+        if self.closed:
+            return
+        self.closed = True
+        for fd in (self.master, self.slave):
+            with contextlib.suppress(OSError):
+                os.close(fd)
+
+
+class ThreadedServer:
+    """A ``PtyServer`` on its own thread and event loop (tests, benchmarks): ``start()`` returns the pty path,
+    ``stop()`` ends it cleanly."""
+
+    def __init__(self, board: Board) -> None:
+        self.server = PtyServer(board)
+        self._loop: asyncio.AbstractEventLoop | None = None
+        self._stop: asyncio.Event | None = None
+        self._thread: threading.Thread | None = None
+        self._ready = threading.Event()
+        self.error: BaseException | None = None
+
+    @property
+    def path(self) -> str:
+        return self.server.path
+
+    def start(self) -> str:
+        self._thread = threading.Thread(target=self._run, name="fcb-sim serve", daemon=True)
+        self._thread.start()
+        self._ready.wait(5.0)
+        return self.server.path
+
+    def _run(self) -> None:
+        async def main() -> None:
+            self._loop = asyncio.get_running_loop()
+            self._stop = asyncio.Event()
+            self._ready.set()
+            await self.server.serve(self._stop)
+
+        try:
+            asyncio.run(main())
+        except BaseException as exc:  # surfaced to the test through .error
+            self.error = exc
+
+    def stop(self) -> None:
+        if self._loop is not None and self._stop is not None:
+            with contextlib.suppress(RuntimeError):
+                self._loop.call_soon_threadsafe(self._stop.set)
+        if self._thread is not None:
+            self._thread.join(5.0)
+        self.server.close()
+
+
+async def _serve_main(args: Any) -> int:
+    board = make_board(args.seed, args.scenario, args.link_timeout)
+    server = PtyServer(board)
+    stop = asyncio.Event()
+    loop = asyncio.get_running_loop()
+    for sig in (signal.SIGTERM, signal.SIGINT):
+        loop.add_signal_handler(sig, stop.set)
+    radio = None
+    try:
+        print(f"pty: {server.path}", flush=True)
+        if getattr(args, "ble_hci", None):
+            from fcb_sim.wireless import start_radio
+
+            radio = await start_radio(board.wireless, board_id=board.config.board_id, hci=args.ble_hci,
+                                      on_data=board.ble_data, on_disconnect=board.ble_lost)
+            spec = getattr(getattr(radio, "hci", None), "client_spec", None)
+            print(f"ble: {radio.name} {radio.address}" + (f" hci {spec}" if spec else ""), flush=True)
+        await server.serve(stop)
+    finally:
+        if radio is not None:
+            with contextlib.suppress(Exception):
+                await radio.close()
+        server.close()
+    p = server.pacing
+    print(f"served {board.now / 1e6:.1f} s: mode {board.mode.name}, {server.bytes_in} bytes in, "
+          f"{server.bytes_out} out, {board.rx_overflow} dropped by a full receive queue, {p.slips} slips",
+          flush=True)
+    return 0
+
+
+def cmd_serve(args: Any) -> int:
+    """``fcb-sim serve --pty [--seed N] [--scenario NAME] [--link-timeout S] [--ble-hci TRANSPORT]``."""
+    from fcb_sim.cli import UsageError
+
+    if not args.pty:
+        raise UsageError("say where to serve the board: --pty (a fresh pseudo-terminal)")
+    if args.scenario not in SCENARIOS:
+        raise UsageError(f"unknown scenario {args.scenario!r}; choose one of: {', '.join(SCENARIOS)}")
+    try:
+        return asyncio.run(_serve_main(args))
+    except KeyboardInterrupt:
+        return 0
+    finally:
+        sys.stdout.flush()
