@@ -273,11 +273,12 @@ class BoardRadio:
     """The board's BLE radio: a bumble ``Device`` named "Quadrupel <id>" advertising the Nordic UART Service,
     on a bumble controller attached to ``local_link`` (a fresh ``LocalLink`` if None), wired to ``link``.
 
-    - a connection or disconnection goes to ``link.connected()`` / ``link.disconnected()``; after a
-      disconnection ``on_disconnect(was_started)`` is called (the board PANICs if it was flying over BLE);
-    - what the phone writes on RX goes through ``link.ble_receive()``; the bytes for the parser are passed to
-      ``on_data``;
-    - the link's notifications are sent on TX as soon as the link has them (``link.on_ready``).
+    - with ``board`` (an object with ``ble_connected()``, ``ble_disconnected()``, ``ble_receive(data)``: the
+      board, which drives its own ``link``), connection events and written bytes go to the board;
+    - without it, the radio drives ``link`` itself: ``link.connected()`` / ``link.disconnected()``, and what
+      the phone writes goes through ``link.ble_receive()``, the bytes for the parser to ``on_data``;
+    - either way ``on_disconnect(was_started)`` is called after a disconnection (True: the board was flown
+      over BLE), and the link's notifications are sent on TX as soon as it has them (``link.on_ready``).
 
     One phone at a time (like the nRF51's S110): advertising stops while connected and restarts after.
     """
@@ -287,12 +288,14 @@ class BoardRadio:
         link: WirelessLink,
         *,
         board_id: int = 1,
+        board: Any = None,
         on_data: Callable[[bytes], None] | None = None,
         on_disconnect: Callable[[bool], None] | None = None,
         local_link: Any = None,
         advertising_interval_ms: float = 20.0,
     ) -> None:
         self.link = link
+        self.board = board
         self.board_id = board_id
         self.name = board_name(board_id)
         self.address = board_address(board_id)
@@ -374,19 +377,29 @@ class BoardRadio:
             return
         self.connection = connection
         connection.on("disconnection", lambda reason: self._on_disconnection(connection, reason))
-        self.link.connected()
+        if self.board is not None:
+            self.board.ble_connected()
+        else:
+            self.link.connected()
 
     def _on_disconnection(self, connection: Any, reason: int) -> None:
         if connection is not self.connection:
             return
         self.connection = None
-        was_started = self.link.disconnected()
+        if self.board is not None:
+            was_started = self.link.state is WirelessState.STARTED
+            self.board.ble_disconnected()
+        else:
+            was_started = self.link.disconnected()
         log.info("%s: phone disconnected (reason %#x)%s", self.name, reason, ", was flying over BLE" * was_started)
         if self.on_disconnect is not None:
             self.on_disconnect(was_started)
 
     def _on_write(self, connection: Any, value: bytes) -> None:
         if connection is not self.connection:
+            return
+        if self.board is not None:
+            self.board.ble_receive(bytes(value))
             return
         data = self.link.ble_receive(bytes(value))
         if data and self.on_data is not None:
@@ -554,10 +567,15 @@ async def start_radio(
     *,
     board_id: int = 1,
     hci: str | None = None,
+    board: Any = None,
     on_data: Callable[[bytes], None] | None = None,
     on_disconnect: Callable[[bool], None] | None = None,
 ) -> BoardRadio:
     """The one call for ``fcb-sim serve``: put the board's radio on the air, wired to ``link``.
+
+    For the board: ``radio = await start_radio(board.wireless, board=board, board_id=..., hci=args.ble_hci)``:
+    the radio then calls ``board.ble_connected()``, ``board.ble_disconnected()``, ``board.ble_receive(data)``
+    (from the event loop, between the board's ``advance`` calls) and sends the link's notifications itself.
 
     - ``hci=None``: a virtual radio on a fresh LocalLink (``radio.local_link``; in-process centrals attach
       their own ``Controller`` to it);
@@ -567,10 +585,11 @@ async def start_radio(
     - any other bumble transport (``usb:0``, ``serial:...``): the board's radio is that real controller, so a
       phone can connect to the simulator.
 
-    ``on_data(bytes)`` receives what the parser must read from BLE; ``on_disconnect(was_started)`` is called
-    after a lost connection. Close with ``await radio.close()``.
+    Without ``board``, the radio drives ``link`` itself: ``on_data(bytes)`` receives what the parser must read
+    from BLE. ``on_disconnect(was_started)`` is called after a lost connection. Close with
+    ``await radio.close()``.
     """
-    radio = BoardRadio(link, board_id=board_id, on_data=on_data, on_disconnect=on_disconnect)
+    radio = BoardRadio(link, board_id=board_id, board=board, on_data=on_data, on_disconnect=on_disconnect)
     if hci is not None and hci.startswith("tcp-server:"):
         _parse_tcp_server(hci)  # a bad spec fails before anything starts
         await radio.start()
