@@ -30,6 +30,9 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--seed", type=int, default=1, help="noise seed: the same seed flies the same flight")
     run.add_argument("--json", action="store_true", help="print one JSON object as the last line")
     run.add_argument("--list", action="store_true", help="list the scenarios and exit")
+    run.add_argument("--filter", default=None,
+                     help="on-board attitude filter for the RAW-mode scenarios (default: the best one)")
+    run.add_argument("--fixed-point", action="store_true", help="RAW-mode scenarios: the Q16.16 filter variant")
     run.set_defaults(handler="fcb_sim.scenarios:cmd_run")
 
     # --- replay-imu: RAW-path filters over recorded data (owner: fcb_sim/estimation/replay.py) ---

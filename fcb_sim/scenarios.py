@@ -23,6 +23,7 @@ from dataclasses import dataclass, field
 from fcb_sim import control as C
 from fcb_sim import params as P
 from fcb_sim.cli import UsageError
+from fcb_sim.estimation import BEST, FILTERS, has_fixed_point
 from fcb_sim.flight import CalibrationAccumulator, FlightCore
 from fcb_sim.physics import World
 from term.protocol import Mode
@@ -173,7 +174,7 @@ def _yaw_stick(rate_rad_s: float) -> int:
 
 # ---- scenarios: each flies ``duration`` simulated seconds and returns its metrics --------------------------------
 
-def _hover(seed: int, duration: float, mode: int = Mode.FULL, **core_kw) -> dict:
+def _hover(seed: int, duration: float, mode: int = Mode.FULL, **core_kw: object) -> dict:
     sim = Sim(seed, core_kw=core_kw)
     rec = Recorder(ACTION_AT)
     sim.on_tick = rec
@@ -187,14 +188,11 @@ def hover(seed: int, duration: float) -> dict:
     return _hover(seed, duration)
 
 
-def raw_hover(seed: int, duration: float) -> dict:
-    """RAW mode: the same hover on the on-board filter (estimation.BEST) instead of the DMP."""
-    return _hover(seed, duration, Mode.RAW)
+def raw_hover(seed: int, duration: float, filter_name: str | None = None, fixed_point: bool = False) -> dict:
+    """RAW mode hover on the on-board filter (--filter, default the best; --fixed-point).
 
-
-def raw_hover_fixed(seed: int, duration: float) -> dict:
-    """RAW mode with the Q16.16 fixed-point variant of the on-board filter."""
-    return _hover(seed, duration, Mode.RAW, fixed_point=True)
+    The same flight as ``hover`` with the angles from the firmware's filter instead of the DMP."""
+    return _hover(seed, duration, Mode.RAW, filter_name=filter_name, fixed_point=fixed_point)
 
 
 def step_roll(seed: int, duration: float) -> dict:
@@ -262,8 +260,9 @@ def gusts(seed: int, duration: float) -> dict:
 
 
 def push(seed: int, duration: float) -> dict:
-    """FULL mode hover, a shove at t = 6 s: 0.3 N m about x and 3 N sideways for 0.1 s; settle = back within
-    1 deg of level."""
+    """FULL mode hover, a shove at t = 6 s (0.3 N m roll and 3 N sideways for 0.1 s).
+
+    settle_time_s: until the tilt stays within 1 deg of level."""
     sim = Sim(seed)
     rec = Recorder(ACTION_AT)
     sim.on_tick = rec
@@ -278,8 +277,9 @@ def push(seed: int, duration: float) -> dict:
 
 
 def motor_stuck(seed: int, duration: float) -> dict:
-    """FULL mode hover, then the back motor (ae3) cannot exceed 330 from t = 6 s: the attitude loops trade the
-    other motors against it (watch the tilt and the yaw rate)."""
+    """FULL mode hover, then the back motor (ae3) is stuck at 330 or below from t = 6 s.
+
+    The attitude loops trade the other motors against it (watch the tilt and the yaw rate)."""
     sim = Sim(seed)
     rec = Recorder(ACTION_AT)
     sim.on_tick = rec
@@ -294,8 +294,9 @@ def motor_stuck(seed: int, duration: float) -> dict:
 
 
 def panic(seed: int, duration: float) -> dict:
-    """FULL mode hover, PANIC at t = 6 s: descent level for 2 s, ramp to 0 over 1 s (as the board's mode
-    machine times it), SAFE. Reports the touch-down speed."""
+    """FULL mode hover, then PANIC at t = 6 s: descent level 2 s, ramp to 0 in 1 s, SAFE.
+
+    The timing is the board mode machine's; reports the touch-down speed."""
     sim = Sim(seed)
     rec = Recorder(ACTION_AT)
     sim.on_tick = rec
@@ -321,7 +322,6 @@ def panic(seed: int, duration: float) -> dict:
 SCENARIOS: dict[str, Callable[[int, float], dict]] = {
     "hover": hover,
     "raw-hover": raw_hover,
-    "raw-hover-fixed": raw_hover_fixed,
     "step-roll": step_roll,
     "step-yaw": step_yaw,
     "height-hold": height_hold,
@@ -332,17 +332,33 @@ SCENARIOS: dict[str, Callable[[int, float], dict]] = {
 }
 
 
-def run_scenario(name: str, duration: float = 10.0, seed: int = 1) -> dict:
+RAW_SCENARIOS = ("raw-hover",)
+
+
+def run_scenario(name: str, duration: float = 10.0, seed: int = 1, *, filter_name: str | None = None,
+                 fixed_point: bool = False) -> dict:
     """Fly a scenario and return its metrics (with sim_seconds, wall_seconds, realtime_factor)."""
     if name not in SCENARIOS:
         raise UsageError(f"unknown scenario {name!r}; try one of: {', '.join(SCENARIOS)} (see --list)")
     if not (math.isfinite(duration) and MIN_DURATION <= duration <= MAX_DURATION):
         raise UsageError(f"--duration must be between {MIN_DURATION:g} and {MAX_DURATION:g} s, got {duration:g}")
+    opts: dict = {}
+    if filter_name is not None or fixed_point:
+        if name not in RAW_SCENARIOS:
+            raise UsageError(f"--filter and --fixed-point apply to the RAW-mode scenarios: {', '.join(RAW_SCENARIOS)}")
+        fname = filter_name or BEST
+        if fname not in FILTERS:
+            raise UsageError(f"unknown filter {fname!r}; known: {', '.join(FILTERS)}")
+        if fixed_point and not has_fixed_point(fname):
+            raise UsageError(f"filter {fname!r} has no fixed-point variant; try --filter complementary")
+        opts = {"filter_name": fname, "fixed_point": fixed_point}
     t0 = time.perf_counter()
-    metrics = SCENARIOS[name](seed, duration)
+    metrics = SCENARIOS[name](seed, duration, **opts)
     wall = time.perf_counter() - t0
     out = {"scenario": name, "seed": seed, "sim_seconds": duration, "wall_seconds": wall,
            "realtime_factor": duration / wall if wall > 0 else float("inf")}
+    if opts:
+        out["filter"] = opts["filter_name"] + (" (Q16.16)" if fixed_point else "")
     out.update(metrics)
     return out
 
@@ -359,7 +375,8 @@ def cmd_run(args) -> int:
         for name, fn in SCENARIOS.items():
             print(f"{name:16s} {(fn.__doc__ or '').splitlines()[0]}")
         return 0
-    m = run_scenario(args.scenario, args.duration, args.seed)
+    m = run_scenario(args.scenario, args.duration, args.seed, filter_name=getattr(args, "filter", None),
+                     fixed_point=getattr(args, "fixed_point", False))
     for key, value in m.items():
         if isinstance(value, float):
             print(f"{key}: {value:.4g}")

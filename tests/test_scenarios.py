@@ -66,8 +66,20 @@ def test_cli_list(capsys):
     ["run", "--duration", "-3"],
     ["run", "--duration", "nan"],
     ["run", "--duration", "1"],
+    ["run", "--scenario", "hover", "--filter", "kalman"],
+    ["run", "--scenario", "raw-hover", "--filter", "no-such-filter"],
 ])
 def test_cli_errors_are_one_line_and_exit_2(capsys, argv):
     assert main(argv) == 2
     err = capsys.readouterr().err.strip()
     assert err.startswith("fcb-sim: ") and len(err.splitlines()) == 1
+
+
+def test_raw_mode_reproduces_the_reports_filter_finding():
+    # Table 2's K_gyro 0.9 lets the motor vibration through ("twitching"); the flown 0.999 is steady
+    table2 = run_scenario("raw-hover", 9.0, seed=6, filter_name="complementary-0.9")
+    flown = run_scenario("raw-hover", 9.0, seed=6, filter_name="complementary")
+    fixed = run_scenario("raw-hover", 9.0, seed=6, filter_name="complementary", fixed_point=True)
+    assert table2["attitude_rms_deg"] > 3 * flown["attitude_rms_deg"]
+    assert flown["attitude_rms_deg"] < 1.0 and fixed["attitude_rms_deg"] < 1.0
+    assert fixed["filter"] == "complementary (Q16.16)"
