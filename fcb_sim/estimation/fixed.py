@@ -29,14 +29,14 @@ was fitted by :func:`fit_atan2_correction`: a least-squares fit of hat functions
 atan2(-ax, sqrt(ay² + az²)), the two calls the filters make) computed from all accelerometer samples of
 the four BROAD trials in ``../shared/data/broad/`` (about 216 000 samples, 432 000 angles; real data of an
 IMU moved by hand, as the report logged its board moved around). Regenerate with
-``python -m fcb_sim.estimation.fixed --fit ../shared/data/broad/*.csv.gz``.
+``python -m fcb_sim.estimation.atan2_fit ../shared/data/broad/*.csv.gz``.
 """
 
 from __future__ import annotations
 
 import math
 from bisect import bisect_right
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable
 
 ONE = 0x00010000
 MAXIMUM = 0x7FFFFFFF
@@ -248,30 +248,6 @@ def fit_atan2_correction(pairs: Iterable[tuple[float, float]]) -> list[int]:
     lam = 1e-6 * len(u_arr)  # a tiny ridge keeps knots without data at 0
     coef = np.linalg.solve(inner.T @ inner + lam * np.eye(inner.shape[1]), inner.T @ err)
     return [0, *(int(round(c)) for c in coef), 0]
-
-
-def _accel_angle_pairs(paths: Sequence[str]) -> list[tuple[float, float]]:
-    import csv
-    import gzip
-
-    pairs: list[tuple[float, float]] = []
-    for path in paths:
-        opener = gzip.open if path.endswith(".gz") else open
-        with opener(path, "rt", newline="") as fh:
-            for row in csv.DictReader(fh):
-                ax, ay, az = float(row["ax"]), float(row["ay"]), float(row["az"])
-                pairs.append((ay, az))
-                pairs.append((-ax, math.sqrt(ay * ay + az * az)))
-    return pairs
-
-
-if __name__ == "__main__":
-    import sys
-
-    if len(sys.argv) < 3 or sys.argv[1] != "--fit":
-        print("usage: python -m fcb_sim.estimation.fixed --fit FILE.csv[.gz] ...", file=sys.stderr)
-        sys.exit(2)
-    print(tuple(fit_atan2_correction(_accel_angle_pairs(sys.argv[2:]))))
 
 
 def accel_roll_pitch(ax: int, ay: int, az: int, corrected: bool = True) -> tuple[int, int]:
