@@ -224,6 +224,8 @@ class TermApp(App[int]):
         if self.connection is not None:
             model.set_link_stats(self.connection.stats, now)
         self._check_download(now)
+        if not self.screen_stack or not self.is_running:
+            return  # shutting down
         screen = self.screen
         for w in screen.query(ModelView):
             w.show(model, now)

@@ -249,13 +249,16 @@ class Model:
             d.append((t, v))
 
     def set_link_stats(self, stats: LinkStats, now: float) -> None:
+        """Called every render tick: only a change of state counts as a model change (the link panel redraws on
+        its own, its figures age with time)."""
         prev = self.link
         self.link = stats
-        self.link_lost = stats.lost
+        if stats.lost != self.link_lost:
+            self.link_lost = stats.lost
+            self.version += 1
         if stats.rtt_last_ms is not None and (prev is None or prev.commands_sent != stats.commands_sent
                                               or prev.rtt_last_ms != stats.rtt_last_ms):
             self._push(now - self.start, rtt=stats.rtt_last_ms)
-        self.version += 1
 
     def set_stick(self, stick: Joystick) -> None:
         if stick != self.stick:

@@ -27,15 +27,27 @@ def horizon_rows(width: int, height: int, roll_deg: float, pitch_deg: float) -> 
     half_rows = height  # vertical resolution in half-cells, counted from the centre: ±height
     t = math.tan(math.radians(max(-89.0, min(89.0, roll_deg))))
     shift = pitch_deg / PITCH_SPAN * half_rows  # in half-cells; positive moves the horizon down
+    sky_sky, sky_ground = f"{SKY} on {SKY}", f"{SKY} on {GROUND}"
+    ground_sky, ground_ground = f"{GROUND} on {SKY}", f"{GROUND} on {GROUND}"
+    lines = [dx * t - shift for dx in (x - cx for x in range(width))]  # horizon height per column, half-cells
     rows = []
     for y in range(height):
+        top = (height - 2 * y) - 0.5  # the centre of the cell's top half, in half-cells above the centre
+        bottom = top - 1
         text = Text()
-        for x in range(width):
-            dx = x - cx  # a cell is about twice as tall as wide: one column is about one half-cell
-            line = dx * t - shift  # horizon height (half-cells above centre) at this column
-            top = (height - 2 * y) - 0.5  # the centre of the cell's top half, in half-cells above centre
-            bottom = top - 1
-            text.append("▀", style=f"{SKY if top > line else GROUND} on {SKY if bottom > line else GROUND}")
+        run_style, run = "", 0
+        for line in lines:  # consecutive equal cells become one span: a few per row, not one per cell
+            if top > line:
+                style = sky_sky if bottom > line else sky_ground
+            else:
+                style = ground_sky if bottom > line else ground_ground
+            if style == run_style:
+                run += 1
+            else:
+                if run:
+                    text.append("▀" * run, style=run_style)
+                run_style, run = style, 1
+        text.append("▀" * run, style=run_style)
         rows.append(text)
     # the aircraft symbol, fixed in the centre
     mid = height // 2

@@ -1,0 +1,285 @@
+"""The app driven by Textual's Pilot over the real link (LinkSession + Connection) on a loopback transport, with
+the scripted board of conftest.py at the other end: every key, every panel, refusals, NAKs, link loss."""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import io
+from collections.abc import Callable
+
+import pytest
+from rich.console import Console
+
+from term.app import FlightScreen, PlotsScreen, ProfileScreen, TermApp
+from term.input.keymap import DEFAULT_KEYMAP
+from term.input.mapping import FULL
+from term.protocol import (
+    Attitude,
+    Button,
+    Command,
+    Event,
+    EventCode,
+    Flag,
+    Gains,
+    Height,
+    Joystick,
+    Mode,
+    Motion,
+    Nak,
+    Op,
+    Profile,
+    Status,
+)
+from term.transports.loopback import loopback_pair
+from term.widgets.base import ModelView
+from term.widgets.help import HelpScreen
+from term.widgets.profile import ProfileTable
+
+
+class LoopBoard:
+    """Runs a ScriptedBoard on the board's end of a loopback pair (reads, replies, heartbeats)."""
+
+    def __init__(self, transport, board, clock: Callable[[], float]) -> None:  # noqa: ANN001
+        self.t, self.board, self.clock = transport, board, clock
+        self.tasks: list[asyncio.Task[None]] = []
+
+    async def start(self) -> None:
+        await self.t.open()
+        self.tasks = [asyncio.create_task(self._read()), asyncio.create_task(self._tick())]
+
+    async def _read(self) -> None:
+        with contextlib.suppress(Exception):
+            while True:
+                data = await self.t.read()
+                reply = self.board.receive(data, self.clock())
+                if reply:
+                    await self.t.write(reply)
+
+    async def _tick(self) -> None:
+        with contextlib.suppress(Exception):
+            while True:
+                out = self.board.tick(self.clock())
+                if out:
+                    await self.t.write(out)
+                await asyncio.sleep(max(0.001, self.board.next_deadline() - self.clock()))
+
+    async def send(self, *pkts: object) -> None:
+        await self.t.write(self.board.encoder.encode_many(pkts))
+
+    async def stop(self) -> None:
+        for t in self.tasks:
+            t.cancel()
+        for t in self.tasks:
+            with contextlib.suppress(asyncio.CancelledError):
+                await t
+
+
+async def until(pilot, cond: Callable[[], bool], timeout: float = 5.0) -> None:  # noqa: ANN001
+    async with asyncio.timeout(timeout):
+        while not cond():
+            await pilot.pause(0.01)
+
+
+@contextlib.asynccontextmanager
+async def flying(scripted_board, size=(120, 44), **board_kw):  # noqa: ANN001, ANN201
+    import time
+
+    pair = loopback_pair()
+    board = scripted_board(start=time.monotonic(), **board_kw)
+    peer = LoopBoard(pair.b, board, time.monotonic)
+    await peer.start()
+    app = TermApp(pair.a, joystick=False, session_options={"link_timeout": 0.5})
+    try:
+        async with app.run_test(size=size) as pilot:
+            await until(pilot, lambda: board.hellos)
+            yield app, pilot, board, peer
+    finally:
+        await peer.stop()
+
+
+def sent(board) -> list[tuple[int, int]]:  # noqa: ANN001
+    return [(c.op, c.arg) for c in board.executed]
+
+
+async def test_every_board_key_sends_its_command_at_once(scripted_board) -> None:  # noqa: ANN001
+    async with flying(scripted_board) as (app, pilot, board, _):
+        expected = []
+        for b in DEFAULT_KEYMAP:
+            if b.action.op is None:
+                continue
+            for key in b.keys:
+                await pilot.press(key)
+                expected.append((int(b.action.op), b.action.arg))
+                n = len(expected)
+                await until(pilot, lambda n=n: len(board.executed) >= n)
+        assert sent(board) == expected
+        # every one acknowledged: nothing pending, no failures in the events list
+        await until(pilot, lambda: app.model.pending == 0)
+        assert not [e for e in app.model.events if e.severity == "error"]
+
+
+async def test_screen_keys_help_plots_profile_and_back(scripted_board) -> None:  # noqa: ANN001
+    async with flying(scripted_board) as (app, pilot, board, _):
+        await pilot.press("f1")
+        assert isinstance(app.screen, HelpScreen)
+        text = str(app.screen.query_one("#help-table").render())
+        await pilot.press("2")  # pilot keys work under the help screen
+        await until(pilot, lambda: (Op.MODE, Mode.MANUAL) in sent(board))
+        await pilot.press("question_mark")
+        assert isinstance(app.screen, FlightScreen)
+        assert text  # rendered
+        await pilot.press("f8")
+        assert isinstance(app.screen, PlotsScreen)
+        await pilot.press("f9")
+        assert isinstance(app.screen, ProfileScreen)
+        await pilot.press("f7")
+        assert isinstance(app.screen, FlightScreen)
+        await pilot.press("f6")  # profile: asks the board and shows the table
+        assert isinstance(app.screen, ProfileScreen)
+        await until(pilot, lambda: (Op.PROFILE, 0) in sent(board))
+        await pilot.press("f7")
+        app.model.note(app.clock(), "info", "term", "something")
+        await pilot.press("ctrl+l")
+        assert not app.model.events
+
+
+async def test_throttle_up_refuses_to_leave_safe_and_says_so(scripted_board) -> None:  # noqa: ANN001
+    async with flying(scripted_board) as (app, pilot, board, _):
+        app.set_stick(Joystick(0, 0, 0, FULL // 2, 0))
+        await pilot.press("2")
+        await pilot.pause(0.1)
+        assert (Op.MODE, Mode.MANUAL) not in sent(board)
+        assert "throttle is up" in app.model.events[-1].text
+        await until(pilot, lambda: board.joysticks and board.joysticks[-1].lift == FULL // 2)
+        await pilot.press("1")  # PANIC always goes
+        await until(pilot, lambda: (Op.MODE, Mode.PANIC) in sent(board))
+        app.set_stick(Joystick(0, 0, 0, 0, 0))
+        await pilot.press("2")
+        await until(pilot, lambda: (Op.MODE, Mode.MANUAL) in sent(board))
+
+
+async def test_fire_button_is_panic(scripted_board) -> None:  # noqa: ANN001
+    async with flying(scripted_board) as (app, pilot, board, _):
+        app.set_stick(Joystick(100, 0, 0, 0, int(Button.FIRE)))
+        await until(pilot, lambda: (Op.MODE, Mode.PANIC) in sent(board))
+        app.set_stick(Joystick(100, 0, 0, 0, int(Button.FIRE)))  # held: not sent again
+        await pilot.pause(0.05)
+        assert sent(board).count((Op.MODE, Mode.PANIC)) == 1
+
+
+async def test_a_nak_is_shown_with_its_reason(scripted_board) -> None:  # noqa: ANN001
+    def refuse(cmd: Command) -> Nak:
+        return Nak.NOT_CALIBRATED if cmd.op == Op.MODE and cmd.arg == Mode.FULL else Nak.OK
+
+    async with flying(scripted_board, nak=refuse) as (app, pilot, board, _):
+        await pilot.press("5")
+        await until(pilot, lambda: any(e.source == "nak" for e in app.model.events))
+        e = [e for e in app.model.events if e.source == "nak"][0]
+        assert e.text == "NAK mode FULL: not calibrated: run CALIBRATION (3) first" and e.severity == "error"
+        await pilot.pause(0.1)
+        shown = app.screen.query_one("#events").render()
+        assert "not calibrated" in str(shown)
+
+
+async def test_link_lost_is_unmissable_and_restored(scripted_board) -> None:  # noqa: ANN001
+    async with flying(scripted_board) as (app, pilot, board, _):
+        await until(pilot, lambda: app.model.link is not None and app.model.link.heartbeats > 0)
+        board.silent = True
+        await until(pilot, lambda: app.model.link_lost)
+        await pilot.pause(0.1)
+        assert "L I N K   L O S T" in str(app.screen.query_one("#link").render())
+        assert "LINK LOST" in str(app.screen.query_one("#mode").render())
+        await pilot.press("5")  # a command to a lost link fails with the reason
+        await until(pilot, lambda: "link lost" in app.model.events[-1].text)
+        board.silent = False
+        await until(pilot, lambda: not app.model.link_lost)
+        assert "link restored" in " ".join(e.text for e in app.model.events)
+
+
+async def test_version_mismatch_exits_with_one_line(scripted_board) -> None:  # noqa: ANN001
+    async with flying(scripted_board, protocol=99) as (app, pilot, board, _):
+        await until(pilot, lambda: app.exit_message is not None)
+    assert app.return_code == 3
+    assert app.exit_message.startswith("board speaks protocol v99") and "\n" not in app.exit_message
+
+
+async def test_palette_typing_does_not_fly(scripted_board) -> None:  # noqa: ANN001
+    async with flying(scripted_board) as (app, pilot, board, _):
+        await pilot.press("ctrl+p")
+        await pilot.pause(0.1)
+        await pilot.press("5", "1", "a", "backspace", "backspace", "backspace")
+        for k in "full control":
+            await pilot.press(k if k != " " else "space")
+        await pilot.pause(0.3)
+        assert not board.executed  # the digits and letters went into the palette's input
+        await pilot.press("down", "enter")  # runs the first match: "Modes: FULL control ..."
+        await until(pilot, lambda: (Op.MODE, Mode.FULL) in sent(board))
+
+
+def plain(renderable: object) -> str:
+    console = Console(width=120, record=True, file=io.StringIO())
+    console.print(renderable)
+    return console.export_text()
+
+
+def feed_all(app: TermApp) -> None:
+    m, now = app.model, app.clock()
+    m.apply_packet(Attitude(Mode.HEIGHT, 1200, -550, 9000, 164, -82, 33), now)
+    m.apply_packet(Motion(10, -20, -16384, 410, 395, 402, 980), now)
+    m.apply_packet(Height(101300, 1234, 1500, -120, 1040, 2150), now)
+    m.apply_packet(Status(int(Flag.CALIBRATED | Flag.ARMED | Flag.LOW_BATTERY | Flag.HEIGHT_HOLD), 10, -20, 5,
+                          300, 42, 10, 0), now)
+    m.apply_packet(Gains(-800.0, 0.4, 111.0, 1.5, 0.25), now)
+    m.apply_packet(Event(EventCode.LOW_BATTERY, 1040, 61000), now)
+    m.apply_packet(Profile(0, 20, 95, 332, 1487, 0), now)
+    m.apply_packet(Profile(2, 113, 220, 492, 2477, 3), now)
+
+
+async def test_every_panel_shows_its_data() -> None:
+    app = TermApp(joystick=False)
+    async with app.run_test(size=(120, 44)) as pilot:
+        feed_all(app)
+        app.model.set_stick(Joystick(16000, -8000, 0, 12000, 0))
+        app.model.joystick_name, app.model.joystick_mapping = "Logitech Extreme 3D", "lab"
+        app.render_now()
+        await pilot.pause(0.05)
+
+        def text(wid: str) -> str:
+            return str(app.screen.query_one(wid).render())
+
+        assert "H E I G H T" in text("#mode") and "LOW BATTERY" in text("#mode")
+        assert "roll  +12.0°" in text("#horizon") and "090.0°" in text("#horizon") and "E" in text("#horizon")
+        assert "+10°/s" in text("#rates") and "-5°/s" in text("#rates")
+        assert " 980" in text("#motors") and " 410" in text("#motors")
+        assert "10.40 V" in text("#battery") and "BELOW 10.5 V" in text("#battery")
+        p = text("#pressure")
+        assert "101300 Pa" in p and "+1.23 m" in p and "+1.50 m" in p and "-0.12m/s" in p
+        c = text("#controls")
+        assert "Logitech Extreme 3D" in c and "trim    +10" in c and "P2 111" in c and "throttle up" in c
+        assert "CAL" in c and "LOWBAT" in c and "cpu  42%" in c
+        assert "waiting for the board" in text("#link")
+        assert "LOW BATTERY 10.40 V" in text("#events")
+        await pilot.press("f9")
+        await pilot.pause(0.05)
+        prof = plain(app.screen.query_one(ProfileTable).render_model(app.model, app.clock()))
+        assert "task 2" in prof and "492" in prof and "2477" in prof
+        await pilot.press("f8")
+        await pilot.pause(0.3)
+        assert len(app.screen.query("LivePlot")) == 2  # degrees and metres from the default series
+        assert all(isinstance(w, ModelView) for w in app.screen.query("#mode"))
+
+
+async def test_not_connected_commands_say_so() -> None:
+    app = TermApp(joystick=False)
+    async with app.run_test() as pilot:
+        await pilot.press("4")
+        assert app.model.events[-1].text == "not sent: mode YAW: not connected"
+
+
+@pytest.mark.parametrize("key", ["f5"])
+async def test_download_needs_a_link(key: str) -> None:
+    app = TermApp(joystick=False)
+    async with app.run_test() as pilot:
+        await pilot.press(key)
+        assert "not connected" in app.model.events[-1].text
