@@ -146,8 +146,9 @@ class FlightCore:
         self.saz = -P.ACC_LSB_PER_G
         # attitude of both paths, rad FRD
         self.dmp_phi = self.dmp_theta = self.dmp_psi = 0.0
-        self.raw_phi = self.raw_theta = self.raw_psi = 0.0
-        self.phi = self.theta = self.psi = 0.0
+        self._n_imu = 0
+        self.phi = self.theta = 0.0  # of the path the last control step used; psi is a property
+        self._psi_src = _FULL
         self._q = (1.0, 0.0, 0.0, 0.0)  # latest attitude quaternion for the height estimator (z up)
         self._have_dmp = False
         self.height = 0.0
@@ -200,8 +201,9 @@ class FlightCore:
             k = _RAD_S_PER_LSB
             f = self.filter
             f.update(cgx * k, cgy * k, cgz * k, axs, ays, azs, dt)
-            self.raw_phi, self.raw_theta, self.raw_psi = f.roll, -f.pitch, -f.yaw
-            if not self._have_dmp:
+            # no DMP (RAW mode): the height estimator takes the filter's attitude at 100 Hz, as fast as the DMP's
+            self._n_imu += 1
+            if not self._have_dmp and not self._n_imu & 3:
                 self._q = f.quaternion()
         if self.run_height:
             qw, qx, qy, qz = self._q
@@ -244,7 +246,10 @@ class FlightCore:
         level = int(self.panic_ae * max(0.0, min(1.0, scale)))
         if self.calibrated and level > 0:
             g = self.gains
-            phi, theta = (self.raw_phi, self.raw_theta) if self.mode == _RAW else (self.dmp_phi, self.dmp_theta)
+            if self.mode == _RAW:
+                phi, theta = self.filter.roll, -self.filter.pitch
+            else:
+                phi, theta = self.dmp_phi, self.dmp_theta
             a = C.ANGLE_LSB_PER_RAD
             lm = C.cascade(0.0, phi * a, self.sp, g.p1, g.p2)
             mm = C.cascade(0.0, theta * a, self.sq, g.p1, g.p2)
@@ -262,10 +267,13 @@ class FlightCore:
         g = self.gains
         if mode == _FULL or mode == _HEIGHT or mode == _RAW:
             if mode == _RAW:
-                phi, theta, psi = self.raw_phi, self.raw_theta, self.raw_psi
+                f = self.filter
+                phi = f.roll
+                theta = -f.pitch
+                self.phi, self.theta, self._psi_src = phi, theta, _RAW
             else:
-                phi, theta, psi = self.dmp_phi, self.dmp_theta, self.dmp_psi
-            self.phi, self.theta, self.psi = phi, theta, psi
+                phi, theta = self.dmp_phi, self.dmp_theta
+                self.phi, self.theta, self._psi_src = phi, theta, _FULL
             p2 = g.p2
             p1 = g.p1
             # control.cascade and control.yaw_rate inlined: L = P2 (P1 (phi_sp - phi) - p), N = P (r_sp - r)
@@ -284,7 +292,7 @@ class FlightCore:
                 z = _lift_to_z(lift)
             out = _mix(z, lm, mm, nm)
         elif mode == _MANUAL or mode == _YAW:
-            self.phi, self.theta, self.psi = self.dmp_phi, self.dmp_theta, self.dmp_psi
+            self.phi, self.theta, self._psi_src = self.dmp_phi, self.dmp_theta, _FULL
             lm = roll * C.MANUAL_LM_GAIN
             mm = pitch * C.MANUAL_LM_GAIN
             if mode == _YAW:
@@ -300,6 +308,26 @@ class FlightCore:
         return out
 
     # ---- telemetry helpers -----------------------------------------------------------------------------------
+    @property
+    def raw_phi(self) -> float:
+        """Roll of the on-board filter (rad, FRD)."""
+        return self.filter.roll
+
+    @property
+    def raw_theta(self) -> float:
+        """Pitch of the on-board filter (rad, FRD: nose up positive)."""
+        return -self.filter.pitch
+
+    @property
+    def raw_psi(self) -> float:
+        """Yaw of the on-board filter (rad, FRD: nose right positive)."""
+        return -self.filter.yaw
+
+    @property
+    def psi(self) -> float:
+        """Yaw (rad, FRD) of the path the last control step used (computed when asked: no loop uses it)."""
+        return self.raw_psi if self._psi_src == _RAW else self.dmp_psi
+
     def attitude_centideg(self) -> tuple[int, int, int]:
         """phi, theta, psi in 0.01 deg (the Attitude packet's unit)."""
         k = 18000.0 / 3.141592653589793

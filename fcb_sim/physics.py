@@ -140,6 +140,20 @@ class World:
         self.adc = BatteryAdc(self.noise)
         self._dmp_every = max(1, round(physics_hz / P.DMP_RATE_HZ))
         self._alpha = 1.0 - math.exp(-self.dt / P.MOTOR_TAU)
+        dt = self.dt
+        # the integrator's constants: Euler's equations pre-divided by the inertia and multiplied by dt
+        self._consts = (
+            self._alpha,
+            P.B_ROTOR / P.MASS,  # thrust acceleration per rotor speed squared
+            self.drag_lin / P.MASS,
+            P.B_ROTOR * P.ARM / P.IXX * dt,
+            P.B_ROTOR * P.ARM / P.IYY * dt,
+            P.D_ROTOR / P.IZZ * dt,
+            self.drag_xy / P.IXX * dt, self.drag_xy / P.IYY * dt, self.drag_z / P.IZZ * dt,
+            (P.IZZ - P.IYY) / P.IXX * dt, (P.IXX - P.IZZ) / P.IYY * dt, (P.IYY - P.IXX) / P.IZZ * dt,
+            0.5 * dt,
+        )
+        self._update_forcing()
         self._inv_4wh2 = 0.25 / (P.OMEGA_HOVER * P.OMEGA_HOVER)
         self._targets = [0.0, 0.0, 0.0, 0.0]
         self._update_targets()
@@ -172,6 +186,7 @@ class World:
         self.wind_mean = (n, e, d)
         self.gust_std = gust_std
         self.gust_tau = gust_tau
+        self._update_forcing()
 
     def push(self, fn: float = 0.0, fe: float = 0.0, fd: float = 0.0, duration: float = 0.1, *,
              tx: float = 0.0, ty: float = 0.0, tz: float = 0.0, start: float | None = None) -> None:
@@ -232,6 +247,16 @@ class World:
         c = self.cmd
         self._targets = [c[0] * k, c[1] * k, c[2] * k, c[3] * k]
 
+    def _update_forcing(self) -> None:
+        """Air velocity (NED) and the external force and torque, scaled as the integrator uses them."""
+        dt = self.dt
+        mn, me, md = self.wind_mean
+        g = self.gust
+        x = self.ext
+        m = P.MASS
+        self._forcing = (mn + g[0], me + g[1], md + g[2], x[0] / m, x[1] / m, x[2] / m + P.G,
+                         x[3] / P.IXX * dt, x[4] / P.IYY * dt, x[5] / P.IZZ * dt)
+
     def _slow(self, dt: float) -> None:
         """Battery, wind and pushes, every SLOW_EVERY steps."""
         w1, w2, w3, w4 = self.w1, self.w2, self.w3, self.w4
@@ -262,6 +287,7 @@ class World:
             self.ext = tuple(tot)
         elif self.ext != (0.0, 0.0, 0.0, 0.0, 0.0, 0.0):
             self.ext = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+        self._update_forcing()
 
     def advance_to(self, t: float) -> None:
         """Integrate in fixed steps up to time ``t`` (s); a time in the past does nothing."""
@@ -279,25 +305,9 @@ class World:
         an = ae = ad = 0.0
         on_ground = self.on_ground
         ground = self.ground_enabled
-        alpha = self._alpha
         c1, c2, c3, c4 = self._targets
-        inv_m = 1.0 / P.MASS
-        kbm = P.B_ROTOR * inv_m  # thrust acceleration per rotor speed squared
-        klm = self.drag_lin * inv_m
-        g = P.G
-        # Euler's equations, pre-divided by the inertia and multiplied by dt
-        kl = P.B_ROTOR * P.ARM / P.IXX * dt
-        km = P.B_ROTOR * P.ARM / P.IYY * dt
-        kn = P.D_ROTOR / P.IZZ * dt
-        dpx, dpy, dpz = self.drag_xy / P.IXX * dt, self.drag_xy / P.IYY * dt, self.drag_z / P.IZZ * dt
-        gx_, gy_, gz_ = (P.IZZ - P.IYY) / P.IXX * dt, (P.IXX - P.IZZ) / P.IYY * dt, (P.IYY - P.IXX) / P.IZZ * dt
-        hdt = 0.5 * dt
-        wmn, wme, wmd = self.wind_mean
-        gu = self.gust
-        wn, we, wd = wmn + gu[0], wme + gu[1], wmd + gu[2]
-        ext = self.ext
-        fxn, fxe, fxdg = ext[0] * inv_m, ext[1] * inv_m, ext[2] * inv_m + g
-        txb, tyb, tzb = ext[3] / P.IXX * dt, ext[4] / P.IYY * dt, ext[5] / P.IZZ * dt
+        alpha, kbm, klm, kl, km, kn, dpx, dpy, dpz, gx_, gy_, gz_, hdt = self._consts
+        wn, we, wd, fxn, fxe, fxdg, txb, tyb, tzb = self._forcing
         dmp_every = self._dmp_every
         next_dmp = (k // dmp_every + 1) * dmp_every
         next_slow = (k // SLOW_EVERY + 1) * SLOW_EVERY
@@ -368,10 +378,7 @@ class World:
                 if k == next_slow:
                     self._slow(SLOW_EVERY * dt)
                     c1, c2, c3, c4 = self._targets
-                    wn, we, wd = wmn + gu[0], wme + gu[1], wmd + gu[2]
-                    ext = self.ext
-                    fxn, fxe, fxdg = ext[0] * inv_m, ext[1] * inv_m, ext[2] * inv_m + g
-                    txb, tyb, tzb = ext[3] / P.IXX * dt, ext[4] / P.IYY * dt, ext[5] / P.IZZ * dt
+                    wn, we, wd, fxn, fxe, fxdg, txb, tyb, tzb = self._forcing
                     next_slow += SLOW_EVERY
                 next_evt = next_dmp if next_dmp < next_slow else next_slow
         self.n, self.e, self.d = n, e, d

@@ -142,3 +142,14 @@ def test_fixed_step_is_at_least_1khz_and_stable_at_higher_rates():
     assert a.truth.phi == pytest.approx(b.truth.phi, abs=0.01)
     assert a.truth.h == pytest.approx(b.truth.h, abs=0.01)
     assert math.isfinite(a.truth.psi)
+
+
+def test_a_torque_push_acts_for_its_duration_only():
+    w = World(11, height=5.0, airborne=True, drag=False)
+    w.push(duration=0.1, tx=0.05)
+    w.advance_to(0.2)
+    p_after = w.truth.p
+    assert p_after > 0.5  # 0.05 N m for 0.1 s on 7.5e-3 kg m²: about 0.67 rad/s
+    w.advance_to(0.3)
+    assert w.ext == (0.0,) * 6
+    assert w.truth.p == pytest.approx(p_after, rel=0.05)  # no torque left (motors balanced, no drag)
