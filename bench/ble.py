@@ -21,13 +21,14 @@ from __future__ import annotations
 
 import argparse
 import asyncio
+import contextlib
 import json
 import math
 import statistics
 import time
 from dataclasses import dataclass, field
 
-from fcb_sim.wireless import BLE_TELEMETRY_HZ, NOTIFY_PAYLOAD, WirelessLink, start_radio
+from fcb_sim.wireless import NOTIFY_PAYLOAD, WirelessLink, start_radio
 from term.link import LinkSession
 from term.protocol import (
     Ack,
@@ -43,6 +44,7 @@ from term.protocol import (
 )
 
 HEARTBEAT_HZ = 10.0
+TELEMETRY_HZ = 50.0  # the board's telemetry timer; over BLE it asks compact_due() at each tick
 KEY_EVERY_S = 2.0
 STICK_HZ = 100.0  # the joystick poller's rate
 
@@ -58,12 +60,12 @@ class BoardStandIn:
     """The BLE half of the board: the WirelessLink handed over and STARTED, a heartbeat and Compact schedule,
     an Ack for every command. Enough to load the link as the board will; not the firmware."""
 
-    def __init__(self, link: WirelessLink, compact_hz: float) -> None:
+    def __init__(self, link: WirelessLink, telemetry_hz: float, phase: float = 0.0137) -> None:
         self.link = link
-        self.compact_period = 1.0 / compact_hz
+        self.compact_period = 1.0 / telemetry_hz
         self.decoder = Decoder()
         self.next_hb = 0.0
-        self.next_compact = 0.0
+        self.next_compact = phase  # the telemetry and heartbeat timers have unrelated phases, as on the board
         self.hb_counter = 0
         self.hb_sent: dict[int, float] = {}
         self.hb_rtt: list[float] = []
@@ -71,10 +73,11 @@ class BoardStandIn:
         self.commands = 0
 
     def tick(self, now: float) -> None:
-        # Compact first at a shared instant: the heartbeat then flushes a whole batch.
+        # At every telemetry tick a Compact if the link wants one (three per heartbeat period), as the board does.
         while now >= self.next_compact - 1e-9:
             t = self.next_compact
-            self.link.send(Compact(Mode.SAFE, self.link.state, int(500 * math.sin(t)), 0, 0, 1150))
+            if self.link.compact_due():
+                self.link.send(Compact(Mode.SAFE, self.link.state, int(500 * math.sin(t)), 0, 0, 1150))
             self.next_compact += self.compact_period
         while now >= self.next_hb - 1e-9:
             self.hb_counter = (self.hb_counter + 1) & 0xFFFF
@@ -119,10 +122,10 @@ class SimResult:
     extra: dict = field(default_factory=dict)
 
 
-def simulate(seconds: float, compact_hz: float, moving: bool) -> SimResult:
+def simulate(seconds: float, telemetry_hz: float, moving: bool) -> SimResult:
     """Board and PC on one 1 ms simulated clock; bytes pass at once (the radio's delay does not change counts)."""
     link = started_link()
-    board = BoardStandIn(link, compact_hz)
+    board = BoardStandIn(link, telemetry_hz)
     session = LinkSession(0.0, change_only=True)
     res = SimResult()
     next_stick = 0.0
@@ -169,7 +172,7 @@ async def radio_run(seconds: float) -> dict:
     from term.transports.ble import BleTransport
 
     link = WirelessLink()
-    board = BoardStandIn(link, BLE_TELEMETRY_HZ)
+    board = BoardStandIn(link, TELEMETRY_HZ)
     clock = time.monotonic
     radio = await start_radio(
         link, board_id=1, hci="tcp-server:127.0.0.1:0", on_data=lambda d: board.receive(d, clock())
@@ -227,6 +230,82 @@ async def radio_run(seconds: float) -> dict:
         await radio.close()
 
 
+async def board_run(seconds: float, steps: int = 20) -> dict:
+    """The real board (``fcb_sim.board``) paced to the wall clock behind the radio, the terminal's BLE path in
+    front: handover over the cable, then the board's own BLE output (fill) with the stick still, and the
+    stick-to-motor latency over BLE in MANUAL (lift steps; from ``set_joystick`` to the board's motor
+    command changing)."""
+    from fcb_sim.board import Board, BoardConfig
+    from term.connection import Connection
+    from term.transports.ble import BleTransport
+
+    clock = time.monotonic
+    board = Board(BoardConfig(seed=1, link_timeout_s=0.5))
+    radio = await start_radio(board.wireless, board=board, hci="tcp-server:127.0.0.1:0")
+    cable = LinkSession(clock())
+    t0 = clock()
+    changes: list[float] = []  # wall-clock times at which the motor command changed
+
+    async def pace() -> None:
+        last_ae = board.ae
+        while True:
+            now = clock()
+            board.advance(int((now - t0) * 1e6))
+            if board.ae != last_ae:
+                changes.append(now)
+                last_ae = board.ae
+            out = board.uart_transmit()
+            cable.receive(out, now) if out else cable.poll(now)
+            data = cable.data_to_send(now)
+            if data:
+                board.uart_receive(data)
+            await asyncio.sleep(0.0005)
+
+    task = asyncio.create_task(pace())
+    transport = BleTransport(radio.address, hci=radio.hci.client_spec, timeout=5.0)
+    conn = Connection(transport, LinkSession(clock(), change_only=True), clock=clock, on_event=lambda ev: None)
+    try:
+        await conn.start()
+        await _wait_for(lambda: board.wireless.is_connected, conn, "the board never saw the connection")
+        cable.send_command(Op.WIRELESS, 1, clock())
+        await _wait_for(lambda: board.wireless.state is WirelessState.STARTED, conn, "no handover")
+        st = board.wireless.stats
+        n0, b0, w0 = st.notifications, st.payload_bytes, transport.writes
+        c0 = st.compacts
+        await asyncio.sleep(seconds)
+        notes, payload = st.notifications - n0, st.payload_bytes - b0
+        compacts = st.compacts - c0
+        still_writes = (transport.writes - w0) / seconds
+        conn.send_command(Op.MODE, Mode.MANUAL)
+        await _wait_for(lambda: board.mode is Mode.MANUAL, conn, "MANUAL refused")
+        latencies = []
+        for i in range(steps):
+            await asyncio.sleep(0.05 + 0.013 * (i % 5))  # an unrelated phase to the board's control tick
+            changes.clear()
+            sent = clock()
+            conn.set_joystick(Joystick(0, 0, 0, 9000 + 1500 * (i % 2), 0))
+            await _wait_for(lambda: bool(changes), conn, "the motors never followed the stick", 2.0)
+            latencies.append(changes[0] - sent)
+        latencies.sort()
+        return {
+            "compact_per_s": round(compacts / seconds, 1),
+            "fill_pct": round(100.0 * payload / (notes * NOTIFY_PAYLOAD), 1) if notes else 0.0,
+            "notifications_per_s": round(notes / seconds, 1),
+            "largest_notification": st.largest,
+            "writes_per_s_still": round(still_writes, 1),
+            "stick_to_motor_ms_median": round(1000 * statistics.median(latencies), 2),
+            "stick_to_motor_ms_p90": round(1000 * latencies[int(0.9 * (len(latencies) - 1))], 2),
+            "stick_to_motor_ms_max": round(1000 * latencies[-1], 2),
+            "steps": steps,
+        }
+    finally:
+        task.cancel()
+        with contextlib.suppress(asyncio.CancelledError):
+            await task
+        await conn.stop()
+        await radio.close()
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m bench.ble", description=__doc__.splitlines()[0])
     parser.add_argument("--seconds", type=float, default=20.0, help="simulated seconds per case (default 20)")
@@ -236,20 +315,20 @@ def main(argv: list[str] | None = None) -> int:
 
     out: dict = {"bench": "ble", "notification_payload": NOTIFY_PAYLOAD, "seconds": args.seconds}
     fill = {}
-    for hz in (BLE_TELEMETRY_HZ, 10.0):
+    for label, hz in (("compact_3_per_heartbeat", TELEMETRY_HZ), ("compact_1_per_heartbeat", HEARTBEAT_HZ)):
         r = simulate(args.seconds, hz, moving=False)
-        fill[f"compact_{hz:g}hz"] = {
+        fill[label] = {
             "fill_pct": round(r.fill_pct, 1),
             "notifications_per_s": round(r.notifications / args.seconds, 1),
             "largest": r.largest,
         }
-        print(f"notification fill, Compact {hz:g} Hz + heartbeat 10 Hz + acks: {r.fill_pct:5.1f} % "
+        print(f"notification fill, {label.replace('_', ' ')} + heartbeat 10 Hz + acks: {r.fill_pct:5.1f} % "
               f"({r.notifications / args.seconds:.1f} notifications/s, largest {r.largest} B)")
     out["fill"] = fill
-    out["fill_goal_met"] = fill[f"compact_{BLE_TELEMETRY_HZ:g}hz"]["fill_pct"] >= 90.0
+    out["fill_goal_met"] = fill["compact_3_per_heartbeat"]["fill_pct"] >= 90.0
     writes = {}
     for label, moving in (("still", False), ("moving", True)):
-        r = simulate(args.seconds, BLE_TELEMETRY_HZ, moving)
+        r = simulate(args.seconds, TELEMETRY_HZ, moving)
         writes[label] = {
             "writes_per_s": round(r.writes / args.seconds, 1),
             "joysticks_per_s": round(r.joysticks / args.seconds, 1),
@@ -267,7 +346,13 @@ def main(argv: list[str] | None = None) -> int:
                   f"{r['notifications_per_s']:.1f} notifications/s at {r['fill_pct']} % fill")
         print(f"heartbeat round trip over the radio: median {radio['heartbeat_rtt_ms_median']} ms, "
               f"largest notification {radio['largest_notification']} B")
-    out["stick_to_motor_latency_ms"] = None  # needs the board integration (fcb_sim.board)
+        board = asyncio.run(board_run(args.radio_seconds))
+        out["board"] = board
+        print(f"the real board over the radio: Compact {board['compact_per_s']}/s, fill {board['fill_pct']} % "
+              f"({board['notifications_per_s']} notifications/s), PC writes {board['writes_per_s_still']}/s still")
+        print(f"stick-to-motor latency over BLE: median {board['stick_to_motor_ms_median']} ms, "
+              f"p90 {board['stick_to_motor_ms_p90']} ms, max {board['stick_to_motor_ms_max']} ms "
+              f"({board['steps']} lift steps)")
     print(json.dumps(out))
     return 0
 

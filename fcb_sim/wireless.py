@@ -34,6 +34,7 @@ from typing import Any
 
 from term.protocol import (
     TELEMETRY,
+    Compact,
     Encoder,
     Heartbeat,
     Nak,
@@ -49,8 +50,10 @@ NUS_TX = "6E400003-B5A3-F393-E0A9-E50E24DCCA9E"
 NAME_PREFIX = "Quadrupel"
 ATT_MTU = 23  # the nRF51's S110 SoftDevice never negotiates more
 NOTIFY_PAYLOAD = ATT_MTU - 3  # 20 bytes of value per notification
-# Compact telemetry rate over BLE. With the 10 Hz heartbeat, three 16-byte Compact frames and one 12-byte
-# heartbeat make exactly 60 bytes between flushes: three full notifications (10 Hz would leave 28 bytes: 70 %).
+# Compact telemetry over BLE: three per heartbeat period. With the 10 Hz heartbeat, three 16-byte Compact frames
+# and one 12-byte heartbeat make exactly 60 bytes between flushes: three full notifications (one Compact per
+# heartbeat would leave 28 bytes: a 20 and an 8, 70 % fill).
+COMPACT_PER_HEARTBEAT = 3
 BLE_TELEMETRY_HZ = 30.0
 
 
@@ -71,6 +74,8 @@ class WirelessStats:
     tx_dropped: int = 0  # bytes queued while no phone was connected, or thrown away at a disconnection
     rx_bytes: int = 0  # bytes the phone wrote
     rx_ignored: int = 0  # bytes written before the handover (DISCONNECTED): the board does not read them
+    compacts: int = 0  # Compact frames queued
+    compact_skipped: int = 0  # Compact frames beyond COMPACT_PER_HEARTBEAT in one heartbeat period
     payload: int = NOTIFY_PAYLOAD
 
     @property
@@ -108,6 +113,7 @@ class WirelessLink:
         self._connected = False
         self._tx = bytearray()  # the ble_tx_queue
         self._ready: list[bytes] = []  # whole notifications waiting for the radio
+        self._compacts = 0  # Compact frames queued since the last heartbeat
         self.transitions: list[tuple[WirelessState, WirelessState]] = []  # drained by the board (events)
 
     # --- state ----------------------------------------------------------------------------------------------
@@ -206,12 +212,32 @@ class WirelessLink:
             return self._state is not WirelessState.DISCONNECTED
         return self._state is WirelessState.STARTED and kind not in TELEMETRY
 
+    def compact_due(self) -> bool:
+        """Whether a Compact frame is wanted now: over BLE (STARTED) and fewer than ``COMPACT_PER_HEARTBEAT``
+        since the last heartbeat. Ask at every telemetry tick (any rate of 30 Hz or more): the notifications
+        then stay full whatever the phases of the board's telemetry and heartbeat timers."""
+        return (
+            self._connected
+            and self._state is WirelessState.STARTED
+            and self._compacts < COMPACT_PER_HEARTBEAT
+        )
+
     def send(self, pkt: Any) -> bool:
         """Encode ``pkt`` with the BLE encoder and queue it if it goes over BLE (``ble_wants``); heartbeats
-        flush the queue at once. Returns True if it was queued."""
+        flush the queue at once. A Compact beyond ``COMPACT_PER_HEARTBEAT`` per heartbeat period is skipped
+        (the phone shows the latest anyway). Returns True if it was queued."""
         if not self.ble_wants(pkt):
             return False
-        self.queue(self.encoder.encode(pkt), urgent=type(pkt) is Heartbeat)
+        kind = type(pkt)
+        if kind is Compact:
+            if self._compacts >= COMPACT_PER_HEARTBEAT:
+                self.stats.compact_skipped += 1
+                return False
+            self._compacts += 1
+            self.stats.compacts += 1
+        elif kind is Heartbeat:
+            self._compacts = 0
+        self.queue(self.encoder.encode(pkt), urgent=kind is Heartbeat)
         return True
 
     def queue(self, frame: bytes, urgent: bool = False) -> None:

@@ -10,7 +10,7 @@ from bleak import BleakClient, BleakScanner
 from bleak.exc import BleakDeviceNotFoundError, BleakError
 
 from fcb_sim.wireless import NUS_RX, NUS_SERVICE, NUS_TX, WirelessLink, start_radio
-from term.protocol import Compact, Decoder, Encoder, Heartbeat, HeartbeatAck, WirelessState
+from term.protocol import Ack, Compact, Decoder, Encoder, Heartbeat, HeartbeatAck, WirelessState
 from term.transports.bumble_backend import BumbleClient, BumbleHost, BumbleScanner
 
 
@@ -67,7 +67,8 @@ async def test_scan_connect_write_and_notify_through_bleak(board) -> None:
         await until(lambda: bool(board.parsed))
         assert board.parsed == [answer] and link.state is WirelessState.STARTED
 
-        sent = [Compact(0, 2, i, i, i, 1150) for i in range(5)] + [Heartbeat(2, 200)]
+        sent = [Compact(0, 2, i, i, i, 1150) for i in range(3)] + [Ack(i, 1, 0, i) for i in range(4)]
+        sent.append(Heartbeat(2, 200))
         for pkt in sent:
             link.send(pkt)
         await until(lambda: len(notes) == 1 + link.stats.notifications - 1)

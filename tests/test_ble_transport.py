@@ -135,3 +135,15 @@ async def test_no_adapter(hci: str, text: str) -> None:
     assert "\n" not in str(err.value) and "--hci" in str(err.value)
     with pytest.raises(TransportError, match=text):
         await scan(hci=hci, timeout=0.1)
+
+
+async def test_the_simulator_going_away_is_a_lost_connection(board) -> None:
+    """fcb-sim stops (its HCI server closes): the terminal's HCI transport is gone, reads fail in one line."""
+    transport = BleTransport(board.address, hci=board.hci.client_spec, timeout=5.0)
+    await transport.open()
+    await until(lambda: board.link.is_connected)
+    await board.hci.close()
+    with pytest.raises(TransportError, match="lost") as err:
+        await asyncio.wait_for(transport.read(), 5.0)
+    assert "\n" not in str(err.value)
+    await transport.close()

@@ -177,8 +177,13 @@ def test_every_notification_is_at_most_twenty_bytes_and_the_stream_is_intact(kin
     notes: list[bytes] = []
     dec = Decoder()
     got = []
+    compacts = 0
     for kind in kinds:
         pkt = packets[kind]
+        compacts = 0 if kind == "hb" else compacts + (kind == "compact")
+        if kind == "compact" and compacts > 3:
+            assert not link.send(pkt)  # at most three Compact frames per heartbeat period
+            continue
         assert link.send(pkt)
         sent.append(pkt)
         batch = link.notifications()
@@ -193,6 +198,24 @@ def test_every_notification_is_at_most_twenty_bytes_and_the_stream_is_intact(kin
     got += dec.feed(b"".join(link.notifications()))
     assert got == sent
     assert dec.stats.seq_gaps == 0  # BLE has its own sequence numbers
+
+
+def test_compact_due_allows_three_per_heartbeat_period() -> None:
+    link = WirelessLink()
+    assert not link.compact_due()
+    link.connected()
+    link.request_start()
+    assert not link.compact_due()  # STARTING: telemetry stays on the cable
+    link.ble_receive(b"\x00")
+    sent = 0
+    for _tick in range(5):  # a 50 Hz telemetry timer between two 10 Hz heartbeats
+        if link.compact_due():
+            assert link.send(COMPACT)
+            sent += 1
+    assert sent == 3 and not link.send(COMPACT) and link.stats.compact_skipped == 1
+    link.send(HB)
+    assert link.compact_due()
+    assert link.stats.fill_pct == 100.0
 
 
 def test_a_disconnection_drops_the_queue() -> None:
@@ -318,7 +341,7 @@ async def test_notifications_larger_than_a_frame_never_leave_the_radio() -> None
         await until(lambda: link.is_connected)
         link.request_start()
         link.ble_receive(b"\x00")
-        sent = [Compact(0, 2, i, -i, i * 2, 1100 + i) for i in range(30)] + [HB]
+        sent = [Event(11, i, i) for i in range(30)] + [Compact(0, 2, 1, -1, 2, 1100), HB]
         for pkt in sent:
             link.send(pkt)
         expected = link.stats.notifications
