@@ -10,8 +10,9 @@ Sources (cited below by their tag):
 - [MS]    MEAS MS5611-01BA03 barometric pressure sensor datasheet (DA5611-01BA03_011).
 - [LAB]   the lab report (seed/000_...txt): Table 1 gains, Table 2 filter constants, eq. 2-3, Figure 9, 100 Hz DMP,
           400 Hz RAW, 20 Hz barometer task (Figure 14: "ADC + Baro" period 49.6 ms).
-- [TPL]   the lab's in4073 firmware template (mpu_wrapper.c): angles as int16 with 10430 LSB per rad
-          (``phi = atan2(...) * 10430.0``), rates as the raw gyro words.
+- [TPL]   the lab's in4073 firmware template (mpu_wrapper.c, I. Protonotarios 2016): angles as int16 with 10430
+          LSB per rad (``phi = atan2(...) * 10430.0``, ``theta = -asin(...) * 10430.0``), rates as the raw gyro
+          words (``sp = gyro[0]; sq = gyro[1]; sr = gyro[2]``), DMP FIFO at 100 Hz with the DLPF at 10 Hz.
 - [LIPO]  typical 3S lithium-polymer figures: 4.20 V full / 3.0 V empty per cell, a resting-voltage curve as
           published by pack vendors, about 20 mOhm per cell internal resistance for a 2200 mAh 25C pack.
 - [ISA]   ICAO standard atmosphere at sea level: p0 101325 Pa, T0 288.15 K, rho 1.225 kg/m³.
@@ -115,10 +116,12 @@ ACC_BIAS_WALK_G = 2e-4  # g per sqrt(s) [ASSUMED]
 VIB_ACC_G = 0.15
 VIB_GYRO_DPS = 1.5
 DLPF_DELAY = 0.0048  # s, DLPF_CFG = 3 group delay (4.8 ms gyro, 4.9 ms accel) [MPU register map]
-# DMP: quaternion output at the lab's 100 Hz [LAB]; latency = DLPF delay + one 5 ms internal fusion period
-# [ASSUMED] ~ 10 ms; orientation error of the fused output about 0.1 deg rms, yaw drifts (no magnetometer).
+# DMP: quaternion output at 100 Hz [LAB, TPL: dmp_set_fifo_rate(100)]. The template sets the DLPF to 10 Hz in DMP
+# mode (mpu_set_lpf(10)), whose group delay is 13.4 ms (gyro) [MPU register map, DLPF_CFG = 5]; plus on average
+# half a FIFO period (5 ms) before the sample is read: 18 ms. Orientation error of the fused output about
+# 0.1 deg rms [ASSUMED], yaw drifts (no magnetometer).
 DMP_RATE_HZ = 100.0
-DMP_LATENCY = 0.010
+DMP_LATENCY = 0.018
 DMP_NOISE_RAD = math.radians(0.1)
 DMP_YAW_DRIFT_RAD_S = math.radians(0.02)
 
