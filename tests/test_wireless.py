@@ -407,3 +407,11 @@ async def test_bad_hci_spec_is_a_usage_error() -> None:
 
     with pytest.raises(UsageError, match="tcp-server:HOST:PORT"):
         await start_radio(WirelessLink(), hci="tcp-server:nowhere")
+
+
+async def test_an_unreachable_radio_is_a_usage_error() -> None:
+    from fcb_sim.cli import UsageError
+
+    with pytest.raises(UsageError, match=r"cannot open the BLE radio 'tcp-client:127\.0\.0\.1:1'") as err:
+        await start_radio(WirelessLink(), hci="tcp-client:127.0.0.1:1")
+    assert "\n" not in str(err.value)
