@@ -19,8 +19,10 @@ API for the board::
   ``panic_ae`` (just under hover) times the scale, levelled by the attitude loops when calibrated. MANUAL:
   sticks straight to Z/L/M/N. YAW: MANUAL plus yaw-rate control. FULL: cascaded roll/pitch on the DMP angles,
   yaw rate, lift from the stick. RAW: FULL on the on-board filter (``estimation.make_filter``, float or Q16.16).
-  HEIGHT: FULL plus the height PD on the height estimator, the lift stick (relative to its position at entry)
-  moving the set point at up to ``HEIGHT_STICK_RATE`` m/s.
+  HEIGHT: FULL (or RAW, when entered from RAW) plus the height PD on the height estimator, the lift stick
+  (relative to its position at entry) moving the set point at up to ``HEIGHT_STICK_RATE`` m/s.
+- CALIBRATION: entering it clears the DMP angle offsets, so ``dmp_phi``/``dmp_theta`` are uncorrected while the
+  board collects their means; ``set_calibration(Calibration(...))`` applies all means when it ends.
 - Gains: ``fc.gains`` (params.Gains: yaw_p, p1, p2, height_p, height_d) may be changed at any time;
   ``adjust_gain(name, steps)`` applies the key steps of params.GAIN_STEPS and returns the new value.
 - Outputs for telemetry: ``phi, theta, psi`` (rad, FRD, of the path the mode uses), ``sp, sq, sr`` (calibrated
@@ -34,7 +36,7 @@ why this removes the sign puzzle of the report's Table 1.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 from fcb_sim import control as C
 from fcb_sim import params as P
@@ -156,6 +158,7 @@ class FlightCore:
         self.setpoint = 0.0
         self._z_base = 0.0
         self._lift_entry = 0
+        self._height_raw = False  # HEIGHT entered from RAW flies on the on-board filter
         self.ae = (0, 0, 0, 0)
         self._g_off = (0.0, 0.0, 0.0)
         self._a_off = (0.0, 0.0, 0.0)
@@ -228,14 +231,22 @@ class FlightCore:
 
     # ---- modes and control -----------------------------------------------------------------------------------
     def enter_mode(self, mode: int, lift: int = 0) -> None:
-        """Mode entry actions of the control law (the board's mode machine decides whether it may)."""
+        """Mode entry actions of the control law (the board's mode machine decides whether it may).
+
+        HEIGHT captures the height set point and the lift stick, and flies on the attitude source of the mode it
+        was entered from (RAW: the on-board filter; otherwise the DMP). CALIBRATION clears the DMP angle offsets
+        so that ``dmp_phi``/``dmp_theta`` read uncorrected angles while the means are collected. PANIC restarts
+        at the full descent level."""
         mode = int(mode)
         if mode == _HEIGHT:
             self.setpoint = self.height
             self._lift_entry = lift
             self._z_base = C.lift_to_z(lift)
+            self._height_raw = self.mode == _RAW or (self.mode == _HEIGHT and self._height_raw)
         elif mode == _PANIC:
             self.panic_scale = 1.0
+        elif mode == _CAL:
+            self.calibration = replace(self.calibration, dmp_phi=0.0, dmp_theta=0.0)
         if mode == _RAW:
             # the DMP is off in RAW mode: the height estimator follows the on-board filter
             self._have_dmp = False
@@ -246,7 +257,7 @@ class FlightCore:
         level = int(self.panic_ae * max(0.0, min(1.0, scale)))
         if self.calibrated and level > 0:
             g = self.gains
-            if self.mode == _RAW:
+            if self.mode == _RAW or (self.mode == _HEIGHT and self._height_raw):
                 phi, theta = self.filter.roll, -self.filter.pitch
             else:
                 phi, theta = self.dmp_phi, self.dmp_theta
@@ -266,7 +277,7 @@ class FlightCore:
             self.enter_mode(mode, lift)
         g = self.gains
         if mode == _FULL or mode == _HEIGHT or mode == _RAW:
-            if mode == _RAW:
+            if mode == _RAW or (mode == _HEIGHT and self._height_raw):
                 f = self.filter
                 phi = f.roll
                 theta = -f.pitch

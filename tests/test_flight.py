@@ -114,3 +114,27 @@ def test_raw_mode_hovers_on_the_on_board_filter():
 def test_height_hold_keeps_its_height():
     m = run_scenario("height-hold", 12.0, seed=5)
     assert m["height_rms_m"] < 0.3
+
+
+def test_height_entered_from_raw_flies_on_the_filter():
+    fc = _calibrated()
+    for _ in range(400):  # tilted 10 deg to the right according to the accelerometer
+        fc.imu_sample(40, -30, 10, 200, 2845 - 100, 16135 + 116, 0.0025)
+    fc.dmp_phi = 0.0  # a stale DMP says level
+    fc.control(Mode.RAW, 0, 0, 0, 16384)
+    a = fc.control(Mode.HEIGHT, 0, 0, 0, 16384)
+    assert a[1] > a[3]  # corrects the filter's right roll (right motor up), not the stale DMP's level
+    fc.control(Mode.SAFE, 0, 0, 0, 0)
+    fc.control(Mode.FULL, 0, 0, 0, 16384)
+    b = fc.control(Mode.HEIGHT, 0, 0, 0, 16384)
+    assert b[1] == b[3]  # from FULL: the DMP path
+
+
+def test_entering_calibration_clears_the_dmp_offsets():
+    fc = FlightCore()
+    fc.set_calibration(Calibration(dmp_phi=0.02, dmp_theta=-0.01))
+    fc.dmp_sample(1.0, 0.0, 0.0, 0.0)
+    assert fc.dmp_phi == pytest.approx(-0.02)
+    fc.control(Mode.CALIBRATION, 0, 0, 0, 0)
+    fc.dmp_sample(1.0, 0.0, 0.0, 0.0)
+    assert (fc.dmp_phi, fc.dmp_theta) == (0.0, 0.0)
