@@ -45,7 +45,10 @@ def _adapter_error(exc: BaseException, hci: str | None) -> TransportError:
     from bleak.exc import BleakBluetoothNotAvailableError
 
     if hci:
-        return TransportError(f"{_one_line(exc)}: check --hci (e.g. tcp-client:127.0.0.1:9000, usb:0)")
+        text = _one_line(exc)
+        if "plug one in" in text:  # the bumble backend already said what to do with the dongle
+            return TransportError(text)
+        return TransportError(f"{text}: check --hci (e.g. tcp-client:127.0.0.1:9000, usb:0)")
     if isinstance(exc, BleakBluetoothNotAvailableError):
         return TransportError(f"Bluetooth is not available: {_one_line(exc)}; switch it on, or use --hci usb:0")
     return TransportError(
