@@ -71,6 +71,7 @@ class BumbleHost:
 
     def __init__(self, spec: str) -> None:
         self.spec = spec
+        self.loop = asyncio.get_running_loop()
         self.users = 0
         self.transport: Any = None
         self.device: Any = None
@@ -93,7 +94,7 @@ class BumbleHost:
         key = (id(asyncio.get_running_loop()), spec)
         async with cls._get_lock():
             host = cls._open.get(key)
-            if host is None or host.lost:
+            if host is None or host.lost or host.loop is not asyncio.get_running_loop():
                 host = cls(spec)
                 await host._open_transport()
                 cls._open[key] = host
