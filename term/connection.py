@@ -149,8 +149,10 @@ class Connection:
                 delay = session.next_deadline() - self.clock()
                 if delay > 0:
                     self._wake.clear()
+                    # asyncio.timeout, not wait_for: 3.11's wait_for can swallow the cancel that stop() sends.
                     with contextlib.suppress(TimeoutError):
-                        await asyncio.wait_for(self._wake.wait(), min(delay, 3600.0))
+                        async with asyncio.timeout(min(delay, 3600.0)):
+                            await self._wake.wait()
         except TransportClosed:
             pass
         except TransportError as exc:

@@ -194,7 +194,7 @@ class PtyBoard:
             out = self.board.tick(self.clock())
             if out:
                 self._write(out)
-            await asyncio.sleep(max(0.0, self.board.next_deadline() - self.clock()))
+            await asyncio.sleep(min(3600.0, max(0.0, self.board.next_deadline() - self.clock())))
 
     async def wait_for(self, cond: Callable[[], bool], timeout: float = 5.0) -> None:
         """Wait until ``cond()`` holds; fails the test after ``timeout`` seconds."""

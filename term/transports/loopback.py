@@ -184,7 +184,8 @@ class LoopbackTransport(Transport):
             self._wake.clear()
             timeout = None if nxt is None else max(0.0, nxt - self._clock())
             try:
-                await asyncio.wait_for(self._wake.wait(), timeout)
+                async with asyncio.timeout(timeout):  # not wait_for: see term.connection
+                    await self._wake.wait()
             except TimeoutError:
                 pass
 
