@@ -147,3 +147,48 @@ async def test_the_simulator_going_away_is_a_lost_connection(board) -> None:
         await asyncio.wait_for(transport.read(), 5.0)
     assert "\n" not in str(err.value)
     await transport.close()
+
+
+RADIO_PROCESS = """
+import asyncio, sys
+from fcb_sim.wireless import WirelessLink, start_radio
+from term.protocol import Heartbeat
+
+async def main():
+    link = WirelessLink()
+    radio = await start_radio(link, board_id=6, hci="tcp-server:127.0.0.1:0")
+    print(radio.hci.client_spec, flush=True)
+    counter = 0
+    while True:  # hand over as soon as a phone connects, then heartbeat at 10 Hz
+        if link.is_connected:
+            link.request_start()
+        counter += 1
+        link.send(Heartbeat(counter, counter * 100))
+        await asyncio.sleep(0.1)
+
+asyncio.run(main())
+"""
+
+
+async def test_the_radio_in_another_process() -> None:
+    """As with fcb-sim serve --ble-hci: the radio in its own process, the terminal's BLE path in this one."""
+    import sys
+
+    proc = await asyncio.create_subprocess_exec(
+        sys.executable, "-c", RADIO_PROCESS, stdout=asyncio.subprocess.PIPE, stderr=asyncio.subprocess.DEVNULL
+    )
+    try:
+        spec = (await asyncio.wait_for(proc.stdout.readline(), 20.0)).decode().strip()
+        assert spec.startswith("tcp-client:127.0.0.1:")
+        [found] = await scan(hci=spec, timeout=0.3)
+        assert found.name == "Quadrupel 6"
+        transport = BleTransport(found.address, hci=spec, timeout=5.0)
+        await transport.open()
+        try:
+            packets = await read_packets(transport, 1)
+            assert type(packets[0]) is Heartbeat
+        finally:
+            await transport.close()
+    finally:
+        proc.kill()
+        await proc.wait()
