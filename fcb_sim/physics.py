@@ -248,14 +248,28 @@ class World:
         self._targets = [c[0] * k, c[1] * k, c[2] * k, c[3] * k]
 
     def _update_forcing(self) -> None:
-        """Air velocity (NED) and the external force and torque, scaled as the integrator uses them."""
+        """Air velocity (NED), the external force and torque, and the drag's moment, scaled as the integrator
+        uses them. Refreshed every SLOW_EVERY steps: the wind and the speed change slowly."""
         dt = self.dt
         mn, me, md = self.wind_mean
         g = self.gust
         x = self.ext
         m = P.MASS
-        self._forcing = (mn + g[0], me + g[1], md + g[2], x[0] / m, x[1] / m, x[2] / m + P.G,
-                         x[3] / P.IXX * dt, x[4] / P.IYY * dt, x[5] / P.IZZ * dt)
+        wn, we, wd = mn + g[0], me + g[1], md + g[2]
+        tx, ty = x[3], x[4]
+        if self.drag_lin > 0.0:
+            # the drag acts at the rotor plane, DRAG_CP_HEIGHT above the centre of mass: moment r x F in the body
+            # frame with r = (0, 0, -h), F = R^T (-k (v - wind)); a gust tilts the quadrotor (rotor flapping)
+            k = self.drag_lin
+            fn, fe, fd = -k * (self.vn - wn), -k * (self.ve - we), -k * (self.vd - wd)
+            qw, qx, qy, qz = self.qw, self.qx, self.qy, self.qz
+            fbx = (1 - 2 * (qy * qy + qz * qz)) * fn + 2 * (qx * qy + qw * qz) * fe + 2 * (qx * qz - qw * qy) * fd
+            fby = 2 * (qx * qy - qw * qz) * fn + (1 - 2 * (qx * qx + qz * qz)) * fe + 2 * (qy * qz + qw * qx) * fd
+            h = P.DRAG_CP_HEIGHT
+            tx += h * fby
+            ty -= h * fbx
+        self._forcing = (wn, we, wd, x[0] / m, x[1] / m, x[2] / m + P.G,
+                         tx / P.IXX * dt, ty / P.IYY * dt, x[5] / P.IZZ * dt)
 
     def _slow(self, dt: float) -> None:
         """Battery, wind and pushes, every SLOW_EVERY steps."""
