@@ -9,9 +9,9 @@ Model, integrated at a fixed step (default 1 kHz, ``physics_hz`` may be raised):
   ``ae * OMEGA_PER_AE * V_loaded / V_REF``; thrust ``B_ROTOR w²`` along -z, yaw torque ``D_ROTOR w²``, so that
   Z, L, M, N are the mixing of DESIGN.md with b = B_ROTOR (and l = ARM), d = D_ROTOR;
 - rigid body: Newton in NED and Euler's equations in FRD (with the gyroscopic term w x Iw), linear drag against
-  the air's velocity (wind), rotational drag; semi-implicit Euler (velocity, then position), quaternion attitude
-  renormalised every 10 steps. Stable at 1 kHz: the fastest mode (motor lag, 30 ms) is integrated exactly and the
-  drag time constants are seconds;
+  the air's velocity (wind) acting at the rotor plane (so gusts also tilt it), rotational drag; semi-implicit
+  Euler (velocity, then position), quaternion attitude renormalised every 10 steps. Stable at 1 kHz: the
+  fastest mode (motor lag, 30 ms) is integrated exactly and the drag time constants are seconds;
 - ground contact at h = 0: the quadrotor rests level on its feet until the thrust lifts it, lands inelastically
   (vertical and horizontal speed to zero, levelled on its legs), and never goes below the floor;
 - 3S LiPo: resting voltage against state of charge, internal resistance (the voltage sags with the motors'
