@@ -108,7 +108,7 @@ NAK_TEXT = {
     Nak.LOG_EMPTY: "log is empty",
     Nak.LOG_BUSY: "log is busy",
     Nak.BATTERY_LOW: "battery low",
-    Nak.NO_BLE_CONNECTION: "no BLE data received yet",
+    Nak.NO_BLE_CONNECTION: "no BLE connection: connect the phone first",
     Nak.BUSY: "board busy",
     Nak.PANIC_ACTIVE: "PANIC in progress",
 }
@@ -385,7 +385,7 @@ class LogChunk(NamedTuple):
     data: Annotated[bytes, F("12s", "", "log bytes; the last chunk is padded with 0xFF (erased flash)")]
 
 
-@packet(0x1B, BOARD_TO_PC, "10 Hz over BLE", "The phone's compact telemetry: mode, attitude and battery.")
+@packet(0x1B, BOARD_TO_PC, "3 per heartbeat over BLE (30 Hz)", "The phone's compact telemetry: mode, attitude and battery.")
 class Compact(NamedTuple):
     mode: Annotated[int, F("B", "Mode", "")]
     wireless: Annotated[int, F("B", "WirelessState", "")]
