@@ -385,7 +385,7 @@ class LogChunk(NamedTuple):
     data: Annotated[bytes, F("12s", "", "log bytes; the last chunk is padded with 0xFF (erased flash)")]
 
 
-@packet(0x1B, BOARD_TO_PC, "3 per heartbeat over BLE (30 Hz)", "The phone's compact telemetry: mode, attitude and battery.")
+@packet(0x1B, BOARD_TO_PC, "3 per heartbeat over BLE (30 Hz)", "The phone's telemetry: mode, attitude, battery.")
 class Compact(NamedTuple):
     mode: Annotated[int, F("B", "Mode", "")]
     wireless: Annotated[int, F("B", "WirelessState", "")]
