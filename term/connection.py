@@ -65,7 +65,12 @@ class Connection:
         await self.transport.open()
         self._running = True
         self._done.clear()
-        await self._write(self.session.hello())
+        try:
+            await self._write(self.session.hello())
+        except BaseException:
+            self._running = False
+            await self.transport.close()
+            raise
         self._tasks = [
             asyncio.create_task(self._read_loop(), name=f"link read {self.transport.name}"),
             asyncio.create_task(self._timer_loop(), name=f"link timer {self.transport.name}"),
@@ -131,8 +136,9 @@ class Connection:
                 await self._flush()  # heartbeat ACKs leave now, in this step
                 self._deliver(events)
                 self._wake.set()  # deadlines may have moved (an Ack removed a retry)
-        except TransportClosed:
-            pass
+        except TransportClosed as exc:
+            if self._running:  # closed under us, not by stop(): the link is gone all the same
+                await self._fail(exc)
         except TransportError as exc:
             await self._fail(exc)
         except Exception as exc:  # a bug (e.g. in on_event): stop, and let wait_closed raise it
@@ -153,8 +159,9 @@ class Connection:
                     with contextlib.suppress(TimeoutError):
                         async with asyncio.timeout(min(delay, 3600.0)):
                             await self._wake.wait()
-        except TransportClosed:
-            pass
+        except TransportClosed as exc:
+            if self._running:  # closed under us, not by stop(): the link is gone all the same
+                await self._fail(exc)
         except TransportError as exc:
             await self._fail(exc)
         except Exception as exc:  # a bug (e.g. in on_event): stop, and let wait_closed raise it

@@ -72,7 +72,7 @@ async def test_over_a_pty_heartbeats_answered_commands_acked_and_refused(pty_pai
     assert not events.of(TransportFailed)  # a clean stop reports nothing
 
 
-async def test_heartbeat_ack_does_not_wait_for_the_timer(pty_pair: tuple[int, str]) -> None:
+async def test_heartbeats_are_answered_with_no_timer_due(pty_pair: tuple[int, str]) -> None:
     master, path = pty_pair
     board = ScriptedBoard(heartbeat_period=None)  # heartbeats sent by hand below
     peer = PtyBoard(master, board, time.monotonic)
@@ -195,3 +195,29 @@ def test_command_frames_are_what_the_board_decodes() -> None:
         Hello(PROTOCOL_VERSION, 0, 0, 1, 0),
         Command(cmd, Op.LOG_START, 0),
     ]
+
+
+async def test_transport_closed_under_the_connection_is_reported_once() -> None:
+    loop = asyncio.get_running_loop()
+    pair = loopback_pair(clock=loop.time)
+    await pair.b.open()
+    events = Events()
+    conn = Connection(pair.a, LinkSession(loop.time()), clock=loop.time, on_event=events)
+    await conn.start()
+    await pair.a.close()  # someone else closed the transport: not a clean stop of the connection
+    await events.wait(lambda: bool(events.of(TransportFailed)))
+    assert "closed" in events.of(TransportFailed)[0].message
+    with pytest.raises(TransportError):
+        await conn.wait_closed()
+
+
+async def test_clean_stop_emits_nothing_and_wait_closed_returns() -> None:
+    loop = asyncio.get_running_loop()
+    pair = loopback_pair(clock=loop.time)
+    await pair.b.open()
+    events = Events()
+    async with Connection(pair.a, LinkSession(loop.time()), clock=loop.time, on_event=events) as conn:
+        assert conn.running
+        assert await pair.b.read()  # our Hello
+    await asyncio.wait_for(conn.wait_closed(), 1.0)
+    assert not events.of(TransportFailed) and not conn.running
