@@ -1,0 +1,65 @@
+"""A flight through term's own app and link (TermApp, LinkSession, Connection, SerialTransport) against the board
+served in real time by `fcb-sim serve --pty` in a child process (the same path as `term --sim`): calibrate,
+take off in FULL, hover, land, SAFE. The pilot here is a small height loop on the telemetry the screen shows."""
+
+from __future__ import annotations
+
+import asyncio
+import time
+
+from term.app import TermApp
+from term.cli import SimBoard
+from term.protocol import Joystick, Mode
+from term.transports.serial import SerialTransport
+
+
+async def test_take_off_hover_in_full_and_land() -> None:
+    sim = SimBoard(seed=3)
+    port = sim.start()
+    try:
+        app = TermApp(SerialTransport(port), joystick=False)
+        async with app.run_test(size=(120, 44)) as pilot:
+            m = app.model
+
+            async def until(cond, timeout: float = 10.0) -> None:  # noqa: ANN001
+                async with asyncio.timeout(timeout):
+                    while not cond():
+                        await pilot.pause(0.02)
+
+            await until(lambda: m.mode == Mode.SAFE and m.height is not None)
+            await pilot.press("5")  # not calibrated yet: the board refuses, and the screen says why
+            await until(lambda: any(e.source == "nak" and "not calibrated" in e.text for e in m.events))
+            await pilot.press("3")
+            await until(lambda: any("calibration done" in e.text for e in m.events))
+            await until(lambda: m.mode == Mode.SAFE)
+            await pilot.press("5")
+            await until(lambda: m.mode == Mode.FULL)
+
+            base, target = 15000.0, 0.5
+            heights: list[tuple[float, float]] = []
+            worst_tilt = 0.0
+            t0 = time.monotonic()
+            while (t := time.monotonic() - t0) < 8.5:
+                h, vz = m.height.height / 1000, m.height.vz / 1000
+                if t > 6.0:
+                    target = -0.3  # land: below the floor, so the loop keeps easing off
+                base += 40 * (target - h)
+                lift = int(base + 4000 * (target - h) - 3000 * vz)
+                app.set_stick(Joystick(0, 0, 0, max(0, min(32767, lift)), 0))
+                heights.append((t, h))
+                worst_tilt = max(worst_tilt, abs(m.attitude.phi) / 100, abs(m.attitude.theta) / 100)
+                assert m.mode == Mode.FULL, [e.text for e in m.events][-5:]
+                await pilot.pause(0.05)
+
+            hover = [h for t, h in heights if 2.5 < t < 6.0]
+            assert max(hover) > 0.3, "did not take off"
+            assert sum(hover) / len(hover) > 0.2 and max(hover) < 1.5, hover
+            assert worst_tilt < 5.0
+            app.set_stick(Joystick(0, 0, 0, 0, 0))
+            await until(lambda: m.motion.ae1 <= 200 and m.height.height < 150)  # on the floor, at idle
+            await pilot.press("0")
+            await until(lambda: m.mode == Mode.SAFE and m.motion.ae1 == 0)
+            assert not [e for e in m.events if e.source == "link" and e.severity == "error"]
+            assert m.link is not None and m.link.frames_bad <= 1  # at most the half frame met at connect
+    finally:
+        sim.stop()
