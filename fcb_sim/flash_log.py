@@ -421,15 +421,17 @@ class FlashLog:
         return bytes(self.flash.mem[start : start + LOG_CHUNK_BYTES]).ljust(LOG_CHUNK_BYTES, b"\xff")
 
 
-def encode_log(rows: Iterable[Sequence[int]], scheme: str | int = "rice", variables: Sequence[LogVar] = LOG_VARS,
-               size: int = 1 << 30) -> bytes:
-    """Log ``rows`` into a (large by default) flash and return its contents: for benchmarks and tests."""
+def encode_log(rows: Iterable[Sequence[int]], scheme: str | int = "rice",
+               variables: Sequence[LogVar] = LOG_VARS) -> bytes:
+    """Log ``rows`` into a flash just large enough for them and return its contents (benchmarks, tests)."""
+    rows = list(rows)
+    code = SCHEMES[scheme] if isinstance(scheme, str) else int(scheme)
+    worst = RecordEncoder(code, [v.scale for v in variables]).worst_bytes()
+    size = len(segment_header(code, variables)) + (len(rows) + 2) * worst + 64
     log = FlashLog(size=size, scheme=scheme, variables=variables)
     log.start()
     for row in rows:
         log.append(row)
-        if log.state != LogState.RECORDING:
-            break
     log.stop()
     return log.contents()
 
