@@ -59,9 +59,10 @@ D_ROTOR = 7.5e-7  # N m s², rotor drag torque = D_ROTOR * omega²
 # Linear drag: [ASSUMED] 0.25 N per m/s relative air speed, a terminal velocity of 25 m/s for 0.65 kg, in the range
 # of published small-quadrotor fits (rotor-induced drag dominates at low speed).
 DRAG_LINEAR = 0.25  # N s/m
-# The drag's point of action: [ASSUMED] the rotor plane, 5 cm above the centre of mass, so a relative wind also
-# tilts the quadrotor (a stand-in for rotor blade flapping, which does the same on real multirotors).
-DRAG_CP_HEIGHT = 0.05  # m
+# The drag's point of action: [ASSUMED] the rotor plane, 3 cm above the centre of mass, so a relative wind also
+# tilts the quadrotor (a stand-in for rotor blade flapping, which does the same on real multirotors). With the
+# P-only cascade this leaves a steady angle error in fast flight: 10 deg of roll (4.4 m/s sideways) holds at ~8.
+DRAG_CP_HEIGHT = 0.03  # m
 # Rotational drag: [ASSUMED] 5e-3 N m s (roll/pitch) and 3e-3 (yaw); the rotors' flapping and profile drag damp
 # body rates with a time constant Ixx/k of about 1.5 s, much slower than the controllers.
 DRAG_ROT_XY = 5e-3  # N m s/rad

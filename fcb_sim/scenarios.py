@@ -8,8 +8,10 @@ scenario's action starts at t = 6 s; metrics cover t >= 6 s (``measure_from``).
 
 Metrics: ``attitude_rms_deg``/``attitude_max_deg``: the true tilt error (roll and pitch against the commanded
 angles, combined); ``height_rms_m``: true height against the held height (the pilot's 1 m, or HEIGHT's set point);
-``settle_time_s``: from the step or push until the response stays within its band (10 % of a step, 1 deg after a
-push); plus what a scenario adds. ``realtime_factor`` is simulated seconds per wall second.
+``settle_time_s``: from the step or push until the response stays within its band (10 % of the step around its
+final value, 1 deg of level after a push); ``steady_state_error_*``: final value minus command (the cascade is
+P-only, so a steady disturbance such as the drag of fast flight leaves an offset); plus what a scenario adds.
+``realtime_factor`` is simulated seconds per wall second.
 """
 
 from __future__ import annotations
@@ -153,15 +155,29 @@ class Recorder:
         }
 
 
-def settle_time(ts: list[float], values: list[float], target: float, band: float, t0: float) -> float | None:
-    """Seconds from ``t0`` until ``values`` stay within ``band`` of ``target``; None if they never do."""
+def settle_time(ts: list[float], values: list[float], band: float, t0: float,
+                target: float | None = None) -> float | None:
+    """Seconds from ``t0`` until ``values`` stay within ``band`` of ``target``, by default of their final value
+    (the mean of the last second: a P-only loop settles with an offset under a steady disturbance, which
+    ``steady_state_error`` reports); None if they are still outside during the last half second."""
+    if not ts:
+        return None
+    if target is None:
+        tail = [v for t, v in zip(ts, values, strict=True) if t >= ts[-1] - 1.0]
+        target = sum(tail) / len(tail)
     last_out = None
     for t, v in zip(ts, values, strict=True):
         if t >= t0 and abs(v - target) > band:
             last_out = t
-    if ts and ts[-1] - (last_out or t0) < 0.5:
-        return None  # still outside (or only just inside) at the end
+    if ts[-1] - (last_out or t0) < 0.5:
+        return None
     return (last_out if last_out is not None else t0) - t0
+
+
+def final_value(ts: list[float], values: list[float]) -> float:
+    """Mean over the last second."""
+    tail = [v for t, v in zip(ts, values, strict=True) if t >= ts[-1] - 1.0] if ts else []
+    return sum(tail) / len(tail) if tail else float("nan")
 
 
 def _roll_stick(angle_rad: float) -> int:
@@ -207,9 +223,10 @@ def step_roll(seed: int, duration: float) -> dict:
     rec.phi_sp = sim.sticks[0] / (1 << C.STICK_ANGLE_SHIFT) / C.ANGLE_LSB_PER_RAD
     sim.run_until(duration)
     m = rec.metrics()
-    st = settle_time(rec.t, rec.phi, rec.phi_sp, 0.1 * step, ACTION_AT)
+    st = settle_time(rec.t, rec.phi, 0.1 * step, ACTION_AT)
     m["settle_time_s"] = st if st is not None else float("nan")
-    m["final_roll_deg"] = rec.phi[-1] / DEG if rec.phi else float("nan")
+    m["final_roll_deg"] = final_value(rec.t, rec.phi) / DEG
+    m["steady_state_error_deg"] = m["final_roll_deg"] - rec.phi_sp / DEG
     return m
 
 
@@ -224,9 +241,10 @@ def step_yaw(seed: int, duration: float) -> dict:
     target = sim.sticks[2] / (1 << C.STICK_YAW_SHIFT) / C.RATE_LSB_PER_RAD_S
     sim.run_until(duration)
     m = rec.metrics()
-    st = settle_time(rec.t, rec.r, target, 0.1 * target, ACTION_AT)
+    st = settle_time(rec.t, rec.r, 0.1 * target, ACTION_AT)
     m["settle_time_s"] = st if st is not None else float("nan")
-    m["final_yaw_rate_dps"] = rec.r[-1] / DEG if rec.r else float("nan")
+    m["final_yaw_rate_dps"] = final_value(rec.t, rec.r) / DEG
+    m["steady_state_error_dps"] = m["final_yaw_rate_dps"] - target / DEG
     return m
 
 
@@ -271,7 +289,7 @@ def push(seed: int, duration: float) -> dict:
     sim.world.push(0.0, 3.0, 0.0, 0.1, tx=0.3)
     sim.run_until(duration)
     m = rec.metrics()
-    st = settle_time(rec.t, rec.tilt_err, 0.0, 1.0 * DEG, ACTION_AT)
+    st = settle_time(rec.t, rec.tilt_err, 1.0 * DEG, ACTION_AT, target=0.0)
     m["settle_time_s"] = st if st is not None else float("nan")
     return m
 
@@ -288,7 +306,7 @@ def motor_stuck(seed: int, duration: float) -> dict:
     sim.world.stick_motor(3, 330)
     sim.run_until(duration)
     m = rec.metrics()
-    m["final_yaw_rate_dps"] = rec.r[-1] / DEG if rec.r else float("nan")
+    m["final_yaw_rate_dps"] = final_value(rec.t, rec.r) / DEG
     m["landed"] = float(sim.world.on_ground)
     return m
 
