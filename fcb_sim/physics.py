@@ -326,8 +326,7 @@ class World:
         next_dmp = (k // dmp_every + 1) * dmp_every
         next_slow = (k // SLOW_EVERY + 1) * SLOW_EVERY
         next_evt = next_dmp if next_dmp < next_slow else next_slow
-        while k < k_end:
-            k += 1
+        for k in range(self.k + 1, k_end + 1):
             # motors: exact first-order response
             w1 += (c1 - w1) * alpha
             w2 += (c2 - w2) * alpha
