@@ -3,8 +3,12 @@
 A ``LinkSession`` knows the protocol's rules for talking to a board and nothing about how bytes travel:
 
 - it answers every ``Heartbeat`` with a ``HeartbeatAck`` at once (queued ahead of everything else);
-- it sends keyboard ``Command``s, retries each one that is not acknowledged within ``command_timeout`` up to
-  ``command_retries`` times, then reports ``CommandFailed`` with the reason; a NAK reports the board's reason;
+- it sends keyboard ``Command``s one at a time, in order (the next leaves when the previous one is answered or
+  given up), retries one that is not acknowledged within ``command_timeout`` up to ``command_retries`` times,
+  then reports ``CommandFailed`` with the reason; a NAK reports the board's reason. One in flight keeps the
+  order of mode requests and lets the board spot a retry by remembering only its last command (it must answer
+  a repeat of its last (cmd_id, op, arg) with the same Ack without doing it again). A PANIC request jumps the
+  queue and cancels what waits before it;
 - it sends the joystick latest-wins (a new value replaces an unsent one, never queues behind it), at most
   ``joystick_rate`` times per second, and with ``change_only`` (BLE) only when the value changed, plus a
   keep-alive every ``keepalive`` seconds;
@@ -47,6 +51,7 @@ from term.protocol import (
     HeartbeatAck,
     Hello,
     Joystick,
+    Mode,
     Nak,
     Op,
 )
@@ -196,17 +201,21 @@ class LinkSession:
         change_only: bool = False,
         keepalive: float = 0.5,
         stats_window: float = 2.0,
+        max_queued: int = 32,
     ) -> None:
         if link_timeout <= 0 or command_timeout <= 0 or joystick_rate <= 0 or keepalive <= 0:
             raise ValueError("timeouts, rate and keep-alive must be positive")
         if command_retries < 0:
             raise ValueError("command_retries must be >= 0")
+        if not 0 < max_queued < 255:
+            raise ValueError("max_queued must be in 1..254 (command ids are 8-bit)")
         self.link_timeout = link_timeout
         self.command_timeout = command_timeout
         self.command_retries = command_retries
         self.joystick_interval = 1.0 / joystick_rate
         self.change_only = change_only
         self.keepalive = keepalive
+        self.max_queued = max_queued
 
         self.encoder = Encoder()
         self.decoder = Decoder()
@@ -214,8 +223,8 @@ class LinkSession:
         self._now = now
         self._urgent: list[bytes] = []  # heartbeat ACKs and Hellos: out before anything else
         self._events: list[LinkEvent] = []  # produced outside receive/poll, delivered by the next of them
-        self._new: deque[_Pending] = deque()  # commands not sent yet
-        self._inflight: dict[int, _Pending] = {}  # sent, waiting for their Ack
+        self._new: deque[_Pending] = deque()  # commands not sent yet, in order
+        self._inflight: dict[int, _Pending] = {}  # sent, waiting for its Ack: at most one
         self._next_id = 0
 
         self._js: Joystick | None = None
@@ -294,10 +303,12 @@ class LinkSession:
         To a lost link or a mismatched board it fails at once (delivered by the next ``poll``)."""
         if now is not None:
             self._now = now
+        panic = op == Op.MODE and arg == Mode.PANIC
+        if panic:  # safety first: nothing queued or unanswered may hold a PANIC back
+            self._cancel_all("cancelled: PANIC requested", self._events)
         cmd_id = self._alloc_id()
         reason = self._refusal()
-        if cmd_id is None:  # 256 commands waiting: the board is not answering and retries are not over yet
-            cmd_id = self._next_id
+        if len(self._new) >= self.max_queued:
             reason = "too many commands waiting for the board: wait for its answers"
         pending = _Pending(cmd_id, _as_op(op), int(arg))  # type: ignore[arg-type]
         self._commands_sent += 1
@@ -320,7 +331,7 @@ class LinkSession:
         parts = self._urgent
         self._urgent = []
         enc = self.encoder
-        while self._new:
+        while self._new and not self._inflight:  # one in flight: the next leaves when this one is settled
             p = self._new.popleft()
             p.attempts = 1
             p.first_sent = p.last_sent = now
@@ -360,7 +371,7 @@ class LinkSession:
     def next_deadline(self) -> float:
         """The time at which ``poll``/``data_to_send`` have something to do (``-inf`` if already due, ``inf``
         if nothing is scheduled)."""
-        if self._events or self._urgent or self._new:
+        if self._events or self._urgent or (self._new and not self._inflight):
             return -math.inf
         deadlines = [p.last_sent + self.command_timeout for p in self._inflight.values()]
         if not self._lost:
@@ -433,14 +444,19 @@ class LinkSession:
     def _silence_start(self) -> float:
         return self._start if self._last_frame is None else self._last_frame
 
-    def _alloc_id(self) -> int | None:
-        busy = self._inflight.keys() | {p.cmd_id for p in self._new}
-        for _ in range(256):
-            cmd_id = self._next_id
-            self._next_id = (self._next_id + 1) & 0xFF
-            if cmd_id not in busy:
-                return cmd_id
-        return None
+    def _alloc_id(self) -> int:
+        # Consecutive ids (mod 256); at most 1 + max_queued (< 256) are alive, so an id is never reused while
+        # its command still waits.
+        cmd_id = self._next_id
+        self._next_id = (cmd_id + 1) & 0xFF
+        return cmd_id
+
+    def _cancel_all(self, reason: str, events: list[LinkEvent]) -> None:
+        for p in [*self._inflight.values(), *self._new]:
+            self._failed += 1
+            events.append(CommandFailed(p.cmd_id, p.op, p.arg, reason, None))
+        self._inflight.clear()
+        self._new.clear()
 
     def _refusal(self) -> str | None:
         if self._mismatch is not None:
@@ -457,12 +473,7 @@ class LinkSession:
             self._lost_since = self._silence_start()
             self.decoder.reset_sequence()  # frames missed while silent are not countable modulo 256
             events.append(LinkLost(silent))
-            reason = f"link lost: nothing from the board for {silent:.1f} s"
-            for p in [*self._inflight.values(), *self._new]:
-                self._failed += 1
-                events.append(CommandFailed(p.cmd_id, p.op, p.arg, reason, None))
-            self._inflight.clear()
-            self._new.clear()
+            self._cancel_all(f"link lost: nothing from the board for {silent:.1f} s", events)
             return
         expired = [
             p
@@ -509,12 +520,7 @@ class LinkSession:
             self._mismatch = VersionMismatch(hello.protocol, PROTOCOL_VERSION)
             events.append(self._mismatch)
             # Commands and sticks in a format the board may misread are not sent (safety); fail what waits.
-            reason = self._refusal() or ""
-            for p in [*self._inflight.values(), *self._new]:
-                self._failed += 1
-                events.append(CommandFailed(p.cmd_id, p.op, p.arg, reason, None))
-            self._inflight.clear()
-            self._new.clear()
+            self._cancel_all(self._refusal() or "", events)
         else:
             self._mismatch = None
 

@@ -2,7 +2,8 @@
 
 The scripted board is not the simulated board (fcb_sim.board): it is the least that exercises the link: it
 sends heartbeats, answers Hello with Hello and every Command with an Ack (or a chosen NAK), executing a retried
-command only once, and it can stream numbered filler frames so loss can be counted.
+command only once (it remembers only its last command, as the firmware does), and it can stream numbered
+filler frames so loss can be counted.
 """
 
 from __future__ import annotations
@@ -83,7 +84,7 @@ class ScriptedBoard:
         self.hb_acks: list[HeartbeatAck] = []
         self.joysticks: list[Joystick] = []
         self.hellos: list[Hello] = []
-        self._acks: dict[int, tuple[Command, Ack]] = {}
+        self._last: tuple[Command, Ack] | None = None  # like the firmware: only the last command is remembered
         self._counter = 0
         self._next_hb = start
         self._next_filler = start
@@ -111,13 +112,12 @@ class ScriptedBoard:
         return self.encoder.encode_many(out)
 
     def _on_command(self, cmd: Command, now: float) -> Ack | None:
-        done = self._acks.get(cmd.cmd_id)
-        if done is not None and done[0] == cmd:
-            return done[1]  # a retry of a command already executed: answer again, do not execute again
+        if self._last is not None and self._last[0] == cmd:
+            return self._last[1]  # a retry of the command just executed: answer again, do not execute again
         status = self.nak(cmd) if self.nak is not None else Nak.OK
         self.executed.append(cmd)
         ack = Ack(cmd.cmd_id, cmd.op, int(status), cmd.arg * 10 if status == Nak.OK else 0)
-        self._acks[cmd.cmd_id] = (cmd, ack)
+        self._last = (cmd, ack)
         return ack
 
     def tick(self, now: float) -> bytes:

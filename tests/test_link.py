@@ -182,14 +182,60 @@ def test_ack_for_another_op_does_not_match() -> None:
     assert not of(s.receive(Board()(Ack(cmd_id, Op.TRIM_LIFT, Nak.OK, 0)), 0.01), CommandAcked)
 
 
-def test_cmd_ids_are_distinct_while_in_flight_and_wrap() -> None:
-    s = LinkSession(0.0, link_timeout=100.0, command_timeout=50.0)
-    ids = [s.send_command(Op.TRIM_ROLL, 1, 0.0) for _ in range(300)]
-    assert len(set(ids[:256])) == 256
-    assert all(0 <= i < 256 for i in ids)
-    failed = of(s.poll(0.0), CommandFailed)  # no id left: the rest fail at once, with a reason
-    assert len(failed) == 44 and "too many commands" in failed[0].reason
-    assert len(packets(s.data_to_send(0.0))) == 256
+def test_commands_go_one_at_a_time_in_order() -> None:
+    s = LinkSession(0.0, link_timeout=100.0)
+    board = Board()
+    ids = [s.send_command(Op.TRIM_ROLL, k, 0.0) for k in range(3)]
+    assert len(set(ids)) == 3
+    assert packets(s.data_to_send(0.0)) == [Command(ids[0], Op.TRIM_ROLL, 0)]  # the others wait their turn
+    assert s.next_deadline() == pytest.approx(0.25)  # only the retry timer: waiting commands are not due
+    s.receive(board(Ack(ids[0], Op.TRIM_ROLL, 0, 0)), 0.01)
+    assert packets(s.data_to_send(0.01)) == [Command(ids[1], Op.TRIM_ROLL, 1)]
+    s.receive(board(Ack(ids[1], Op.TRIM_ROLL, Nak.BAD_ARGUMENT, 0)), 0.02)  # a NAK settles it too
+    assert packets(s.data_to_send(0.02)) == [Command(ids[2], Op.TRIM_ROLL, 2)]
+
+
+def test_a_failed_command_lets_the_next_one_go() -> None:
+    s = LinkSession(0.0, link_timeout=100.0, command_timeout=0.1, command_retries=0)
+    a = s.send_command(Op.MODE, 2, 0.0)
+    b = s.send_command(Op.MODE, 0, 0.0)
+    assert packets(s.data_to_send(0.0)) == [Command(a, Op.MODE, 2)]
+    assert [e.cmd_id for e in of(s.poll(0.1), CommandFailed)] == [a]
+    assert s.next_deadline() == -math.inf
+    assert packets(s.data_to_send(0.1)) == [Command(b, Op.MODE, 0)]
+
+
+def test_waiting_commands_are_bounded() -> None:
+    s = LinkSession(0.0, link_timeout=100.0, max_queued=32)
+    ids = [s.send_command(Op.TRIM_ROLL, 1, 0.0) for _ in range(40)]
+    assert len(set(ids)) == 40 and all(0 <= i < 256 for i in ids)
+    failed = of(s.poll(0.0), CommandFailed)
+    assert [f.cmd_id for f in failed] == ids[32:] and "too many commands" in failed[0].reason
+
+
+def test_panic_jumps_the_queue_and_cancels_what_waits() -> None:
+    s = LinkSession(0.0, link_timeout=100.0)
+    stuck = s.send_command(Op.MODE, 2, 0.0)
+    s.data_to_send(0.0)
+    waiting = s.send_command(Op.TRIM_LIFT, 1, 0.05)
+    panic = s.send_command(Op.MODE, 1, 0.06)  # Mode.PANIC
+    cancelled = of(s.poll(0.06), CommandFailed)
+    assert [c.cmd_id for c in cancelled] == [stuck, waiting]
+    assert all(c.reason == "cancelled: PANIC requested" for c in cancelled)
+    assert packets(s.data_to_send(0.06)) == [Command(panic, Op.MODE, 1)]
+    assert packets(s.data_to_send(0.31)) == [Command(panic, Op.MODE, 1)]  # only PANIC is retried
+
+
+def test_ids_wrap_modulo_256() -> None:
+    s = LinkSession(0.0, link_timeout=1000.0)
+    board = Board()
+    seen = []
+    for k in range(300):
+        cmd_id = s.send_command(Op.TRIM_YAW, 1, k)
+        s.data_to_send(k)
+        seen.append(cmd_id)
+        assert of(s.receive(board(Ack(cmd_id, Op.TRIM_YAW, 0, 0)), k + 0.001), CommandAcked)
+    assert seen[:256] == list(range(256)) and seen[256:] == list(range(44))
 
 
 # --- joystick -----------------------------------------------------------------------------------------------
