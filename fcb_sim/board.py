@@ -283,6 +283,7 @@ class Board:
         self._sample_t = None  # time of the previous sensor read, for dt
         self._baro_t: int | None = None
         self._telemetry_n = 0
+        self._due_at: dict[str, float] = {}
         self.heartbeats = 0
         self.battery = self.world.battery()
         self.pressure, self.temperature = self.world.baro()
@@ -587,17 +588,12 @@ class Board:
 
     def _task_telemetry(self) -> int:
         self._telemetry_n += 1
-        n = self._telemetry_n
-        hz = max(1.0, self.config.telemetry_hz)
-        every_height = max(1, round(hz / 20.0))
-        every_status = max(1, round(hz / 5.0))
         self._drain_mode_events()
         if self.download_next is not None:
             return self._download_step()
         fc = self.core
         if self.wireless.state is WirelessState.STARTED:
-            every_compact = max(1, round(hz / BLE_TELEMETRY_HZ))
-            if n % every_compact == 0 or hz <= BLE_TELEMETRY_HZ:
+            if self._due("compact", 1e6 / BLE_TELEMETRY_HZ):
                 phi, theta, psi = fc.attitude_centideg()
                 self._send(Compact(int(self.modes.mode), int(self.wireless.state), phi, theta, psi,
                                    self.battery))
@@ -606,16 +602,24 @@ class Board:
         self._telemetry(Attitude(int(self.modes.mode), _i16(phi), _i16(theta), _i16(psi),
                                  _i16(fc.sp), _i16(fc.sq), _i16(fc.sr)))
         self._telemetry(Motion(_i16(fc.sax), _i16(fc.say), _i16(fc.saz), *self.ae))
-        if n % every_height == 0:
+        if self._due("height", 50_000):
             self._telemetry(Height(self.pressure, _i16(fc.height * 1000), _i16(fc.setpoint * 1000),
                                    _i16(fc.vz * 1000), self.battery, _i16(self.temperature)))
-        if n % every_status == 0:
+        if self._due("status", 200_000):
             self._telemetry(self.status())
             g = fc.gains
             self._telemetry(Gains(g.yaw_p, g.p1, g.p2, g.height_p, g.height_d))
         return self._cost["telemetry"]()
 
     # --- telemetry and packets ----------------------------------------------------------------------------
+
+    def _due(self, name: str, period_us: float) -> bool:
+        """Whether a packet sent at its own rate (slower than the telemetry task) is due now."""
+        due = self._due_at.get(name, 0.0)
+        if self.now < due:
+            return False
+        self._due_at[name] = max(due + period_us, self.now - period_us / 2)
+        return True
 
     def status(self) -> Status:
         m = self.modes

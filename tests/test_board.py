@@ -1,0 +1,416 @@
+"""The board through its bytes: NAK reasons, telemetry, a flight, the link timeout, the log download with loss,
+floods, the BLE seam, the profile; and a hypothesis state machine over random commands, sticks and silences."""
+
+from __future__ import annotations
+
+import random
+from typing import Any
+
+from hypothesis import HealthCheck, event, settings
+from hypothesis import strategies as st
+from hypothesis.stateful import RuleBasedStateMachine, invariant, rule
+
+from fcb_sim import control as C
+from fcb_sim.board import TASKS, Board, BoardConfig, run_profile
+from fcb_sim.flash_log import LogAssembler, decode_log, write_csv
+from fcb_sim.modes import FLIGHT_MODES, LIFT_ZERO, STICK_NEUTRAL, ModeChange
+from term.protocol import (
+    Ack,
+    Attitude,
+    Command,
+    Decoder,
+    Encoder,
+    Event,
+    EventCode,
+    Flag,
+    Gains,
+    Heartbeat,
+    HeartbeatAck,
+    Height,
+    Hello,
+    Joystick,
+    LogChunk,
+    LogState,
+    LogStatus,
+    Mode,
+    Motion,
+    Nak,
+    Op,
+    Profile,
+    Status,
+    WirelessState,
+)
+
+HOVER_LIFT = C.z_to_lift(-4.0 * 400**2)
+
+
+class Pc:
+    """A PC on the board's UART: joystick every 10 ms, heartbeats answered, packets collected."""
+
+    def __init__(self, board: Board) -> None:
+        self.board = board
+        self.enc, self.dec = Encoder(), Decoder()
+        self.js = Joystick(0, 0, 0, 0, 0)
+        self.packets: list[Any] = []
+        self.cmd_id = 0
+        self.drop_chunks = 0.0
+        self.rng = random.Random(1)
+
+    def send(self, pkt: Any) -> None:
+        self.board.uart_receive(self.enc.encode(pkt))
+
+    def command(self, op: int, arg: int = 0) -> Ack:
+        self.cmd_id = (self.cmd_id + 1) & 0xFF
+        cid = self.cmd_id
+        self.send(self.js)  # the joystick streams all the time: the board knows the sticks before the key
+        self.send(Command(cid, int(op), arg))
+        self.run(0.03)
+        acks = [p for p in self.packets if type(p) is Ack and p.cmd_id == cid]
+        assert acks, f"no Ack for {Op(op).name}"
+        return acks[-1]
+
+    def run(self, seconds: float, joystick: bool = True) -> None:
+        b = self.board
+        end = b.now + int(seconds * 1e6)
+        while b.now < end:
+            if joystick:
+                self.send(self.js)
+            b.advance(min(end, b.now + 10_000))
+            self.read()
+
+    def read(self) -> None:
+        for p in self.dec.feed(self.board.uart_transmit()):
+            if type(p) is LogChunk and self.rng.random() < self.drop_chunks:
+                continue
+            self.packets.append(p)
+            if type(p) is Heartbeat:
+                self.send(HeartbeatAck(p.counter, p.board_ms))
+
+    def of(self, kind: type) -> list[Any]:
+        return [p for p in self.packets if type(p) is kind]
+
+
+def board_and_pc(**cfg: Any) -> tuple[Board, Pc]:
+    b = Board(BoardConfig(**cfg))
+    return b, Pc(b)
+
+
+def calibrate(pc: Pc) -> None:
+    assert pc.command(Op.MODE, Mode.CALIBRATION).status == Nak.OK
+    pc.run(1.2)
+    assert pc.board.mode == Mode.SAFE and pc.board.modes.calibrated
+
+
+def test_nak_reasons() -> None:
+    b, pc = board_and_pc()
+    assert pc.command(Op.MODE, Mode.FULL) == Ack(1, Op.MODE, Nak.NOT_CALIBRATED, Mode.SAFE)
+    pc.js = Joystick(0, 0, 0, 5000, 0)
+    assert pc.command(Op.MODE, Mode.MANUAL).status == Nak.LIFT_NOT_ZERO
+    pc.js = Joystick(0, 9000, 0, 0, 0)
+    assert pc.command(Op.MODE, Mode.CALIBRATION).status == Nak.STICKS_NOT_NEUTRAL
+    pc.js = Joystick(0, 0, 0, 0, 0)
+    assert pc.command(99).status == Nak.UNKNOWN_COMMAND
+    assert pc.command(Op.MODE, 42).status == Nak.BAD_ARGUMENT
+    assert pc.command(Op.SET_PARAM, (77 << 16) | 1).status == Nak.BAD_ARGUMENT
+    assert pc.command(Op.LOG_DOWNLOAD, 0).status == Nak.LOG_EMPTY
+    assert pc.command(Op.WIRELESS, 1).status == Nak.NO_BLE_CONNECTION
+    assert pc.command(Op.MODE, Mode.WIRELESS).status == Nak.NO_BLE_CONNECTION
+    assert pc.command(Op.MODE, Mode.MANUAL).status == Nak.OK
+    assert pc.command(Op.MODE, Mode.YAW).status == Nak.INVALID_TRANSITION
+    assert pc.command(Op.LOG_DOWNLOAD, 0).status == Nak.NOT_IN_SAFE
+    assert pc.command(Op.LOG_RESET).status == Nak.NOT_IN_SAFE
+    assert pc.command(Op.WIRELESS, 1).status == Nak.NOT_IN_SAFE
+    assert pc.command(Op.MODE, Mode.PANIC) == Ack(pc.cmd_id, Op.MODE, Nak.OK, Mode.PANIC)
+    assert pc.command(Op.MODE, Mode.SAFE).status == Nak.PANIC_ACTIVE
+    refused = [e for e in pc.of(Event) if e.code == EventCode.REFUSED]
+    assert (refused[0].arg >> 8, refused[0].arg & 0xFF) == (Nak.NOT_CALIBRATED, Mode.FULL)
+
+
+def test_a_retried_command_is_answered_again_but_done_once() -> None:
+    b, pc = board_and_pc()
+    pc.send(Command(7, Op.TRIM_ROLL, 1))
+    pc.run(0.02)
+    pc.send(Command(7, Op.TRIM_ROLL, 1))  # the Ack was lost: the link retries with the same id
+    pc.run(0.02)
+    acks = [p for p in pc.of(Ack) if p.cmd_id == 7]
+    assert len(acks) == 2 and acks[0] == acks[1] and b.modes.trims.roll == acks[0].value == 256
+    pc.send(Command(8, Op.TRIM_ROLL, 1))
+    pc.run(0.02)
+    assert b.modes.trims.roll == 512
+
+
+def test_gains_and_hello() -> None:
+    b, pc = board_and_pc()
+    p1 = b.core.gains.p1
+    ack = pc.command(Op.GAIN_P1, 2)
+    assert ack.status == Nak.OK and abs(ack.value / 1000 - b.core.gains.p1) < 1e-9 and b.core.gains.p1 > p1
+    pc.send(Hello(1, 0, 0, 1, 0))
+    pc.run(0.05)
+    hellos = pc.of(Hello)
+    assert len(hellos) == 2 and hellos[-1].role == 1  # one at boot, one answering ours
+
+
+def test_telemetry_at_rest() -> None:
+    b, pc = board_and_pc()
+    pc.run(2.0)
+    att, mot, hgt, sts, gns = (pc.of(k) for k in (Attitude, Motion, Height, Status, Gains))
+    assert 90 <= len(att) <= 110 and 90 <= len(mot) <= 110  # 50 Hz
+    assert 35 <= len(hgt) <= 45 and 8 <= len(sts) <= 12 and 8 <= len(gns) <= 12
+    assert 18 <= len(pc.of(Heartbeat)) <= 21  # 10 Hz
+    a, m, h, s = att[-1], mot[-1], hgt[-1], sts[-1]
+    assert a.mode == Mode.SAFE and abs(a.phi) < 300 and abs(a.theta) < 300
+    assert -17500 < m.saz < -15300 and (m.ae1, m.ae2, m.ae3, m.ae4) == (0, 0, 0, 0)
+    assert abs(h.pressure - 101325) < 300 and 1000 < h.battery < 1300 and h.temperature == 2500
+    assert not s.flags & Flag.ARMED and not s.flags & Flag.CALIBRATED and 0 < s.cpu_load < 100
+    assert gns[-1].p2 == b.core.gains.p2
+
+
+def test_fly_full_through_bytes_then_land() -> None:
+    b, pc = board_and_pc()
+    calibrate(pc)
+    assert pc.command(Op.MODE, Mode.FULL).status == Nak.OK
+    assert pc.of(Status)[-1].flags & Flag.CALIBRATED
+    pc.js = Joystick(0, 0, 0, int(HOVER_LIFT * 1.1), 0)
+    pc.run(1.5)
+    assert b.world.truth.h > 0.5 and pc.of(Status)[-1].flags & Flag.ARMED
+    assert max(p.height for p in pc.of(Height)) > 300
+    assert abs(b.world.truth.phi) < 0.15 and abs(b.world.truth.theta) < 0.15
+    pc.js = Joystick(0, 0, 0, int(HOVER_LIFT * 0.8), 0)
+    pc.run(4.0)
+    assert b.world.truth.on_ground
+    pc.js = Joystick(0, 0, 0, 0, 0)
+    assert pc.command(Op.MODE, Mode.SAFE).status == Nak.OK
+    pc.run(0.05)
+    assert b.ae == (0, 0, 0, 0) and b.world.cmd == [0, 0, 0, 0]
+
+
+def test_link_silence_while_flying_panics_then_safe() -> None:
+    b, pc = board_and_pc(link_timeout_s=0.3)
+    calibrate(pc)
+    pc.command(Op.MODE, Mode.FULL)
+    pc.js = Joystick(0, 0, 0, HOVER_LIFT, 0)
+    pc.run(1.0)
+    last = b.last_frame_us
+    b.advance(b.now + 500_000)  # the PC goes silent
+    panic = [c for c in b.modes.changes if c.new == Mode.PANIC][-1]
+    assert panic.reason == "panic:link"
+    assert 0.3 < panic.now - last / 1e6 <= 0.3 + 0.1 + 0.01  # within the timeout plus one heartbeat
+    b.advance(b.now + 4_000_000)
+    assert b.mode == Mode.SAFE and b.ae == (0, 0, 0, 0)
+    pc.read()
+    assert EventCode.LINK_TIMEOUT in [e.code for e in pc.of(Event)]
+
+
+def test_joystick_fire_is_panic() -> None:
+    b, pc = board_and_pc()
+    pc.command(Op.MODE, Mode.MANUAL)
+    pc.js = Joystick(0, 0, 0, 6000, 0)
+    pc.run(0.2)
+    pc.js = Joystick(0, 0, 0, 6000, 1)
+    pc.run(0.05)
+    assert b.mode == Mode.PANIC
+
+
+def test_log_flight_and_download_with_loss() -> None:
+    b, pc = board_and_pc()
+    calibrate(pc)
+    assert pc.command(Op.LOG_START).status == Nak.OK
+    pc.command(Op.MODE, Mode.FULL)
+    pc.js = Joystick(0, 0, 0, HOVER_LIFT, 0)
+    pc.run(1.0)
+    assert pc.command(Op.LOG_DOWNLOAD, 0).status == Nak.NOT_IN_SAFE
+    pc.js = Joystick(0, 0, 0, 0, 0)
+    pc.run(0.3)
+    pc.command(Op.MODE, Mode.PANIC)
+    pc.run(4.0)
+    assert pc.command(Op.LOG_DOWNLOAD, 0).status == Nak.LOG_BUSY
+    pc.command(Op.LOG_STOP)
+    assert pc.command(Op.LOG_STATUS).status == Nak.OK
+    status = pc.of(LogStatus)[-1]
+    assert status.state == LogState.IDLE and status.used == b.log.used and status.records == b.log.records
+    asm = LogAssembler(status.used, status.crc32)
+    pc.drop_chunks = 0.3
+    first: int | None = 0
+    for _ in range(10):
+        ack = pc.command(Op.LOG_DOWNLOAD, first)
+        assert ack.status == Nak.OK and ack.value == asm.n_chunks
+        pc.run(3.0)
+        for c in pc.of(LogChunk):
+            asm.add(c.index, c.data)
+        first = asm.next_request()
+        if first is None:
+            break
+    assert first is None and EventCode.LOG_DONE in [e.code for e in pc.of(Event)]
+    seg = decode_log(asm.data())[0]
+    assert len(seg.rows) == status.records > 400  # the DMP path logs at 200 Hz, for about 5 s here
+    modes = {r[seg.names.index("mode")] for r in seg.rows}
+    assert {Mode.FULL, Mode.PANIC, Mode.SAFE} <= modes
+    t = [r[0] for r in seg.rows]
+    assert all(b > a for a, b in zip(t, t[1:], strict=False))
+    assert write_csv([seg]).count("\n") == len(seg.rows) + 1
+
+
+def test_floods_garbage_and_half_frames_do_not_stop_the_board() -> None:
+    b, pc = board_and_pc()
+    rng = random.Random(3)
+    for _ in range(20):
+        b.uart_receive(bytes(rng.randrange(256) for _ in range(5000)))
+        b.uart_receive(pc.enc.encode(Command(1, Op.MODE, 2))[:7])  # half a frame
+        b.advance(b.now + 1000)
+    assert b.rx_overflow > 50_000
+    pc.run(0.2)
+    assert pc.command(Op.TRIM_YAW, 1).status == Nak.OK  # still answering
+    assert EventCode.OVERFLOW in [e.code for e in pc.of(Event)]
+    assert len(pc.of(Heartbeat)) >= 2
+
+
+def test_ble_handover_seam() -> None:
+    b, pc = board_and_pc()
+    phone_enc, phone_dec = Encoder(), Decoder()
+    b.ble_connected()
+    ack = pc.command(Op.WIRELESS, 1)
+    assert ack.status == Nak.OK and ack.value == WirelessState.STARTING
+    pc.run(0.25)
+    heard = phone_dec.feed(b"".join(b.wireless.notifications()))
+    assert any(type(p) is Heartbeat for p in heard)  # STARTING: heartbeats over BLE too
+    b.ble_receive(phone_enc.encode(HeartbeatAck(1, 0)))  # the phone answers: STARTED
+    assert b.wireless.state is WirelessState.STARTED
+    b.ble_receive(phone_enc.encode(Command(9, Op.MODE, Mode.MANUAL)))
+    b.advance(b.now + 50_000)
+    heard = phone_dec.feed(b"".join(b.wireless.notifications()))
+    assert Ack(9, Op.MODE, Nak.OK, Mode.MANUAL) in heard and b.mode == Mode.MANUAL
+    pc.read()
+    assert not [p for p in pc.of(Ack) if p.cmd_id == 9]  # the reply went where the command came from
+    b.ble_disconnected()  # lost while flown over BLE
+    assert b.mode == Mode.PANIC and b.wireless.state is WirelessState.DISCONNECTED
+
+
+def test_profile_packets_and_figures() -> None:
+    b, pc = board_and_pc()
+    pc.run(1.0)
+    assert pc.command(Op.PROFILE).value == len(TASKS)
+    pc.run(0.05)
+    prof = pc.of(Profile)
+    assert [p.task for p in prof] == list(range(len(TASKS)))
+    sensor = prof[TASKS.index("sensor")]
+    assert 1800 < sensor.mean_us < 2200 and 4900 < sensor.period_us < 5100  # DMP in SAFE, report: 1983/4949
+
+
+def test_profile_round_robin_misses_and_priority_fixes_them() -> None:
+    rr = run_profile("raw", "round-robin", 8.0, seed=2)
+    pr = run_profile("raw", "priority", 8.0, seed=2)
+    assert rr["control_periods"] > 3000
+    assert rr["deadline_miss_rate"] > 0.002 and pr["deadline_miss_rate"] < 0.001
+    for out in (rr, pr):
+        t = out["tasks"]
+        assert abs(t["sensor"]["mean_us"] - 1001) < 50 and abs(t["control"]["mean_us"] - 113) < 15
+        assert abs(t["control"]["period_us"] - 2500) < 10 and abs(t["baro"]["period_us"] - 50000) < 500
+
+
+# --- properties over random sequences ----------------------------------------------------------------------
+
+AXIS = st.sampled_from([0, 0, 0, 400, -900, 2500, -20000, 32767])
+LIFT = st.sampled_from([0, 0, 0, 300, 3000, HOVER_LIFT, 30000])
+HOLD_RAMP_S = 2.0 + 1.5
+
+
+class BoardProperties(RuleBasedStateMachine):
+    def __init__(self) -> None:
+        super().__init__()
+        self.board, self.pc = board_and_pc(seed=4, link_timeout_s=0.5)
+        self.leaves: list[tuple[ModeChange, Joystick, int]] = []
+        self.board.modes.listeners.append(self._on_change)
+
+    def _on_change(self, ch: ModeChange) -> None:
+        if ch.old == Mode.SAFE and ch.new != Mode.SAFE:
+            self.leaves.append((ch, self.board.modes.joystick, self.board.modes.lift))
+
+    @rule(roll=AXIS, pitch=AXIS, yaw=AXIS, lift=LIFT)
+    def sticks(self, roll: int, pitch: int, yaw: int, lift: int) -> None:
+        self.pc.js = Joystick(roll, pitch, yaw, lift, 0)
+        self.pc.run(0.02)
+
+    @rule(mode=st.integers(0, 9))
+    def press_mode(self, mode: int) -> None:
+        self.pc.send(self.pc.js)
+        self.pc.send(Command(1, Op.MODE, mode))
+        self.pc.run(0.03)
+
+    @rule(op=st.sampled_from([Op.TRIM_LIFT, Op.TRIM_ROLL, Op.TRIM_PITCH, Op.TRIM_YAW]), steps=st.integers(-3, 3))
+    def trim(self, op: Op, steps: int) -> None:
+        self.pc.send(Command(2, op, steps))
+        self.pc.run(0.02)
+
+    @rule()
+    def calibrate(self) -> None:
+        self.pc.js = Joystick(0, 0, 0, 0, 0)
+        self.pc.send(Command(3, Op.MODE, Mode.CALIBRATION))
+        self.pc.run(1.1)
+
+    @rule(mode=st.sampled_from([Mode.MANUAL, Mode.YAW, Mode.FULL, Mode.RAW]), lift=LIFT, cal=st.booleans())
+    def take_off(self, mode: Mode, lift: int, cal: bool) -> None:
+        """A pilot's way up (random sequences alone seldom line up neutral sticks, zero lift and a key)."""
+        if cal and not self.board.modes.calibrated:
+            self.calibrate()
+        self.pc.js = Joystick(0, 0, 0, 0, 0)
+        self.pc.send(self.pc.js)
+        self.pc.send(Command(5, Op.MODE, mode))
+        self.pc.run(0.02)
+        self.pc.js = Joystick(0, 0, 0, lift, 0)
+        self.pc.run(0.3)
+
+    @rule(seconds=st.floats(0.01, 0.8))
+    def fly(self, seconds: float) -> None:
+        self.pc.run(seconds)
+        event(f"flew in {self.board.mode.name}")
+
+    @rule(fire=st.booleans())
+    def panic(self, fire: bool) -> None:
+        b = self.board
+        before = b.mode
+        if fire:
+            self.pc.send(self.pc.js._replace(buttons=1))
+        else:
+            self.pc.send(Command(4, Op.MODE, Mode.PANIC))
+        self.pc.run(0.01, joystick=False)
+        if before in FLIGHT_MODES or before == Mode.CALIBRATION:
+            assert b.mode in (Mode.PANIC, Mode.SAFE)
+            event(f"panic from {before.name}")
+        else:
+            assert b.mode in (Mode.SAFE, Mode.PANIC)
+        self.pc.run(HOLD_RAMP_S + 0.05)  # the PC keeps talking: PANIC ends by itself
+        assert b.mode == Mode.SAFE and b.ae == (0, 0, 0, 0) and b.world.cmd == [0, 0, 0, 0]
+
+    @rule(seconds=st.floats(0.0, 1.2))
+    def silence(self, seconds: float) -> None:
+        b = self.board
+        flying = b.modes.flying
+        n_changes = len(b.modes.changes)
+        last = b.last_frame_us
+        b.advance(b.now + int(seconds * 1e6))
+        timeout = b.modes.config.link_timeout_s
+        if flying and last is not None and (b.now - last) / 1e6 > timeout + 0.1 + 0.01:
+            assert not b.modes.flying
+            panics = [c for c in b.modes.changes[n_changes:] if c.new == Mode.PANIC]
+            assert panics and panics[0].now - last / 1e6 <= timeout + 0.1 + 0.01
+            event("link silence while flying")
+        self.pc.read()
+
+    @invariant()
+    def safe_is_never_left_off_neutral(self) -> None:
+        for change, js, lift in self.leaves:
+            if change.new == Mode.PANIC:
+                continue
+            assert abs(js.roll) <= STICK_NEUTRAL and abs(js.pitch) <= STICK_NEUTRAL
+            assert abs(js.yaw) <= STICK_NEUTRAL and lift <= LIFT_ZERO, change
+
+    @invariant()
+    def motors_zero_when_off(self) -> None:
+        b = self.board
+        if b.mode in (Mode.SAFE, Mode.CALIBRATION) and b.stats["control"].n:
+            assert b.ae == (0, 0, 0, 0) and b.world.cmd == [0, 0, 0, 0]
+
+
+BoardProperties.TestCase.settings = settings(
+    max_examples=25, stateful_step_count=20, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+TestBoardProperties = BoardProperties.TestCase
