@@ -31,5 +31,11 @@ class ModelView(Static):
         self._shown = content
         self.update(content)
 
+    def on_resize(self) -> None:
+        self._shown_version = -1  # panels lay themselves out to their size: redraw now, not at the next change
+        render = getattr(self.app, "render_now", None)
+        if render is not None:
+            self.app.call_later(render)
+
     def render_model(self, model: Model, now: float) -> RenderableType:
         raise NotImplementedError
