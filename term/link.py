@@ -135,7 +135,7 @@ class LinkStats:
     tx_bytes: int
     commands_sent: int  # distinct commands, retries not counted
     command_retries: int
-    commands_failed: int  # not delivered (timeouts, lost link); NAKs are not failures of the link
+    commands_failed: int  # not delivered or cancelled (timeouts, lost link, PANIC, full queue); not NAKs
     heartbeats: int
     board_version: int | None  # from the board's Hello
 
