@@ -4,6 +4,8 @@ the loss figure matches the injected loss, and a dead link is declared and recov
 from __future__ import annotations
 
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from term.link import CommandAcked, CommandFailed, LinkLost, LinkRestored, LinkSession
 from term.protocol import Joystick, Op
@@ -77,3 +79,30 @@ def test_board_hang_is_a_lost_link_and_its_return_restores_it() -> None:
     sim.run_until(3.0)
     assert len(sim.of_type(LinkRestored)) == 1 and not session.stats.lost
     assert len(board.hellos) == 2  # the handshake was repeated after the outage
+
+
+@settings(max_examples=25, deadline=None)
+@given(
+    seed=st.integers(0, 10_000),
+    drop=st.floats(0.0, 0.4),
+    corrupt=st.floats(0.0, 0.01),
+    presses=st.lists(st.floats(0.0, 3.0), min_size=1, max_size=15),
+)
+def test_every_command_has_exactly_one_outcome_and_runs_at_most_once(
+    seed: int, drop: float, corrupt: float, presses: list[float]
+) -> None:
+    session = LinkSession(0.0, command_timeout=0.05, command_retries=3)
+    board = ScriptedBoard(heartbeat_period=0.05)
+    faults = Faults(drop=drop, corrupt=corrupt, baud=115200, delay=0.001)
+    sim = LinkSim(session, board, FaultyChannel(faults, seed=seed), FaultyChannel(faults, seed=seed + 1))
+    ids: list[tuple[int, int]] = []
+    for k, t in enumerate(sorted(presses)):
+        sim.run_until(t)
+        ids.append((session.send_command(Op.TRIM_YAW, k + 1, sim.now), k + 1))
+    sim.run_until(6.0)
+    outcomes = [e.cmd_id for e in sim.events if isinstance(e, CommandAcked | CommandFailed)]
+    assert sorted(outcomes) == sorted(i for i, _ in ids)  # one each: no command forgotten or doubled
+    acked_args = {e.arg for e in sim.of_type(CommandAcked)}
+    done = [c.arg for c in board.executed]
+    assert len(done) == len(set(done))  # a retried command never ran twice
+    assert acked_args <= set(done)  # an acknowledged command really ran
