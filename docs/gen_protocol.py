@@ -30,7 +30,7 @@ EXAMPLES: list[tuple[int, Any]] = [
     (4, p.HeartbeatAck(counter=513, board_ms=123456)),
     (5, p.Hello(protocol=p.PROTOCOL_VERSION, role=0, major=0, minor=1, board_id=0)),
     (0, p.Hello(protocol=p.PROTOCOL_VERSION, role=1, major=0, minor=1, board_id=4242)),
-    (1, p.Heartbeat(counter=513, board_ms=123456)),
+    (1, p.Heartbeat(counter=513, board_ms=123456, rtt=27)),
     (2, p.Ack(cmd_id=7, op=p.Op.MODE, status=p.Nak.OK, value=p.Mode.FULL)),
     (3, p.Ack(cmd_id=9, op=p.Op.MODE, status=p.Nak.LIFT_NOT_ZERO, value=p.Mode.SAFE)),
     (4, p.Attitude(mode=p.Mode.FULL, phi=-1234, theta=567, psi=17999, sp=-164, sq=0, sr=3280)),
