@@ -279,6 +279,7 @@ class Board:
                       "heartbeat": self.rng.randrange(1, HEARTBEAT_PERIOD_US)}
         self.ticks_lost = {name: 0 for name in self._next}
         self._rr = 0
+        self._parse_limit = PARSE_MAX_BYTES
         self._path = self._want_path()
         self._sample_t = None  # time of the previous sensor read, for dt
         self._baro_t: int | None = None
@@ -440,15 +441,19 @@ class Board:
                 continue
             if name in CHAIN:
                 return name
-            budget = self._budget(name)
-            if self.now + budget <= next_tick:
+            if name == "parse":
+                # parse only as many bytes as fit before the tick (the rest waits for the next slack)
+                room = (next_tick - self.now - PARSE_US_BASE) // PARSE_US_PER_BYTE
+                if room >= 1:
+                    self._parse_limit = int(min(PARSE_MAX_BYTES, room))
+                    return name
+                continue
+            if self.now + self._budget(name) <= next_tick:
                 return name
         return None
 
     def _budget(self, name: str) -> int:
         """The slack rule's estimate of a task's duration: its 99.9th percentile."""
-        if name == "parse":
-            return PARSE_US_BASE + PARSE_US_PER_BYTE * 16
         if name == "telemetry" and self.download_next is not None:
             return int(COSTS["telemetry"].figure[3])
         return int(COSTS[name].figure[3])
@@ -474,7 +479,8 @@ class Board:
             if self._rx:
                 self.rx_ignored += len(self._rx)
                 self._rx.clear()
-        chunk = bytes(queue[:PARSE_MAX_BYTES])
+        chunk = bytes(queue[: self._parse_limit])
+        self._parse_limit = PARSE_MAX_BYTES
         del queue[: len(chunk)]
         if self.rx_overflow > self._overflow_reported:
             self._event(EventCode.OVERFLOW, self.rx_overflow - self._overflow_reported)
