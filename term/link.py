@@ -21,11 +21,11 @@ pump in ``term.connection``, a test with a fake clock, a benchmark) owns time an
 
 What the figures mean (measured on the PC; the PC cannot see into the board):
 
-- **RTT** is the time from sending a ``Command`` to receiving its ``Ack``: the full round trip through both
-  directions of the transport and the board's command handling. Commands that were retried give no sample
-  (Karn's rule: the Ack cannot be matched to one attempt). So RTT figures exist only once a command was sent;
-  a heartbeat cannot give a PC-side RTT because it is a one-way message (the board measures that round trip
-  from our HeartbeatAck). What heartbeats do give is ``heartbeat_delay_ms``: the latest heartbeat's one-way
+- **RTT** has two sources, merged into one series: the heartbeat round trip (board → PC → board) that the
+  board measures from our HeartbeatAck and reports in its next ``Heartbeat.rtt``, ten samples a second; and
+  the time from sending a ``Command`` to receiving its ``Ack`` (PC → board → PC), measured here. Retried
+  commands give no sample (Karn's rule: the Ack cannot be matched to one attempt). Heartbeats also give
+  ``heartbeat_delay_ms``: the latest heartbeat's one-way
   delay above the smallest one seen in the last ``HB_DELAY_WINDOW`` seconds (arrival time minus the board's
   ``board_ms``, so the clock offset cancels): the queueing and batching delay on the board-to-PC path.
 - **loss** counts board-to-PC frames missing from the sequence numbers (frames dropped or destroyed by
@@ -496,6 +496,8 @@ class LinkSession:
             delays.popleft()
         delays.append((now, delay))
         self._hb_delay_ms = (delay - min(d for _, d in delays)) * 1e3
+        if hb.rtt:  # the board's own measurement of the previous heartbeat's round trip
+            self._rtt.append(hb.rtt * 1e-4)
 
     def _on_ack(self, ack: Ack, now: float, events: list[LinkEvent]) -> None:
         p = self._inflight.get(ack.cmd_id)

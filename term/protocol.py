@@ -291,7 +291,7 @@ class Hello(NamedTuple):
 class Heartbeat(NamedTuple):
     counter: Annotated[int, F("H", "", "increments per heartbeat")]
     board_ms: Annotated[int, F("I", "ms", "board time since boot")]
-    rtt: Annotated[int, F("H", "0.1 ms", "the board's last Heartbeat→HeartbeatAck round trip (0: none yet)")] = 0
+    rtt: Annotated[int, F("H", "0.1 ms", "previous Heartbeat's round trip to its HeartbeatAck; 0 if none")] = 0
 
 
 @packet(0x11, BOARD_TO_PC, "once per Command", "Command acknowledgement (status 0) or refusal (status = Nak).")

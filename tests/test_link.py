@@ -380,7 +380,17 @@ def test_heartbeat_delay_is_relative_to_the_fastest() -> None:
         s.receive(board(Heartbeat(k, int((board_t + offset) * 1000))), board_t + extra_ms / 1000)
         s.data_to_send(board_t)
     assert s.stats.heartbeat_delay_ms == pytest.approx(1.0, abs=1e-6)  # 2 ms against the best 1 ms
-    assert s.stats.rtt_last_ms is None  # heartbeats alone give no RTT
+    assert s.stats.rtt_last_ms is None  # heartbeats without the board's measurement give no RTT
+
+
+def test_board_measured_heartbeat_rtt_joins_the_rtt_series() -> None:
+    s = LinkSession(0.0, link_timeout=1000.0)
+    board = Board()
+    for k, rtt in enumerate([0, 25, 0, 41]):  # 0: the board has no measurement for that heartbeat
+        s.receive(board(Heartbeat(k, k * 100, rtt)), k * 0.1)
+    st = s.stats
+    assert st.rtt_last_ms == pytest.approx(4.1)
+    assert st.rtt_mean_ms == pytest.approx(3.3)
 
 
 def test_time_since_last_frame() -> None:
