@@ -296,6 +296,7 @@ class Board:
         self.download_sent = 0
         self._log_full_reported = False
         self._overflow_reported = 0
+        self.on_task: Any = None  # optional callback(name, start_us, duration_us) after every task run
         self.sent: list[Any] = []  # every packet sent (bounded), for tests and the serve log
         self._sent_keep = 2000
         if cfg.boot_hello:
@@ -356,8 +357,17 @@ class Board:
         self._wireless_events()
 
     def next_tick_us(self) -> int:
-        """The board time of the next timer interrupt (when a real-time driver should wake up next)."""
+        """The board time of the next timer interrupt."""
         return min(self._next.values())
+
+    def next_event_us(self) -> int:
+        """When a real-time driver should next call ``advance``: now if a task is ready to run (the one that
+        just ran ends at ``now``), else at the next timer interrupt."""
+        self._fire_timers()
+        ready = (self._pick_priority() is not None if self.config.scheduler == "priority"
+                 else any(self._flags.values()))
+        self._parse_limit = PARSE_MAX_BYTES
+        return self.now if ready else self.next_tick_us()
 
     @property
     def mode(self) -> Mode:
@@ -397,6 +407,8 @@ class Board:
             period = self.stats[task].add(start, dur)
             if task == "control" and period is not None:
                 self._check_deadline(period)
+            if self.on_task is not None:
+                self.on_task(task, start, dur)
 
     def _fire_timers(self) -> None:
         now = self.now

@@ -17,6 +17,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import os
+import selectors
 import signal
 import sys
 import termios
@@ -110,7 +111,8 @@ class PtyServer:
         self.bytes_in = 0
         self.bytes_out = 0
         self._pending = bytearray()
-        self._wake: asyncio.Event | None = None
+        self._waiter: asyncio.Future[None] | None = None
+        self._batch: list[int] = []  # control steps run by the current advance
         self._stop: asyncio.Event | None = None
         self._t0 = 0.0
         self.closed = False
@@ -121,25 +123,42 @@ class PtyServer:
         """Run until ``stop`` is set (or ``request_stop()``)."""
         loop = asyncio.get_running_loop()
         self._stop = stop or asyncio.Event()
-        self._wake = asyncio.Event()
         board = self.board
+        board.on_task = self._on_task
         self._t0 = self.clock() - board.now / 1e6
         loop.add_reader(self.master, self._on_readable)
+        stop_waiter = asyncio.ensure_future(self._stop.wait())
+        stop_waiter.add_done_callback(lambda _f: self._wake_up())
         try:
             while not self._stop.is_set():
                 self._step()
-                wait = (board.next_tick_us() - board.now) / 1e6
-                wait = min(MAX_SLEEP_S, max(0.0, wait - (self._wall_us() - board.now) / 1e6))
+                # sleep until the board's next timer interrupt (bytes arriving wake us earlier)
+                wait = (board.next_event_us() - self._wall_us()) / 1e6
                 if self._pending:
                     wait = min(wait, 0.002)
+                wait = min(MAX_SLEEP_S, wait)
                 if wait > 0:
-                    with contextlib.suppress(TimeoutError):
-                        await asyncio.wait_for(self._wake.wait(), wait)
+                    fut = loop.create_future()
+                    self._waiter = fut
+                    handle = loop.call_later(wait, self._wake_up)
+                    await fut
+                    handle.cancel()
+                    self._waiter = None
                 else:
                     await asyncio.sleep(0)
-                self._wake.clear()
         finally:
+            stop_waiter.cancel()
             loop.remove_reader(self.master)
+            board.on_task = None
+
+    def _wake_up(self) -> None:
+        fut = self._waiter
+        if fut is not None and not fut.done():
+            fut.set_result(None)
+
+    def _on_task(self, name: str, start: int, dur: int) -> None:
+        if name == "control":
+            self._batch.append(start)
 
     def request_stop(self) -> None:
         if self._stop is not None:
@@ -156,11 +175,11 @@ class PtyServer:
             self.pacing.slips += 1  # we were not scheduled for a long time: do not replay it in a burst
             self._t0 = self.clock() - board.now / 1e6
             wall = float(board.now)
-        ctl = board.stats["control"]
-        n0 = ctl.n
         board.advance(int(wall))
-        if ctl.n != n0 and ctl.last_start is not None:
-            self.pacing.control_ran(ctl.last_start, self._wall_us())
+        done = self._wall_us()
+        for start in self._batch:
+            self.pacing.control_ran(start, done)
+        self._batch.clear()
         self._write(board.uart_transmit())
 
     def _on_readable(self) -> None:
@@ -175,8 +194,7 @@ class PtyServer:
             # bytes arrive at the present: bring the board up to now first, so they are not dated in the past
             self.board.advance(int(self._wall_us()))
             self.board.uart_receive(data)
-            if self._wake is not None:
-                self._wake.set()
+            self._wake_up()
 
     def _write(self, data: bytes) -> None:
         if data:
@@ -203,6 +221,12 @@ class PtyServer:
         for fd in (self.master, self.slave):
             with contextlib.suppress(OSError):
                 os.close(fd)
+
+
+def event_loop() -> asyncio.AbstractEventLoop:
+    """An event loop whose sleeps have microsecond resolution: epoll rounds every timeout up to a whole
+    millisecond, select() does not, and the board's tasks are due every 2.5 ms."""
+    return asyncio.SelectorEventLoop(selectors.SelectSelector())
 
 
 class ThreadedServer:
@@ -235,7 +259,8 @@ class ThreadedServer:
             await self.server.serve(self._stop)
 
         try:
-            asyncio.run(main())
+            with asyncio.Runner(loop_factory=event_loop) as runner:
+                runner.run(main())
         except BaseException as exc:  # surfaced to the test through .error
             self.error = exc
 
@@ -287,7 +312,8 @@ def cmd_serve(args: Any) -> int:
     if args.scenario not in SCENARIOS:
         raise UsageError(f"unknown scenario {args.scenario!r}; choose one of: {', '.join(SCENARIOS)}")
     try:
-        return asyncio.run(_serve_main(args))
+        with asyncio.Runner(loop_factory=event_loop) as runner:
+            return runner.run(_serve_main(args))
     except KeyboardInterrupt:
         return 0
     finally:
