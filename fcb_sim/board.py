@@ -474,7 +474,7 @@ class Board:
         st = self.stats["control"]
         if period >= WCET99_US[self._path]:
             st.misses += 1
-            if self.now - self.misses_reported_at >= 1_000_000 and self.modes.flying:
+            if self.now - self.misses_reported_at >= 10_000_000 and self.modes.flying:
                 self.misses_reported_at = self.now
                 self._event(EventCode.DEADLINE_MISS, period)
         if period >= WCET999_US[self._path]:

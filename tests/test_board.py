@@ -414,3 +414,42 @@ class BoardProperties(RuleBasedStateMachine):
 BoardProperties.TestCase.settings = settings(
     max_examples=25, stateful_step_count=20, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 TestBoardProperties = BoardProperties.TestCase
+
+
+def test_the_terminals_link_session_flies_the_board() -> None:
+    """Both sides sans-IO on one clock: term.link.LinkSession (the PC) and the Board, with a UART between."""
+    from term.link import CommandAcked, CommandFailed, LinkLost, LinkSession, VersionMismatch
+
+    b = Board(BoardConfig(seed=6))
+    s = LinkSession(0.0)
+    b.uart_receive(s.hello())
+    events: list[Any] = []
+
+    def run(seconds: float) -> None:
+        end = b.now + int(seconds * 1e6)
+        while b.now < end:
+            t = b.now / 1e6
+            b.uart_receive(s.data_to_send(t))
+            b.advance(b.now + 2000)
+            t = b.now / 1e6
+            events.extend(s.receive(b.uart_transmit(), t))
+            events.extend(s.poll(t))
+
+    def acked(cmd_id: int) -> Any:
+        run(0.3)
+        found = [e for e in events if isinstance(e, CommandAcked | CommandFailed) and e.cmd_id == cmd_id]
+        assert found, f"no answer to command {cmd_id}"
+        return found[-1]
+
+    run(0.3)
+    assert s.board_hello is not None and s.board_hello.role == 1
+    failed = acked(s.send_command(Op.MODE, Mode.FULL, b.now / 1e6))
+    assert isinstance(failed, CommandFailed) and failed.nak == Nak.NOT_CALIBRATED
+    assert isinstance(acked(s.send_command(Op.MODE, Mode.CALIBRATION, b.now / 1e6)), CommandAcked)
+    run(1.2)
+    assert isinstance(acked(s.send_command(Op.MODE, Mode.FULL, b.now / 1e6)), CommandAcked)
+    s.set_joystick(Joystick(0, 0, 0, int(HOVER_LIFT * 1.1), 0))
+    run(1.5)
+    assert b.mode == Mode.FULL and b.world.truth.h > 0.4
+    assert not [e for e in events if isinstance(e, LinkLost | VersionMismatch)]
+    assert s.stats.rtt_last_ms is not None and s.stats.rtt_last_ms < 20
