@@ -75,7 +75,9 @@ class Client:
 
 @pytest.fixture
 def served() -> Any:
-    proc = subprocess.Popen([*SERVE, "--pty", "--scenario", "no-spikes"], stdout=subprocess.PIPE,
+    # a generous link timeout: a test machine busy with other work must not starve the client into a PANIC
+    proc = subprocess.Popen([*SERVE, "--pty", "--scenario", "no-spikes", "--link-timeout", "3"],
+                            stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True, env=dict(os.environ, PYTHONUNBUFFERED="1"))
     try:
         line = proc.stdout.readline()
@@ -97,13 +99,13 @@ def test_a_pyserial_client_flies_the_board_over_the_pty(served: Any) -> None:
     assert c.command(Op.MODE, Mode.CALIBRATION).status == Nak.OK
     assert c.pump(4.0, lambda: (s := c.last(Status)) is not None and s.flags & 1 and
                   c.last(Motion) is not None)
-    assert c.command(Op.MODE, Mode.FULL) .status == Nak.OK
+    assert c.command(Op.MODE, Mode.FULL).status == Nak.OK
     c.js = Joystick(0, 0, 0, int(HOVER_LIFT * 1.1), 0)
     assert c.pump(6.0, lambda: (h := c.last(Height)) is not None and h.height > 400), "no lift-off"
     m = c.last(Motion)
     assert min(m.ae1, m.ae2, m.ae3, m.ae4) > 300
     c.js = Joystick(0, 0, 0, int(HOVER_LIFT * 0.75), 0)
-    assert c.pump(8.0, lambda: (h := c.last(Height)) is not None and h.vz > -50 and h.height < 250), "no landing"
+    assert c.pump(8.0, lambda: (h := c.last(Height)) is not None and h.vz > -50 and h.height < 300), "no landing"
     c.js = Joystick(0, 0, 0, 0, 0)
     c.pump(0.1)
     assert c.command(Op.MODE, Mode.SAFE) == Ack(c.cmd_id, Op.MODE, Nak.OK, Mode.SAFE)
