@@ -29,7 +29,7 @@ from term.input.mapping import NEUTRAL, leave_safe_refusal
 from term.link import CommandFailed, LinkSession, VersionMismatch
 from term.logfile import LogDownload, log_filename, write_csv
 from term.model import Model, mode_name, op_text
-from term.protocol import Button, Joystick, Mode, Op
+from term.protocol import Button, Joystick, LogState, Mode, Op
 from term.transports.base import Transport, TransportError
 from term.widgets.base import ModelView
 from term.widgets.battery import BatteryGauge
@@ -48,6 +48,7 @@ from term.widgets.rates import RateGauges
 
 DOWNLOAD_STALL_S = 1.0  # no chunk for this long: resume from the first missing one
 DOWNLOAD_RESUMES = 20
+DOWNLOAD_GAP_S = 0.2  # the board finished but chunks are missing: ask again from the first gap this soon
 
 
 def _panel(widget: ModelView, title: str, wid: str) -> ModelView:
@@ -138,6 +139,7 @@ class TermApp(App[int]):
         self.log_directory = log_directory or self.config.log_directory
         self.exit_message: str | None = None
         self._resumes = 0
+        self._resumed_at = -1e9
         self._fire_down = False
         for b in self.keymap:
             self._bindings.bind(
@@ -338,12 +340,17 @@ class TermApp(App[int]):
         self.model.download = LogDownload(started=self.clock())
         self.model.download_note = ""
         self._resumes = 0
+        self._resumed_at = -1e9
         self.send(Op.LOG_STATUS)
         self.send(Op.LOG_DOWNLOAD, 0)
 
     def _check_download(self, now: float) -> None:
         d = self.model.download
         if d is None:
+            return
+        if d.empty:
+            self.model.download = None
+            self.model.download_note = "log download: the board's log is empty (F2 starts recording)"
             return
         if d.done:
             self.model.download = None
@@ -355,7 +362,11 @@ class TermApp(App[int]):
             stamp = datetime.now().strftime("%Y%m%d-%H%M%S")
             path = self.log_directory / log_filename(stamp)
             self.run_worker(self._save_log(d.data(), path, d.rate_kBps(now)), exclusive=False)
-        elif now - max(d.last_progress, d.started) > DOWNLOAD_STALL_S and d.used is not None:
+        elif d.used is not None and (
+            now - max(d.last_progress, d.started) > DOWNLOAD_STALL_S
+            or (d.chunks and d.last_progress > self._resumed_at and self._board_done_sending()
+                and now - d.last_progress > DOWNLOAD_GAP_S)
+        ):
             first = d.missing()
             if self._resumes >= DOWNLOAD_RESUMES or first is None:
                 self.model.download = None
@@ -363,8 +374,12 @@ class TermApp(App[int]):
                 self.model.note(now, "error", "term", self.model.download_note)
                 return
             self._resumes += 1
-            d.last_progress = now
+            d.last_progress = self._resumed_at = now
             self.send(Op.LOG_DOWNLOAD, first)
+
+    def _board_done_sending(self) -> bool:
+        ls = self.model.log_status
+        return ls is not None and ls.state != LogState.DOWNLOADING
 
     async def _save_log(self, data: bytes, path: Path, rate: float) -> None:
         from term.logfile import decode_to_rows

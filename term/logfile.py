@@ -66,9 +66,14 @@ class LogDownload:
         return self.bytes_received / span / 1000.0
 
     @property
+    def empty(self) -> bool:
+        """The board's log holds nothing (its LOG_DOWNLOAD is refused with LOG_EMPTY)."""
+        return self.used == 0
+
+    @property
     def done(self) -> bool:
         total = self.total_chunks
-        return total is not None and all(i in self.chunks for i in range(total))
+        return bool(total) and all(i in self.chunks for i in range(total or 0))
 
     def missing(self) -> int | None:
         """The first chunk not received (where a resumed download starts), or None."""
