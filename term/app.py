@@ -37,7 +37,7 @@ from term.widgets.controls import ControlsPanel
 from term.widgets.download import DownloadPanel
 from term.widgets.events import EventsList
 from term.widgets.help import HelpScreen
-from term.widgets.horizon import Horizon
+from term.widgets.horizon import HeadingTape, Horizon
 from term.widgets.link import LinkPanel
 from term.widgets.mode import ModeBanner
 from term.widgets.motors import MotorBars
@@ -63,7 +63,10 @@ class FlightScreen(Screen[None]):
     def compose(self) -> ComposeResult:
         yield ModeBanner(id="mode")
         with Horizontal(id="top"):
-            yield _panel(Horizon(), "attitude · heading", "horizon")
+            with Vertical(id="attitude") as v:
+                v.border_title = "attitude · heading"
+                yield Horizon(id="horizon")
+                yield HeadingTape(id="heading")
             with Vertical(id="gauges"):
                 yield _panel(RateGauges(), "rates", "rates")
                 yield _panel(MotorBars(), "motors", "motors")
@@ -118,7 +121,7 @@ class TermApp(App[int]):
         config: Config | None = None,
         joystick: bool = True,
         clock: Callable[[], float] = time.monotonic,
-        render_hz: float = 20.0,
+        render_hz: float = 15.0,
         joystick_hz: float = 100.0,
         session_options: dict[str, float] | None = None,
         log_directory: Path | None = None,

@@ -249,7 +249,8 @@ async def test_every_panel_shows_its_data() -> None:
             return str(app.screen.query_one(wid).render())
 
         assert "H E I G H T" in text("#mode") and "LOW BATTERY" in text("#mode")
-        assert "roll  +12.0°" in text("#horizon") and "090.0°" in text("#horizon") and "E" in text("#horizon")
+        assert "roll  +12.0°" in text("#heading") and "090.0°" in text("#heading") and "E" in text("#heading")
+        assert "▀" in text("#horizon")
         assert "+10°/s" in text("#rates") and "-5°/s" in text("#rates")
         assert " 980" in text("#motors") and " 410" in text("#motors")
         assert "10.40 V" in text("#battery") and "BELOW 10.5 V" in text("#battery")

@@ -82,18 +82,28 @@ def heading_tape(width: int, psi_deg: float) -> Text:
 
 
 class Horizon(ModelView):
+    """The picture only: it redraws only when a half-cell changes, not for every hundredth of a degree."""
+
     def render_model(self, model: Model, now: float) -> RenderableType:
         w = max(20, self.content_size.width or 36)
-        h = max(5, (self.content_size.height or 12) - 3)
+        h = max(3, self.content_size.height or 9)
         a = model.attitude
-        roll = a.phi / 100 if a else 0.0
-        pitch = a.theta / 100 if a else 0.0
-        yaw = a.psi / 100 if a else 0.0
         out = Text()
-        for row in horizon_rows(w, h, roll, pitch):
+        for i, row in enumerate(horizon_rows(w, h, a.phi / 100 if a else 0.0, a.theta / 100 if a else 0.0)):
+            if i:
+                out.append("\n")
             out.append_text(row)
-            out.append("\n")
-        out.append_text(heading_tape(w, yaw))
+        return out
+
+
+class HeadingTape(ModelView):
+    """The heading tape and the numbers under the horizon."""
+
+    def render_model(self, model: Model, now: float) -> RenderableType:
+        w = max(20, self.content_size.width or 36)
+        a = model.attitude
+        yaw = a.psi / 100 if a else 0.0
+        out = heading_tape(w, yaw)
         out.append("\n")
         hdg = f"{yaw % 360:05.1f}"
         out.append("▲ ".rjust(w // 2 - len(hdg) // 2 + 1), style="bold")
@@ -102,5 +112,5 @@ class Horizon(ModelView):
         if a is None:
             out.append("no attitude yet", style="dim")
         else:
-            out.append(f"roll {roll:+6.1f}°   pitch {pitch:+6.1f}°")
+            out.append(f"roll {a.phi / 100:+6.1f}°   pitch {a.theta / 100:+6.1f}°")
         return out

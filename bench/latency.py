@@ -1,0 +1,212 @@
+"""Stick-to-motor latency: from a joystick event in term to the board's motor command changing.
+
+The board runs in real time in a child process (fcb_sim.serve's PtyServer behind a real pseudo-terminal, paced
+to the wall clock, 115200 baud on its UART model); the terminal side is term's own link (LinkSession and
+Connection over the SerialTransport) in this process. The board is calibrated and put in MANUAL (motors follow
+the lift stick directly, so every motor change is caused by a stick change), then the lift stick alternates
+between two levels at random moments. For each change, latency = (the wall time at which the board's control
+task produced the new motor command, as the child reports it) - (the moment term got the stick value). Both
+sides read CLOCK_MONOTONIC, which the two processes share.
+
+    python -m bench.latency [--events 120] [--joystick-rate 100] [--on-change] [--seed 1]
+
+Prints one JSON line: mean_ms, p50_ms, p99_ms (and n, the report's 23.4 ms mean and the 3 ms goal).
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import json
+import os
+import random
+import statistics
+import subprocess
+import sys
+import threading
+import time
+from typing import Any
+
+LIFTS = (8000, 12000)  # two lift levels, both above idle in MANUAL
+
+
+# --- the board side (child process) ---------------------------------------------------------------------------
+
+
+def board_main(seed: int) -> int:
+    from fcb_sim.serve import PtyServer, event_loop, make_board
+
+    class Reporting(PtyServer):
+        """Reports every change of the motor commands with the wall time the control task produced it."""
+
+        last: tuple[int, ...] = ()
+
+        def _on_task(self, name: str, start: int, dur: int) -> None:
+            super()._on_task(name, start, dur)
+            if name == "control":
+                ae = tuple(self.board.ae)
+                if ae != self.last:
+                    self.last = ae
+                    print(f"ae {time.monotonic():.6f} {' '.join(map(str, ae))}", flush=True)
+
+    async def main() -> None:
+        server = Reporting(make_board(seed))
+        print(f"pty: {server.path}", flush=True)
+        stop = asyncio.Event()
+        loop = asyncio.get_running_loop()
+        import signal
+
+        for sig in (signal.SIGTERM, signal.SIGINT):
+            loop.add_signal_handler(sig, stop.set)
+        try:
+            await server.serve(stop)
+        finally:
+            server.close()
+
+    with asyncio.Runner(loop_factory=event_loop) as runner:
+        runner.run(main())
+    return 0
+
+
+# --- the terminal side ----------------------------------------------------------------------------------------
+
+
+class BoardChild:
+    def __init__(self, seed: int) -> None:
+        self.proc = subprocess.Popen([sys.executable, "-m", "bench.latency", "--board", "--seed", str(seed)],
+                                     stdout=subprocess.PIPE, text=True, bufsize=1)
+        assert self.proc.stdout is not None
+        line = self.proc.stdout.readline()
+        if not line.startswith("pty: "):
+            raise SystemExit(f"bench.latency: the board did not start ({line.strip() or 'no output'})")
+        self.path = line[5:].strip()
+        self.changes: list[tuple[float, tuple[int, ...]]] = []
+        self._lock = threading.Lock()
+        threading.Thread(target=self._read, daemon=True).start()
+
+    def _read(self) -> None:
+        assert self.proc.stdout is not None
+        for line in self.proc.stdout:
+            parts = line.split()
+            if parts and parts[0] == "ae":
+                with self._lock:
+                    self.changes.append((float(parts[1]), tuple(int(p) for p in parts[2:])))
+
+    def changes_after(self, t: float) -> list[tuple[float, tuple[int, ...]]]:
+        with self._lock:
+            return [c for c in self.changes if c[0] >= t]
+
+    def stop(self) -> None:
+        self.proc.terminate()
+        try:
+            self.proc.wait(5)
+        except subprocess.TimeoutExpired:
+            self.proc.kill()
+
+
+async def measure(path: str, board: BoardChild, events: int, joystick_rate: float, seed: int,
+                  on_change: bool = False) -> list[float]:
+    from term.connection import Connection
+    from term.link import CommandAcked, PacketReceived
+    from term.protocol import Event, EventCode, Joystick, Mode, Op
+    from term.transports.serial import SerialTransport
+
+    got: list[Any] = []
+    conn = Connection(SerialTransport(path), _session(joystick_rate, on_change), on_event=got.append)
+    await conn.start()
+
+    async def until(cond: Any, timeout: float = 10.0) -> None:
+        async with asyncio.timeout(timeout):
+            while not cond():
+                await asyncio.sleep(0.005)
+
+    def board_event(code: int) -> bool:
+        return any(type(e) is PacketReceived and type(e.packet) is Event and e.packet.code == code for e in got)
+
+    def acked(op: int, arg: int) -> bool:
+        return any(type(e) is CommandAcked and e.op == op and e.arg == arg for e in got)
+
+    try:
+        conn.set_joystick(Joystick(0, 0, 0, 0, 0))
+        await until(lambda: conn.stats.frames_ok > 5)
+        conn.send_command(Op.MODE, Mode.CALIBRATION)
+        await until(lambda: board_event(EventCode.CALIBRATION_DONE))
+        await asyncio.sleep(0.1)
+        conn.send_command(Op.MODE, Mode.MANUAL)
+        await until(lambda: acked(Op.MODE, Mode.MANUAL))
+        rng = random.Random(seed)
+        latencies: list[float] = []
+        level = 0
+        for _ in range(events):
+            await asyncio.sleep(rng.uniform(0.06, 0.14))  # a random phase against every timer on both sides
+            level ^= 1
+            js = Joystick(0, 0, 0, LIFTS[level], 0)
+            t_event = time.monotonic()
+            conn.set_joystick(js)  # the joystick event in term: from here on it is term's link and the board
+            try:
+                await until(lambda t=t_event: bool(board.changes_after(t)), timeout=1.0)
+            except TimeoutError:
+                continue
+            latencies.append((board.changes_after(t_event)[0][0] - t_event) * 1e3)
+        conn.set_joystick(Joystick(0, 0, 0, 0, 0))
+        conn.send_command(Op.MODE, Mode.SAFE)
+        await asyncio.sleep(0.1)
+        return latencies
+    finally:
+        await conn.stop()
+
+
+def _session(joystick_rate: float, on_change: bool = False) -> Any:
+    from term.link import LinkSession
+
+    if on_change:  # send a change at once (up to joystick_rate), else only a keep-alive every 100 ms
+        return LinkSession(time.monotonic(), joystick_rate=joystick_rate, change_only=True, keepalive=0.1)
+    return LinkSession(time.monotonic(), joystick_rate=joystick_rate)
+
+
+def pct(xs: list[float], q: float) -> float:
+    s = sorted(xs)
+    return s[min(len(s) - 1, max(0, round(q / 100 * (len(s) - 1))))]
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m bench.latency", description=__doc__.splitlines()[0])
+    ap.add_argument("--events", type=int, default=120, help="stick changes to time (default 120)")
+    ap.add_argument("--joystick-rate", type=float, default=100.0, help="term's joystick rate limit, Hz")
+    ap.add_argument("--on-change", action="store_true",
+                    help="send each stick change at once (LinkSession change_only, keep-alive 0.1 s) instead of "
+                    "the steady joystick_rate stream")
+    ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--board", action="store_true", help=argparse.SUPPRESS)  # the child process
+    args = ap.parse_args(argv)
+    if args.board:
+        return board_main(args.seed)
+    board = BoardChild(args.seed)
+    try:
+        lat = asyncio.run(measure(board.path, board, args.events, args.joystick_rate, args.seed, args.on_change))
+    finally:
+        board.stop()
+    if not lat:
+        print(json.dumps({"error": "no motor change observed"}))
+        return 1
+    out = {
+        "mean_ms": round(statistics.fmean(lat), 2),
+        "p50_ms": round(pct(lat, 50), 2),
+        "p99_ms": round(pct(lat, 99), 2),
+        "min_ms": round(min(lat), 2),
+        "max_ms": round(max(lat), 2),
+        "n": len(lat),
+        "events": args.events,
+        "joystick_rate_hz": args.joystick_rate,
+        "policy": "on change" if args.on_change else "steady stream",
+        "baud": 115200,
+        "report_mean_ms": 23.4,
+        "goal_mean_ms": 3.0,
+        "cpus": os.cpu_count(),
+    }
+    print(json.dumps(out))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

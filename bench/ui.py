@@ -1,0 +1,117 @@
+"""UI cost with telemetry at full rate: CPU of the term process and event-loop lag.
+
+The board is served in real time by `fcb-sim serve --pty` in a child process (as `term --sim` does) and asked
+for telemetry at 100 Hz (SET_PARAM 3, the most it sends; Attitude and Motion at 100 Hz, the rest at their
+rates); the terminal is the real TermApp over the SerialTransport, run headless (the full widget tree is laid
+out and rendered at the app's render rate; only the bytes to a real terminal are not written). For each screen
+(flight, plots) the bench measures, over ``--seconds``:
+
+- ``cpu_pct``: CPU time of this process (all threads: Textual, the link, the serial reader) over wall time,
+  in % of one core;
+- ``lag_p99_ms``: the event loop's lag, from a probe that asks to wake every 5 ms and records how late it is.
+
+    python -m bench.ui [--seconds 6] [--render-hz 20]
+
+Prints one JSON line; goals: cpu under 25 % of a core, lag p99 under 16 ms.
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import json
+import resource
+import sys
+import time
+from typing import Any
+
+
+def _cpu() -> float:
+    r = resource.getrusage(resource.RUSAGE_SELF)
+    return r.ru_utime + r.ru_stime
+
+
+async def _probe(lags: list[float], stop: asyncio.Event, period: float = 0.005) -> None:
+    while not stop.is_set():
+        t = time.perf_counter()
+        await asyncio.sleep(period)
+        lags.append((time.perf_counter() - t - period) * 1e3)
+
+
+def _pct(xs: list[float], q: float) -> float:
+    s = sorted(xs)
+    return s[min(len(s) - 1, max(0, round(q / 100 * (len(s) - 1))))] if s else float("nan")
+
+
+async def run(seconds: float, render_hz: float | None, seed: int) -> dict[str, Any]:
+    from term.app import TermApp
+    from term.cli import SimBoard
+    from term.protocol import Op
+    from term.transports.serial import SerialTransport
+
+    sim = SimBoard(seed=seed)
+    port = sim.start()
+    out: dict[str, Any] = {}
+    render_hz_used = render_hz
+    try:
+        app = TermApp(SerialTransport(port), joystick=False,
+                      **({"render_hz": render_hz} if render_hz else {}))
+        render_hz_used = app.render_hz
+        async with app.run_test(size=(120, 44), headless=True) as pilot:
+            async def until(cond: Any, timeout: float = 10.0) -> None:
+                async with asyncio.timeout(timeout):
+                    while not cond():
+                        await asyncio.sleep(0.02)
+
+            await until(lambda: app.model.attitude is not None)
+            app.send(Op.SET_PARAM, (3 << 16) | 100)  # telemetry at the board's full rate
+            await asyncio.sleep(1.0)
+            for screen, key in (("flight", None), ("plots", "f8")):
+                if key:
+                    app.simulate_key(key)
+                    await asyncio.sleep(0.5)
+                lags: list[float] = []
+                stop = asyncio.Event()
+                probe = asyncio.create_task(_probe(lags, stop))
+                frames0 = app.model.link.frames_ok if app.model.link else 0
+                rx0 = app.model.link.rx_bytes if app.model.link else 0
+                c0, w0 = _cpu(), time.perf_counter()
+                await asyncio.sleep(seconds)
+                c1, w1 = _cpu(), time.perf_counter()
+                stop.set()
+                await probe
+                link = app.model.link
+                out[screen] = {
+                    "cpu_pct": round(100 * (c1 - c0) / (w1 - w0), 1),
+                    "lag_p50_ms": round(_pct(lags, 50), 2),
+                    "lag_p99_ms": round(_pct(lags, 99), 2),
+                    "lag_max_ms": round(max(lags), 2),
+                    "frames_per_s": round(((link.frames_ok if link else 0) - frames0) / (w1 - w0), 1),
+                    "rx_bytes_per_s": round(((link.rx_bytes if link else 0) - rx0) / (w1 - w0)),
+                }
+            _ = pilot
+    finally:
+        sim.stop()
+    out["render_hz"] = render_hz_used
+    return out
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m bench.ui", description=__doc__.splitlines()[0])
+    ap.add_argument("--seconds", type=float, default=6.0, help="measuring time per screen (default 6)")
+    ap.add_argument("--render-hz", type=float, default=None, help="the app's render rate (default: the app's)")
+    ap.add_argument("--seed", type=int, default=1)
+    args = ap.parse_args(argv)
+    res = asyncio.run(run(args.seconds, args.render_hz, args.seed))
+    hz = res.pop("render_hz")
+    worst_cpu = max(r["cpu_pct"] for r in res.values())
+    worst_lag = max(r["lag_p99_ms"] for r in res.values())
+    print(json.dumps({
+        "cpu_pct": worst_cpu, "lag_p99_ms": worst_lag, "render_hz": hz, **res,
+        "goal_cpu_pct": 25, "goal_lag_p99_ms": 16,
+    }))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
