@@ -43,10 +43,15 @@ class AxisMap:
         return round(mag * FULL) if raw >= 0 else -round(mag * FULL)
 
 
+END_SNAP = 0.002  # SDL's axes end at 32767/32768: the last 0.2 % of travel is full deflection
+
+
 def _dead(x: float, dz: float) -> float:
     """Deadzone on a magnitude 0..1, rescaled so the output still spans 0..1 without a jump at the edge."""
     if x <= dz:
         return 0.0
+    if x >= 1.0 - END_SNAP:
+        return 1.0
     return min(1.0, (x - dz) / (1.0 - dz)) if dz < 1.0 else 0.0
 
 

@@ -1,0 +1,111 @@
+"""The joystick through pygame with SDL's dummy video driver, and a real SDL virtual joystick (SDL 2.0.14+, the
+library pygame ships) plugged in and out while the poller and the app run: hot-plug, the lab's mapping, the
+fire button, the throttle guard, and a stick lost in flight."""
+
+from __future__ import annotations
+
+import asyncio
+import ctypes
+import glob
+import os
+import time
+
+import pytest
+
+from term.input.joystick import JoystickPoller
+from term.input.mapping import FULL
+from term.protocol import Button, Mode, Op
+
+
+class VirtualStick:
+    """An SDL virtual joystick (4 axes, 2 buttons) in this process's SDL, as a USB stick would appear."""
+
+    def __init__(self) -> None:
+        import pygame
+
+        libs = glob.glob(os.path.join(os.path.dirname(pygame.__file__), "..", "pygame.libs", "libSDL2-2*.so*"))
+        if not libs:
+            pytest.skip("pygame's bundled SDL2 not found")
+        sdl = ctypes.CDLL(libs[0])
+        sdl.SDL_JoystickAttachVirtual.argtypes = [ctypes.c_int] * 4
+        sdl.SDL_JoystickOpen.restype = ctypes.c_void_p
+        sdl.SDL_JoystickOpen.argtypes = [ctypes.c_int]
+        sdl.SDL_JoystickSetVirtualAxis.argtypes = [ctypes.c_void_p, ctypes.c_int, ctypes.c_int16]
+        sdl.SDL_JoystickSetVirtualButton.argtypes = [ctypes.c_void_p, ctypes.c_int, ctypes.c_uint8]
+        sdl.SDL_JoystickClose.argtypes = [ctypes.c_void_p]
+        sdl.SDL_JoystickDetachVirtual.argtypes = [ctypes.c_int]
+        self.sdl = sdl
+        self.index = sdl.SDL_JoystickAttachVirtual(0, 4, 2, 0)
+        assert self.index >= 0
+        self.handle = sdl.SDL_JoystickOpen(self.index)
+        self.set(0, 0, 0, 1.0)  # the lab's throttle lever pulled back: no lift
+
+    def set(self, roll: float, pitch: float, yaw: float, throttle: float, fire: bool = False) -> None:
+        for axis, v in enumerate((roll, pitch, yaw, throttle)):
+            self.sdl.SDL_JoystickSetVirtualAxis(self.handle, axis, max(-32768, min(32767, round(v * 32767))))
+        self.sdl.SDL_JoystickSetVirtualButton(self.handle, 0, int(fire))
+        self.sdl.SDL_JoystickUpdate()
+
+    def unplug(self) -> None:
+        self.sdl.SDL_JoystickClose(ctypes.c_void_p(self.handle))
+        self.sdl.SDL_JoystickDetachVirtual(self.index)
+
+
+@pytest.fixture
+def poller():  # noqa: ANN201
+    p = JoystickPoller()
+    p.start()
+    yield p
+    p.close()
+
+
+def test_hot_plug_mapping_and_unplug(poller: JoystickPoller) -> None:
+    assert not poller.connected and poller.poll().packet is None
+    stick = VirtualStick()
+    res = poller.poll()
+    assert poller.connected and "Virtual Joystick" in res.messages[0] and "mapping lab" in res.messages[0]
+    stick.set(0.5, -1.0, 0.0, -1.0, fire=True)
+    js = poller.poll().packet
+    assert js is not None and js.pitch == -FULL and js.lift == FULL and js.buttons == Button.FIRE
+    assert 0 < js.roll < FULL
+    assert poller.poll().packet is None  # nothing moved: nothing to send
+    stick.unplug()
+    res = poller.poll()
+    assert res.disconnected and res.packet is not None and res.packet.lift == 0 and not poller.connected
+
+
+async def test_the_app_flies_the_stick(scripted_board) -> None:  # noqa: ANN001
+    from term.app import TermApp
+    from term.transports.loopback import loopback_pair
+    from tests.test_app import LoopBoard, until
+
+    pair = loopback_pair()
+    board = scripted_board(start=time.monotonic())
+    peer = LoopBoard(pair.b, board, time.monotonic)
+    await peer.start()
+    app = TermApp(pair.a, joystick=True)
+    stick = None
+    try:
+        async with app.run_test(size=(120, 44)) as pilot:
+            await until(pilot, lambda: app.poller is not None and board.hellos)
+            stick = VirtualStick()
+            await until(pilot, lambda: app.model.joystick_name == "Virtual Joystick")
+            stick.set(0.0, 0.0, 0.0, 0.0)  # throttle lever half way
+            await until(pilot, lambda: board.joysticks and board.joysticks[-1].lift > FULL // 3)
+            await pilot.press("2")
+            await pilot.pause(0.05)
+            assert "throttle is up" in app.model.events[-1].text
+            assert not any(c.op == Op.MODE and c.arg == Mode.MANUAL for c in board.executed)
+            stick.set(0.0, 0.0, 0.0, 1.0, fire=True)
+            await until(pilot, lambda: any(c.op == Op.MODE and c.arg == Mode.PANIC for c in board.executed))
+            app.model.mode = Mode.FULL  # as if flying: pulling the stick out is PANIC
+            stick.unplug()
+            stick = None
+            await until(pilot, lambda: "joystick lost in flight" in " ".join(e.text for e in app.model.events))
+            await until(pilot, lambda: sum(c.op == Op.MODE and c.arg == Mode.PANIC for c in board.executed) == 2)
+            assert app.model.joystick_name is None
+            await asyncio.sleep(0)
+    finally:
+        if stick is not None:
+            stick.unplug()
+        await peer.stop()
