@@ -34,6 +34,7 @@ from term.transports.base import Transport, TransportError
 from term.widgets.base import ModelView
 from term.widgets.battery import BatteryGauge
 from term.widgets.controls import ControlsPanel
+from term.widgets.dirprompt import DirectoryPrompt
 from term.widgets.download import DownloadPanel
 from term.widgets.events import EventsList
 from term.widgets.help import HelpScreen
@@ -400,8 +401,19 @@ class TermApp(App[int]):
 
     # --- command palette ----------------------------------------------------------------------------------
 
+    def download_to(self) -> None:
+        """Ask for a directory, then download there."""
+        def chosen(path: Path | None) -> None:
+            if path is None:
+                return
+            self.log_directory = path
+            self.local_log_download()
+
+        self.push_screen(DirectoryPrompt(self.log_directory), chosen)
+
     def get_system_commands(self, screen: Screen) -> Iterable[SystemCommand]:
         yield from super().get_system_commands(screen)
+        yield SystemCommand("Log: download to a directory…", f"now {self.log_directory}", self.download_to)
         for b in self.keymap:
             a = b.action
             keys = ", ".join(pretty_key(k) for k in b.keys)

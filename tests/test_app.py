@@ -284,3 +284,22 @@ async def test_download_needs_a_link(key: str) -> None:
     async with app.run_test() as pilot:
         await pilot.press(key)
         assert "not connected" in app.model.events[-1].text
+
+
+async def test_download_to_a_chosen_directory(scripted_board, tmp_path) -> None:  # noqa: ANN001
+    async with flying(scripted_board) as (app, pilot, board, _):
+        app.download_to()
+        await pilot.pause(0.1)
+        inp = app.screen.query_one("#directory")
+        inp.value = ""
+        for ch in str(tmp_path / "logs"):
+            await pilot.press(ch if ch != "/" else "slash")
+        await pilot.press("enter")
+        await until(pilot, lambda: (Op.LOG_DOWNLOAD, 0) in sent(board))
+        assert app.log_directory == tmp_path / "logs" and (Op.LOG_STATUS, 0) in sent(board)
+        assert not any(op == Op.MODE for op, _ in sent(board))  # typing the path flew nothing
+        app.download_to()
+        await pilot.pause(0.1)
+        await pilot.press("escape")  # cancels the dialog, not PANIC
+        await pilot.pause(0.1)
+        assert isinstance(app.screen, FlightScreen) and (Op.MODE, Mode.PANIC) not in sent(board)
