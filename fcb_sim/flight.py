@@ -19,12 +19,15 @@ API for the board::
   ``panic_ae`` (just under hover) times the scale, levelled by the attitude loops when calibrated. MANUAL:
   sticks straight to Z/L/M/N. YAW: MANUAL plus yaw-rate control. FULL: cascaded roll/pitch on the DMP angles,
   yaw rate, lift from the stick. RAW: FULL on the on-board filter (``estimation.make_filter``, float or Q16.16).
-  HEIGHT: FULL (or RAW, when entered from RAW) plus the height PD on the height estimator, the lift stick
-  (relative to its position at entry) moving the set point at up to ``HEIGHT_STICK_RATE`` m/s.
+  HEIGHT: FULL (or RAW, when entered from RAW) plus the height PID on the height estimator, the lift stick
+  (relative to its position at entry) moving the set point at up to ``HEIGHT_STICK_RATE`` m/s. The set point
+  is the height at entry, refined during the next seconds by the estimator's ``captured_height`` (later
+  readings tell where the quadcopter really was at that instant; a few cm).
 - CALIBRATION: entering it clears the DMP angle offsets, so ``dmp_phi``/``dmp_theta`` are uncorrected while the
   board collects their means; ``set_calibration(Calibration(...))`` applies all means when it ends.
 - Gains: ``fc.gains`` (params.Gains: yaw_p, p1, p2, height_p, height_d) may be changed at any time;
-  ``adjust_gain(name, steps)`` applies the key steps of params.GAIN_STEPS and returns the new value.
+  ``adjust_gain(name, steps)`` applies the key steps of params.GAIN_STEPS and returns the new value. The height
+  integral ``fc.height_i`` (``HEIGHT_I``) is not a protocol gain (the Gains packet carries P and D only).
 - Outputs for telemetry: ``phi, theta, psi`` (rad, FRD, of the path the mode uses), ``sp, sq, sr`` (calibrated
   body rates, gyro LSB), ``sax, say, saz`` (body accelerations, accel LSB, saz about -16384 at rest), ``height``
   and ``vz`` (m, m/s, up), ``setpoint`` (m), ``ae`` (last motor commands), ``attitude_centideg()``.
@@ -49,7 +52,8 @@ HEIGHT_STICK_DEADBAND = 1500  # stick units around the entry position that leave
 # Height integral gain, ae² per (mm s): 1.0 N per m s, an integral time of 4 s beside P 400 (params.Gains). It
 # takes out the battery's sag (the hover thrust of the lift captured at entry falls as the pack discharges), which
 # grows with the flight: over 120 s of HEIGHT on the true height P 400 / D 400 alone hold 4.4 cm rms, with this
-# integral 0.3 cm; on the estimator, seeds 1-4, 0.107 -> 0.091 m rms (over 30 s it is a wash: 0.076/0.078 m).
+# integral 0.3 cm; on the estimator, seeds 1-6, 0.097 -> 0.087 m rms (worst 0.17 -> 0.13). Over 30 s, where the
+# sag is small, it costs a little (seeds 1-12: 0.073 -> 0.077 m).
 HEIGHT_I = 100.0
 
 _SAFE, _PANIC, _MANUAL, _CAL = int(Mode.SAFE), int(Mode.PANIC), int(Mode.MANUAL), int(Mode.CALIBRATION)
@@ -124,7 +128,7 @@ class CalibrationAccumulator:
 
 def default_height_estimator() -> HeightEstimator | HeightKalman:
     """The board's height estimator: the robust Kalman filter (estimation/height.py, HEIGHT_BEST), which skips the
-    barometer's spikes against the accelerometer-predicted height (HEIGHT hold 0.167 -> 0.078 m rms, seeds 1-12).
+    barometer's spikes against the accelerometer-predicted height (HEIGHT hold 0.167 -> 0.077 m rms, seeds 1-12).
 
     The report's Figure 10 stays available as ``make_height_estimator("complementary")``: as HEIGHT flew it,
     WITHOUT the 0.1 Hz high-pass on the barometer (a high-passed height forgets any steady height within ~1.6 s,
@@ -168,6 +172,10 @@ class FlightCore:
         self.setpoint = 0.0
         self._z_base = 0.0
         self._z_int = 0.0  # height integral (ae², more lift positive)
+        self._sp_from_est = False  # HEIGHT's set point follows the estimator's captured height
+        self._sp_cap0 = 0.0  # the captured height at entry
+        self._sp_base = 0.0  # the height at entry
+        self._sp_offset = 0.0  # moved by the lift stick
         self.height_i = HEIGHT_I  # not a protocol gain (the Gains packet has P and D only); settable here
         self._lift_entry = 0
         self._height_raw = False  # HEIGHT entered from RAW flies on the on-board filter
@@ -251,7 +259,14 @@ class FlightCore:
         at the full descent level."""
         mode = int(mode)
         if mode == _HEIGHT:
-            self.setpoint = self.height
+            # The set point is the height at entry, refined by what later readings reveal about that instant (the
+            # estimator's captured height, when it has one), plus the stick's offset.
+            capture = getattr(self.height_est, "capture", None)
+            self._sp_from_est = capture is not None
+            self._sp_cap0 = capture() if capture is not None else 0.0
+            self._sp_base = self.height
+            self._sp_offset = 0.0
+            self.setpoint = self._sp_base
             self._lift_entry = lift
             self._z_base = C.lift_to_z(lift)
             self._z_int = 0.0
@@ -307,7 +322,11 @@ class FlightCore:
             if mode == _HEIGHT:
                 d = lift - self._lift_entry
                 if d > HEIGHT_STICK_DEADBAND or d < -HEIGHT_STICK_DEADBAND:
-                    self.setpoint += d / 32767.0 * HEIGHT_STICK_RATE * dt
+                    self._sp_offset += d / 32767.0 * HEIGHT_STICK_RATE * dt
+                sp = self._sp_base + self._sp_offset
+                if self._sp_from_est:
+                    sp += self.height_est.captured_height - self._sp_cap0
+                self.setpoint = sp
                 sp_mm, h_mm = self.setpoint * 1000.0, self.height * 1000.0
                 z = C.height_pd(self._z_base, sp_mm, h_mm, self.vz * 1000.0, g.height_p, g.height_d) - self._z_int
                 sat = z > 0.0

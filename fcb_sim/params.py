@@ -36,8 +36,8 @@ rad/s, a rate-loop bandwidth P2/Ixx = 32 rad/s; yaw P = 800 is 7.5e5 ae² per ra
 yaw-rate bandwidth of 13.8 rad/s. Height P = 400 ae² per mm is 4.0 N per m (omega_n = 2.5 rad/s at 0.65 kg) and
 height D = 400 ae² per mm/s is 4.0 N per m/s (damping ratio 1.2), plus the integral of flight.HEIGHT_I. These
 suit the robust height Kalman filter (estimation/height.py), which neither lags nor follows the barometer's
-spikes: over seeds 1-12 (30 s) 0.078 m rms (worst 0.114) against 0.097 (worst 0.155) with the earlier
-P 120 / D 320 (without integral). That slow, over-damped pair was chosen for the report's complementary filter,
+spikes: over seeds 1-12 (30 s) 0.073 m rms (worst 0.101) against 0.095 (worst 0.144) with the earlier
+P 120 / D 320 (both without integral). That slow, over-damped pair was chosen for the report's complementary filter,
 whose estimate lags by a few tenths of a second and carries the spikes (with P 250 / D 200 it limit-cycled with
 1 m swings after spikes); fly the complementary filter on it (0.167 m) rather than on these gains (0.25 m).
 """
