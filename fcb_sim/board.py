@@ -46,7 +46,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from fcb_sim import params as P
-from fcb_sim.flash_log import FLASH_US_PER_BYTE, FlashLog, LogVar
+from fcb_sim.flash_log import FLASH_BYTES, FLASH_US_PER_BYTE, FlashLog, LogVar
 from fcb_sim.flight import Calibration as FlightCalibration
 from fcb_sim.flight import FlightCore
 from fcb_sim.modes import FLIGHT_MODES, ModeChange, ModeConfig, ModeMachine
@@ -217,6 +217,7 @@ class BoardConfig:
     fixed_point: bool = False  # RAW filter in Q16.16 (and the fixed-point read cost)
     board_id: int = 1
     boot_hello: bool = True
+    log_bytes: int = FLASH_BYTES  # the flash log's size (128 KB on the board)
 
 
 LOG_FIELDS = ("t_us", "mode", "phi", "theta", "psi", "sp", "sq", "sr", "sax", "say", "saz",
@@ -247,8 +248,8 @@ class Board:
         mc = ModeConfig(link_timeout_s=cfg.link_timeout_s, panic_level=self.core.panic_ae)
         self.modes = ModeMachine(mc, calibration_names=CALIBRATED_VARS)
         self.modes.listeners.append(self._on_mode_change)
-        self.log = FlashLog(scheme=cfg.log_scheme) if log_vars is None else FlashLog(scheme=cfg.log_scheme,
-                                                                                     variables=log_vars)
+        self.log = FlashLog(size=cfg.log_bytes, scheme=cfg.log_scheme,
+                            **({} if log_vars is None else {"variables": log_vars}))
         self.rng = random.Random(cfg.seed ^ 0x5EED)
         self._cost = {name: c.sampler(self.rng) for name, c in COSTS.items()}
         self.now = 0  # µs since boot
@@ -826,7 +827,7 @@ class Board:
                 return Nak.NOT_IN_SAFE, 0, None
             if self.log.used:
                 return Nak.LOG_BUSY, 0, None
-            self.log = FlashLog(scheme=value, variables=self.log.variables)
+            self.log = FlashLog(size=self.log.flash.size, scheme=value, variables=self.log.variables)
             return Nak.OK, value, None
         return Nak.BAD_ARGUMENT, 0, None
 
@@ -969,7 +970,11 @@ def run_profile(path: str = "raw", scheduler: str = "round-robin", seconds: floa
     world = World(seed)
     for i in range(1, 5):
         world.stick_motor(i, 0)  # on the bench without propellers, as a profiling run is done
-    board = Board(BoardConfig(seed=seed, scheduler=scheduler, sensor_path=path, log_scheme=log_scheme), world=world)
+    # Logging stays on for the whole run (the report logged its profile): a flash large enough to hold it, the
+    # same 15 µs per byte.
+    log_bytes = max(FLASH_BYTES, int(seconds * 400 * 40) + 4096)
+    board = Board(BoardConfig(seed=seed, scheduler=scheduler, sensor_path=path, log_scheme=log_scheme,
+                              log_bytes=log_bytes), world=world)
     board.modes.config.tilt_limit_cdeg = 18000
     pilot = BytePilot(board, seed)
     pilot.command(Op.MODE, Mode.CALIBRATION)
