@@ -124,7 +124,7 @@ class TermApp(App[int]):
         clock: Callable[[], float] = time.monotonic,
         render_hz: float = 15.0,
         joystick_hz: float = 100.0,
-        session_options: dict[str, float] | None = None,
+        session_options: dict[str, float | bool] | None = None,
         log_directory: Path | None = None,
     ) -> None:
         super().__init__()

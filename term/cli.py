@@ -75,7 +75,7 @@ def build_plot_parser() -> argparse.ArgumentParser:
 def build_scan_parser() -> argparse.ArgumentParser:
     p = _Parser(prog="term scan", description="List BLE boards advertising the board's service.")
     p.add_argument("--hci", metavar="TRANSPORT", default=None, help="bumble HCI transport instead of the system's")
-    p.add_argument("--timeout", type=float, default=5.0, help="seconds to scan")
+    p.add_argument("--timeout", type=float, default=3.0, help="seconds to scan (default 3)")
     return p
 
 
@@ -170,9 +170,17 @@ def _scan(args: argparse.Namespace) -> int:
         from term.transports.ble import scan  # type: ignore[import-not-found,unused-ignore]
     except ImportError as exc:
         raise UsageError(f"BLE scanning not available ({exc})") from None
-    found = asyncio.run(scan(timeout=args.timeout, hci=args.hci))
-    for line in found:
-        print(line)
+    from term.transports.base import TransportError
+
+    try:
+        found = asyncio.run(scan(timeout=args.timeout, hci=args.hci))
+    except TransportError as exc:
+        raise UsageError(str(exc)) from None
+    for board in found:
+        print(board)
+    if not found:
+        print("term: no board found (is it powered, and advertising as Quadrupel…?)", file=sys.stderr)
+        return 1
     return 0
 
 
@@ -184,7 +192,10 @@ async def _run_app(transport: Any, cfg: Any, args: argparse.Namespace) -> int:
         await transport.open()  # fail here, in one line, before the screen is taken over
     except TransportError as exc:
         raise UsageError(str(exc)) from None
-    app = TermApp(transport, config=cfg, joystick=not args.no_joystick, log_directory=args.log_dir)
+    # Over BLE the joystick goes out on change (plus a keep-alive), as the protocol asks: the radio is slow.
+    session = {"change_only": True, "keepalive": 0.5} if args.ble else {}
+    app = TermApp(transport, config=cfg, joystick=not args.no_joystick, log_directory=args.log_dir,
+                  session_options=session)
     try:
         result = await app.run_async()
     finally:

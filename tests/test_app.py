@@ -264,7 +264,7 @@ async def test_every_panel_shows_its_data() -> None:
         await pilot.press("f9")
         await pilot.pause(0.05)
         prof = plain(app.screen.query_one(ProfileTable).render_model(app.model, app.clock()))
-        assert "task 2" in prof and "492" in prof and "2477" in prof
+        assert "control" in prof and "492" in prof and "2477" in prof
         await pilot.press("f8")
         await pilot.pause(0.3)
         assert len(app.screen.query("LivePlot")) == 2  # degrees and metres from the default series

@@ -33,10 +33,13 @@ def seeded_flight(seed: int = 1, seconds: float = 5.0) -> tuple[Model, float]:
         (0.5, lambda t: session.send_command(Op.MODE, Mode.CALIBRATION, t)),
         (2.0, lambda t: session.send_command(Op.MODE, Mode.FULL, t)),
         (2.2, lambda t: session.send_command(Op.LOG_START, 0, t)),
-        (2.5, lambda t: session.set_joystick(Joystick(0, 0, 0, 17500, 0))),
-        (4.0, lambda t: session.set_joystick(Joystick(2500, -1500, 0, 16600, 0))),
         (4.2, lambda t: session.send_command(Op.GAIN_P2, 1, t)),
+        (4.6, lambda t: session.send_command(Op.PROFILE, 0, t)),
     ]
+    # From 2.5 s the pilot holds 0.5 m with the lift stick (as tests/test_app_flight.py does), 20 times a second,
+    # with a little right roll and nose down from 4 s.
+    base = 15000.0
+    next_pilot = 2.5
     session.set_joystick(Joystick(0, 0, 0, 0, 0))
     step_us = 1000
     t_us = 0
@@ -45,6 +48,12 @@ def seeded_flight(seed: int = 1, seconds: float = 5.0) -> tuple[Model, float]:
         t = t_us / 1e6
         while script and script[0][0] <= t:
             script.pop(0)[1](t)
+        if t >= next_pilot and model.height is not None:
+            next_pilot += 0.05
+            h, vz = model.height.height / 1000, model.height.vz / 1000
+            base += 40 * (0.5 - h)
+            lift = max(0, min(32767, int(base + 4000 * (0.5 - h) - 3000 * vz)))
+            session.set_joystick(Joystick(2500, -1500, 0, lift, 0) if t >= 4.0 else Joystick(0, 0, 0, lift, 0))
         board.advance(t_us)
         for ev in session.receive(board.uart_transmit(), t) + session.poll(t):
             model.apply(ev, t)
@@ -72,6 +81,13 @@ def test_the_seeded_flight_is_what_the_screen_claims(flight: tuple[Model, float]
     assert model.motion is not None and model.motion.ae1 > 300
     assert any(e.source == "nak" and "not calibrated" in e.text for e in model.events)
     assert model.link is not None and model.link.frames_bad == 0 and model.link.rtt_mean_ms is not None
+
+
+def test_profile_task_names_match_the_board() -> None:
+    from fcb_sim.board import TASKS
+    from term.widgets.profile import TASK_NAMES
+
+    assert tuple(TASK_NAMES[i] for i in range(len(TASK_NAMES))) == TASKS
 
 
 def test_snapshot_main_screen(snap_compare, flight) -> None:  # noqa: ANN001

@@ -67,3 +67,11 @@ def test_help_is_generated_from_the_map() -> None:
     md = help_markdown()
     for b in DEFAULT_KEYMAP:
         assert b.action.description in md
+
+
+def test_the_user_guide_carries_the_generated_key_table() -> None:
+    from pathlib import Path
+
+    text = (Path(__file__).parent.parent / "docs" / "user-guide.md").read_text(encoding="utf-8")
+    table = text.split("<!-- keys:begin -->\n", 1)[1].split("\n<!-- keys:end -->", 1)[0]
+    assert table == help_markdown(), "regenerate the table: python -c 'from term.input.keymap import help_markdown"

@@ -8,6 +8,7 @@ the event loop, which answers heartbeats and forwards keys, never waits for a pl
 from __future__ import annotations
 
 import asyncio
+import time
 
 from rich.console import RenderableType
 from rich.text import Text
@@ -31,10 +32,16 @@ class LivePlot(PlotextPlot):
         self._text: Text = Text("")
         self._busy = False
 
+    def on_resize(self) -> None:
+        self._shown_version = -1  # draw again at the new size
+
     def show(self, model: Model, now: float) -> None:
-        if self._busy or now - self._last < self._interval or model.version == self._shown_version:
+        wall = time.monotonic()  # the rate limit is about CPU: wall time, whatever clock the model runs on
+        if self._busy or not self.size.area or wall - self._last < self._interval:
             return
-        self._last = now
+        if model.version == self._shown_version:
+            return
+        self._last = wall
         self._shown_version = model.version
         points = max(50, 2 * (self.size.width or 100))  # braille: 2 dots per column; more is invisible work
         data = []

@@ -8,8 +8,10 @@ from rich.table import Table
 from term.model import Model
 from term.widgets.base import ModelView
 
-# Names of the board's tasks in Profile.task order (fcb_sim/board.py TASKS); unknown ids show their number.
-TASK_NAMES: dict[int, str] = {}
+# Names of the board's tasks in Profile.task order (fcb_sim/board.py TASKS, which term may not import; a test
+# keeps the two equal); unknown ids show their number.
+TASK_NAMES: dict[int, str] = dict(enumerate(("parse", "sensor", "control", "baro", "telemetry", "heartbeat",
+                                             "logging")))
 
 
 class ProfileTable(ModelView):
