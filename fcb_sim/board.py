@@ -653,7 +653,7 @@ class Board:
             flags |= Flag.BLE_CONNECTED
         if self.wireless.state is WirelessState.STARTED:
             flags |= Flag.WIRELESS_ACTIVE
-        if self.battery < m.config.low_battery:
+        if self.battery < m.config.low_battery or m.battery_low_latched:
             flags |= Flag.LOW_BATTERY
         if m.link_timed_out:
             flags |= Flag.LINK_TIMEOUT

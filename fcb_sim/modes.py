@@ -143,6 +143,8 @@ def _calibrated(m: ModeMachine) -> Nak:
 
 
 def _battery_ok(m: ModeMachine) -> Nak:
+    if m.battery_low_latched:
+        return Nak.BATTERY_LOW  # a pack that sagged under load once recovers at rest: it is still flat
     return Nak.OK if m.battery is None or m.battery >= m.config.low_battery else Nak.BATTERY_LOW
 
 
@@ -277,6 +279,7 @@ class ModeMachine:
     changes: list[ModeChange] = field(default_factory=list)  # every change, for the board's listeners and tests
     link_timed_out: bool = False
     calibration_generation: int = 0  # counts finished calibrations (the board applies each new one)
+    battery_low_latched: bool = False  # set by a low-battery PANIC; only a new battery (a reboot) clears it
 
     def __post_init__(self) -> None:
         self.calibration = Calibration(self.calibration_names)
@@ -442,6 +445,7 @@ class ModeMachine:
             return EventCode.LINK_TIMEOUT
         if self._low_battery_since is not None and now - self._low_battery_since >= LOW_BATTERY_HOLD_S:
             self.emit(EventCode.LOW_BATTERY, self.battery or 0, now)
+            self.battery_low_latched = True
             self.panic(now, "battery")
             return EventCode.LOW_BATTERY
         tilt = tilt_cdeg(phi_cdeg, theta_cdeg)
@@ -501,7 +505,7 @@ enter action of the new one run. The motors are zero in SAFE and CALIBRATION; th
 
 - Leaving SAFE needs the sticks neutral (|roll|, |pitch|, |yaw| <= {neutral}) and the lift at zero (joystick lift
   plus lift trim <= {lift}); YAW, FULL and RAW also need a finished calibration, and no flight mode starts on a
-  low battery (< {battery} V).
+  low battery (< {battery} V, or after a low-battery PANIC: the pack recovers at rest but is still flat).
 - From a flight mode the way out is SAFE (only with the lift at zero, so a key press cannot cut the motors in the
   air) or PANIC. HEIGHT is entered from FULL or RAW (it holds the height it had) and falls back to the one it
   came from.

@@ -454,3 +454,22 @@ def test_the_terminals_link_session_flies_the_board() -> None:
     assert b.mode == Mode.FULL and b.world.truth.h > 0.4
     assert not [e for e in events if isinstance(e, LinkLost | VersionMismatch)]
     assert s.stats.rtt_last_ms is not None and s.stats.rtt_last_ms < 20
+
+
+def test_a_flat_battery_sags_under_load_and_panics() -> None:
+    from fcb_sim.serve import make_board
+
+    b = make_board(seed=3, scenario="low-battery")
+    pc = Pc(b)
+    pc.run(0.3)
+    assert b.battery >= 1050  # at rest it still reads above 10.5 V: take-off is allowed
+    assert pc.command(Op.MODE, Mode.MANUAL).status == Nak.OK
+    pc.js = Joystick(0, 0, 0, HOVER_LIFT, 0)
+    pc.run(2.0)
+    assert [c.reason for c in b.modes.changes if c.new == Mode.PANIC] == ["panic:battery"]
+    assert EventCode.LOW_BATTERY in [e.code for e in pc.of(Event)]
+    pc.js = Joystick(0, 0, 0, 0, 0)
+    pc.run(4.0)
+    assert b.mode == Mode.SAFE and b.battery >= 1050  # at rest again it reads fine ...
+    assert pc.of(Status)[-1].flags & Flag.LOW_BATTERY
+    assert pc.command(Op.MODE, Mode.MANUAL).status == Nak.BATTERY_LOW  # ... but it is still flat

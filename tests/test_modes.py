@@ -206,3 +206,15 @@ def test_mode_doc_is_generated_from_the_table() -> None:
     assert DOC.read_text() == modes_doc(), "docs/modes.md is stale: run python -m fcb_sim.modes"
     for t in TRANSITIONS:
         assert f"{t.source.name} --> {t.target.name}" in mermaid()
+
+
+def test_a_low_battery_panic_latches() -> None:
+    m = machine()
+    m.request(Mode.MANUAL, 0.0)
+    m.motor_level = 400
+    m.supervise(0.0, link_silent_s=0.0, battery=1040)
+    m.supervise(0.3, link_silent_s=0.0, battery=1040)
+    assert m.mode == Mode.PANIC and m.battery_low_latched
+    m.tick(10.0)
+    m.supervise(10.0, link_silent_s=0.0, battery=1090)  # recovered at rest
+    assert m.mode == Mode.SAFE and m.request(Mode.MANUAL, 10.1) == Nak.BATTERY_LOW
