@@ -20,7 +20,9 @@ from fcb_sim.serve import ThreadedServer, make_board
 from term.protocol import (
     PROTOCOL_VERSION,
     Ack,
+    Attitude,
     Command,
+    Compact,
     Decoder,
     Encoder,
     Heartbeat,
@@ -33,6 +35,7 @@ from term.protocol import (
     Nak,
     Op,
     Status,
+    WirelessState,
 )
 
 HOVER_LIFT = C.z_to_lift(-4.0 * 400**2)
@@ -49,14 +52,18 @@ class Client:
         self.got: list[Any] = []
         self.cmd_id = 0
 
+    def poll(self) -> None:
+        """One round: the joystick out, whatever arrived in, heartbeats answered."""
+        self.port.write(self.enc.encode(self.js))
+        for pkt in self.dec.feed(self.port.read(8192)):
+            self.got.append(pkt)
+            if type(pkt) is Heartbeat:
+                self.port.write(self.enc.encode(HeartbeatAck(pkt.counter, pkt.board_ms)))
+
     def pump(self, seconds: float, until: Callable[[], bool] | None = None) -> bool:
         end = time.monotonic() + seconds
         while time.monotonic() < end:
-            self.port.write(self.enc.encode(self.js))
-            for pkt in self.dec.feed(self.port.read(8192)):
-                self.got.append(pkt)
-                if type(pkt) is Heartbeat:
-                    self.port.write(self.enc.encode(HeartbeatAck(pkt.counter, pkt.board_ms)))
+            self.poll()
             if until is not None and until():
                 return True
             time.sleep(0.02)
@@ -132,7 +139,7 @@ def test_floods_garbage_and_half_frames_never_stall_the_loop() -> None:
         half = c.enc.encode(Command(1, Op.MODE, Mode.MANUAL))[:6]
         for _ in range(40):
             c.port.write(bytes(rng.randrange(256) for _ in range(4000)) + half)
-            c.pump(0.0)
+            c.poll()
         before = sum(type(p) is Heartbeat for p in c.got)
         assert c.pump(2.0, lambda: sum(type(p) is Heartbeat for p in c.got) >= before + 5)
         assert c.command(Op.TRIM_ROLL, 1) == Ack(c.cmd_id, Op.TRIM_ROLL, Nak.OK, 256)
@@ -157,3 +164,61 @@ def test_bad_options_are_one_line(args: list[str], text: str) -> None:
     r = subprocess.run([exe, "serve", *args], capture_output=True, text=True, timeout=20)
     assert r.returncode == 2 and text in r.stderr and len(r.stderr.strip().splitlines()) == 1
     assert r.stdout == ""
+
+
+async def test_wireless_handover_across_the_served_boards_radio() -> None:
+    """The BLE seam end to end: `serve --pty --ble-hci`, the cable hands over with key 8, the phone's first
+    answer makes it STARTED, commands then go and come back over BLE, and losing the phone while flying over
+    it means PANIC with the cable back in charge."""
+    import asyncio
+
+    from term.transports.ble import BleTransport
+
+    exe = os.path.join(os.path.dirname(sys.executable), "fcb-sim")
+    proc = await asyncio.create_subprocess_exec(
+        exe, "serve", "--pty", "--link-timeout", "3", "--ble-hci", "tcp-server:127.0.0.1:0",
+        stdout=asyncio.subprocess.PIPE, stderr=asyncio.subprocess.DEVNULL)
+    try:
+        path = (await asyncio.wait_for(proc.stdout.readline(), 20)).decode().split()[1]
+        ble = (await asyncio.wait_for(proc.stdout.readline(), 20)).decode().split()
+        address, spec = ble[3], ble[5]
+        cable = Client(path)
+        phone = BleTransport(address, hci=spec, timeout=10.0)
+        await phone.open()
+        phone_enc, phone_dec = Encoder(), Decoder()
+        heard: list[Any] = []
+
+        async def listen() -> None:
+            while True:
+                heard.extend(phone_dec.feed(await phone.read()))
+
+        listener = asyncio.create_task(listen())
+
+        async def until(cond: Callable[[], bool], seconds: float = 5.0) -> None:
+            async with asyncio.timeout(seconds):
+                while not cond():
+                    cable.poll()
+                    await asyncio.sleep(0.02)
+
+        cable.cmd_id += 1
+        cable.port.write(cable.enc.encode(Command(cable.cmd_id, Op.WIRELESS, 1)))
+        await until(lambda: any(type(p) is Ack and p.op == Op.WIRELESS for p in cable.got))
+        assert [p for p in cable.got if type(p) is Ack][-1].status == Nak.OK
+        await until(lambda: any(type(p) is Heartbeat for p in heard))  # STARTING: heartbeats over BLE too
+        hb = next(p for p in heard if type(p) is Heartbeat)
+        await phone.write(phone_enc.encode(HeartbeatAck(hb.counter, hb.board_ms)))  # -> STARTED
+        # STARTED: the cable falls silent, the phone gets the compact telemetry
+        await until(lambda: any(type(p) is Compact and p.wireless == WirelessState.STARTED for p in heard))
+        await phone.write(phone_enc.encode(Joystick(0, 0, 0, 0, 0)))
+        await phone.write(phone_enc.encode(Command(200, Op.MODE, Mode.MANUAL)))
+        await until(lambda: Ack(200, Op.MODE, Nak.OK, Mode.MANUAL) in heard)
+        await phone.write(phone_enc.encode(Joystick(0, 0, 0, 6000, 0)))
+        await asyncio.sleep(0.3)
+        listener.cancel()
+        await phone.close()  # the phone goes away while the board flies over it
+        n = len(cable.got)
+        await until(lambda: any(type(p) is Attitude and p.mode == Mode.PANIC for p in cable.got[n:]), 10.0)
+        cable.port.close()
+    finally:
+        proc.terminate()
+        await proc.wait()
