@@ -246,7 +246,9 @@ class SimBoard:
 
     def __init__(self, *, seed: int = 1, scenario: str | None = None, link_timeout: float | None = None,
                  extra: Sequence[str] = ()) -> None:
-        self.cmd = [sys.executable, "-m", "fcb_sim.cli", "serve", "--pty", "--seed", str(seed)]
+        # Through fcb_sim.cli.main (not "-m fcb_sim.cli", where its UsageError would be __main__'s, uncaught).
+        self.cmd = [sys.executable, "-c", "import sys; from fcb_sim.cli import main; sys.exit(main())",
+                    "serve", "--pty", "--seed", str(seed)]
         if scenario:
             self.cmd += ["--scenario", scenario]
         if link_timeout is not None:
@@ -279,7 +281,8 @@ class SimBoard:
                 return ""
             self._stderr.seek(0)
             lines = [ln for ln in self._stderr.read().decode(errors="replace").splitlines() if ln.strip()]
-            return lines[-1].strip() if lines else ""
+            last = lines[-1].strip() if lines else ""
+            return last.removeprefix("fcb-sim: ")
         return ""
 
     def stop(self) -> None:

@@ -81,7 +81,7 @@ async def test_log_record_download_as_csv_and_reset(tmp_path: Path) -> None:
             assert not list(tmp_path.iterdir())
             await pilot.press("f2")
             await until(lambda: board.log.recording)
-            await pilot.pause(1.5)
+            await pilot.pause(1.0)
             await pilot.press("f3")
             await until(lambda: not board.log.recording)
             records = board.log.records

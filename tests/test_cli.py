@@ -45,6 +45,12 @@ def test_user_errors_are_one_line_and_non_zero(capsys: pytest.CaptureFixture[str
     assert "Traceback" not in err
 
 
+def test_a_simulated_board_that_does_not_start(capsys: pytest.CaptureFixture[str]) -> None:
+    code, _, err = run(capsys, "--sim", "--scenario", "nope", "--no-joystick")
+    assert code == 2 and err.count("\n") == 1
+    assert err.startswith("term: the simulated board did not start: unknown scenario 'nope'; choose one of: bench")
+
+
 def test_no_port_anywhere(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
     cfg = tmp_path / "term.toml"
     cfg.write_text("[plots]\nwindow = 5\n")
@@ -104,3 +110,29 @@ def test_plot_refuses_a_raw_hex_log(capsys: pytest.CaptureFixture[str], tmp_path
     write_csv(b"\x01\x02" * 30, raw, decode_to_rows)  # not the board's format: the hex fallback
     code, _, err = run(capsys, "plot", str(raw), "-o", str(tmp_path / "r.png"))
     assert code == 2 and "raw log bytes" in err
+
+
+def _gone(pid: int) -> bool:
+    try:
+        with open(f"/proc/{pid}/status") as f:
+            return any(line.startswith("State:") and "Z" in line for line in f)  # a zombie has exited
+    except FileNotFoundError:
+        return True
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="PR_SET_PDEATHSIG is Linux's")
+def test_the_simulated_board_dies_with_term_even_when_term_is_killed() -> None:
+    import time
+
+    code = ("import os, signal\n"
+            "from term.cli import SimBoard\n"
+            "s = SimBoard(); path = s.start()\n"
+            "print(s.proc.pid, path, flush=True)\n"
+            "os.kill(os.getpid(), signal.SIGKILL)\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    pid_text, path = out.stdout.split()
+    assert path.startswith("/dev/pts/") and out.returncode == -9
+    deadline = time.monotonic() + 10
+    while not _gone(int(pid_text)) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert _gone(int(pid_text))
