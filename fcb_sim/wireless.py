@@ -33,6 +33,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from term.protocol import (
+    SPEC_OF,
     TELEMETRY,
     Compact,
     Encoder,
@@ -50,11 +51,28 @@ NUS_TX = "6E400003-B5A3-F393-E0A9-E50E24DCCA9E"
 NAME_PREFIX = "Quadrupel"
 ATT_MTU = 23  # the nRF51's S110 SoftDevice never negotiates more
 NOTIFY_PAYLOAD = ATT_MTU - 3  # 20 bytes of value per notification
-# Compact telemetry over BLE: three per heartbeat period. With the 10 Hz heartbeat, three 16-byte Compact frames
-# and one 12-byte heartbeat make exactly 60 bytes between flushes: three full notifications (one Compact per
-# heartbeat would leave 28 bytes: a 20 and an 8, 70 % fill).
-COMPACT_PER_HEARTBEAT = 3
-BLE_TELEMETRY_HZ = 30.0
+HEARTBEAT_HZ = 10.0
+
+
+def compacts_per_heartbeat(compact: int, heartbeat: int, payload: int = NOTIFY_PAYLOAD, least: int = 3) -> int:
+    """How many Compact frames to send per heartbeat period so that the bytes between two heartbeat flushes
+    fill their notifications best: a heartbeat goes at once and takes the queue with it, so n Compacts and one
+    heartbeat make ``n * compact + heartbeat`` bytes, the last notification of them partly empty. Of the counts
+    from ``least`` (the phone's attitude at 30 Hz or more) to ``least + 3``, the first that reaches 95 % fill,
+    else the best."""
+
+    def fill(n: int) -> float:
+        total = n * compact + heartbeat
+        return total / (-(-total // payload) * payload)
+
+    candidates = range(least, least + 4)
+    return next((n for n in candidates if fill(n) >= 0.95), max(candidates, key=fill))
+
+
+# Derived from the frame sizes, so a change to either packet keeps the notifications full: with the 16-byte
+# Compact and the 14-byte Heartbeat, four Compacts and a heartbeat are 78 bytes, four notifications 97.5 % full.
+COMPACT_PER_HEARTBEAT = compacts_per_heartbeat(SPEC_OF[Compact].frame_size, SPEC_OF[Heartbeat].frame_size)
+BLE_TELEMETRY_HZ = HEARTBEAT_HZ * COMPACT_PER_HEARTBEAT
 
 
 def board_name(board_id: int) -> str:
