@@ -1000,12 +1000,24 @@ def run_profile(path: str = "raw", scheduler: str = "round-robin", seconds: floa
     return out
 
 
-def cmd_profile(args: Any) -> int:
-    """``fcb-sim profile --mode raw|dmp --scheduler round-robin|priority [--seconds S] [--seed N] [--json]``."""
+def usage_error(message: str) -> Exception:
+    """The UsageError that fcb-sim's ``main()`` catches. Under ``python -m fcb_sim.cli`` (how ``term --sim``
+    starts the board) ``main()`` runs in ``__main__``, a second copy of fcb_sim.cli whose UsageError is another
+    class: take that one, so the error is still one line and not a traceback."""
+    import sys
+
     from fcb_sim.cli import UsageError
 
+    main = sys.modules.get("__main__")
+    if getattr(getattr(main, "__spec__", None), "name", None) == "fcb_sim.cli":
+        return getattr(main, "UsageError", UsageError)(message)
+    return UsageError(message)
+
+
+def cmd_profile(args: Any) -> int:
+    """``fcb-sim profile --mode raw|dmp --scheduler round-robin|priority [--seconds S] [--seed N] [--json]``."""
     if not (math.isfinite(args.seconds) and 1.0 <= args.seconds <= 3600.0):
-        raise UsageError(f"--seconds must be between 1 and 3600, got {args.seconds:g}")
+        raise usage_error(f"--seconds must be between 1 and 3600, got {args.seconds:g}")
     out = run_profile(args.mode, args.scheduler, args.seconds, args.seed,
                       log_scheme=getattr(args, "log_scheme", "delta8"))
     print(f"profile: {args.mode.upper()} path at {out['control_hz']} Hz, {args.scheduler}, "

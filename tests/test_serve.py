@@ -157,11 +157,11 @@ def test_floods_garbage_and_half_frames_never_stall_the_loop() -> None:
     ([], "--pty"),
     (["--pty", "--link-timeout", "0"], "--link-timeout"),
 ])
-def test_bad_options_are_one_line(args: list[str], text: str) -> None:
-    # The installed entry point (``python -m fcb_sim.cli`` runs cli.py as __main__, a second copy of the module
-    # whose UsageError is not the one the subcommands raise: reported to the coordinator).
-    exe = os.path.join(os.path.dirname(sys.executable), "fcb-sim")
-    r = subprocess.run([exe, "serve", *args], capture_output=True, text=True, timeout=20)
+@pytest.mark.parametrize("how", ["entry point", "python -m"])
+def test_bad_options_are_one_line(args: list[str], text: str, how: str) -> None:
+    # both ways of starting it: the installed entry point, and `python -m fcb_sim.cli` (as term --sim does)
+    exe = [os.path.join(os.path.dirname(sys.executable), "fcb-sim")] if how == "entry point" else SERVE[:-1]
+    r = subprocess.run([*exe, "serve", *args], capture_output=True, text=True, timeout=20)
     assert r.returncode == 2 and text in r.stderr and len(r.stderr.strip().splitlines()) == 1
     assert r.stdout == ""
 
