@@ -26,9 +26,13 @@ clock advances as the real board's would, and the world's physics advances with 
   in the slack).
 
 Sans-IO: ``uart_receive(data)`` (bytes arrive now), ``advance(until_us)``, ``uart_transmit() -> bytes`` (what
-has left the UART at 115200 baud by now); for BLE ``ble_connected()``, ``ble_disconnected()``,
-``ble_receive(data)`` through a ``fcb_sim.wireless.WirelessLink`` (``board.wireless``), whose notifications a
-radio drains. The same loop runs as fast as possible (tests, ``fcb-sim profile``) or paced to the wall clock
+has left the UART at 115200 baud by now); ``next_event_us()`` tells a real-time driver when to call again.
+BLE goes through ``board.wireless`` (a ``fcb_sim.wireless.WirelessLink``): every packet the board sends is
+offered to it (``send``: heartbeats from STARTING, everything but the UART telemetry once STARTED, when the
+UART falls silent and the parser reads BLE only). Without a radio, ``ble_connected()``, ``ble_disconnected()``
+and ``ble_receive(data)`` drive the link; with ``wireless.BoardRadio`` (which drives the link itself) its
+``on_data`` is ``board.ble_data`` and its ``on_disconnect`` is ``board.ble_lost`` (PANIC if the board was flown
+over BLE). The same loop runs as fast as possible (tests, ``fcb-sim profile``) or paced to the wall clock
 (fcb_sim/serve.py).
 
 ``SET_PARAM`` (``arg = id << 16 | value``): 1 link timeout (ms), 2 scheduler (0 round robin, 1 priority),
