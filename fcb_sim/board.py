@@ -50,12 +50,13 @@ from dataclasses import dataclass
 from typing import Any
 
 from fcb_sim import params as P
+from fcb_sim.cli import UsageError
 from fcb_sim.flash_log import FLASH_BYTES, FLASH_US_PER_BYTE, FlashLog, LogVar
 from fcb_sim.flight import Calibration as FlightCalibration
 from fcb_sim.flight import FlightCore
 from fcb_sim.modes import FLIGHT_MODES, ModeChange, ModeConfig, ModeMachine
 from fcb_sim.physics import World
-from fcb_sim.wireless import BLE_TELEMETRY_HZ, WirelessLink
+from fcb_sim.wireless import WirelessLink
 from term.protocol import (
     PROTOCOL_VERSION,
     Ack,
@@ -268,7 +269,9 @@ class Board:
         self.rx_ignored = 0  # UART bytes while the parser reads BLE
         self.tx_dropped = 0  # telemetry frames skipped for a full transmit buffer
         self.last_frame_us: int | None = None  # the last valid frame from the PC (the link timer)
-        self.rtt_ms: float | None = None
+        self.rtt_us: int | None = None  # the last heartbeat round trip (Heartbeat → HeartbeatAck)
+        self._hb_sent: tuple[int, int] | None = None  # (counter, time) of the last heartbeat sent
+        self._hb_rtt_fresh = False  # whether rtt_us answers the last heartbeat (it is reported in the next)
         self.stats = {name: TaskStats() for name in TASKS}
         self.busy_us = 0
         self._profile_mark = (0, 0)  # (time, busy) when profiling (re)started
@@ -601,7 +604,11 @@ class Board:
 
     def _task_heartbeat(self) -> int:
         self.heartbeats += 1
-        self._send(Heartbeat(self.heartbeats & 0xFFFF, (self.now // 1000) & 0xFFFFFFFF))
+        # The previous heartbeat's round trip rides on this one (0.1 ms units; 0 when its ACK did not come back).
+        rtt = min(0xFFFF, max(1, (self.rtt_us or 0) // 100)) if self._hb_rtt_fresh else 0
+        counter = self.heartbeats & 0xFFFF
+        self._send(Heartbeat(counter, (self.now // 1000) & 0xFFFFFFFF, rtt))
+        self._hb_sent, self._hb_rtt_fresh = (counter, self.now), False
         silent = (self.now - self.last_frame_us) / 1e6 if self.last_frame_us is not None else 0.0
         phi, theta, _ = self.core.attitude_centideg()
         self.modes.supervise(self.now / 1e6, link_silent_s=silent, battery=self.battery,
@@ -616,7 +623,7 @@ class Board:
             return self._download_step()
         fc = self.core
         if self.wireless.state is WirelessState.STARTED:
-            if self._due("compact", 1e6 / BLE_TELEMETRY_HZ):
+            if self.wireless.compact_due():  # as many as fill the notifications between two heartbeats
                 phi, theta, psi = fc.attitude_centideg()
                 self._send(Compact(int(self.modes.mode), int(self.wireless.state), phi, theta, psi,
                                    self.battery))
@@ -736,8 +743,14 @@ class Board:
         elif kind is Command:
             self._command(pkt)
         elif kind is HeartbeatAck:
-            self.rtt_ms = self.now / 1000 - pkt.board_ms
+            if self._hb_sent is not None and pkt.counter == self._hb_sent[0]:
+                self.rtt_us, self._hb_rtt_fresh = self.now - self._hb_sent[1], True
         elif kind is Hello:
+            # A terminal (re)connected: its cmd_ids and sequence numbers start afresh, so a first command equal to
+            # the last one seen is not a retry, and its sequence jump is not loss.
+            self._last_cmd = self._last_ack = None
+            self.decoder.reset_sequence()
+            self.ble_decoder.reset_sequence()
             self._send(Hello(PROTOCOL_VERSION, 1, BOARD_VERSION[0], BOARD_VERSION[1], self.config.board_id))
 
     def _command(self, cmd: Command) -> None:
@@ -1004,24 +1017,10 @@ def run_profile(path: str = "raw", scheduler: str = "round-robin", seconds: floa
     return out
 
 
-def usage_error(message: str) -> Exception:
-    """The UsageError that fcb-sim's ``main()`` catches. Under ``python -m fcb_sim.cli`` (how ``term --sim``
-    starts the board) ``main()`` runs in ``__main__``, a second copy of fcb_sim.cli whose UsageError is another
-    class: take that one, so the error is still one line and not a traceback."""
-    import sys
-
-    from fcb_sim.cli import UsageError
-
-    main = sys.modules.get("__main__")
-    if getattr(getattr(main, "__spec__", None), "name", None) == "fcb_sim.cli":
-        return getattr(main, "UsageError", UsageError)(message)
-    return UsageError(message)
-
-
 def cmd_profile(args: Any) -> int:
     """``fcb-sim profile --mode raw|dmp --scheduler round-robin|priority [--seconds S] [--seed N] [--json]``."""
     if not (math.isfinite(args.seconds) and 1.0 <= args.seconds <= 3600.0):
-        raise usage_error(f"--seconds must be between 1 and 3600, got {args.seconds:g}")
+        raise UsageError(f"--seconds must be between 1 and 3600, got {args.seconds:g}")
     out = run_profile(args.mode, args.scheduler, args.seconds, args.seed,
                       log_scheme=getattr(args, "log_scheme", "delta8"))
     print(f"profile: {args.mode.upper()} path at {out['control_hz']} Hz, {args.scheduler}, "

@@ -81,4 +81,8 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    # Under `python -m fcb_sim.cli` this file runs as __main__, a second copy of the module; the subcommands raise
+    # the UsageError of the package's copy, so run that copy's main() to catch it.
+    from fcb_sim.cli import main as package_main
+
+    sys.exit(package_main())

@@ -29,7 +29,8 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
-from fcb_sim.board import Board, BoardConfig, usage_error
+from fcb_sim.board import Board, BoardConfig
+from fcb_sim.cli import UsageError
 from fcb_sim.physics import World
 
 READ_BYTES = 4096  # per wake-up
@@ -61,9 +62,9 @@ def make_board(seed: int = 1, scenario: str = "bench", link_timeout: float = 0.5
     """A board in its world for a serve scenario; UsageError for an unknown scenario or a bad timeout."""
     sc = SCENARIOS.get(scenario)
     if sc is None:
-        raise usage_error(f"unknown scenario {scenario!r}; choose one of: {', '.join(SCENARIOS)}")
+        raise UsageError(f"unknown scenario {scenario!r}; choose one of: {', '.join(SCENARIOS)}")
     if not (0.05 <= link_timeout <= 60.0):
-        raise usage_error(f"--link-timeout must be between 0.05 and 60 s, got {link_timeout:g}")
+        raise UsageError(f"--link-timeout must be between 0.05 and 60 s, got {link_timeout:g}")
     world = World(seed, **sc.world)
     if sc.wind != (0.0, 0.0, 0.0) or sc.gust_std:
         world.set_wind(*sc.wind, gust_std=sc.gust_std)
@@ -304,11 +305,11 @@ async def _serve_main(args: Any) -> int:
 def cmd_serve(args: Any) -> int:
     """``fcb-sim serve --pty [--seed N] [--scenario NAME] [--link-timeout S] [--ble-hci TRANSPORT]``."""
     if not args.pty:
-        raise usage_error("say where to serve the board: --pty (a fresh pseudo-terminal)")
+        raise UsageError("say where to serve the board: --pty (a fresh pseudo-terminal)")
     if args.scenario not in SCENARIOS:
-        raise usage_error(f"unknown scenario {args.scenario!r}; choose one of: {', '.join(SCENARIOS)}")
+        raise UsageError(f"unknown scenario {args.scenario!r}; choose one of: {', '.join(SCENARIOS)}")
     if not (0.05 <= args.link_timeout <= 60.0):
-        raise usage_error(f"--link-timeout must be between 0.05 and 60 s, got {args.link_timeout:g}")
+        raise UsageError(f"--link-timeout must be between 0.05 and 60 s, got {args.link_timeout:g}")
     try:
         with asyncio.Runner(loop_factory=event_loop) as runner:
             return runner.run(_serve_main(args))

@@ -101,7 +101,7 @@ NAK_TEXT = {
     Nak.STICKS_NOT_NEUTRAL: "sticks not neutral",
     Nak.NOT_CALIBRATED: "not calibrated: run CALIBRATION (3) first",
     Nak.NOT_IN_SAFE: "only allowed in SAFE",
-    Nak.INVALID_TRANSITION: "transition not allowed: go through SAFE",
+    Nak.INVALID_TRANSITION: "not allowed from the current mode",
     Nak.UNKNOWN_COMMAND: "unknown command",
     Nak.BAD_ARGUMENT: "bad argument",
     Nak.LOG_FULL: "log flash is full",

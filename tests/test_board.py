@@ -139,6 +139,30 @@ def test_a_retried_command_is_answered_again_but_done_once() -> None:
     assert b.modes.trims.roll == 512
 
 
+def test_a_new_terminal_is_not_taken_for_a_retry() -> None:
+    b, pc = board_and_pc()
+    pc.send(Command(1, Op.TRIM_ROLL, 1))
+    pc.run(0.02)
+    pc.send(Hello(1, 0, 0, 1, 0))  # the terminal restarted: its cmd_ids begin again at 1
+    pc.send(Command(1, Op.TRIM_ROLL, 1))
+    pc.run(0.02)
+    assert b.modes.trims.roll == 512
+
+
+def test_heartbeats_carry_the_measured_round_trip() -> None:
+    b, pc = board_and_pc()
+    pc.run(0.55)  # answered within the same 10 ms step: a round trip under 10 ms
+    rtts = [hb.rtt for hb in pc.of(Heartbeat)]
+    assert rtts[0] == 0  # nothing measured before the first answer
+    assert all(0 < r <= 100 for r in rtts[1:]) and len(rtts) >= 5
+    before = len(pc.packets)
+    pc.read(answer=False)  # stop answering: the next heartbeat has no fresh measurement
+    b.advance(b.now + 250_000)
+    pc.read(answer=False)
+    late = [hb.rtt for hb in pc.packets[before:] if type(hb) is Heartbeat]
+    assert late and late[-1] == 0
+
+
 def test_gains_and_hello() -> None:
     b, pc = board_and_pc()
     p1 = b.core.gains.p1
