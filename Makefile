@@ -19,8 +19,10 @@ test: $(STAMP)
 	$(BIN)/ruff check term fcb_sim tests bench
 	$(BIN)/python -m pytest
 
+BENCHES := codec realtime flight filters profile log_compression pacing latency ui ble
+
 bench: $(STAMP)
-	$(BIN)/python -m bench.codec
+	for b in $(BENCHES); do $(BIN)/python -m bench.$$b | tail -n 1; done
 
 clean:
 	rm -rf $(VENV) .pytest_cache .hypothesis
