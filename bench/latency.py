@@ -8,7 +8,7 @@ between two levels at random moments. For each change, latency = (the wall time 
 task produced the new motor command, as the child reports it) - (the moment term got the stick value). Both
 sides read CLOCK_MONOTONIC, which the two processes share.
 
-    python -m bench.latency [--events 120] [--joystick-rate 100] [--on-change] [--seed 1]
+    python -m bench.latency [--events 120] [--policy stream|on-change|fixed-rate] [--raw] [--seed 1]
 
 Prints one JSON line: mean_ms, p50_ms, p99_ms (and n, the report's 23.4 ms mean and the 3 ms goal).
 """
@@ -104,15 +104,31 @@ class BoardChild:
             self.proc.kill()
 
 
-async def measure(path: str, board: BoardChild, events: int, joystick_rate: float, seed: int,
-                  on_change: bool = False) -> list[float]:
+term_part: list[float] = []  # per event: from the stick event to the frame handed to the serial port
+
+
+async def measure(path: str, board: BoardChild, events: int, policy: str, seed: int,
+                  raw: bool = False) -> list[float]:
     from term.connection import Connection
     from term.link import CommandAcked, PacketReceived
-    from term.protocol import Event, EventCode, Joystick, Mode, Op
+    from term.protocol import Decoder, Event, EventCode, Joystick, Mode, Op
     from term.transports.serial import SerialTransport
 
+    class TimedSerial(SerialTransport):
+        """Records when term's link hands each joystick frame to the serial port (term's share of the latency)."""
+
+        writes: list[tuple[float, int]] = []  # (time, lift) per Joystick frame written
+
+        async def write(self, data: bytes) -> None:
+            t = time.monotonic()
+            for pkt in Decoder().feed(data):
+                if type(pkt) is Joystick:
+                    self.writes.append((t, pkt.lift))
+            await super().write(data)
+
     got: list[Any] = []
-    conn = Connection(SerialTransport(path), _session(joystick_rate, on_change), on_event=got.append)
+    transport = TimedSerial(path)
+    conn = Connection(transport, _session(policy), on_event=got.append)
     await conn.start()
 
     async def until(cond: Any, timeout: float = 10.0) -> None:
@@ -129,6 +145,9 @@ async def measure(path: str, board: BoardChild, events: int, joystick_rate: floa
     try:
         conn.set_joystick(Joystick(0, 0, 0, 0, 0))
         await until(lambda: conn.stats.frames_ok > 5)
+        if raw:  # the RAW sensor path: control at 400 Hz instead of the DMP's 200 Hz
+            conn.send_command(Op.SET_PARAM, (4 << 16) | 2)
+            await until(lambda: acked(Op.SET_PARAM, (4 << 16) | 2))
         conn.send_command(Op.MODE, Mode.CALIBRATION)
         await until(lambda: board_event(EventCode.CALIBRATION_DONE))
         await asyncio.sleep(0.1)
@@ -137,6 +156,7 @@ async def measure(path: str, board: BoardChild, events: int, joystick_rate: floa
         rng = random.Random(seed)
         latencies: list[float] = []
         level = 0
+        term_part.clear()
         for _ in range(events):
             await asyncio.sleep(rng.uniform(0.06, 0.14))  # a random phase against every timer on both sides
             level ^= 1
@@ -148,6 +168,9 @@ async def measure(path: str, board: BoardChild, events: int, joystick_rate: floa
             except TimeoutError:
                 continue
             latencies.append((board.changes_after(t_event)[0][0] - t_event) * 1e3)
+            sent = [t for t, lift in transport.writes if t >= t_event and lift == LIFTS[level]]
+            if sent:
+                term_part.append((sent[0] - t_event) * 1e3)
         conn.set_joystick(Joystick(0, 0, 0, 0, 0))
         conn.send_command(Op.MODE, Mode.SAFE)
         await asyncio.sleep(0.1)
@@ -156,12 +179,12 @@ async def measure(path: str, board: BoardChild, events: int, joystick_rate: floa
         await conn.stop()
 
 
-def _session(joystick_rate: float, on_change: bool = False) -> Any:
+def _session(policy: str) -> Any:
+    """The LinkSession the app builds for this joystick policy (term.config.JOYSTICK_POLICIES)."""
+    from term.config import JOYSTICK_POLICIES
     from term.link import LinkSession
 
-    if on_change:  # send a change at once (up to joystick_rate), else only a keep-alive every 100 ms
-        return LinkSession(time.monotonic(), joystick_rate=joystick_rate, change_only=True, keepalive=0.1)
-    return LinkSession(time.monotonic(), joystick_rate=joystick_rate)
+    return LinkSession(time.monotonic(), **JOYSTICK_POLICIES[policy])  # type: ignore[arg-type]
 
 
 def pct(xs: list[float], q: float) -> float:
@@ -172,10 +195,9 @@ def pct(xs: list[float], q: float) -> float:
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m bench.latency", description=__doc__.splitlines()[0])
     ap.add_argument("--events", type=int, default=120, help="stick changes to time (default 120)")
-    ap.add_argument("--joystick-rate", type=float, default=100.0, help="term's joystick rate limit, Hz")
-    ap.add_argument("--on-change", action="store_true",
-                    help="send each stick change at once (LinkSession change_only, keep-alive 0.1 s) instead of "
-                    "the steady joystick_rate stream")
+    ap.add_argument("--policy", default="stream", choices=["stream", "on-change", "fixed-rate"],
+                    help="term's joystick send policy ([connection] joystick in term.toml; default stream)")
+    ap.add_argument("--raw", action="store_true", help="board on the RAW sensor path (control at 400 Hz)")
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--board", action="store_true", help=argparse.SUPPRESS)  # the child process
     args = ap.parse_args(argv)
@@ -183,7 +205,7 @@ def main(argv: list[str] | None = None) -> int:
         return board_main(args.seed)
     board = BoardChild(args.seed)
     try:
-        lat = asyncio.run(measure(board.path, board, args.events, args.joystick_rate, args.seed, args.on_change))
+        lat = asyncio.run(measure(board.path, board, args.events, args.policy, args.seed, args.raw))
     finally:
         board.stop()
     if not lat:
@@ -196,9 +218,14 @@ def main(argv: list[str] | None = None) -> int:
         "min_ms": round(min(lat), 2),
         "max_ms": round(max(lat), 2),
         "n": len(lat),
+        # where the time goes: term (event -> frame handed to the serial port: the joystick send policy) and
+        # the rest (the wire at 115200 baud, the pty, the board's parse and control tasks)
+        "term_mean_ms": round(statistics.fmean(term_part), 2) if term_part else None,
+        "wire_and_board_mean_ms": round(statistics.fmean(lat) - statistics.fmean(term_part), 2) if term_part
+        else None,
         "events": args.events,
-        "joystick_rate_hz": args.joystick_rate,
-        "policy": "on change" if args.on_change else "steady stream",
+        "policy": args.policy,
+        "control_hz": 400 if args.raw else 200,
         "baud": 115200,
         "report_mean_ms": 23.4,
         "goal_mean_ms": 3.0,

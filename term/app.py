@@ -169,7 +169,10 @@ class TermApp(App[int]):
 
     async def _connect(self, transport: Transport) -> None:
         now = self.clock()
-        opts = {"link_timeout": self.config.link_timeout, **self.session_options}
+        from term.config import JOYSTICK_POLICIES
+
+        opts = {"link_timeout": self.config.link_timeout, **JOYSTICK_POLICIES[self.config.joystick_policy],
+                **self.session_options}
         session = LinkSession(now, **opts)  # type: ignore[arg-type]
         session.set_joystick(NEUTRAL)  # the board hears from us at the joystick rate even with no stick
         self.connection = Connection(transport, session, self.clock, on_event=self._on_link_event)

@@ -7,6 +7,7 @@ naming the file and the problem. Example (``term --print-config`` prints the def
     port = "/dev/ttyUSB0"      # used when neither --serial nor --sim is given
     baud = 115200
     link_timeout = 1.0         # seconds without a frame before the terminal shows LINK LOST
+    joystick = "stream"        # or "on-change", "fixed-rate" (see JOYSTICK_POLICIES below)
 
     [keys]                     # rebind any action by name (see the help screen, F1)
     mode_panic = ["1", "escape"]
@@ -64,6 +65,19 @@ PLOT_SERIES: dict[str, tuple[str, str]] = {
 }
 
 
+# How the joystick goes out over the cable (LinkSession options; bench/latency.py measures each):
+# - "stream" (default): a change goes out at once (at most one frame per ms), and the latest value is resent
+#   every 10 ms while nothing changes, so the board hears the stick at >= 100 Hz and a lost frame is repaired
+#   within 10 ms; the joystick poller makes at most 100 changes a second, so the cable carries <= 200 frames/s;
+# - "on-change": a change at once, otherwise a keep-alive every 0.1 s (less traffic, slower repair);
+# - "fixed-rate": the latest value in fixed 100 Hz slots (a change waits for the next slot: +5 ms on average).
+JOYSTICK_POLICIES: dict[str, dict[str, float | bool]] = {
+    "stream": {"change_only": True, "joystick_rate": 1000.0, "keepalive": 0.01},
+    "on-change": {"change_only": True, "joystick_rate": 1000.0, "keepalive": 0.1},
+    "fixed-rate": {"joystick_rate": 100.0},
+}
+
+
 class ConfigError(ValueError):
     """The config file cannot be used; the message is one line naming the file."""
 
@@ -73,6 +87,7 @@ class Config:
     port: str | None = None
     baud: int = 115200
     link_timeout: float = 1.0
+    joystick_policy: str = "stream"
     keymap: tuple[KeyBinding, ...] = field(default_factory=build_keymap)
     joystick_mapping: str = ""
     joystick_resolution: int = 64
@@ -144,6 +159,9 @@ def config_from_dict(data: Mapping[str, Any]) -> Config:
     cfg.link_timeout = float(_get(conn, "connection", "link_timeout", (int, float), cfg.link_timeout))
     if cfg.baud <= 0 or cfg.link_timeout <= 0:
         raise ConfigError("[connection] baud and link_timeout must be positive")
+    cfg.joystick_policy = _get(conn, "connection", "joystick", str, cfg.joystick_policy)
+    if cfg.joystick_policy not in JOYSTICK_POLICIES:
+        raise ConfigError(f"[connection] joystick must be one of: {', '.join(JOYSTICK_POLICIES)}")
 
     keys = _table(data, "keys")
     cfg.keymap = build_keymap(dict(keys))

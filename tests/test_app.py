@@ -302,3 +302,16 @@ async def test_download_to_a_chosen_directory(scripted_board, tmp_path) -> None:
         await pilot.press("escape")  # cancels the dialog, not PANIC
         await pilot.pause(0.1)
         assert isinstance(app.screen, FlightScreen) and (Op.MODE, Mode.PANIC) not in sent(board)
+
+
+async def test_joystick_policy_from_the_config_and_ctrl_q_quits() -> None:
+    from term.config import Config
+
+    pair = loopback_pair()
+    await pair.b.open()
+    app = TermApp(pair.a, joystick=False, config=Config(joystick_policy="on-change"))
+    async with app.run_test() as pilot:
+        assert app.connection is not None and app.connection.session.change_only
+        await pilot.press("ctrl+q")
+        await pilot.pause(0.1)
+    assert app.return_code == 0 and app.connection is None  # stopped on the way out

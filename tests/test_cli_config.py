@@ -28,6 +28,7 @@ def test_every_section(tmp_path: Path) -> None:
 port = "/dev/ttyUSB1"
 baud = 57600
 link_timeout = 0.5
+joystick = "on-change"
 [keys]
 mode_panic = ["space", "escape"]
 [joystick]
@@ -43,6 +44,7 @@ window = 20
 directory = "~/logs-here"
 """))
     assert (cfg.port, cfg.baud, cfg.link_timeout) == ("/dev/ttyUSB1", 57600, 0.5)
+    assert cfg.joystick_policy == "on-change"
     assert action_for_key(cfg.keymap, "space").name == "mode_panic"
     assert forced_mapping(cfg) is XBOX and cfg.joystick_resolution == 128
     assert cfg.joystick_mappings[0].name == "thrust" and cfg.joystick_mappings[0].lift.index == 2
@@ -54,6 +56,7 @@ directory = "~/logs-here"
     ("[connection\nport = 1", "not valid TOML"),
     ("[connection]\nbaud = 'fast'", "baud must be int"),
     ("[connection]\nlink_timeout = -1", "must be positive"),
+    ("[connection]\njoystick = 'sometimes'", "joystick must be one of: stream, on-change, fixed-rate"),
     ("[keys]\nlift_up = 'z'", "bound to both"),
     ("[plots]\nseries = ['phi', 'nope']", "unknown series 'nope'"),
     ("[joystick]\nmapping = 'mystery'", "neither a preset"),
