@@ -1,0 +1,325 @@
+"""The board's timing model: what each task costs on the Cortex-M0, when the timers tick, and the interrupts
+that take the CPU from the main loop (report sections 4.2 and 5, Figure 14). ``fcb_sim.board`` runs the loop.
+
+Three parts, each with its source:
+
+- Task durations (``COSTS``). Every run of a task costs a draw from a distribution fitted to the report's
+  Figure 14 row for it (mean, sigma, 99th and 99.9th percentile). Those rows have long right tails (the DMP read
+  1983 ± 145 µs has its p99 at 2590, four sigma up): a normal or a single log-normal cannot hold them. The shape
+  used is a log-normal body (the task's own work: I2C transfers, arithmetic) and, with a small probability, a
+  slower run (the task was pre-empted, by the SoftDevice's radio processing above all, or took a slow path).
+  The figures are wall-clock times on the board, so they already hold the interrupts that hit a task while it
+  ran; ``fit_cost`` finds the parameters (``python -m fcb_sim.timing`` refits and prints the table).
+- Timers (``rtc_ticks``). The report's periodic tasks run from the nRF SDK's timers (report section 2), the
+  app_timer on RTC1: a 32768 Hz clock, so a period is a whole number of 30.5 µs ticks (2.5 ms is 82 ticks,
+  2502.4 µs; 20 ms is 655 ticks, not 8 of those). The tasks' timers therefore slide past each other instead of
+  meeting at the same phase forever, and a slow task meets the sensor tick at every phase in turn.
+- Interrupts that find the loop idle (``Interference``). When the loop waits for a tick, an interrupt in progress
+  at the tick delays the start of the task the tick releases. Those delays are not in any task's duration, so
+  they are added here: the SoftDevice's advertising events (the lab template advertises every 40 ms, forever,
+  with or without a phone), UART receive and transmit interrupts (one per byte at 115200 baud), the motor PWM
+  timer interrupts and the app_timer's own interrupt at every tick. Figures marked [ASSUMED] are estimates, not
+  measurements; the SoftDevice figures are Nordic's.
+"""
+
+from __future__ import annotations
+
+import math
+import random
+from collections import deque
+from dataclasses import dataclass
+from statistics import NormalDist
+from typing import Any
+
+# --- timers ----------------------------------------------------------------------------------------------------
+
+RTC_HZ = 32_768  # app_timer runs on RTC1, prescaler 0 (the lab template's ble.c: APP_TIMER_PRESCALER 0)
+
+
+def rtc_ticks(period_us: float) -> int:
+    """A period in RTC ticks, rounded as the SDK's APP_TIMER_TICKS does (ROUNDED_DIV)."""
+    return max(1, int(period_us * RTC_HZ / 1e6 + 0.5))
+
+
+def rtc_us(ticks: int) -> int:
+    """The first board microsecond at or after an RTC tick count."""
+    return -((-ticks * 1_000_000) // RTC_HZ)
+
+
+def us_to_ticks(t_us: int) -> int:
+    """The last RTC tick at or before a board time."""
+    return (t_us * RTC_HZ) // 1_000_000
+
+
+# --- task durations ----------------------------------------------------------------------------------------------
+
+_N = NormalDist()
+
+
+@dataclass(frozen=True)
+class Cost:
+    """A task duration: with probability 1 - w a log-normal of mean m0 and sigma s0 (the task's own work), else a
+    normal N(m1, s1) (a pre-empted or slow run), in µs, at least 1. ``figure`` is the report's mean, sigma, p99 and
+    p99.9 it was fitted to."""
+
+    w: float
+    m0: float
+    s0: float
+    m1: float
+    s1: float
+    figure: tuple[float, float, float, float]
+
+    def _lognormal(self) -> tuple[float, float]:
+        s2 = math.log(1.0 + (self.s0 / self.m0) ** 2)
+        return math.log(self.m0) - s2 / 2.0, math.sqrt(s2)
+
+    def sampler(self, rng: random.Random) -> Any:
+        mu, sg = self._lognormal()
+        w, m1, s1 = self.w, self.m1, self.s1
+        lognorm, gauss, rand = rng.lognormvariate, rng.gauss, rng.random
+
+        def sample() -> int:
+            if w and rand() < w:
+                return max(1, int(gauss(m1, s1) + 0.5))
+            return max(1, int(lognorm(mu, sg) + 0.5))
+
+        return sample
+
+    def cdf(self, x: float) -> float:
+        tail = self.w * _N.cdf((x - self.m1) / self.s1) if self.s1 > 0 else self.w * (x >= self.m1)
+        if x <= 0:
+            return tail
+        mu, sg = self._lognormal()
+        return (1 - self.w) * _N.cdf((math.log(x) - mu) / sg) + tail
+
+    def quantile(self, p: float) -> float:
+        lo, hi = 0.0, 4.0 * (self.m0 + 10 * self.s0 + self.m1 + 10 * self.s1) + 1.0
+        for _ in range(60):
+            mid = (lo + hi) / 2
+            lo, hi = (mid, hi) if self.cdf(mid) < p else (lo, mid)
+        return (lo + hi) / 2
+
+    def mean(self) -> float:
+        return (1 - self.w) * self.m0 + self.w * self.m1
+
+    def sd(self) -> float:
+        e2 = (1 - self.w) * (self.s0 ** 2 + self.m0 ** 2) + self.w * (self.s1 ** 2 + self.m1 ** 2)
+        return math.sqrt(max(0.0, e2 - self.mean() ** 2))
+
+
+def fit_cost(figure: tuple[float, float, float, float]) -> Cost:
+    """Fit a ``Cost`` to a Figure 14 row: (w, m1, s1) free, the body's (m0, s0) set by the mean and sigma; the
+    tail's spread held at least the body's (a pre-empted run varies as much as a plain one), the body's sigma
+    at most its mean, and probability
+    mass kept around the p99 (a measured p99 lies where samples are: no empty gap below it, which would make the
+    model's sample p99 jump between body and tail). Nelder-Mead from a few starts; slow (seconds), so the table
+    below holds its results."""
+    mean, sd, p99, p999 = figure
+
+    def build(x: list[float]) -> Cost | None:
+        w = 1.0 / (1.0 + math.exp(-x[0]))
+        m1, s1 = x[1], math.exp(x[2])
+        m0 = (mean - w * m1) / (1 - w)
+        v0 = (sd * sd + mean * mean - w * (s1 * s1 + m1 * m1)) / (1 - w) - m0 * m0
+        if m0 <= 0 or v0 <= 0:
+            return None
+        return Cost(w, m0, math.sqrt(v0), m1, s1, figure)
+
+    def loss(x: list[float]) -> float:
+        c = build(x)
+        if c is None:
+            return 1e9
+        q99 = c.quantile(0.99)
+        r1 = (q99 - p99) / sd
+        r2 = (c.quantile(0.999) - p999) / sd
+        spread = ((c.s0 - c.s1) / c.s0) ** 2 if c.s1 < c.s0 else 0.0
+        spread += (c.s0 / c.m0 - 1.0) ** 2 if c.s0 > c.m0 else 0.0  # a log-normal body wider than its mean has
+        h = 0.05 * sd  # a tail of its own (thousands of µs), which no row shows
+        density = (c.cdf(q99 + h) - c.cdf(q99 - h)) / (2 * h)
+        thin = max(0.0, math.log(0.01 / max(1.0, p999 - mean) / max(density, 1e-12)))
+        return r1 * r1 + r2 * r2 + spread + 0.01 * thin * thin
+
+    best: tuple[list[float], float] | None = None
+    for w in (0.01, 0.03, 0.08):
+        for m1 in (p99, (p99 + p999) / 2, p999):
+            x0 = [math.log(w / (1 - w)), m1, math.log(max(1.0, 0.3 * (p999 - mean)))]
+            x, v = _nelder_mead(loss, x0, [0.5, 0.1 * sd, 0.3], 200)
+            if best is None or v < best[1]:
+                best = (x, v)
+    assert best is not None
+    c = build(best[0])
+    assert c is not None
+    return c
+
+
+def _nelder_mead(f: Any, x0: list[float], steps: list[float], iters: int) -> tuple[list[float], float]:
+    n = len(x0)
+    pts = [list(x0)] + [[x0[j] + (steps[j] if j == i else 0.0) for j in range(n)] for i in range(n)]
+    vals = [f(p) for p in pts]
+    for _ in range(iters):
+        order = sorted(range(n + 1), key=vals.__getitem__)
+        pts, vals = [pts[i] for i in order], [vals[i] for i in order]
+        c = [sum(p[j] for p in pts[:-1]) / n for j in range(n)]
+        xr = [2 * c[j] - pts[-1][j] for j in range(n)]
+        fr = f(xr)
+        if fr < vals[0]:
+            xe = [3 * c[j] - 2 * pts[-1][j] for j in range(n)]
+            fe = f(xe)
+            pts[-1], vals[-1] = (xe, fe) if fe < fr else (xr, fr)
+        elif fr < vals[-2]:
+            pts[-1], vals[-1] = xr, fr
+        else:
+            xc = [(c[j] + pts[-1][j]) / 2 for j in range(n)]
+            fc = f(xc)
+            if fc < vals[-1]:
+                pts[-1], vals[-1] = xc, fc
+            else:
+                pts = [pts[0]] + [[(pts[0][j] + p[j]) / 2 for j in range(n)] for p in pts[1:]]
+                vals = [vals[0]] + [f(p) for p in pts[1:]]
+    i = min(range(n + 1), key=vals.__getitem__)
+    return pts[i], vals[i]
+
+
+# Figure 14, every row: duration mean, sigma, p99, p99.9 and period mean, sigma (µs), N. Periods marked None are
+# printed without a usable unit in the report (Heartbeat Full: "327ms ± 982").
+FIGURE14: dict[str, tuple[float, float, float, float, float, float | None, int]] = {
+    "parse_safe": (20, 26, 94.7, 332, 1487, 1093, 22832),
+    "parse": (26, 44, 250, 345, 1546, 1125, 22525),
+    "telemetry_safe": (570, 62, 736, 752, 1_910_000, 301_000, 15),
+    "telemetry": (538, 33, 590, 590, 1_918_000, 207_000, 9),
+    "control_dmp_safe": (10, 15, 58.7, 320, 4951, 353, 7027),
+    "control_dmp": (63, 40, 175, 383, 4937, 386, 7001),
+    "control_raw_safe": (11, 18, 60, 320, 2478, 246, 9250),
+    "control_raw": (113, 41, 220, 492, 2477, 238, 9380),
+    "sensor_dmp_safe": (1979, 145, 2560, 2820, 4949, 245, 6788),
+    "sensor_dmp": (1983, 145, 2590, 2820, 4939, 280, 7090),
+    "sensor_raw_safe": (1000, 90, 1410, 1590, 2482, 251, 9661),
+    "sensor_raw": (1001, 87, 1390, 1570, 2478, 193, 9970),
+    "sensor_raw_fixed_safe": (1001, 99, 1410, 1580, 2478, 143, 18713),
+    "sensor_raw_fixed": (998, 96, 1410, 1590, 2477, 112, 18576),
+    "heartbeat_safe": (21, 7, 48.4, 51.7, 324_000, 242_000, 109),
+    "heartbeat": (23, 10, 51.5, 75.4, 327_000, None, 99),
+    "baro_safe": (189, 133, 444, 500, 49670, 655, 659),
+    "baro": (192, 132, 437, 646, 49532, 2495, 707),
+    "logging_safe": (331, 64, 671, 710, 4967, 270, 492),
+    "logging": (319, 49, 509, 747, 4965, 259, 497),
+}
+
+# The fitted durations (FULL rows unless named "safe": the control step with the motors off). ``fit_cost`` of
+# the row, except telemetry: nine samples, so its p99 and p99.9 are only the largest of nine; a plain log-normal.
+COSTS: dict[str, Cost] = {
+    "parse": Cost(0.0535, 17.4, 17.3, 178.6, 79.5, (26, 44, 250, 345)),
+    "telemetry": Cost(0.0, 538.0, 33.0, 538.0, 33.0, (538, 33, 590, 590)),
+    "control_dmp": Cost(0.0028, 62.6, 31.8, 209.4, 434.3, (63, 40, 175, 383)),
+    "control_raw": Cost(0.0062, 112.4, 33.4, 205.3, 288.6, (113, 41, 220, 492)),
+    "control_dmp_safe": Cost(0.0010, 9.7, 10.7, 338.6, 10.1, (10, 15, 58.7, 320)),
+    "control_raw_safe": Cost(0.0019, 10.4, 11.4, 326.3, 70.3, (11, 18, 60, 320)),
+    "sensor_dmp": Cost(0.0191, 1971.0, 116.5, 2598.1, 136.8, (1983, 145, 2590, 2820)),
+    "sensor_raw": Cost(0.0197, 993.1, 65.9, 1391.9, 108.7, (1001, 87, 1390, 1570)),
+    "sensor_raw_fixed": Cost(0.0197, 989.7, 75.2, 1412.0, 108.7, (998, 96, 1410, 1590)),
+    "heartbeat": Cost(0.0015, 23.0, 8.9, 49.9, 115.4, (23, 10, 51.5, 75.4)),
+    "baro": Cost(0.5283, 78.9, 83.0, 293.0, 72.1, (192, 132, 437, 646)),
+    "logging": Cost(0.0201, 315.1, 35.7, 508.3, 145.0, (319, 49, 509, 747)),
+}
+
+# --- interrupts that find the loop idle ------------------------------------------------------------------------
+
+UART_US_PER_BYTE = 10_000_000 / 115_200  # 8N1
+UART_ISR_US = 8  # RXDRDY/TXDRDY handler and queue, through the SoftDevice's interrupt forwarding [ASSUMED]
+APP_TIMER_ISR_US = 20  # RTC1 compare, the app_timer list walk, one handler that sets a flag [ASSUMED]
+APP_TIMER_EXTRA_US = 6  # each further timer expiring on the same RTC tick [ASSUMED]
+PWM_ISR_US = 4  # motor PWM: TIMER2 CC0 every 2.5 ms sets four pins, TIMER1 clears each (lab template) [ASSUMED]
+PWM_PERIOD_US = 2500
+PWM_MIN_US = 1000  # pulse 1000 + ae µs (ae 0..1000)
+ADV_INTERVAL_US = 40_000  # lab template ble.c: APP_ADV_INTERVAL 64 x 0.625 ms, APP_ADV_TIMEOUT 0 (for ever)
+ADV_DELAY_MAX_US = 10_000  # Bluetooth Core spec Vol 6 Part B 4.4.2.2: advDelay, pseudo-random 0-10 ms per event
+# One advertising event, typical CPU use at interrupt priority 0 (and 2) on the nRF51: radio prepare 76 µs, radio
+# start 36, processing after each of the first two packets 50, post-processing 200, then 270 at priority 2 (S130
+# SoftDevice Specification v2.0, "BLE advertiser processor usage patterns", Table 1: 682 µs per event; the S110
+# used on the board is its peripheral-only sibling). The offsets between them are [ASSUMED]: a 31-byte ADV_IND
+# is about 376 µs on air, plus the receive window and the hop, about 560 µs a channel.
+SD_ADV_CHUNKS: tuple[tuple[int, int], ...] = ((0, 76), (400, 36), (960, 50), (1520, 50), (2080, 200), (2280, 270))
+
+
+class Interference:
+    """Interrupts as busy intervals on the board's clock. ``free_at(t, ...)`` is when the main loop gets the CPU
+    back if it wants it at ``t``: after every interrupt in progress then, and any that chain on directly."""
+
+    def __init__(self, rng: random.Random, *, softdevice: bool = True) -> None:
+        self.rng = rng
+        self.softdevice = softdevice
+        self._adv_next = rng.randrange(ADV_INTERVAL_US)
+        self._sd: deque[tuple[int, int]] = deque()  # (start, end) of SoftDevice ISRs not yet over
+        self._rx: deque[tuple[float, int]] = deque()  # (first ISR, bytes) of receive bursts
+        self.delays = 0  # loop starts an interrupt delayed, and by how much in all (µs)
+        self.delay_us = 0
+
+    def rx(self, now: int, nbytes: int) -> None:
+        """Bytes that reach the UART from now on, one receive interrupt each."""
+        if nbytes > 0:
+            start = max(float(now), self._rx[-1][0] + self._rx[-1][1] * UART_US_PER_BYTE) if self._rx else now
+            self._rx.append((start, nbytes))
+
+    def _sd_until(self, t: int) -> None:
+        while self._adv_next <= t + SD_ADV_CHUNKS[-1][0]:
+            a = self._adv_next
+            self._sd.extend((a + off, a + off + dur) for off, dur in SD_ADV_CHUNKS)
+            self._adv_next = a + ADV_INTERVAL_US + self.rng.randrange(ADV_DELAY_MAX_US + 1)
+
+    def free_at(self, t: int, timer_isr_end: int = 0, tx_clock: float = 0.0, tx_bytes: int = 0,
+                ae: tuple[int, ...] = ()) -> int:
+        t0 = t
+        if self.softdevice:
+            self._sd_until(t)
+        while self._sd and self._sd[0][1] <= t:
+            self._sd.popleft()
+        while self._rx and self._rx[0][0] + self._rx[0][1] * UART_US_PER_BYTE <= t:
+            self._rx.popleft()
+        while True:
+            end = t
+            if timer_isr_end > end:
+                end = timer_isr_end
+            for a, b in self._sd:
+                if a > end:
+                    break
+                if b > end:
+                    end = b
+            for start, n in self._rx:
+                end = max(end, _byte_isr_end(end, start, n))
+            if tx_bytes:
+                end = max(end, _byte_isr_end(end, tx_clock + UART_US_PER_BYTE, tx_bytes))
+            phase = end % PWM_PERIOD_US
+            if phase < PWM_ISR_US:
+                end += PWM_ISR_US - phase
+            for a in ae:
+                off = PWM_MIN_US + max(0, min(1000, a))
+                if off <= phase < off + PWM_ISR_US:
+                    end += off + PWM_ISR_US - phase
+                    break
+            if end <= t:
+                break
+            t = math.ceil(end)
+        if t > t0:
+            self.delays += 1
+            self.delay_us += t - t0
+        return t
+
+
+def _byte_isr_end(t: float, first: float, n: int) -> float:
+    """The end of the per-byte interrupt in progress at ``t`` (interrupts every byte time from ``first``), or t."""
+    if t < first:
+        return t
+    k = int((t - first) // UART_US_PER_BYTE)
+    if k >= n:
+        return t
+    at = first + k * UART_US_PER_BYTE
+    return at + UART_ISR_US if t < at + UART_ISR_US else t
+
+
+if __name__ == "__main__":
+    for name, row in FIGURE14.items():
+        if name.startswith("telemetry"):
+            continue
+        c = fit_cost(row[:4])
+        print(f'    "{name}": Cost({c.w:.4f}, {c.m0:.1f}, {c.s0:.1f}, {c.m1:.1f}, {c.s1:.1f}, {row[:4]}),'
+              f"  # p99 {c.quantile(0.99):.0f} p99.9 {c.quantile(0.999):.0f}")
