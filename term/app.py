@@ -11,6 +11,7 @@
 from __future__ import annotations
 
 import asyncio
+import sys
 import time
 from collections.abc import Callable, Iterable
 from datetime import datetime
@@ -122,7 +123,7 @@ class TermApp(App[int]):
         config: Config | None = None,
         joystick: bool = True,
         clock: Callable[[], float] = time.monotonic,
-        render_hz: float = 15.0,
+        render_hz: float = 12.0,
         joystick_hz: float = 100.0,
         session_options: dict[str, float | bool] | None = None,
         log_directory: Path | None = None,
@@ -158,6 +159,9 @@ class TermApp(App[int]):
         return FlightScreen(id="flight")
 
     async def on_mount(self) -> None:
+        # Plots are drawn on a worker thread and serial bytes arrive on one: hand the GIL back to the event loop
+        # within 1 ms (Python's default is 5 ms), so heartbeat answers and key presses never wait behind them.
+        sys.setswitchinterval(0.001)
         self.install_screen(PlotsScreen(self.config.plot_series, self.config.plot_window), "plots")
         self.install_screen(ProfileScreen(), "profile")
         self.set_interval(1.0 / self.render_hz, self.render_now)
