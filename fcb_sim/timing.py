@@ -245,10 +245,10 @@ class Interference:
     """Interrupts as busy intervals on the board's clock. ``free_at(t, ...)`` is when the main loop gets the CPU
     back if it wants it at ``t``: after every interrupt in progress then, and any that chain on directly."""
 
-    def __init__(self, rng: random.Random, *, softdevice: bool = True) -> None:
+    def __init__(self, rng: random.Random, *, softdevice: bool = True, first_adv_us: int | None = None) -> None:
         self.rng = rng
         self.softdevice = softdevice
-        self._adv_next = rng.randrange(ADV_INTERVAL_US)
+        self._adv_next = rng.randrange(ADV_INTERVAL_US) if first_adv_us is None else first_adv_us
         self._sd: deque[tuple[int, int]] = deque()  # (start, end) of SoftDevice ISRs not yet over
         self._rx: deque[tuple[float, int]] = deque()  # (first ISR, bytes) of receive bursts
         self.delays = 0  # loop starts an interrupt delayed, and by how much in all (µs)
@@ -303,6 +303,12 @@ class Interference:
             self.delays += 1
             self.delay_us += t - t0
         return t
+
+
+def residual_jitter_us(model_period_sd: float, report_period_sd: float) -> float:
+    """The mean of an exponential start delay that brings a period's sigma from the model's to the report's: each
+    start gains a variance tau², a period (the difference of two starts) 2 tau²."""
+    return math.sqrt(max(0.0, (report_period_sd ** 2 - model_period_sd ** 2) / 2.0))
 
 
 def _byte_isr_end(t: float, first: float, n: int) -> float:

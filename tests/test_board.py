@@ -11,9 +11,18 @@ from hypothesis import strategies as st
 from hypothesis.stateful import RuleBasedStateMachine, invariant, rule
 
 from fcb_sim import control as C
-from fcb_sim.board import TASKS, Board, BoardConfig, run_profile
+from fcb_sim.board import SENSOR_PERIOD_US, TASKS, Board, BoardConfig, run_profile
 from fcb_sim.flash_log import LogAssembler, decode_log, write_csv
 from fcb_sim.modes import FLIGHT_MODES, LIFT_ZERO, STICK_NEUTRAL, ModeChange
+from fcb_sim.timing import (
+    COSTS,
+    SD_ADV_CHUNKS,
+    UART_ISR_US,
+    Interference,
+    residual_jitter_us,
+    rtc_ticks,
+    rtc_us,
+)
 from term.protocol import (
     Ack,
     Attitude,
@@ -320,15 +329,76 @@ def test_profile_packets_and_figures() -> None:
     assert 1800 < sensor.mean_us < 2200 and 4900 < sensor.period_us < 5100  # DMP in SAFE, report: 1983/4949
 
 
-def test_profile_round_robin_misses_and_priority_fixes_them() -> None:
+def test_the_cost_table_holds_figure_14() -> None:
+    # Every fitted duration has the report's mean and sigma, and its p99 and p99.9 within 0.15 sigma or 10 %
+    # (telemetry: nine samples, a plain log-normal on mean and sigma only). The right tails are real: a normal
+    # with that sigma falls short of them.
+    for name, c in COSTS.items():
+        mean, sd, p99, p999 = c.figure
+        assert abs(c.mean() - mean) <= 0.02 * mean and abs(c.sd() - sd) <= 0.05 * sd, name
+        if name != "telemetry":
+            for q, want in ((0.99, p99), (0.999, p999)):
+                assert abs(c.quantile(q) - want) <= max(0.15 * sd, 0.1 * want), (name, q)
+    sensor = COSTS["sensor_dmp"]
+    assert sensor.quantile(0.99) > sensor.mean() + 4 * sensor.sd()  # a normal would put it at + 2.3 sigma
+
+
+def test_timers_tick_on_the_rtc_and_slide_past_each_other() -> None:
+    # Whole 30.5 µs ticks: 2.5 ms is 2502.4 µs, and the 50 Hz telemetry timer (655 ticks) is not a multiple of the
+    # sensor's (82 or 164): its tick meets the sensor period at every phase in turn, not at one phase for ever.
+    assert rtc_ticks(2500) == 82 and abs(rtc_us(82 * 1000) / 1000 - 2502.4) < 0.1
+    b, pc = board_and_pc(seed=3)
+    starts: dict[str, list[int]] = {"sensor": [], "telemetry": []}
+    b.on_task = lambda name, start, dur: starts[name].append(start) if name in starts else None
+    pc.run(4.0)
+    sensor = starts["sensor"]
+    period = SENSOR_PERIOD_US["dmp"]
+    phases = set()
+    for t in starts["telemetry"]:
+        before = [s for s in sensor if s <= t]
+        if before:
+            phases.add(min(9, (t - before[-1]) * 10 // period))
+    assert len(phases) >= 6  # locked timers would give one or two (the DMP read fills the first 2 ms)
+
+
+def test_an_interrupt_in_progress_holds_back_an_idle_start() -> None:
+    irq = Interference(random.Random(1), first_adv_us=10_000)
+    # the SoftDevice's post-processing (200 µs) and its priority-2 work (270) back to back: 470 µs of CPU
+    post = 10_000 + SD_ADV_CHUNKS[4][0]
+    assert irq.free_at(post + 50) == post + 470
+    assert irq.free_at(post + 2000) == post + 2000  # nothing then
+    irq.rx(20_000, 3)  # three bytes arriving, an interrupt each
+    assert irq.free_at(20_000 + 90) == 20_000 + 87 + UART_ISR_US
+    assert irq.free_at(20_000 + 87 + UART_ISR_US + 1) == 20_000 + 87 + UART_ISR_US + 1
+
+
+def test_profile_round_robin_misses_priority_fixes_them_dmp_far_fewer() -> None:
+    # The report (4.2): RAW at 400 Hz under round robin, control periods >= WCET99 (2987 µs) in about 2.1 %; the
+    # priority scheduler should bring that near zero; DMP has far fewer.
     rr = run_profile("raw", "round-robin", 8.0, seed=2)
     pr = run_profile("raw", "priority", 8.0, seed=2)
+    dmp = run_profile("dmp", "round-robin", 8.0, seed=2)
     assert rr["control_periods"] > 3000
-    assert rr["deadline_miss_rate"] > 0.002 and pr["deadline_miss_rate"] < 0.001
+    # The modelled mechanisms alone (task collisions, duration tails, interrupts) give about 0.7-1.1 %: below
+    # the report, not above it, and far from zero.
+    assert 0.004 < rr["deadline_miss_rate"] < 0.021
+    assert pr["deadline_miss_rate"] < 0.001 and pr["deadline_miss_rate_999"] == 0
+    assert dmp["deadline_miss_rate"] < rr["deadline_miss_rate"] / 3
     for out in (rr, pr):
         t = out["tasks"]
         assert abs(t["sensor"]["mean_us"] - 1001) < 50 and abs(t["control"]["mean_us"] - 113) < 15
-        assert abs(t["control"]["period_us"] - 2500) < 10 and abs(t["baro"]["period_us"] - 50000) < 500
+        assert abs(t["control"]["period_us"] - 2502.4) < 5 and abs(t["baro"]["period_us"] - 50000) < 500
+    assert rr["report"]["control"] == {"row": "control_raw", "n": 9380, "mean_us": 113, "sd_us": 41, "p99_us": 220,
+                                       "p999_us": 492, "period_us": 2477, "period_sd_us": 238}
+    # The report's RAW sensor read jitters more (period sigma 193 µs) than the model's. With that missing start
+    # jitter put back (calibrated on the sensor period alone), the control period and the miss rate come out near
+    # the report's: sigma 238 µs within 15 %, 2.1 % within half.
+    tau = residual_jitter_us(rr["tasks"]["sensor"]["period_sd_us"], 193)
+    assert 90 < tau < 150
+    res = run_profile("raw", "round-robin", 8.0, seed=2, residual_jitter_us=tau)
+    assert abs(res["tasks"]["sensor"]["period_sd_us"] - 193) < 0.15 * 193
+    assert abs(res["tasks"]["control"]["period_sd_us"] - 238) < 0.15 * 238
+    assert 0.0105 < res["deadline_miss_rate"] < 0.0315
 
 
 # --- properties over random sequences ----------------------------------------------------------------------
