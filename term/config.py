@@ -6,7 +6,7 @@ naming the file and the problem. Example (``term --print-config`` prints the def
     [connection]
     port = "/dev/ttyUSB0"      # used when neither --serial nor --sim is given
     baud = 115200
-    link_timeout = 1.0         # seconds without a frame before the terminal shows LINK LOST
+    link_timeout = 0.5         # seconds without a frame before the terminal shows LINK LOST
     joystick = "stream"        # or "on-change", "fixed-rate" (see JOYSTICK_POLICIES below)
 
     [keys]                     # rebind any action by name (see the help screen, F1)
@@ -86,7 +86,7 @@ class ConfigError(ValueError):
 class Config:
     port: str | None = None
     baud: int = 115200
-    link_timeout: float = 1.0
+    link_timeout: float = 0.5  # as the board's: LINK LOST shows no later than the board's own PANIC
     joystick_policy: str = "stream"
     keymap: tuple[KeyBinding, ...] = field(default_factory=build_keymap)
     joystick_mapping: str = ""

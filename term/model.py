@@ -163,6 +163,9 @@ class Model:
     events: deque[LogEntry] = field(default_factory=lambda: deque(maxlen=500))
     history: dict[str, deque[tuple[float, float]]] = field(default_factory=dict)
     pending: int = 0  # commands sent and not yet answered
+    _bad_noted: int = 0
+    _link_noted: float = -1e9
+    _loss_noted: float = -1e9
 
     # --- updates ------------------------------------------------------------------------------------------
 
@@ -250,9 +253,21 @@ class Model:
 
     def set_link_stats(self, stats: LinkStats, now: float) -> None:
         """Called every render tick: only a change of state counts as a model change (the link panel redraws on
-        its own, its figures age with time)."""
+        its own, its figures age with time). Damaged frames and lost frames go to the events list too, summed
+        over at most a second, so no link error goes unseen and none floods the list."""
         prev = self.link
         self.link = stats
+        if prev is not None and now - self._link_noted >= 1.0:
+            bad = stats.frames_bad - self._bad_noted
+            if bad > 0:
+                self.note(now, "warning", "link", f"{bad} damaged frame{'s' if bad > 1 else ''} dropped (CRC or "
+                          "framing): noise on the line or a wrong baud rate?")
+                self._bad_noted = stats.frames_bad
+                self._link_noted = now
+            if stats.loss_pct is not None and stats.loss_pct >= 5.0 and now - self._loss_noted >= 5.0:
+                self.note(now, "warning", "link", f"{stats.loss_pct:.0f} % of the board's frames lost "
+                          "(last 2 s)")
+                self._loss_noted = now
         if stats.lost != self.link_lost:
             self.link_lost = stats.lost
             self.version += 1

@@ -315,3 +315,12 @@ async def test_joystick_policy_from_the_config_and_ctrl_q_quits() -> None:
         await pilot.press("ctrl+q")
         await pilot.pause(0.1)
     assert app.return_code == 0 and app.connection is None  # stopped on the way out
+
+
+async def test_damaged_frames_are_reported_in_the_events_list(scripted_board) -> None:  # noqa: ANN001
+    async with flying(scripted_board) as (app, pilot, board, peer):
+        await until(pilot, lambda: app.model.link is not None and app.model.link.frames_ok > 0)
+        await peer.t.write(b"\x07\x11\x22\x33\x44\x55\x66\x00" * 3)  # three frames with bad CRCs
+        await until(pilot, lambda: any("damaged frames dropped" in e.text for e in app.model.events))
+        e = [e for e in app.model.events if "damaged" in e.text][0]
+        assert e.text.startswith("3 damaged frames") and e.severity == "warning"

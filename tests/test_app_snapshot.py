@@ -100,3 +100,18 @@ def test_snapshot_help(snap_compare, flight) -> None:  # noqa: ANN001
 
 def test_snapshot_profile(snap_compare, flight) -> None:  # noqa: ANN001
     assert snap_compare(app_for(flight), press=["f9"], terminal_size=SIZE)
+
+
+def test_snapshot_panic_is_unmistakable(snap_compare, flight) -> None:  # noqa: ANN001
+    from term.protocol import Attitude
+
+    model, end = flight
+    app = app_for(flight)
+
+    def panic(pilot) -> None:  # noqa: ANN001
+        a = model.attitude
+        app.model.apply_packet(Attitude(Mode.PANIC, a.phi, a.theta, a.psi, a.sp, a.sq, a.sr), end)
+        app.render_now()
+
+    assert snap_compare(app, terminal_size=SIZE, run_before=panic)
+    model.apply_packet(Attitude(Mode.FULL, *model.attitude[1:]), end)  # the shared flight back as it was
