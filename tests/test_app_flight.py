@@ -27,12 +27,14 @@ async def test_take_off_hover_in_full_and_land() -> None:
                         await pilot.pause(0.02)
 
             await until(lambda: m.mode == Mode.SAFE and m.height is not None)
-            await pilot.press("5")  # not calibrated yet: the board refuses, and the screen says why
+            # Keys through simulate_key (a real key event): pilot.press would wait for the app to go idle, which a
+            # board streaming telemetry delays by seconds.
+            app.simulate_key("5")  # not calibrated yet: the board refuses, and the screen says why
             await until(lambda: any(e.source == "nak" and "not calibrated" in e.text for e in m.events))
-            await pilot.press("3")
+            app.simulate_key("3")
             await until(lambda: any("calibration done" in e.text for e in m.events))
             await until(lambda: m.mode == Mode.SAFE)
-            await pilot.press("5")
+            app.simulate_key("5")
             await until(lambda: m.mode == Mode.FULL)
 
             base, target = 15000.0, 0.5
@@ -57,7 +59,7 @@ async def test_take_off_hover_in_full_and_land() -> None:
             assert worst_tilt < 5.0
             app.set_stick(Joystick(0, 0, 0, 0, 0))
             await until(lambda: m.motion.ae1 <= 200 and m.height.height < 150)  # on the floor, at idle
-            await pilot.press("0")
+            app.simulate_key("0")
             await until(lambda: m.mode == Mode.SAFE and m.motion.ae1 == 0)
             assert not [e for e in m.events if e.source == "link" and e.severity == "error"]
             assert m.link is not None and m.link.frames_bad <= 1  # at most the half frame met at connect
