@@ -1,5 +1,6 @@
 """`term` on the command line: help, one clear line and a non-zero exit for every user error, `term plot`."""
 
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -136,3 +137,35 @@ def test_the_simulated_board_dies_with_term_even_when_term_is_killed() -> None:
     while not _gone(int(pid_text)) and time.monotonic() < deadline:
         time.sleep(0.05)
     assert _gone(int(pid_text))
+
+
+async def test_a_board_with_another_protocol_version_is_one_line_and_exit_3(pty_pair, scripted_board) -> None:  # noqa: ANN001
+    """The whole path: `term --serial PTY` in a real terminal (`script` gives it one) against a board that
+    answers Hello with protocol v99."""
+    import asyncio
+    import shutil
+    import time
+
+    from tests.conftest import PtyBoard
+
+    if shutil.which("script") is None:
+        pytest.skip("needs script(1) to give term a terminal")
+    master, path = pty_pair
+    board = PtyBoard(master, scripted_board(protocol=99, start=time.monotonic()), time.monotonic)
+    await board.start()
+    try:
+        proc = await asyncio.create_subprocess_exec(
+            "script", "-qec", f"{sys.executable} -m term.cli --serial {path} --no-joystick", "/dev/null",
+            stdout=asyncio.subprocess.PIPE, stderr=asyncio.subprocess.PIPE, stdin=asyncio.subprocess.DEVNULL,
+            env={**os.environ, "TERM": "xterm-256color", "COLUMNS": "120", "LINES": "40"},
+        )
+        out, _ = await asyncio.wait_for(proc.communicate(), 30)
+    finally:
+        await board.stop()
+    text = out.decode(errors="replace")
+    assert proc.returncode == 3, text[-500:]
+    last = [ln for ln in text.replace("\r", "\n").splitlines() if ln.strip()][-1]
+    # after the screen was given back (the escape codes before it), one line:
+    assert last.strip().endswith("\x1b[?1006lterm: board speaks protocol v99, this terminal v1: update the board's "
+                                 "firmware or the terminal") or last.strip().startswith("term: board speaks")
+    assert text.count("board speaks protocol") == 1 and "Traceback" not in text
