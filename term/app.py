@@ -11,6 +11,7 @@
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import sys
 import time
 from collections.abc import Callable, Iterable
@@ -50,6 +51,7 @@ from term.widgets.rates import RateGauges
 
 DOWNLOAD_STALL_S = 1.0  # no chunk for this long: resume from the first missing one
 DOWNLOAD_RESUMES = 20
+RECONNECT_S = 1.0  # a dead transport is opened again this often
 DOWNLOAD_GAP_S = 0.2  # the board finished but chunks are missing: ask again from the first gap this soon
 
 
@@ -145,6 +147,7 @@ class TermApp(App[int]):
         self.exit_message: str | None = None
         self._resumes = 0
         self._resumed_at = -1e9
+        self._reconnect_error = ""
         self._fire_down = False
         for b in self.keymap:
             self._bindings.bind(
@@ -171,22 +174,36 @@ class TermApp(App[int]):
             self.call_after_refresh(self._start_joystick)
         self.render_now()
 
-    async def _connect(self, transport: Transport) -> None:
+    async def _connect(self, transport: Transport, *, retrying: bool = False) -> bool:
         now = self.clock()
         from term.config import JOYSTICK_POLICIES
 
         opts = {"link_timeout": self.config.link_timeout, **JOYSTICK_POLICIES[self.config.joystick_policy],
                 **self.session_options}
         session = LinkSession(now, **opts)  # type: ignore[arg-type]
-        session.set_joystick(NEUTRAL)  # the board hears from us at the joystick rate even with no stick
-        self.connection = Connection(transport, session, self.clock, on_event=self._on_link_event)
+        session.set_joystick(self.model.stick if retrying else NEUTRAL)  # the board hears from us at once
+        conn = Connection(transport, session, self.clock, on_event=self._on_link_event)
         try:
-            await self.connection.start()
+            await conn.start()
         except TransportError as exc:
-            self.connection = None
-            self._fatal(str(exc), 2)
-            return
-        self.model.note(self.clock(), "info", "link", f"connected to {transport.name}")
+            if not retrying:
+                self._fatal(str(exc), 2)
+            elif str(exc) != self._reconnect_error:
+                self._reconnect_error = str(exc)
+                self.model.note(self.clock(), "warning", "link", f"reconnecting: {exc}")
+            return False
+        self.connection = conn
+        self.model.note(self.clock(), "info", "link", f"{'re' if retrying else ''}connected to {transport.name}")
+        return True
+
+    async def _reconnect(self) -> None:
+        """The transport died (a cable pulled out): try again every second until it is back or we quit."""
+        while self.is_running and self.transport is not None and self.connection is None:
+            await asyncio.sleep(RECONNECT_S)
+            with contextlib.suppress(TransportError):
+                await self.transport.close()
+            if await self._connect(self.transport, retrying=True):
+                return
 
     def _start_joystick(self) -> None:
         poller = JoystickPoller(self.config.joystick_mappings, resolution=self.config.joystick_resolution,
@@ -219,7 +236,11 @@ class TermApp(App[int]):
         now = self.clock()
         if type(ev) is TransportFailed:
             self.model.link_lost = True
+            self.model.version += 1
             self.model.note(now, "error", "link", f"LINK LOST: {ev.message}")  # type: ignore[attr-defined]
+            self.connection = None
+            self._reconnect_error = ""
+            self.run_worker(self._reconnect(), exclusive=True, group="reconnect")
             return
         self.model.apply(ev, now)
         if type(ev) is VersionMismatch:

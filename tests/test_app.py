@@ -31,6 +31,7 @@ from term.protocol import (
     Profile,
     Status,
 )
+from term.transports.base import TransportClosed, TransportError
 from term.transports.loopback import loopback_pair
 from term.widgets.base import ModelView
 from term.widgets.help import HelpScreen
@@ -49,20 +50,24 @@ class LoopBoard:
         self.tasks = [asyncio.create_task(self._read()), asyncio.create_task(self._tick())]
 
     async def _read(self) -> None:
-        with contextlib.suppress(Exception):
-            while True:
+        while True:  # like a board's UART: the terminal's end closing and opening again does not stop it
+            try:
                 data = await self.t.read()
                 reply = self.board.receive(data, self.clock())
                 if reply:
                     await self.t.write(reply)
+            except TransportClosed:
+                return
+            except TransportError:
+                await asyncio.sleep(0.01)
 
     async def _tick(self) -> None:
-        with contextlib.suppress(Exception):
-            while True:
-                out = self.board.tick(self.clock())
-                if out:
+        while True:
+            out = self.board.tick(self.clock())
+            if out:
+                with contextlib.suppress(TransportError):
                     await self.t.write(out)
-                await asyncio.sleep(max(0.001, self.board.next_deadline() - self.clock()))
+            await asyncio.sleep(max(0.001, self.board.next_deadline() - self.clock()))
 
     async def send(self, *pkts: object) -> None:
         await self.t.write(self.board.encoder.encode_many(pkts))
@@ -324,3 +329,19 @@ async def test_damaged_frames_are_reported_in_the_events_list(scripted_board) ->
         await until(pilot, lambda: any("damaged frames dropped" in e.text for e in app.model.events))
         e = [e for e in app.model.events if "damaged" in e.text][0]
         assert e.text.startswith("3 damaged frames") and e.severity == "warning"
+
+
+async def test_a_dead_transport_is_reopened(scripted_board) -> None:  # noqa: ANN001
+    async with flying(scripted_board) as (app, pilot, board, peer):
+        await until(pilot, lambda: app.model.link is not None and app.model.link.frames_ok > 0)
+        await peer.stop()
+        await peer.t.close()  # the cable is pulled out
+        await until(pilot, lambda: any(e.text.startswith("LINK LOST: ") for e in app.model.events))
+        assert app.connection is None and app.model.link_lost
+        await pilot.press("5")
+        assert "not connected" in app.model.events[-1].text
+        await peer.start()  # plugged in again
+        await until(pilot, lambda: any(e.text.startswith("reconnected to") for e in app.model.events))
+        await until(pilot, lambda: not app.model.link_lost)
+        await pilot.press("4")
+        await until(pilot, lambda: (Op.MODE, Mode.YAW) in sent(board))
