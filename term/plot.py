@@ -86,6 +86,11 @@ def plot_log(path: Path, output: Path, signals: Sequence[str] | None = None) -> 
             if col in cols:
                 ax.plot(t, [v * scale for v in cols[col]], label=col, linewidth=0.9)
         ax.set_ylabel(f"{title}\n({unit})" if unit else title)
+        if title == "mode" and "mode" in cols:
+            from term.protocol import Mode
+
+            present = sorted({int(v) for v in cols["mode"]} & {int(m) for m in Mode})
+            ax.set_yticks(present, [Mode(v).name for v in present])
         ax.grid(True, alpha=0.3)
         if len(series) > 1:
             ax.legend(loc="upper right", fontsize="small", ncol=len(series))
