@@ -163,6 +163,7 @@ class Model:
     events: deque[LogEntry] = field(default_factory=lambda: deque(maxlen=500))
     history: dict[str, deque[tuple[float, float]]] = field(default_factory=dict)
     pending: int = 0  # commands sent and not yet answered
+    wireless: int = 0  # WirelessState, as the board last said
     _bad_noted: int = 0
     _link_noted: float = -1e9
     _loss_noted: float = -1e9
@@ -217,16 +218,20 @@ class Model:
                        pressure=float(pkt.pressure), battery=pkt.battery / 100)
         elif kind is Status:
             self.status = pkt
+            self.wireless = pkt.wireless
         elif kind is Gains:
             self.gains = pkt
         elif kind is Compact:
             self._set_mode(pkt.mode, now)
+            self.wireless = pkt.wireless
         elif kind is Event:
             self.board_ms = pkt.board_ms
             severity, text = event_text(pkt.code, pkt.arg)
             self.note(now, severity, "board", f"[{pkt.board_ms / 1000:.3f}] {text}")
             if pkt.code == EventCode.MODE_CHANGED:
                 self._set_mode(pkt.arg & 0xFF, now)
+            elif pkt.code == EventCode.WIRELESS_STATE:
+                self.wireless = pkt.arg
         elif kind is Profile:
             self.profiles[pkt.task] = pkt
         elif kind is Hello:
@@ -289,6 +294,11 @@ class Model:
     @property
     def flying(self) -> bool:
         return self.mode in FLIGHT_MODES
+
+    @property
+    def handed_over(self) -> bool:
+        """The board was handing over to BLE: its silence on this link may be the handover, not a fault."""
+        return self.wireless in (WirelessState.STARTING, WirelessState.STARTED)
 
     @property
     def battery_v(self) -> float | None:

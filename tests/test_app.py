@@ -345,3 +345,17 @@ async def test_a_dead_transport_is_reopened(scripted_board) -> None:  # noqa: AN
         await until(pilot, lambda: not app.model.link_lost)
         await pilot.press("4")
         await until(pilot, lambda: (Op.MODE, Mode.YAW) in sent(board))
+
+
+async def test_silence_after_a_wireless_handover_says_so(scripted_board) -> None:  # noqa: ANN001
+    from term.protocol import WirelessState
+
+    async with flying(scripted_board) as (app, pilot, board, peer):
+        await until(pilot, lambda: app.model.link is not None and app.model.link.frames_ok > 0)
+        await peer.send(Event(EventCode.WIRELESS_STATE, int(WirelessState.STARTING), 1000))
+        await until(pilot, lambda: app.model.handed_over)
+        board.silent = True
+        await until(pilot, lambda: app.model.link_lost)
+        await pilot.pause(0.1)
+        assert "handed over to BLE" in str(app.screen.query_one("#mode").render())
+        assert "handing over to BLE" in str(app.screen.query_one("#link").render())

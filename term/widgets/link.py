@@ -22,6 +22,9 @@ class LinkPanel(ModelView):
         if model.link_lost:
             out.append("  L I N K   L O S T  ", style="bold blink white on red")
             out.append("\n")
+            if model.handed_over:
+                out.append("the board was handing over to BLE (key 8): it may be talking there now\n",
+                           style="yellow")
         elif s is None or s.since_last_frame_s is None:
             out.append("waiting for the board…", style="yellow")
             out.append("\n")

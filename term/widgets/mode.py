@@ -49,7 +49,7 @@ class ModeBanner(ModelView):
             if extra:
                 text += "   " + " · ".join(extra)
         if model.link_lost:
-            text += "   ·   LINK LOST"
+            text += "   ·   LINK LOST" + (" (handed over to BLE?)" if model.handed_over else "")
             style = "bold blink white on red" if mode is not None else style
         self.set_class(mode == Mode.PANIC or model.link_lost, "alarm")
         width = max(self.size.width, len(text) + 4)
