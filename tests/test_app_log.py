@@ -25,7 +25,7 @@ class RealTimeBoard:
 
     def __init__(self, transport, board: Board, speed: float = 1.0) -> None:  # noqa: ANN001
         self.t, self.board, self.speed = transport, board, speed
-        self.t0 = time.monotonic()
+        self.t0: float | None = None  # the board boots when the terminal's first bytes arrive
         self.tasks: list[asyncio.Task[None]] = []
 
     async def start(self) -> None:
@@ -33,12 +33,16 @@ class RealTimeBoard:
         self.tasks = [asyncio.create_task(self._read()), asyncio.create_task(self._run())]
 
     def _now_us(self) -> int:
+        if self.t0 is None:
+            return 0
         return int((time.monotonic() - self.t0) * 1e6 * self.speed)
 
     async def _read(self) -> None:
         with contextlib.suppress(Exception):
             while True:
                 data = await self.t.read()
+                if self.t0 is None:
+                    self.t0 = time.monotonic()
                 self.board.advance(self._now_us())
                 self.board.uart_receive(data)
 
@@ -63,7 +67,7 @@ async def test_log_record_download_as_csv_and_reset(tmp_path: Path) -> None:
     # Lose 3 % of the board's frames: some chunks go missing and the download must resume from the gaps.
     pair = loopback_pair(seed=7, b_to_a=Faults(drop=0.03))
     board = Board(BoardConfig(seed=2, log_scheme="rice"), world=World(2))
-    peer = RealTimeBoard(pair.b, board, speed=4.0)
+    peer = RealTimeBoard(pair.b, board, speed=2.0)
     await peer.start()
     app = TermApp(pair.a, joystick=False, log_directory=tmp_path)
     try:
@@ -83,7 +87,7 @@ async def test_log_record_download_as_csv_and_reset(tmp_path: Path) -> None:
             assert not list(tmp_path.iterdir())
             app.simulate_key("f2")
             await until(lambda: board.log.recording)
-            await pilot.pause(0.4)
+            await pilot.pause(0.8)
             app.simulate_key("f3")
             await until(lambda: not board.log.recording)
             records = board.log.records
