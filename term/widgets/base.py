@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import time
+
 from rich.console import RenderableType
 from rich.text import Text
 from textual.widget import Widget
@@ -21,15 +23,26 @@ class ModelView(Widget):
 
     # Panels whose text depends on time alone (ages, rates) redraw even when the model did not change.
     TIME_DEPENDENT = False
+    # Panels of slow or noisy figures (battery, pressure, link statistics) repaint at most this often; a change
+    # of ``urgent(model)`` (a threshold crossed, the link lost) repaints at once.
+    MAX_HZ: float | None = None
 
     def __init__(self, *, id: str | None = None, classes: str | None = None) -> None:  # noqa: A002
         super().__init__(id=id, classes=classes)
         self._shown_version = -1
         self._shown: RenderableType = Text("")
+        self._painted = -1e9
+        self._urgent: object = None
 
     def show(self, model: Model, now: float) -> None:
         if not self.TIME_DEPENDENT and model.version == self._shown_version:
             return
+        if self.MAX_HZ is not None:
+            wall = time.monotonic()  # a CPU budget: wall time, whatever clock the model runs on
+            urgent = self.urgent(model)
+            if wall - self._painted < 1.0 / self.MAX_HZ and urgent == self._urgent:
+                return
+            self._painted, self._urgent = wall, urgent
         self._shown_version = model.version
         content = self.render_model(model, now)
         # Rich Text compares text and styles: an identical frame is not repainted.
@@ -43,9 +56,13 @@ class ModelView(Widget):
 
     def on_resize(self) -> None:
         self._shown_version = -1  # panels lay themselves out to their size: redraw now, not at the next change
+        self._painted = -1e9
         render = getattr(self.app, "render_now", None)
         if render is not None:
             self.app.call_later(render)
+
+    def urgent(self, model: Model) -> object:
+        return None
 
     def render_model(self, model: Model, now: float) -> RenderableType:
         raise NotImplementedError

@@ -31,6 +31,12 @@ def threshold_ruler(width: int) -> Text:
 
 
 class BatteryGauge(ModelView):
+    MAX_HZ = 2.0  # a battery changes slowly; its noise would repaint the gauge every frame
+
+    def urgent(self, model: Model) -> object:
+        v = model.battery_v
+        return None if v is None else battery_style(v)  # crossing a threshold shows at once
+
     def render_model(self, model: Model, now: float) -> RenderableType:
         v = model.battery_v
         width = max(10, (self.content_size.width or 30) - 10)

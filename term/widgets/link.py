@@ -15,6 +15,10 @@ def _ms(v: float | None) -> str:
 
 class LinkPanel(ModelView):
     TIME_DEPENDENT = True  # ages grow without new data
+    MAX_HZ = 4.0  # statistics; but LINK LOST and its end show at once
+
+    def urgent(self, model: Model) -> object:
+        return (model.link_lost, model.link is None or model.link.since_last_frame_s is None)
 
     def render_model(self, model: Model, now: float) -> RenderableType:
         s = model.link

@@ -15,6 +15,11 @@ VZ_SPAN = 2.0
 
 
 class PressureIndicator(ModelView):
+    MAX_HZ = 5.0  # the barometer's figures are noisy; 5 Hz is readable, every frame is not
+
+    def urgent(self, model: Model) -> object:
+        return model.mode == Mode.HEIGHT
+
     def render_model(self, model: Model, now: float) -> RenderableType:
         h = model.height
         out = Text()
