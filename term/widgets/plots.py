@@ -21,7 +21,7 @@ from term.model import Model
 class LivePlot(PlotextPlot):
     """One plot of several series sharing a unit."""
 
-    def __init__(self, series: tuple[str, ...], window: float = 10.0, max_rate: float = 2.0,
+    def __init__(self, series: tuple[str, ...], window: float = 10.0, max_rate: float = 1.0,
                  **kwargs: object) -> None:
         super().__init__(**kwargs)  # type: ignore[arg-type]
         self.series = series
