@@ -19,37 +19,39 @@ costs 15 µs on the board (the report's figure), which is why compression matter
 loop. A segment's record count and length are programmed into its header when logging stops, the way a real
 log does it without rewriting flash.
 
-The second half of this module (the decoder section) is the PC side: chunk reassembly with resume after loss,
-the whole-log CRC check, segment decoding and CSV. It uses only the standard library and nothing else of
-fcb_sim, so the terminal may vendor it unchanged.
+This module is the board side: the flash, the logger and the record encoder. The format itself (segment header,
+the decoders whose state machines the encoder mirrors) is part of the protocol, in ``term.protocol``, because the
+terminal decodes what ``LogChunk`` packets carry with it.
 """
 
 from __future__ import annotations
 
-import csv
-import io
 import struct
 import zlib
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 
-from term.protocol import LOG_CHUNK_BYTES, LogState, Nak
+from term.protocol import (
+    LOG_CHUNK_BYTES,
+    LOG_FORMAT_VERSION,
+    LOG_HEADER,
+    LOG_MAGIC,
+    LOG_UNSET32,
+    LOG_VAR_ENTRY,
+    RICE_ESCAPE,
+    SCHEME_DELTA8,
+    SCHEME_RICE,
+    LogState,
+    Nak,
+    RiceState,
+    quantise,
+    zigzag,
+)
 
 FLASH_BYTES = 128 * 1024
 FLASH_US_PER_BYTE = 15  # report 3.5: each byte takes 15 µs to write
 
-SCHEME_DELTA8 = 1
-SCHEME_RICE = 2
 SCHEMES = {"delta8": SCHEME_DELTA8, "rice": SCHEME_RICE}
-
-MAGIC = b"QL"
-FORMAT_VERSION = 1
-HEADER = struct.Struct("<2sBBBBII")  # magic, version, scheme, n_vars, reserved, records, data length
-VAR_ENTRY = struct.Struct("<8sHH")  # name (ASCII, NUL padded), scale, reserved
-UNSET32 = 0xFFFFFFFF  # an erased header field: the segment was never closed (records run to the end of data)
-
-RICE_ESCAPE = 20  # a unary quotient this long is an escape: 32 raw bits of the zigzagged residual follow
-RICE_RESET = 64  # LOCO-I: halve the statistics every this many samples so the code adapts
 
 
 @dataclass(frozen=True)
@@ -116,78 +118,7 @@ class BitWriter:
         return self.take()
 
 
-class BitReader:
-    def __init__(self, data: bytes) -> None:
-        self.data = bytes(data)
-        self.total = len(data) * 8
-        self.pos = 0
-
-    def read(self, nbits: int) -> int:
-        pos, end = self.pos, self.pos + nbits
-        if end > self.total:
-            raise EOFError("log data ends inside a record")
-        first, last = pos >> 3, (end + 7) >> 3
-        self.pos = end
-        return (int.from_bytes(self.data[first:last], "big") >> ((last << 3) - end)) & ((1 << nbits) - 1)
-
-    def unary(self, limit: int) -> int:
-        """Count 1 bits up to a 0 (consumed) or ``limit`` ones (no 0 follows)."""
-        n = 0
-        while n < limit:
-            if self.read(1) == 0:
-                return n
-            n += 1
-        return n
-
-
 # --- codecs: one state machine per direction, mirrored exactly --------------------------------------------
-
-
-def quantise(x: int, scale: int) -> int:
-    """Nearest multiple index (ties up); |x - q*scale| <= scale // 2."""
-    return (x + scale // 2) // scale
-
-
-class _RiceState:
-    """Per-variable adaptive state, identical in encoder and decoder."""
-
-    __slots__ = ("prev1", "prev2", "e1", "e2", "a", "n")
-
-    def __init__(self, first: int) -> None:
-        self.prev1 = first
-        self.prev2 = first
-        self.e1 = 0  # decayed sums of |residual| of each predictor
-        self.e2 = 0
-        self.a = 4  # LOCO-I: sum of |zigzagged residual| ...
-        self.n = 1  # ... over this many samples
-
-    def predict(self) -> int:
-        return self.prev1 if self.e1 <= self.e2 else 2 * self.prev1 - self.prev2
-
-    def k(self) -> int:
-        k = 0
-        while (self.n << k) < self.a:
-            k += 1
-        return k
-
-    def update(self, q: int, z: int) -> None:
-        p1, p2 = self.prev1, 2 * self.prev1 - self.prev2
-        self.e1 += abs(q - p1) - (self.e1 >> 4)
-        self.e2 += abs(q - p2) - (self.e2 >> 4)
-        self.prev2, self.prev1 = self.prev1, q
-        self.a += z
-        self.n += 1
-        if self.n >= RICE_RESET:
-            self.a = max(1, self.a >> 1)
-            self.n >>= 1
-
-
-def _zigzag(r: int) -> int:
-    return 2 * r if r >= 0 else -2 * r - 1
-
-
-def _unzigzag(z: int) -> int:
-    return z >> 1 if not z & 1 else -((z + 1) >> 1)
 
 
 class RecordEncoder:
@@ -201,7 +132,7 @@ class RecordEncoder:
         self.bits = BitWriter()
         self.count = 0
         self._recon: list[int] = []
-        self._rice: list[_RiceState] = []
+        self._rice: list[RiceState] = []
 
     def worst_bytes(self) -> int:
         """An upper bound on the bytes one record may add (for the flash-full check)."""
@@ -215,10 +146,10 @@ class RecordEncoder:
         if self.count == 0:
             # The first record is absolute (exact, int32): both schemes start from the true values.
             for v in values:
-                w.write(int(v) & UNSET32, 32)
+                w.write(int(v) & LOG_UNSET32, 32)
             self._recon = [int(v) for v in values]
             if self.scheme == SCHEME_RICE:
-                self._rice = [_RiceState(quantise(int(v), s)) for v, s in zip(values, self.scales, strict=True)]
+                self._rice = [RiceState(quantise(int(v), s)) for v, s in zip(values, self.scales, strict=True)]
                 self._recon = [st.prev1 * s for st, s in zip(self._rice, self.scales, strict=True)]
         elif self.scheme == SCHEME_DELTA8:
             recon = self._recon
@@ -229,7 +160,7 @@ class RecordEncoder:
         else:
             for st, v, s in zip(self._rice, values, self.scales, strict=True):
                 q = quantise(int(v), s)
-                z = _zigzag(q - st.predict())
+                z = zigzag(q - st.predict())
                 k = st.k()
                 top = z >> k
                 if top < RICE_ESCAPE:
@@ -247,51 +178,10 @@ class RecordEncoder:
         return self.bits.flush()
 
 
-def decode_records(scheme: int, scales: Sequence[int], data: bytes, count: int | None) -> list[tuple[int, ...]]:
-    """Decode ``count`` records (None: as many as the data holds) of one segment."""
-    r = BitReader(data)
-    n = len(scales)
-    out: list[tuple[int, ...]] = []
-    if count == 0 or len(data) < 4 * n:
-        return out
-    first = [r.read(32) for _ in range(n)]
-    first = [v - (1 << 32) if v & 0x80000000 else v for v in first]
-    if scheme == SCHEME_RICE:
-        states = [_RiceState(quantise(v, s)) for v, s in zip(first, scales, strict=True)]
-        out.append(tuple(st.prev1 * s for st, s in zip(states, scales, strict=True)))
-    elif scheme == SCHEME_DELTA8:
-        out.append(tuple(first))
-        recon = list(first)
-    else:
-        raise ValueError(f"unknown log scheme {scheme}")
-    while count is None or len(out) < count:
-        try:
-            if scheme == SCHEME_DELTA8:
-                for i in range(n):
-                    b = r.read(8)
-                    recon[i] += (b - 256 if b & 0x80 else b) * scales[i]
-                out.append(tuple(recon))
-            else:
-                row = []
-                for st, s in zip(states, scales, strict=True):
-                    k = st.k()
-                    top = r.unary(RICE_ESCAPE)
-                    z = r.read(32) if top == RICE_ESCAPE else (top << k) | (r.read(k) if k else 0)
-                    q = st.predict() + _unzigzag(z)
-                    st.update(q, z)
-                    row.append(q * s)
-                out.append(tuple(row))
-        except EOFError:
-            if count is not None:
-                raise
-            break
-    return out
-
-
-def segment_header(scheme: int, variables: Sequence[LogVar], records: int = UNSET32,
-                   length: int = UNSET32) -> bytes:
-    head = HEADER.pack(MAGIC, FORMAT_VERSION, scheme, len(variables), 0xFF, records, length)
-    return head + b"".join(VAR_ENTRY.pack(v.name.encode("ascii")[:8], v.scale, 0xFFFF) for v in variables)
+def segment_header(scheme: int, variables: Sequence[LogVar], records: int = LOG_UNSET32,
+                   length: int = LOG_UNSET32) -> bytes:
+    head = LOG_HEADER.pack(LOG_MAGIC, LOG_FORMAT_VERSION, scheme, len(variables), 0xFF, records, length)
+    return head + b"".join(LOG_VAR_ENTRY.pack(v.name.encode("ascii")[:8], v.scale, 0xFFFF) for v in variables)
 
 
 # --- the flash and the logger (board side) ------------------------------------------------------------------
@@ -413,7 +303,7 @@ class FlashLog:
         return bytes(self.flash.mem[: self.used])
 
     def crc32(self) -> int:
-        return zlib.crc32(self.flash.mem[: self.used]) & UNSET32
+        return zlib.crc32(self.flash.mem[: self.used]) & LOG_UNSET32
 
     def chunk(self, index: int) -> bytes:
         """Chunk ``index``: bytes 12i .. 12i+11 of the used flash, the last one padded with 0xFF."""
@@ -434,108 +324,3 @@ def encode_log(rows: Iterable[Sequence[int]], scheme: str | int = "rice",
         log.append(row)
     log.stop()
     return log.contents()
-
-
-# ============================================================================================================
-# Decoder section: the PC side. Standard library only and nothing else of fcb_sim (the terminal may vendor it).
-# ============================================================================================================
-
-
-@dataclass
-class Segment:
-    scheme: int
-    names: tuple[str, ...]
-    scales: tuple[int, ...]
-    rows: list[tuple[int, ...]]
-    closed: bool  # False: logging never stopped cleanly (records decoded up to the end of the data)
-
-
-def decode_log(data: bytes) -> list[Segment]:
-    """All segments in a downloaded log (the used bytes of the flash). Raises ValueError on a corrupt log."""
-    segments: list[Segment] = []
-    pos = 0
-    while pos + HEADER.size <= len(data):
-        magic, version, scheme, n_vars, _res, records, length = HEADER.unpack_from(data, pos)
-        if magic != MAGIC or version != FORMAT_VERSION:
-            raise ValueError(f"no log segment at byte {pos}")
-        pos += HEADER.size
-        names, scales = [], []
-        for _ in range(n_vars):
-            name, scale, _r = VAR_ENTRY.unpack_from(data, pos)
-            names.append(name.rstrip(b"\x00").decode("ascii"))
-            scales.append(scale)
-            pos += VAR_ENTRY.size
-        closed = length != UNSET32
-        body = data[pos : pos + length] if closed else data[pos:]
-        rows = decode_records(scheme, scales, body, records if closed else None)
-        segments.append(Segment(scheme, tuple(names), tuple(scales), rows, closed))
-        if not closed:
-            break
-        pos += length
-    return segments
-
-
-def write_csv(segments: Sequence[Segment], out: io.TextIOBase | None = None) -> str:
-    """The log as CSV: a ``segment`` column, then the variables in board units. Returns the text (and writes
-    it to ``out`` if given)."""
-    buf = io.StringIO()
-    w = csv.writer(buf, lineterminator="\n")
-    header_written: tuple[str, ...] | None = None
-    for i, seg in enumerate(segments):
-        if seg.names != header_written:
-            w.writerow(("segment", *seg.names))
-            header_written = seg.names
-        for row in seg.rows:
-            w.writerow((i, *row))
-    text = buf.getvalue()
-    if out is not None:
-        out.write(text)
-    return text
-
-
-class LogAssembler:
-    """Reassembles a download from LogChunk packets in any order, with loss: tell it what the board's LogStatus
-    said (``used`` bytes, ``crc32``), feed it chunks, ask ``next_request()`` for the chunk to resume from (send
-    ``Command(op=LOG_DOWNLOAD, arg=that)``), and take ``data()`` once ``complete``."""
-
-    CHUNK = 12
-
-    def __init__(self, used: int, crc32: int) -> None:
-        self.used = used
-        self.crc32 = crc32
-        self.n_chunks = (used + self.CHUNK - 1) // self.CHUNK
-        self._chunks: dict[int, bytes] = {}
-
-    def add(self, index: int, data: bytes) -> bool:
-        """Store one chunk; returns False for one outside the log (a stale download)."""
-        if not 0 <= index < self.n_chunks:
-            return False
-        self._chunks[index] = bytes(data[: self.CHUNK])
-        return True
-
-    def missing(self) -> list[int]:
-        return [i for i in range(self.n_chunks) if i not in self._chunks]
-
-    def next_request(self) -> int | None:
-        """The first chunk not yet received (resume from there), or None when all are in."""
-        for i in range(self.n_chunks):
-            if i not in self._chunks:
-                return i
-        return None
-
-    @property
-    def received(self) -> int:
-        return len(self._chunks)
-
-    @property
-    def complete(self) -> bool:
-        return len(self._chunks) == self.n_chunks
-
-    def data(self) -> bytes:
-        """The whole log, checked against the board's CRC32; ValueError if incomplete or corrupt."""
-        if not self.complete:
-            raise ValueError(f"log incomplete: {len(self.missing())} of {self.n_chunks} chunks missing")
-        data = b"".join(self._chunks[i] for i in range(self.n_chunks))[: self.used]
-        if zlib.crc32(data) & 0xFFFFFFFF != self.crc32:
-            raise ValueError("log CRC32 mismatch: download it again")
-        return data

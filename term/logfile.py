@@ -5,10 +5,9 @@ A download (``Op.LOG_DOWNLOAD``, arg = first chunk) streams chunk i = bytes 12i.
 ``LogStatus`` packets that give the total ``used`` and the ``crc32`` of those bytes. Chunks may be lost on the way:
 ``missing()`` names the first gap, and a new ``LOG_DOWNLOAD`` with that index resumes from it.
 
-The record format inside the bytes is the board's (``fcb_sim/flash_log.py``, docs/flash_log.md): self-describing
-segments of compressed records. The terminal may not import ``fcb_sim``, so the decoder section of that module is
-vendored below. Bytes that do not decode are written as a hex dump, one 12-byte chunk per row, so a download is
-never lost.
+The record format inside the bytes (self-describing segments of compressed records, docs/flash_log.md) is part
+of the protocol: ``term.protocol.decode_log``. Bytes that do not decode are written as a hex dump, one 12-byte
+chunk per row, so a download is never lost.
 """
 
 from __future__ import annotations
@@ -21,7 +20,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from term.protocol import LOG_CHUNK_BYTES, LogChunk, LogStatus
+from term.protocol import LOG_CHUNK_BYTES, LogChunk, LogStatus, decode_log
 
 
 @dataclass
@@ -128,161 +127,6 @@ def write_csv(data: bytes, path: Path, decoder: Decoder | None = None) -> int:
 
 def log_filename(stamp: str) -> str:
     return f"quadrupel-log-{stamp}.csv"
-
-
-# --- the board's log format --------------------------------------------------------------------------------
-# Vendored unchanged from the decoder section of fcb_sim/flash_log.py (the terminal may not import fcb_sim);
-# tests/test_app_log.py checks that it decodes what the board's encoder writes.
-
-SCHEME_DELTA8 = 1
-SCHEME_RICE = 2
-MAGIC = b"QL"
-FORMAT_VERSION = 1
-HEADER = struct.Struct("<2sBBBBII")  # magic, version, scheme, n_vars, reserved, records, data length
-VAR_ENTRY = struct.Struct("<8sHH")  # name (ASCII, NUL padded), scale, reserved
-UNSET32 = 0xFFFFFFFF  # an erased header field: the segment was never closed
-RICE_ESCAPE = 20
-RICE_RESET = 64
-
-
-class BitReader:
-    def __init__(self, data: bytes) -> None:
-        self.value = int.from_bytes(data, "big")
-        self.total = len(data) * 8
-        self.pos = 0
-
-    def read(self, nbits: int) -> int:
-        if self.pos + nbits > self.total:
-            raise EOFError("log data ends inside a record")
-        self.pos += nbits
-        return (self.value >> (self.total - self.pos)) & ((1 << nbits) - 1)
-
-    def unary(self, limit: int) -> int:
-        """Count 1 bits up to a 0 (consumed) or ``limit`` ones (no 0 follows)."""
-        n = 0
-        while n < limit:
-            if self.read(1) == 0:
-                return n
-            n += 1
-        return n
-
-
-def quantise(x: int, scale: int) -> int:
-    """Nearest multiple index (ties up); |x - q*scale| <= scale // 2."""
-    return (x + scale // 2) // scale
-
-
-class _RiceState:
-    """Per-variable adaptive state, identical in encoder and decoder."""
-
-    __slots__ = ("prev1", "prev2", "e1", "e2", "a", "n")
-
-    def __init__(self, first: int) -> None:
-        self.prev1 = first
-        self.prev2 = first
-        self.e1 = 0  # decayed sums of |residual| of each predictor
-        self.e2 = 0
-        self.a = 4  # LOCO-I: sum of |zigzagged residual| ...
-        self.n = 1  # ... over this many samples
-
-    def predict(self) -> int:
-        return self.prev1 if self.e1 <= self.e2 else 2 * self.prev1 - self.prev2
-
-    def k(self) -> int:
-        k = 0
-        while (self.n << k) < self.a:
-            k += 1
-        return k
-
-    def update(self, q: int, z: int) -> None:
-        p1, p2 = self.prev1, 2 * self.prev1 - self.prev2
-        self.e1 += abs(q - p1) - (self.e1 >> 4)
-        self.e2 += abs(q - p2) - (self.e2 >> 4)
-        self.prev2, self.prev1 = self.prev1, q
-        self.a += z
-        self.n += 1
-        if self.n >= RICE_RESET:
-            self.a = max(1, self.a >> 1)
-            self.n >>= 1
-
-
-def _unzigzag(z: int) -> int:
-    return z >> 1 if not z & 1 else -((z + 1) >> 1)
-
-
-def decode_records(scheme: int, scales: Sequence[int], data: bytes, count: int | None) -> list[tuple[int, ...]]:
-    """Decode ``count`` records (None: as many as the data holds) of one segment."""
-    r = BitReader(data)
-    n = len(scales)
-    out: list[tuple[int, ...]] = []
-    if count == 0 or len(data) < 4 * n:
-        return out
-    first = [r.read(32) for _ in range(n)]
-    first = [v - (1 << 32) if v & 0x80000000 else v for v in first]
-    if scheme == SCHEME_RICE:
-        states = [_RiceState(quantise(v, s)) for v, s in zip(first, scales, strict=True)]
-        out.append(tuple(st.prev1 * s for st, s in zip(states, scales, strict=True)))
-    elif scheme == SCHEME_DELTA8:
-        out.append(tuple(first))
-        recon = list(first)
-    else:
-        raise ValueError(f"unknown log scheme {scheme}")
-    while count is None or len(out) < count:
-        try:
-            if scheme == SCHEME_DELTA8:
-                for i in range(n):
-                    b = r.read(8)
-                    recon[i] += (b - 256 if b & 0x80 else b) * scales[i]
-                out.append(tuple(recon))
-            else:
-                row = []
-                for st, s in zip(states, scales, strict=True):
-                    k = st.k()
-                    top = r.unary(RICE_ESCAPE)
-                    z = r.read(32) if top == RICE_ESCAPE else (top << k) | (r.read(k) if k else 0)
-                    q = st.predict() + _unzigzag(z)
-                    st.update(q, z)
-                    row.append(q * s)
-                out.append(tuple(row))
-        except EOFError:
-            if count is not None:
-                raise
-            break
-    return out
-
-
-@dataclass
-class Segment:
-    scheme: int
-    names: tuple[str, ...]
-    scales: tuple[int, ...]
-    rows: list[tuple[int, ...]]
-    closed: bool  # False: logging never stopped cleanly (records decoded up to the end of the data)
-
-
-def decode_log(data: bytes) -> list[Segment]:
-    """All segments in a downloaded log (the used bytes of the flash). Raises ValueError on a corrupt log."""
-    segments: list[Segment] = []
-    pos = 0
-    while pos + HEADER.size <= len(data):
-        magic, version, scheme, n_vars, _res, records, length = HEADER.unpack_from(data, pos)
-        if magic != MAGIC or version != FORMAT_VERSION:
-            raise ValueError(f"no log segment at byte {pos}")
-        pos += HEADER.size
-        names, scales = [], []
-        for _ in range(n_vars):
-            name, scale, _r = VAR_ENTRY.unpack_from(data, pos)
-            names.append(name.rstrip(b"\x00").decode("ascii"))
-            scales.append(scale)
-            pos += VAR_ENTRY.size
-        closed = length != UNSET32
-        body = data[pos : pos + length] if closed else data[pos:]
-        rows = decode_records(scheme, scales, body, records if closed else None)
-        segments.append(Segment(scheme, tuple(names), tuple(scales), rows, closed))
-        if not closed:
-            break
-        pos += length
-    return segments
 
 
 def decode_to_rows(data: bytes) -> tuple[list[str], list[list[Any]]]:

@@ -11,11 +11,11 @@ import time
 from pathlib import Path
 
 from fcb_sim.board import Board, BoardConfig
-from fcb_sim.flash_log import decode_log, encode_log
+from fcb_sim.flash_log import encode_log
 from fcb_sim.physics import World
 from term.app import TermApp
 from term.logfile import LogDownload, decode_to_rows
-from term.protocol import LogChunk, LogState, LogStatus, Mode, Op
+from term.protocol import LogChunk, LogState, LogStatus, Mode, Op, decode_log
 from term.transports.loopback import Faults, loopback_pair
 
 

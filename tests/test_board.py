@@ -12,7 +12,6 @@ from hypothesis.stateful import RuleBasedStateMachine, invariant, rule
 
 from fcb_sim import control as C
 from fcb_sim.board import SENSOR_PERIOD_US, TASKS, Board, BoardConfig, run_profile
-from fcb_sim.flash_log import LogAssembler, decode_log, write_csv
 from fcb_sim.modes import FLIGHT_MODES, LIFT_ZERO, STICK_NEUTRAL, ModeChange
 from fcb_sim.timing import (
     COSTS,
@@ -23,6 +22,7 @@ from fcb_sim.timing import (
     rtc_ticks,
     rtc_us,
 )
+from term.logfile import LogDownload, decode_to_rows
 from term.protocol import (
     Ack,
     Attitude,
@@ -48,6 +48,7 @@ from term.protocol import (
     Profile,
     Status,
     WirelessState,
+    decode_log,
 )
 
 HOVER_LIFT = C.z_to_lift(-4.0 * 400**2)
@@ -261,26 +262,29 @@ def test_log_flight_and_download_with_loss() -> None:
     assert pc.command(Op.LOG_STATUS).status == Nak.OK
     status = pc.of(LogStatus)[-1]
     assert status.state == LogState.IDLE and status.used == b.log.used and status.records == b.log.records
-    asm = LogAssembler(status.used, status.crc32)
+    download = LogDownload(started=0.0)
+    download.feed(status, 0.0)
     pc.drop_chunks = 0.3
     first: int | None = 0
     for _ in range(10):
         ack = pc.command(Op.LOG_DOWNLOAD, first)
-        assert ack.status == Nak.OK and ack.value == asm.n_chunks
+        assert ack.status == Nak.OK and ack.value == download.total_chunks
         pc.run(3.0)
         for c in pc.of(LogChunk):
-            asm.add(c.index, c.data)
-        first = asm.next_request()
+            download.feed(c, 0.0)
+        first = download.missing()
         if first is None:
             break
     assert first is None and EventCode.LOG_DONE in [e.code for e in pc.of(Event)]
-    seg = decode_log(asm.data())[0]
+    assert download.verify() is None
+    seg = decode_log(download.data())[0]
     assert len(seg.rows) == status.records > 400  # the DMP path logs at 200 Hz, for about 5 s here
     modes = {r[seg.names.index("mode")] for r in seg.rows}
     assert {Mode.FULL, Mode.PANIC, Mode.SAFE} <= modes
     t = [r[0] for r in seg.rows]
     assert all(b > a for a, b in zip(t, t[1:], strict=False))
-    assert write_csv([seg]).count("\n") == len(seg.rows) + 1
+    header, rows = decode_to_rows(download.data())
+    assert header == ["segment", *seg.names] and len(rows) == len(seg.rows)
 
 
 def test_floods_garbage_and_half_frames_do_not_stop_the_board() -> None:

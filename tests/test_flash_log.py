@@ -3,7 +3,6 @@ by programming their header, and a download survives lost chunks (resume) and is
 
 from __future__ import annotations
 
-import io
 import random
 import zlib
 
@@ -11,18 +10,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from fcb_sim.flash_log import (
-    LOG_VARS,
-    SCHEME_DELTA8,
-    SCHEME_RICE,
-    FlashLog,
-    LogAssembler,
-    LogVar,
-    decode_log,
-    encode_log,
-    write_csv,
-)
-from term.protocol import LOG_CHUNK_BYTES, LogState, Nak
+from fcb_sim.flash_log import LOG_VARS, FlashLog, LogVar, encode_log
+from term.logfile import LogDownload, decode_to_rows, write_csv
+from term.protocol import SCHEME_DELTA8, SCHEME_RICE, LogChunk, LogState, LogStatus, Nak, decode_log
 
 VARS = (LogVar("t", 32), LogVar("a", 1), LogVar("b", 4), LogVar("c", 8))
 BOUND = [v.scale // 2 for v in VARS]
@@ -124,6 +114,12 @@ def test_flash_only_clears_bits() -> None:
     assert log.contents() == before
 
 
+def _download(log: FlashLog, crc32: int) -> LogDownload:
+    d = LogDownload(started=0.0)
+    d.feed(LogStatus(LogState.IDLE, log.used, log.records, crc32), 0.0)
+    return d
+
+
 def test_download_with_lost_chunks_resumes_and_checks_the_crc() -> None:
     log = FlashLog()
     log.start()
@@ -131,35 +127,29 @@ def test_download_with_lost_chunks_resumes_and_checks_the_crc() -> None:
     for i in range(400):
         log.append([i * 2500] + [rng.randrange(-100, 100) for _ in LOG_VARS[1:]])
     log.stop()
-    asm = LogAssembler(log.used, log.crc32())
-    first = 0
+    d = _download(log, log.crc32())
+    first: int | None = 0
     rounds = 0
-    while not asm.complete:
+    while first is not None:
         rounds += 1
         for i in range(first, log.n_chunks):  # the board streams from the asked chunk; a third is lost
             if rng.random() > 0.33:
-                asm.add(i, log.chunk(i))
-        first = asm.next_request()
-        if first is None:
-            break
-    assert rounds > 1 and asm.next_request() is None
-    assert asm.data() == log.contents()
-    assert not asm.add(log.n_chunks, b"\x00" * LOG_CHUNK_BYTES)
-    bad = LogAssembler(log.used, log.crc32() ^ 1)
+                d.feed(LogChunk(i, log.chunk(i)), 0.0)
+        first = d.missing()
+    assert rounds > 1 and d.done and d.verify() is None
+    assert d.data() == log.contents()
+    bad = _download(log, log.crc32() ^ 1)
     for i in range(log.n_chunks):
-        bad.add(i, log.chunk(i))
-    with pytest.raises(ValueError, match="CRC32"):
-        bad.data()
-    with pytest.raises(ValueError, match="incomplete"):
-        LogAssembler(log.used, 0).data()
+        bad.feed(LogChunk(i, log.chunk(i)), 0.0)
+    assert "CRC-32 mismatch" in (bad.verify() or "")
+    assert "incomplete" in (_download(log, 0).verify() or "")
 
 
-def test_csv() -> None:
+def test_csv(tmp_path) -> None:
     data = encode_log([(0, 1, 2, 3), (2500, 1, 6, 7)], "rice", VARS)
-    out = io.StringIO()
-    text = write_csv(decode_log(data), out)
-    assert out.getvalue() == text
-    lines = text.splitlines()
+    path = tmp_path / "log.csv"
+    assert write_csv(data, path, decode_to_rows) == 2
+    lines = path.read_text().splitlines()
     assert lines[0] == "segment,t,a,b,c"
     assert lines[2].split(",")[:3] == ["0", "2496", "1"]  # t on its 32 µs grid
     assert len(lines) == 3
