@@ -69,3 +69,23 @@ class EulerFilterMixin:
 
     def quaternion(self) -> tuple[float, float, float, float]:
         return euler_to_quaternion(self.roll, self.pitch, self.yaw)
+
+
+class Q16AnglesMixin(EulerFilterMixin):
+    """The float view of a Q16.16 filter whose state is the angles ``r``, ``p``, ``y`` in fix16 radians."""
+
+    r: int
+    p: int
+    y: int
+
+    @property
+    def roll(self) -> float:  # type: ignore[override]
+        return self.r / 65536.0
+
+    @property
+    def pitch(self) -> float:  # type: ignore[override]
+        return self.p / 65536.0
+
+    @property
+    def yaw(self) -> float:  # type: ignore[override]
+        return self.y / 65536.0

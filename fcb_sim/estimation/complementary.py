@@ -15,7 +15,7 @@ from __future__ import annotations
 import math
 
 from . import fixed as fx
-from .base import EulerFilterMixin, wrap_pi
+from .base import EulerFilterMixin, Q16AnglesMixin, wrap_pi
 
 K_GYRO_FLOWN = 0.999
 K_GYRO_TABLE2 = 0.9
@@ -48,7 +48,7 @@ class ComplementaryFilter(EulerFilterMixin):
         self.yaw = wrap_pi(self.yaw + gz * dt)
 
 
-class ComplementaryFilterQ16(EulerFilterMixin):
+class ComplementaryFilterQ16(Q16AnglesMixin):
     """The same filter in Q16.16 (libfixmath semantics, saturating), with the corrected fixed-point atan2.
 
     With K_gyro = 0.999, K_acce is 66 LSB (0.001007), and the rounded product K_acce * (acc - angle) is 0
@@ -68,18 +68,6 @@ class ComplementaryFilterQ16(EulerFilterMixin):
     def reset(self) -> None:
         self.r = self.p = self.y = 0
         self._started = False
-
-    @property
-    def roll(self) -> float:
-        return self.r / 65536.0
-
-    @property
-    def pitch(self) -> float:
-        return self.p / 65536.0
-
-    @property
-    def yaw(self) -> float:
-        return self.y / 65536.0
 
     def update(self, gx: float, gy: float, gz: float, ax: float, ay: float, az: float, dt: float) -> None:
         f = fx.from_float

@@ -21,7 +21,7 @@ z rate. The first sample initialises the angles from the accelerometer.
 from __future__ import annotations
 
 from . import fixed as fx
-from .base import EulerFilterMixin, accel_roll_pitch, wrap_pi
+from .base import EulerFilterMixin, Q16AnglesMixin, accel_roll_pitch, wrap_pi
 
 C1 = 10.0
 C2 = 100.0
@@ -56,7 +56,7 @@ class KalmanFilter(EulerFilterMixin):
         self.yaw = wrap_pi(self.yaw + gz * dt)
 
 
-class KalmanFilterQ16(EulerFilterMixin):
+class KalmanFilterQ16(Q16AnglesMixin):
     """[13]'s filter in Q16.16 (libfixmath semantics, saturating), with the corrected fixed-point atan2."""
 
     def __init__(self, c1: float = C1, c2: float = C2, *, correct_atan2: bool = True) -> None:
@@ -68,18 +68,6 @@ class KalmanFilterQ16(EulerFilterMixin):
         self.r = self.p = self.y = 0
         self.bx = self.by = 0
         self._started = False
-
-    @property
-    def roll(self) -> float:
-        return self.r / 65536.0
-
-    @property
-    def pitch(self) -> float:
-        return self.p / 65536.0
-
-    @property
-    def yaw(self) -> float:
-        return self.y / 65536.0
 
     def update(self, gx: float, gy: float, gz: float, ax: float, ay: float, az: float, dt: float) -> None:
         f = fx.from_float
