@@ -41,6 +41,38 @@ Two schedulers:
   low-priority task starts only if its 99.9th-percentile duration fits before the next sensor tick (telemetry
   in the slack).
 
+Sticks to motors. The report measured 23.4 ms from a stick to the motors; most of it was waiting: for the next
+control step, which alone turns sticks into motor commands. Its own design (section 2) serves an immediate need
+at once, and a new stick value is one: the motors follow it, nothing else has to happen first. So when the parse
+task decodes sticks that differ from those the motor commands were last computed from (joystick plus trims,
+``ModeMachine.sticks()``), it recomputes the motor commands then, with the flight core's control law on the
+latest estimate (``FlightCore.control(..., dt=0)``), and writes them to the motors:
+
+- only the set points change: no sensor read, no estimator or filter update, and no time step, so nothing that
+  integrates over time moves (HEIGHT's integral and its stick-driven set point advance by ``dt`` = 0; the next
+  control step integrates over its usual period, as without the recompute);
+- only in the flight modes (MANUAL, YAW, FULL, RAW, HEIGHT): SAFE and CALIBRATION keep the motors off and PANIC
+  keeps its own descent level (the fire button is PANIC before any recompute); mode changes, PANIC's ramp and the
+  safety monitor stay with the control and heartbeat tasks;
+- an unchanged joystick (the keep-alives, the same value resent) costs nothing beyond its decode;
+- the cost is a draw from the control step's own Figure 14 duration (``control_dmp``/``control_raw``, an upper
+  bound: it also pays for work the recompute skips), charged inside the parse run, so the parse row of the
+  profile grows (``fcb-sim profile``: with the report's random sticks at 100 Hz, RAW parse 65 -> 171 µs mean, the
+  CPU load 61.4 -> 62.9 %, round-robin misses 0.83 -> 0.90 %), and ``profile()["stick_reactions"]`` counts them;
+- under the priority scheduler the recompute obeys the slack rule: it is done only if its 99.9th percentile
+  ends before the next sensor tick; otherwise the control step at that tick, which runs first, does it.
+
+``BoardConfig(stick_reaction=False)`` is the report's firmware. The motors take the command at the end of the
+recompute (``motors_at_us``; the control step's at its start, the model's convention). What the motors do with
+it (the ESC's next PWM pulse, up to 2.5 ms later) is the same for both paths and is not part of the figure.
+
+The UART's receive side is timed too: bytes from the PC occupy the wire at 115200 baud, one burst after another
+(a 15-byte Joystick frame is 1.30 ms), and a burst can be parsed once its last byte is in. A burst reaches the
+UART at the present (the time ``advance`` was last asked for), even when the loop has already run a task past it:
+the wire does not wait for the task. The burst is parsed in one run, where the firmware would take its bytes as
+they come: the frame is complete at the same moment either way, only its decode (4 µs a byte) is counted after it.
+``python -m bench.latency`` measures the whole path through a real pty.
+
 ``profile()`` gives per task the duration mean, sigma, p99, p99.9 and the period mean and sigma beside the
 report's row, and the share of control periods (start to start) at least WCET99 = 2987 µs and WCET99.9 =
 3738 µs (RAW; DMP the same multiples of 5000 µs). What the model gives, and what it does not explain (the
@@ -214,6 +246,9 @@ class BoardConfig:
     boot_hello: bool = True
     log_bytes: int = FLASH_BYTES  # the flash log's size (128 KB on the board)
     softdevice: bool = True  # the BLE stack advertises (and takes the CPU for it) whether a phone is there or not
+    # A changed stick moves the motors in the parse task that decodes it, not at the next control step (module
+    # docstring, "Sticks to motors"); False is the report's firmware, where only the control step does.
+    stick_reaction: bool = True
     # A diagnostic, not part of the model: an extra exponential delay of this mean (µs) on every start out of an
     # idle wait, standing for interference the model does not know (bench/profile.py: "residual").
     residual_jitter_us: float = 0.0
@@ -252,10 +287,14 @@ class Board:
         self.rng = random.Random(cfg.seed ^ 0x5EED)
         self._cost = {name: c.sampler(self.rng) for name, c in COSTS.items()}
         self.now = 0  # µs since boot
+        self._present = 0  # the outside world's present: the latest time ``advance`` was asked to reach
         self.encoder = Encoder()
         self.decoder = Decoder()
         self.ble_decoder = Decoder()
-        self._rx = bytearray()  # the UART receive queue
+        self._rx = bytearray()  # the UART receive queue: bytes in, and bytes still on the wire at its end
+        self._rx_wire: deque[tuple[float, int]] = deque()  # bursts still arriving: (last byte in, µs; bytes)
+        self._rx_wire_bytes = 0  # bytes at the end of _rx that are still on the wire
+        self._rx_wire_free = 0.0  # when the receive line is free (bursts arrive one after another)
         self._ble_rx = bytearray()
         self._tx = bytearray()  # the UART transmit buffer, drained at the baud rate
         self._tx_clock = 0.0  # board time up to which the wire has been busy
@@ -299,6 +338,9 @@ class Board:
         self.battery = self.world.battery()
         self.pressure, self.temperature = self.world.baro()
         self.ae = (0, 0, 0, 0)
+        self.motors_at_us = 0  # board time at which ``ae`` took effect
+        self._sticks_used: tuple[int, int, int, int] | None = None  # what the motors were last computed from
+        self.reactions = TaskStats()  # the recomputes at a stick change (their time is in the parse task's)
         self._last_cmd: tuple[int, int, int] | None = None
         self._last_ack: Ack | None = None
         self._last_cmd_us = 0
@@ -316,13 +358,24 @@ class Board:
     # --- the outside world's calls ------------------------------------------------------------------------
 
     def uart_receive(self, data: bytes) -> None:
-        """Bytes from the PC, arriving now (the UART interrupt queues them). A full queue drops and counts."""
+        """Bytes from the PC, reaching the UART at the present: the time ``advance`` was last asked to reach
+        (the loop may have run a task past it; the wire does not wait for the task). The UART interrupt queues
+        them; a full queue drops and counts."""
         room = RX_QUEUE_BYTES - len(self._rx)
         if len(data) > room:
             self.rx_overflow += len(data) - max(room, 0)
             data = data[: max(room, 0)]
+        if not data:
+            return
         self._rx += data
-        self.irq.rx(self.now, len(data))
+        at = min(self.now, self._present)
+        self.irq.rx(at, len(data))
+        # The bytes take the wire at 115200 baud, after any still arriving: the burst can be parsed once its last
+        # byte is in (a pty or a test hands it over at once; the board's UART does not).
+        start = max(float(at), self._rx_wire_free)
+        self._rx_wire_free = end = start + len(data) * UART_US_PER_BYTE
+        self._rx_wire.append((end, len(data)))
+        self._rx_wire_bytes += len(data)
 
     def uart_transmit(self) -> bytes:
         """What has left the UART by now: 115200 baud, 8N1."""
@@ -368,12 +421,15 @@ class Board:
         self._wireless_events()
 
     def next_tick_us(self) -> int:
-        """The board time of the next timer interrupt."""
-        return min(self._next.values())
+        """The board time of the next timer interrupt, or of the last byte of a burst on the receive line."""
+        t = min(self._next.values())
+        if self._rx_wire:
+            t = min(t, math.ceil(self._rx_wire[0][0]))
+        return t
 
     def next_event_us(self) -> int:
         """When a real-time driver should next call ``advance``: now if a task is ready to run (the one that
-        just ran ends at ``now``), else at the next timer interrupt."""
+        just ran ends at ``now``), else at the next timer interrupt or the end of a burst still arriving."""
         self._fire_timers()
         ready = (self._pick_priority() is not None if self.config.scheduler == "priority"
                  else any(self._flags.values()))
@@ -395,6 +451,7 @@ class Board:
 
     def reset_profile(self) -> None:
         self.stats = {name: TaskStats() for name in TASKS}
+        self.reactions = TaskStats()
         self._profile_mark = (self.now, self.busy_us)
 
     # --- the main loop ------------------------------------------------------------------------------------
@@ -402,11 +459,13 @@ class Board:
     def advance(self, until_us: int) -> None:
         """Run the loop until the board clock reaches ``until_us`` (a task running then finishes first)."""
         priority = self.config.scheduler == "priority"
+        if until_us > self._present:
+            self._present = until_us
         while self.now < until_us:
             self._fire_timers()
             task = self._pick_priority() if priority else self._pick_round_robin()
             if task is None:
-                nxt = min(self._next.values())
+                nxt = self.next_tick_us()
                 self.now = min(max(nxt, self.now + 1), until_us) if self.now < nxt else self.now + 1
                 self._idle = True
                 continue
@@ -452,8 +511,15 @@ class Board:
                 at[t] = at.get(t, 0) + 1
         for t, n in at.items():
             self._timer_isr_end = max(self._timer_isr_end, t + APP_TIMER_ISR_US + APP_TIMER_EXTRA_US * (n - 1))
-        if self._rx or self._ble_rx:
+        if self._ble_rx or self._rx_arrived():
             self._flags["parse"] = True
+
+    def _rx_arrived(self) -> int:
+        """How many bytes of the UART receive queue are in by now (the rest is still on the wire)."""
+        wire = self._rx_wire
+        while wire and wire[0][0] <= self.now:
+            self._rx_wire_bytes -= wire.popleft()[1]
+        return len(self._rx) - self._rx_wire_bytes
 
     def _period(self, name: str) -> int:
         if name == "sensor":
@@ -514,12 +580,16 @@ class Board:
         link = self.wireless
         if link.reads_uart:
             queue, decoder = self._rx, self.decoder
+            limit = min(self._parse_limit, self._rx_arrived())
         else:
             queue, decoder = self._ble_rx, self.ble_decoder
+            limit = self._parse_limit
             if self._rx:
                 self.rx_ignored += len(self._rx)
                 self._rx.clear()
-        chunk = bytes(queue[: self._parse_limit])
+                self._rx_wire.clear()
+                self._rx_wire_bytes = 0
+        chunk = bytes(queue[:limit])
         self._parse_limit = PARSE_MAX_BYTES
         del queue[: len(chunk)]
         if self.rx_overflow > self._overflow_reported:
@@ -529,7 +599,35 @@ class Board:
         for pkt in decoder.feed(chunk):
             self.last_frame_us = self.now
             self._handle(pkt)
+        if self.config.stick_reaction and self._sticks_used is not None and self.modes.sticks() != self._sticks_used:
+            cost += self._react(self.now + cost)
         return cost
+
+    def _react(self, at: int) -> int:
+        """The sticks changed (the parse task decoded them by board time ``at``): recompute the motor commands
+        now from the latest estimate, as the control step would, but without a time step (module docstring,
+        "Sticks to motors"). Returns the cost (µs), 0 when it is not done."""
+        m, fc = self.modes, self.core
+        mode = m.mode
+        if mode not in FLIGHT_MODES or int(mode) != fc.mode:
+            return 0  # motors off (SAFE, CALIBRATION) or forced (PANIC), or a mode the core has not entered
+        path = self._path
+        if self.config.scheduler == "priority" and at + COSTS[f"control_{path}"].figure[3] > self._next["sensor"]:
+            return 0  # the slack rule: it might not end before the tick; the control step at the tick does it
+        cost = self._cost[f"control_{path}"]()
+        sticks = m.sticks()
+        self._set_motors(fc.control(int(mode), *sticks, 0.0), at + cost)
+        self._sticks_used = sticks
+        self.reactions.add(at, cost)
+        return cost
+
+    def _set_motors(self, ae: tuple[int, int, int, int], at: int) -> None:
+        """The motor commands take effect at board time ``at``."""
+        self.ae = ae
+        self.motors_at_us = at
+        self.modes.motor_level = sum(ae) // 4
+        self.world.advance_to(at / 1e6)
+        self.world.set_motors(*ae)
 
     def _want_path(self) -> str:
         if self.config.sensor_path != "auto":
@@ -575,14 +673,12 @@ class Board:
         dt = SENSOR_PERIOD_US[self._path] / 1e6
         if mode == Mode.PANIC:
             fc.panic_scale = m.panic_motor_level(now_s) / max(1, fc.panic_ae)
-        roll, pitch, yaw, lift = m.sticks()
-        ae = fc.control(int(mode), roll, pitch, yaw, lift, dt)
+        sticks = m.sticks()
+        ae = fc.control(int(mode), *sticks, dt)
         if not m.motors_enabled:
             ae = (0, 0, 0, 0)
-        self.ae = ae
-        m.motor_level = sum(ae) // 4
-        self.world.advance_to(now_s)
-        self.world.set_motors(*ae)
+        self._sticks_used = sticks
+        self._set_motors(ae, self.now)
         if self.log.recording:
             self._flags["logging"] = True
         want = self._want_path()
@@ -945,6 +1041,8 @@ class Board:
             "report_deadline_miss_rate": REPORT_MISS_RATE[self._path],
             "report_deadline_miss_rate_999": REPORT_MISS_RATE_999[self._path],
             "tasks": {name: self.stats[name].summary() for name in TASKS},
+            # the motor recomputes at a stick change, done inside parse runs (their time is in parse's too)
+            "stick_reactions": self.reactions.summary(),
             "report": report_figures(self._path, self.config.fixed_point),
             "ticks_lost": dict(self.ticks_lost),
             "idle_starts_delayed_by_interrupts": self.irq.delays,
@@ -1025,7 +1123,8 @@ class BytePilot:
 
 def run_profile(path: str = "raw", scheduler: str = "round-robin", seconds: float = 30.0, seed: int = 1,
                 logging: bool = True, log_scheme: str = "delta8", telemetry_hz: float = 50.0,
-                softdevice: bool = True, residual_jitter_us: float = 0.0) -> dict[str, Any]:
+                softdevice: bool = True, residual_jitter_us: float = 0.0,
+                stick_reaction: bool = True) -> dict[str, Any]:
     """Profile as the report did (4.2): calibrate, enter FULL (DMP path) or RAW, random sticks from the PC,
     logging on; the props are off (motors held at zero in the world, so random sticks cannot crash it)."""
     world = World(seed)
@@ -1036,7 +1135,7 @@ def run_profile(path: str = "raw", scheduler: str = "round-robin", seconds: floa
     log_bytes = max(FLASH_BYTES, int(seconds * 400 * 40) + 4096)
     board = Board(BoardConfig(seed=seed, scheduler=scheduler, sensor_path=path, log_scheme=log_scheme,
                               log_bytes=log_bytes, telemetry_hz=telemetry_hz, softdevice=softdevice,
-                              residual_jitter_us=residual_jitter_us), world=world)
+                              residual_jitter_us=residual_jitter_us, stick_reaction=stick_reaction), world=world)
     board.modes.config.tilt_limit_cdeg = 18000
     pilot = BytePilot(board, seed)
     pilot.command(Op.MODE, Mode.CALIBRATION)
@@ -1053,7 +1152,8 @@ def run_profile(path: str = "raw", scheduler: str = "round-robin", seconds: floa
     pilot.run(seconds)
     out = board.profile()
     out.update(seconds=seconds, seed=seed, mode=board.mode.name, log_bytes=board.log.used, log_scheme=log_scheme,
-               telemetry_hz=telemetry_hz, softdevice=softdevice, residual_jitter_us=residual_jitter_us)
+               telemetry_hz=telemetry_hz, softdevice=softdevice, residual_jitter_us=residual_jitter_us,
+               stick_reaction=stick_reaction)
     return out
 
 
@@ -1080,6 +1180,10 @@ def cmd_profile(args: Any) -> int:
     print(f"control periods >= {out['deadline_us']} µs (WCET99): {_pct(out['deadline_miss_rate'])}"
           f" (report, round robin: {_pct(out['report_deadline_miss_rate'])}); >= {out['deadline_999_us']} µs"
           f" (WCET99.9): {_pct(out['deadline_miss_rate_999'])} (report: {_pct(out['report_deadline_miss_rate_999'])})")
+    r = out["stick_reactions"]
+    print(f"stick changes: {r['n']} motor recomputes in the parse task, {r['mean_us']:.0f} µs mean,"
+          f" p99 {r['p99_us']:.0f}"
+          " (in parse's durations above; the report's firmware waited for the control step)")
     if args.json:
         print(json.dumps(out))
     return 0

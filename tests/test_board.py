@@ -11,7 +11,16 @@ from hypothesis import strategies as st
 from hypothesis.stateful import RuleBasedStateMachine, invariant, rule
 
 from fcb_sim import control as C
-from fcb_sim.board import SENSOR_PERIOD_US, TASKS, Board, BoardConfig, run_profile
+from fcb_sim.board import (
+    PARSE_US_BASE,
+    PARSE_US_PER_BYTE,
+    SENSOR_PERIOD_US,
+    TASKS,
+    UART_US_PER_BYTE,
+    Board,
+    BoardConfig,
+    run_profile,
+)
 from fcb_sim.modes import FLIGHT_MODES, LIFT_ZERO, STICK_NEUTRAL, ModeChange
 from fcb_sim.timing import (
     COSTS,
@@ -571,3 +580,199 @@ def test_a_flat_battery_sags_under_load_and_panics() -> None:
     assert b.mode == Mode.SAFE and b.battery >= 1050  # at rest again it reads fine ...
     assert pc.of(Status)[-1].flags & Flag.LOW_BATTERY
     assert pc.command(Op.MODE, Mode.MANUAL).status == Nak.BATTERY_LOW  # ... but it is still flat
+
+
+# --- sticks to motors: a changed stick moves the motors in the parse task that decodes it -------------------------
+
+FRAME_WIRE_US = 15 * UART_US_PER_BYTE  # a Joystick frame on the UART at 115200 baud
+
+
+class Runs:
+    """Every task run the board reports, with the motor commands and the time they took effect after it."""
+
+    def __init__(self, board: Board) -> None:
+        self.board = board
+        self.runs: list[tuple[str, int, int, tuple[int, ...], int, int]] = []
+        board.on_task = self
+
+    def __call__(self, name: str, start: int, dur: int) -> None:
+        b = self.board
+        self.runs.append((name, start, dur, b.ae, b.motors_at_us, b.reactions.n))
+
+    def first_change(self, since: int, ae: tuple[int, ...]) -> tuple[str, int, int, tuple[int, ...], int, int]:
+        return next(r for r in self.runs if r[1] >= since and r[3] != ae)
+
+
+def manual(**cfg: Any) -> tuple[Board, Pc]:
+    b, pc = board_and_pc(**cfg)
+    assert pc.command(Op.MODE, Mode.MANUAL).status == Nak.OK
+    pc.js = Joystick(0, 0, 0, 8000, 0)
+    pc.run(0.1)
+    b.advance(b.now + 5000)  # what the PC sent last (a heartbeat's answer) is in and parsed
+    assert b.ae != (0, 0, 0, 0)
+    return b, pc
+
+
+def stick_latencies(b: Board, pc: Pc, n: int) -> tuple[list[int], list[str]]:
+    """Send n lift changes at random phases; the board time from each frame reaching the UART to the motors
+    changing, and the task that changed them."""
+    rng = random.Random(5)
+    runs = Runs(b)
+    lat, by = [], []
+    for i in range(n):
+        t = b.now + rng.randrange(10_000)
+        b.advance(t)
+        ae = b.ae
+        pc.send(Joystick(0, 0, 0, (8000, 12000)[i % 2 == 0], 0))
+        b.advance(t + 12_000)
+        name, start, dur, _ae, at, _n = runs.first_change(t, ae)
+        lat.append(at - t)
+        by.append(name)
+    b.on_task = None
+    return lat, by
+
+
+def test_a_changed_stick_moves_the_motors_in_the_parse_run_that_decodes_it() -> None:
+    b, pc = manual()
+    runs = Runs(b)
+    for i in range(30):  # at many phases against the control step (the board's own clock: deterministic)
+        t = b.now + 1000 * i % 5000
+        b.advance(t)
+        ae = b.ae
+        pc.send(Joystick(0, 0, 0, 9000 + 1000 * (i % 2), 0))
+        b.advance(t + 12_000)
+        name, start, dur, new, at, _n = runs.first_change(t, ae)
+        assert name == "parse" and at == start + dur  # at the end of that parse run: decode, then recompute
+        # the first parse after the frame's last byte came in (not before: the wire takes 1.3 ms)
+        assert start == next(r[1] for r in runs.runs if r[0] == "parse" and r[1] >= t + FRAME_WIRE_US)
+        # the control step computes the same from these sticks: the motors stay where the parse put them
+        after = [r for r in runs.runs if r[0] == "control" and r[1] > at]
+        assert after and after[0][3] == new
+
+
+def test_the_recompute_takes_the_stick_delay_from_the_control_period_to_the_wire() -> None:
+    lat, by = stick_latencies(*manual(), 60)
+    assert set(by) == {"parse"}
+    assert min(lat) >= FRAME_WIRE_US and sum(lat) / len(lat) < FRAME_WIRE_US + 800
+    old, by_old = stick_latencies(*manual(stick_reaction=False), 60)  # the report's firmware: control steps only
+    assert set(by_old) == {"control"} and sum(old) / len(old) > FRAME_WIRE_US + 2000
+
+
+def test_an_unchanged_stick_does_nothing_more_than_its_decode() -> None:
+    b, pc = manual()
+    runs = Runs(b)
+    n0, ae = b.reactions.n, b.ae
+    for _ in range(50):  # the same value again and again: the stream's keep-alives
+        pc.send(pc.js)
+        b.advance(b.now + 10_000)
+    parses = [r for r in runs.runs if r[0] == "parse"]
+    assert len(parses) == 50 and all(r[2] == PARSE_US_BASE + PARSE_US_PER_BYTE * 15 for r in parses)
+    assert b.reactions.n == n0 and b.ae == ae
+    pc.send(Command(99, Op.TRIM_ROLL, 4))  # a trim moves the effective stick: that is a change too
+    b.advance(b.now + 10_000)
+    assert b.reactions.n == n0 + 1 and b.ae[3] > b.ae[1]  # roll right: the left motor up, the right one down
+
+
+def test_safe_panic_and_fire_still_force_the_motors() -> None:
+    b, pc = board_and_pc()
+    pc.run(0.1)
+    for js in (Joystick(4000, 0, 0, 0, 0), Joystick(0, 0, 0, 9000, 0)):  # SAFE: motors off whatever the sticks
+        pc.send(js)
+        b.advance(b.now + 10_000)
+        assert b.ae == (0, 0, 0, 0) and b.world.cmd == [0, 0, 0, 0] and b.reactions.n == 0
+    b, pc = manual()
+    n0 = b.reactions.n
+    pc.send(Joystick(0, 0, 0, 20_000, 1))  # fire with the lift up in the same frame: PANIC, not more lift
+    b.advance(b.now + 10_000)
+    assert b.mode == Mode.PANIC and b.reactions.n == n0
+    level = b.ae[0]
+    assert b.ae == (level,) * 4 and abs(level - b.modes.panic_motor_level(b.now / 1e6)) <= 1  # PANIC's hold
+    for lift in (30_000, 0, 15_000):  # sticks in PANIC move nothing
+        pc.send(Joystick(3000, -3000, 2000, lift, 0))
+        b.advance(b.now + 10_000)
+        assert b.ae == (level,) * 4 and b.reactions.n == n0
+
+
+def test_the_recompute_in_height_steps_no_integral_filter_or_set_point() -> None:
+    b, pc = board_and_pc()
+    calibrate(pc)
+    assert pc.command(Op.MODE, Mode.FULL).status == Nak.OK
+    pc.js = Joystick(0, 0, 0, int(HOVER_LIFT * 1.05), 0)
+    pc.run(1.0)
+    assert pc.command(Op.MODE, Mode.HEIGHT).status == Nak.OK
+    pc.run(1.0)
+    fc = b.core
+
+    def state() -> tuple[Any, ...]:
+        h = fc.height_est
+        return (fc._z_int, fc._sp_offset, fc.setpoint, fc.height, fc.vz, h.height, h.vz, fc.filter.quaternion(),
+                fc.dmp_phi, fc.sp, b.world.t)
+
+    seen: list[tuple[str, int, tuple[Any, ...]]] = []
+    b.on_task = lambda name, start, dur: seen.append((name, b.reactions.n, state()))
+    n0 = b.reactions.n
+    for i in range(20):  # roll and a lift far past HEIGHT's deadband: with a time step both would move things
+        pc.send(Joystick(600 * (i % 3 - 1), 0, 0, int(HOVER_LIFT * (1.05 + 0.3 * (i % 2))), 0))
+        b.advance(b.now + 7_000)
+    b.on_task = None
+    assert b.mode == Mode.HEIGHT and b.reactions.n >= n0 + 15
+    reacted = [i for i in range(1, len(seen)) if seen[i][1] > seen[i - 1][1]]
+    assert reacted and all(seen[i][0] == "parse" for i in reacted)
+    for i in reacted:
+        before, after = seen[i - 1][2], seen[i][2]
+        assert after[:10] == before[:10]  # no estimator, filter, integral or set-point step
+        assert after[10] >= before[10]  # only the world ran on to the moment the motors changed
+
+
+def test_the_profile_counts_the_recomputes() -> None:
+    with_r = run_profile("raw", seconds=2.0, logging=False)
+    without = run_profile("raw", seconds=2.0, logging=False, stick_reaction=False)
+    r, p, p0 = with_r["stick_reactions"], with_r["tasks"]["parse"], without["tasks"]["parse"]
+    assert without["stick_reactions"]["n"] == 0 and r["n"] >= 150  # random sticks at 100 Hz: nearly every frame
+    assert abs(r["mean_us"] - COSTS["control_raw"].mean()) < 15  # priced as a control step (Figure 14)
+    # the parse runs carry the recomputes: their time minus the recomputes' is the decode time alone
+    decode = p["n"] * p["mean_us"] - r["n"] * r["mean_us"]
+    assert abs(decode / p["n"] - p0["mean_us"]) < 5 and p["mean_us"] > p0["mean_us"] + 60
+    assert with_r["cpu_load_pct"] > without["cpu_load_pct"]
+
+
+def test_under_the_priority_scheduler_a_recompute_waits_if_it_might_not_fit_before_the_tick() -> None:
+    b, pc = manual(scheduler="priority")
+    rng = random.Random(2)
+    checked = skipped = 0
+
+    def check(name: str, start: int, dur: int) -> None:
+        nonlocal checked, skipped
+        if name != "parse":
+            return
+        if b.motors_at_us == start + dur:  # this parse run recomputed
+            cost = b.reactions.durations[-1]
+            assert b.motors_at_us - cost + COSTS[f"control_{b.path}"].figure[3] <= b._next["sensor"]
+            checked += 1
+        elif b.modes.sticks() != b._sticks_used:
+            skipped += 1  # left to the control step at the tick, which runs first
+
+    b.on_task = check
+    for _ in range(300):
+        pc.send(Joystick(rng.randint(-2000, 2000), 0, 0, rng.randint(6000, 12_000), 0))
+        b.advance(b.now + rng.randrange(2000, 6000))
+    assert checked > 150 and skipped > 0
+
+
+def test_a_burst_is_on_the_wire_while_a_task_runs_past_the_present() -> None:
+    b, pc = manual()
+    runs = Runs(b)
+    start = None
+    while start is None:  # stop the world just after a DMP read began (the read lasts about 2 ms)
+        b.advance(b.now + 100)
+        start = next((r[1] for r in runs.runs if r[0] == "sensor" and r[1] < b.now - 1500), None)
+    t = start + 10
+    runs.runs.clear()
+    b.advance(t)
+    assert b.now > t + FRAME_WIRE_US  # the loop is inside the read, well past the present
+    ae, read_end = b.ae, b.now
+    pc.send(Joystick(0, 0, 0, 11_000, 0))
+    b.advance(t + 10_000)
+    name, s, d, _new, at, _n = runs.first_change(t, ae)
+    # the frame arrived during the read: parsed right after it (and the control step), not 1.3 ms after it
+    assert name == "parse" and at < read_end + FRAME_WIRE_US
