@@ -1,16 +1,20 @@
 """Stick-to-motor latency: from a joystick event in term to the board's motor command changing.
 
 The board runs in real time in a child process (fcb_sim.serve's PtyServer behind a real pseudo-terminal, paced
-to the wall clock, 115200 baud on its UART model); the terminal side is term's own link (LinkSession and
+to the wall clock, 115200 baud on its UART model both ways); the terminal side is term's own link (LinkSession and
 Connection over the SerialTransport) in this process. The board is calibrated and put in MANUAL (motors follow
 the lift stick directly, so every motor change is caused by a stick change), then the lift stick alternates
-between two levels at random moments. For each change, latency = (the wall time at which the board's control
-task produced the new motor command, as the child reports it) - (the moment term got the stick value). Both
-sides read CLOCK_MONOTONIC, which the two processes share.
+between two levels at random moments. For each change, latency = (the wall time at which the board's motor
+command changed, as the child reports it) - (the moment term got the stick value). Both sides read
+CLOCK_MONOTONIC, which the two processes share. The board changes the motors in the parse task that decodes a
+new stick value (fcb_sim/board.py, "Sticks to motors"); ``by_parse_pct`` says how often it did.
 
     python -m bench.latency [--events 120] [--policy stream|on-change|fixed-rate] [--raw] [--seed 1]
 
-Prints one JSON line: mean_ms, p50_ms, p99_ms (and n, the report's 23.4 ms mean and the 3 ms goal).
+Prints one JSON line: mean_ms, p50_ms, p99_ms (and n, the report's 23.4 ms mean and the 3 ms goal), and where the
+time goes: term_mean_ms (to the frame handed to the serial port), to_board_mean_ms (to the board's server reading
+it from the pty) and board_mean_ms (the frame's 1.3 ms on the board's UART, waiting for the loop, parse and the
+recompute).
 """
 
 from __future__ import annotations
@@ -35,19 +39,37 @@ LIFTS = (8000, 12000)  # two lift levels, both above idle in MANUAL
 
 def board_main(seed: int) -> int:
     from fcb_sim.serve import PtyServer, event_loop, make_board
+    from term.protocol import Decoder, Joystick
 
     class Reporting(PtyServer):
-        """Reports every change of the motor commands with the wall time the control task produced it."""
+        """Reports every change of the motor commands with the wall time it took effect and the task that made
+        it, and the wall time each new stick value was read from the pty."""
 
         last: tuple[int, ...] = ()
+        lift: int | None = None
+        decoder = Decoder()
+
+        def _on_readable(self) -> None:
+            t = time.monotonic()
+            before = self.bytes_in
+            super()._on_readable()
+            n = self.bytes_in - before
+            if n:  # decode a copy after the board has the bytes (the board is not held up by this)
+                for pkt in self.decoder.feed(bytes(self.board._rx[-n:])):
+                    if type(pkt) is Joystick and pkt.lift != self.lift:
+                        self.lift = pkt.lift
+                        print(f"rx {t:.6f} {pkt.lift}", flush=True)
 
         def _on_task(self, name: str, start: int, dur: int) -> None:
             super()._on_task(name, start, dur)
-            if name == "control":
-                ae = tuple(self.board.ae)
-                if ae != self.last:
-                    self.last = ae
-                    print(f"ae {time.monotonic():.6f} {' '.join(map(str, ae))}", flush=True)
+            ae = tuple(self.board.ae)
+            if ae != self.last:
+                self.last = ae
+                # The task ran now (the server runs a task once the wall clock reaches its start); the motors
+                # changed that much board time after its start (at the start for the control step, after the
+                # decode and the recompute for a stick change in the parse task).
+                t = time.monotonic() + (self.board.motors_at_us - start) / 1e6
+                print(f"ae {t:.6f} {name} {' '.join(map(str, ae))}", flush=True)
 
     async def main() -> None:
         server = Reporting(make_board(seed))
@@ -80,7 +102,8 @@ class BoardChild:
         if not line.startswith("pty: "):
             raise SystemExit(f"bench.latency: the board did not start ({line.strip() or 'no output'})")
         self.path = line[5:].strip()
-        self.changes: list[tuple[float, tuple[int, ...]]] = []
+        self.changes: list[tuple[float, str, tuple[int, ...]]] = []  # (wall time, task, ae)
+        self.rx: list[tuple[float, int]] = []  # (wall time the board read a new lift from the pty, lift)
         self._lock = threading.Lock()
         threading.Thread(target=self._read, daemon=True).start()
 
@@ -90,11 +113,18 @@ class BoardChild:
             parts = line.split()
             if parts and parts[0] == "ae":
                 with self._lock:
-                    self.changes.append((float(parts[1]), tuple(int(p) for p in parts[2:])))
+                    self.changes.append((float(parts[1]), parts[2], tuple(int(p) for p in parts[3:])))
+            elif parts and parts[0] == "rx":
+                with self._lock:
+                    self.rx.append((float(parts[1]), int(parts[2])))
 
-    def changes_after(self, t: float) -> list[tuple[float, tuple[int, ...]]]:
+    def changes_after(self, t: float) -> list[tuple[float, str, tuple[int, ...]]]:
         with self._lock:
             return [c for c in self.changes if c[0] >= t]
+
+    def rx_after(self, t: float, lift: int) -> float | None:
+        with self._lock:
+            return next((r for r, v in self.rx if r >= t and v == lift), None)
 
     def stop(self) -> None:
         self.proc.terminate()
@@ -105,6 +135,8 @@ class BoardChild:
 
 
 term_part: list[float] = []  # per event: from the stick event to the frame handed to the serial port
+pty_part: list[float] = []  # per event: from the stick event to the board's server reading it from the pty
+by_task: list[str] = []  # per event: the board task that changed the motors (parse: at once; control: next step)
 
 
 async def measure(path: str, board: BoardChild, events: int, policy: str, seed: int,
@@ -157,6 +189,8 @@ async def measure(path: str, board: BoardChild, events: int, policy: str, seed: 
         latencies: list[float] = []
         level = 0
         term_part.clear()
+        pty_part.clear()
+        by_task.clear()
         for _ in range(events):
             await asyncio.sleep(rng.uniform(0.06, 0.14))  # a random phase against every timer on both sides
             level ^= 1
@@ -167,10 +201,15 @@ async def measure(path: str, board: BoardChild, events: int, policy: str, seed: 
                 await until(lambda t=t_event: bool(board.changes_after(t)), timeout=1.0)
             except TimeoutError:
                 continue
-            latencies.append((board.changes_after(t_event)[0][0] - t_event) * 1e3)
+            t_motor, task, _ae = board.changes_after(t_event)[0]
+            latencies.append((t_motor - t_event) * 1e3)
+            by_task.append(task)
             sent = [t for t, lift in transport.writes if t >= t_event and lift == LIFTS[level]]
             if sent:
                 term_part.append((sent[0] - t_event) * 1e3)
+            t_rx = board.rx_after(t_event, LIFTS[level])
+            if t_rx is not None:
+                pty_part.append((t_rx - t_event) * 1e3)
         conn.set_joystick(Joystick(0, 0, 0, 0, 0))
         conn.send_command(Op.MODE, Mode.SAFE)
         await asyncio.sleep(0.1)
@@ -221,8 +260,12 @@ def main(argv: list[str] | None = None) -> int:
         # where the time goes: term (event -> frame handed to the serial port: the joystick send policy) and
         # the rest (the wire at 115200 baud, the pty, the board's parse and control tasks)
         "term_mean_ms": round(statistics.fmean(term_part), 2) if term_part else None,
-        "wire_and_board_mean_ms": round(statistics.fmean(lat) - statistics.fmean(term_part), 2) if term_part
-        else None,
+        # to the board's server reading the frame from the pty (term, the write thread, the pty, a wake-up)
+        "to_board_mean_ms": round(statistics.fmean(pty_part), 2) if pty_part else None,
+        # the rest: the frame on the board's UART at 115200 baud (15 bytes, 1.30 ms), waiting for the loop, the
+        # parse task, the motors' recompute (or the next control step)
+        "board_mean_ms": round(statistics.fmean(lat) - statistics.fmean(pty_part), 2) if pty_part else None,
+        "by_parse_pct": round(100 * by_task.count("parse") / len(by_task), 1),
         "events": args.events,
         "policy": args.policy,
         "control_hz": 400 if args.raw else 200,
