@@ -10,8 +10,8 @@ A ``LinkSession`` knows the protocol's rules for talking to a board and nothing 
   a repeat of its last (cmd_id, op, arg) with the same Ack without doing it again). A PANIC request jumps the
   queue and cancels what waits before it;
 - it sends the joystick latest-wins (a new value replaces an unsent one, never queues behind it), at most
-  ``joystick_rate`` times per second, and with ``change_only`` (BLE) only when the value changed, plus a
-  keep-alive every ``keepalive`` seconds;
+  ``joystick_rate`` times per second, and with ``change_only`` (BLE, and the serial ``stream`` policy) only when
+  the value changed, plus a keep-alive every ``keepalive`` seconds, which never delays the next change;
 - it keeps the statistics a pilot needs to trust the link (``stats_at(now)`` / ``stats``), declares the link
   lost after ``link_timeout`` seconds without a valid frame and restored at the next one;
 - it sends a ``Hello`` at connect and reports a board that speaks another protocol version.
@@ -346,15 +346,20 @@ class LinkSession:
         if self._joystick_due(now):
             js = self._js
             parts.append(enc.encode(js))
+            keepalive = self.change_only and js == self._js_sent
             self._js_sent = js
             self._js_last = now
-            # Keep a steady grid when a send is a little late (a timer wakes up late), so the rate stays at
-            # joystick_rate instead of drifting down; after a longer pause start a new grid. Either way two
-            # sends are at least half an interval apart.
-            late = now - self._js_next
-            self._js_next = self._js_next + self.joystick_interval if late < self.joystick_interval / 2 else (
-                now + self.joystick_interval
-            )
+            # A keep-alive (change_only: the same value again) does not hold back the next change: a change just
+            # after it goes at once, not one rate interval later. At most one keep-alive per ``keepalive`` s
+            # rides on top of the rate.
+            if not keepalive:
+                # Keep a steady grid when a send is a little late (a timer wakes up late), so the rate stays at
+                # joystick_rate instead of drifting down; after a longer pause start a new grid. Either way two
+                # sends are at least half an interval apart.
+                late = now - self._js_next
+                self._js_next = self._js_next + self.joystick_interval if late < self.joystick_interval / 2 else (
+                    now + self.joystick_interval
+                )
         if not parts:
             return b""
         out = b"".join(parts)

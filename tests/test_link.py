@@ -293,6 +293,28 @@ def test_change_only_sends_on_change_plus_keepalive() -> None:
     assert times == [(0, 0), (500, 0), (1000, 0), (1234, 1000), (1244, 2000), (1744, 2000)]
 
 
+def test_a_change_right_after_a_keepalive_goes_at_once() -> None:
+    s = LinkSession(0.0, joystick_rate=100.0, change_only=True, keepalive=0.5, link_timeout=100.0)
+    s.set_joystick(Joystick(0, 0, 0, 0, 0))
+    times = []
+    for tenth_ms in range(12_000):  # 1.2 s, asked every 0.1 ms
+        t = tenth_ms / 10_000
+        if tenth_ms == 5_002:  # 0.2 ms after the keep-alive at 0.5 s
+            s.set_joystick(Joystick(0, 0, 0, 1000, 0))
+        if tenth_ms == 5_010:  # another change 0.8 ms later: the rate limit holds it until 10 ms after the first
+            s.set_joystick(Joystick(0, 0, 0, 2000, 0))
+        for p in packets(s.data_to_send(t)):
+            times.append((tenth_ms, p.lift))
+    assert times == [(0, 0), (5_000, 0), (5_002, 1000), (5_102, 2000), (10_102, 2000)]
+    # the deadline says so too: after a keep-alive, a change is due now
+    s = LinkSession(0.0, joystick_rate=100.0, change_only=True, keepalive=0.5, link_timeout=100.0)
+    s.set_joystick(Joystick(0, 0, 0, 0, 0))
+    s.data_to_send(0.0)
+    s.data_to_send(0.5)  # the keep-alive
+    s.set_joystick(Joystick(1, 0, 0, 0, 0))
+    assert s.next_deadline() <= 0.5
+
+
 def test_joystick_deadline_drives_the_timer() -> None:
     s = LinkSession(0.0, joystick_rate=100.0, change_only=True, keepalive=0.5, link_timeout=100.0)
     assert s.next_deadline() == 100.0  # only the link timeout
