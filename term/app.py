@@ -3,6 +3,11 @@
 - Link events arrive on the connection's tasks (the same event loop) and only update the model; heartbeat ACKs
   are written by the connection itself, never waiting for the screen.
 - The screen is redrawn from the model at a steady rate (``render_hz``), never per byte.
+- Two links at once (``term --sim``, ``term --serial P --ble A``): the cable and the radio (BLE), each a
+  ``Connection`` with its own session. Packets from either update the one model (it is one board); the sticks go
+  to both; commands go over the link that carries control: the radio once the board says STARTED (the report's
+  handover, key 8), the cable otherwise. A lost radio hands control back to the cable at once, and is tried
+  again with a growing pause (1, 2, 4, 8 s); the palette's "reconnect now" tries every dead link at once.
 - Pilot keys are priority bindings generated from the key map: they work on every screen (help and plots
   included) except while a text input (the command palette) has focus. A key press goes out at once: the command
   is queued in the session and the connection's timer task is woken to write it.
@@ -31,7 +36,7 @@ from term.input.mapping import NEUTRAL, leave_safe_refusal
 from term.link import CommandFailed, LinkSession, VersionMismatch
 from term.logfile import LogDownload, log_filename, write_csv
 from term.model import Model, mode_name, op_text
-from term.protocol import Button, Joystick, LogState, Mode, Op
+from term.protocol import Button, Joystick, LogState, Mode, Op, WirelessState
 from term.transports.base import Transport, TransportError
 from term.widgets.base import ModelView
 from term.widgets.battery import BatteryGauge
@@ -48,11 +53,16 @@ from term.widgets.plots import LivePlot
 from term.widgets.pressure import PressureIndicator
 from term.widgets.profile import ProfileTable
 from term.widgets.rates import RateGauges
+from term.widgets.wireless import WirelessScreen
 
 DOWNLOAD_STALL_S = 1.0  # no chunk for this long: resume from the first missing one
 DOWNLOAD_RESUMES = 20
 RECONNECT_S = 1.0  # a dead transport is opened again this often
 DOWNLOAD_GAP_S = 0.2  # the board finished but chunks are missing: ask again from the first gap this soon
+RADIO_BACKOFF_S = (1.0, 2.0, 4.0, 8.0)  # a lost or unreachable radio is tried again after these pauses
+# Over BLE the joystick goes out when it changes (at most 100 times a second: a mouse drag sends more events
+# than that) plus a keep-alive, as the phone app did: the radio is slow.
+RADIO_SESSION: dict[str, float | bool] = {"change_only": True, "keepalive": 0.5, "joystick_rate": 100.0}
 
 
 def _panel(widget: ModelView, title: str, wid: str) -> ModelView:
@@ -129,7 +139,12 @@ class TermApp(App[int]):
         joystick_hz: float = 100.0,
         session_options: dict[str, float | bool] | None = None,
         log_directory: Path | None = None,
+        radio: Transport | None = None,
+        primary_ble: bool = False,
+        start_screen: str = "flight",
     ) -> None:
+        """``transport``: the board's link (the cable, or BLE with ``primary_ble``); ``radio``: a BLE transport
+        to the same board beside the cable, for the handover; ``start_screen``: "flight" or "wireless"."""
         super().__init__()
         self.config = config or Config()
         self.keymap: tuple[KeyBinding, ...] = self.config.keymap
@@ -141,6 +156,12 @@ class TermApp(App[int]):
         self.transport = transport
         self.session_options = session_options or {}
         self.connection: Connection | None = None
+        self.radio = radio
+        self.radio_connection: Connection | None = None
+        self.model.radio_name = radio.name if radio is not None else ""
+        self.model.primary_ble = primary_ble
+        self.start_screen = start_screen
+        self._retry_now = asyncio.Event()
         self.poller: JoystickPoller | None = None
         self._want_joystick = joystick
         self.log_directory = log_directory or self.config.log_directory
@@ -152,7 +173,8 @@ class TermApp(App[int]):
         for b in self.keymap:
             self._bindings.bind(
                 ",".join(b.keys), f"pilot('{b.action.name}')", b.action.description,
-                show=b.action.name in ("help", "show_plots", "show_flight", "show_profile", "log_download"),
+                show=b.action.name in ("help", "show_plots", "show_flight", "show_profile", "show_wireless",
+                                       "log_download"),
                 key_display=" ".join(pretty_key(k) for k in b.keys), priority=True,
             )
 
@@ -167,9 +189,14 @@ class TermApp(App[int]):
         sys.setswitchinterval(0.001)
         self.install_screen(PlotsScreen(self.config.plot_series, self.config.plot_window), "plots")
         self.install_screen(ProfileScreen(), "profile")
+        self.install_screen(WirelessScreen(), "wireless")
         self.set_interval(1.0 / self.render_hz, self.render_now)
         if self.transport is not None:
             await self._connect(self.transport)
+        if self.radio is not None:
+            self.run_worker(self._radio_loop(), exclusive=True, group="radio")
+        if self.start_screen != "flight":
+            self._show(self.start_screen)
         if self._want_joystick:
             self.call_after_refresh(self._start_joystick)
         self.render_now()
@@ -196,14 +223,111 @@ class TermApp(App[int]):
         self.model.note(self.clock(), "info", "link", f"{'re' if retrying else ''}connected to {transport.name}")
         return True
 
-    async def _reconnect(self) -> None:
-        """The transport died (a cable pulled out): try again every second until it is back or we quit."""
+    async def _reconnect(self, immediate: bool = False) -> None:
+        """The transport died (a cable pulled out): try again every second until it is back or we quit; a BLE
+        link with a growing pause (a board out of range is not helped by a scan every second)."""
+        attempt = 0
         while self.is_running and self.transport is not None and self.connection is None:
-            await asyncio.sleep(RECONNECT_S)
+            if not immediate or attempt:
+                await self._pause_before_retry(self._backoff(attempt) if self.model.primary_ble else RECONNECT_S)
+            attempt += 1
             with contextlib.suppress(TransportError):
                 await self.transport.close()
             if await self._connect(self.transport, retrying=True):
                 return
+
+    @staticmethod
+    def _backoff(attempt: int) -> float:
+        return RADIO_BACKOFF_S[min(attempt, len(RADIO_BACKOFF_S) - 1)]
+
+    async def _pause_before_retry(self, seconds: float) -> None:
+        """Sleep, unless the pilot asks to reconnect now (the palette)."""
+        self._retry_now.clear()
+        with contextlib.suppress(TimeoutError):
+            async with asyncio.timeout(seconds):
+                await self._retry_now.wait()
+
+    # --- the radio: a second link, over BLE, for the handover -----------------------------------------------
+
+    async def _radio_loop(self, immediate: bool = True) -> None:
+        """Connect the radio; while it cannot be reached, try again after 1, 2, 4, then every 8 s."""
+        attempt = 0
+        model = self.model
+        while self.is_running and self.radio is not None and self.radio_connection is None:
+            if attempt or not immediate:
+                pause = self._backoff(attempt - 1 if attempt else 0)
+                model.radio_note = f"down: {self._reconnect_radio_error or 'lost'}; next try in {pause:.0f} s"
+                model.version += 1
+                await self._pause_before_retry(pause)
+            attempt += 1
+            model.radio_note = "connecting…"
+            model.version += 1
+            with contextlib.suppress(TransportError):
+                await self.radio.close()
+            if await self._connect_radio(self.radio, attempt):
+                return
+
+    _reconnect_radio_error = ""
+
+    async def _connect_radio(self, transport: Transport, attempt: int) -> bool:
+        try:
+            await transport.open()  # first: finding the board may take seconds, which the session must not count
+            session = LinkSession(self.clock(), **{"link_timeout": self.config.link_timeout, **RADIO_SESSION})  # type: ignore[arg-type]
+            session.set_joystick(self.model.stick)
+            conn = Connection(transport, session, self.clock, on_event=self._on_radio_event)
+            await conn.start()
+        except TransportError as exc:
+            if str(exc) != self._reconnect_radio_error or attempt == 1:
+                self.model.note(self.clock(), "warning", "ble", f"radio not connected: {exc}")
+            self._reconnect_radio_error = str(exc)
+            return False
+        self.radio_connection = conn
+        self._reconnect_radio_error = ""
+        self.model.radio_up = True
+        self.model.radio_note = ""
+        self.model.note(self.clock(), "info", "ble", f"radio connected: {transport.name} (key 8 in SAFE hands "
+                        "control over to it)")
+        return True
+
+    def _on_radio_event(self, ev: object) -> None:
+        now = self.clock()
+        model = self.model
+        if type(ev) is TransportFailed:
+            was_flying_ble = model.over_ble
+            self.radio_connection = None
+            model.radio_up = False
+            model.radio_lost = False
+            self._reconnect_radio_error = ev.message  # type: ignore[attr-defined]
+            model.note(now, "error", "ble", f"BLE LOST: {ev.message}")  # type: ignore[attr-defined]
+            if model.wireless != WirelessState.DISCONNECTED:
+                # The board drops the handover with the connection (report Figure 12): control is the cable's.
+                model.wireless = int(WirelessState.DISCONNECTED)
+                model.note(now, "error", "ble", "control back on the cable: the board goes DISCONNECTED"
+                           + (" and PANICs (it was flying over BLE)" if was_flying_ble and model.flying else ""))
+            self.run_worker(self._radio_loop(immediate=False), exclusive=True, group="radio")
+            return
+        model.radio_event(ev, now)
+        if type(ev) is VersionMismatch:
+            self._fatal(f"board speaks protocol v{ev.board_version}, this terminal v{ev.our_version}: "
+                        "update the board's firmware or the terminal", 3)
+
+    def control_connection(self) -> Connection | None:
+        """The connection commands go over: the radio once the board flies over BLE, else the board's link."""
+        if self.radio_connection is not None and self.model.over_ble:
+            return self.radio_connection
+        return self.connection
+
+    def reconnect_now(self) -> None:
+        """The palette's "reconnect now": every dead link is tried at once (and then with the usual pauses)."""
+        tried = []
+        if self.transport is not None and self.connection is None:
+            self.run_worker(self._reconnect(immediate=True), exclusive=True, group="reconnect")
+            tried.append(self.transport.name)
+        if self.radio is not None and self.radio_connection is None:
+            self.run_worker(self._radio_loop(), exclusive=True, group="radio")
+            tried.append(self.radio.name)
+        self.model.note(self.clock(), "info", "term",
+                        f"reconnecting now: {', '.join(tried)}" if tried else "every link is connected")
 
     def _start_joystick(self) -> None:
         poller = JoystickPoller(self.config.joystick_mappings, resolution=self.config.joystick_resolution,
@@ -222,6 +346,9 @@ class TermApp(App[int]):
         if self.connection is not None:
             await self.connection.stop()
             self.connection = None
+        if self.radio_connection is not None:
+            await self.radio_connection.stop()
+            self.radio_connection = None
         if self.poller is not None:
             self.poller.close()
             self.poller = None
@@ -238,6 +365,8 @@ class TermApp(App[int]):
             self.model.link_lost = True
             self.model.version += 1
             self.model.note(now, "error", "link", f"LINK LOST: {ev.message}")  # type: ignore[attr-defined]
+            if self.model.primary_ble and self.model.flying:
+                self.model.note(now, "error", "link", "the board PANICs: it was flying over this BLE link")
             self.connection = None
             self._reconnect_error = ""
             self.run_worker(self._reconnect(), exclusive=True, group="reconnect")
@@ -257,6 +386,8 @@ class TermApp(App[int]):
         model = self.model
         if self.connection is not None:
             model.set_link_stats(self.connection.stats, now)
+        if self.radio_connection is not None:
+            model.set_radio_stats(self.radio_connection.stats, now)
         self._check_download(now)
         if not self.screen_stack or not self.is_running:
             return  # shutting down
@@ -295,13 +426,15 @@ class TermApp(App[int]):
                 self.model.note(now, "error", "term", f"not sent: {mode_name(arg)}: {why}")
                 self.notify(why, title=f"{mode_name(arg)} refused", severity="error")
                 return None
-        if self.connection is None:
+        conn = self.control_connection()
+        if conn is None:
             self.model.note(now, "error", "term", f"not sent: {op_text(op, arg)}: not connected")
             return None
         if op == Op.MODE:
-            self.model.note(now, "info", "term", f"request {mode_name(arg)}")
+            self.model.note(now, "info", "term", f"request {mode_name(arg)}"
+                            + (" over BLE" if conn is self.radio_connection else ""))
         self.model.pending += 1
-        return self.connection.send_command(op, arg)
+        return conn.send_command(op, arg)
 
     def poll_joystick(self) -> None:
         if self.poller is None:
@@ -324,6 +457,8 @@ class TermApp(App[int]):
         self.model.set_stick(js)
         if self.connection is not None:
             self.connection.set_joystick(js)
+        if self.radio_connection is not None:  # mirrored: whichever link the board reads has the latest
+            self.radio_connection.set_joystick(js)
         fire = bool(js.buttons & Button.FIRE)
         if fire and not self._fire_down:
             self.model.note(self.clock(), "error", "joystick", "fire: PANIC")
@@ -353,6 +488,16 @@ class TermApp(App[int]):
 
     def local_show_profile(self) -> None:
         self._show("profile")
+
+    def local_show_wireless(self) -> None:
+        self._show("wireless")
+
+    def set_screen_stick(self, *, roll: int | None = None, pitch: int | None = None, yaw: int | None = None,
+                         lift: int | None = None) -> None:
+        """The wireless screen's pad and lift slider: change those axes of the stick, keep the others."""
+        s = self.model.stick
+        self.set_stick(Joystick(s.roll if roll is None else roll, s.pitch if pitch is None else pitch,
+                                s.yaw if yaw is None else yaw, s.lift if lift is None else lift, s.buttons))
 
     def local_profile(self) -> None:
         self.send(Op.PROFILE)
@@ -442,6 +587,8 @@ class TermApp(App[int]):
     def get_system_commands(self, screen: Screen) -> Iterable[SystemCommand]:
         yield from super().get_system_commands(screen)
         yield SystemCommand("Log: download to a directory…", f"now {self.log_directory}", self.download_to)
+        yield SystemCommand("Link: reconnect now", "try every lost link at once (the cable, the BLE radio)",
+                            self.reconnect_now)
         for b in self.keymap:
             a = b.action
             keys = ", ".join(pretty_key(k) for k in b.keys)

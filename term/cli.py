@@ -1,8 +1,10 @@
 """`term`: the pilot's terminal from the command line. Parsing and wiring only; the one place that knows every part.
 
     term --serial /dev/ttyUSB0 [--baud 115200]    fly the real board (or any pty)
-    term --sim [--seed N] [--scenario NAME]       start `fcb-sim serve --pty` and fly it over that real pty
-    term --ble ADDR [--hci TRANSPORT]             fly over BLE (the wireless transport)
+    term --sim [--seed N] [--scenario NAME]       start `fcb-sim serve --pty --ble-hci ...` and fly it over that
+                                                  real pty, its radio connected too (key 8 hands over to BLE)
+    term --ble ADDR [--hci TRANSPORT]             fly over BLE only (opens on the wireless screen)
+    term --serial PATH --ble ADDR [--hci T]       the cable and the radio, for the handover (as --sim)
     term scan [--hci TRANSPORT]                   list BLE boards nearby
     term plot LOG.csv -o out.png                  draw a downloaded flight log
 
@@ -50,10 +52,13 @@ def build_parser() -> argparse.ArgumentParser:
     src = p.add_mutually_exclusive_group()
     src.add_argument("--serial", metavar="PATH", help="the board's serial port (or any pty), e.g. /dev/ttyUSB0")
     src.add_argument("--sim", action="store_true", help="start the simulated board (fcb-sim serve --pty) and fly it")
-    src.add_argument("--ble", metavar="ADDR", help="the board's BLE address (wireless transport)")
+    p.add_argument("--ble", metavar="ADDR", help="the board's BLE address: alone, fly over BLE; with --serial, "
+                   "the radio beside the cable for the handover (key 8)")
     p.add_argument("--baud", type=int, default=None, help="serial speed (default 115200)")
     p.add_argument("--hci", metavar="TRANSPORT", default=None,
                    help="BLE through a bumble HCI transport instead of the system's radio, e.g. usb:0")
+    p.add_argument("--ble-timeout", type=float, default=10.0, help="seconds to look for the BLE board (default 10)")
+    p.add_argument("--no-radio", action="store_true", help="--sim: the cable only, no simulated BLE radio")
     p.add_argument("--seed", type=int, default=1, help="--sim: noise seed (same seed, same flight)")
     p.add_argument("--scenario", default=None, help="--sim: initial conditions and disturbances")
     p.add_argument("--config", type=Path, default=None, help="config file (default: the platform's, see below)")
@@ -125,16 +130,25 @@ def _fly(args: argparse.Namespace) -> int:
         raise UsageError("--baud must be positive")
     if args.scenario is not None and not args.sim:
         raise UsageError("--scenario needs --sim")
+    if args.ble and args.sim:
+        raise UsageError("--ble and --sim: the simulator brings its own radio (term --sim connects it)")
+    if args.hci and not args.ble:
+        raise UsageError("--hci needs --ble ADDR")
+    if args.ble_timeout <= 0:
+        raise UsageError("--ble-timeout must be positive")
 
     sim: SimBoard | None = None
+    radio: Any = None
     with _terminate_on_signals():
         try:
             if args.sim:
-                sim = SimBoard(seed=args.seed, scenario=args.scenario, link_timeout=None)
+                sim = SimBoard(seed=args.seed, scenario=args.scenario, link_timeout=None, radio=not args.no_radio)
                 port = sim.start()
                 transport = _serial(port, baud)
-            elif args.ble:
-                transport = _ble(args.ble, args.hci)
+                if sim.ble_address:
+                    radio = _ble(sim.ble_address, sim.ble_hci, args.ble_timeout)
+            elif args.ble and not args.serial:
+                transport = _ble(args.ble, args.hci, args.ble_timeout)
             else:
                 port = args.serial or cfg.port
                 if not port:
@@ -144,7 +158,9 @@ def _fly(args: argparse.Namespace) -> int:
                     raise UsageError(f"serial port {port} not found: check the cable and the name "
                                      "(ls /dev/tty*), or try --sim")
                 transport = _serial(port, baud)
-            return asyncio.run(_run_app(transport, cfg, args))
+                if args.ble:
+                    radio = _ble(args.ble, args.hci, args.ble_timeout)
+            return asyncio.run(_run_app(transport, cfg, args, radio))
         finally:
             if sim is not None:
                 sim.stop()
@@ -156,13 +172,13 @@ def _serial(port: str, baud: int) -> Any:
     return SerialTransport(port, baud)
 
 
-def _ble(address: str, hci: str | None) -> Any:
-    """The wireless engineer's transport (term/transports/ble.py): ``BleTransport(address, hci=...)``."""
+def _ble(address: str, hci: str | None, timeout: float = 10.0) -> Any:
+    """The BLE transport (term/transports/ble.py): ``BleTransport(address, hci=..., timeout=...)``."""
     try:
         from term.transports.ble import BleTransport  # type: ignore[import-not-found,unused-ignore]
     except ImportError as exc:
         raise UsageError(f"BLE transport not available ({exc})") from None
-    return BleTransport(address, hci=hci)
+    return BleTransport(address, hci=hci, timeout=timeout)
 
 
 def _scan(args: argparse.Namespace) -> int:
@@ -184,24 +200,35 @@ def _scan(args: argparse.Namespace) -> int:
     return 0
 
 
-async def _run_app(transport: Any, cfg: Any, args: argparse.Namespace) -> int:
-    from term.app import TermApp
+async def _run_app(transport: Any, cfg: Any, args: argparse.Namespace, radio: Any = None) -> int:
+    from term.app import RADIO_SESSION, TermApp
     from term.transports.base import TransportError
 
+    # Fail here, in one line, before the screen is taken over: the board's link, and a radio the user named.
+    # The simulator's own radio is connected by the app, which says so in its events if it cannot.
+    opening = [transport] + ([radio] if radio is not None and args.ble else [])
     try:
-        await transport.open()  # fail here, in one line, before the screen is taken over
+        for t in opening:
+            await t.open()
     except TransportError as exc:
+        for t in opening:
+            with contextlib.suppress(Exception):
+                await t.close()
         raise UsageError(str(exc)) from None
+    ble_only = bool(args.ble and not args.serial)
     # Over BLE the joystick goes out on change (plus a keep-alive), as the protocol asks: the radio is slow.
-    session = {"change_only": True, "keepalive": 0.5} if args.ble else {}
+    session = dict(RADIO_SESSION) if ble_only else {}
     app = TermApp(transport, config=cfg, joystick=not args.no_joystick, log_directory=args.log_dir,
-                  session_options=session)
+                  session_options=session, radio=radio, primary_ble=ble_only,
+                  start_screen="wireless" if ble_only else "flight")
     try:
         result = await app.run_async()
     finally:
         await app.shutdown()
-        with contextlib.suppress(Exception):
-            await transport.close()
+        for t in (transport, radio):
+            if t is not None:
+                with contextlib.suppress(Exception):
+                    await t.close()
     if app.exit_message:
         print(f"term: {app.exit_message}", file=sys.stderr)
     code = app.return_code
@@ -242,10 +269,12 @@ def _die_with_parent() -> None:
 
 
 class SimBoard:
-    """`fcb-sim serve --pty` in a child process; ``start()`` returns the pty path it printed first."""
+    """`fcb-sim serve --pty` in a child process; ``start()`` returns the pty path it printed first. With
+    ``radio`` the board's BLE radio is on the air too (``--ble-hci`` on a free local port): ``ble_address`` and
+    ``ble_hci`` (the ``--hci`` to reach it) come from the child's second line."""
 
     def __init__(self, *, seed: int = 1, scenario: str | None = None, link_timeout: float | None = None,
-                 extra: Sequence[str] = ()) -> None:
+                 extra: Sequence[str] = (), radio: bool = False) -> None:
         # Through fcb_sim.cli.main (not "-m fcb_sim.cli", where its UsageError would be __main__'s, uncaught).
         self.cmd = [sys.executable, "-c", "import sys; from fcb_sim.cli import main; sys.exit(main())",
                     "serve", "--pty", "--seed", str(seed)]
@@ -253,7 +282,12 @@ class SimBoard:
             self.cmd += ["--scenario", scenario]
         if link_timeout is not None:
             self.cmd += ["--link-timeout", str(link_timeout)]
+        if radio:
+            self.cmd += ["--ble-hci", "tcp-server:127.0.0.1:0"]
         self.cmd += list(extra)
+        self.radio = radio
+        self.port = ""
+        self.ble_name = self.ble_address = self.ble_hci = ""
         self.proc: subprocess.Popen[bytes] | None = None
         self._stderr: IO[bytes] | None = None
 
@@ -266,12 +300,23 @@ class SimBoard:
         )
         line = _readline_with_timeout(self.proc, timeout)
         if not line.startswith("pty: "):
+            if not line:  # its stdout closed: let it exit, so its last words on stderr can be read
+                with contextlib.suppress(subprocess.TimeoutExpired):
+                    self.proc.wait(3.0)
             why = self._child_error() or (line.strip() or "no output")
             self.stop()
             raise UsageError(f"the simulated board did not start: {why}")
+        if self.radio:  # "ble: Quadrupel 1 F0:5A:00:00:00:01 hci tcp-client:127.0.0.1:PORT"
+            words = _readline_with_timeout(self.proc, timeout).split()
+            if len(words) < 6 or words[0] != "ble:" or words[-2] != "hci":
+                why = self._child_error() or " ".join(words) or "no output"
+                self.stop()
+                raise UsageError(f"the simulated board's radio did not start: {why}")
+            self.ble_name, self.ble_address, self.ble_hci = " ".join(words[1:-3]), words[-3], words[-1]
+        self.port = line[len("pty: "):].strip()
         # Drain its stdout from now on, so a chatty child never blocks on a full pipe.
         threading.Thread(target=_drain, args=(self.proc.stdout,), daemon=True).start()
-        return line[len("pty: "):].strip()
+        return self.port
 
     def _child_error(self) -> str:
         if self._stderr is None:

@@ -164,6 +164,16 @@ class Model:
     history: dict[str, deque[tuple[float, float]]] = field(default_factory=dict)
     pending: int = 0  # commands sent and not yet answered
     wireless: int = 0  # WirelessState, as the board last said
+    compact: Compact | None = None  # the phone's telemetry (over BLE): mode, attitude, battery
+    # The radio: a second link over BLE beside the cable (term --sim, term --serial P --ble A). Empty name: none.
+    # ``primary_ble``: the only link is BLE (term --ble), so it always carries control.
+    radio_name: str = ""
+    radio: LinkStats | None = None
+    radio_up: bool = False  # the BLE connection is open
+    radio_lost: bool = False  # STARTED, yet nothing from the board over BLE for the link timeout
+    radio_note: str = ""  # why the radio is down and when it is tried again
+    primary_ble: bool = False
+    heard: bool = False  # a valid frame arrived from the board (on any link)
     _bad_noted: int = 0
     _link_noted: float = -1e9
     _loss_noted: float = -1e9
@@ -178,6 +188,7 @@ class Model:
         """One LinkEvent from the session."""
         kind = type(event)
         if kind is PacketReceived:
+            self.heard = True
             self.apply_packet(event.packet, now)
             return
         self.version += 1
@@ -192,7 +203,13 @@ class Model:
                 self.note(now, "error", "link", f"{what} failed: {event.reason}")
         elif kind is LinkLost:
             self.link_lost = True
-            self.note(now, "error", "link", f"LINK LOST: nothing from the board for {event.silent_s:.1f} s")
+            if self.radio_name and self.over_ble:
+                self.note(now, "info", "link", f"cable silent for {event.silent_s:.1f} s: flying over BLE")
+            elif self.primary_ble and not self.heard:
+                self.note(now, "info", "link", "nothing over BLE yet: the board talks here after the handover "
+                          "(key 8 on the cable terminal, in SAFE)")
+            else:
+                self.note(now, "error", "link", f"LINK LOST: nothing from the board for {event.silent_s:.1f} s")
         elif kind is LinkRestored:
             self.link_lost = False
             self.note(now, "info", "link", f"link restored after {event.lost_for_s:.1f} s")
@@ -222,8 +239,10 @@ class Model:
         elif kind is Gains:
             self.gains = pkt
         elif kind is Compact:
+            self.compact = pkt
             self._set_mode(pkt.mode, now)
             self.wireless = pkt.wireless
+            self._push(t, phi=pkt.phi / 100, theta=pkt.theta / 100, psi=pkt.psi / 100, battery=pkt.battery / 100)
         elif kind is Event:
             self.board_ms = pkt.board_ms
             severity, text = event_text(pkt.code, pkt.arg)
@@ -280,6 +299,33 @@ class Model:
                                               or prev.rtt_last_ms != stats.rtt_last_ms):
             self._push(now - self.start, rtt=stats.rtt_last_ms)
 
+    def set_radio_stats(self, stats: LinkStats, now: float) -> None:
+        """The radio's statistics, every render tick. Its silence counts only while the board flies over BLE
+        (STARTED): before, the board sends nothing there (STARTING: only heartbeats, and the cable still works)."""
+        self.radio = stats
+        lost = stats.lost and self.wireless == WirelessState.STARTED
+        if lost != self.radio_lost:
+            self.radio_lost = lost
+            self.version += 1
+
+    def radio_event(self, event: Any, now: float) -> None:
+        """One LinkEvent from the radio's session: packets are the board's, whatever link brought them; the
+        radio's own loss and restoration are its own."""
+        kind = type(event)
+        if kind is LinkLost:
+            if self.wireless == WirelessState.STARTED:
+                self.radio_lost = True
+                self.note(now, "error", "ble", f"BLE LINK LOST: nothing from the board over BLE for "
+                          f"{event.silent_s:.1f} s")
+            return
+        if kind is LinkRestored:
+            if self.radio_lost:
+                self.note(now, "info", "ble", f"BLE link restored after {event.lost_for_s:.1f} s")
+            self.radio_lost = False
+            self.version += 1
+            return
+        self.apply(event, now)
+
     def set_stick(self, stick: Joystick) -> None:
         if stick != self.stick:
             self.stick = stick
@@ -301,8 +347,27 @@ class Model:
         return self.wireless in (WirelessState.STARTING, WirelessState.STARTED)
 
     @property
+    def over_ble(self) -> bool:
+        """BLE carries control: the only link is BLE, or the radio is up and the board said STARTED."""
+        return self.primary_ble or (self.radio_up and self.wireless == WirelessState.STARTED)
+
+    @property
+    def control_lost(self) -> bool:
+        """The link that carries control is silent: the alarm. The cable's silence while flying over BLE is
+        expected (the board writes only to BLE then), not an alarm."""
+        if self.radio_name and self.over_ble:
+            return self.radio_lost
+        if self.primary_ble and not self.heard:
+            return False  # over BLE alone, silence until the handover is the rule, not a fault
+        return self.link_lost
+
+    @property
     def battery_v(self) -> float | None:
-        return self.height.battery / 100 if self.height else None
+        if self.over_ble and self.compact is not None:
+            return self.compact.battery / 100
+        if self.height is not None:
+            return self.height.battery / 100
+        return self.compact.battery / 100 if self.compact is not None else None
 
     @property
     def log_state(self) -> LogState | None:

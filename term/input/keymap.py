@@ -80,6 +80,7 @@ DEFAULT_KEYMAP: tuple[KeyBinding, ...] = (
     _local("show_flight", ("f7",), "flight panel", "Screen"),
     _local("show_plots", ("f8",), "live plots", "Screen"),
     _local("show_profile", ("f9",), "profiling table", "Screen"),
+    _local("show_wireless", ("f10",), "wireless screen: the phone's controls, for the mouse", "Screen"),
     _local("clear_events", ("ctrl+l",), "clear the events list", "Screen"),
 )
 

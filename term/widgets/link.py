@@ -7,6 +7,7 @@ from rich.text import Text
 
 from term.model import Model
 from term.widgets.base import ModelView
+from term.widgets.wireless import link_lines
 
 
 def _ms(v: float | None) -> str:
@@ -18,12 +19,18 @@ class LinkPanel(ModelView):
     MAX_HZ = 4.0  # statistics; but LINK LOST and its end show at once
 
     def urgent(self, model: Model) -> object:
-        return (model.link_lost, model.link is None or model.link.since_last_frame_s is None)
+        return (model.link_lost, model.link is None or model.link.since_last_frame_s is None, model.control_lost,
+                model.over_ble, model.radio_up, model.radio_lost)
 
     def render_model(self, model: Model, now: float) -> RenderableType:
+        if model.radio_name:
+            return self._two_links(model)
         s = model.link
         out = Text()
-        if model.link_lost:
+        if model.primary_ble and not model.heard:
+            out.append("BLE connected: waiting for the handover\n", style="yellow")
+            out.append("(the board talks over BLE after key 8 on the cable terminal, in SAFE)\n", style="dim")
+        elif model.control_lost:
             out.append("  L I N K   L O S T  ", style="bold blink white on red")
             out.append("\n")
             if model.handed_over:
@@ -50,4 +57,22 @@ class LinkPanel(ModelView):
         out.append(f"heartbeat {'—' if hb is None else f'{hb * 1000:.0f} ms ago'}", style=hb_style)
         if s.heartbeat_delay_ms is not None:
             out.append(f"  delay {s.heartbeat_delay_ms:.1f} ms")
+        return out
+
+    def _two_links(self, model: Model) -> Text:
+        """The cable and the radio: which carries control (▶), each one's health, then the figures of both."""
+        out = Text()
+        if model.control_lost:
+            out.append("  L I N K   L O S T  ", style="bold blink white on red")
+            out.append("  (the link that carries control)\n", style="red")
+        link_lines(model, out)
+        for name, s in (("cable", model.link), ("ble", model.radio if model.radio_up else None)):
+            if s is None:
+                continue
+            hb = s.since_last_heartbeat_s
+            loss = "—" if s.loss_pct is None else f"{s.loss_pct:.1f}"
+            out.append(f"{name:<6}RTT {_ms(s.rtt_mean_ms)} ms  loss {loss}%  rx/tx {s.rx_bytes_per_s:.0f}/"
+                       f"{s.tx_bytes_per_s:.0f}\n", style="dim" if model.over_ble != (name == "ble") else "")
+            out.append(f"      frames {s.frames_ok} bad {s.frames_bad}  heartbeat "
+                       f"{'—' if hb is None else f'{hb * 1000:.0f} ms ago'}\n", style="dim")
         return out

@@ -48,10 +48,17 @@ class ModeBanner(ModelView):
                 extra.append("LOW BATTERY")
             if extra:
                 text += "   " + " · ".join(extra)
-        if model.link_lost:
-            text += "   ·   LINK LOST" + (" (handed over to BLE?)" if model.handed_over else "")
+        lost = model.control_lost
+        if lost and model.radio_name and model.over_ble:
+            text += "   ·   BLE LINK LOST"
+        elif lost:
+            text += "   ·   LINK LOST" + (" (handed over to BLE?)" if model.handed_over and not model.radio_name
+                                          else "")
+        elif model.radio_name and model.over_ble:
+            text += "   ·   over BLE"
+        if lost:
             style = "bold blink white on red" if mode is not None else style
-        self.set_class(mode == Mode.PANIC or model.link_lost, "alarm")
+        self.set_class(mode == Mode.PANIC or lost, "alarm")
         width = max(self.size.width, len(text) + 4)
         blank = Text(" " * width, style=style)
         line = Text(text.center(width), style=style)
