@@ -1,0 +1,282 @@
+"""The wireless side of the terminal, through its own app (Textual's Pilot) and real parts:
+
+- the handover end to end as `term --sim` runs it: `fcb-sim serve --pty --ble-hci` in a child process (the real
+  board, its real bumble radio), the app's cable over the pty and its radio over BleTransport + our bleak backend
+  over bumble: cable -> STARTING -> STARTED -> fly over BLE -> the connection lost -> DISCONNECTED and PANIC,
+  the cable carries control again, the radio comes back by itself;
+- the wireless screen's controls (mouse clicks and drags) send the right commands and sticks;
+- a snapshot of the wireless screen, fed by a handover on a simulated clock (the sans-IO board, no wall clock).
+"""
+
+from __future__ import annotations
+
+import asyncio
+from collections.abc import Callable
+
+import pytest
+
+from term.app import FlightScreen, TermApp
+from term.cli import SimBoard
+from term.input.mapping import FULL
+from term.link import LinkSession
+from term.model import Model
+from term.protocol import Attitude, Command, Decoder, Joystick, Mode, Motion, Op, WirelessState
+from term.transports.base import Transport
+from term.transports.ble import BleTransport
+from term.transports.loopback import loopback_pair
+from term.transports.serial import SerialTransport
+from term.widgets.wireless import LiftSlider, StickPad, WirelessScreen
+
+S = WirelessState
+
+
+class Recording(Transport):
+    """A BLE transport with a tap: the size of every notification read, and every frame written, decoded."""
+
+    def __init__(self, inner: BleTransport) -> None:
+        self.inner = inner
+        self.name = inner.name
+        self.notifications: list[int] = []
+        self.sent: list[object] = []
+        self._decoder = Decoder()
+
+    async def open(self) -> None:
+        await self.inner.open()
+
+    async def close(self) -> None:
+        await self.inner.close()
+
+    async def read(self) -> bytes:
+        data = await self.inner.read()  # one notification per read
+        self.notifications.append(len(data))
+        return data
+
+    async def write(self, data: bytes) -> None:
+        await self.inner.write(data)
+        self.sent += self._decoder.feed(data)
+
+    def joysticks(self) -> list[Joystick]:
+        return [p for p in self.sent if type(p) is Joystick]
+
+    def commands(self) -> list[tuple[int, int]]:
+        return [(p.op, p.arg) for p in self.sent if type(p) is Command]
+
+
+async def test_the_handover_through_the_app_end_to_end() -> None:
+    sim = SimBoard(seed=3, radio=True)
+    port = sim.start()
+    try:
+        radio = Recording(BleTransport(sim.ble_address, hci=sim.ble_hci, timeout=5.0))
+        app = TermApp(SerialTransport(port), joystick=False, radio=radio)
+        async with app.run_test(size=(120, 44)) as pilot:
+            m = app.model
+
+            async def until(cond: Callable[[], bool], timeout: float = 10.0) -> None:
+                async with asyncio.timeout(timeout):
+                    while not cond():
+                        await pilot.pause(0.02)
+
+            def said(text: str) -> bool:
+                return any(text in e.text for e in m.events)
+
+            await until(lambda: m.mode == Mode.SAFE and m.radio_up and m.link is not None)
+            assert not m.over_ble and app.control_connection() is app.connection
+
+            # A connection alone changes nothing; the stick still: only keep-alives over BLE (change-only).
+            before = len(radio.joysticks())
+            await pilot.pause(1.2)
+            assert 1 <= len(radio.joysticks()) - before <= 3
+            assert m.wireless == S.DISCONNECTED and not radio.notifications  # the board says nothing over BLE
+
+            # Key 8 (a real key event) in SAFE, over the cable: STARTING, then STARTED once the radio answered.
+            app.simulate_key("8")
+            await until(lambda: m.over_ble)
+            assert said("wireless STARTING") and said("wireless STARTED")
+            assert app.control_connection() is app.radio_connection
+            # The cable falls silent: expected, and said so; no alarm.
+            await until(lambda: m.link_lost)
+            assert said("flying over BLE") and not m.control_lost
+            await pilot.pause(0.1)
+            banner = str(app.screen.query_one("#mode").render())
+            assert "over BLE" in banner and "LINK LOST" not in banner
+            assert "silent: flying over BLE" in str(app.screen.query_one("#link").render())
+
+            # Fly over BLE: MANUAL goes over the radio, then the lift; the board's mode comes back in Compact.
+            app.simulate_key("2")
+            await until(lambda: m.mode == Mode.MANUAL)
+            assert (Op.MODE, Mode.MANUAL) in radio.commands()
+            await until(lambda: m.compact is not None and m.compact.mode == Mode.MANUAL)
+            assert m.compact.wireless == S.STARTED
+            before = len(radio.joysticks())
+            for i in range(1, 11):  # ten distinct stick values: ten joystick frames, no more than keep-alives
+                app.set_stick(Joystick(0, 0, 0, 8000 + 600 * i, 0))
+                await pilot.pause(0.03)
+            await until(lambda: radio.joysticks() and radio.joysticks()[-1].lift == 14000)
+            sent = len(radio.joysticks()) - before
+            assert 10 <= sent <= 12, sent
+            await pilot.pause(0.3)
+            assert m.mode == Mode.MANUAL
+
+            # Every notification is at most 20 bytes, and the board filled them.
+            assert radio.notifications and max(radio.notifications) <= 20
+            assert sum(radio.notifications) / len(radio.notifications) > 15
+
+            # The radio is gone (its HCI transport dropped: out of range): the board goes DISCONNECTED and PANICs,
+            # and the cable carries control again.
+            await app.radio.inner._client._backend._host.transport.close()
+            await until(lambda: said("BLE LOST"))
+            assert not m.over_ble and app.control_connection() is app.connection
+            assert said("PANICs (it was flying over BLE)")
+            await until(lambda: m.attitude is not None and m.attitude.mode == Mode.PANIC and not m.link_lost)
+            assert said("wireless DISCONNECTED")
+            await until(lambda: m.motion is not None and m.motion.ae1 > 0 and m.mode == Mode.PANIC)
+            assert isinstance(m.motion, Motion)  # the full telemetry is back on the cable
+            # PANIC ends in SAFE by itself; then the cable flies: MANUAL is acknowledged over the cable.
+            app.set_stick(Joystick(0, 0, 0, 0, 0))
+            await until(lambda: m.mode == Mode.SAFE and m.motion.ae1 == 0, 8.0)
+            app.simulate_key("2")
+            await until(lambda: isinstance(m.attitude, Attitude) and m.attitude.mode == Mode.MANUAL)
+            assert radio.commands().count((Op.MODE, Mode.MANUAL)) == 1  # not over the radio this time
+            app.simulate_key("0")
+            # The radio came back by itself (retry with a pause), and the board is not handed over.
+            await until(lambda: m.radio_up, 10.0)
+            assert sum("radio connected" in e.text for e in m.events) == 2 and m.wireless == S.DISCONNECTED
+    finally:
+        sim.stop()
+
+
+# --- the wireless screen's controls, with the mouse ---------------------------------------------------------
+
+
+async def test_the_wireless_screen_controls_send_the_right_commands(scripted_board) -> None:  # noqa: ANN001
+    import time
+
+    from tests.test_app import LoopBoard, sent, until
+
+    pair = loopback_pair()
+    board = scripted_board(start=time.monotonic())
+    peer = LoopBoard(pair.b, board, time.monotonic)
+    await peer.start()
+    from term.app import RADIO_SESSION
+
+    app = TermApp(pair.a, joystick=False, session_options={**RADIO_SESSION, "link_timeout": 0.5},
+                  primary_ble=True, start_screen="wireless")
+    try:
+        async with app.run_test(size=(100, 32)) as pilot:
+            await until(pilot, lambda: board.hellos)
+            assert isinstance(app.screen, WirelessScreen)  # term --ble opens here
+
+            await pilot.click("#btn-mode_manual")
+            await until(pilot, lambda: (Op.MODE, Mode.MANUAL) in sent(board))
+            await pilot.click("#btn-roll_up")
+            await pilot.click("#btn-lift_down")
+            await until(pilot, lambda: [(Op.TRIM_ROLL, 1), (Op.TRIM_LIFT, -1)] == sent(board)[-2:])
+
+            # Drag the lift slider from the bottom to the top row: full lift, and it stays there.
+            slider = app.screen.query_one(LiftSlider)
+            rows = slider.content_size.height - 1
+            await pilot.mouse_down(slider, offset=(2, rows - 1))
+            assert slider.lift == 0
+            await pilot.hover(slider, offset=(2, rows // 2))
+            assert 0.3 * FULL < slider.lift < 0.7 * FULL
+            await pilot.hover(slider, offset=(2, 0))
+            await pilot.mouse_up(slider, offset=(2, 0))
+            assert slider.lift == FULL and app.model.stick.lift == FULL
+            await until(pilot, lambda: board.joysticks and board.joysticks[-1].lift == FULL)
+
+            # The pad: press at its right edge, half way up: full roll right and half forward; let go: centred.
+            pad = app.screen.query_one(StickPad)
+            w, h = pad.content_size.width, pad.content_size.height
+            await pilot.mouse_down(pad, offset=(w - 1, (h - 1) // 4))
+            await until(pilot, lambda: board.joysticks[-1].roll == FULL)
+            assert board.joysticks[-1].pitch < -0.3 * FULL and board.joysticks[-1].lift == FULL
+            await pilot.mouse_up(pad, offset=(w - 1, (h - 1) // 4))
+            await until(pilot, lambda: board.joysticks[-1][:2] == (0, 0))
+            assert app.model.stick == Joystick(0, 0, 0, FULL, 0)
+
+            await pilot.click("#btn-mode_panic")
+            await until(pilot, lambda: sent(board)[-1] == (Op.MODE, Mode.PANIC))
+            assert slider.lift == 0  # PANIC lets go of the lift, as the phone's button did
+
+            # F7 goes to the flight screen, F10 back; the palette has "reconnect now".
+            await pilot.press("f7")
+            assert isinstance(app.screen, FlightScreen)
+            await pilot.press("f10")
+            assert isinstance(app.screen, WirelessScreen)
+            titles = [c.title for c in app.get_system_commands(app.screen)]
+            assert "Link: reconnect now" in titles
+            app.reconnect_now()
+            assert app.model.events[-1].text == "every link is connected"
+    finally:
+        await peer.stop()
+
+
+# --- a snapshot of the wireless screen ----------------------------------------------------------------------
+
+
+def seeded_handover(seed: int = 1, seconds: float = 3.0) -> Model:
+    """The sans-IO board with a cable session and a radio session on a simulated clock: connect the radio at
+    0.2 s, key 8 over the cable at 0.5 s, the radio answers and carries control (STARTED), MANUAL over BLE at
+    1.2 s, then lift with a little roll. Returns the model the screen renders."""
+    from fcb_sim.board import Board, BoardConfig
+    from fcb_sim.physics import World
+    from term.app import RADIO_SESSION
+
+    board = Board(BoardConfig(seed=seed), world=World(seed))
+    cable = LinkSession(0.0)
+    phone = LinkSession(0.0, **RADIO_SESSION)  # type: ignore[arg-type]
+    model = Model(start=0.0)
+    model.link_name = "seeded board (simulated clock)"
+    model.radio_name = "BLE F0:5A:00:00:00:01 (simulated clock)"
+    board.uart_receive(cable.hello())
+    js = Joystick(0, 0, 0, 0, 0)
+    cable.set_joystick(js)
+    phone.set_joystick(js)
+    t_us = 0
+    while t_us < seconds * 1e6:
+        t_us += 1000
+        t = t_us / 1e6
+        if t_us == 200_000:
+            board.ble_connected()
+            model.radio_up = True
+        elif t_us == 500_000:
+            cable.send_command(Op.WIRELESS, 1, t)
+        elif t_us == 1_200_000:
+            phone.send_command(Op.MODE, Mode.MANUAL, t)
+        elif t_us >= 1_500_000 and t_us % 100_000 == 0:
+            js = Joystick(3000, -1500, 0, min(12000, 1000 * (t_us - 1_400_000) // 100_000), 0)
+            cable.set_joystick(js)
+            phone.set_joystick(js)
+        board.advance(t_us)
+        for ev in cable.receive(board.uart_transmit(), t) + cable.poll(t):
+            model.apply(ev, t)
+        notes = board.wireless.notifications()
+        assert all(len(n) <= 20 for n in notes)
+        for ev in phone.receive(b"".join(notes), t) + phone.poll(t):
+            model.radio_event(ev, t)
+        board.uart_receive(cable.data_to_send(t))
+        if model.radio_up:
+            board.ble_receive(phone.data_to_send(t))
+    model.set_stick(js)
+    model.set_link_stats(cable.stats_at(t), t)
+    model.set_radio_stats(phone.stats_at(t), t)
+    return model
+
+
+@pytest.fixture(scope="module")
+def handover() -> Model:
+    return seeded_handover()
+
+
+def test_the_seeded_handover_is_what_the_screen_claims(handover: Model) -> None:
+    m = handover
+    assert m.wireless == S.STARTED and m.over_ble and m.mode == Mode.MANUAL
+    assert m.link_lost and not m.control_lost  # the cable is silent, as it should be
+    assert any("flying over BLE" in e.text for e in m.events)
+    assert m.compact is not None and m.radio is not None and m.radio.rtt_last_ms is not None
+
+
+def test_snapshot_wireless_screen(snap_compare, handover: Model) -> None:  # noqa: ANN001
+    app = TermApp(joystick=False, clock=lambda: 3.0, start_screen="wireless")
+    app.model = handover
+    assert snap_compare(app, terminal_size=(100, 32))
