@@ -11,8 +11,13 @@ Two measurements:
 - **radio** (real time, real stack): the same board stand-in behind the bumble radio (``start_radio`` with the
   phone-side controller on 127.0.0.1) and the terminal's ``Connection(BleTransport(..., hci=...),
   LinkSession(change_only=True))`` through our bleak backend: writes per second still and moving, notification
-  fill and size as received, heartbeat round trip. Stick-to-motor latency over BLE needs the board
-  integration and is not measured here.
+  fill and size as received, heartbeat round trip.
+- **board** (real time): the real ``fcb_sim.board.Board`` paced to the wall clock behind the radio, the
+  terminal's ``Connection`` in front: the board's own fill, and the stick-to-motor latency over BLE in MANUAL.
+- **app** (real time): the same board, but in front of it term's own app (``TermApp``, Textual running
+  headless and rendering) with its cable (a loopback pair to the board's UART) and its radio, as ``term --sim``
+  wires them: key 8 over the cable, MANUAL over BLE once the app routes there, then the stick-to-motor latency
+  from ``app.set_stick`` (what the joystick poller and the wireless screen's pad call) to the board's motors.
 
 ``python -m bench.ble [--seconds 20] [--radio-seconds 1.5] [--no-radio]``; one JSON object on the last line.
 """
@@ -306,6 +311,85 @@ async def board_run(seconds: float, steps: int = 20) -> dict:
         await radio.close()
 
 
+async def app_run(steps: int = 20) -> dict:
+    """Stick-to-motor latency over BLE through term's own app: ``TermApp`` with a cable and a radio to the real
+    board (paced to the wall clock in this process), handed over with key 8, flown in MANUAL over BLE."""
+    from fcb_sim.board import Board, BoardConfig
+    from term.app import TermApp
+    from term.transports.ble import BleTransport
+    from term.transports.loopback import loopback_pair
+
+    clock = time.monotonic
+    board = Board(BoardConfig(seed=1, link_timeout_s=0.5))
+    radio = await start_radio(board.wireless, board=board, hci="tcp-server:127.0.0.1:0")
+    pair = loopback_pair()
+    await pair.b.open()
+    t0 = clock()
+    changes: list[float] = []
+
+    async def pace() -> None:  # the board's UART on the cable's far end
+        last_ae = board.ae
+        while True:
+            board.advance(int((clock() - t0) * 1e6))
+            if board.ae != last_ae:
+                changes.append(clock())
+                last_ae = board.ae
+            out = board.uart_transmit()
+            if out:
+                await pair.b.write(out)
+            await asyncio.sleep(0.0005)
+
+    async def uart_rx() -> None:
+        while True:
+            data = await pair.b.read()
+            board.advance(int((clock() - t0) * 1e6))
+            board.uart_receive(data)
+
+    tasks = [asyncio.create_task(pace()), asyncio.create_task(uart_rx())]
+    app = TermApp(pair.a, joystick=False, radio=BleTransport(radio.address, hci=radio.hci.client_spec, timeout=5.0))
+    try:
+        async with app.run_test(size=(120, 44)) as pilot:
+            m = app.model
+
+            async def until(cond, what: str, timeout: float = 10.0) -> None:  # noqa: ANN001
+                try:
+                    async with asyncio.timeout(timeout):
+                        while not cond():
+                            await pilot.pause(0.005)
+                except TimeoutError:
+                    raise SystemExit(f"bench.ble: {what}") from None
+
+            await until(lambda: m.mode == Mode.SAFE and m.radio_up, "the app never connected both links")
+            app.send(Op.WIRELESS, 1)
+            await until(lambda: m.over_ble, "no handover")
+            app.send(Op.MODE, Mode.MANUAL)
+            await until(lambda: board.mode is Mode.MANUAL, "MANUAL refused")
+            latencies = []
+            for i in range(steps):
+                await asyncio.sleep(0.05 + 0.013 * (i % 5))
+                changes.clear()
+                sent = clock()
+                app.set_stick(Joystick(0, 0, 0, 9000 + 1500 * (i % 2), 0))
+                await until(lambda: bool(changes), "the motors never followed the stick", 2.0)
+                latencies.append(changes[0] - sent)
+            latencies.sort()
+            over_ble = app.control_connection() is app.radio_connection
+    finally:
+        for t in tasks:
+            t.cancel()
+        for t in tasks:
+            with contextlib.suppress(asyncio.CancelledError, Exception):  # the app closed the cable under them
+                await t
+        await radio.close()
+    return {
+        "stick_to_motor_ms_median": round(1000 * statistics.median(latencies), 2),
+        "stick_to_motor_ms_p90": round(1000 * latencies[int(0.9 * (len(latencies) - 1))], 2),
+        "stick_to_motor_ms_max": round(1000 * latencies[-1], 2),
+        "steps": steps,
+        "control_over_ble": over_ble,
+    }
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m bench.ble", description=__doc__.splitlines()[0])
     parser.add_argument("--seconds", type=float, default=20.0, help="simulated seconds per case (default 20)")
@@ -353,6 +437,11 @@ def main(argv: list[str] | None = None) -> int:
         print(f"stick-to-motor latency over BLE: median {board['stick_to_motor_ms_median']} ms, "
               f"p90 {board['stick_to_motor_ms_p90']} ms, max {board['stick_to_motor_ms_max']} ms "
               f"({board['steps']} lift steps)")
+        app = asyncio.run(app_run())
+        out["app"] = app
+        print(f"stick-to-motor latency over BLE through term's app (TermApp, cable + radio, handed over): median "
+              f"{app['stick_to_motor_ms_median']} ms, p90 {app['stick_to_motor_ms_p90']} ms, "
+              f"max {app['stick_to_motor_ms_max']} ms ({app['steps']} lift steps)")
     print(json.dumps(out))
     return 0
 
