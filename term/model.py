@@ -235,13 +235,13 @@ class Model:
                        pressure=float(pkt.pressure), battery=pkt.battery / 100)
         elif kind is Status:
             self.status = pkt
-            self.wireless = pkt.wireless
+            self._set_wireless(pkt.wireless)
         elif kind is Gains:
             self.gains = pkt
         elif kind is Compact:
             self.compact = pkt
             self._set_mode(pkt.mode, now)
-            self.wireless = pkt.wireless
+            self._set_wireless(pkt.wireless)
             self._push(t, phi=pkt.phi / 100, theta=pkt.theta / 100, psi=pkt.psi / 100, battery=pkt.battery / 100)
         elif kind is Event:
             self.board_ms = pkt.board_ms
@@ -250,7 +250,7 @@ class Model:
             if pkt.code == EventCode.MODE_CHANGED:
                 self._set_mode(pkt.arg & 0xFF, now)
             elif pkt.code == EventCode.WIRELESS_STATE:
-                self.wireless = pkt.arg
+                self._set_wireless(pkt.arg)
         elif kind is Profile:
             self.profiles[pkt.task] = pkt
         elif kind is Hello:
@@ -263,6 +263,13 @@ class Model:
         else:
             return  # heartbeats and acks change nothing on screen (the link panel shows their stats)
         self.version += 1
+
+    def _set_wireless(self, state: int) -> None:
+        # STARTED is left only for DISCONNECTED (report Figure 12). A STARTING that arrives after STARTED was sent
+        # on the cable before the board went silent there, and the cable is slower than BLE: stale, not news.
+        if self.wireless == WirelessState.STARTED and state == WirelessState.STARTING:
+            return
+        self.wireless = state
 
     def _set_mode(self, mode: int, now: float) -> None:
         self.mode = mode

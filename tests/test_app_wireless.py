@@ -280,3 +280,29 @@ def test_snapshot_wireless_screen(snap_compare, handover: Model) -> None:  # noq
     app = TermApp(joystick=False, clock=lambda: 3.0, start_screen="wireless")
     app.model = handover
     assert snap_compare(app, terminal_size=(100, 32))
+
+
+# --- the model's rules for two links (pure) -----------------------------------------------------------------
+
+
+def test_the_model_follows_figure_12_and_names_the_expected_silence() -> None:
+    from term.link import LinkLost
+    from term.protocol import Compact, Event, EventCode, Status
+
+    m = Model(start=0.0)
+    m.radio_name, m.radio_up = "BLE test", True
+    m.radio_event(LinkLost(1.0), 0.5)  # the board says nothing over BLE before the handover: no alarm
+    assert not m.radio_lost and not any("LOST" in e.text for e in m.events)
+    m.apply_packet(Event(EventCode.WIRELESS_STATE, int(S.STARTING), 10), 1.0)
+    assert m.handed_over and not m.over_ble
+    m.apply_packet(Compact(int(Mode.SAFE), int(S.STARTED), 0, 0, 0, 1200), 1.1)
+    assert m.over_ble and m.battery_v == 12.0
+    m.apply_packet(Status(0, 0, 0, 0, 0, 0, 0, int(S.STARTING)), 1.2)  # sent on the cable before the handover
+    assert m.wireless == S.STARTED and m.over_ble  # stale: STARTED is left only for DISCONNECTED
+    m.apply(LinkLost(1.0), 1.6)  # the cable's silence while flying over BLE
+    assert m.link_lost and not m.control_lost and m.events[-1].severity == "info"
+    assert "flying over BLE" in m.events[-1].text
+    m.radio_event(LinkLost(1.0), 2.0)  # the radio silent while STARTED: that is the alarm
+    assert m.radio_lost and m.control_lost and m.events[-1].severity == "error"
+    m.apply_packet(Event(EventCode.WIRELESS_STATE, int(S.DISCONNECTED), 20), 2.5)
+    assert not m.over_ble and m.control_lost == m.link_lost
