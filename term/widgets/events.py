@@ -24,7 +24,18 @@ class EventsList(ModelView):
 
     def render_model(self, model: Model, now: float) -> RenderableType:
         rows = max(1, self.content_size.height or 8)
-        entries = list(model.events)[-rows:]
+        width = self.content_size.width
+        entries: list[LogEntry] = []
+        used = 0
+        for e in reversed(model.events):  # newest first, until the wrapped lines fill the panel
+            lines = len(entry_text(e).wrap(self.app.console, width)) if width > 0 else 1
+            if entries and used + lines > rows:
+                break
+            entries.append(e)
+            used += lines
+            if used >= rows:
+                break
+        entries.reverse()
         out = Text()
         if not entries:
             out.append("no events yet", style="dim")
