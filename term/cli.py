@@ -51,13 +51,15 @@ def build_parser() -> argparse.ArgumentParser:
     )
     src = p.add_mutually_exclusive_group()
     src.add_argument("--serial", metavar="PATH", help="the board's serial port (or any pty), e.g. /dev/ttyUSB0")
-    src.add_argument("--sim", action="store_true", help="start the simulated board (fcb-sim serve --pty) and fly it")
+    src.add_argument("--sim", action="store_true", help="start the simulated board (fcb-sim serve --pty) and fly "
+                     "it; its BLE radio is connected too, for the handover (key 8)")
     p.add_argument("--ble", metavar="ADDR", help="the board's BLE address: alone, fly over BLE; with --serial, "
                    "the radio beside the cable for the handover (key 8)")
     p.add_argument("--baud", type=int, default=None, help="serial speed (default 115200)")
     p.add_argument("--hci", metavar="TRANSPORT", default=None,
                    help="BLE through a bumble HCI transport instead of the system's radio, e.g. usb:0")
-    p.add_argument("--ble-timeout", type=float, default=10.0, help="seconds to look for the BLE board (default 10)")
+    p.add_argument("--ble-timeout", type=float, default=10.0, metavar="S",
+                   help="seconds to look for the BLE board (default 10)")
     p.add_argument("--no-radio", action="store_true", help="--sim: the cable only, no simulated BLE radio")
     p.add_argument("--seed", type=int, default=1, help="--sim: noise seed (same seed, same flight)")
     p.add_argument("--scenario", default=None, help="--sim: initial conditions and disturbances")
