@@ -6,11 +6,15 @@ Where real I/O needs waiting, tests wait on a condition with a timeout, never a 
 from __future__ import annotations
 
 import asyncio
+import fcntl
 import os
+import struct
+import termios
 import time
 
 import pytest
 
+from term.protocol import Decoder, Encoder, Joystick
 from term.transports.base import TransportClosed, TransportError
 from term.transports.serial import SerialTransport
 
@@ -143,3 +147,80 @@ async def test_event_loop_stays_free_while_the_port_is_idle(pty_pair: tuple[int,
     await t.close()
     with pytest.raises(TransportClosed):
         await reader
+
+
+# --- hand-overs end at a frame's end; writes from the loop --------------------------------------------------
+
+
+def unread(path: str) -> int:
+    """Bytes the reader thread has not taken from the port yet (the slave side's input queue)."""
+    fd = os.open(path, os.O_RDONLY | os.O_NOCTTY | os.O_NONBLOCK)
+    try:
+        return struct.unpack("i", fcntl.ioctl(fd, termios.FIONREAD, b"\0\0\0\0"))[0]
+    finally:
+        os.close(fd)
+
+
+async def taken(path: str) -> None:
+    async with asyncio.timeout(5):
+        while unread(path):
+            await asyncio.sleep(0.001)
+
+
+async def test_a_frame_split_across_chunks_is_handed_over_whole(pty_pair: tuple[int, str]) -> None:
+    master, path = pty_pair
+    t = SerialTransport(path, hold=30.0)  # nothing is handed over for lack of time here
+    await t.open()
+    try:
+        enc = Encoder()
+        a, b = enc.encode(Joystick(1, 2, 3, 4000, 0)), enc.encode(Joystick(5, 6, 7, 8000, 0))
+        os.write(master, a[:6])  # half a frame: the reader takes it, the loop is not woken for it
+        await taken(path)
+        os.write(master, a[6:] + b[:4])  # the rest of the first frame and the start of the next
+        await taken(path)
+        assert await asyncio.wait_for(t.read(), 5) == a  # the whole first frame, and only it
+        os.write(master, b[4:])
+        assert await asyncio.wait_for(t.read(), 5) == b
+        got = Decoder().feed(a + b)
+        assert [p.lift for p in got] == [4000, 8000]
+    finally:
+        await t.close()
+
+
+async def test_bytes_without_a_frame_end_are_handed_over_after_the_hold(pty_pair: tuple[int, str]) -> None:
+    master, path = pty_pair
+    t = SerialTransport(path, hold=0.05)
+    await t.open()
+    try:
+        os.write(master, b"another protocol")  # no 0x00: not our frames, but the bytes still arrive
+        assert await read_until(t, 16) == b"another protocol"
+    finally:
+        await t.close()
+    t = SerialTransport(path, frame_end=None, hold=30.0)  # no framing: every chunk as it comes
+    await t.open()
+    try:
+        os.write(master, b"abc")
+        assert await asyncio.wait_for(t.read(), 5) == b"abc"
+    finally:
+        await t.close()
+
+
+async def test_a_write_larger_than_the_os_buffer_arrives_whole_and_in_order(pty_pair: tuple[int, str]) -> None:
+    master, path = pty_pair
+    t = SerialTransport(path)
+    await t.open()
+    got = bytearray()
+    payload = bytes(range(1, 256)) * 1024  # 255 KB: the OS takes part at once, a worker thread the rest
+
+    def drain() -> None:
+        while len(got) < len(payload) + 3:
+            got.extend(os.read(master, 65536))
+
+    try:
+        reader = asyncio.create_task(asyncio.to_thread(drain))
+        await asyncio.wait_for(t.write(payload), 10)
+        await asyncio.wait_for(t.write(b"end"), 5)  # a small write after it waits its turn
+        await asyncio.wait_for(reader, 10)
+        assert bytes(got) == payload + b"end"
+    finally:
+        await t.close()
