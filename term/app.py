@@ -589,6 +589,8 @@ class TermApp(App[int]):
         yield SystemCommand("Log: download to a directory…", f"now {self.log_directory}", self.download_to)
         yield SystemCommand("Link: reconnect now", "try every lost link at once (the cable, the BLE radio)",
                             self.reconnect_now)
+        yield SystemCommand("Link: hand control back to the cable", "WIRELESS off: the board leaves BLE "
+                            "(DISCONNECTED, the connection stays)", lambda: self.send(Op.WIRELESS, 0))
         for b in self.keymap:
             a = b.action
             keys = ", ".join(pretty_key(k) for k in b.keys)

@@ -262,7 +262,8 @@ async def test_every_panel_shows_its_data() -> None:
         p = text("#pressure")
         assert "101300 Pa" in p and "+1.23 m" in p and "+1.50 m" in p and "-0.12m/s" in p
         c = text("#controls")
-        assert "Logitech Extreme 3D" in c and "trim    +10" in c and "P2 111" in c and "throttle up" in c
+        assert "Logitech Extreme 3D" in c and "trim    +10" in c and "P2 111" in c
+        assert "throttle up" not in c  # flying (HEIGHT): lift is what it should be, not a warning
         assert "CAL" in c and "LOWBAT" in c and "cpu  42%" in c
         assert "waiting for the board" in text("#link")
         assert "LOW BATTERY 10.40 V" in text("#events")

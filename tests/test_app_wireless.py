@@ -181,7 +181,8 @@ async def test_the_wireless_screen_controls_send_the_right_commands(scripted_boa
             assert 0.3 * FULL < slider.lift < 0.7 * FULL
             await pilot.hover(slider, offset=(2, 0))
             await pilot.mouse_up(slider, offset=(2, 0))
-            assert slider.lift == FULL and app.model.stick.lift == FULL
+            await until(pilot, lambda: app.model.stick.lift == FULL)
+            assert slider.lift == FULL
             await until(pilot, lambda: board.joysticks and board.joysticks[-1].lift == FULL)
 
             # The pad: press at its right edge, half way up: full roll right and half forward; let go: centred.
@@ -204,7 +205,7 @@ async def test_the_wireless_screen_controls_send_the_right_commands(scripted_boa
             await pilot.press("f10")
             assert isinstance(app.screen, WirelessScreen)
             titles = [c.title for c in app.get_system_commands(app.screen)]
-            assert "Link: reconnect now" in titles
+            assert "Link: reconnect now" in titles and "Link: hand control back to the cable" in titles
             app.reconnect_now()
             assert app.model.events[-1].text == "every link is connected"
     finally:
@@ -280,6 +281,13 @@ def test_snapshot_wireless_screen(snap_compare, handover: Model) -> None:  # noq
     app = TermApp(joystick=False, clock=lambda: 3.0, start_screen="wireless")
     app.model = handover
     assert snap_compare(app, terminal_size=(100, 32))
+
+
+def test_snapshot_flight_screen_over_ble(snap_compare, handover: Model) -> None:  # noqa: ANN001
+    """The link panel with both links: the radio carries control (▶), the cable is silent as it should be."""
+    app = TermApp(joystick=False, clock=lambda: 3.0)
+    app.model = handover
+    assert snap_compare(app, terminal_size=(120, 44))
 
 
 # --- the model's rules for two links (pure) -----------------------------------------------------------------

@@ -7,7 +7,7 @@ from rich.text import Text
 
 from term.input.mapping import FULL, LIFT_ZERO
 from term.model import Model
-from term.protocol import Button, Flag, LogState
+from term.protocol import Button, Flag, LogState, Mode
 from term.widgets.bars import cbar, hbar
 from term.widgets.base import ModelView
 
@@ -50,7 +50,7 @@ class ControlsPanel(ModelView):
         out.append("lift  ")
         out.append_text(hbar(s.lift + lift_trim, 0, FULL, width, "yellow" if s.lift > LIFT_ZERO else "green"))
         out.append(f" {100 * s.lift / FULL:4.0f}% trim {lift_trim:+6d}\n")
-        if s.lift > LIFT_ZERO:
+        if s.lift > LIFT_ZERO and model.mode in (None, Mode.SAFE):  # flying, lift is what it should be
             out.append("throttle up: SAFE cannot be left\n", style="yellow")
         if s.buttons & Button.FIRE:
             out.append("FIRE pressed: PANIC\n", style="bold red")

@@ -326,8 +326,9 @@ class WirelessScreen(Screen[None]):
             app.send(Op.WIRELESS, 0)  # type: ignore[attr-defined]
         elif bid.startswith("btn-"):
             app.action_pilot(bid[4:])  # type: ignore[attr-defined]
-            if bid == "btn-mode_panic":
-                self.query_one(LiftSlider).set_lift(0)  # as the phone: PANIC lets go of the lift too
+            if bid == "btn-mode_panic":  # as the phone: PANIC lets go of the lift too
+                self.query_one(LiftSlider).set_lift(0, post=False)
+                app.set_screen_stick(lift=0)  # type: ignore[attr-defined]
 
     def on_stick_pad_moved(self, message: StickPad.Moved) -> None:
         self.app.set_screen_stick(roll=message.roll, pitch=message.pitch)  # type: ignore[attr-defined]
