@@ -426,6 +426,11 @@ class TermApp(App[int]):
                 self.model.note(now, "error", "term", f"not sent: {mode_name(arg)}: {why}")
                 self.notify(why, title=f"{mode_name(arg)} refused", severity="error")
                 return None
+        if op == Op.WIRELESS and arg == 1 and self.model.primary_ble:
+            why = "the handover is asked for over the cable: press 8 on the cable terminal"
+            self.model.note(now, "error", "term", f"not sent: wireless handover: {why}")
+            self.notify(why, title="wireless handover", severity="warning")
+            return None
         conn = self.control_connection()
         if conn is None:
             self.model.note(now, "error", "term", f"not sent: {op_text(op, arg)}: not connected")

@@ -195,6 +195,10 @@ async def test_the_wireless_screen_controls_send_the_right_commands(scripted_boa
             await until(pilot, lambda: board.joysticks[-1][:2] == (0, 0))
             assert app.model.stick == Joystick(0, 0, 0, FULL, 0)
 
+            await pilot.click("#btn-handover")  # over BLE alone the board would not read it: said, not sent
+            assert "press 8 on the cable terminal" in app.model.events[-1].text
+            assert (Op.WIRELESS, 1) not in sent(board)
+
             await pilot.click("#btn-mode_panic")
             await until(pilot, lambda: sent(board)[-1] == (Op.MODE, Mode.PANIC))
             assert slider.lift == 0  # PANIC lets go of the lift, as the phone's button did
