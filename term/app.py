@@ -161,7 +161,7 @@ class TermApp(App[int]):
         self.model.radio_name = radio.name if radio is not None else ""
         self.model.primary_ble = primary_ble
         self.start_screen = start_screen
-        self._retry_now = asyncio.Event()
+        self._reconnect_radio_error = ""
         self.poller: JoystickPoller | None = None
         self._want_joystick = joystick
         self.log_directory = log_directory or self.config.log_directory
@@ -229,7 +229,7 @@ class TermApp(App[int]):
         attempt = 0
         while self.is_running and self.transport is not None and self.connection is None:
             if not immediate or attempt:
-                await self._pause_before_retry(self._backoff(attempt) if self.model.primary_ble else RECONNECT_S)
+                await asyncio.sleep(self._backoff(attempt - immediate) if self.model.primary_ble else RECONNECT_S)
             attempt += 1
             with contextlib.suppress(TransportError):
                 await self.transport.close()
@@ -240,25 +240,20 @@ class TermApp(App[int]):
     def _backoff(attempt: int) -> float:
         return RADIO_BACKOFF_S[min(attempt, len(RADIO_BACKOFF_S) - 1)]
 
-    async def _pause_before_retry(self, seconds: float) -> None:
-        """Sleep, unless the pilot asks to reconnect now (the palette)."""
-        self._retry_now.clear()
-        with contextlib.suppress(TimeoutError):
-            async with asyncio.timeout(seconds):
-                await self._retry_now.wait()
-
     # --- the radio: a second link, over BLE, for the handover -----------------------------------------------
 
     async def _radio_loop(self, immediate: bool = True) -> None:
-        """Connect the radio; while it cannot be reached, try again after 1, 2, 4, then every 8 s."""
+        """Connect the radio (at once, or after a pause when it was just lost); while it cannot be reached, try
+        again after 1, 2, 4, then every 8 s. The palette's "reconnect now" starts a new loop (this one is
+        cancelled: one loop per link)."""
         attempt = 0
         model = self.model
         while self.is_running and self.radio is not None and self.radio_connection is None:
             if attempt or not immediate:
-                pause = self._backoff(attempt - 1 if attempt else 0)
+                pause = self._backoff(attempt - immediate)
                 model.radio_note = f"down: {self._reconnect_radio_error or 'lost'}; next try in {pause:.0f} s"
                 model.version += 1
-                await self._pause_before_retry(pause)
+                await asyncio.sleep(pause)
             attempt += 1
             model.radio_note = "connecting…"
             model.version += 1
@@ -266,8 +261,6 @@ class TermApp(App[int]):
                 await self.radio.close()
             if await self._connect_radio(self.radio, attempt):
                 return
-
-    _reconnect_radio_error = ""
 
     async def _connect_radio(self, transport: Transport, attempt: int) -> bool:
         try:
