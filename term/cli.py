@@ -303,8 +303,9 @@ class SimBoard:
         line = _readline_with_timeout(self.proc, timeout)
         if not line.startswith("pty: "):
             if not line:  # its stdout closed: let it exit, so its last words on stderr can be read
+                # (generous: only this error path waits, and a loaded machine can take seconds to tear down)
                 with contextlib.suppress(subprocess.TimeoutExpired):
-                    self.proc.wait(3.0)
+                    self.proc.wait(15.0)
             why = self._child_error() or (line.strip() or "no output")
             self.stop()
             raise UsageError(f"the simulated board did not start: {why}")
