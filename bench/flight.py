@@ -26,8 +26,8 @@ from fcb_sim import params as P
 from fcb_sim.estimation import BEST
 from fcb_sim.estimation.height import HEIGHT_BEST, make_height_estimator
 from fcb_sim.flight import FlightCore
-from fcb_sim.scenarios import ACTION_AT, Recorder, Sim, hover, raw_hover
-from term.protocol import Mode
+from fcb_sim.scenarios import Sim, hover, raw_hover
+from fcb_sim.scenarios import height_hold as height_hold_scenario
 
 GOAL_HEIGHT_M = 0.10
 
@@ -40,15 +40,7 @@ def height_hold(seed: int, seconds: float, spikes: bool = True, estimator: str =
                           height_estimator=make_height_estimator(estimator))
         core.height_i = 0.0
     sim = Sim(seed, world_kw={"baro_spikes": spikes}, core=core)
-    rec = Recorder(ACTION_AT)
-    sim.on_tick = rec
-    sim.prologue()
-    sim.run_until(5.0)
-    sim.pilot_target = None
-    rec.h_ref = -sim.world.d
-    sim.set_mode(Mode.HEIGHT)
-    sim.run_until(seconds)
-    return rec.metrics()["height_rms_m"]
+    return height_hold_scenario(seed, seconds, sim)["height_rms_m"]
 
 
 def main() -> None:

@@ -190,11 +190,16 @@ def _yaw_stick(rate_rad_s: float) -> int:
 
 # ---- scenarios: each flies ``duration`` simulated seconds and returns its metrics --------------------------------
 
-def _hover(seed: int, duration: float, mode: int = Mode.FULL, **core_kw: object) -> dict:
-    sim = Sim(seed, core_kw=core_kw)
+def _take_off(sim: Sim, mode: int = Mode.FULL) -> tuple[Sim, Recorder]:
+    """Record ``sim`` from now on and fly its prologue (calibrate, arm, take off in ``mode``)."""
     rec = Recorder(ACTION_AT)
     sim.on_tick = rec
     sim.prologue(mode)
+    return sim, rec
+
+
+def _hover(seed: int, duration: float, mode: int = Mode.FULL, **core_kw: object) -> dict:
+    sim, rec = _take_off(Sim(seed, core_kw=core_kw), mode)
     sim.run_until(duration)
     return rec.metrics()
 
@@ -213,10 +218,7 @@ def raw_hover(seed: int, duration: float, filter_name: str | None = None, fixed_
 
 def step_roll(seed: int, duration: float) -> dict:
     """FULL mode: a 10 deg roll step on the stick at t = 6 s, held; settle = within 1 deg (10 %)."""
-    sim = Sim(seed)
-    rec = Recorder(ACTION_AT)
-    sim.on_tick = rec
-    sim.prologue()
+    sim, rec = _take_off(Sim(seed))
     sim.run_until(ACTION_AT)
     step = 10.0 * DEG
     sim.sticks[0] = _roll_stick(step)
@@ -232,10 +234,7 @@ def step_roll(seed: int, duration: float) -> dict:
 
 def step_yaw(seed: int, duration: float) -> dict:
     """FULL mode: a 45 deg/s yaw-rate step on the twist at t = 6 s; settle = within 10 % of the rate."""
-    sim = Sim(seed)
-    rec = Recorder(ACTION_AT)
-    sim.on_tick = rec
-    sim.prologue()
+    sim, rec = _take_off(Sim(seed))
     sim.run_until(ACTION_AT)
     sim.sticks[2] = _yaw_stick(45.0 * DEG)
     target = sim.sticks[2] / (1 << C.STICK_YAW_SHIFT) / C.RATE_LSB_PER_RAD_S
@@ -248,12 +247,10 @@ def step_yaw(seed: int, duration: float) -> dict:
     return m
 
 
-def height_hold(seed: int, duration: float) -> dict:
-    """HEIGHT mode from t = 5 s with the noisy, spiky barometer; the pilot lets go of the lift stick."""
-    sim = Sim(seed)
-    rec = Recorder(ACTION_AT)
-    sim.on_tick = rec
-    sim.prologue()
+def height_hold(seed: int, duration: float, sim: Sim | None = None) -> dict:
+    """HEIGHT mode from t = 5 s with the noisy, spiky barometer; the pilot lets go of the lift stick.
+    ``sim``: a prepared simulator (another estimator, other gains or world) instead of ``Sim(seed)``."""
+    sim, rec = _take_off(sim or Sim(seed))
     sim.run_until(5.0)
     sim.pilot_target = None
     rec.h_ref = -sim.world.d  # HEIGHT holds the height it was entered at
@@ -267,10 +264,7 @@ def height_hold(seed: int, duration: float) -> dict:
 
 def gusts(seed: int, duration: float) -> dict:
     """FULL mode hover in wind: 2 m/s from the north plus gusts of 1.5 m/s rms (0.5 s) from t = 5 s."""
-    sim = Sim(seed)
-    rec = Recorder(ACTION_AT)
-    sim.on_tick = rec
-    sim.prologue()
+    sim, rec = _take_off(Sim(seed))
     sim.run_until(5.0)
     sim.world.set_wind(2.0, 0.0, 0.0, gust_std=1.5, gust_tau=0.5)
     sim.run_until(duration)
@@ -281,10 +275,7 @@ def push(seed: int, duration: float) -> dict:
     """FULL mode hover, a shove at t = 6 s (0.3 N m roll and 3 N sideways for 0.1 s).
 
     settle_time_s: until the tilt stays within 1 deg of level."""
-    sim = Sim(seed)
-    rec = Recorder(ACTION_AT)
-    sim.on_tick = rec
-    sim.prologue()
+    sim, rec = _take_off(Sim(seed))
     sim.run_until(ACTION_AT)
     sim.world.push(0.0, 3.0, 0.0, 0.1, tx=0.3)
     sim.run_until(duration)
@@ -298,10 +289,7 @@ def motor_stuck(seed: int, duration: float) -> dict:
     """FULL mode hover, then the back motor (ae3) is stuck at 330 or below from t = 6 s.
 
     The attitude loops trade the other motors against it (watch the tilt and the yaw rate)."""
-    sim = Sim(seed)
-    rec = Recorder(ACTION_AT)
-    sim.on_tick = rec
-    sim.prologue()
+    sim, rec = _take_off(Sim(seed))
     sim.run_until(ACTION_AT)
     sim.world.stick_motor(3, 330)
     sim.run_until(duration)
@@ -315,10 +303,7 @@ def panic(seed: int, duration: float) -> dict:
     """FULL mode hover, then PANIC at t = 6 s: descent level 2 s, ramp to 0 in 1 s, SAFE.
 
     The timing is the board mode machine's; reports the touch-down speed."""
-    sim = Sim(seed)
-    rec = Recorder(ACTION_AT)
-    sim.on_tick = rec
-    sim.prologue()
+    sim, rec = _take_off(Sim(seed))
     sim.run_until(ACTION_AT)
     sim.pilot_target = None
     sim.set_mode(Mode.PANIC)

@@ -6,7 +6,7 @@ import pytest
 
 from fcb_sim import control as C
 from fcb_sim.flight import HEIGHT_I, Calibration, FlightCore
-from fcb_sim.scenarios import ACTION_AT, Recorder, Sim
+from fcb_sim.scenarios import Sim, height_hold
 from term.protocol import Mode
 
 
@@ -60,15 +60,7 @@ def _hold_on_truth(height_i: float, seconds: float) -> float:
     sim = Sim(1)
     sim.fc.height_est = Truth(sim)
     sim.fc.height_i = height_i
-    rec = Recorder(ACTION_AT)
-    sim.on_tick = rec
-    sim.prologue()
-    sim.run_until(5.0)
-    sim.pilot_target = None
-    rec.h_ref = -sim.world.d
-    sim.set_mode(Mode.HEIGHT)
-    sim.run_until(seconds)
-    return rec.metrics()["height_rms_m"]
+    return height_hold(1, seconds, sim)["height_rms_m"]
 
 
 def test_integral_takes_out_the_battery_sag() -> None:
