@@ -489,6 +489,7 @@ class Decoder:
         self.stats = DecoderStats()
         self._pending = b""
         self._discarding = False  # inside an over-long run: drop bytes up to the next delimiter
+        self._joined = False  # a delimiter has been seen: what follows starts on a frame boundary
         self._last_seq: int | None = None
 
     def feed(self, data: bytes) -> list[Any]:
@@ -504,6 +505,14 @@ class Decoder:
                 stats.bytes_skipped += len(pieces[0]) + 1
                 pieces[0] = b""
                 self._discarding = False
+            if not self._joined:
+                # Before the first delimiter a receiver may have started listening mid-frame (a port opened
+                # while the board talks): a first piece that is no frame is the tail of one, skipped, not damage.
+                self._joined = True
+                first, ok = pieces[0], _decode_pieces(pieces[:1], self._last_seq)[0]
+                if first and not ok:
+                    stats.bytes_skipped += len(first) + 1
+                    pieces[0] = b""
             packets, crc_fail, mal, skipped, gaps, last = _decode_pieces(pieces, self._last_seq)
             out = packets
             stats.frames_ok += len(packets)

@@ -170,8 +170,18 @@ def test_overlong_run_without_delimiter_is_skipped_then_resyncs() -> None:
     assert dec.stats.bytes_skipped == 106
 
 
+def test_joining_mid_frame_is_not_damage() -> None:
+    frame = p.encode(p.Heartbeat(1, 2))
+    dec = p.Decoder()
+    assert dec.feed(frame[5:] + frame) == [p.Heartbeat(1, 2)]  # the tail of a frame we missed the start of
+    assert dec.stats.frames_bad == 0 and dec.stats.bytes_skipped == len(frame) - 5
+    assert dec.feed(frame[5:] + frame) == [p.Heartbeat(1, 2)]  # later, the same tail is a damaged frame
+    assert dec.stats.frames_bad == 1
+
+
 def test_wrong_length_and_unknown_type_are_malformed() -> None:
     dec = p.Decoder()
+    dec.feed(b"\x00")  # joined: what follows starts on a frame boundary
     raw = bytes((0xEE, 0)) + b"\x01\x02\x03"
     import binascii
 
@@ -184,6 +194,7 @@ def test_crc_failure_is_counted() -> None:
     frame = bytearray(p.encode(p.Heartbeat(1, 2)))
     frame[3] ^= 0x40
     dec = p.Decoder()
+    dec.feed(p.encode(p.Heartbeat(0, 0)))
     assert dec.feed(bytes(frame)) == []
     assert dec.stats.crc_errors == 1
 
