@@ -18,6 +18,7 @@ import argparse
 import asyncio
 import contextlib
 import os
+import select
 import signal
 import subprocess
 import sys
@@ -223,9 +224,13 @@ async def _run_app(transport: Any, cfg: Any, args: argparse.Namespace, radio: An
     app = TermApp(transport, config=cfg, joystick=not args.no_joystick, log_directory=args.log_dir,
                   session_options=session, radio=radio, primary_ble=ble_only,
                   start_screen="wireless" if ble_only else "flight")
+    _running[:] = [(app, asyncio.get_running_loop())]
+    hangup = asyncio.create_task(_exit_on_hangup(sys.stdin))
     try:
         result = await app.run_async()
     finally:
+        _running.clear()
+        hangup.cancel()
         await app.shutdown()
         for t in (transport, radio):
             if t is not None:
@@ -237,11 +242,22 @@ async def _run_app(transport: Any, cfg: Any, args: argparse.Namespace, radio: An
     return int(code if code is not None else (result or 0))
 
 
+# The app while it runs, and its loop: a signal asks it to exit through the loop.
+_running: list[tuple[Any, asyncio.AbstractEventLoop]] = []
+SIGNAL_EXIT_GRACE_S = 5.0  # after a signal, the longest an orderly exit may take before term ends itself
+
+
 @contextlib.contextmanager
 def _terminate_on_signals() -> Any:
-    """SIGTERM and SIGHUP (terminal closed) unwind like Ctrl+C, so the child board is stopped on the way out."""
+    """SIGTERM and SIGHUP (terminal closed) end term in order, so the child board is stopped on the way out.
+
+    While the app runs, the signal asks it to exit through its event loop: unwinding with SystemExit from inside
+    the loop would skip Textual's own shutdown and leave its input thread spinning on a dead terminal, keeping
+    the process alive. A watchdog ends the process if the orderly exit hangs (the child board then gets its own
+    SIGTERM from the kernel, PR_SET_PDEATHSIG)."""
     def raise_exit(signum: int, frame: object) -> None:
-        raise SystemExit(128 + signum)
+        if not _request_exit(128 + signum):
+            raise SystemExit(128 + signum)
 
     old = {}
     for sig in (signal.SIGTERM, signal.SIGHUP):
@@ -253,6 +269,37 @@ def _terminate_on_signals() -> Any:
         for sig, handler in old.items():
             with contextlib.suppress(ValueError, OSError):
                 signal.signal(sig, handler)
+
+
+def _request_exit(code: int) -> bool:
+    """Ask the running app to exit in order with ``code`` (False if none runs); end the process if that hangs."""
+    if not _running:
+        return False
+    app, loop = _running[0]
+    watchdog = threading.Timer(SIGNAL_EXIT_GRACE_S, os._exit, (code,))
+    watchdog.daemon = True
+    watchdog.start()
+    loop.call_soon_threadsafe(lambda: app.exit(return_code=code))
+    return True
+
+
+async def _exit_on_hangup(stream: IO[str], period: float = 0.5) -> None:
+    """Exit when the terminal goes away. Closing a terminal does not always signal us (a session leader that
+    ignores SIGHUP does not pass it on), and Textual reads a hung-up terminal's EOF as piped input and keeps
+    running; a hung-up tty reports POLLHUP, which polling sees without taking any input."""
+    try:
+        fd = stream.fileno()
+    except (AttributeError, OSError, ValueError):
+        return
+    if not os.isatty(fd):
+        return
+    poller = select.poll()
+    poller.register(fd, 0)  # POLLHUP and POLLERR are reported whatever is asked for
+    while True:
+        await asyncio.sleep(period)
+        if any(ev & (select.POLLHUP | select.POLLERR | select.POLLNVAL) for _, ev in poller.poll(0)):
+            _request_exit(128 + signal.SIGHUP)
+            return
 
 
 # --- the simulated board as a child process --------------------------------------------------------------------

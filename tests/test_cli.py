@@ -139,6 +139,47 @@ def test_the_simulated_board_dies_with_term_even_when_term_is_killed() -> None:
     assert _gone(int(pid_text))
 
 
+def _children(pid: int) -> list[int]:
+    try:
+        return [int(c) for c in Path(f"/proc/{pid}/task/{pid}/children").read_text().split()]
+    except OSError:
+        return []
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
+def test_term_ends_with_its_terminal_and_stops_the_board() -> None:
+    """A terminal closed without a SIGHUP reaching term (its session leader ignores it, as under tmux here):
+    term sees the hang-up, exits in order as for SIGHUP, and the simulated board goes with it."""
+    import fcntl
+    import select
+    import struct
+    import termios
+    import time
+
+    master, slave = os.openpty()
+    fcntl.ioctl(slave, termios.TIOCSWINSZ, struct.pack("HHHH", 40, 120, 0, 0))
+    proc = subprocess.Popen([sys.executable, "-m", "term.cli", "--sim", "--no-joystick", "--no-radio"],
+                            stdin=slave, stdout=slave, stderr=slave, start_new_session=True,
+                            env={**os.environ, "TERM": "xterm-256color"})
+    os.close(slave)
+    board: list[int] = []
+    drawn = b""
+    try:
+        deadline = time.monotonic() + 30
+        while time.monotonic() < deadline and not (board and b"link" in drawn):
+            if select.select([master], [], [], 0.1)[0]:
+                drawn = (drawn + os.read(master, 65536))[-200_000:]  # keep draining: term must never block
+            board = _children(proc.pid)
+        assert board and b"link" in drawn, "term --sim did not come up"
+    finally:
+        os.close(master)  # the terminal goes away
+    assert proc.wait(timeout=20) == 128 + 1  # as SIGHUP
+    deadline = time.monotonic() + 10
+    while not all(_gone(b) for b in board) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert all(_gone(b) for b in board)
+
+
 async def test_a_board_with_another_protocol_version_is_one_line_and_exit_3(pty_pair, scripted_board) -> None:  # noqa: ANN001
     """The whole path: `term --serial PTY` in a real terminal (`script` gives it one) against a board that
     answers Hello with protocol v99."""
