@@ -110,6 +110,13 @@ def pa_per_metre(pressure_pa: float, temperature_k: float = T_ROOM) -> float:
     return pressure_pa * G * M_AIR / (R_GAS * temperature_k)
 
 
+def reference(pressure_pa: float, temperature_k: float) -> tuple[float, float]:
+    """A reset's reference pressure and the eq. 3 slope there (Pa per metre); ValueError for a bad pressure."""
+    if not pressure_pa > 0.0:
+        raise ValueError(f"reference pressure must be positive, got {pressure_pa!r}")
+    return float(pressure_pa), pa_per_metre(pressure_pa, temperature_k)
+
+
 def _alpha_to_tau(alpha: float, rate_hz: float) -> float:
     dt = 1.0 / rate_hz
     return dt * alpha / (1.0 - alpha)
@@ -148,10 +155,7 @@ class HeightEstimator:
 
     def reset(self, pressure_pa: float) -> None:
         """Start again at height 0, at rest, with this pressure as the reference."""
-        if not pressure_pa > 0.0:
-            raise ValueError(f"reference pressure must be positive, got {pressure_pa!r}")
-        self.p_ref = float(pressure_pa)
-        self.k_pa_per_m = pa_per_metre(self.p_ref, self.temperature_k)
+        self.p_ref, self.k_pa_per_m = reference(pressure_pa, self.temperature_k)
         self.height = 0.0
         self.vz = 0.0
         self.az_earth = 0.0  # linear vertical acceleration after the high-pass, m/s² (for telemetry)
@@ -286,10 +290,7 @@ class HeightKalman:
 
     def reset(self, pressure_pa: float) -> None:
         """Start again at height 0, at rest, with this pressure as the reference."""
-        if not pressure_pa > 0.0:
-            raise ValueError(f"reference pressure must be positive, got {pressure_pa!r}")
-        self.p_ref = float(pressure_pa)
-        self.k_pa_per_m = pa_per_metre(self.p_ref, self.temperature_k)
+        self.p_ref, self.k_pa_per_m = reference(pressure_pa, self.temperature_k)
         self.height = 0.0
         self.vz = 0.0
         self.bias = 0.0  # m/s², earth-up accelerometer bias estimate
