@@ -254,8 +254,6 @@ class BoardConfig:
     residual_jitter_us: float = 0.0
 
 
-LOG_FIELDS = ("t_us", "mode", "phi", "theta", "psi", "sp", "sq", "sr", "sax", "say", "saz",
-              "ae1", "ae2", "ae3", "ae4", "height", "pressure", "battery")
 CALIBRATED_VARS = ("gx", "gy", "gz", "ax", "ay", "az", "dmp_phi", "dmp_theta", "pressure")
 DMP_ANGLE_LSB = P.ANGLE_LSB_PER_RAD  # DMP angles are summed as int16 angles of the lab's template
 
@@ -349,8 +347,6 @@ class Board:
         self._log_full_reported = False
         self._overflow_reported = 0
         self.on_task: Any = None  # optional callback(name, start_us, duration_us) after every task run
-        self.sent: list[Any] = []  # every packet sent (bounded), for tests and the serve log
-        self._sent_keep = 2000
         if cfg.boot_hello:
             self._send(Hello(PROTOCOL_VERSION, 1, BOARD_VERSION[0], BOARD_VERSION[1], cfg.board_id))
             self._event(EventCode.BOOT, PROTOCOL_VERSION)
@@ -815,9 +811,6 @@ class Board:
             if not self._tx:
                 self._tx_clock = max(self._tx_clock, float(self.now))
             self._tx += self.encoder.encode(pkt)
-        self.sent.append(pkt)
-        if len(self.sent) > self._sent_keep:
-            del self.sent[: self._sent_keep // 2]
 
     def _event(self, code: EventCode, arg: int) -> None:
         self._send(Event(int(code), int(arg), (self.now // 1000) & 0xFFFFFFFF))

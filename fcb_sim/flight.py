@@ -202,12 +202,6 @@ class FlightCore:
         setattr(self.gains, name, value)
         return value
 
-    def set_filter(self, name: str, *, fixed_point: bool = False) -> None:
-        """Switch the RAW-path filter (a fresh one)."""
-        self.filter = make_filter(name, fixed_point=fixed_point)
-        self.filter_name = name
-        self.fixed_point = fixed_point
-
     # ---- samples ---------------------------------------------------------------------------------------------
     def imu_sample(self, gx: int, gy: int, gz: int, ax: int, ay: int, az: int, dt: float) -> None:
         """A raw MPU6050 sample (chip words) and the time since the previous one (s)."""
@@ -355,16 +349,6 @@ class FlightCore:
         return out
 
     # ---- telemetry helpers -----------------------------------------------------------------------------------
-    @property
-    def raw_phi(self) -> float:
-        """Roll of the on-board filter (rad, FRD)."""
-        return self.filter.roll
-
-    @property
-    def raw_theta(self) -> float:
-        """Pitch of the on-board filter (rad, FRD: nose up positive)."""
-        return -self.filter.pitch
-
     @property
     def raw_psi(self) -> float:
         """Yaw of the on-board filter (rad, FRD: nose right positive)."""

@@ -210,7 +210,6 @@ def _leave_calibration(m: ModeMachine, now: float) -> None:
     if n >= m.config.calibration_min_samples:
         m.offsets = m.calibration.means()
         m.calibrated = True
-        m.calibration_generation += 1
         m.emit(EventCode.CALIBRATION_DONE, n, now)
     # Too few samples (left at once, or a PANIC): the previous calibration, if any, stays in force.
 
@@ -278,7 +277,6 @@ class ModeMachine:
     events: list[tuple[EventCode, int, float]] = field(default_factory=list)
     changes: list[ModeChange] = field(default_factory=list)  # every change, for the board's listeners and tests
     link_timed_out: bool = False
-    calibration_generation: int = 0  # counts finished calibrations (the board applies each new one)
     battery_low_latched: bool = False  # set by a low-battery PANIC; only a new battery (a reboot) clears it
 
     def __post_init__(self) -> None:

@@ -232,15 +232,6 @@ class World:
         rot = P.IXX * self.p * self.p + P.IYY * self.q * self.q + P.IZZ * self.r * self.r
         return 0.5 * P.MASS * v2 + 0.5 * rot + P.MASS * P.G * (-self.d)
 
-    def _specific_force(self) -> tuple[float, float, float]:
-        # f = R^T (a - g), body FRD
-        w, x, y, z = self.qw, self.qx, self.qy, self.qz
-        an, ae, ad = self.acc_n, self.acc_e, self.acc_d - P.G
-        fx = (1 - 2 * (y * y + z * z)) * an + 2 * (x * y + w * z) * ae + 2 * (x * z - w * y) * ad
-        fy = 2 * (x * y - w * z) * an + (1 - 2 * (x * x + z * z)) * ae + 2 * (y * z + w * x) * ad
-        fz = 2 * (x * z + w * y) * an + 2 * (y * z - w * x) * ae + (1 - 2 * (x * x + y * y)) * ad
-        return fx, fy, fz
-
     # ---- integration -----------------------------------------------------------------------------------------
     def _update_targets(self) -> None:
         k = self._omega_per_ae = P.OMEGA_PER_AE * self.volts / P.V_REF  # the ESC's speed scales with the supply

@@ -56,11 +56,6 @@ class Sim:
         self.cal = CalibrationAccumulator()
         self.on_tick: Callable[[Sim], None] | None = None
 
-    def hover_lift(self) -> int:
-        """The lift stick a trained pilot uses to hover with the present battery voltage."""
-        ae = P.AE_HOVER_NOMINAL * P.V_REF / max(self.world.volts, 1.0)
-        return C.z_to_lift(-4.0 * ae * ae)
-
     def _pilot(self) -> None:
         tr = self.world
         h, vz = -tr.d, -tr.vd

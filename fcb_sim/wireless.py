@@ -51,7 +51,6 @@ NUS_TX = "6E400003-B5A3-F393-E0A9-E50E24DCCA9E"
 NAME_PREFIX = "Quadrupel"
 ATT_MTU = 23  # the nRF51's S110 SoftDevice never negotiates more
 NOTIFY_PAYLOAD = ATT_MTU - 3  # 20 bytes of value per notification
-HEARTBEAT_HZ = 10.0
 
 
 def compacts_per_heartbeat(compact: int, heartbeat: int, payload: int = NOTIFY_PAYLOAD, least: int = 3) -> int:
@@ -72,7 +71,6 @@ def compacts_per_heartbeat(compact: int, heartbeat: int, payload: int = NOTIFY_P
 # Derived from the frame sizes, so a change to either packet keeps the notifications full: with the 16-byte
 # Compact and the 14-byte Heartbeat, four Compacts and a heartbeat are 78 bytes, four notifications 97.5 % full.
 COMPACT_PER_HEARTBEAT = compacts_per_heartbeat(SPEC_OF[Compact].frame_size, SPEC_OF[Heartbeat].frame_size)
-BLE_TELEMETRY_HZ = HEARTBEAT_HZ * COMPACT_PER_HEARTBEAT
 
 
 def board_name(board_id: int) -> str:

@@ -28,6 +28,7 @@ from textual.containers import Horizontal, Vertical
 from textual.screen import Screen
 from textual.widgets import Footer, Input
 
+from term.cli import EXIT_USAGE, EXIT_VERSION
 from term.config import Config
 from term.connection import Connection, TransportFailed
 from term.input.joystick import JoystickPoller
@@ -214,7 +215,7 @@ class TermApp(App[int]):
             await conn.start()
         except TransportError as exc:
             if not retrying:
-                self._fatal(str(exc), 2)
+                self._fatal(str(exc), EXIT_USAGE)
             elif str(exc) != self._reconnect_error:
                 self._reconnect_error = str(exc)
                 self.model.note(self.clock(), "warning", "link", f"reconnecting: {exc}")
@@ -301,8 +302,7 @@ class TermApp(App[int]):
             return
         model.radio_event(ev, now)
         if type(ev) is VersionMismatch:
-            self._fatal(f"board speaks protocol v{ev.board_version}, this terminal v{ev.our_version}: "
-                        "update the board's firmware or the terminal", 3)
+            self._version_mismatch(ev)
 
     def control_connection(self) -> Connection | None:
         """The connection commands go over: the radio once the board flies over BLE, else the board's link."""
@@ -346,6 +346,10 @@ class TermApp(App[int]):
             self.poller.close()
             self.poller = None
 
+    def _version_mismatch(self, ev: VersionMismatch) -> None:
+        self._fatal(f"board speaks protocol v{ev.board_version}, this terminal v{ev.our_version}: "
+                    "update the board's firmware or the terminal", EXIT_VERSION)
+
     def _fatal(self, message: str, code: int) -> None:
         self.exit_message = message
         self.exit(code, return_code=code)
@@ -366,8 +370,7 @@ class TermApp(App[int]):
             return
         self.model.apply(ev, now)
         if type(ev) is VersionMismatch:
-            self._fatal(f"board speaks protocol v{ev.board_version}, this terminal v{ev.our_version}: "
-                        "update the board's firmware or the terminal", 3)
+            self._version_mismatch(ev)
         elif type(ev) is CommandFailed and ev.op in (Op.LOG_DOWNLOAD,) and self.model.download is not None:
             self.model.download = None
             self.model.download_note = f"log download stopped: {ev.reason}"

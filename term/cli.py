@@ -28,8 +28,8 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import IO, Any, NoReturn
 
-EXIT_USAGE = 2
-EXIT_VERSION = 3
+EXIT_USAGE = 2  # a problem the user can fix: a bad option, a missing port, a board that will not start
+EXIT_VERSION = 3  # a board that speaks another protocol version
 SIM_START_TIMEOUT = 15.0  # s for the child board to print its pty
 
 

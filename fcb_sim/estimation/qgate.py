@@ -36,8 +36,6 @@ from __future__ import annotations
 
 import math
 
-from .dmp import quaternion_to_euler
-
 G = 9.81
 
 
@@ -82,9 +80,6 @@ class QGateFilter:
     # --- outputs ---
     def quaternion(self) -> tuple[float, float, float, float]:
         return self.w, self.x, self.y, self.z
-
-    def euler(self) -> tuple[float, float, float]:
-        return quaternion_to_euler(self.w, self.x, self.y, self.z)
 
     @property
     def roll(self) -> float:
