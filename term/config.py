@@ -1,7 +1,11 @@
 """The terminal's TOML config file, in the platform's config directory (platformdirs).
 
-Everything is optional; a missing file means the defaults. A malformed file is reported in one line (``ConfigError``)
-naming the file and the problem. Example (``term --print-config`` prints the defaults in this form)::
+Everything is optional; a missing file means the defaults. Every value is checked where it is read, against one
+schema (``CONFIG_SCHEMA``: section, key, type, range): a wrong type, nan or inf, a number out of range, an unknown
+section or key (with the nearest known one), bad UTF-8 or bad TOML is a ``ConfigError`` of one line naming the
+file, the key and what is allowed, e.g. ``config file term.toml: [connection] link_timeout: must be a number
+between 0.05 and 60 s, got nan``. The key map refuses unknown key names, and PANIC, SAFE and lift down always
+keep a key (term/input/keymap.py). An example::
 
     [connection]
     port = "/dev/ttyUSB0"      # used when neither --serial nor --sim is given
@@ -39,10 +43,21 @@ from pathlib import Path
 from typing import Any
 
 from term.input.keymap import KeyBinding, KeymapError, build_keymap
-from term.input.mapping import MappingError, StickMapping, mapping_from_dict
+from term.input.mapping import (
+    LAB,
+    MAPPING_TABLE,
+    PLAYSTATION,
+    PRESETS,
+    RESOLUTION_RANGE,
+    XBOX,
+    StickMapping,
+    mapping_from_dict,
+)
+from term.schema import ListOf, Number, OneOf, SchemaError, Table, TableOf, Text, nearest, one_line, shown
 
 APP_NAME = "quadrupel"
 FILE_NAME = "term.toml"
+CONFIG_MAX_BYTES = 1_000_000  # a config is a few hundred bytes; this keeps `--config /dev/zero` from eating memory
 
 # Telemetry series the plots can show: name -> (label, unit).
 PLOT_SERIES: dict[str, tuple[str, str]] = {
@@ -78,6 +93,12 @@ JOYSTICK_POLICIES: dict[str, dict[str, float | bool]] = {
 }
 
 
+# Ranges of the numbers a user may set (the config file and the same options on the command line).
+BAUD = Number(50, 4_000_000, integer=True, unit="baud")  # up to Linux's highest standard rate, B4000000
+LINK_TIMEOUT = Number(0.05, 60.0, unit="s")  # as fcb-sim serve --link-timeout: nan would never time out
+PLOT_WINDOW = Number(1.0, 60.0, unit="s")  # the model keeps 60 s of each series (term/model.py HISTORY)
+
+
 class ConfigError(ValueError):
     """The config file cannot be used; the message is one line naming the file."""
 
@@ -106,101 +127,114 @@ def default_path() -> Path:
 
 def load_config(path: Path | None = None, *, required: bool = False) -> Config:
     """Read ``path`` (default: the platform's config file). A missing default file is fine; a missing file the
-    user named (``required``) is an error."""
+    user named (``required``) is an error. Every problem is a ``ConfigError`` of one line naming the file."""
     path = path or default_path()
     try:
-        text = path.read_text(encoding="utf-8")
+        with path.open("rb") as f:
+            raw = f.read(CONFIG_MAX_BYTES + 1)
     except FileNotFoundError:
         if required:
             raise ConfigError(f"config file {path} not found") from None
         return Config()
     except OSError as exc:
-        raise ConfigError(f"cannot read config file {path}: {exc.strerror}") from None
+        raise ConfigError(f"cannot read config file {path}: {exc.strerror or exc}") from None
+    if len(raw) > CONFIG_MAX_BYTES:
+        raise ConfigError(f"config file {path} is larger than {CONFIG_MAX_BYTES // 1000} kB: not a term.toml")
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise ConfigError(f"config file {path} is not UTF-8 text (byte {raw[exc.start]:#04x} at offset "
+                          f"{exc.start}); TOML files are UTF-8") from None
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
-        raise ConfigError(f"config file {path} is not valid TOML: {exc}") from None
+        raise ConfigError(one_line(f"config file {path} is not valid TOML: {exc}")) from None
+    except RecursionError:
+        raise ConfigError(f"config file {path} is not usable TOML: its values nest too deeply") from None
     try:
         cfg = config_from_dict(data)
-    except (ConfigError, KeymapError, MappingError) as exc:
-        raise ConfigError(f"config file {path}: {exc}") from None
+    except (SchemaError, KeymapError) as exc:
+        raise ConfigError(one_line(f"config file {path}: {exc}")) from None
     cfg.source = path
     return cfg
 
 
-def _table(data: Mapping[str, Any], name: str) -> Mapping[str, Any]:
-    t = data.get(name, {})
-    if not isinstance(t, Mapping):
-        raise ConfigError(f"[{name}] must be a table")
-    return t
+class _KeysSpec:
+    """[keys]: the key map checks its own rules (known actions and key names, clashes, safety keys)."""
+
+    section = True
+
+    def describe(self) -> str:
+        return "a table of action = key names"
+
+    def check(self, value: Any, where: str) -> tuple[KeyBinding, ...]:
+        if not isinstance(value, Mapping):
+            raise SchemaError(f"{where}: must be {self.describe()}, got {shown(value)}")
+        return build_keymap(dict(value))
 
 
-def _get(t: Mapping[str, Any], section: str, key: str, kind: type | tuple[type, ...], default: Any) -> Any:
-    v = t.get(key, default)
-    if v is not default and (not isinstance(v, kind) or isinstance(v, bool) and bool not in _as_tuple(kind)):
-        names = "/".join(k.__name__ for k in _as_tuple(kind))
-        raise ConfigError(f"[{section}] {key} must be {names}, not {v!r}")
-    return v
-
-
-def _as_tuple(kind: type | tuple[type, ...]) -> tuple[type, ...]:
-    return kind if isinstance(kind, tuple) else (kind,)
+# The file's format in one place: section -> key -> type and range (the defaults are Config's).
+CONFIG_SCHEMA = Table({
+    "connection": Table({
+        "port": Text(nonempty=True, what="a port name"),
+        "baud": BAUD,
+        "link_timeout": LINK_TIMEOUT,
+        "joystick": OneOf(tuple(JOYSTICK_POLICIES)),
+    }, section=True),
+    "keys": _KeysSpec(),
+    "joystick": Table({
+        "mapping": Text(),
+        "resolution": Number(*RESOLUTION_RANGE, integer=True, unit="stick units"),
+        "mappings": TableOf(MAPPING_TABLE),
+    }, section=True),
+    "plots": Table({
+        "series": ListOf(OneOf(tuple(PLOT_SERIES)), min_len=1, max_len=len(PLOT_SERIES), unique=True),
+        "window": PLOT_WINDOW,
+    }, section=True),
+    "log": Table({"directory": Text(nonempty=True, what="a directory")}, section=True),
+})
 
 
 def config_from_dict(data: Mapping[str, Any]) -> Config:
-    known = {"connection", "keys", "joystick", "plots", "log"}
-    for k in data:
-        if k not in known:
-            raise ConfigError(f"unknown section [{k}]; known: {', '.join(sorted(known))}")
+    """A ``Config`` from parsed TOML, every value checked against ``CONFIG_SCHEMA`` (``SchemaError`` or
+    ``KeymapError``, one line naming the section and key)."""
+    v = CONFIG_SCHEMA.check(data, "")
     cfg = Config()
-    conn = _table(data, "connection")
-    cfg.port = _get(conn, "connection", "port", str, None)
-    cfg.baud = _get(conn, "connection", "baud", int, cfg.baud)
-    cfg.link_timeout = float(_get(conn, "connection", "link_timeout", (int, float), cfg.link_timeout))
-    if cfg.baud <= 0 or cfg.link_timeout <= 0:
-        raise ConfigError("[connection] baud and link_timeout must be positive")
-    cfg.joystick_policy = _get(conn, "connection", "joystick", str, cfg.joystick_policy)
-    if cfg.joystick_policy not in JOYSTICK_POLICIES:
-        raise ConfigError(f"[connection] joystick must be one of: {', '.join(JOYSTICK_POLICIES)}")
+    conn = v.get("connection", {})
+    cfg.port = conn.get("port", cfg.port)
+    cfg.baud = conn.get("baud", cfg.baud)
+    cfg.link_timeout = conn.get("link_timeout", cfg.link_timeout)
+    cfg.joystick_policy = conn.get("joystick", cfg.joystick_policy)
+    if "keys" in v:
+        cfg.keymap = v["keys"]
 
-    keys = _table(data, "keys")
-    cfg.keymap = build_keymap(dict(keys))
+    js = v.get("joystick", {})
+    cfg.joystick_resolution = js.get("resolution", cfg.joystick_resolution)
+    cfg.joystick_mappings = tuple(mapping_from_dict(name, m) for name, m in (js.get("mappings") or {}).items())
+    cfg.joystick_mapping = js.get("mapping", "")
+    if cfg.joystick_mapping and forced_mapping(cfg) is None:
+        names = [*SHORT_NAMES, *(m.name for m in cfg.joystick_mappings)]
+        raise SchemaError(f"[joystick] mapping: {shown(cfg.joystick_mapping)} is neither a preset nor in "
+                          f"[joystick.mappings]{nearest(cfg.joystick_mapping, names)}; known: {', '.join(names)}")
 
-    js = _table(data, "joystick")
-    cfg.joystick_mapping = _get(js, "joystick", "mapping", str, "")
-    cfg.joystick_resolution = _get(js, "joystick", "resolution", int, cfg.joystick_resolution)
-    maps = _get(js, "joystick", "mappings", dict, {})
-    cfg.joystick_mappings = tuple(mapping_from_dict(name, m) for name, m in maps.items() if isinstance(m, dict))
-    if cfg.joystick_mapping:
-        from term.input.mapping import PRESETS
+    plots = v.get("plots", {})
+    cfg.plot_series = tuple(plots.get("series", cfg.plot_series))
+    cfg.plot_window = plots.get("window", cfg.plot_window)
 
-        names = {m.name for m in (*cfg.joystick_mappings, *PRESETS)} | {"lab", "xbox", "playstation"}
-        if cfg.joystick_mapping not in names:
-            raise ConfigError(f"[joystick] mapping {cfg.joystick_mapping!r} is neither a preset nor in "
-                              "[joystick.mappings]")
-
-    plots = _table(data, "plots")
-    series = _get(plots, "plots", "series", list, list(cfg.plot_series))
-    bad = [s for s in series if s not in PLOT_SERIES]
-    if bad:
-        raise ConfigError(f"[plots] unknown series {bad[0]!r}; known: {', '.join(PLOT_SERIES)}")
-    cfg.plot_series = tuple(series)
-    cfg.plot_window = float(_get(plots, "plots", "window", (int, float), cfg.plot_window))
-
-    log = _table(data, "log")
-    directory = _get(log, "log", "directory", str, None)
+    directory = v.get("log", {}).get("directory")
     if directory:
         cfg.log_directory = Path(directory).expanduser()
     return cfg
+
+
+SHORT_NAMES = ("lab", "xbox", "playstation")
 
 
 def forced_mapping(cfg: Config) -> StickMapping | None:
     """The mapping the config forces by name, if any."""
     if not cfg.joystick_mapping:
         return None
-    from term.input.mapping import LAB, PLAYSTATION, PRESETS, XBOX
-
-    short = {"lab": LAB, "xbox": XBOX, "playstation": PLAYSTATION}
+    short = dict(zip(SHORT_NAMES, (LAB, XBOX, PLAYSTATION), strict=True))
     if cfg.joystick_mapping in short:
         return short[cfg.joystick_mapping]
     for m in (*cfg.joystick_mappings, *PRESETS):

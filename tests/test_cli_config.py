@@ -54,19 +54,74 @@ directory = "~/logs-here"
 
 @pytest.mark.parametrize("text, words", [
     ("[connection\nport = 1", "not valid TOML"),
-    ("[connection]\nbaud = 'fast'", "baud must be int"),
-    ("[connection]\nlink_timeout = -1", "must be positive"),
-    ("[connection]\njoystick = 'sometimes'", "joystick must be one of: stream, on-change, fixed-rate"),
+    ("[connection]\nbaud = 'fast'", "[connection] baud: must be an integer between 50 and 4000000 baud, got \"fast\""),
+    ("[connection]\nbaud = 100000000000000000000", "got 100000000000000000000"),
+    ("[connection]\nbaud = 9600.0", "baud: must be an integer"),
+    ("[connection]\nbaud = true", "baud: must be an integer"),
+    ("[connection]\nlink_timeout = -1", "link_timeout: must be a number between 0.05 and 60 s, got -1"),
+    ("[connection]\nlink_timeout = nan", "link_timeout: must be a number between 0.05 and 60 s, got nan"),
+    ("[connection]\nlink_timeout = inf", "got inf"),
+    ("[connection]\nlink_timout = 1", "unknown key 'link_timout' in [connection] (did you mean 'link_timeout'?)"),
+    ("[connection]\nport = ''", "[connection] port: must be a port name (not empty)"),
+    ("[connection]\njoystick = 'sometimes'", "joystick: must be one of: stream, on-change, fixed-rate"),
     ("[keys]\nlift_up = 'z'", "bound to both"),
-    ("[plots]\nseries = ['phi', 'nope']", "unknown series 'nope'"),
-    ("[joystick]\nmapping = 'mystery'", "neither a preset"),
-    ("[joystick.mappings.x]\nroll = 2", "roll needs"),
-    ("[wat]\nx = 1", "unknown section"),
-    ("connection = 3", "must be a table"),
+    ("[keys]\nmode_panic = 5", "[keys] mode_panic: give a key name or a list of key names, got 5"),
+    ("[keys]\nmode_panic = ['nosuchkey']", "[keys] mode_panic: unknown key name 'nosuchkey'"),
+    ("keys = 3", "[keys]: must be a table"),
+    ("[plots]\nseries = ['phi', 'nope']", "[plots] series[1]: must be one of: phi,"),
+    ("[plots]\nseries = [{a = 1}]", "[plots] series[0]: must be one of"),
+    ("[plots]\nseries = []", "[plots] series: must be a list of 1 to"),
+    ("[plots]\nseries = ['phi', 'phi']", "[plots] series: \"phi\" is given twice"),
+    ("[plots]\nwindow = nan", "[plots] window: must be a number between 1 and 60 s, got nan"),
+    ("[plots]\nwindow = -5", "got -5"),
+    ("[joystick]\nmapping = 'xbx'", "neither a preset nor in [joystick.mappings] (did you mean 'xbox'?)"),
+    ("[joystick]\nresolution = 0", "[joystick] resolution: must be an integer between 1 and 4096 stick units, got 0"),
+    ("[joystick]\nresolution = -64", "got -64"),
+    ("[joystick.mappings.x]\nroll = 2", "[joystick.mappings.x] roll: must be a table"),
+    ("[joystick.mappings.x]\nmatch = 5", "[joystick.mappings.x] match[0]: must be a string (not empty), got 5"),
+    ("[joystick.mappings.x]\nroll = {axis = 0, invert = 'false'}", "roll.invert: must be true or false, got \"false\""),
+    ("[joystick.mappings.x]\nroll = {axis = -1}", "roll.axis: must be an integer between 0 and 63, got -1"),
+    ("[joystick.mappings.x]\nroll = {axs = 1}",
+     "unknown key 'axs' in [joystick.mappings.x] roll (did you mean 'axis'?)"),
+    ("[joystick.mappings.x]\nfire = [0, 0]", "fire: 0 is given twice"),
+    ('[log]\ndirectory = "a\\u0000b"', "[log] directory: must not hold a NUL character"),
+    ("[wat]\nx = 1", "unknown key 'wat'"),
+    ("connection = 3", "[connection]: must be a table"),
+    ("a = " + "[" * 3000 + "]" * 3000, "nest too deeply"),
 ])
 def test_a_malformed_file_is_one_clear_line(tmp_path: Path, text: str, words: str) -> None:
     path = write(tmp_path, text)
     with pytest.raises(ConfigError) as exc:
         load_config(path)
     msg = str(exc.value)
-    assert words in msg and str(path) in msg and "\n" not in msg
+    assert words in msg and str(path) in msg and "\n" not in msg, msg
+
+
+@pytest.mark.parametrize("data, words", [
+    (b"\xfc\x00\x01binary", "is not UTF-8 text (byte 0xfc at offset 0)"),
+    (b"[connection]\nport = '\xff\xfe'\n", "is not UTF-8 text (byte 0xff at offset 21)"),
+    (b"x = '\x00'", "not valid TOML"),
+])
+def test_a_file_that_is_not_utf8_toml_is_one_line(tmp_path: Path, data: bytes, words: str) -> None:
+    path = tmp_path / "term.toml"
+    path.write_bytes(data)
+    with pytest.raises(ConfigError) as exc:
+        load_config(path)
+    assert words in str(exc.value) and "\n" not in str(exc.value), exc.value
+
+
+def test_a_directory_or_a_huge_file_is_one_line(tmp_path: Path) -> None:
+    with pytest.raises(ConfigError, match="cannot read config file .*: Is a directory"):
+        load_config(tmp_path)
+    with pytest.raises(ConfigError, match="larger than 1000 kB"):
+        load_config(Path("/dev/zero"))
+
+
+def test_the_panic_key_cannot_be_lost(tmp_path: Path) -> None:
+    """Issue 10: `mode_panic = ["nosuchkey"]` was accepted and PANIC had no key left."""
+    for bad in ('["nosuchkey"]', "[]", '""', '["alt+p"]', '["1", "1"]'):
+        with pytest.raises(ConfigError, match=r"\[keys\] mode_panic"):
+            load_config(write(tmp_path, f"[keys]\nmode_panic = {bad}\n"))
+    cfg = load_config(write(tmp_path, '[keys]\nmode_panic = ["space", "alt+p"]\nhelp = ["f1", "?"]\n'))
+    assert action_for_key(cfg.keymap, "space").name == "mode_panic"
+    assert action_for_key(cfg.keymap, "question_mark").name == "help"  # "?" is Textual's question_mark

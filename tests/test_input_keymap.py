@@ -50,9 +50,19 @@ def test_rebinding_from_the_config() -> None:
 
 @pytest.mark.parametrize("overrides, words", [
     ({"no_such": "x"}, "unknown action"),
-    ({"lift_up": "z"}, "bound to both"),
+    ({"mode_pnic": "x"}, "unknown action 'mode_pnic' in [keys] (did you mean 'mode_panic'?)"),
+    ({"lift_up": "z"}, "[keys] lift_up: key 'z' is bound to both lift_up and lift_down"),
     ({"lift_up": []}, "give a key"),
-    ({"lift_up": "ctrl+q"}, "reserved"),
+    ({"lift_up": "ctrl+q"}, "[keys] lift_up: key 'ctrl+q' is reserved"),
+    ({"lift_up": 5}, "[keys] lift_up: give a key name or a list of key names, got 5"),
+    ({"lift_up": [True]}, "give a key name"),
+    ({"lift_up": "a,b"}, "unknown key name 'a,b'"),  # Textual would read it as two keys, unchecked
+    ({"lift_up": "Escape"}, "unknown key name 'Escape' (did you mean 'escape'?)"),
+    ({"lift_up": "ctrl+ctrl+x"}, "unknown key name"),
+    ({"lift_up": ["x", "x"]}, "[keys] lift_up: key 'x' is given twice"),
+    ({"lift_up": ["tab", "ctrl+i"]}, "key 'ctrl+i' is given twice"),  # Textual's alias of tab
+    ({"lift_up": "tab", "yaw_up": "ctrl+i"}, "key 'ctrl+i' (the same key as 'tab') is bound to both"),
+    ({"help": "?", "lift_up": "question_mark"}, "bound to both"),
 ])
 def test_bad_rebindings_are_one_clear_line(overrides: dict, words: str) -> None:
     with pytest.raises(KeymapError) as exc:
@@ -75,3 +85,22 @@ def test_the_user_guide_carries_the_generated_key_table() -> None:
     text = (Path(__file__).parent.parent / "docs" / "user-guide.md").read_text(encoding="utf-8")
     table = text.split("<!-- keys:begin -->\n", 1)[1].split("\n<!-- keys:end -->", 1)[0]
     assert table == help_markdown(), "regenerate the table: python -c 'from term.input.keymap import help_markdown"
+
+
+@pytest.mark.parametrize("name, text", [("mode_panic", "PANIC"), ("mode_safe", "SAFE"), ("lift_down", "lift down")])
+@pytest.mark.parametrize("keys", [["nosuchkey"], [], "", ["alt+p"], ["shift+f5", "super+x"], ["x", "x"], 5])
+def test_the_safety_keys_cannot_be_lost(name: str, text: str, keys: object) -> None:
+    """Issue 10: `mode_panic = ["nosuchkey"]` was accepted and PANIC was silently gone."""
+    with pytest.raises(KeymapError) as exc:
+        build_keymap({name: keys})  # type: ignore[dict-item]
+    assert str(exc.value).startswith(f"[keys] {name}: "), exc.value
+    km = build_keymap({name: ["alt+p", "space"]})  # a modifier key beside a plain one is fine
+    assert action_for_key(km, "space").name == name and action_for_key(km, "alt+p").name == name
+
+
+def test_key_names_are_textuals() -> None:
+    km = build_keymap({"lift_up": "+", "lift_down": "minus", "mode_panic": ["escape", "A", "f12", "ctrl+x"]})
+    assert action_for_key(km, "plus").name == "lift_up"  # a punctuation character becomes Textual's name for it
+    assert action_for_key(km, "minus").name == "lift_down"
+    assert action_for_key(km, "A").name == "mode_panic" and action_for_key(km, "a") is None  # case matters
+    assert [b.keys for b in km if b.action.name == "mode_panic"] == [("escape", "A", "f12", "ctrl+x")]

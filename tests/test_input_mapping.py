@@ -71,14 +71,38 @@ def test_a_custom_mapping_wins_over_the_presets() -> None:
 
 
 @pytest.mark.parametrize("d, words", [
-    ({"roll": 3}, "roll needs"),
-    ({"lift": {"axis": 1, "kind": "slider"}}, "kind"),
-    ({"yaw": {"axis": 2, "deadzone": 1.5}}, "deadzone"),
-    ({"fire": "trigger"}, "fire"),
+    ({"roll": 3}, "[joystick.mappings.bad] roll: must be a table"),
+    ({"lift": {"axis": 1, "kind": "slider"}}, "lift.kind: must be one of: center, throttle, half, got \"slider\""),
+    ({"yaw": {"axis": 2, "deadzone": 1.5}}, "yaw.deadzone: must be a number between 0 and 0.9, got 1.5"),
+    ({"yaw": {"axis": 2, "deadzone": float("nan")}}, "got nan"),
+    ({"fire": "trigger"}, "fire: must be a list of at most 64 items, each an integer between 0 and 127, got"),
+    ({"fire": [-1]}, "fire[0]: must be an integer between 0 and 127, got -1"),
+    ({"match": 5}, "match[0]: must be a string (not empty), got 5"),
+    ({"match": []}, "match: must be a list of 1 to"),
+    ({"roll": {"axis": 2.0}}, "roll.axis: must be an integer"),
+    ({"roll": {"axis": True}}, "roll.axis: must be an integer"),
+    ({"roll": {"axis": 1, "invert": "false"}}, "roll.invert: must be true or false, got \"false\""),
+    ({"roll": {"axis": 1, "invrt": True}}, "unknown key 'invrt' in [joystick.mappings.bad] roll (did you mean"),
+    ({"rol": {"axis": 1}}, "unknown key 'rol' in [joystick.mappings.bad] (did you mean 'roll'?)"),
 ])
 def test_bad_mappings_are_refused(d: dict, words: str) -> None:
-    with pytest.raises(MappingError, match=words):
+    with pytest.raises(MappingError) as exc:
         mapping_from_dict("bad", d)
+    assert words in str(exc.value) and "\n" not in str(exc.value), exc.value
+
+
+def test_invert_false_is_not_inverted() -> None:
+    """Issue 11: `invert = "false"` (a string) was taken as true; a real false keeps the axis as it is."""
+    m = mapping_from_dict("m", {"roll": {"axis": 0, "invert": False}, "pitch": {"axis": 1, "invert": True}})
+    js = m.to_packet([1.0, 1.0, 0.0, 1.0], [])
+    assert js.roll == FULL and js.pitch == -FULL
+
+
+@pytest.mark.parametrize("resolution", [0, -64, 1.5, True, 5000])
+def test_a_resolution_that_cannot_quantise_is_refused(resolution: object) -> None:
+    """Issue 11: resolution 0 raised ZeroDivisionError when the stick moved."""
+    with pytest.raises(ValueError, match="resolution must be an integer between 1 and 4096"):
+        StickState(LAB, resolution=resolution)  # type: ignore[arg-type]
 
 
 def test_change_detection() -> None:

@@ -7,10 +7,14 @@ help) use keys the lab left free. A config file may rebind any action by name (`
 
 from __future__ import annotations
 
+import string
+import unicodedata
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, replace
+from functools import cache
 
 from term.protocol import Mode, Op
+from term.schema import nearest, shown
 
 
 @dataclass(frozen=True, slots=True)
@@ -100,26 +104,94 @@ class KeymapError(ValueError):
     """A key map from the config that cannot be used; the message is one line."""
 
 
+# The pilot's way out: each of these keeps at least one key every terminal sends, whatever the config says.
+SAFETY_ACTIONS: dict[str, str] = {"mode_panic": "PANIC", "mode_safe": "SAFE", "lift_down": "lift down"}
+MODIFIERS = ("ctrl", "alt", "shift", "meta", "super", "hyper")  # Textual's order in a combined key name
+
+
+@cache
+def _key_names() -> tuple[frozenset[str], dict[str, str]]:
+    """Every key name Textual reports without the kitty keyboard protocol (its ``Keys`` plus the name of each
+    printable character: "a", "A", "1", "question_mark", "plus", ...), and its aliases (ctrl+i is tab)."""
+    from textual.keys import KEY_ALIASES, KEY_NAME_REPLACEMENTS, Keys
+
+    names = {k.value for k in Keys if not k.value.startswith("<") and k.value != "ctrl-at"}
+    for c in string.printable:
+        if c.isspace() and c != " ":
+            continue  # tab and enter are in Keys; the other control characters are no keys
+        name = c if c.isalnum() else unicodedata.name(c).lower().replace("-", "_").replace(" ", "_")
+        names.add(KEY_NAME_REPLACEMENTS.get(name, name))
+    canonical = {alias: key for key, aliases in KEY_ALIASES.items() for alias in aliases}
+    return frozenset(names), canonical
+
+
+def normalise_key(key: str, where: str) -> str:
+    """A key name from the config as Textual names it ("?" -> "question_mark"); an unknown name is refused.
+
+    Plain names are what every terminal sends; a modifier on top ("alt+x", "shift+f5") is accepted too, for
+    terminals that speak the kitty keyboard protocol."""
+    names, _ = _key_names()
+    if len(key) == 1 and not key.isalnum():
+        key = unicodedata.name(key, key).lower().replace("-", "_").replace(" ", "_")
+        from textual.keys import KEY_NAME_REPLACEMENTS
+
+        key = KEY_NAME_REPLACEMENTS.get(key, key)
+    if key in names:
+        return key
+    *mods, base = key.split("+")
+    if base in names and mods and len(set(mods)) == len(mods) and all(m in MODIFIERS for m in mods):
+        return key
+    raise KeymapError(f"{where}: unknown key name {key!r}{nearest(key, names)}; keys are named as Textual names "
+                      "them: a, A, 1, escape, space, enter, up, f5, ctrl+x, question_mark, ...")
+
+
+def _plain(key: str) -> bool:
+    return key in _key_names()[0]
+
+
+def _canonical(key: str) -> str:
+    return _key_names()[1].get(key, key)
+
+
 def build_keymap(overrides: Mapping[str, Sequence[str] | str] | None = None) -> tuple[KeyBinding, ...]:
-    """The default map with ``overrides`` (action name -> key or keys) applied; refuses clashes and typos."""
+    """The default map with ``overrides`` (action name -> key or keys) applied.
+
+    Refused, in one line: an unknown action, a value that is not a key name or a list of them, an unknown key
+    name, a key given twice, an empty list, a key bound to two actions (aliases count: ctrl+i is tab), a key
+    Textual keeps for itself, and a safety action (PANIC, SAFE, lift down) left without a plain key."""
     table = list(DEFAULT_KEYMAP)
     by_name = {b.action.name: i for i, b in enumerate(table)}
+    if overrides is not None and not isinstance(overrides, Mapping):
+        raise KeymapError(f"[keys]: must be a table of action = key names, got {shown(overrides)}")
     for name, keys in (overrides or {}).items():
         if name not in by_name:
-            raise KeymapError(f"unknown action {name!r} in [keys]; known: {', '.join(sorted(by_name))}")
-        keys_t = (keys,) if isinstance(keys, str) else tuple(keys)
-        if not keys_t or not all(isinstance(k, str) and k for k in keys_t):
-            raise KeymapError(f"[keys] {name}: give a key name or a list of key names")
-        table[by_name[name]] = replace(table[by_name[name]], keys=keys_t)
-    seen: dict[str, str] = {}
+            raise KeymapError(f"unknown action {name!r} in [keys]{nearest(name, by_name)}; known: "
+                              f"{', '.join(sorted(by_name))}")
+        where = f"[keys] {name}"
+        keys_t = [keys] if isinstance(keys, str) else keys
+        if not isinstance(keys_t, list | tuple) or not keys_t or not all(isinstance(k, str) and k for k in keys_t):
+            raise KeymapError(f"{where}: give a key name or a list of key names, got {shown(keys)}")
+        normal = [normalise_key(k, where) for k in keys_t]
+        for i, k in enumerate(normal):
+            if _canonical(k) in map(_canonical, normal[:i]):
+                raise KeymapError(f"{where}: key {k!r} is given twice")
+        if name in SAFETY_ACTIONS and not any(_plain(k) for k in normal):
+            raise KeymapError(f"{where}: {SAFETY_ACTIONS[name]} needs at least one key every terminal sends "
+                              f"(a letter, digit, escape, f1..f12, ...), not only {', '.join(normal)}")
+        table[by_name[name]] = replace(table[by_name[name]], keys=tuple(normal))
+    seen: dict[str, tuple[str, str]] = {}  # canonical key -> (action, the key as written)
     for b in table:
         for k in b.keys:
-            if k in seen:
-                raise KeymapError(f"key {k!r} is bound to both {seen[k]} and {b.action.name}")
-            seen[k] = b.action.name
-    for k, _ in APP_KEYS:
+            c = _canonical(k)
+            if c in seen:
+                other, written = seen[c]
+                where = next((f"[keys] {n}: " for n in (b.action.name, other) if n in (overrides or {})), "")
+                same = f" (the same key as {written!r})" if written != k else ""
+                raise KeymapError(f"{where}key {k!r}{same} is bound to both {other} and {b.action.name}")
+            seen[c] = (b.action.name, k)
+    for k, text in APP_KEYS:
         if k in seen:
-            raise KeymapError(f"key {k!r} is reserved ({dict(APP_KEYS)[k]})")
+            raise KeymapError(f"[keys] {seen[k][0]}: key {k!r} is reserved ({text})")
     return tuple(table)
 
 

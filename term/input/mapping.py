@@ -12,6 +12,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from term.protocol import Button, Joystick
+from term.schema import Flag, ListOf, Number, OneOf, SchemaError, Table, Text
 
 FULL = 32767
 
@@ -113,37 +114,47 @@ def choose_mapping(name: str, custom: Iterable[StickMapping] = ()) -> StickMappi
     return LAB
 
 
-class MappingError(ValueError):
+class MappingError(SchemaError):
     """A joystick mapping from the config that cannot be used; the message is one line."""
+
+
+AXIS_MAX = 63  # raw axis numbers SDL may report; a stick has at most a handful
+BUTTON_MAX = 127
+DEADZONE_MAX = 0.9  # of the travel: a wider dead zone leaves the pilot no stick
+RESOLUTION_RANGE = (1, 4096)  # stick units of change detection (StickState); 0 would divide by zero
+
+# One [joystick.mappings.NAME] table: its keys, their types and ranges. Missing axes keep the lab's.
+AXIS_TABLE = Table({
+    "axis": Number(0, AXIS_MAX, integer=True),
+    "invert": Flag(),
+    "deadzone": Number(0, DEADZONE_MAX),
+    "kind": OneOf(("center", "throttle", "half")),
+})
+MAPPING_TABLE = Table({
+    "match": ListOf(Text(nonempty=True), min_len=1, one_ok=True),
+    "roll": AXIS_TABLE, "pitch": AXIS_TABLE, "yaw": AXIS_TABLE, "lift": AXIS_TABLE,
+    "fire": ListOf(Number(0, BUTTON_MAX, integer=True), unique=True),
+}, section=True)
 
 
 def mapping_from_dict(name: str, d: Mapping[str, Any]) -> StickMapping:
     """A mapping from its TOML table: ``match = [...]``, ``roll = {axis = 0, invert = false, deadzone = 0.05}``,
-    ``lift = {axis = 3, invert = true, kind = "throttle"}``, ``fire = [0]``. Missing axes default to the lab's."""
-    def axis(key: str, default: AxisMap) -> AxisMap:
-        t = d.get(key)
-        if t is None:
-            return default
-        if not isinstance(t, Mapping) or not isinstance(t.get("axis", default.index), int):
-            raise MappingError(f"joystick mapping {name!r}: {key} needs {{axis = N, ...}}")
-        kind = t.get("kind", default.kind)
-        if kind not in ("center", "throttle", "half"):
-            raise MappingError(f"joystick mapping {name!r}: {key}.kind must be center, throttle or half")
-        dz = t.get("deadzone", default.deadzone)
-        if not isinstance(dz, int | float) or not 0 <= dz < 1:
-            raise MappingError(f"joystick mapping {name!r}: {key}.deadzone must be in [0, 1)")
-        return AxisMap(int(t.get("axis", default.index)), bool(t.get("invert", default.invert)), float(dz), kind)
+    ``lift = {axis = 3, invert = true, kind = "throttle"}``, ``fire = [0]``. Missing axes default to the lab's;
+    a wrong type, a value out of range or an unknown key is a ``MappingError`` naming the table and key."""
+    try:
+        v = MAPPING_TABLE.check(d, f"[joystick.mappings.{name}]")
+    except SchemaError as exc:
+        raise MappingError(str(exc)) from None
 
-    match = d.get("match", [name])
-    fire = d.get("fire", [0])
-    if isinstance(match, str):
-        match = [match]
-    if not isinstance(fire, list) or not all(isinstance(b, int) for b in fire):
-        raise MappingError(f"joystick mapping {name!r}: fire must be a list of button numbers")
+    def axis(key: str, default: AxisMap) -> AxisMap:
+        t = v.get(key, {})
+        return AxisMap(t.get("axis", default.index), t.get("invert", default.invert),
+                       t.get("deadzone", default.deadzone), t.get("kind", default.kind))
+
     return StickMapping(
-        name, tuple(str(m) for m in match),
+        name, tuple(v.get("match", [name])),
         roll=axis("roll", LAB.roll), pitch=axis("pitch", LAB.pitch), yaw=axis("yaw", LAB.yaw),
-        lift=axis("lift", LAB.lift), fire=tuple(fire),
+        lift=axis("lift", LAB.lift), fire=tuple(v.get("fire", [0])),
     )
 
 
@@ -161,6 +172,11 @@ class StickState:
     resolution: int = 64
     current: Joystick = NEUTRAL
     _last_key: tuple[int, ...] = field(default=(0, 0, 0, 0, 0), repr=False)
+
+    def __post_init__(self) -> None:
+        lo, hi = RESOLUTION_RANGE
+        if isinstance(self.resolution, bool) or not isinstance(self.resolution, int) or not lo <= self.resolution <= hi:
+            raise ValueError(f"resolution must be an integer between {lo} and {hi}, got {self.resolution!r}")
 
     def update(self, axes: Sequence[float], buttons: Sequence[bool]) -> Joystick | None:
         pkt = self.mapping.to_packet(axes, buttons)
