@@ -143,7 +143,7 @@ async def measure(path: str, board: BoardChild, events: int, policy: str, seed: 
                   raw: bool = False) -> list[float]:
     from term.connection import Connection
     from term.link import CommandAcked, PacketReceived
-    from term.protocol import Decoder, Event, EventCode, Joystick, Mode, Op
+    from term.protocol import SENSOR_PATHS, Decoder, Event, EventCode, Joystick, Mode, Op, Param, param_arg
     from term.transports.serial import SerialTransport
 
     class TimedSerial(SerialTransport):
@@ -178,8 +178,9 @@ async def measure(path: str, board: BoardChild, events: int, policy: str, seed: 
         conn.set_joystick(Joystick(0, 0, 0, 0, 0))
         await until(lambda: conn.stats.frames_ok > 5)
         if raw:  # the RAW sensor path: control at 400 Hz instead of the DMP's 200 Hz
-            conn.send_command(Op.SET_PARAM, (4 << 16) | 2)
-            await until(lambda: acked(Op.SET_PARAM, (4 << 16) | 2))
+            raw_path = param_arg(Param.SENSOR_PATH, SENSOR_PATHS.index("raw"))
+            conn.send_command(Op.SET_PARAM, raw_path)
+            await until(lambda: acked(Op.SET_PARAM, raw_path))
         conn.send_command(Op.MODE, Mode.CALIBRATION)
         await until(lambda: board_event(EventCode.CALIBRATION_DONE))
         await asyncio.sleep(0.1)

@@ -1,7 +1,7 @@
 """UI cost with telemetry at full rate: CPU of the term process and event-loop lag.
 
 The board is served in real time by `fcb-sim serve --pty` in a child process (as `term --sim` does) and asked
-for telemetry at 100 Hz (SET_PARAM 3, the most it sends; Attitude and Motion at 100 Hz, the rest at their
+for telemetry at 100 Hz (SET_PARAM TELEMETRY_HZ, the most it sends; Attitude and Motion at 100 Hz, the rest at their
 rates); the terminal is the real TermApp over the SerialTransport, run headless (the full widget tree is laid
 out and rendered at the app's render rate; only the bytes to a real terminal are not written). For each screen
 (flight, plots) the bench measures, over ``--seconds``:
@@ -46,7 +46,7 @@ def _pct(xs: list[float], q: float) -> float:
 async def run(seconds: float, render_hz: float | None, seed: int, policy: str = "stream") -> dict[str, Any]:
     from term.app import TermApp
     from term.cli import SimBoard
-    from term.protocol import Op
+    from term.protocol import Op, Param, param_arg
     from term.transports.serial import SerialTransport
 
     sim = SimBoard(seed=seed)
@@ -66,7 +66,7 @@ async def run(seconds: float, render_hz: float | None, seed: int, policy: str = 
                         await asyncio.sleep(0.02)
 
             await until(lambda: app.model.attitude is not None)
-            app.send(Op.SET_PARAM, (3 << 16) | 100)  # telemetry at the board's full rate
+            app.send(Op.SET_PARAM, param_arg(Param.TELEMETRY_HZ, 100))  # telemetry at the board's full rate
             await asyncio.sleep(1.0)
             for screen, key in (("flight", None), ("plots", "f8")):
                 if key:

@@ -28,8 +28,8 @@ EXAMPLES: list[tuple[int, Any]] = [
     (2, p.Command(cmd_id=7, op=p.Op.MODE, arg=p.Mode.FULL)),
     (3, p.Command(cmd_id=8, op=p.Op.TRIM_LIFT, arg=-1)),
     (4, p.HeartbeatAck(counter=513, board_ms=123456)),
-    (5, p.Hello(protocol=p.PROTOCOL_VERSION, role=0, major=0, minor=1, board_id=0)),
-    (0, p.Hello(protocol=p.PROTOCOL_VERSION, role=1, major=0, minor=1, board_id=4242)),
+    (5, p.Hello(protocol=p.PROTOCOL_VERSION, role=p.Role.TERMINAL, major=0, minor=1, board_id=0)),
+    (0, p.Hello(protocol=p.PROTOCOL_VERSION, role=p.Role.BOARD, major=0, minor=1, board_id=4242)),
     (1, p.Heartbeat(counter=513, board_ms=123456, rtt=27)),
     (2, p.Ack(cmd_id=7, op=p.Op.MODE, status=p.Nak.OK, value=p.Mode.FULL)),
     (3, p.Ack(cmd_id=9, op=p.Op.MODE, status=p.Nak.LIFT_NOT_ZERO, value=p.Mode.SAFE)),
@@ -57,7 +57,18 @@ def vectors_json() -> str:
 
 
 def generated_markdown() -> str:
-    parts = ["## Packets", "", p.spec_markdown(), "## Enumerations", "", p.enum_markdown(), "## Test vectors", "",
+    parts = ["## Shared facts", "",
+             "The numbers both ends need, from `term/protocol.py` (the one home of each; `tests/test_house_rules.py`",
+             "fails on a copy elsewhere).", "", p.facts_markdown(),
+             "## Parameters (`SET_PARAM`)", "",
+             "`Command(op=SET_PARAM, arg=(id << 16) | value)` (`param_arg(Param.X, value)`), value 0..65535; the",
+             "board answers `Ack` with the value set, or `BAD_ARGUMENT` for an unknown id or a value out of range.",
+             "", p.params_markdown(),
+             "## Packets", "",
+             "Each field's `unit` is what the wire carries; multiply by the factor under *shown as* to get the unit",
+             "the terminal shows (`scaled(pkt, name)`). A signed field at either end of its range, or any field at",
+             "its top, is clipped by the board (`saturated(pkt, name)`): the true value may lie beyond.", "",
+             p.spec_markdown(), "## Enumerations", "", p.enum_markdown(), "## Test vectors", "",
              "Each line: the packet, its sequence number, the whole frame in hex (delimiter included). The same",
              "vectors are in `tests/vectors/protocol.json`.", "", "```"]
     for v in vectors():

@@ -89,9 +89,7 @@ and ``ble_receive(data)`` drive the link; with ``wireless.BoardRadio`` (which dr
 over BLE). The same loop runs as fast as possible (tests, ``fcb-sim profile``) or paced to the wall clock
 (fcb_sim/serve.py).
 
-``SET_PARAM`` (``arg = id << 16 | value``): 1 link timeout (ms), 2 scheduler (0 round robin, 1 priority),
-3 telemetry rate (Hz, 1..100), 4 sensor path (0 follows the mode, 1 DMP, 2 RAW), 5 flash log scheme (1 the
-report's delta8, 2 Rice; SAFE, log empty).
+``SET_PARAM``: the parameters (ids, ranges, meanings) are the protocol's table, ``term.protocol.PARAMS``.
 """
 
 from __future__ import annotations
@@ -104,7 +102,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from fcb_sim import params as P
-from fcb_sim.cli import UsageError
+from fcb_sim.errors import UsageError
 from fcb_sim.flash_log import FLASH_BYTES, FLASH_US_PER_BYTE, FlashLog, LogVar
 from fcb_sim.flight import Calibration as FlightCalibration
 from fcb_sim.flight import FlightCore
@@ -121,10 +119,15 @@ from fcb_sim.timing import (
     us_to_ticks,
 )
 from fcb_sim.wireless import WirelessLink
+from term.logformat import SCHEME_RICE
 from term.protocol import (
+    PARAMS,
     PROTOCOL_VERSION,
+    SCHEDULERS,
+    SENSOR_PATHS,
     Ack,
     Attitude,
+    Button,
     Command,
     Compact,
     Decoder,
@@ -145,9 +148,12 @@ from term.protocol import (
     Motion,
     Nak,
     Op,
+    Param,
     Profile,
+    Role,
     Status,
     WirelessState,
+    param_split,
 )
 
 TASKS = ("parse", "sensor", "control", "baro", "telemetry", "heartbeat", "logging")
@@ -348,7 +354,7 @@ class Board:
         self._overflow_reported = 0
         self.on_task: Any = None  # optional callback(name, start_us, duration_us) after every task run
         if cfg.boot_hello:
-            self._send(Hello(PROTOCOL_VERSION, 1, BOARD_VERSION[0], BOARD_VERSION[1], cfg.board_id))
+            self._send(Hello(PROTOCOL_VERSION, Role.BOARD, BOARD_VERSION[0], BOARD_VERSION[1], cfg.board_id))
             self._event(EventCode.BOOT, PROTOCOL_VERSION)
 
     # --- the outside world's calls ------------------------------------------------------------------------
@@ -698,7 +704,7 @@ class Board:
             self._log_full_reported = True
             self._event(EventCode.LOG_FULL, self.log.used)
         base = self._cost["logging"]() - FLASH_US_PER_BYTE * REPORT_RECORD_BYTES
-        if self.log.scheme == 2:
+        if self.log.scheme == SCHEME_RICE:
             base += RICE_ENCODE_EXTRA_US
         return max(5, base) + FLASH_US_PER_BYTE * written
 
@@ -847,7 +853,7 @@ class Board:
         kind = type(pkt)
         if kind is Joystick:
             self.modes.joystick = pkt
-            if pkt.buttons & 1:
+            if pkt.buttons & Button.FIRE:
                 self.modes.panic(self.now / 1e6, "fire")
                 self._drain_mode_events()
         elif kind is Command:
@@ -861,7 +867,7 @@ class Board:
             self._last_cmd = self._last_ack = None
             self.decoder.reset_sequence()
             self.ble_decoder.reset_sequence()
-            self._send(Hello(PROTOCOL_VERSION, 1, BOARD_VERSION[0], BOARD_VERSION[1], self.config.board_id))
+            self._send(Hello(PROTOCOL_VERSION, Role.BOARD, BOARD_VERSION[0], BOARD_VERSION[1], self.config.board_id))
 
     def _command(self, cmd: Command) -> None:
         key = (cmd.cmd_id, cmd.op, cmd.arg)
@@ -921,7 +927,7 @@ class Board:
                 return Nak.OK, 0, self._wireless_stop
             return Nak.BAD_ARGUMENT, 0, None
         if op == Op.SET_PARAM:
-            return self._set_param((arg >> 16) & 0xFFFF, arg & 0xFFFF)
+            return self._set_param(*param_split(arg))
         return Nak.UNKNOWN_COMMAND, 0, None
 
     def _wireless_start(self) -> tuple[Nak, int, Any]:
@@ -936,27 +942,29 @@ class Board:
         self._wireless_events()
 
     def _set_param(self, pid: int, value: int) -> tuple[Nak, int, Any]:
-        if pid == 1 and 50 <= value <= 60000:
+        """``SET_PARAM``: ids, ranges and meanings in ``term.protocol.PARAMS``."""
+        try:
+            spec = PARAMS[Param(pid)]
+        except ValueError:
+            return Nak.BAD_ARGUMENT, 0, None
+        if not spec.accepts(value):
+            return Nak.BAD_ARGUMENT, 0, None
+        if spec.safe_only and self.modes.mode != Mode.SAFE:
+            return Nak.NOT_IN_SAFE, 0, None
+        if spec.param == Param.LINK_TIMEOUT_MS:
             self.config.link_timeout_s = value / 1000
             self.modes.config.link_timeout_s = value / 1000
-            return Nak.OK, value, None
-        if pid == 2 and value in (0, 1):
-            self.set_scheduler(("round-robin", "priority")[value])
-            return Nak.OK, value, None
-        if pid == 3 and 1 <= value <= 100:
+        elif spec.param == Param.SCHEDULER:
+            self.set_scheduler(SCHEDULERS[value])
+        elif spec.param == Param.TELEMETRY_HZ:
             self.config.telemetry_hz = float(value)
-            return Nak.OK, value, None
-        if pid == 4 and value in (0, 1, 2):
-            self.config.sensor_path = ("auto", "dmp", "raw")[value]
-            return Nak.OK, value, None
-        if pid == 5 and value in (1, 2):
-            if self.modes.mode != Mode.SAFE:
-                return Nak.NOT_IN_SAFE, 0, None
+        elif spec.param == Param.SENSOR_PATH:
+            self.config.sensor_path = SENSOR_PATHS[value]
+        elif spec.param == Param.LOG_SCHEME:
             if self.log.used:
                 return Nak.LOG_BUSY, 0, None
             self.log = FlashLog(size=self.log.flash.size, scheme=value, variables=self.log.variables)
-            return Nak.OK, value, None
-        return Nak.BAD_ARGUMENT, 0, None
+        return Nak.OK, value, None
 
     # --- log download -------------------------------------------------------------------------------------
 

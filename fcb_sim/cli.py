@@ -10,9 +10,7 @@ import argparse
 import sys
 from collections.abc import Sequence
 
-
-class UsageError(Exception):
-    """A problem the user can fix; its message is printed as one line."""
+from fcb_sim.errors import EXIT_INTERRUPTED, EXIT_USAGE, UsageError
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -75,14 +73,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         return int(getattr(module, func_name)(args) or 0)
     except UsageError as exc:
         print(f"fcb-sim: {exc}", file=sys.stderr)
-        return 2
+        return EXIT_USAGE
     except KeyboardInterrupt:
-        return 130
+        return EXIT_INTERRUPTED
 
 
 if __name__ == "__main__":
-    # Under `python -m fcb_sim.cli` this file runs as __main__, a second copy of the module; the subcommands raise
-    # the UsageError of the package's copy, so run that copy's main() to catch it.
-    from fcb_sim.cli import main as package_main
-
-    sys.exit(package_main())
+    sys.exit(main())

@@ -20,8 +20,8 @@ loop. A segment's record count and length are programmed into its header when lo
 log does it without rewriting flash.
 
 This module is the board side: the flash, the logger and the record encoder. The format itself (segment header,
-the decoders whose state machines the encoder mirrors) is part of the protocol, in ``term.protocol``, because the
-terminal decodes what ``LogChunk`` packets carry with it.
+the decoders whose state machines the encoder mirrors) is shared with the terminal, in ``term.logformat``,
+because the terminal decodes what ``LogChunk`` packets carry with it.
 """
 
 from __future__ import annotations
@@ -31,8 +31,7 @@ import zlib
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 
-from term.protocol import (
-    LOG_CHUNK_BYTES,
+from term.logformat import (
     LOG_FORMAT_VERSION,
     LOG_HEADER,
     LOG_MAGIC,
@@ -41,12 +40,11 @@ from term.protocol import (
     RICE_ESCAPE,
     SCHEME_DELTA8,
     SCHEME_RICE,
-    LogState,
-    Nak,
     RiceState,
     quantise,
     zigzag,
 )
+from term.protocol import LOG_CHUNK_BYTES, LogState, Nak
 
 FLASH_BYTES = 128 * 1024
 FLASH_US_PER_BYTE = 15  # report 3.5: each byte takes 15 µs to write

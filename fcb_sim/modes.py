@@ -25,19 +25,25 @@ import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 
-from term.protocol import EventCode, Joystick, Mode, Nak
+from term.protocol import (
+    BATTERY_LOW,
+    FLIGHT_MODES,
+    LIFT_ZERO,
+    LOW_BATTERY_HOLD_S,
+    STICK_MAX,
+    STICK_NEUTRAL,
+    EventCode,
+    Joystick,
+    Mode,
+    Nak,
+)
 
-# Modes in which the motors may turn (the board drives them from the flight core or the PANIC profile).
-FLIGHT_MODES = frozenset({Mode.MANUAL, Mode.YAW, Mode.FULL, Mode.RAW, Mode.HEIGHT})
+# FLIGHT_MODES (the motors may turn under the flight core), LIFT_ZERO and STICK_NEUTRAL (the guards for leaving
+# SAFE) and the battery threshold are protocol facts: the terminal checks the same numbers.
 MOTORS_OFF_MODES = frozenset({Mode.SAFE, Mode.CALIBRATION})
-
-STICK_NEUTRAL = 1000  # |roll|, |pitch|, |yaw| at most this (3 % of full deflection) counts as neutral
-LIFT_ZERO = 500  # joystick lift plus lift trim at most this (1.5 %) counts as zero lift
-STICK_MAX = 32767
+LOW_BATTERY = BATTERY_LOW  # 10 mV units: 10.5 V (the older name)
 TRIM_STEP = {"roll": 256, "pitch": 256, "yaw": 256, "lift": 328}  # per key press (lift: 1 %)
 TRIM_LIMIT = 8192  # roll/pitch/yaw trims stay within a quarter of full deflection
-LOW_BATTERY = 1050  # 10 mV units: 10.5 V
-LOW_BATTERY_HOLD_S = 0.2  # the voltage must stay low this long (sag under a motor step is not a flat battery)
 
 
 @dataclass

@@ -47,6 +47,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from term import protocol as _protocol
+
 G = 9.80665  # m/s², standard gravity [ISA]
 
 # --- airframe [OS4] --------------------------------------------------------------------------------------------
@@ -102,8 +104,8 @@ BATTERY_SOC_START = 0.9
 ADC_NOISE_10MV = 2.0
 
 # --- MPU6050 [MPU] ---------------------------------------------------------------------------------------------
-GYRO_LSB_PER_DPS = 16.4  # FS_SEL = 3, +-2000 deg/s
-ACC_LSB_PER_G = 16384.0  # AFS_SEL = 0, +-2 g
+GYRO_LSB_PER_DPS = _protocol.GYRO_LSB_PER_DPS  # FS_SEL = 3, +-2000 deg/s (the words telemetry carries)
+ACC_LSB_PER_G = float(_protocol.ACC_LSB_PER_G)  # AFS_SEL = 0, +-2 g
 RATE_LSB_PER_RAD_S = GYRO_LSB_PER_DPS * 180.0 / math.pi  # 939.65
 ACC_LSB_PER_MS2 = ACC_LSB_PER_G / G  # 1670.7
 # Noise: gyro rate noise density 0.005 deg/s/rtHz (total 0.05 deg/s rms at DLPF 100 Hz); accelerometer 400 ug/rtHz.

@@ -24,7 +24,7 @@ from dataclasses import dataclass, field
 
 from fcb_sim import control as C
 from fcb_sim import params as P
-from fcb_sim.cli import UsageError
+from fcb_sim.errors import UsageError
 from fcb_sim.estimation import BEST, FILTERS, has_fixed_point
 from fcb_sim.flight import CalibrationAccumulator, FlightCore
 from fcb_sim.physics import World

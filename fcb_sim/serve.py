@@ -30,7 +30,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from fcb_sim.board import Board, BoardConfig
-from fcb_sim.cli import UsageError
+from fcb_sim.errors import UsageError
 from fcb_sim.physics import World
 
 READ_BYTES = 4096  # per wake-up

@@ -33,6 +33,10 @@ from dataclasses import dataclass
 from typing import Any
 
 from term.protocol import (
+    BOARD_NAME_PREFIX,
+    NUS_RX,
+    NUS_SERVICE,
+    NUS_TX,
     SPEC_OF,
     TELEMETRY,
     Compact,
@@ -44,11 +48,9 @@ from term.protocol import (
 
 log = logging.getLogger(__name__)
 
-# The Nordic UART Service: the phone writes RX, the board notifies TX.
-NUS_SERVICE = "6E400001-B5A3-F393-E0A9-E50E24DCCA9E"
-NUS_RX = "6E400002-B5A3-F393-E0A9-E50E24DCCA9E"
-NUS_TX = "6E400003-B5A3-F393-E0A9-E50E24DCCA9E"
-NAME_PREFIX = "Quadrupel"
+# The Nordic UART Service (NUS_SERVICE, NUS_RX written by the phone, NUS_TX notified by the board) and the
+# advertised name are protocol facts; the names stay importable from here.
+NAME_PREFIX = BOARD_NAME_PREFIX
 ATT_MTU = 23  # the nRF51's S110 SoftDevice never negotiates more
 NOTIFY_PAYLOAD = ATT_MTU - 3  # 20 bytes of value per notification
 
@@ -518,7 +520,7 @@ class HciTcpServer:
             self._peer.write(packet)
 
     async def start(self, host: str, port: int) -> None:
-        from fcb_sim.cli import UsageError
+        from fcb_sim.errors import UsageError
 
         server = self
 
@@ -595,7 +597,7 @@ def drop_host_state(controller: Any) -> None:
 
 
 def _parse_tcp_server(spec: str) -> tuple[str, int]:
-    from fcb_sim.cli import UsageError
+    from fcb_sim.errors import UsageError
 
     kind, _, rest = spec.partition(":")
     host, _, port = rest.rpartition(":")
@@ -644,7 +646,7 @@ async def start_radio(
         try:
             await radio.start(hci)
         except Exception as exc:
-            from fcb_sim.cli import UsageError
+            from fcb_sim.errors import UsageError
 
             await radio.close()
             raise UsageError(f"cannot open the BLE radio {hci!r}: {exc}") from None

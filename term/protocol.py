@@ -1,6 +1,5 @@
-"""The one protocol codec shared by the terminal and the board: packets, framing, CRC, streaming decoder.
-
-Pure and sans-IO: standard library only, bytes in and packets out.
+"""The one protocol codec shared by the terminal and the board: packets, framing, CRC, streaming decoder, and
+every fact both ends need. Pure and sans-IO: standard library only, bytes in and packets out.
 
 A frame on the wire is ``COBS(type | seq | body | crc16) 0x00``:
 
@@ -13,16 +12,49 @@ A frame on the wire is ``COBS(type | seq | body | crc16) 0x00``:
 A receiver that loses sync (a corrupted, lost or inserted byte) is back in step at the next 0x00: a corrupted byte
 costs at most the two frames on either side of it, and the CRC keeps a damaged frame from being misread.
 Every frame is at most 20 bytes, one BLE notification.
+
+Each field in the packet table carries its wire format, its unit, and the ``scale`` that turns a raw value into
+the unit the terminal shows (``scaled_unit``): convert with ``scaled(pkt, name)`` or ``field_scale(cls, name)``,
+never with a retyped factor. ``field_limits`` and ``saturated`` tell a value pinned at the edge of its encoding
+from a true one.
+
+The shared facts (one home each; a test fails on a copy elsewhere): ``Role``, the Nordic UART Service UUIDs and
+``BOARD_NAME_PREFIX``, ``FLIGHT_MODES``, the stick guards ``LIFT_ZERO`` and ``STICK_NEUTRAL``, the battery
+thresholds, the ``SET_PARAM`` parameters (``Param``, ``PARAMS``, ``param_arg``/``param_split``). The flash-log
+payload codec lives in ``term.logformat`` (re-exported here for older imports).
 """
 
 from __future__ import annotations
 
 import binascii
 import struct
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from enum import IntEnum, IntFlag
 from typing import Annotated, Any, NamedTuple, get_type_hints
+
+# The flash-log payload codec moved to its own module; these names stay importable from here.
+from term.logformat import (  # noqa: F401
+    LOG_FORMAT_VERSION,
+    LOG_HEADER,
+    LOG_MAGIC,
+    LOG_TIME_COLUMN,
+    LOG_UNSET32,
+    LOG_VAR_ENTRY,
+    RICE_ESCAPE,
+    RICE_RESET,
+    SCHEME_DELTA8,
+    SCHEME_NAMES,
+    SCHEME_RICE,
+    BitReader,
+    LogSegment,
+    RiceState,
+    decode_log,
+    decode_log_records,
+    quantise,
+    unzigzag,
+    zigzag,
+)
 
 PROTOCOL_VERSION = 1
 MAX_FRAME = 20  # bytes on the wire, delimiter included: one BLE notification
@@ -72,7 +104,7 @@ class Op(IntEnum):
     LOG_STATUS = 15  # asks for a LogStatus packet
     PROFILE = 16  # asks for the Profile packets
     WIRELESS = 17  # arg: 1 hand over to BLE; 0 hand back to the cable
-    SET_PARAM = 18  # generic set: arg = (param id << 16) | (value & 0xFFFF)
+    SET_PARAM = 18  # generic set: arg = param_arg(Param, value), see PARAMS
 
 
 class Nak(IntEnum):
@@ -168,16 +200,115 @@ class Button(IntFlag):
     FIRE = 1 << 0  # PANIC
 
 
+class Role(IntEnum):
+    """Who sent a ``Hello``."""
+
+    TERMINAL = 0
+    BOARD = 1
+
+
+# --- facts both ends need -----------------------------------------------------------------------------------
+
+# The Nordic UART Service (Nordic's UUIDs): the phone or terminal writes RX, the board notifies TX. The board
+# advertises as BOARD_NAME_PREFIX followed by a space and its board id.
+NUS_SERVICE = "6e400001-b5a3-f393-e0a9-e50e24dcca9e"
+NUS_RX = "6e400002-b5a3-f393-e0a9-e50e24dcca9e"  # write / write without response: terminal to board
+NUS_TX = "6e400003-b5a3-f393-e0a9-e50e24dcca9e"  # notify only: board to terminal
+BOARD_NAME_PREFIX = "Quadrupel"
+
+# Modes in which the motors may turn under the flight core (PANIC drives them too, from its own profile).
+FLIGHT_MODES = frozenset({Mode.MANUAL, Mode.YAW, Mode.FULL, Mode.RAW, Mode.HEIGHT})
+
+# Stick guards for leaving SAFE, in stick units (Joystick and Status trims): the board refuses with a Nak and
+# the terminal, which checks first to name the fix at once, uses the same numbers.
+STICK_MAX = 32767
+LIFT_ZERO = 500  # joystick lift plus lift trim at most this (1.5 %) counts as zero lift
+STICK_NEUTRAL = 1000  # |joystick| at most this on roll, pitch and yaw (3 %) counts as neutral
+
+# Battery thresholds in the Height/Compact ``battery`` unit (10 mV), for a 3S LiPo.
+BATTERY_LOW = 1050  # 10.5 V: under this while flying (for LOW_BATTERY_HOLD_S) the board PANICs
+BATTERY_WARN = 1110  # 11.1 V: nominal; time to land
+BATTERY_FULL = 1260  # 12.6 V: fully charged
+LOW_BATTERY_HOLD_S = 0.2  # the voltage must stay low this long (sag under a motor step is not a flat battery)
+
+# Raw MPU6050 scales at the board's full-scale settings, as the Attitude and Motion fields carry them.
+GYRO_LSB_PER_DPS = 16.4  # FS_SEL = 3, +-2000 °/s
+ACC_LSB_PER_G = 16384  # AFS_SEL = 0, +-2 g
+
+
+class Param(IntEnum):
+    """``SET_PARAM`` parameter ids (``Command.arg = param_arg(param, value)``); ranges and meanings in PARAMS."""
+
+    LINK_TIMEOUT_MS = 1
+    SCHEDULER = 2
+    TELEMETRY_HZ = 3
+    SENSOR_PATH = 4
+    LOG_SCHEME = 5
+
+
+SCHEDULERS = ("round-robin", "priority")  # Param.SCHEDULER value -> the board's scheduler
+SENSOR_PATHS = ("auto", "dmp", "raw")  # Param.SENSOR_PATH value -> the sensor path ("auto" follows the mode)
+
+
+@dataclass(frozen=True, slots=True)
+class ParamSpec:
+    """One ``SET_PARAM`` parameter: its id, unit, accepted values (lo..hi, inclusive) and what it does."""
+
+    param: Param
+    unit: str
+    lo: int
+    hi: int
+    doc: str
+    safe_only: bool = False  # refused (Nak.NOT_IN_SAFE) outside SAFE
+
+    def accepts(self, value: int) -> bool:
+        return self.lo <= value <= self.hi
+
+
+PARAMS: dict[Param, ParamSpec] = {
+    Param.LINK_TIMEOUT_MS: ParamSpec(Param.LINK_TIMEOUT_MS, "ms", 50, 60000,
+                                     "link silence longer than this in a flight mode means PANIC"),
+    Param.SCHEDULER: ParamSpec(Param.SCHEDULER, "", 0, len(SCHEDULERS) - 1,
+                               "task scheduler: " + ", ".join(f"{i} {n}" for i, n in enumerate(SCHEDULERS))),
+    Param.TELEMETRY_HZ: ParamSpec(Param.TELEMETRY_HZ, "Hz", 1, 100, "Attitude and Motion rate over the UART"),
+    Param.SENSOR_PATH: ParamSpec(Param.SENSOR_PATH, "", 0, len(SENSOR_PATHS) - 1,
+                                 "sensor path: 0 follows the mode (RAW in RAW), 1 DMP, 2 RAW"),
+    Param.LOG_SCHEME: ParamSpec(Param.LOG_SCHEME, "", min(SCHEME_NAMES), max(SCHEME_NAMES),
+                                "flash-log compression: " + ", ".join(f"{k} {v}" for k, v in SCHEME_NAMES.items())
+                                + "; needs an empty log (else Nak.LOG_BUSY)", safe_only=True),
+}
+
+
+def param_arg(param: int, value: int) -> int:
+    """``Command.arg`` for ``Op.SET_PARAM``: the id in the high 16 bits, the value (0..65535) in the low 16."""
+    if not 0 <= int(param) <= 0xFFFF or not 0 <= value <= 0xFFFF:
+        raise ValueError(f"SET_PARAM {param}={value}: id and value must be 0..65535")
+    return (int(param) << 16) | value
+
+
+def param_split(arg: int) -> tuple[int, int]:
+    """The (id, value) inside a ``SET_PARAM`` arg (the inverse of ``param_arg``)."""
+    return (arg >> 16) & 0xFFFF, arg & 0xFFFF
+
+
 # --- the packet table ---------------------------------------------------------------------------------------
+
+
+_INT_LIMITS = {"B": (0, 0xFF), "b": (-0x80, 0x7F), "H": (0, 0xFFFF), "h": (-0x8000, 0x7FFF),
+               "I": (0, 0xFFFFFFFF), "i": (-0x80000000, 0x7FFFFFFF), "e": (-65504, 65504)}
 
 
 @dataclass(frozen=True, slots=True)
 class F:
-    """A packet field's wire format (a struct character), unit and meaning; used inside ``Annotated``."""
+    """A packet field's wire format (a struct character), unit and meaning; used inside ``Annotated``.
+
+    ``scale`` turns a raw value into ``scaled_unit`` (the unit the terminal shows; the raw unit if omitted)."""
 
     fmt: str
     unit: str = ""
     doc: str = ""
+    scale: float = 1.0
+    scaled_unit: str | None = None
 
 
 @dataclass(frozen=True, slots=True)
@@ -186,6 +317,21 @@ class FieldSpec:
     fmt: str
     unit: str
     doc: str
+    scale: float = 1.0
+    scaled_unit: str = ""
+
+    @property
+    def limits(self) -> tuple[int, int] | None:
+        """The smallest and largest raw value the encoding holds (None for byte strings)."""
+        return _INT_LIMITS.get(self.fmt)
+
+    def saturated(self, raw: float) -> bool:
+        """Whether ``raw`` sits at an end of the encoding, where the sender clips: the true value may lie beyond.
+        The lower end counts for signed fields only (an unsigned field's 0 is a true zero)."""
+        lim = self.limits
+        if lim is None:
+            return False
+        return raw >= lim[1] or (lim[0] < 0 and raw <= lim[0])
 
 
 @dataclass(frozen=True, slots=True)
@@ -239,7 +385,9 @@ def packet(type_id: int, direction: str, rate: str, doc: str) -> Callable[[type]
             meta = [m for m in getattr(hints[name], "__metadata__", ()) if isinstance(m, F)]
             if not meta:
                 raise TypeError(f"{cls.__name__}.{name}: declare it as Annotated[type, F(...)]")
-            fields.append(FieldSpec(name, meta[0].fmt, meta[0].unit, meta[0].doc))
+            f = meta[0]
+            unit = f.unit if f.scaled_unit is None else f.scaled_unit
+            fields.append(FieldSpec(name, f.fmt, f.unit, f.doc, f.scale, unit))
         layout = struct.Struct("<" + "".join(fs.fmt for fs in fields))
         if layout.size > MAX_BODY:
             raise ValueError(f"{cls.__name__}: body {layout.size} bytes > {MAX_BODY}")
@@ -275,13 +423,13 @@ class Command(NamedTuple):
 @packet(0x03, PC_TO_BOARD, "once per Heartbeat", "Answer to a Heartbeat, sent at once; the board measures RTT.")
 class HeartbeatAck(NamedTuple):
     counter: Annotated[int, F("H", "", "the Heartbeat's counter")]
-    board_ms: Annotated[int, F("I", "ms", "the Heartbeat's board time, echoed")]
+    board_ms: Annotated[int, F("I", "ms", "the Heartbeat's board time, echoed", 1e-3, "s")]
 
 
 @packet(0x04, BOTH, "at connect", "Version handshake: each side sends its own; a mismatch is reported.")
 class Hello(NamedTuple):
     protocol: Annotated[int, F("B", "", "PROTOCOL_VERSION of the sender")]
-    role: Annotated[int, F("B", "", "0 terminal, 1 board")]
+    role: Annotated[int, F("B", "Role", "0 terminal, 1 board")]
     major: Annotated[int, F("B", "", "software major version")]
     minor: Annotated[int, F("B", "", "software minor version")]
     board_id: Annotated[int, F("H", "", "board serial number (0 from a terminal)")]
@@ -290,8 +438,9 @@ class Hello(NamedTuple):
 @packet(0x10, BOARD_TO_PC, "10 Hz", "Heartbeat; the terminal answers HeartbeatAck at once.")
 class Heartbeat(NamedTuple):
     counter: Annotated[int, F("H", "", "increments per heartbeat")]
-    board_ms: Annotated[int, F("I", "ms", "board time since boot")]
-    rtt: Annotated[int, F("H", "0.1 ms", "previous Heartbeat's round trip to its HeartbeatAck; 0 if none")] = 0
+    board_ms: Annotated[int, F("I", "ms", "board time since boot", 1e-3, "s")]
+    rtt: Annotated[int, F("H", "0.1 ms", "previous Heartbeat's round trip to its HeartbeatAck; 0 if none",
+                           1e-4, "s")] = 0
 
 
 @packet(0x11, BOARD_TO_PC, "once per Command", "Command acknowledgement (status 0) or refusal (status = Nak).")
@@ -305,19 +454,19 @@ class Ack(NamedTuple):
 @packet(0x12, BOARD_TO_PC, "50 Hz", "Attitude telemetry.")
 class Attitude(NamedTuple):
     mode: Annotated[int, F("B", "Mode", "current mode")]
-    phi: Annotated[int, F("h", "0.01°", "roll angle")]
-    theta: Annotated[int, F("h", "0.01°", "pitch angle")]
-    psi: Annotated[int, F("h", "0.01°", "yaw angle")]
-    sp: Annotated[int, F("h", "LSB (16.4/°/s)", "roll rate")]
-    sq: Annotated[int, F("h", "LSB (16.4/°/s)", "pitch rate")]
-    sr: Annotated[int, F("h", "LSB (16.4/°/s)", "yaw rate")]
+    phi: Annotated[int, F("h", "0.01°", "roll angle", 0.01, "°")]
+    theta: Annotated[int, F("h", "0.01°", "pitch angle", 0.01, "°")]
+    psi: Annotated[int, F("h", "0.01°", "yaw angle", 0.01, "°")]
+    sp: Annotated[int, F("h", "LSB (16.4/°/s)", "roll rate", 1 / GYRO_LSB_PER_DPS, "°/s")]
+    sq: Annotated[int, F("h", "LSB (16.4/°/s)", "pitch rate", 1 / GYRO_LSB_PER_DPS, "°/s")]
+    sr: Annotated[int, F("h", "LSB (16.4/°/s)", "yaw rate", 1 / GYRO_LSB_PER_DPS, "°/s")]
 
 
 @packet(0x13, BOARD_TO_PC, "50 Hz", "Accelerations and motor commands.")
 class Motion(NamedTuple):
-    sax: Annotated[int, F("h", "LSB (16384/g)", "body x acceleration")]
-    say: Annotated[int, F("h", "LSB (16384/g)", "body y acceleration")]
-    saz: Annotated[int, F("h", "LSB (16384/g)", "body z acceleration")]
+    sax: Annotated[int, F("h", "LSB (16384/g)", "body x acceleration", 1 / ACC_LSB_PER_G, "g")]
+    say: Annotated[int, F("h", "LSB (16384/g)", "body y acceleration", 1 / ACC_LSB_PER_G, "g")]
+    saz: Annotated[int, F("h", "LSB (16384/g)", "body z acceleration", 1 / ACC_LSB_PER_G, "g")]
     ae1: Annotated[int, F("H", "0..1000", "front motor command")]
     ae2: Annotated[int, F("H", "0..1000", "right motor command")]
     ae3: Annotated[int, F("H", "0..1000", "back motor command")]
@@ -327,11 +476,11 @@ class Motion(NamedTuple):
 @packet(0x14, BOARD_TO_PC, "20 Hz", "Barometer, height estimate and battery.")
 class Height(NamedTuple):
     pressure: Annotated[int, F("I", "Pa", "barometric pressure")]
-    height: Annotated[int, F("h", "mm", "estimated height above the reference")]
-    setpoint: Annotated[int, F("h", "mm", "height set point (HEIGHT mode)")]
-    vz: Annotated[int, F("h", "mm/s", "estimated vertical speed, up positive")]
-    battery: Annotated[int, F("H", "10 mV", "battery voltage")]
-    temperature: Annotated[int, F("h", "0.01 °C", "barometer temperature")]
+    height: Annotated[int, F("h", "mm", "estimated height above the reference", 1e-3, "m")]
+    setpoint: Annotated[int, F("h", "mm", "height set point (HEIGHT mode)", 1e-3, "m")]
+    vz: Annotated[int, F("h", "mm/s", "estimated vertical speed, up positive", 1e-3, "m/s")]
+    battery: Annotated[int, F("H", "10 mV", "battery voltage", 0.01, "V")]
+    temperature: Annotated[int, F("h", "0.01 °C", "barometer temperature", 0.01, "°C")]
 
 
 @packet(0x15, BOARD_TO_PC, "5 Hz", "Board status: flags, trims, load and log fill.")
@@ -359,7 +508,7 @@ class Gains(NamedTuple):
 class Event(NamedTuple):
     code: Annotated[int, F("B", "EventCode", "what happened")]
     arg: Annotated[int, F("i", "", "detail, see EventCode")]
-    board_ms: Annotated[int, F("I", "ms", "board time")]
+    board_ms: Annotated[int, F("I", "ms", "board time", 1e-3, "s")]
 
 
 @packet(0x18, BOARD_TO_PC, "on request, one per task", "Task profile: durations and period of one task.")
@@ -390,14 +539,74 @@ class LogChunk(NamedTuple):
 class Compact(NamedTuple):
     mode: Annotated[int, F("B", "Mode", "")]
     wireless: Annotated[int, F("B", "WirelessState", "")]
-    phi: Annotated[int, F("h", "0.01°", "")]
-    theta: Annotated[int, F("h", "0.01°", "")]
-    psi: Annotated[int, F("h", "0.01°", "")]
-    battery: Annotated[int, F("H", "10 mV", "")]
+    phi: Annotated[int, F("h", "0.01°", "", 0.01, "°")]
+    theta: Annotated[int, F("h", "0.01°", "", 0.01, "°")]
+    psi: Annotated[int, F("h", "0.01°", "", 0.01, "°")]
+    battery: Annotated[int, F("H", "10 mV", "", 0.01, "V")]
 
 
 LOG_CHUNK_BYTES = 12
 TELEMETRY = (Attitude, Motion, Height, Status, Gains)
+
+# Event arguments that are quantities: the scale to the shown unit, per code (the rest are counts or ids).
+EVENT_ARG_SCALE: dict[EventCode, tuple[float, str]] = {
+    EventCode.LOW_BATTERY: (0.01, "V"),
+    EventCode.LINK_TIMEOUT: (1e-3, "s"),
+    EventCode.TILT_LIMIT: (0.01, "°"),
+    EventCode.DEADLINE_MISS: (1.0, "µs"),
+}
+
+
+# --- scales and limits: convert through the table -----------------------------------------------------------
+
+
+def field_spec(cls: type, name: str) -> FieldSpec:
+    """The table's entry for field ``name`` of packet class ``cls`` (KeyError if there is none)."""
+    for fs in SPEC_OF[cls].fields:
+        if fs.name == name:
+            return fs
+    raise KeyError(f"{cls.__name__} has no field {name!r}")
+
+
+def field_scale(cls: type, name: str) -> float:
+    """Multiply a raw ``cls.name`` by this to get it in ``field_unit(cls, name)``."""
+    return field_spec(cls, name).scale
+
+
+def field_unit(cls: type, name: str) -> str:
+    """The unit of a scaled ``cls.name`` (degrees, m, V, s, ...)."""
+    return field_spec(cls, name).scaled_unit
+
+
+def field_limits(cls: type, name: str) -> tuple[int, int] | None:
+    """The raw range the encoding of ``cls.name`` holds."""
+    return field_spec(cls, name).limits
+
+
+def scaled(pkt: Any, name: str) -> float:
+    """Field ``name`` of ``pkt`` in its shown unit: ``getattr(pkt, name) * field_scale(type(pkt), name)``."""
+    return getattr(pkt, name) * field_spec(type(pkt), name).scale
+
+
+def saturated(pkt: Any, name: str) -> bool:
+    """Whether field ``name`` of ``pkt`` sits at the end of its encoding (the board clips there: the true value
+    may be beyond it; show it as a limit, e.g. ">= 32.8 m", not as a reading)."""
+    return field_spec(type(pkt), name).saturated(getattr(pkt, name))
+
+
+_COLUMN_PACKETS = (Attitude, Motion, Height, Status, Compact)
+
+
+def column_scale(name: str) -> tuple[float, str]:
+    """Scale and unit for a telemetry field or a flash-log column of that name (the log names its columns after
+    the telemetry fields, in the same board units; its time column is LOG_TIME_COLUMN, µs)."""
+    if name == LOG_TIME_COLUMN:
+        return 1e-6, "s"
+    for cls in _COLUMN_PACKETS:
+        for fs in SPEC_OF[cls].fields:
+            if fs.name == name:
+                return fs.scale, fs.scaled_unit
+    raise KeyError(f"no telemetry field named {name!r}")
 
 
 # --- framing ------------------------------------------------------------------------------------------------
@@ -582,170 +791,6 @@ def _decode_pieces(
     return packets, crc_fail, malformed, skipped, gaps, last_seq
 
 
-# --- the flash-log payload ----------------------------------------------------------------------------------
-# What LogChunk packets carry: the board's flash log, a sequence of self-describing segments of compressed
-# records (docs/flash_log.md). Both ends need it: the board's encoder (fcb_sim.flash_log) mirrors the state
-# machines below, and the terminal decodes downloads with them.
-
-SCHEME_DELTA8 = 1  # the report's: one scaled signed byte per variable, against the reconstruction
-SCHEME_RICE = 2  # ours: prediction and an adaptive Rice code, the same error bound, no overload
-
-LOG_MAGIC = b"QL"
-LOG_FORMAT_VERSION = 1
-LOG_HEADER = struct.Struct("<2sBBBBII")  # magic, version, scheme, n_vars, reserved, records, data length
-LOG_VAR_ENTRY = struct.Struct("<8sHH")  # name (ASCII, NUL padded), scale, reserved
-LOG_UNSET32 = 0xFFFFFFFF  # an erased header field: the segment was never closed (records run to the end)
-
-RICE_ESCAPE = 20  # a unary quotient this long is an escape: 32 raw bits of the zigzagged residual follow
-RICE_RESET = 64  # LOCO-I: halve the statistics every this many samples so the code adapts
-
-
-class BitReader:
-    def __init__(self, data: bytes) -> None:
-        self.data = bytes(data)
-        self.total = len(data) * 8
-        self.pos = 0
-
-    def read(self, nbits: int) -> int:
-        pos, end = self.pos, self.pos + nbits
-        if end > self.total:
-            raise EOFError("log data ends inside a record")
-        first, last = pos >> 3, (end + 7) >> 3
-        self.pos = end
-        return (int.from_bytes(self.data[first:last], "big") >> ((last << 3) - end)) & ((1 << nbits) - 1)
-
-    def unary(self, limit: int) -> int:
-        """Count 1 bits up to a 0 (consumed) or ``limit`` ones (no 0 follows)."""
-        n = 0
-        while n < limit:
-            if self.read(1) == 0:
-                return n
-            n += 1
-        return n
-
-
-def quantise(x: int, scale: int) -> int:
-    """Nearest multiple index (ties up); |x - q*scale| <= scale // 2."""
-    return (x + scale // 2) // scale
-
-
-class RiceState:
-    """Per-variable adaptive state, identical in encoder and decoder."""
-
-    __slots__ = ("prev1", "prev2", "e1", "e2", "a", "n")
-
-    def __init__(self, first: int) -> None:
-        self.prev1 = first
-        self.prev2 = first
-        self.e1 = 0  # decayed sums of |residual| of each predictor
-        self.e2 = 0
-        self.a = 4  # LOCO-I: sum of |zigzagged residual| ...
-        self.n = 1  # ... over this many samples
-
-    def predict(self) -> int:
-        return self.prev1 if self.e1 <= self.e2 else 2 * self.prev1 - self.prev2
-
-    def k(self) -> int:
-        k = 0
-        while (self.n << k) < self.a:
-            k += 1
-        return k
-
-    def update(self, q: int, z: int) -> None:
-        p1, p2 = self.prev1, 2 * self.prev1 - self.prev2
-        self.e1 += abs(q - p1) - (self.e1 >> 4)
-        self.e2 += abs(q - p2) - (self.e2 >> 4)
-        self.prev2, self.prev1 = self.prev1, q
-        self.a += z
-        self.n += 1
-        if self.n >= RICE_RESET:
-            self.a = max(1, self.a >> 1)
-            self.n >>= 1
-
-
-def zigzag(r: int) -> int:
-    return 2 * r if r >= 0 else -2 * r - 1
-
-
-def unzigzag(z: int) -> int:
-    return z >> 1 if not z & 1 else -((z + 1) >> 1)
-
-
-def decode_log_records(scheme: int, scales: Sequence[int], data: bytes, count: int | None) -> list[tuple[int, ...]]:
-    """Decode ``count`` records (None: as many as the data holds) of one segment."""
-    r = BitReader(data)
-    n = len(scales)
-    out: list[tuple[int, ...]] = []
-    if count == 0 or len(data) < 4 * n:
-        return out
-    first = [r.read(32) for _ in range(n)]
-    first = [v - (1 << 32) if v & 0x80000000 else v for v in first]
-    if scheme == SCHEME_RICE:
-        states = [RiceState(quantise(v, s)) for v, s in zip(first, scales, strict=True)]
-        out.append(tuple(st.prev1 * s for st, s in zip(states, scales, strict=True)))
-    elif scheme == SCHEME_DELTA8:
-        out.append(tuple(first))
-        recon = list(first)
-    else:
-        raise ValueError(f"unknown log scheme {scheme}")
-    while count is None or len(out) < count:
-        try:
-            if scheme == SCHEME_DELTA8:
-                for i in range(n):
-                    b = r.read(8)
-                    recon[i] += (b - 256 if b & 0x80 else b) * scales[i]
-                out.append(tuple(recon))
-            else:
-                row = []
-                for st, s in zip(states, scales, strict=True):
-                    k = st.k()
-                    top = r.unary(RICE_ESCAPE)
-                    z = r.read(32) if top == RICE_ESCAPE else (top << k) | (r.read(k) if k else 0)
-                    q = st.predict() + unzigzag(z)
-                    st.update(q, z)
-                    row.append(q * s)
-                out.append(tuple(row))
-        except EOFError:
-            if count is not None:
-                raise
-            break
-    return out
-
-
-@dataclass
-class LogSegment:
-    scheme: int
-    names: tuple[str, ...]
-    scales: tuple[int, ...]
-    rows: list[tuple[int, ...]]
-    closed: bool  # False: logging never stopped cleanly (records decoded up to the end of the data)
-
-
-def decode_log(data: bytes) -> list[LogSegment]:
-    """All segments in a downloaded log (the used bytes of the flash). Raises ValueError on a corrupt log."""
-    segments: list[LogSegment] = []
-    pos = 0
-    while pos + LOG_HEADER.size <= len(data):
-        magic, version, scheme, n_vars, _res, records, length = LOG_HEADER.unpack_from(data, pos)
-        if magic != LOG_MAGIC or version != LOG_FORMAT_VERSION:
-            raise ValueError(f"no log segment at byte {pos}")
-        pos += LOG_HEADER.size
-        names, scales = [], []
-        for _ in range(n_vars):
-            name, scale, _r = LOG_VAR_ENTRY.unpack_from(data, pos)
-            names.append(name.rstrip(b"\x00").decode("ascii"))
-            scales.append(scale)
-            pos += LOG_VAR_ENTRY.size
-        closed = length != LOG_UNSET32
-        body = data[pos : pos + length] if closed else data[pos:]
-        rows = decode_log_records(scheme, scales, body, records if closed else None)
-        segments.append(LogSegment(scheme, tuple(names), tuple(scales), rows, closed))
-        if not closed:
-            break
-        pos += length
-    return segments
-
-
 def decode_frame(frame: bytes) -> Any:
     """Decode exactly one whole frame (delimiter optional); raises ProtocolError if it is not one."""
     dec = Decoder()
@@ -794,12 +839,14 @@ def spec_markdown() -> str:
         lines.append(f"{spec.doc} Direction: {spec.direction}. Rate: {spec.rate}. "
                      f"Body {spec.body_size} bytes, frame {spec.frame_size} bytes.")
         lines.append("")
-        lines.append("| offset | field | type | unit | meaning |")
-        lines.append("|---|---|---|---|---|")
+        lines.append("| offset | field | type | unit | shown as | meaning |")
+        lines.append("|---|---|---|---|---|---|")
         offset = 0
         for fs in spec.fields:
             size = struct.calcsize("<" + fs.fmt)
-            lines.append(f"| {offset} | `{fs.name}` | {_C_TYPE.get(fs.fmt, fs.fmt)} | {fs.unit} | {fs.doc} |")
+            shown = f"× {fs.scale:.6g} {fs.scaled_unit}" if fs.scale != 1.0 else ""
+            lines.append(f"| {offset} | `{fs.name}` | {_C_TYPE.get(fs.fmt, fs.fmt)} | {fs.unit} | {shown} "
+                         f"| {fs.doc} |")
             offset += size
         lines.append("")
     return "\n".join(lines)
@@ -821,7 +868,7 @@ _C_TYPE = {
 def enum_markdown() -> str:
     """The enumerations as Markdown tables."""
     lines: list[str] = []
-    for enum in (Mode, Op, Nak, EventCode, WirelessState, LogState, Flag, Button):
+    for enum in (Mode, Op, Nak, EventCode, WirelessState, LogState, Flag, Button, Role, Param):
         lines.append(f"### {enum.__name__}")
         lines.append("")
         lines.append("| value | name |" + (" text |" if enum is Nak else ""))
@@ -832,3 +879,34 @@ def enum_markdown() -> str:
         lines.append("")
     return "\n".join(lines)
 
+
+
+def params_markdown() -> str:
+    """The SET_PARAM parameters as a Markdown table."""
+    lines = ["| id | name | unit | values | SAFE only | meaning |", "|---|---|---|---|---|---|"]
+    for ps in PARAMS.values():
+        lines.append(f"| {int(ps.param)} | {ps.param.name} | {ps.unit} | {ps.lo}..{ps.hi} | "
+                     f"{'yes' if ps.safe_only else ''} | {ps.doc} |")
+    return "\n".join(lines) + "\n"
+
+
+def facts_markdown() -> str:
+    """The facts both ends share, as Markdown."""
+    modes = ", ".join(m.name for m in sorted(FLIGHT_MODES))
+    events = ", ".join(f"{c.name} × {k:g} {u}" for c, (k, u) in EVENT_ARG_SCALE.items())
+    rows = [
+        ("NUS service", f"`{NUS_SERVICE}`"),
+        ("NUS RX (terminal writes; write, write without response)", f"`{NUS_RX}`"),
+        ("NUS TX (board notifies; notify only)", f"`{NUS_TX}`"),
+        ("board name", f"`{BOARD_NAME_PREFIX} <board id>`"),
+        ("flight modes (motors under the flight core)", modes),
+        ("stick range", f"±{STICK_MAX} (lift 0..{STICK_MAX})"),
+        ("zero lift (leaving SAFE, going back to SAFE)", f"joystick lift + lift trim ≤ {LIFT_ZERO}"),
+        ("neutral sticks (leaving SAFE)", f"joystick roll, pitch and yaw each within ±{STICK_NEUTRAL}"),
+        ("battery: PANIC while flying", f"< {BATTERY_LOW} (× 10 mV) for {LOW_BATTERY_HOLD_S:g} s"),
+        ("battery: time to land / full", f"< {BATTERY_WARN} / {BATTERY_FULL} (× 10 mV)"),
+        ("gyro / accelerometer words", f"{GYRO_LSB_PER_DPS:g} LSB per °/s, {ACC_LSB_PER_G} LSB per g"),
+        ("event arguments with a unit", events),
+    ]
+    lines = ["| fact | value |", "|---|---|", *(f"| {k} | {v} |" for k, v in rows)]
+    return "\n".join(lines) + "\n"

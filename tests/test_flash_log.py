@@ -12,7 +12,8 @@ from hypothesis import strategies as st
 
 from fcb_sim.flash_log import LOG_VARS, FlashLog, LogVar, encode_log
 from term.logfile import LogDownload, decode_to_rows, write_csv
-from term.protocol import SCHEME_DELTA8, SCHEME_RICE, LogChunk, LogState, LogStatus, Nak, decode_log
+from term.logformat import SCHEME_DELTA8, SCHEME_RICE, decode_log
+from term.protocol import LogChunk, LogState, LogStatus, Nak
 
 VARS = (LogVar("t", 32), LogVar("a", 1), LogVar("b", 4), LogVar("c", 8))
 BOUND = [v.scale // 2 for v in VARS]

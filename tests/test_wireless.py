@@ -413,14 +413,14 @@ async def test_hci_over_tcp_reaches_the_radio_and_a_lost_host_drops_the_connecti
 
 
 async def test_bad_hci_spec_is_a_usage_error() -> None:
-    from fcb_sim.cli import UsageError
+    from fcb_sim.errors import UsageError
 
     with pytest.raises(UsageError, match="tcp-server:HOST:PORT"):
         await start_radio(WirelessLink(), hci="tcp-server:nowhere")
 
 
 async def test_an_unreachable_radio_is_a_usage_error() -> None:
-    from fcb_sim.cli import UsageError
+    from fcb_sim.errors import UsageError
 
     with pytest.raises(UsageError, match=r"cannot open the BLE radio 'tcp-client:127\.0\.0\.1:1'") as err:
         await start_radio(WirelessLink(), hci="tcp-client:127.0.0.1:1")

@@ -18,7 +18,7 @@ import time
 from collections.abc import Iterator
 from typing import IO
 
-from fcb_sim.cli import UsageError
+from fcb_sim.errors import UsageError
 
 from . import BEST, DESCRIPTIONS, FILTERS, has_fixed_point, make_filter
 
