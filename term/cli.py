@@ -28,13 +28,11 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import IO, Any, NoReturn
 
-EXIT_USAGE = 2  # a problem the user can fix: a bad option, a missing port, a board that will not start
-EXIT_VERSION = 3  # a board that speaks another protocol version
+from term.errors import EXIT_USAGE, EXIT_VERSION, UsageError
+
+__all__ = ["EXIT_USAGE", "EXIT_VERSION", "SimBoard", "UsageError", "main"]
+
 SIM_START_TIMEOUT = 15.0  # s for the child board to print its pty
-
-
-class UsageError(Exception):
-    """A problem the user can fix; printed as one line."""
 
 
 class _Parser(argparse.ArgumentParser):
