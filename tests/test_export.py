@@ -1,0 +1,237 @@
+"""term export: columns named and scaled from the packet table, MCAP that the mcap package reads back (JSON schemas,
+events, the raw bytes), CSV in the terminal's units or board units, flash logs, and one-line errors."""
+
+from __future__ import annotations
+
+import csv
+import json
+from pathlib import Path
+
+import pytest
+from mcap.reader import make_reader
+
+from fcb_sim.flash_log import LOG_VARS, encode_log
+from term.export import ExportError, all_packet_schemas, export, packet_columns, packet_record
+from term.logfile import decode_to_rows, write_csv
+from term.protocol import (
+    PACKETS,
+    SPEC_OF,
+    Attitude,
+    Compact,
+    Encoder,
+    Event,
+    EventCode,
+    Height,
+    Joystick,
+    Mode,
+    column_scale,
+    scaled,
+)
+from term.recording import LinkBytes, SessionRecorder, iter_file
+
+WALL = 1_700_000_000_000_000_000
+
+
+def record(directory: Path, *, close: bool = True) -> tuple[SessionRecorder, list]:
+    """A short session on an injected clock: telemetry in over the cable and the radio, sticks out, events."""
+    rec = SessionRecorder(directory, 10.0, wall_ns=WALL)
+    cable, radio, out = Encoder(), Encoder(), Encoder()
+    sent = []
+    for i in range(300):
+        now = 10.0 + i * 0.01
+        pkts = [Attitude(int(Mode.MANUAL), 1234 + i, -500, 9000, 164, -328, 0)]
+        if i % 5 == 0:
+            pkts.append(Height(101325 - i, 1500 + i, 1000, -20, 1168, 2150))
+        data = b"".join(cable.encode(p) for p in pkts)
+        rec.received("serial", data[:7], now)  # split mid-frame, as a UART read may
+        rec.received("serial", data[7:], now + 0.0005)
+        sent += [("serial", "rx", p) for p in pkts]
+        if i % 3 == 0:
+            c = Compact(int(Mode.MANUAL), 2, 1234 + i, -500, 9000, 1168)
+            rec.received("ble", radio.encode(c), now + 0.001)
+            sent.append(("ble", "rx", c))
+        js = Joystick(i, -i, 0, 2000, 0)
+        rec.sent("serial", out.encode(js), now + 0.001)
+        sent.append(("serial", "tx", js))
+        if i == 150:
+            rec.event(now + 0.001, "error", "link", "LINK LOST: nothing from the board for 0.5 s")
+            ev = Event(int(EventCode.LOW_BATTERY), 1040, 123456)
+            rec.received("serial", cable.encode(ev), now + 0.001)
+            sent.append(("serial", "rx", ev))
+        rec.poll(now)
+    if close:
+        rec.close()
+    return rec, sent
+
+
+def test_columns_are_named_and_scaled_from_the_packet_table() -> None:
+    names = {c.field: c.name for c in packet_columns(SPEC_OF[Attitude])}
+    assert names == {"mode": "mode", "phi": "phi_deg", "theta": "theta_deg", "psi": "psi_deg",
+                     "sp": "sp_dps", "sq": "sq_dps", "sr": "sr_dps"}
+    names = {c.field: c.name for c in packet_columns(SPEC_OF[Height])}
+    assert names == {"pressure": "pressure_pa", "height": "height_m", "setpoint": "setpoint_m", "vz": "vz_mps",
+                     "battery": "battery_v", "temperature": "temperature_degc"}
+    h = Height(101325, 1500, 1000, -20, 1168, 2150)
+    rec = packet_record(h, packet_columns(SPEC_OF[Height]))
+    for fs in SPEC_OF[Height].fields:  # the table's own conversion, to the last kept digit
+        key = [c.name for c in packet_columns(SPEC_OF[Height]) if c.field == fs.name][0]
+        assert rec[key] == pytest.approx(scaled(h, fs.name), abs=1e-6)
+    assert rec["height_m"] == 1.5 and rec["battery_v"] == 11.68 and rec["temperature_degc"] == 21.5
+    a = packet_record(Attitude(7, 0, 0, 0, 0, 0, 0), packet_columns(SPEC_OF[Attitude]))
+    assert a["mode"] == 7 and a["mode_name"] == "HEIGHT"
+    assert packet_record(Attitude(99, 0, 0, 0, 0, 0, 0), packet_columns(SPEC_OF[Attitude]))["mode_name"] == "99"
+
+
+def test_every_packet_has_a_json_schema_that_fits_its_messages() -> None:
+    schemas = all_packet_schemas()
+    assert set(schemas) == {spec.cls.__name__ for spec in PACKETS.values()}
+    for spec in PACKETS.values():
+        schema = schemas[spec.cls.__name__]
+        assert schema["title"] == f"quadrupel.{spec.cls.__name__}" and spec.doc in schema["description"]
+        sample = spec.cls(*(b"\x01" * 12 if fs.fmt.endswith("s") else 1 for fs in spec.fields))
+        rec = packet_record(sample, packet_columns(spec))
+        assert set(rec) == set(schema["properties"])
+        for key, value in rec.items():
+            kind = schema["properties"][key]["type"]
+            assert isinstance(value, {"integer": int, "number": (int, float), "string": str}[kind]), (spec, key)
+    phi = schemas["Attitude"]["properties"]["phi_deg"]
+    assert phi == {"type": "number", "description": "roll angle (°)"}
+
+
+def test_a_session_to_mcap_has_every_frame_on_its_channel_in_order(tmp_path: Path) -> None:
+    rec, sent = record(tmp_path / "rec")
+    assert rec.path is not None
+    out = tmp_path / "flight.mcap"
+    res = export(rec.path, out)
+    assert res.kind == "session" and res.complete and res.rows == len(sent) + 1
+    got: list[tuple[str, str, dict]] = []
+    events = []
+    with out.open("rb") as f:
+        reader = make_reader(f)
+        summary = reader.get_summary()
+        assert summary is not None
+        schema_names = {s.name for s in summary.schemas.values()}
+        assert {"quadrupel.Attitude", "quadrupel.Height", "quadrupel.Compact", "quadrupel.Joystick",
+                "foxglove.Log"} <= schema_names
+        last = 0
+        for schema, channel, message in reader.iter_messages(log_time_order=False):
+            assert message.log_time >= last  # written in time order
+            last = message.log_time
+            parts = channel.topic.strip("/").split("/")
+            if channel.topic == "/events":
+                events.append(json.loads(message.data))
+            elif len(parts) == 3:
+                assert schema is not None and schema.encoding == "jsonschema" and channel.message_encoding == "json"
+                assert schema.name == f"quadrupel.{parts[2]}"
+                got.append((parts[0], parts[1], json.loads(message.data)))
+    want = [(link, d, packet_record(p, packet_columns(SPEC_OF[type(p)]))) for link, d, p in sent]
+    assert got == want
+    assert events == [{"timestamp": {"sec": WALL // 10**9 + 1, "nsec": 501_000_000}, "level": 4,
+                       "message": "LINK LOST: nothing from the board for 0.5 s", "name": "link", "file": "", "line": 0}]
+    # The exported file carries the raw bytes too: it is a recording, the same bytes at the same times.
+    assert [i for i in iter_file(out) if isinstance(i, LinkBytes)] == \
+        [i for i in iter_file(rec.path) if isinstance(i, LinkBytes)]
+
+
+def test_a_recording_cut_short_is_written_out_complete(tmp_path: Path) -> None:
+    rec, sent = record(tmp_path / "rec", close=False)
+    assert rec.path is not None
+    crashed = tmp_path / "crashed.mcap"
+    crashed.write_bytes(rec.path.read_bytes())  # what a SIGKILL leaves
+    rec.close()
+    with crashed.open("rb") as f, pytest.raises(Exception):  # noqa: B017  # the mcap package's reader gives up
+        list(make_reader(f).iter_messages())
+    res = export(crashed, tmp_path / "fixed.mcap")
+    assert not res.complete and 0 < res.rows < len(sent)
+    with (tmp_path / "fixed.mcap").open("rb") as f:
+        summary = make_reader(f).get_summary()
+    assert summary is not None and summary.statistics is not None and summary.statistics.message_count > res.rows
+
+
+def test_a_session_to_csv_in_the_terminals_units_and_in_board_units(tmp_path: Path) -> None:
+    rec, sent = record(tmp_path / "rec")
+    assert rec.path is not None
+    export(rec.path, tmp_path / "si.csv")
+    rows = list(csv.DictReader((tmp_path / "si.csv").open(encoding="utf-8")))
+    assert len(rows) == len(sent) + 1
+    att = [r for r in rows if r["packet"] == "Attitude"]
+    assert len(att) == 300 and att[0]["link"] == "serial" and att[0]["dir"] == "rx"
+    assert float(att[0]["phi_deg"]) == 12.34 and float(att[0]["sp_dps"]) == pytest.approx(10.0)
+    assert att[0]["mode_name"] == "MANUAL" and att[0]["height_m"] == ""
+    assert float(att[1]["t_s"]) == pytest.approx(0.0105, abs=1e-6)  # the second read of each split frame
+    h = [r for r in rows if r["packet"] == "Height"]
+    assert float(h[0]["height_m"]) == 1.5 and float(h[0]["battery_v"]) == 11.68
+    log = [r for r in rows if r["packet"] == "log"]
+    assert [(r["level"], r["source"], r["message"]) for r in log] == \
+        [("error", "link", "LINK LOST: nothing from the board for 0.5 s")]
+    assert float(log[0]["t_s"]) == pytest.approx(1.501)
+    ble = [r for r in rows if r["link"] == "ble"]
+    assert len(ble) == 100 and all(r["packet"] == "Compact" for r in ble)
+
+    export(rec.path, tmp_path / "raw.csv", board_units=True)
+    raw = [r for r in csv.DictReader((tmp_path / "raw.csv").open(encoding="utf-8")) if r["packet"] == "Attitude"]
+    assert raw[0]["phi"] == "1234" and raw[0]["sp"] == "164"
+
+
+def flash_log_csv(path: Path) -> list[tuple[int, ...]]:
+    rows = [(i * 2500, int(Mode.FULL), 100 + i, -50, 9000, 16, -16, 0, 0, 0, -16384, 400, 410, 400, 390, 1000 + i,
+             101300, 1160) for i in range(200)]
+    data = encode_log(rows, "rice", LOG_VARS)
+    write_csv(data, path, decode_to_rows)
+    return rows
+
+
+def test_a_flash_log_to_csv_and_mcap(tmp_path: Path) -> None:
+    src = tmp_path / "quadrupel-log.csv"
+    rows = flash_log_csv(src)
+    res = export(src, tmp_path / "si.csv")
+    assert res.kind == "flashlog" and res.rows == len(rows)
+    got = list(csv.DictReader((tmp_path / "si.csv").open(encoding="utf-8")))
+    assert list(got[0])[:5] == ["segment", "t_s", "mode", "mode_name", "phi_deg"]
+    assert "height_m" in got[0] and "battery_v" in got[0] and "saz_g" in got[0]
+    scale, unit = column_scale("phi")
+    assert unit == "°"
+    for g, r in zip(got, rows, strict=True):
+        assert float(g["t_s"]) == pytest.approx(r[0] * 1e-6, abs=2e-5)  # the log's own quantisation (32 µs)
+        assert float(g["phi_deg"]) == pytest.approx(r[2] * scale, abs=0.011)
+        assert float(g["battery_v"]) == pytest.approx(11.6) and g["mode_name"] == "FULL"
+        assert float(g["saz_g"]) == pytest.approx(-1.0, abs=1e-3)
+    export(src, tmp_path / "board.csv", board_units=True)
+    board = list(csv.DictReader((tmp_path / "board.csv").open(encoding="utf-8")))
+    assert board[0]["battery"] == "1160" and board[0]["t_us"] == "0"
+
+    export(src, tmp_path / "log.mcap")
+    with (tmp_path / "log.mcap").open("rb") as f:
+        msgs = [(m.log_time, json.loads(m.data)) for _, ch, m in make_reader(f).iter_messages(topics=["/flashlog"])]
+    assert len(msgs) == len(rows)
+    assert msgs[10][0] == pytest.approx(rows[10][0] * 1000, abs=32_000)
+    assert msgs[10][1]["battery_v"] == 11.6 and msgs[10][1]["mode_name"] == "FULL"
+
+
+def test_bad_input_is_one_clear_line(tmp_path: Path) -> None:
+    rec, _ = record(tmp_path / "rec")
+    assert rec.path is not None
+    with pytest.raises(ExportError, match="unknown format 'png'"):
+        export(rec.path, tmp_path / "x.png")
+    with pytest.raises(ExportError, match="not found"):
+        export(tmp_path / "nope.mcap", tmp_path / "x.csv")
+    with pytest.raises(ExportError, match="is the input"):
+        export(rec.path, rec.path, "mcap")
+    with pytest.raises(ExportError, match="--board-units is for CSV"):
+        export(rec.path, tmp_path / "x.mcap", board_units=True)
+    hexdump = tmp_path / "hex.csv"
+    write_csv(b"\x01\x02\x03" * 10, hexdump)
+    with pytest.raises(ExportError, match="raw log bytes"):
+        export(hexdump, tmp_path / "x.csv")
+    other = tmp_path / "other.txt"
+    other.write_bytes(b"\xff\xfe\x00 not a log")
+    with pytest.raises(ExportError, match="neither a session recording"):
+        export(other, tmp_path / "x.csv")
+    bad = tmp_path / "bad.csv"
+    bad.write_text("segment,t_us,phi\n0,1,2\n0,nan?,3\n")
+    with pytest.raises(ExportError, match="line 3: not numbers"):
+        export(bad, tmp_path / "x.csv")
+    blocker = tmp_path / "file"
+    blocker.write_text("x")
+    with pytest.raises(ExportError, match="cannot write"):
+        export(rec.path, blocker / "out.csv")
