@@ -7,9 +7,26 @@ rate. No Textual here, no clock reads: every update takes ``now`` (seconds, the 
 from __future__ import annotations
 
 from collections import deque
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
+from term.events import (
+    RADIO,
+    EventsCleared,
+    FromLink,
+    JoystickNamed,
+    LinkConnecting,
+    LinkDown,
+    LinkFailed,
+    LinkUp,
+    LinkWaiting,
+    Note,
+    NotSent,
+    Requested,
+    StatsSample,
+    StickSet,
+)
 from term.link import (
     CommandAcked,
     CommandFailed,
@@ -50,6 +67,16 @@ BATTERY_FULL_V = 12.6
 HISTORY = 3000  # samples kept per plotted series (60 s at 50 Hz)
 
 FLIGHT_MODES = (Mode.MANUAL, Mode.YAW, Mode.FULL, Mode.RAW, Mode.HEIGHT)
+
+
+def battery_level(volts: float) -> str:
+    """"panic" under the board's PANIC threshold, "warn" under a 3S LiPo's nominal voltage (time to land), else
+    "ok"."""
+    if volts < BATTERY_PANIC_V:
+        return "panic"
+    if volts < BATTERY_WARN_V:
+        return "warn"
+    return "ok"
 
 
 def mode_name(mode: int | None) -> str:
@@ -185,38 +212,137 @@ class Model:
         self.version += 1
 
     def apply(self, event: Any, now: float) -> None:
-        """One LinkEvent from the session."""
-        kind = type(event)
-        if kind is PacketReceived:
-            self.heard = True
-            self.apply_packet(event.packet, now)
-            return
+        """The one way the model changes: one event, from a link's session (the board's link; the radio's come
+        wrapped in ``FromLink``), from the station (``term.events``) or from the front end."""
+        handler = _HANDLERS.get(type(event))
+        if handler is not None:
+            handler(self, event, now)
+
+    # --- the board's link's session events ------------------------------------------------------------------
+
+    def _on_packet(self, event: PacketReceived, now: float) -> None:
+        self.heard = True
+        self.apply_packet(event.packet, now)
+
+    def _on_acked(self, event: CommandAcked, now: float) -> None:
         self.version += 1
-        if kind is CommandAcked:
-            self.pending = max(0, self.pending - 1)
-        elif kind is CommandFailed:
-            self.pending = max(0, self.pending - 1)
-            what = op_text(event.op, event.arg)
-            if event.nak is not None:
-                self.note(now, "error", "nak", f"NAK {what}: {event.reason}")
-            else:
-                self.note(now, "error", "link", f"{what} failed: {event.reason}")
-        elif kind is LinkLost:
+        self.pending = max(0, self.pending - 1)
+
+    def _on_failed(self, event: CommandFailed, now: float) -> None:
+        self.version += 1
+        self.pending = max(0, self.pending - 1)
+        what = op_text(event.op, event.arg)
+        if event.nak is not None:
+            self.note(now, "error", "nak", f"NAK {what}: {event.reason}")
+        else:
+            self.note(now, "error", "link", f"{what} failed: {event.reason}")
+        if event.op == Op.LOG_DOWNLOAD and self.download is not None:
+            self.download = None
+            self.download_note = f"log download stopped: {event.reason}"
+
+    def _on_lost(self, event: LinkLost, now: float) -> None:
+        self.version += 1
+        self.link_lost = True
+        if self.radio_name and self.over_ble:
+            self.note(now, "info", "link", f"cable silent for {event.silent_s:.1f} s: flying over BLE")
+        elif self.primary_ble and not self.heard:
+            self.note(now, "info", "link", "nothing over BLE yet: the board talks here after the handover "
+                      "(key 8 on the cable terminal, in SAFE)")
+        else:
+            self.note(now, "error", "link", f"LINK LOST: nothing from the board for {event.silent_s:.1f} s")
+
+    def _on_restored(self, event: LinkRestored, now: float) -> None:
+        self.version += 1
+        self.link_lost = False
+        self.note(now, "info", "link", f"link restored after {event.lost_for_s:.1f} s")
+
+    def _on_mismatch(self, event: VersionMismatch, now: float) -> None:
+        self.version += 1
+        self.version_mismatch = event
+        self.note(now, "error", "link", f"board speaks protocol v{event.board_version}, terminal "
+                  f"v{event.our_version}: update one of them")
+
+    # --- the station's events -------------------------------------------------------------------------------
+
+    def _on_from_link(self, event: FromLink, now: float) -> None:
+        if event.link == RADIO:
+            self.radio_event(event.event, now)
+        else:
+            self.apply(event.event, now)
+
+    def _on_link_up(self, event: LinkUp, now: float) -> None:
+        if event.link == RADIO:
+            self.radio_up = True
+            self.radio_note = ""
+            self.note(now, "info", "ble", f"radio connected: {event.name} (key 8 in SAFE hands control over to it)")
+        else:
+            self.note(now, "info", "link", f"{'re' if event.again else ''}connected to {event.name}")
+
+    def _on_link_down(self, event: LinkDown, now: float) -> None:
+        if event.link != RADIO:
             self.link_lost = True
-            if self.radio_name and self.over_ble:
-                self.note(now, "info", "link", f"cable silent for {event.silent_s:.1f} s: flying over BLE")
-            elif self.primary_ble and not self.heard:
-                self.note(now, "info", "link", "nothing over BLE yet: the board talks here after the handover "
-                          "(key 8 on the cable terminal, in SAFE)")
-            else:
-                self.note(now, "error", "link", f"LINK LOST: nothing from the board for {event.silent_s:.1f} s")
-        elif kind is LinkRestored:
-            self.link_lost = False
-            self.note(now, "info", "link", f"link restored after {event.lost_for_s:.1f} s")
-        elif kind is VersionMismatch:
-            self.version_mismatch = event
-            self.note(now, "error", "link", f"board speaks protocol v{event.board_version}, terminal "
-                      f"v{event.our_version}: update one of them")
+            self.note(now, "error", "link", f"LINK LOST: {event.message}")
+            if self.primary_ble and self.flying:
+                self.note(now, "error", "link", "the board PANICs: it was flying over this BLE link")
+            return
+        was_flying_ble = self.over_ble
+        self.radio_up = False
+        self.radio_lost = False
+        self.note(now, "error", "ble", f"BLE LOST: {event.message}")
+        if self.wireless != WirelessState.DISCONNECTED:
+            # The board drops the handover with the connection (report Figure 12): control is the cable's.
+            self.wireless = int(WirelessState.DISCONNECTED)
+            self.note(now, "error", "ble", "control back on the cable: the board goes DISCONNECTED"
+                      + (" and PANICs (it was flying over BLE)" if was_flying_ble and self.flying else ""))
+
+    def _on_link_waiting(self, event: LinkWaiting, now: float) -> None:
+        if event.link == RADIO:
+            self.radio_note = f"down: {event.why or 'lost'}; next try in {event.pause:.0f} s"
+            self.version += 1
+
+    def _on_link_connecting(self, event: LinkConnecting, now: float) -> None:
+        if event.link == RADIO:
+            self.radio_note = "connecting…"
+            self.version += 1
+
+    def _on_link_failed(self, event: LinkFailed, now: float) -> None:
+        if event.repeated:
+            return
+        if event.link == RADIO:
+            self.note(now, "warning", "ble", f"radio not connected: {event.message}")
+        else:
+            self.note(now, "warning", "link", f"reconnecting: {event.message}")
+
+    def _on_stats(self, event: StatsSample, now: float) -> None:
+        if event.link == RADIO:
+            self.set_radio_stats(event.stats, now)
+        else:
+            self.set_link_stats(event.stats, now)
+
+    def _on_requested(self, event: Requested, now: float) -> None:
+        self.pending += 1
+        if event.op == Op.MODE:
+            self.note(now, "info", "term", f"request {mode_name(event.arg)}"
+                      + (" over BLE" if event.link == RADIO else ""))
+        else:
+            self.version += 1
+
+    def _on_not_sent(self, event: NotSent, now: float) -> None:
+        self.note(now, "error", "term", f"not sent: {event.what}: {event.why}")
+
+    def _on_note(self, event: Note, now: float) -> None:
+        self.note(now, event.severity, event.source, event.text)
+
+    def _on_stick(self, event: StickSet, now: float) -> None:
+        self.set_stick(event.stick)
+
+    def _on_joystick(self, event: JoystickNamed, now: float) -> None:
+        self.joystick_name, self.joystick_mapping = event.name, event.mapping
+        self.version += 1
+
+    def _on_cleared(self, event: EventsCleared, now: float) -> None:
+        self.events.clear()
+        self.version += 1
 
     def apply_packet(self, pkt: Any, now: float) -> None:
         kind = type(pkt)
@@ -398,3 +524,26 @@ class Model:
                 xs.append(t - t_now)
                 ys.append(v)
         return xs, ys
+
+
+_HANDLERS: dict[type, Callable[[Model, Any, float], None]] = {
+    PacketReceived: Model._on_packet,
+    CommandAcked: Model._on_acked,
+    CommandFailed: Model._on_failed,
+    LinkLost: Model._on_lost,
+    LinkRestored: Model._on_restored,
+    VersionMismatch: Model._on_mismatch,
+    FromLink: Model._on_from_link,
+    LinkUp: Model._on_link_up,
+    LinkDown: Model._on_link_down,
+    LinkWaiting: Model._on_link_waiting,
+    LinkConnecting: Model._on_link_connecting,
+    LinkFailed: Model._on_link_failed,
+    StatsSample: Model._on_stats,
+    Requested: Model._on_requested,
+    NotSent: Model._on_not_sent,
+    Note: Model._on_note,
+    StickSet: Model._on_stick,
+    JoystickNamed: Model._on_joystick,
+    EventsCleared: Model._on_cleared,
+}
