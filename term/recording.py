@@ -39,6 +39,7 @@ from typing import IO, Any
 
 from mcap.exceptions import EndOfFile
 from mcap.opcode import Opcode
+from mcap.reader import make_reader
 from mcap.records import Channel, Footer, Message, Metadata
 from mcap.stream_reader import StreamReader
 from mcap.writer import CompressionType, Writer
@@ -492,6 +493,63 @@ def scan(path: Path) -> Recording:
     for _ in iter_file(path, rec):
         pass
     return rec
+
+
+def describe(path: Path) -> Recording:
+    """``scan``, but from the summary of a file closed cleanly (no need to read it through)."""
+    try:
+        with path.open("rb") as f:
+            reader = make_reader(f)
+            summary = reader.get_summary()
+            meta = next((m for m in reader.iter_metadata() if m.name == "session"), None)
+            size = os.fstat(f.fileno()).st_size
+    except Exception:  # no footer (cut short) or not MCAP: read it through, which says which
+        return scan(path)
+    stats = summary.statistics if summary is not None else None
+    if stats is None or meta is None:
+        return scan(path)
+    rec = Recording(path, dict(meta.metadata), True, messages=stats.message_count, valid_bytes=size)
+    if stats.message_count:
+        rec.first_ns, rec.last_ns = stats.message_start_time, stats.message_end_time
+    return rec
+
+
+def sessions(directory: Path) -> list[list[Path]]:
+    """The sessions in ``directory``, oldest first, each as the list of its parts."""
+    groups: dict[tuple[str, int], list[Path]] = {}
+    for p in list_files(directory):
+        groups.setdefault(_sort_key(p)[:2], []).append(p)
+    return list(groups.values())
+
+
+def session_table(directory: Path) -> list[str]:
+    """``term recordings``: one line per session, oldest first: start (local time), length, size, file."""
+    lines = [f"{'start':19}  {'length':>8}  {'size':>9}  file"]
+    for parts in sessions(directory):
+        try:
+            infos = [describe(p) for p in parts]
+        except RecordingError as exc:
+            lines.append(f"{'?':19}  {'?':>8}  {_human(sum(_size(p) for p in parts)):>9}  {parts[0]} ({exc})")
+            continue
+        first, last = infos[0], infos[-1]
+        start = dt.datetime.fromtimestamp(first.start_ns / 1e9).astimezone().strftime("%Y-%m-%d %H:%M:%S")
+        length = max(0.0, ((last.last_ns or first.start_ns) - first.start_ns) / 1e9)
+        notes = [f"{len(parts)} parts"] if len(parts) > 1 else []
+        if not last.complete:
+            notes.append("not closed: still recording, or cut short")
+        extra = f" ({', '.join(notes)})" if notes else ""
+        h, rem = divmod(round(length), 3600)
+        span = f"{h:d}:{rem // 60:02d}:{rem % 60:02d}"
+        lines.append(f"{start:19}  {span:>8}  {_human(sum(_size(p) for p in parts)):>9}  {parts[0]}{extra}")
+    return lines
+
+
+def _human(n: int) -> str:
+    for unit in ("B", "kB", "MB", "GB"):
+        if n < 1000 or unit == "GB":
+            return f"{n:.0f} {unit}" if unit == "B" else f"{n:.1f} {unit}"
+        n /= 1000  # type: ignore[assignment]
+    return str(n)
 
 
 def latest(directory: Path | None = None) -> Path:
