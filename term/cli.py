@@ -29,10 +29,12 @@ from pathlib import Path
 from typing import IO, Any, NoReturn
 
 from term.errors import EXIT_USAGE, EXIT_VERSION, UsageError
+from term.schema import Number
 
 __all__ = ["EXIT_USAGE", "EXIT_VERSION", "SimBoard", "UsageError", "main"]
 
 SIM_START_TIMEOUT = 15.0  # s for the child board to print its pty
+BLE_TIMEOUT = Number(0.1, 600.0, unit="s")  # --ble-timeout, scan --timeout: seconds to look for the board
 
 
 class _Parser(argparse.ArgumentParser):
@@ -93,10 +95,10 @@ def main(argv: Sequence[str] | None = None) -> int:
 
             a = build_plot_parser().parse_args(argv[1:])
             try:
-                plot_log(a.log, a.output, a.signals.split(",") if a.signals else None)
+                written = plot_log(a.log, a.output, a.signals.split(",") if a.signals else None)
             except PlotError as exc:
                 raise UsageError(str(exc)) from None
-            print(f"wrote {a.output}")
+            print(f"wrote {written}")
             return 0
         if argv and argv[0] == "scan":
             a = build_scan_parser().parse_args(argv[1:])
@@ -113,7 +115,9 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 def _fly(args: argparse.Namespace) -> int:
-    from term.config import ConfigError, default_path, load_config
+    from term.config import BAUD, LINK_TIMEOUT, ConfigError, default_path, load_config
+    from term.logfile import check_directory
+    from term.schema import SchemaError
 
     if args.config_path:
         print(args.config or default_path())
@@ -122,21 +126,21 @@ def _fly(args: argparse.Namespace) -> int:
         cfg = load_config(args.config, required=args.config is not None)
     except ConfigError as exc:
         raise UsageError(str(exc)) from None
-    if args.link_timeout is not None:
-        if args.link_timeout <= 0:
-            raise UsageError("--link-timeout must be positive")
-        cfg.link_timeout = args.link_timeout
-    baud = args.baud if args.baud is not None else cfg.baud
-    if baud <= 0:
-        raise UsageError("--baud must be positive")
+    try:  # the same ranges as the config file's: nan, inf, 0 or a huge number is one line here
+        if args.link_timeout is not None:
+            cfg.link_timeout = LINK_TIMEOUT.check(args.link_timeout, "--link-timeout")
+        baud = BAUD.check(args.baud, "--baud") if args.baud is not None else cfg.baud
+        BLE_TIMEOUT.check(args.ble_timeout, "--ble-timeout")
+    except SchemaError as exc:
+        raise UsageError(str(exc)) from None
+    if args.log_dir is not None and (why := check_directory(args.log_dir)):
+        raise UsageError(f"--log-dir: {why}")
     if args.scenario is not None and not args.sim:
         raise UsageError("--scenario needs --sim")
     if args.ble and args.sim:
         raise UsageError("--ble and --sim: the simulator brings its own radio (term --sim connects it)")
     if args.hci and not args.ble:
         raise UsageError("--hci needs --ble ADDR")
-    if args.ble_timeout <= 0:
-        raise UsageError("--ble-timeout must be positive")
 
     sim: SimBoard | None = None
     radio: Any = None
@@ -187,10 +191,14 @@ def _scan(args: argparse.Namespace) -> int:
         from term.transports.ble import scan  # type: ignore[import-not-found,unused-ignore]
     except ImportError as exc:
         raise UsageError(f"BLE scanning not available ({exc})") from None
+    from term.schema import SchemaError
     from term.transports.base import TransportError
 
     try:
+        BLE_TIMEOUT.check(args.timeout, "--timeout")
         found = asyncio.run(scan(timeout=args.timeout, hci=args.hci))
+    except SchemaError as exc:
+        raise UsageError(str(exc)) from None
     except TransportError as exc:
         raise UsageError(str(exc)) from None
     for board in found:

@@ -53,6 +53,7 @@ from term.input.mapping import (
     StickMapping,
     mapping_from_dict,
 )
+from term.logfile import check_directory
 from term.schema import ListOf, Number, OneOf, SchemaError, Table, TableOf, Text, nearest, one_line, shown
 
 APP_NAME = "quadrupel"
@@ -223,6 +224,9 @@ def config_from_dict(data: Mapping[str, Any]) -> Config:
 
     directory = v.get("log", {}).get("directory")
     if directory:
+        why = check_directory(Path(directory))
+        if why:
+            raise SchemaError(f"[log] directory: {why}")
         cfg.log_directory = Path(directory).expanduser()
     return cfg
 

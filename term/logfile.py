@@ -13,6 +13,7 @@ chunk per row, so a download is never lost.
 from __future__ import annotations
 
 import csv
+import errno
 import struct
 import zlib
 from collections.abc import Callable, Iterable, Sequence
@@ -111,8 +112,34 @@ def hex_rows(data: bytes) -> tuple[list[str], list[list[Any]]]:
     return ["offset", "hex"], rows
 
 
+def check_directory(path: Path) -> str | None:
+    """Why ``path`` (``~`` allowed) cannot hold downloaded logs, or None. It need not exist yet (the download makes
+    it); a NUL character (no file system takes one), an unknown ~user or a file in its place is refused."""
+    text = str(path)
+    if "\0" in text:
+        return f"log folder {text!r} holds a NUL character, which no path can"
+    if not text.strip():
+        return "log folder: the path is empty"
+    try:
+        path = path.expanduser()
+    except RuntimeError:  # ~someone who is not a user here
+        return f"log folder {text}: no such user's home"
+    for p in (path, *path.parents):
+        try:
+            if p.exists():
+                return None if p.is_dir() else f"log folder {path}: {p} is a file, not a folder"
+        except OSError:
+            return None  # not ours to judge (no permission to look): writing will say what is wrong
+    return None
+
+
 def write_csv(data: bytes, path: Path, decoder: Decoder | None = None) -> int:
-    """Write the log to ``path`` as CSV (decoded records if a decoder is given); returns the rows written."""
+    """Write the log to ``path`` as CSV (decoded records if a decoder is given); returns the rows written. A path
+    that cannot be written is an ``OSError`` with a one-line ``strerror`` (the caller shows it), never another
+    exception from deep in the file system calls."""
+    why = check_directory(path.parent) or ("the file name holds a NUL character" if "\0" in path.name else None)
+    if why:
+        raise OSError(errno.EINVAL, why)
     header, rows = (decoder or hex_rows)(data)
     path.parent.mkdir(parents=True, exist_ok=True)
     n = 0

@@ -1,5 +1,12 @@
-"""What the screen shows, as plain data: updated from link events and packets, rendered by the widgets at a steady
-rate. No Textual here, no clock reads: every update takes ``now`` (seconds, the app's monotonic clock).
+"""What the screen shows, as plain data, rendered by the widgets at a steady rate. No Textual here, no clock
+reads: every update takes ``now`` (seconds, the app's monotonic clock).
+
+The model changes in one place: ``apply(event, now)``, which dispatches through a table of handlers
+(``_HANDLERS``), one per event type: a link session's events (``term.link``; the radio's wrapped in
+``term.events.FromLink``), the station's (links up and down, retries, commands sent or refused, the stick) and the
+front end's (notes, the joystick's name). ``Station.emit`` is its caller; tests may call the handlers' helpers
+(``apply_packet``, ``radio_event``, ``set_link_stats``) directly. The two-link rules (which silence is an
+alarm, STARTED left only for DISCONNECTED) live in the handlers and the derived properties.
 
 ``version`` increases on every change so the renderer can skip frames when nothing happened.
 """

@@ -31,9 +31,16 @@ def test_help_lists_everything() -> None:
     (["--serial", "/dev/does-not-exist-42"], "serial port /dev/does-not-exist-42 not found"),
     (["--serial", "/dev/null", "--sim"], "not allowed with argument"),
     (["--scenario", "gusty"], "--scenario needs --sim"),
-    (["--baud", "0", "--serial", "/dev/null"], "--baud must be positive"),
+    (["--baud", "0", "--serial", "/dev/null"], "--baud: must be an integer between 50 and 4000000 baud, got 0"),
+    (["--baud", "100000000000000000000", "--serial", "/dev/null"], "got 100000000000000000000"),
     (["--baud", "fast"], "invalid int value"),
-    (["--link-timeout", "-1", "--serial", "/dev/null"], "--link-timeout must be positive"),
+    (["--link-timeout", "-1", "--serial", "/dev/null"], "--link-timeout: must be a number between 0.05 and 60 s"),
+    (["--link-timeout", "nan", "--serial", "/dev/null"], "--link-timeout: must be a number between 0.05 and 60 s, "
+                                                         "got nan"),
+    (["--link-timeout", "inf", "--sim"], "got inf"),
+    (["--ble-timeout", "nan", "--ble", "F0:5A:00:00:00:01"], "--ble-timeout: must be a number between 0.1 and 600 s"),
+    (["scan", "--timeout=-inf"], "--timeout: must be a number between 0.1 and 600 s, got -inf"),
+    (["--log-dir", "/dev/null/logs", "--sim"], "--log-dir: log folder /dev/null/logs: /dev/null is a file"),
     (["plot", "nope.csv", "-o", "x.png"], "nope.csv not found"),
     (["plot", "x.csv"], "required: -o/--output"),
     (["--config", "/nonexistent/term.toml", "--sim"], "config file /nonexistent/term.toml not found"),
@@ -63,7 +70,7 @@ def test_a_malformed_config_is_one_line(capsys: pytest.CaptureFixture[str], tmp_
     cfg = tmp_path / "term.toml"
     cfg.write_text("[connection]\nbaud = 'fast'\n")
     code, _, err = run(capsys, "--config", str(cfg), "--serial", "/dev/null")
-    assert code == 2 and f"config file {cfg}: [connection] baud must be int" in err and err.count("\n") == 1
+    assert code == 2 and f"config file {cfg}: [connection] baud: must be an integer" in err and err.count("\n") == 1
 
 
 def test_a_path_that_is_not_a_serial_port(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
@@ -92,9 +99,10 @@ def _log_csv(tmp_path: Path) -> Path:
 
 
 def test_plot_draws_a_downloaded_log(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
-    out_png = tmp_path / "out" / "flight.png"
+    out_png = tmp_path / "flight.png"
     code, out, err = run(capsys, "plot", str(_log_csv(tmp_path)), "-o", str(out_png))
     assert code == 0, err
+    assert out == f"wrote {out_png}\n"
     assert out_png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and out_png.stat().st_size > 10_000
 
 
@@ -111,6 +119,94 @@ def test_plot_refuses_a_raw_hex_log(capsys: pytest.CaptureFixture[str], tmp_path
     write_csv(b"\x01\x02" * 30, raw, decode_to_rows)  # not the board's format: the hex fallback
     code, _, err = run(capsys, "plot", str(raw), "-o", str(tmp_path / "r.png"))
     assert code == 2 and "raw log bytes" in err
+
+
+def _edit(log: Path, tmp_path: Path, column: str, value: str, name: str = "edited.csv") -> Path:
+    lines = log.read_text(encoding="utf-8").splitlines()
+    header = lines[0].split(",")
+    row = lines[1].split(",")
+    row[header.index(column)] = value
+    out = tmp_path / name
+    out.write_text("\n".join([lines[0], ",".join(row), *lines[2:]]) + "\n", encoding="utf-8")
+    return out
+
+
+@pytest.mark.parametrize("make, words", [
+    (lambda log, d: _write(d, "a,b,c\n1,2\n"), "is not a flight log: its header (\"a,b,c\") needs t_us"),
+    (lambda log, d: _write(d, "a,b,c\n1,2,3\n"), "is not a flight log"),
+    (lambda log, d: _write(d, ""), "is empty"),
+    (lambda log, d: _edit(log, d, "mode", "nan"), "line 2, column mode: must be an integer between 0 and 255, "
+                                                 "got \"nan\""),
+    (lambda log, d: _edit(log, d, "mode", "inf"), "column mode: must be an integer"),
+    (lambda log, d: _edit(log, d, "mode", "2.5"), "column mode: must be an integer"),
+    (lambda log, d: _edit(log, d, "phi", "-inf"), "line 2, column phi: must be a number between"),
+    (lambda log, d: _edit(log, d, "phi", "1e300"), "column phi: must be a number between"),
+    (lambda log, d: _edit(log, d, "phi", "x" * 140_000), "field larger than field limit"),
+    (lambda log, d: _edit(log, d, "phi", "1" * 100_000), "column phi: must be a number between"),
+    (lambda log, d: _edit(log, d, "t_us", "-1"), "column t_us: must be an integer between 0 and"),
+    (lambda log, d: _edit(log, d, "phi", "1,2"), "line 2: 20 fields, the header has 19"),
+    (lambda log, d: _edit(log, d, "phi", '"1'), "not a readable CSV (unexpected end of data)"),
+    (lambda log, d: _write(d, b"t_us,phi\n0,\xff\xfe\n"), "is not UTF-8 text (byte 0xff)"),
+    (lambda log, d: _write(d, "t_us,phi,phi\n0,1,2\n"), "column 3 is 'phi' again"),
+    (lambda log, d: _write(d, "t_us,phi\n"), "has a header but no records"),
+])
+def test_plot_refuses_a_csv_that_is_not_a_flight_log(capsys: pytest.CaptureFixture[str], tmp_path: Path,
+                                                     make, words: str) -> None:  # noqa: ANN001
+    """Issues 10 and 11: each of these ended in a traceback, a three-line error, or "wrote ..."."""
+    bad = make(_log_csv(tmp_path), tmp_path)
+    out_png = tmp_path / "p.png"
+    code, out, err = run(capsys, "plot", str(bad), "-o", str(out_png))
+    assert code == 2 and out == "" and not out_png.exists()
+    assert err.startswith(f"term: {bad}") and words in err and err.count("\n") == 1, err
+
+
+def _write(tmp_path: Path, content: str | bytes) -> Path:
+    p = tmp_path / "other.csv"
+    if isinstance(content, bytes):
+        p.write_bytes(content)
+    else:
+        p.write_text(content, encoding="utf-8")
+    return p
+
+
+@pytest.mark.parametrize("output, words", [
+    ("/nonexistent-dir-42/p.png", "cannot write /nonexistent-dir-42/p.png: folder /nonexistent-dir-42 does not exist"),
+    ("outfile", "outfile: the name must end in .png, .svg, .pdf"),
+    ("plot.jpeg", "must end in .png, .svg, .pdf"),
+    ("DIR", "is a folder: name the image"),
+])
+def test_plot_writes_the_file_it_names_or_nothing(capsys: pytest.CaptureFixture[str], tmp_path: Path,
+                                                  output: str, words: str) -> None:
+    """Issue 10: -o /nonexistent/p.png created the folder; issue 11: -o outfile wrote outfile.png."""
+    log = _log_csv(tmp_path)
+    (tmp_path / "DIR").mkdir()
+    target = output if output.startswith("/") else str(tmp_path / output)
+    before = sorted(p.name for p in tmp_path.iterdir())
+    code, out, err = run(capsys, "plot", str(log), "-o", target)
+    assert code == 2 and out == "" and words in err and err.count("\n") == 1, err
+    assert sorted(p.name for p in tmp_path.iterdir()) == before and not Path("/nonexistent-dir-42").exists()
+
+
+TERM = str(Path(sys.executable).with_name("term"))
+
+
+@pytest.mark.parametrize("args, files, words", [
+    (["--config", "{d}/bin.toml", "--serial", "/nonexistent"], {"bin.toml": b"\xfc\x00\x9f\x92"},
+     "is not UTF-8 text"),
+    (["--config", "{d}/k.toml", "--serial", "/nonexistent"], {"k.toml": b"[keys]\nmode_panic = ['nosuchkey']\n"},
+     "[keys] mode_panic: unknown key name 'nosuchkey'"),
+    (["--link-timeout", "nan", "--serial", "/nonexistent"], {}, "--link-timeout: must be a number"),
+    (["plot", "{d}/bad.csv", "-o", "{d}/p.png"], {"bad.csv": b"a,b,c\n1,2\n"}, "is not a flight log"),
+])
+def test_bad_input_from_the_outside_is_one_line(tmp_path: Path, args: list[str], files: dict[str, bytes],
+                                                words: str) -> None:
+    """The installed `term` as a user runs it: exactly one line on stderr, exit 2, nothing on stdout."""
+    for name, data in files.items():
+        (tmp_path / name).write_bytes(data)
+    argv = [a.format(d=tmp_path) for a in args]
+    out = subprocess.run([TERM, *argv], capture_output=True, text=True, timeout=60, cwd=tmp_path)
+    assert out.returncode == 2 and out.stdout == "", out
+    assert out.stderr.startswith("term: ") and out.stderr.count("\n") == 1 and words in out.stderr, out.stderr
 
 
 def _gone(pid: int) -> bool:

@@ -9,6 +9,8 @@ from textual.containers import Vertical
 from textual.screen import ModalScreen
 from textual.widgets import Input, Label
 
+from term.logfile import check_directory
+
 
 class DirectoryPrompt(ModalScreen[Path | None]):
     """Enter accepts, Escape cancels (the pilot's ESC is PANIC everywhere else; here the input has focus, so the
@@ -32,6 +34,10 @@ class DirectoryPrompt(ModalScreen[Path | None]):
 
     def on_input_submitted(self, event: Input.Submitted) -> None:
         text = event.value.strip()
+        why = check_directory(Path(text)) if text else None
+        if why:  # say why here and let the pilot fix it, rather than fail after the whole download
+            self.query_one(Label).update(why)
+            return
         self.dismiss(Path(text).expanduser() if text else None)
 
     def action_cancel(self) -> None:
