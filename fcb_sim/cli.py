@@ -9,12 +9,20 @@ from __future__ import annotations
 import argparse
 import sys
 from collections.abc import Sequence
+from typing import NoReturn
 
 from fcb_sim.errors import EXIT_INTERRUPTED, EXIT_USAGE, UsageError
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse with one-line errors (its own are the usage block plus the message); subcommands inherit it."""
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(EXIT_USAGE, f"{self.prog}: {message} (see {self.prog} --help)\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="fcb-sim",
         description="The Quadrupel flight-control board as software: headless flights, IMU replay, "
         "profiling, and a board served over a pseudo-terminal (and a virtual BLE radio).",

@@ -601,8 +601,9 @@ def _parse_tcp_server(spec: str) -> tuple[str, int]:
 
     kind, _, rest = spec.partition(":")
     host, _, port = rest.rpartition(":")
-    if kind != "tcp-server" or not host or not port.isdigit():
-        raise UsageError(f"--ble-hci {spec!r}: expected tcp-server:HOST:PORT, e.g. tcp-server:127.0.0.1:9000")
+    if kind != "tcp-server" or not host or not port.isdigit() or int(port) > 65535:
+        raise UsageError(f"--ble-hci {spec!r}: expected tcp-server:HOST:PORT (PORT 0 to 65535), e.g. "
+                         "tcp-server:127.0.0.1:9000")
     return host, int(port)
 
 
