@@ -32,7 +32,7 @@ import os
 import re
 import struct
 import time
-from collections.abc import Collection, Iterator
+from collections.abc import Callable, Collection, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO, Any
@@ -45,6 +45,7 @@ from mcap.stream_reader import StreamReader
 from mcap.writer import CompressionType, Writer
 
 from term.protocol import PROTOCOL_VERSION
+from term.transports.base import Transport
 
 FORMAT_VERSION = 1  # of the session layout described above
 PROFILE = "quadrupel-session"
@@ -108,8 +109,11 @@ class SessionRecorder:
         max_total_bytes: int = MAX_TOTAL_BYTES,
         flush_period: float = FLUSH_PERIOD_S,
         compression: CompressionType = CompressionType.ZSTD,
+        meta: dict[str, str] | None = None,
     ) -> None:
+        """``meta``: more of the session's facts for the ``session`` metadata (the links' names, …)."""
         self.directory = Path(directory)
+        self.meta = {str(k): str(v) for k, v in (meta or {}).items()}
         self.t0 = now
         self.start_ns = time.time_ns() if wall_ns is None else wall_ns
         self.max_file_bytes = max_file_bytes
@@ -148,6 +152,17 @@ class SessionRecorder:
         msg = {"timestamp": {"sec": t_ns // 1_000_000_000, "nsec": t_ns % 1_000_000_000},
                "level": LEVEL_OF.get(severity, 2), "message": text, "name": source, "file": "", "line": 0}
         self._add("/events", json.dumps(msg, ensure_ascii=False).encode(), t_ns, now)
+
+    def station_event(self, ev: Any, now: float) -> None:
+        """One station event (``term.events``), kept on ``/station`` so a replay can apply it to a model again.
+        A packet from a link is not kept here: the link's bytes carry it (the replay decodes them)."""
+        if self._writer is None or (type(ev).__name__ == "FromLink" and type(ev.event).__name__ == "PacketReceived"):
+            return
+        try:
+            data = json.dumps(encode_event(ev), ensure_ascii=False).encode()
+        except (TypeError, ValueError):
+            return  # not a plain event: nothing a replay could use
+        self._add("/station", data, self._t_ns(now), now)
 
     def poll(self, now: float) -> None:
         """Flush if data waits and ``flush_period`` has passed; call at least once a ``flush_period``."""
@@ -222,6 +237,8 @@ class SessionRecorder:
         if name == "/events":
             schema = self._writer.register_schema("foxglove.Log", "jsonschema", json.dumps(LOG_SCHEMA).encode())
             ch = self._writer.register_channel(name, "json", schema)
+        elif name == "/station":
+            ch = self._writer.register_channel(name, "json", 0)
         else:
             ch = self._writer.register_channel(name, RAW_ENCODING, 0)
         self._channels[name] = ch
@@ -256,6 +273,7 @@ class SessionRecorder:
         try:
             w.start(PROFILE, "quadrupel term")
             w.add_metadata("session", {
+                **self.meta,
                 "format": str(FORMAT_VERSION),
                 "protocol": str(PROTOCOL_VERSION),
                 "start_ns": str(self.start_ns),
@@ -354,13 +372,23 @@ class LinkBytes:
 
 @dataclass(frozen=True, slots=True)
 class LoggedEvent:
+    """A line of the events panel."""
+
     t_ns: int
     severity: str
     source: str
     text: str
 
 
-Item = LinkBytes | LoggedEvent
+@dataclass(frozen=True, slots=True)
+class StationRecord:
+    """A station event as recorded (``decode_event`` makes the event again; None if this version has no such)."""
+
+    t_ns: int
+    data: dict[str, Any]
+
+
+Item = LinkBytes | LoggedEvent | StationRecord
 
 
 class RecordingError(ValueError):
@@ -462,6 +490,12 @@ def iter_file(path: Path, recording: Recording | None = None) -> Iterator[Item]:
                 rec.first_ns = t
             if rec.last_ns is None or t > rec.last_ns:
                 rec.last_ns = t
+            if where[1] == "station":
+                try:
+                    yield StationRecord(t, json.loads(record.data))
+                except ValueError:
+                    pass
+                continue
             if where[1] != "events":
                 yield LinkBytes(t, where[0], where[1], record.data)
                 continue
@@ -473,8 +507,8 @@ def iter_file(path: Path, recording: Recording | None = None) -> Iterator[Item]:
                 continue
         elif kind is Channel:
             parts = record.topic.strip("/").split("/")
-            if record.topic == "/events":
-                channels[record.id] = ("", "events")
+            if record.topic in ("/events", "/station"):
+                channels[record.id] = ("", record.topic[1:])
             elif len(parts) == 2 and parts[1] in ("rx", "tx"):
                 channels[record.id] = (parts[0], parts[1])
         elif kind is Metadata and record.name == "session":
@@ -559,3 +593,124 @@ def latest(directory: Path | None = None) -> Path:
     if not files:
         raise RecordingError(f"no session recordings in {directory}")
     return session_parts(files[-1])[0]
+
+
+# --- station events as JSON -----------------------------------------------------------------------------------
+# The station's events (term.events, and the links' term.link events inside FromLink) are frozen dataclasses of
+# plain values; they are kept by class name and field, so a replay rebuilds them. A class or field this version
+# does not know is skipped on replay, never an error.
+
+
+def encode_event(ev: Any) -> Any:
+    """A station event (or any value inside one) as JSON-ready data."""
+    import dataclasses
+    from enum import Enum
+
+    from term.protocol import SPEC_OF, to_dict
+
+    if dataclasses.is_dataclass(ev) and not isinstance(ev, type):
+        out = {"~": type(ev).__name__}
+        for f in dataclasses.fields(ev):
+            out[f.name] = encode_event(getattr(ev, f.name))
+        return out
+    if type(ev) in SPEC_OF:
+        return {"~packet": to_dict(ev)}
+    if isinstance(ev, Enum):
+        return ev.value
+    if isinstance(ev, (list, tuple)):
+        return [encode_event(v) for v in ev]
+    if ev is None or isinstance(ev, (bool, int, float, str)):
+        return ev
+    raise TypeError(f"cannot record {type(ev).__name__}")
+
+
+def _event_classes() -> dict[str, type]:
+    import dataclasses
+
+    from term import events, link
+
+    found: dict[str, type] = {}
+    for module in (link, events):
+        for name, obj in vars(module).items():
+            if isinstance(obj, type) and dataclasses.is_dataclass(obj) and obj.__module__ == module.__name__:
+                found[name] = obj
+    return found
+
+
+_CLASSES: dict[str, type] = {}
+
+
+def decode_event(data: Any) -> Any:
+    """The event ``encode_event`` made ``data`` from; None for a class or field this version does not know."""
+    import dataclasses
+    import typing
+    from enum import Enum
+
+    from term.protocol import from_dict
+
+    if isinstance(data, list):
+        return [decode_event(v) for v in data]
+    if not isinstance(data, dict):
+        return data
+    if "~packet" in data:
+        try:
+            return from_dict(data["~packet"])
+        except (KeyError, TypeError, ValueError):
+            return None
+    if not _CLASSES:
+        _CLASSES.update(_event_classes())
+    cls = _CLASSES.get(str(data.get("~")))
+    if cls is None:
+        return None
+    try:
+        hints = typing.get_type_hints(cls)
+    except Exception:
+        hints = {}
+    kwargs = {}
+    for f in dataclasses.fields(cls):
+        if f.name not in data:
+            continue  # a field added since: its default, if it has one
+        v = decode_event(data[f.name])
+        hint = hints.get(f.name)
+        if isinstance(hint, type) and issubclass(hint, Enum) and v is not None:
+            with contextlib.suppress(ValueError):
+                v = hint(v)
+        kwargs[f.name] = v
+    try:
+        return cls(**kwargs)
+    except TypeError:
+        return None
+
+
+# --- the tap at the edge --------------------------------------------------------------------------------------
+
+
+class RecordingTransport(Transport):
+    """A transport that records what passes through it: ``read`` and ``write`` go to ``inner`` and their bytes to
+    ``recorder`` as ``link``'s, timed by ``clock``. Everything else is ``inner``'s."""
+
+    def __init__(self, inner: Transport, recorder: SessionRecorder, link: str, clock: Callable[[], float]) -> None:
+        self.inner, self.recorder, self.link, self.clock = inner, recorder, link, clock
+
+    @property  # type: ignore[override]
+    def name(self) -> str:
+        return self.inner.name
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self.inner, name)
+
+    async def open(self) -> None:
+        await self.inner.open()
+
+    async def close(self) -> None:
+        await self.inner.close()
+
+    async def read(self) -> bytes:
+        data = await self.inner.read()
+        self.recorder.received(self.link, data, self.clock())
+        return data
+
+    async def write(self, data: bytes) -> None:
+        self.recorder.sent(self.link, data, self.clock())
+        await self.inner.write(data)
+

@@ -1,0 +1,170 @@
+"""Replay: station events survive the recording (JSON and back), the tap records what a transport carries, and a
+replayed session brings a fresh model to the same state, with the same times, as the live one; seek and speed."""
+
+from __future__ import annotations
+
+import asyncio
+import json
+from collections.abc import Iterable
+from pathlib import Path
+
+import pytest
+
+from term.events import (
+    CABLE,
+    RADIO,
+    EventsCleared,
+    Fatal,
+    FromLink,
+    JoystickNamed,
+    LinkConnecting,
+    LinkDown,
+    LinkFailed,
+    LinkUp,
+    LinkWaiting,
+    Note,
+    NotSent,
+    Requested,
+    StatsSample,
+    StickSet,
+)
+from term.link import CommandAcked, CommandFailed, LinkLost, LinkRestored, LinkStats, PacketReceived, VersionMismatch
+from term.model import Model
+from term.protocol import Attitude, Encoder, Height, Joystick, Mode, Nak, Op, Status
+from term.recording import LinkBytes, RecordingTransport, SessionRecorder, decode_event, encode_event, iter_file
+from term.replay import Replay
+from term.transports.loopback import loopback_pair
+
+STATS = LinkStats(1.5, 2.0, 3.25, 0.0, 0.5, 1200.0, 300.0, 42, 1, 0.01, 0.05, 0.7, False, 5000, 900, 3, 1, 0, 10, 1)
+EVENTS = [
+    LinkUp(CABLE, "/dev/pts/3", False), LinkDown(RADIO, "out of range"), LinkWaiting(RADIO, "lost", 2.0),
+    LinkConnecting(RADIO), LinkFailed(RADIO, "no board", True), StatsSample(CABLE, STATS),
+    Requested(int(Op.MODE), int(Mode.MANUAL), CABLE), NotSent("MANUAL", "lift not at zero", "MANUAL refused"),
+    Note("warning", "term", "héllo ✓"), StickSet(Joystick(1, -2, 3, 400, 1)), JoystickNamed("Pad", "xbox"),
+    JoystickNamed(None, ""), EventsCleared(), Fatal("bye", 3),
+    FromLink(CABLE, CommandAcked(4, Op.MODE, 2, 2)),
+    FromLink(RADIO, CommandFailed(5, Op.WIRELESS, 1, "no BLE connection", Nak.NO_BLE_CONNECTION)),
+    FromLink(CABLE, LinkLost(0.6)), FromLink(CABLE, LinkRestored(1.25)), FromLink(CABLE, VersionMismatch(2, 1)),
+]
+
+
+@pytest.mark.parametrize("ev", EVENTS, ids=lambda e: type(e).__name__)
+def test_every_station_event_round_trips_through_json(ev: object) -> None:
+    back = decode_event(json.loads(json.dumps(encode_event(ev))))
+    assert back == ev and type(back) is type(ev)
+    if isinstance(ev, FromLink) and isinstance(ev.event, CommandAcked):
+        assert isinstance(back.event.op, Op)  # enums come back as enums
+
+
+def test_unknown_events_are_skipped_not_fatal() -> None:
+    assert decode_event({"~": "FromTheFuture", "x": 1}) is None
+    assert decode_event({"~": "LinkUp", "link": "cable"}) is None  # a field missing, no default
+    assert decode_event({"~packet": {"type": "Nope"}}) is None
+
+
+async def test_the_tap_records_what_the_transport_carries(tmp_path: Path) -> None:
+    now = [5.0]
+    rec = SessionRecorder(tmp_path, 5.0, wall_ns=0)
+    a, b = loopback_pair()
+    tap = RecordingTransport(a, rec, CABLE, lambda: now[0])
+    assert tap.name == a.name
+    await tap.open()
+    await b.open()
+    now[0] = 5.25
+    await tap.write(b"\x01\x02\x00")
+    await b.write(b"\x03\x00")
+    got = await asyncio.wait_for(tap.read(), 2.0)
+    assert got == b"\x03\x00"
+    await tap.close()
+    await b.close()
+    rec.close()
+    assert rec.path is not None
+    items = list(iter_file(rec.path))
+    assert items == [LinkBytes(250_000_000, CABLE, "tx", b"\x01\x02\x00"),
+                     LinkBytes(250_000_000, CABLE, "rx", b"\x03\x00")]
+
+
+def live_session(rec: SessionRecorder, model: Model, t0: float) -> None:
+    """What the station does in a short flight, applied to ``model`` and recorded as the app records it."""
+    board = Encoder()
+
+    def emit(ev: object, now: float) -> None:
+        model.apply(ev, now)
+        rec.station_event(ev, now)
+
+    emit(LinkUp(CABLE, "/dev/pts/7", False), t0)
+    emit(Note("info", "term", "hello pilot"), t0 + 0.01)
+    for i in range(400):
+        now = t0 + 0.05 + i * 0.01
+        pkts = [Attitude(int(Mode.MANUAL if i > 100 else Mode.SAFE), 50 * i, -50 * i, 7, 16 * i, 0, -16)]
+        if i % 4 == 0:
+            pkts.append(Height(101300, 10 * i, 0, 5, 1160 - i // 10, 2100))
+        if i % 20 == 0:
+            pkts.append(Status(1, 0, 0, 0, 0, 30, 2, 0))
+        data = b"".join(board.encode(p) for p in pkts)
+        rec.received(CABLE, data, now)  # the tap records the bytes before the session decodes them
+        for p in pkts:
+            model.apply(FromLink(CABLE, PacketReceived(p)), now)  # (the recorder skips these: bytes carry them)
+            rec.station_event(FromLink(CABLE, PacketReceived(p)), now)
+        if i == 100:
+            emit(Requested(int(Op.MODE), int(Mode.MANUAL), CABLE), now)
+            emit(FromLink(CABLE, CommandAcked(1, Op.MODE, 2, 2)), now)
+        if i % 10 == 0:
+            emit(StatsSample(CABLE, STATS), now)
+            emit(StickSet(Joystick(i, 0, 0, 1000 + i, 0)), now)
+        if i == 300:
+            emit(FromLink(CABLE, LinkLost(0.5)), now)
+        if i == 320:
+            emit(FromLink(CABLE, LinkRestored(0.2)), now)
+
+
+def test_a_replay_brings_a_fresh_model_to_the_live_state_at_the_recorded_times(tmp_path: Path) -> None:
+    t0 = 1000.0
+    live = Model(start=t0)
+    rec = SessionRecorder(tmp_path, t0, wall_ns=1_700_000_000_000_000_000, meta={"cable": "/dev/pts/7"})
+    live_session(rec, live, t0)
+    rec.close()
+    assert rec.path is not None
+
+    replay = Replay.load(rec.path)
+    assert replay.meta["cable"] == "/dev/pts/7" and replay.duration == pytest.approx(4.04)
+    model = Model(start=0.0)
+    seen_times = []
+    for ev in replay.advance(10.0):  # 1x, past the end
+        model.apply(ev, replay.clock())
+        seen_times.append(replay.clock())
+    assert replay.finished and seen_times == sorted(seen_times)
+    assert model.attitude == live.attitude and model.height == live.height and model.status == live.status
+    assert model.stick == live.stick and model.link == live.link and model.mode == live.mode
+    assert [(round(e.t, 6), e.severity, e.source, e.text.replace("replay of ", "")) for e in model.events] == \
+        [(round(e.t, 6), e.severity, e.source, e.text) for e in live.events]
+    assert any("replay of /dev/pts/7" in e.text for e in model.events)  # the link panel's name says replay
+    for name, series in live.history.items():
+        assert [(round(t, 6), v) for t, v in model.history[name]] == [(round(t, 6), v) for t, v in series], name
+
+
+def test_playback_speed_pause_and_seek(tmp_path: Path) -> None:
+    rec = SessionRecorder(tmp_path, 0.0, wall_ns=0)
+    live_session(rec, Model(), 0.0)
+    rec.close()
+    assert rec.path is not None
+    replay = Replay.load(rec.path)
+
+    def attitude_count(events: Iterable[object]) -> int:
+        return sum(1 for e in events if isinstance(e, FromLink) and isinstance(e.event, PacketReceived)
+                   and isinstance(e.event.packet, Attitude))
+
+    assert attitude_count(replay.advance(1.0)) == 96  # 1 s at 1x: the frames of t = 0.05 .. 1.0
+    assert replay.status() == "REPLAY 00:01.0 / 00:04.0 1x"
+    assert replay.faster() == 2.0
+    assert attitude_count(replay.advance(0.5)) == 100  # 0.5 s at 2x
+    replay.paused = True
+    assert list(replay.advance(1.0)) == [] and replay.position == pytest.approx(2.0)
+    assert replay.status().endswith("paused")
+    assert replay.seek(1.0) is True  # back: start again from a fresh model
+    evs = replay.catch_up()
+    assert attitude_count(evs) == 96 and replay.clock() == pytest.approx(1.0)
+    assert replay.seek(3.0) is False
+    assert attitude_count(replay.catch_up()) == 200
+    assert replay.seek(99.0) is False and replay.position == replay.duration
+    assert replay.slower() == 1.0 and replay.slower() == 0.5
