@@ -7,6 +7,8 @@
     term --serial PATH --ble ADDR [--hci T]       the cable and the radio, for the handover (as --sim)
     term scan [--hci TRANSPORT]                   list BLE boards nearby
     term plot LOG.csv -o out.png                  draw a downloaded flight log
+    term export SESSION|LOG.csv|--latest -o OUT   a session recording or flash log as MCAP or CSV (its units)
+    term recordings                               list the session recordings: start, length, size
 
 Errors a user can cause end in one line on stderr and a non-zero exit, never a traceback: 2 for bad arguments,
 a missing port or a board that will not start; 3 for a board that speaks another protocol version.
@@ -87,6 +89,55 @@ def build_scan_parser() -> argparse.ArgumentParser:
     return p
 
 
+def build_export_parser() -> argparse.ArgumentParser:
+    p = _Parser(prog="term export", description="Convert a session recording, or a flash log downloaded as CSV, "
+                "to MCAP (Foxglove, PlotJuggler) or to CSV with the unit in each column (phi_deg, height_m).")
+    p.add_argument("source", nargs="?", type=Path, help="a session recording (.mcap) or a flash-log CSV")
+    p.add_argument("--latest", action="store_true", help="the newest session recording (instead of a file)")
+    p.add_argument("-o", "--output", type=Path, required=True, help="file to write (.mcap or .csv)")
+    p.add_argument("-f", "--format", choices=("mcap", "csv"), default=None, help="default: from the output's suffix")
+    p.add_argument("--board-units", action="store_true", help="CSV in the board's units (raw field values)")
+    p.add_argument("--dir", type=Path, default=None, help="where recordings are kept (default: 'term recordings')")
+    return p
+
+
+def build_recordings_parser() -> argparse.ArgumentParser:
+    p = _Parser(prog="term recordings", description="List the session recordings (one file per session, every "
+                "frame both ways on every link and every event), oldest first.")
+    p.add_argument("--dir", type=Path, default=None, help="where recordings are kept (default: the platform's "
+                   "user data directory)")
+    return p
+
+
+def _export(a: argparse.Namespace) -> int:
+    from term.export import ExportError, export
+    from term.recording import RecordingError, latest
+
+    if a.latest == (a.source is not None):
+        raise UsageError("give one recording or flash log, or --latest")
+    try:
+        src = latest(a.dir) if a.latest else a.source
+        res = export(src, a.output, a.format, a.board_units)
+    except (ExportError, RecordingError) as exc:
+        raise UsageError(str(exc)) from None
+    what = "frames and events" if res.kind == "session" else "records"
+    cut = "" if res.complete else " (the recording was cut short: all of it that was on disk)"
+    print(f"wrote {a.output}: {res.rows} {what} from {src}{cut}")
+    return 0
+
+
+def _recordings(a: argparse.Namespace) -> int:
+    from term.recording import default_directory, session_table
+
+    directory = a.dir or default_directory()
+    lines = session_table(directory)
+    if len(lines) == 1:
+        print(f"term: no session recordings in {directory}", file=sys.stderr)
+        return 1
+    print("\n".join(lines))
+    return 0
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     try:
@@ -103,6 +154,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         if argv and argv[0] == "scan":
             a = build_scan_parser().parse_args(argv[1:])
             return _scan(a)
+        if argv and argv[0] == "export":
+            return _export(build_export_parser().parse_args(argv[1:]))
+        if argv and argv[0] == "recordings":
+            return _recordings(build_recordings_parser().parse_args(argv[1:]))
         return _fly(build_parser().parse_args(argv))
     except UsageError as exc:
         print(f"term: {exc}", file=sys.stderr)

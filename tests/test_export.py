@@ -235,3 +235,33 @@ def test_bad_input_is_one_clear_line(tmp_path: Path) -> None:
     blocker.write_text("x")
     with pytest.raises(ExportError, match="cannot write"):
         export(rec.path, blocker / "out.csv")
+
+
+def test_the_command_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from term.cli import main
+
+    rec, sent = record(tmp_path / "rec")
+    assert rec.path is not None
+    out = tmp_path / "out" / "latest.csv"
+    assert main(["export", "--latest", "--dir", str(tmp_path / "rec"), "-o", str(out)]) == 0
+    assert f"wrote {out}: {len(sent) + 1} frames and events from {rec.path}" in capsys.readouterr().out
+    assert main(["export", str(rec.path), "-f", "mcap", "-o", str(tmp_path / "x.bin")]) == 0
+    assert (tmp_path / "x.bin").read_bytes()[:8] == b"\x89MCAP0\r\n"
+    capsys.readouterr()
+    assert main(["recordings", "--dir", str(tmp_path / "rec")]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[0].split() == ["start", "length", "size", "file"]
+    assert lines[1].split()[2:] == ["0:00:03", f"{rec.path.stat().st_size / 1000:.1f}", "kB", str(rec.path)]
+    for argv, why in [
+        (["export", "-o", str(out)], "give one recording or flash log, or --latest"),
+        (["export", str(rec.path), "--latest", "-o", str(out)], "give one recording or flash log, or --latest"),
+        (["export", "--latest", "--dir", str(tmp_path / "none"), "-o", str(out)], "no session recordings in"),
+        (["export", str(rec.path), "-o", str(tmp_path / "x.txt")], "unknown format 'txt'"),
+        (["export", str(rec.path), "-f", "png", "-o", str(out)], "invalid choice: 'png'"),
+        (["export", str(tmp_path / "nope.mcap"), "-o", str(out)], "nope.mcap not found"),
+    ]:
+        assert main(argv) == 2, argv
+        err = capsys.readouterr().err
+        assert err.startswith("term: ") and why in err and err.count("\n") == 1, err
+    assert main(["recordings", "--dir", str(tmp_path / "none")]) == 1
+    assert "no session recordings" in capsys.readouterr().err
