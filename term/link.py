@@ -54,10 +54,10 @@ from term.protocol import (
     Mode,
     Nak,
     Op,
+    Role,
+    scaled,
 )
 
-ROLE_TERMINAL = 0
-ROLE_BOARD = 1
 RTT_SAMPLES = 200  # RTT mean and p95 are over the last this many samples
 _EPS = 1e-9  # s: float slack for schedules computed by repeated addition
 HB_DELAY_WINDOW = 10.0  # s: the baseline (smallest) heartbeat delay is taken over this window
@@ -436,7 +436,7 @@ class LinkSession:
         return events
 
     def _encode_hello(self) -> bytes:
-        return self.encoder.encode(Hello(PROTOCOL_VERSION, ROLE_TERMINAL, 0, 1, 0))
+        return self.encoder.encode(Hello(PROTOCOL_VERSION, Role.TERMINAL, 0, 1, 0))
 
     def _count_tx(self, data: bytes, now: float) -> None:
         self._tx_bytes += len(data)
@@ -495,7 +495,7 @@ class LinkSession:
     def _on_heartbeat(self, hb: Heartbeat, now: float) -> None:
         self._heartbeats += 1
         self._last_hb = now
-        delay = now - hb.board_ms / 1000.0  # offset + one-way delay; the offset cancels against the minimum
+        delay = now - scaled(hb, "board_ms")  # offset + one-way delay; the offset cancels against the minimum
         delays = self._hb_delays
         while delays and delays[0][0] <= now - HB_DELAY_WINDOW:
             delays.popleft()

@@ -45,6 +45,11 @@ from term.link import (
 )
 from term.logfile import LogDownload
 from term.protocol import (
+    BATTERY_FULL,
+    BATTERY_LOW,
+    BATTERY_WARN,
+    EVENT_ARG_SCALE,
+    FLIGHT_MODES,
     Attitude,
     Compact,
     Event,
@@ -64,16 +69,16 @@ from term.protocol import (
     Profile,
     Status,
     WirelessState,
+    field_scale,
+    scaled,
 )
 
-GYRO_LSB_PER_DPS = 16.4
-ACC_LSB_PER_G = 16384.0
-BATTERY_PANIC_V = 10.5  # the board's PANIC threshold while flying (DESIGN.md)
-BATTERY_WARN_V = 11.1  # a 3S LiPo at its nominal voltage: time to land
-BATTERY_FULL_V = 12.6
+_VOLTS = field_scale(Height, "battery")
+BATTERY_PANIC_V = BATTERY_LOW * _VOLTS  # the board's PANIC threshold while flying
+BATTERY_WARN_V = BATTERY_WARN * _VOLTS  # a 3S LiPo at its nominal voltage: time to land
+BATTERY_FULL_V = BATTERY_FULL * _VOLTS
 HISTORY = 3000  # samples kept per plotted series (60 s at 50 Hz)
 
-FLIGHT_MODES = (Mode.MANUAL, Mode.YAW, Mode.FULL, Mode.RAW, Mode.HEIGHT)
 
 
 def battery_level(volts: float) -> str:
@@ -128,11 +133,11 @@ def event_text(code: int, arg: int) -> tuple[str, str]:
             why = f"reason {arg >> 8}"
         return "error", f"board refused {mode_name(arg & 0xFF)}: {why}"
     if c is EventCode.LOW_BATTERY:
-        return "error", f"LOW BATTERY {arg / 100:.2f} V"
+        return "error", f"LOW BATTERY {_event_arg(c, arg):.2f} V"
     if c is EventCode.LINK_TIMEOUT:
-        return "error", f"board saw link timeout ({arg} ms silent): PANIC"
+        return "error", f"board saw link timeout ({_event_arg(c, arg) * 1000:.0f} ms silent): PANIC"
     if c is EventCode.TILT_LIMIT:
-        return "error", f"tilt limit {arg / 100:.1f}°: PANIC"
+        return "error", f"tilt limit {_event_arg(c, arg):.1f}°: PANIC"
     if c is EventCode.PANIC_DONE:
         return "info", "panic done: motors off, SAFE"
     if c is EventCode.CALIBRATION_DONE:
@@ -153,6 +158,11 @@ def event_text(code: int, arg: int) -> tuple[str, str]:
     if c is EventCode.OVERFLOW:
         return "warning", f"board receive queue overflow ({arg} bytes dropped)"
     return "info", f"{c.name.lower()} ({arg})"
+
+
+def _event_arg(code: EventCode, arg: int) -> float:
+    """An Event's argument in its unit (V, s, °; EVENT_ARG_SCALE)."""
+    return arg * EVENT_ARG_SCALE[code][0]
 
 
 def _nak_text(nak: Nak) -> str:
@@ -357,15 +367,13 @@ class Model:
         if kind is Attitude:
             self.attitude = pkt
             self._set_mode(pkt.mode, now)
-            self._push(t, phi=pkt.phi / 100, theta=pkt.theta / 100, psi=pkt.psi / 100,
-                       sp=pkt.sp / GYRO_LSB_PER_DPS, sq=pkt.sq / GYRO_LSB_PER_DPS, sr=pkt.sr / GYRO_LSB_PER_DPS)
+            self._push_scaled(t, pkt, ("phi", "theta", "psi", "sp", "sq", "sr"))
         elif kind is Motion:
             self.motion = pkt
             self._push(t, ae1=pkt.ae1, ae2=pkt.ae2, ae3=pkt.ae3, ae4=pkt.ae4)
         elif kind is Height:
             self.height = pkt
-            self._push(t, height=pkt.height / 1000, setpoint=pkt.setpoint / 1000, vz=pkt.vz / 1000,
-                       pressure=float(pkt.pressure), battery=pkt.battery / 100)
+            self._push_scaled(t, pkt, ("height", "setpoint", "vz", "pressure", "battery"))
         elif kind is Status:
             self.status = pkt
             self._set_wireless(pkt.wireless)
@@ -375,7 +383,7 @@ class Model:
             self.compact = pkt
             self._set_mode(pkt.mode, now)
             self._set_wireless(pkt.wireless)
-            self._push(t, phi=pkt.phi / 100, theta=pkt.theta / 100, psi=pkt.psi / 100, battery=pkt.battery / 100)
+            self._push_scaled(t, pkt, ("phi", "theta", "psi", "battery"))
         elif kind is Event:
             self.board_ms = pkt.board_ms
             severity, text = event_text(pkt.code, pkt.arg)
@@ -406,6 +414,9 @@ class Model:
 
     def _set_mode(self, mode: int, now: float) -> None:
         self.mode = mode
+
+    def _push_scaled(self, t: float, pkt: Any, names: tuple[str, ...]) -> None:
+        self._push(t, **{name: scaled(pkt, name) for name in names})
 
     def _push(self, t: float, **values: float) -> None:
         h = self.history
@@ -504,10 +515,10 @@ class Model:
     @property
     def battery_v(self) -> float | None:
         if self.over_ble and self.compact is not None:
-            return self.compact.battery / 100
+            return scaled(self.compact, "battery")
         if self.height is not None:
-            return self.height.battery / 100
-        return self.compact.battery / 100 if self.compact is not None else None
+            return scaled(self.height, "battery")
+        return scaled(self.compact, "battery") if self.compact is not None else None
 
     @property
     def log_state(self) -> LogState | None:

@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 from term.input.mapping import FULL
 from term.model import Model, battery_level, mode_name
-from term.protocol import Joystick, Mode, Op, WirelessState
+from term.protocol import Joystick, Mode, Op, WirelessState, scaled
 
 
 @dataclass(frozen=True, slots=True)
@@ -157,10 +157,10 @@ def readout(model: Model) -> Readout:
     v = model.battery_v
     if model.over_ble and model.compact is not None:
         c = model.compact
-        att: tuple[float, float, float] | None = (c.phi / 100, c.theta / 100, c.psi / 100)
+        att: tuple[float, float, float] | None = (scaled(c, "phi"), scaled(c, "theta"), scaled(c, "psi"))
     elif model.attitude is not None:
         a = model.attitude
-        att = (a.phi / 100, a.theta / 100, a.psi / 100)
+        att = (scaled(a, "phi"), scaled(a, "theta"), scaled(a, "psi"))
     else:
         att = None
     return Readout(mode_name(model.mode), model.mode == Mode.PANIC, ws, v,

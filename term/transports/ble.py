@@ -18,12 +18,10 @@ import contextlib
 from dataclasses import dataclass
 from typing import Any
 
+from term.protocol import BOARD_NAME_PREFIX as NAME_PREFIX
+from term.protocol import NUS_RX, NUS_SERVICE, NUS_TX  # we write RX; the board notifies TX
 from term.transports.base import Transport, TransportClosed, TransportError
 
-NUS_SERVICE = "6e400001-b5a3-f393-e0a9-e50e24dcca9e"
-NUS_RX = "6e400002-b5a3-f393-e0a9-e50e24dcca9e"  # we write
-NUS_TX = "6e400003-b5a3-f393-e0a9-e50e24dcca9e"  # the board notifies
-NAME_PREFIX = "Quadrupel"
 MAX_WRITE = 20  # ATT MTU 23 minus the 3-byte ATT header: what the nRF51 takes in one write
 
 
@@ -190,7 +188,7 @@ class BoardInfo:
 
 
 async def scan(hci: str | None = None, timeout: float = 3.0) -> list[BoardInfo]:
-    """The boards advertising nearby (name starting with "Quadrupel"), strongest first."""
+    """The boards advertising nearby (name starting with ``BOARD_NAME_PREFIX``), strongest first."""
     from bleak import BleakScanner
     from bleak.exc import BleakError
 

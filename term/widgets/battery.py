@@ -1,23 +1,23 @@
-"""Battery gauge with its thresholds: the board PANICs under 10.5 V while flying; under 11.1 V it is time to land."""
+"""Battery gauge with its thresholds (term.protocol's): the board PANICs under the low threshold while flying; under
+the nominal voltage it is time to land."""
 
 from __future__ import annotations
 
 from rich.console import RenderableType
 from rich.text import Text
 
-from term.model import BATTERY_FULL_V, BATTERY_PANIC_V, BATTERY_WARN_V, Model
+from term.model import BATTERY_FULL_V, BATTERY_PANIC_V, BATTERY_WARN_V, Model, battery_level
 from term.widgets.bars import hbar
 from term.widgets.base import ModelView
 
 LOW_END_V = 10.0
 
 
+LEVEL_STYLE = {"panic": "bold red", "warn": "yellow", "ok": "green"}
+
+
 def battery_style(volts: float) -> str:
-    if volts < BATTERY_PANIC_V:
-        return "bold red"
-    if volts < BATTERY_WARN_V:
-        return "yellow"
-    return "green"
+    return LEVEL_STYLE[battery_level(volts)]
 
 
 def threshold_ruler(width: int) -> Text:
@@ -51,9 +51,9 @@ class BatteryGauge(ModelView):
         out.append_text(threshold_ruler(width))
         out.append("\n")
         if v < BATTERY_PANIC_V:
-            out.append(f"BELOW {BATTERY_PANIC_V} V: land now", style="bold red")
+            out.append(f"BELOW {BATTERY_PANIC_V:g} V: land now", style="bold red")
         elif v < BATTERY_WARN_V:
-            out.append(f"under {BATTERY_WARN_V} V: time to land", style="yellow")
+            out.append(f"under {BATTERY_WARN_V:g} V: time to land", style="yellow")
         else:
-            out.append(f"▲ {BATTERY_PANIC_V} V panic  △ {BATTERY_WARN_V} V land", style="dim")
+            out.append(f"▲ {BATTERY_PANIC_V:g} V panic  △ {BATTERY_WARN_V:g} V land", style="dim")
         return out

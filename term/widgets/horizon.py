@@ -13,6 +13,7 @@ from rich.console import RenderableType
 from rich.text import Text
 
 from term.model import Model
+from term.protocol import scaled
 from term.widgets.base import ModelView
 
 SKY = "rgb(40,110,200)"
@@ -89,7 +90,7 @@ class Horizon(ModelView):
         h = max(3, self.content_size.height or 9)
         a = model.attitude
         out = Text()
-        for i, row in enumerate(horizon_rows(w, h, a.phi / 100 if a else 0.0, a.theta / 100 if a else 0.0)):
+        for i, row in enumerate(horizon_rows(w, h, scaled(a, "phi") if a else 0.0, scaled(a, "theta") if a else 0.0)):
             if i:
                 out.append("\n")
             out.append_text(row)
@@ -102,7 +103,7 @@ class HeadingTape(ModelView):
     def render_model(self, model: Model, now: float) -> RenderableType:
         w = max(20, self.content_size.width or 36)
         a = model.attitude
-        yaw = a.psi / 100 if a else 0.0
+        yaw = scaled(a, "psi") if a else 0.0
         out = heading_tape(w, yaw)
         out.append("\n")
         hdg = f"{yaw % 360:05.1f}"
@@ -112,5 +113,5 @@ class HeadingTape(ModelView):
         if a is None:
             out.append("no attitude yet", style="dim")
         else:
-            out.append(f"roll {a.phi / 100:+6.1f}°   pitch {a.theta / 100:+6.1f}°")
+            out.append(f"roll {scaled(a, 'phi'):+6.1f}°   pitch {scaled(a, 'theta'):+6.1f}°")
         return out

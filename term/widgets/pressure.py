@@ -6,7 +6,7 @@ from rich.console import RenderableType
 from rich.text import Text
 
 from term.model import Model
-from term.protocol import Flag, Mode
+from term.protocol import Flag, Mode, scaled
 from term.widgets.bars import cbar, hbar
 from term.widgets.base import ModelView
 
@@ -27,8 +27,8 @@ class PressureIndicator(ModelView):
             out.append("pressure  —\nheight    —\nvz        —")
             return out
         width = max(8, (self.content_size.width or 40) - 20)
-        height_m, sp_m, vz = h.height / 1000, h.setpoint / 1000, h.vz / 1000
-        out.append(f"pressure {h.pressure:7d} Pa  {h.temperature / 100:5.1f} °C\n")
+        height_m, sp_m, vz = scaled(h, "height"), scaled(h, "setpoint"), scaled(h, "vz")
+        out.append(f"pressure {h.pressure:7d} Pa  {scaled(h, 'temperature'):5.1f} °C\n")
         out.append("height   ")
         out.append_text(hbar(max(0.0, height_m), 0.0, HEIGHT_SPAN_M, width, "cyan"))
         out.append(f" {height_m:+6.2f} m\n")

@@ -5,7 +5,8 @@ from __future__ import annotations
 from rich.console import RenderableType
 from rich.text import Text
 
-from term.model import GYRO_LSB_PER_DPS, Model
+from term.model import Model
+from term.protocol import scaled
 from term.widgets.bars import cbar
 from term.widgets.base import ModelView
 
@@ -17,9 +18,8 @@ class RateGauges(ModelView):
         a = model.attitude
         width = max(9, ((self.content_size.width or 40) - 21) | 1)
         out = Text()
-        for i, (name, raw) in enumerate((("p roll ", a.sp if a else 0), ("q pitch", a.sq if a else 0),
-                                         ("r yaw  ", a.sr if a else 0))):
-            dps = raw / GYRO_LSB_PER_DPS
+        for i, (name, field) in enumerate((("p roll ", "sp"), ("q pitch", "sq"), ("r yaw  ", "sr"))):
+            dps = scaled(a, field) if a else 0.0
             out.append(f"{name} ")
             out.append_text(cbar(dps, SPAN_DPS, width))
             out.append(f" {dps:+6.0f}°/s" if a else "     —   ")

@@ -20,15 +20,16 @@ from textual.screen import Screen
 from textual.widgets import Button, Footer
 
 from term.input.mapping import FULL
-from term.model import Model
+from term.model import BATTERY_FULL_V, Model
 from term.phone import MODE_BUTTONS, TRIM_BUTTONS, Phone, Request, link_states, readout
 from term.widgets.bars import cbar, hbar
 from term.widgets.base import ModelView
+from term.widgets.battery import LEVEL_STYLE as BATTERY_STYLE
+from term.widgets.battery import LOW_END_V
 from term.widgets.events import EventsList
 from term.widgets.mode import ModeBanner
 
 LEVEL_STYLE = {"ok": "green", "active": "bold green", "info": "cyan", "warn": "yellow", "alarm": "bold white on red"}
-BATTERY_STYLE = {"panic": "bold red", "warn": "yellow", "ok": "green"}
 
 
 class PhoneRequest(Message):
@@ -193,7 +194,7 @@ class PhoneTelemetry(ModelView):
             out.append("—\n", style="dim")
         else:
             style = BATTERY_STYLE[r.battery_level]
-            out.append_text(hbar(r.battery_v, 10.0, 12.6, 12, style))
+            out.append_text(hbar(r.battery_v, LOW_END_V, BATTERY_FULL_V, 12, style))
             out.append(f" {r.battery_v:5.2f} V\n", style=style)
         if r.attitude is None:
             out.append("attitude —\n", style="dim")
