@@ -43,8 +43,10 @@ from term.recording import (
     MAGIC,
     RAW_ENCODING,
     LinkBytes,
+    LoggedEvent,
     Recording,
     RecordingError,
+    StationRecord,
     iter_file,
     session_parts,
 )
@@ -317,6 +319,8 @@ def _session_csv(src: Path, f: Any, board_units: bool, info: list[Recording]) ->
             row[1], row[2], row[3] = item.link, item.direction, spec.cls.__name__
             for k, v in packet_record(item.packet, columns[spec.type_id]).items():
                 row[index[k]] = "" if v is None else v
+        elif type(item) is not LoggedEvent:
+            continue  # the station's own records are for a replay, not a table
         else:
             row[3] = "log"
             row[-3:] = [item.severity, item.source, item.text]
@@ -363,6 +367,9 @@ def _session_mcap(src: Path, f: Any, info: list[Recording]) -> int:
             add(ch, item.t_ns, json.dumps(packet_record(item.packet, columns[spec.type_id])).encode())
         elif kind is LinkBytes:
             add(channel(f"/{item.link}/{item.direction}", RAW_ENCODING, 0), item.t_ns, item.data)
+        elif kind is StationRecord:  # kept as recorded, so the exported file replays as the session did
+            add(channel("/station", "json", 0), item.t_ns, json.dumps(item.data, ensure_ascii=False).encode())
+            continue
         else:
             if not log_schema:
                 log_schema = w.register_schema("foxglove.Log", "jsonschema", json.dumps(LOG_SCHEMA).encode())

@@ -11,6 +11,7 @@ import pytest
 from mcap.reader import make_reader
 
 from fcb_sim.flash_log import LOG_VARS, encode_log
+from term.events import LinkDown
 from term.export import ExportError, all_packet_schemas, export, packet_columns, packet_record
 from term.logfile import decode_to_rows, write_csv
 from term.protocol import (
@@ -27,7 +28,7 @@ from term.protocol import (
     column_scale,
     scaled,
 )
-from term.recording import LinkBytes, SessionRecorder, iter_file
+from term.recording import LinkBytes, SessionRecorder, StationRecord, iter_file
 
 WALL = 1_700_000_000_000_000_000
 
@@ -55,6 +56,7 @@ def record(directory: Path, *, close: bool = True) -> tuple[SessionRecorder, lis
         sent.append(("serial", "tx", js))
         if i == 150:
             rec.event(now + 0.001, "error", "link", "LINK LOST: nothing from the board for 0.5 s")
+            rec.station_event(LinkDown("cable", "cable pulled"), now + 0.001)  # for a replay, not for the tables
             ev = Event(int(EventCode.LOW_BATTERY), 1040, 123456)
             rec.received("serial", cable.encode(ev), now + 0.001)
             sent.append(("serial", "rx", ev))
@@ -128,9 +130,10 @@ def test_a_session_to_mcap_has_every_frame_on_its_channel_in_order(tmp_path: Pat
     assert got == want
     assert events == [{"timestamp": {"sec": WALL // 10**9 + 1, "nsec": 501_000_000}, "level": 4,
                        "message": "LINK LOST: nothing from the board for 0.5 s", "name": "link", "file": "", "line": 0}]
-    # The exported file carries the raw bytes too: it is a recording, the same bytes at the same times.
-    assert [i for i in iter_file(out) if isinstance(i, LinkBytes)] == \
-        [i for i in iter_file(rec.path) if isinstance(i, LinkBytes)]
+    # The exported file carries the raw bytes and the station's records too: it replays as the session did.
+    kept = (LinkBytes, StationRecord)
+    assert [i for i in iter_file(out) if isinstance(i, kept)] == [i for i in iter_file(rec.path) if isinstance(i, kept)]
+    assert any(isinstance(i, StationRecord) for i in iter_file(out))
 
 
 def test_a_recording_cut_short_is_written_out_complete(tmp_path: Path) -> None:
