@@ -12,8 +12,9 @@ column. The output must name an image (.png, .svg, .pdf) in a folder that exists
 from __future__ import annotations
 
 import csv
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from pathlib import Path
+from typing import TextIO
 
 from term.schema import Number, one_line, shown
 
@@ -45,6 +46,7 @@ COLUMNS: dict[str, Number] = {
 }
 ANY_COLUMN = Number(-INT32, INT32)
 FIELD_MAX = 32  # characters: a longer field is no number the board logs (csv's own limit is 131 072)
+LINE_MAX = 4096  # characters of a row: COLUMNS_MAX fields of FIELD_MAX, three times over
 COLUMNS_MAX = 40  # the board logs 18 variables; each column not in GROUPS gets a panel of its own
 IMAGE_TYPES = (".png", ".svg", ".pdf")
 
@@ -64,7 +66,7 @@ def read_log(path: Path) -> dict[str, list[float]]:
     naming the file, the line and the column."""
     try:
         with path.open(newline="", encoding="utf-8-sig") as f:
-            reader = csv.reader(f, strict=True)
+            reader = csv.reader(_lines(f, path), strict=True)
             try:
                 header = next(reader, None)
                 if not header:
@@ -89,6 +91,17 @@ def read_log(path: Path) -> dict[str, list[float]]:
     except OSError as exc:
         raise PlotError(f"cannot read {path}: {exc.strerror or exc}") from None
     return cols
+
+
+def _lines(f: TextIO, path: Path) -> Iterator[str]:
+    """The file's lines, none longer than LINE_MAX: a file without line ends (/dev/zero, a binary) is refused
+    instead of read whole into memory."""
+    n = 0
+    while line := f.readline(LINE_MAX + 1):
+        n += 1
+        if len(line) > LINE_MAX:
+            raise PlotError(f"{path} line {n} is longer than {LINE_MAX} characters: not a flight log")
+        yield line
 
 
 def _check_header(path: Path, header: list[str]) -> None:

@@ -141,14 +141,16 @@ def _edit(log: Path, tmp_path: Path, column: str, value: str, name: str = "edite
     (lambda log, d: _edit(log, d, "mode", "2.5"), "column mode: must be an integer"),
     (lambda log, d: _edit(log, d, "phi", "-inf"), "line 2, column phi: must be a number between"),
     (lambda log, d: _edit(log, d, "phi", "1e300"), "column phi: must be a number between"),
-    (lambda log, d: _edit(log, d, "phi", "x" * 140_000), "field larger than field limit"),
-    (lambda log, d: _edit(log, d, "phi", "1" * 100_000), "column phi: must be a number between"),
+    (lambda log, d: _edit(log, d, "phi", "x" * 140_000), "line 2 is longer than 4096 characters"),
+    (lambda log, d: _edit(log, d, "phi", '"' + "1" * 3000 + '\n' + "2" * 3000 + '"'), "column phi: must be a number"),
+    (lambda log, d: _edit(log, d, "phi", "1" * 1000), "column phi: must be a number between"),
     (lambda log, d: _edit(log, d, "t_us", "-1"), "column t_us: must be an integer between 0 and"),
     (lambda log, d: _edit(log, d, "phi", "1,2"), "line 2: 20 fields, the header has 19"),
     (lambda log, d: _edit(log, d, "phi", '"1'), "not a readable CSV (unexpected end of data)"),
     (lambda log, d: _write(d, b"t_us,phi\n0,\xff\xfe\n"), "is not UTF-8 text (byte 0xff)"),
     (lambda log, d: _write(d, "t_us,phi,phi\n0,1,2\n"), "column 3 is 'phi' again"),
     (lambda log, d: _write(d, "t_us,phi\n"), "has a header but no records"),
+    (lambda log, d: Path("/dev/zero"), "line 1 is longer than 4096 characters"),  # read no further than that
 ])
 def test_plot_refuses_a_csv_that_is_not_a_flight_log(capsys: pytest.CaptureFixture[str], tmp_path: Path,
                                                      make, words: str) -> None:  # noqa: ANN001
