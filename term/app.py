@@ -41,6 +41,8 @@ from term.logfile import LogDownload, log_filename, write_csv
 from term.model import Model
 from term.phone import Phone, RunAction, SendCommand, SetAxes
 from term.protocol import Joystick, LogState, Mode, Op
+from term.recording import SessionRecorder
+from term.replay import Replay
 from term.station import RADIO_SESSION, Station
 from term.transports.base import Transport
 from term.widgets.base import ModelView
@@ -232,19 +234,34 @@ class TermApp(LogDownloads, App[int]):
         radio: Transport | None = None,
         primary_ble: bool = False,
         start_screen: str = "flight",
+        recorder: SessionRecorder | None = None,
+        replay: Replay | None = None,
     ) -> None:
         """``transport``: the board's link (the cable, or BLE with ``primary_ble``); ``radio``: a BLE transport
-        to the same board beside the cable, for the handover; ``start_screen``: "flight" or "wireless"."""
+        to the same board beside the cable, for the handover; ``start_screen``: "flight" or "wireless".
+        ``recorder``: the session recording (the transports already tapped, term.recording), kept up to date
+        with the station's events and the events list; ``replay``: play a recording instead of flying (no
+        transports: the panels show the recording, the pilot's keys play it)."""
         super().__init__()
         from term.config import JOYSTICK_POLICIES
 
         self.config = config or Config()
         self.keymap: tuple[KeyBinding, ...] = self.config.keymap
+        self.recorder = recorder
+        self.replay = replay
+        self._noted: object = None  # the last events-list entry recorded
+        if replay is not None:
+            clock = replay.clock  # the panels, plots and events run on the recording's time
+            joystick = False
         self.clock = clock
         self.render_hz = render_hz
         self.joystick_hz = joystick_hz
         model = Model(start=clock(), link_name=transport.name if transport else "",
                       radio_name=radio.name if radio is not None else "", primary_ble=primary_ble)
+        if replay is not None:  # the links the recording was made over
+            model.radio_name = replay.meta.get("radio", "")
+            model.primary_ble = replay.meta.get("primary_ble", "") == "1"
+        self._replay_wall: float | None = None
         cable_session = {"link_timeout": self.config.link_timeout,
                          **JOYSTICK_POLICIES[self.config.joystick_policy], **(session_options or {})}
         self.station = Station(model, cable=transport, radio=radio, cable_session=cable_session,
@@ -271,6 +288,10 @@ class TermApp(LogDownloads, App[int]):
         unknown = {b.action.local for b in self.keymap if b.action.local} - set(self.local)
         if unknown:
             raise ValueError(f"key map: no local action named {', '.join(sorted(unknown))}")
+        if replay is not None:
+            self.keymap = tuple(b for b in self.keymap if b.action.local is not None)  # no board to command
+            for keys, action, text in REPLAY_KEYS:
+                self._bindings.bind(keys, action, text, priority=True)
         for b in self.keymap:
             self._bindings.bind(
                 ",".join(b.keys), f"pilot('{b.action.name}')", b.action.description,
@@ -332,6 +353,10 @@ class TermApp(LogDownloads, App[int]):
 
     def _on_station_event(self, ev: StationEvent) -> None:
         """The app's reactions to the station's events (the model has them already)."""
+        if self.recorder is not None:
+            now = self.clock()
+            self.recorder.station_event(ev, now)
+            self._record_notes(now)
         if type(ev) is Fatal:
             self._fatal(ev.message, ev.code)
         elif type(ev) is NotSent and ev.title is not None:
@@ -369,9 +394,14 @@ class TermApp(LogDownloads, App[int]):
     # --- rendering ----------------------------------------------------------------------------------------
 
     def render_now(self) -> None:
+        if self.replay is not None:
+            self._replay_step()
         now = self.clock()
         self.station.sample()
         self._check_download(now)
+        if self.recorder is not None:
+            self._record_notes(now)  # (notes written straight into the model, as the log download does)
+            self.recorder.poll(now)
         if not self.screen_stack or not self.is_running:
             return  # shutting down
         model = self.model
@@ -468,6 +498,72 @@ class TermApp(LogDownloads, App[int]):
             a = b.action
             keys = ", ".join(pretty_key(k) for k in b.keys)
             yield SystemCommand(f"{a.group}: {a.description}", f"key {keys}", _bound(self.perform, a))
+
+
+    # --- recording and replay (term/recording.py, term/replay.py) --------------------------------------------
+
+    def _record_notes(self, now: float) -> None:
+        """The events list's new lines to the recording (its /events channel: what the pilot read)."""
+        assert self.recorder is not None
+        new = []
+        for entry in reversed(self.model.events):
+            if entry is self._noted:
+                break
+            new.append(entry)
+        for entry in reversed(new):
+            self.recorder.event(now, entry.severity, entry.source, entry.text)
+        if new:
+            self._noted = new[0]
+
+    def _replay_step(self) -> None:
+        """Play the recording on by the wall time since the last step; the link panel says it is a replay."""
+        replay = self.replay
+        assert replay is not None
+        wall = time.monotonic()
+        dt, self._replay_wall = (0.0 if self._replay_wall is None else wall - self._replay_wall), wall
+        for ev in replay.advance(dt):
+            self.station.emit(ev)
+        self.model.link_name = f"{replay.status()}  {Path(replay.source).name}"
+        self.sub_title = replay.status()
+
+    def replay_seek(self, t: float) -> None:
+        """Jump to ``t`` s into the recording (back: a fresh model brought forward to it)."""
+        replay = self.replay
+        assert replay is not None
+        if replay.seek(t):
+            old = self.model
+            self.model = Model(start=0.0, radio_name=old.radio_name, primary_ble=old.primary_ble)
+        for ev in replay.catch_up():
+            self.station.emit(ev)
+        self.model.link_name = f"{replay.status()}  {Path(replay.source).name}"
+        self.render_now()
+
+    def action_replay(self, what: str) -> None:
+        replay = self.replay
+        if replay is None:
+            return
+        if what == "pause":
+            replay.paused = not replay.paused
+        elif what == "faster":
+            replay.faster()
+        elif what == "slower":
+            replay.slower()
+        elif what in ("back", "forward"):
+            self.replay_seek(replay.position + (REPLAY_SEEK_S if what == "forward" else -REPLAY_SEEK_S))
+        elif what == "start":
+            self.replay_seek(0.0)
+        self.notify(replay.status(), timeout=1.5)
+
+
+REPLAY_SEEK_S = 5.0
+REPLAY_KEYS = (  # term replay: the pilot's keys have no board to command; these play the recording
+    ("space", "replay('pause')", "pause / play"),
+    ("right", "replay('forward')", f"{REPLAY_SEEK_S:g} s on"),
+    ("left", "replay('back')", f"{REPLAY_SEEK_S:g} s back"),
+    ("plus,equals_sign", "replay('faster')", "faster"),
+    ("minus", "replay('slower')", "slower"),
+    ("home", "replay('start')", "from the start"),
+)
 
 
 def _bound(fn: Callable[[Action], None], action: Action) -> Callable[[], None]:

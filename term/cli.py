@@ -9,6 +9,7 @@
     term plot LOG.csv -o out.png                  draw a downloaded flight log
     term export SESSION|LOG.csv|--latest -o OUT   a session recording or flash log as MCAP or CSV (its units)
     term recordings                               list the session recordings: start, length, size
+    term replay SESSION|--latest                  play a recording back in the same screens, no board needed
 
 Errors a user can cause end in one line on stderr and a non-zero exit, never a traceback: 2 for bad arguments,
 a missing port or a board that will not start; 3 for a board that speaks another protocol version.
@@ -71,6 +72,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--link-timeout", type=float, default=None, help="seconds without data before LINK LOST")
     p.add_argument("--log-dir", type=Path, default=None, help="where downloaded logs are written as CSV")
     p.add_argument("--no-joystick", action="store_true", help="keyboard only; do not look for a joystick")
+    p.add_argument("--no-record", action="store_true", help="do not record this session (by default every frame "
+                   "both ways and every event is kept: 'term recordings')")
+    p.add_argument("--record-dir", type=Path, default=None, help="where session recordings are kept (default: "
+                   "the platform's user data directory)")
     return p
 
 
@@ -126,6 +131,69 @@ def _export(a: argparse.Namespace) -> int:
     return 0
 
 
+def build_replay_parser() -> argparse.ArgumentParser:
+    p = _Parser(prog="term replay", description="Play a session recording back in the terminal's screens (all "
+                "panels, plots and events), no board needed. Keys: space pause, left/right 5 s back/on, +/- "
+                "faster/slower, home from the start; F1 help, ctrl+q quit.")
+    p.add_argument("source", nargs="?", type=Path, help="a session recording (.mcap, or a 'term export' MCAP)")
+    p.add_argument("--latest", action="store_true", help="the newest session recording (instead of a file)")
+    p.add_argument("--speed", type=float, default=1.0, help="playback speed, 0.25 to 16 (default 1)")
+    p.add_argument("--dir", type=Path, default=None, help="where recordings are kept (default: 'term recordings')")
+    return p
+
+
+def _replay(a: argparse.Namespace) -> int:
+    from term.config import ConfigError, load_config
+    from term.recording import RecordingError, latest
+    from term.replay import SPEEDS, Replay
+
+    if a.latest == (a.source is not None):
+        raise UsageError("give one recording, or --latest")
+    if not SPEEDS[0] <= a.speed <= SPEEDS[-1]:  # (nan fails both)
+        raise UsageError(f"--speed must be between {SPEEDS[0]:g} and {SPEEDS[-1]:g}, got {a.speed:g}")
+    try:
+        replay = Replay.load(latest(a.dir) if a.latest else a.source)
+    except RecordingError as exc:
+        raise UsageError(str(exc)) from None
+    replay.speed = a.speed
+    try:
+        cfg = load_config(None)
+    except ConfigError as exc:
+        raise UsageError(str(exc)) from None
+
+    async def run() -> int:
+        from term.app import TermApp
+
+        app = TermApp(None, config=cfg, replay=replay)
+        _running[:] = [(app, asyncio.get_running_loop())]
+        try:
+            await app.run_async()
+        finally:
+            _running.clear()
+            await app.shutdown()
+        return 0
+
+    with _terminate_on_signals():
+        return asyncio.run(run())
+
+
+def _recorder(args: argparse.Namespace, transport: Any, radio: Any, ble_only: bool) -> Any:
+    """The session recording (term/recording.py) unless --no-record; its trouble is one line, never the end."""
+    if args.no_record:
+        return None
+    import time
+
+    from term.recording import SessionRecorder, default_directory
+
+    meta = {"cable": transport.name, "radio": radio.name if radio is not None else "",
+            "primary_ble": "1" if ble_only else "0"}
+    rec = SessionRecorder(args.record_dir or default_directory(), time.monotonic(), meta=meta)
+    if rec.error:
+        print(f"term: {rec.error} (flying without a recording)", file=sys.stderr)
+        return None
+    return rec
+
+
 def _recordings(a: argparse.Namespace) -> int:
     from term.recording import default_directory, session_table
 
@@ -158,6 +226,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             return _export(build_export_parser().parse_args(argv[1:]))
         if argv and argv[0] == "recordings":
             return _recordings(build_recordings_parser().parse_args(argv[1:]))
+        if argv and argv[0] == "replay":
+            return _replay(build_replay_parser().parse_args(argv[1:]))
         return _fly(build_parser().parse_args(argv))
     except UsageError as exc:
         print(f"term: {exc}", file=sys.stderr)
@@ -282,9 +352,19 @@ async def _run_app(transport: Any, cfg: Any, args: argparse.Namespace, radio: An
     ble_only = bool(args.ble and not args.serial)
     # Over BLE the joystick goes out on change (plus a keep-alive), as the protocol asks: the radio is slow.
     session = dict(RADIO_SESSION) if ble_only else {}
+    recorder = _recorder(args, transport, radio, ble_only)
+    if recorder is not None:  # every byte both ways on both links, tapped at the transports (term/recording.py)
+        import time
+
+        from term.events import CABLE, RADIO
+        from term.recording import RecordingTransport
+
+        transport = RecordingTransport(transport, recorder, CABLE, time.monotonic)
+        if radio is not None:
+            radio = RecordingTransport(radio, recorder, RADIO, time.monotonic)
     app = TermApp(transport, config=cfg, joystick=not args.no_joystick, log_directory=args.log_dir,
                   session_options=session, radio=radio, primary_ble=ble_only,
-                  start_screen="wireless" if ble_only else "flight")
+                  start_screen="wireless" if ble_only else "flight", recorder=recorder)
     _running[:] = [(app, asyncio.get_running_loop())]
     hangup = asyncio.create_task(_exit_on_hangup(sys.stdin))
     try:
@@ -297,6 +377,13 @@ async def _run_app(transport: Any, cfg: Any, args: argparse.Namespace, radio: An
             if t is not None:
                 with contextlib.suppress(Exception):
                     await t.close()
+        if recorder is not None:
+            recorder.close()
+    with contextlib.suppress(OSError, ValueError):  # (the terminal may be gone: term ended with it)
+        if recorder is not None and recorder.error:
+            print(f"term: {recorder.error}", file=sys.stderr)
+        elif recorder is not None:
+            print(f"session recorded: {recorder.path} ('term export --latest -o flight.mcap' for Foxglove)")
     if app.exit_message:
         print(f"term: {app.exit_message}", file=sys.stderr)
     code = app.return_code

@@ -31,6 +31,20 @@ from term.protocol import (
     Status,
 )
 
+
+@pytest.fixture(autouse=True, scope="session")
+def _user_data_in_a_temporary_directory(tmp_path_factory: pytest.TempPathFactory) -> Iterator[None]:
+    """term records every session in the platform's user data directory: a test run keeps its own apart
+    (platformdirs reads XDG_DATA_HOME; child processes inherit it)."""
+    old = os.environ.get("XDG_DATA_HOME")
+    os.environ["XDG_DATA_HOME"] = str(tmp_path_factory.mktemp("xdg-data"))
+    yield
+    if old is None:
+        os.environ.pop("XDG_DATA_HOME", None)
+    else:
+        os.environ["XDG_DATA_HOME"] = old
+
+
 # --- a real pseudo-terminal ---------------------------------------------------------------------------------
 
 
