@@ -125,6 +125,7 @@ class Nak(IntEnum):
     NO_BLE_CONNECTION = 12
     BUSY = 13
     PANIC_ACTIVE = 14
+    NOT_IMPLEMENTED = 15  # a board without the feature (the C reference board, firmware/examples/host_board.c)
 
 
 NAK_TEXT = {
@@ -143,6 +144,7 @@ NAK_TEXT = {
     Nak.NO_BLE_CONNECTION: "no BLE connection: connect the phone first",
     Nak.BUSY: "board busy",
     Nak.PANIC_ACTIVE: "PANIC in progress",
+    Nak.NOT_IMPLEMENTED: "not implemented on this board",
 }
 
 
