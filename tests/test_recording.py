@@ -3,15 +3,23 @@ SIGKILL or a pulled cable leaves), rotation, the size bound, and errors that sto
 
 from __future__ import annotations
 
+import fcntl
 import json
+import os
+import select
 import struct
+import subprocess
+import sys
+import termios
+import time
 from pathlib import Path
 
 import pytest
 from mcap.opcode import Opcode
 from mcap.reader import make_reader
 
-from term.protocol import Attitude, Encoder, Heartbeat, HeartbeatAck, Joystick
+from term.export import DecodedFrame, decode, export
+from term.protocol import Attitude, Encoder, Heartbeat, HeartbeatAck, Joystick, Mode
 from term.recording import (
     LinkBytes,
     RecordingError,
@@ -231,3 +239,47 @@ def test_a_damaged_chunk_inside_ends_in_one_error(tmp_path: Path) -> None:
         for item in iter_file(bad / "x.mcap"):
             items.append(item)
     assert items  # what came before the damage was read
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="a pty and /proc")
+def test_term_killed_in_flight_leaves_a_recording_readable_up_to_its_last_second(tmp_path: Path) -> None:
+    """`term --sim` in a real terminal, SIGKILLed while telemetry streams: no close, no summary. The file reads
+    to within a second of the kill, frames in order, and exports to a complete MCAP."""
+    master, slave = os.openpty()
+    fcntl.ioctl(slave, termios.TIOCSWINSZ, struct.pack("HHHH", 40, 120, 0, 0))
+    proc = subprocess.Popen([sys.executable, "-m", "term.cli", "--sim", "--no-joystick", "--no-radio",
+                             "--record-dir", str(tmp_path)], stdin=slave, stdout=slave, stderr=slave,
+                            start_new_session=True, env={**os.environ, "TERM": "xterm-256color"})
+    os.close(slave)
+    drawn = b""
+    try:
+        deadline = time.monotonic() + 30
+        started: float | None = None
+        while time.monotonic() < deadline:  # keep draining the screen: term must never block on it
+            if select.select([master], [], [], 0.05)[0]:
+                drawn = (drawn + os.read(master, 65536))[-200_000:]
+            if started is None and b"link OK" in drawn:
+                started = time.monotonic()
+            if started is not None and time.monotonic() - started > 2.5:
+                break
+        assert started is not None, "term --sim did not come up"
+        killed_at = time.time_ns()
+        proc.kill()  # SIGKILL: nothing of term runs after this
+        proc.wait(10)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+        os.close(master)
+    files = list_files(tmp_path)
+    assert len(files) == 1
+    info = scan(files[0])
+    assert not info.complete and info.last_ns is not None
+    assert killed_at - info.last_ns <= 1.5e9  # the flush period (1 s), and room for a loaded machine
+    frames = [p for i in decode(iter_file(files[0])) if isinstance(i, DecodedFrame) and i.direction == "rx"
+              for p in [i.packet]]
+    attitudes = [p for p in frames if isinstance(p, Attitude)]
+    assert len(attitudes) > 50 and all(p.mode == Mode.SAFE for p in attitudes)
+    res = export(files[0], tmp_path / "out" / "flight.mcap")
+    assert not res.complete and res.rows > len(frames)
+    with (tmp_path / "out" / "flight.mcap").open("rb") as f:
+        assert make_reader(f).get_summary() is not None
