@@ -268,3 +268,126 @@ def test_the_command_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) ->
         assert err.startswith("term: ") and why in err and err.count("\n") == 1, err
     assert main(["recordings", "--dir", str(tmp_path / "none")]) == 1
     assert "no session recordings" in capsys.readouterr().err
+
+
+async def test_a_flight_with_a_handover_is_recorded_whole_and_agrees_with_the_flash_log(tmp_path: Path) -> None:
+    """The simulator flown through TermApp (cable, handover to BLE, back to the cable) with the recording on, then:
+    the session file read with the mcap package holds every frame each link decoded, in order; the export has
+    plausible values in the table's units; its CSV agrees with the board's own flash log of the same flight."""
+    import asyncio
+    import bisect
+    import time
+    from collections.abc import Callable
+
+    from term.app import TermApp
+    from term.cli import SimBoard
+    from term.events import CABLE, RADIO, FromLink
+    from term.link import PacketReceived
+    from term.protocol import Decoder, Heartbeat, Joystick, Op
+    from term.recording import RecordingTransport
+    from term.transports.ble import BleTransport
+    from term.transports.serial import SerialTransport
+
+    sim = SimBoard(seed=3, radio=True)
+    port = sim.start()
+    decoded: dict[str, list] = {CABLE: [], RADIO: []}
+    try:
+        rec = SessionRecorder(tmp_path / "rec", time.monotonic(), meta={"cable": port, "radio": sim.ble_address})
+        cable = RecordingTransport(SerialTransport(port), rec, CABLE, time.monotonic)
+        radio = RecordingTransport(BleTransport(sim.ble_address, hci=sim.ble_hci, timeout=5.0), rec, RADIO,
+                                   time.monotonic)
+        app = TermApp(cable, joystick=False, radio=radio, recorder=rec, log_directory=tmp_path / "logs")
+        live = app.station.on_event
+        assert live is not None
+
+        def tap(ev: object) -> None:  # what each link decoded, in order, as the model got it
+            if type(ev) is FromLink and type(ev.event) is PacketReceived:
+                decoded[ev.link].append(ev.event.packet)
+            live(ev)  # type: ignore[arg-type]
+
+        app.station.on_event = tap
+        async with app.run_test(size=(120, 44)) as pilot:
+            m = app.model
+
+            async def until(cond: Callable[[], bool], timeout: float = 15.0) -> None:
+                async with asyncio.timeout(timeout):
+                    while not cond():
+                        await pilot.pause(0.02)
+
+            async def fly(seconds: float) -> None:
+                app.simulate_key("2")
+                await until(lambda: m.mode == Mode.MANUAL)
+                app.set_stick(Joystick(2000, -1500, 0, 9000, 0))
+                await pilot.pause(seconds)
+                app.set_stick(Joystick(0, 0, 0, 0, 0))
+                app.simulate_key("0")
+                await until(lambda: m.mode == Mode.SAFE)
+
+            await until(lambda: m.mode == Mode.SAFE and m.radio_up and m.link is not None)
+            app.simulate_key("f2")  # the flash log records
+            await until(lambda: m.status is not None and bool(m.status.flags & 4))
+            await fly(1.5)  # over the cable
+            app.simulate_key("8")  # the handover
+            await until(lambda: m.over_ble)
+            await fly(1.5)  # over BLE
+            app.send(Op.WIRELESS, 0)  # control back to the cable
+            await until(lambda: not m.over_ble and m.wireless == 0 and not m.link_lost)
+            app.simulate_key("f3")
+            await until(lambda: m.status is not None and not m.status.flags & 4)
+            app.simulate_key("f5")  # download the flash log to CSV
+            await until(lambda: "log saved" in m.download_note, 40.0)
+            app.exit()
+        rec.close()
+    finally:
+        sim.stop()
+    assert rec.path is not None and len(decoded[CABLE]) > 300 and len(decoded[RADIO]) > 50
+
+    # 1. The session file through the mcap package: every frame each link decoded, in order.
+    streams: dict[str, list] = {CABLE: [], RADIO: []}
+    decoders = {CABLE: Decoder(), RADIO: Decoder()}
+    with rec.path.open("rb") as f:
+        reader = make_reader(f)
+        assert reader.get_summary() is not None
+        for _, channel, message in reader.iter_messages(topics=["/cable/rx", "/radio/rx"], log_time_order=False):
+            link = channel.topic.split("/")[1]
+            streams[link] += decoders[link].feed(message.data)
+    assert streams == decoded
+
+    # 2. The export: plausible values in the table's units on both links.
+    export(rec.path, tmp_path / "flight.mcap")
+    values: dict[str, list[dict]] = {}
+    with (tmp_path / "flight.mcap").open("rb") as f:
+        for _, channel, message in make_reader(f).iter_messages(log_time_order=False):
+            if channel.topic.count("/") == 3:
+                values.setdefault(channel.topic, []).append(json.loads(message.data))
+    assert all(abs(a["phi_deg"]) < 45 and abs(a["theta_deg"]) < 45 for a in values["/cable/rx/Attitude"])
+    assert all(10.5 < h["battery_v"] < 13 and abs(h["height_m"]) < 5 for h in values["/cable/rx/Height"])
+    assert all(-1.2 < mo["saz_g"] < -0.5 for mo in values["/cable/rx/Motion"])  # about -1 g: it flies level
+    assert {c["mode_name"] for c in values["/radio/rx/Compact"]} >= {"SAFE", "MANUAL"}
+    assert any(j["lift"] == 9000 for j in values["/radio/tx/Joystick"])
+
+    # 3. The CSV against the flash log of the same flight, both in the table's units.
+    export(rec.path, tmp_path / "session.csv")
+    (log_csv,) = (tmp_path / "logs").glob("*.csv")
+    export(log_csv, tmp_path / "log.csv")
+    session = list(csv.DictReader((tmp_path / "session.csv").open(encoding="utf-8")))
+    log = list(csv.DictReader((tmp_path / "log.csv").open(encoding="utf-8")))
+    # The board's clock against the receive times: the quickest heartbeat gives the offset.
+    hb = [(float(r["t_s"]), float(r["board_ms_s"])) for r in session if r["packet"] == "Heartbeat"
+          and r["link"] == CABLE]
+    offset = min(t - b for t, b in hb)
+    log_t = [float(r["t_s"]) for r in log]
+    flying = [r for r in session if r["packet"] == "Attitude" and r["link"] == CABLE and r["mode_name"] == "MANUAL"]
+    assert len(flying) > 40
+    matched = 0
+    for r in flying:
+        board_t = float(r["t_s"]) - offset  # when the board sent it, at the latest
+        lo = bisect.bisect_left(log_t, board_t - 0.08)
+        hi = bisect.bisect_right(log_t, board_t + 0.005)
+        if any(all(abs(float(log[i][k]) - float(r[k])) <= 0.011 for k in ("phi_deg", "theta_deg", "psi_deg"))
+               and log[i]["mode_name"] == "MANUAL" for i in range(lo, hi)):
+            matched += 1
+    assert matched >= 0.9 * len(flying), (matched, len(flying))
+    # The attitude changed while flying, so the match means something.
+    assert len({(r["phi_deg"], r["theta_deg"], r["psi_deg"]) for r in flying}) > 0.5 * len(flying)
+    assert Heartbeat in {type(p) for p in decoded[CABLE]}
