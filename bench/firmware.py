@@ -1,0 +1,156 @@
+"""The C codec's cost: Cortex-M0 flash and RAM, and the host decode rate beside the Python decoder. Prints one JSON
+line (the last); a missing compiler is one line before it, and its figures are null.
+
+- Cortex-M0 (the nRF51822's core; `make -C firmware m0`: Debian's arm-none-eabi-gcc, -mcpu=cortex-m0 -mthumb -Os):
+  ``library_*``: the whole library (qp_protocol.o: every encoder, the decoder, CRC, COBS, half floats);
+  ``board_*``: what a board links of it (firmware/m0/size_probe.c with --gc-sections: the decoder, the Hello check,
+  every encoder through qp_encode, newlib's memset/memcpy). ``board_static_ram_bytes`` is its state (decoder,
+  encoder, one packet, one frame); ``codec_stack_bytes`` the deepest stack of a codec call (gcc
+  -fcallgraph-info; memset/memcpy's frames are not in it); ``board_ram_bytes`` the sum. Goal: <= 4096 B flash,
+  <= 256 B RAM. The report's whole firmware was 52 160 B of text, 244 B of data and 3232 B of bss (report 4.1).
+- Host: bench.codec's realistic traffic (one simulated minute, both directions), cut into 32-byte reads, decoded by
+  the C decoder (timed inside the C process: firmware/test/qp_runner.c, built -O2) and by term.protocol.Decoder.
+
+Run: `python -m bench.firmware [--seconds S]`.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import platform
+import re
+import shutil
+import subprocess
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+from bench.codec import traffic
+from term import protocol as p
+
+FIRMWARE = Path(__file__).resolve().parent.parent / "firmware"
+REPORT_FIRMWARE_TEXT = 52160  # report section 4.1: the lab's whole firmware
+CHUNK = 32  # bytes per read fed to both decoders
+ENTRY_POINTS = ("qp_decode", "qp_decode_byte", "qp_encode", "qp_hello_compatible")
+
+
+def _make(build: Path, *targets: str) -> None:
+    proc = subprocess.run(["make", "-s", "-C", str(FIRMWARE), f"BUILD={build}", *targets], capture_output=True,
+                          text=True)
+    if proc.returncode != 0:
+        raise SystemExit(f"bench.firmware: the firmware does not build:\n{proc.stdout}{proc.stderr}")
+
+
+def _size(path: Path) -> tuple[int, int, int]:
+    """(text, data, bss) as arm-none-eabi-size counts them (text includes read-only data)."""
+    out = subprocess.run(["arm-none-eabi-size", str(path)], capture_output=True, text=True, check=True).stdout
+    text, data, bss = out.splitlines()[1].split()[:3]
+    return int(text), int(data), int(bss)
+
+
+def _deepest_stack(ci_files: list[Path]) -> int:
+    """The largest stack any codec entry point can use: its frame plus its deepest chain of callees, from gcc's
+    -fcallgraph-info=su files (VCG graphs: nodes with "N bytes", edges caller -> callee)."""
+    frame: dict[str, int] = {}
+    calls: dict[str, set[str]] = {}
+    for path in ci_files:
+        for line in path.read_text().splitlines():
+            if m := re.match(r'node: \{ title: "([^"]+)" label: "[^"]*\\n(\d+) bytes', line):
+                frame[m.group(1)] = int(m.group(2))
+            elif m := re.match(r'edge: \{ sourcename: "([^"]+)" targetname: "([^"]+)"', line):
+                calls.setdefault(m.group(1), set()).add(m.group(2))
+
+    def depth(fn: str, seen: frozenset[str]) -> int:
+        if fn in seen:  # no recursion in the codec; stop if there ever is
+            return 0
+        below = [depth(c, seen | {fn}) for c in calls.get(fn, ())]
+        return frame.get(fn, 0) + max(below, default=0)
+
+    return max(depth(fn, frozenset()) for fn in ENTRY_POINTS)
+
+
+def m0_sizes() -> dict[str, Any]:
+    """Build the Cortex-M0 library and board probe in a temporary directory and measure them."""
+    with tempfile.TemporaryDirectory(prefix="qp-m0-") as tmp:
+        build = Path(tmp)
+        _make(build, "m0")
+        m0 = build / "m0"
+        lib_text, lib_data, lib_bss = _size(m0 / "qp_protocol.o")
+        text, data, bss = _size(m0 / "size_probe.elf")
+        stack = _deepest_stack(sorted(m0.glob("size_probe.elf-*.ci")))
+    compiler = subprocess.run(["arm-none-eabi-gcc", "-dumpversion"], capture_output=True, text=True).stdout.strip()
+    return {
+        "library_flash_bytes": lib_text + lib_data,
+        "library_static_ram_bytes": lib_data + lib_bss,
+        "board_flash_bytes": text + data,
+        "board_static_ram_bytes": data + bss,
+        "codec_stack_bytes": stack,
+        "board_ram_bytes": data + bss + stack,
+        "share_of_report_firmware_text_pct": round(100 * (text + data) / REPORT_FIRMWARE_TEXT, 1),
+        "arm_gcc": compiler,
+    }
+
+
+def host_rates(seconds: int, repeats: int = 5) -> dict[str, Any]:
+    """Decode rates of the C decoder (inside its own process) and the Python decoder on the same stream."""
+    enc = p.Encoder()
+    stream = b"".join(enc.encode(pkt) for pkt in traffic(seconds))
+    frames = enc.frames
+    with tempfile.TemporaryDirectory(prefix="qp-host-") as tmp:
+        build = Path(tmp)
+        runner = build / "qp_runner"
+        _make(build, str(runner))
+        proc = subprocess.run([str(runner)], input=f"bench {repeats} {CHUNK} {stream.hex()}\n", capture_output=True,
+                              text=True, check=True)
+    _, ns, packets = proc.stdout.split()
+    assert int(packets) == frames * repeats, (packets, frames)
+    c_s = int(ns) / 1e9 / repeats
+
+    slices = [stream[i : i + CHUNK] for i in range(0, len(stream), CHUNK)]
+    best = float("inf")
+    for _ in range(repeats):
+        dec = p.Decoder()
+        t0 = time.perf_counter()
+        for s in slices:
+            dec.feed(s)
+        best = min(best, time.perf_counter() - t0)
+        assert dec.stats.frames_ok == frames
+    return {
+        "host_frames": frames,
+        "host_bytes": len(stream),
+        "c_decode_bytes_per_s": round(len(stream) / c_s),
+        "c_decode_frames_per_s": round(frames / c_s),
+        "python_decode_frames_per_s": round(frames / best),
+        "c_over_python": round(best / c_s, 1),
+        "cc": subprocess.run(["cc", "-dumpversion"], capture_output=True, text=True).stdout.strip(),
+    }
+
+
+def measure(seconds: int = 60) -> dict[str, Any]:
+    out: dict[str, Any] = {"benchmark": "firmware"}
+    if shutil.which("make") is None or shutil.which("cc") is None:
+        print("bench.firmware: no C compiler (cc) or make: nothing to measure")
+        return {**out, "skipped": "no C compiler"}
+    if shutil.which("arm-none-eabi-gcc") is None:
+        print("bench.firmware: arm-none-eabi-gcc not installed: no Cortex-M0 sizes (apt-get install gcc-arm-none-eabi)")
+        out.update(dict.fromkeys(("library_flash_bytes", "board_flash_bytes", "board_ram_bytes")))
+    else:
+        out.update(m0_sizes())
+    out.update(host_rates(seconds))
+    out["machine"] = platform.machine()
+    return out
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--seconds", type=int, default=60, help="simulated seconds of traffic (default 60)")
+    args = parser.parse_args()
+    if args.seconds < 1:
+        raise SystemExit("bench.firmware: --seconds must be at least 1")
+    print(json.dumps(measure(args.seconds)))
+
+
+if __name__ == "__main__":
+    main()
