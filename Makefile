@@ -5,6 +5,7 @@ BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
 .PHONY: run test lint bench clean
+.PHONY: firmware
 
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PY) -m venv $(VENV)
@@ -17,12 +18,20 @@ run: $(STAMP)
 
 test: $(STAMP)
 	$(BIN)/ruff check term fcb_sim tests bench
+	$(BIN)/ruff check firmware
+	@command -v cc >/dev/null || echo "no C compiler (cc): the firmware tests are skipped"
+	@command -v arm-none-eabi-gcc >/dev/null || echo "no arm-none-eabi-gcc: the Cortex-M0 size test is skipped"
 	$(BIN)/python -m pytest
 
-BENCHES := codec realtime flight filters profile log_compression pacing latency ui ble
+BENCHES := codec realtime flight filters profile log_compression pacing latency ui ble firmware
 
 bench: $(STAMP)
 	for b in $(BENCHES); do $(BIN)/python -m bench.$$b | tail -n 1; done
 
+# The C protocol library and the reference board (firmware/): firmware/build/host_board, built with cc.
+firmware:
+	$(MAKE) -C firmware host_board
+
 clean:
 	rm -rf $(VENV) .pytest_cache .hypothesis
+	rm -rf firmware/build
