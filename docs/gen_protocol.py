@@ -76,7 +76,8 @@ def generated_markdown() -> str:
         parts.append(f"{v['packet']['type']}({fields}) seq={v['seq']}")
         parts.append(f"  {v['hex']}")
     parts.append("```")
-    return "\n".join(parts) + "\n"
+    # The C side's walk-through (written by hand in docs/firmware_side.md) ends the page.
+    return "\n".join(parts) + "\n\n" + (ROOT / "docs" / "firmware_side.md").read_text()
 
 
 def render_doc(current: str) -> str:
