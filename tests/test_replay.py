@@ -96,7 +96,7 @@ def live_session(rec: SessionRecorder, model: Model, t0: float) -> None:
     emit(Note("info", "term", "hello pilot"), t0 + 0.01)
     for i in range(400):
         now = t0 + 0.05 + i * 0.01
-        pkts = [Attitude(int(Mode.MANUAL if i > 100 else Mode.SAFE), 50 * i, -50 * i, 7, 16 * i, 0, -16)]
+        pkts = [Attitude(int(Mode.MANUAL if i > 100 else Mode.SAFE), 10 * i, -20 * i, 7, 16 * i, 0, -16)]
         if i % 4 == 0:
             pkts.append(Height(101300, 10 * i, 0, 5, 1160 - i // 10, 2100))
         if i % 20 == 0:
@@ -168,3 +168,62 @@ def test_playback_speed_pause_and_seek(tmp_path: Path) -> None:
     assert attitude_count(replay.catch_up()) == 200
     assert replay.seek(99.0) is False and replay.position == replay.duration
     assert replay.slower() == 1.0 and replay.slower() == 0.5
+
+
+async def test_term_replay_shows_the_recorded_values_at_the_recorded_times(tmp_path: Path) -> None:
+    """The replay through the app itself (Textual's Pilot): the panels show what was recorded at the time sought,
+    the link panel says it is a replay, and the keys play, pause and seek."""
+    from term.app import TermApp
+
+    rec = SessionRecorder(tmp_path, 0.0, wall_ns=0, meta={"cable": "/dev/pts/7"})
+    live_session(rec, Model(), 0.0)
+    rec.close()
+    assert rec.path is not None
+    replay = Replay.load(rec.path)
+    replay.paused = True
+    app = TermApp(None, replay=replay)
+    async with app.run_test(size=(120, 44)) as pilot:
+
+        def shown(wid: str) -> str:
+            return str(app.screen.query_one(wid).render())
+
+        app.replay_seek(1.0)  # the frame at t = 0.05 + 0.95: i = 95, phi 9.50°, theta -19.00°
+        await pilot.pause()
+        assert "roll   +9.5°   pitch  -19.0°" in shown("#heading")
+        assert "REPLAY 00:01.0 / 00:04.0 paused" in shown("#link")
+        assert app.model.mode == Mode.SAFE  # until i = 101
+        app.replay_seek(2.0)
+        await pilot.pause()
+        assert "roll  +19.5°   pitch  -39.0°" in shown("#heading") and app.model.mode == Mode.MANUAL
+        events = shown("#events")
+        assert "hello pilot" in events and "request MANUAL" in events
+        app.replay_seek(0.5)  # back: a fresh model brought to t = 0.5
+        await pilot.pause()
+        assert "roll   +4.5°   pitch   -9.0°" in shown("#heading") and "request MANUAL" not in shown("#events")
+        await pilot.press("right")  # 5 s on: the end
+        await pilot.pause()
+        assert replay.position == replay.duration and "roll  +39.9°   pitch  -79.8°" in shown("#heading")
+        await pilot.press("home", "space")  # from the start, playing
+        assert not replay.paused and replay.position < 1.0
+        await pilot.press("plus")
+        assert replay.speed == 2.0
+        await pilot.press("2")  # a pilot's key does nothing: there is no board
+        assert not any("not sent" in e.text for e in app.model.events)
+
+
+def test_term_replay_errors_are_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from term.cli import main
+
+    bad = tmp_path / "x.csv"
+    bad.write_text("t_us,phi\n")
+    for argv, why in [
+        (["replay"], "give one recording, or --latest"),
+        (["replay", "--latest", "--dir", str(tmp_path / "none")], "no session recordings in"),
+        (["replay", str(tmp_path / "missing.mcap")], "cannot read"),
+        (["replay", str(bad)], "not a session recording"),
+        (["replay", str(bad), "--speed", "nan"], "--speed must be between 0.25 and 16"),
+        (["replay", str(bad), "--speed", "100"], "--speed must be between 0.25 and 16"),
+    ]:
+        assert main(argv) == 2, argv
+        err = capsys.readouterr().err
+        assert err.startswith("term: ") and why in err and err.count("\n") == 1, err
