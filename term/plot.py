@@ -16,18 +16,34 @@ from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import TextIO
 
+from term.protocol import LOG_TIME_COLUMN, column_scale
 from term.schema import Number, one_line, shown
 
-# (title, unit, [(column, scale to the unit)]) per panel.
-GROUPS: tuple[tuple[str, str, tuple[tuple[str, float], ...]], ...] = (
-    ("attitude", "°", (("phi", 0.01), ("theta", 0.01), ("psi", 0.01))),
-    ("body rates", "°/s", (("sp", 1 / 16.4), ("sq", 1 / 16.4), ("sr", 1 / 16.4))),
-    ("accelerations", "g", (("sax", 1 / 16384), ("say", 1 / 16384), ("saz", 1 / 16384))),
-    ("motors", "0..1000", (("ae1", 1), ("ae2", 1), ("ae3", 1), ("ae4", 1))),
-    ("height", "m", (("height", 0.001),)),
-    ("pressure", "Pa", (("pressure", 1),)),
-    ("battery", "V", (("battery", 0.01),)),
-    ("mode", "", (("mode", 1),)),
+# Panels: columns that share a unit share one. Scales and units come from the packet table (the log's columns are
+# named after telemetry fields, in the same board units): term.protocol.column_scale.
+PANELS: tuple[tuple[str, tuple[str, ...]], ...] = (
+    ("attitude", ("phi", "theta", "psi")),
+    ("body rates", ("sp", "sq", "sr")),
+    ("accelerations", ("sax", "say", "saz")),
+    ("motors", ("ae1", "ae2", "ae3", "ae4")),
+    ("height", ("height",)),
+    ("pressure", ("pressure",)),
+    ("battery", ("battery",)),
+    ("mode", ("mode",)),
+)
+
+
+def _scale(column: str) -> tuple[float, str]:
+    try:
+        return column_scale(column)
+    except KeyError:  # a column the packet table does not know: drawn as it is
+        return 1.0, ""
+
+
+# (title, unit, [(column, scale to the unit)]) per panel; the mode panel is labelled with mode names instead.
+GROUPS: tuple[tuple[str, str, tuple[tuple[str, float], ...]], ...] = tuple(
+    (title, "" if title == "mode" else _scale(cols[0])[1], tuple((c, _scale(c)[0]) for c in cols))
+    for title, cols in PANELS
 )
 
 
@@ -37,7 +53,7 @@ class PlotError(ValueError):
 
 # The flight-log CSV, as the log download writes it (term/logfile.py): a header naming the columns, then one
 # record per row, every field a finite number in board units. Checked as it is read, column by column.
-TIME_COLUMN = "t_us"  # board time, µs: a flight log always has it
+TIME_COLUMN = LOG_TIME_COLUMN  # board time, µs: a flight log always has it
 INT32 = 2**32  # board values are at most 32-bit (the log's absolute records are int32, its time uint32)
 COLUMNS: dict[str, Number] = {
     "segment": Number(0, 65535, integer=True),
@@ -143,7 +159,7 @@ def plot_log(path: Path, output: Path, signals: Sequence[str] | None = None) -> 
     """Draw the log at ``path`` to ``output`` (the very file named); returns it."""
     check_output(output)
     cols = read_log(path)
-    t = [v / 1e6 for v in cols[TIME_COLUMN]]
+    t = [v * column_scale(TIME_COLUMN)[0] for v in cols[TIME_COLUMN]]
     xlabel = "board time (s)"
     if not t:
         raise PlotError(f"{path} has a header but no records")

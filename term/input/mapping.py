@@ -11,10 +11,10 @@ from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
-from term.protocol import Button, Joystick
+from term.protocol import LIFT_ZERO, STICK_MAX, Button, Joystick  # LIFT_ZERO: the board's guard, checked here first
 from term.schema import Flag, ListOf, Number, OneOf, SchemaError, Table, Text
 
-FULL = 32767
+FULL = STICK_MAX  # full deflection, stick units
 
 
 @dataclass(frozen=True, slots=True)
@@ -202,7 +202,6 @@ class StickState:
 _EDGES = (0, FULL, -FULL)
 
 
-LIFT_ZERO = 512  # stick units: below this the throttle counts as down (the board has its own, exact guard)
 
 
 def leave_safe_refusal(current_mode: int, requested_mode: int, stick: Joystick) -> str | None:
