@@ -72,7 +72,8 @@ def broad_rows(path: Path, limit: int) -> list[tuple[int, ...]]:
 def simulated_rows(seconds: float = 20.0, seed: int = 1) -> list[tuple[int, ...]]:
     """A RAW-mode flight through the board's own bytes, the records captured as the board logs them."""
     from fcb_sim import control as C
-    from fcb_sim.board import Board, BoardConfig, BytePilot
+    from fcb_sim.board import Board, BoardConfig
+    from fcb_sim.profile import BytePilot
     from term.protocol import Joystick, Mode, Op
 
     board = Board(BoardConfig(seed=seed))

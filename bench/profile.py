@@ -25,7 +25,7 @@ import json
 import time
 from typing import Any
 
-from fcb_sim.board import run_profile
+from fcb_sim.profile import run_profile
 from fcb_sim.timing import FIGURE14, residual_jitter_us
 
 REPORT_SENSOR_PERIOD_SD = {"raw": FIGURE14["sensor_raw"][5], "dmp": FIGURE14["sensor_dmp"][5]}

@@ -12,6 +12,10 @@ from collections.abc import Sequence
 from typing import NoReturn
 
 from fcb_sim.errors import EXIT_INTERRUPTED, EXIT_USAGE, UsageError
+from fcb_sim.estimation.replay import cmd_replay
+from fcb_sim.profile import cmd_profile
+from fcb_sim.scenarios import cmd_run
+from fcb_sim.serve import cmd_serve
 
 
 class _Parser(argparse.ArgumentParser):
@@ -39,7 +43,7 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--filter", default=None,
                      help="on-board attitude filter for the RAW-mode scenarios (default: the best one)")
     run.add_argument("--fixed-point", action="store_true", help="RAW-mode scenarios: the Q16.16 filter variant")
-    run.set_defaults(handler="fcb_sim.scenarios:cmd_run")
+    run.set_defaults(handler=cmd_run)
 
     # --- replay-imu: RAW-path filters over recorded data (owner: fcb_sim/estimation/replay.py) ---
     rep = sub.add_parser("replay-imu", help="run an attitude filter over recorded IMU data (CSV)")
@@ -48,9 +52,9 @@ def build_parser() -> argparse.ArgumentParser:
     rep.add_argument("--fixed-point", action="store_true", help="run the Q16.16 fixed-point variant")
     rep.add_argument("--out", help="output CSV: t, roll, pitch, yaw (rad), qw, qx, qy, qz")
     rep.add_argument("--list-filters", action="store_true", help="list the filters and exit")
-    rep.set_defaults(handler="fcb_sim.estimation.replay:cmd_replay")
+    rep.set_defaults(handler=cmd_replay)
 
-    # --- profile: the board's task timing (owner: fcb_sim/board.py) ---
+    # --- profile: the board's task timing (owner: fcb_sim/profile.py) ---
     prof = sub.add_parser("profile", help="profile the firmware loop with the Cortex-M0 cycle-cost model")
     prof.add_argument("--mode", choices=["raw", "dmp"], default="raw", help="sensor path (default raw)")
     prof.add_argument("--scheduler", choices=["round-robin", "priority"], default="round-robin")
@@ -59,7 +63,7 @@ def build_parser() -> argparse.ArgumentParser:
     prof.add_argument("--json", action="store_true", help="print one JSON object as the last line")
     prof.add_argument("--log-scheme", choices=["delta8", "rice"], default="delta8",
                       help="flash log codec while profiling (default delta8, the report's)")
-    prof.set_defaults(handler="fcb_sim.board:cmd_profile")
+    prof.set_defaults(handler=cmd_profile)
 
     # --- serve: the board in real time behind a pseudo-terminal (owner: fcb_sim/serve.py) ---
     serve = sub.add_parser("serve", help="run the board in real time behind a pseudo-terminal")
@@ -69,16 +73,14 @@ def build_parser() -> argparse.ArgumentParser:
     serve.add_argument("--link-timeout", type=float, default=0.5, help="seconds of silence before PANIC")
     serve.add_argument("--ble-hci", default=None, metavar="TRANSPORT",
                        help="also expose the board's BLE radio, e.g. tcp-server:127.0.0.1:PORT")
-    serve.set_defaults(handler="fcb_sim.serve:cmd_serve")
+    serve.set_defaults(handler=cmd_serve)
     return parser
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
-    module_name, func_name = args.handler.split(":")
     try:
-        module = __import__(module_name, fromlist=[func_name])
-        return int(getattr(module, func_name)(args) or 0)
+        return int(args.handler(args) or 0)
     except UsageError as exc:
         print(f"fcb-sim: {exc}", file=sys.stderr)
         return EXIT_USAGE

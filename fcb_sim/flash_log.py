@@ -28,8 +28,9 @@ from __future__ import annotations
 
 import struct
 import zlib
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 from term.logformat import (
     LOG_FORMAT_VERSION,
@@ -44,7 +45,7 @@ from term.logformat import (
     quantise,
     zigzag,
 )
-from term.protocol import LOG_CHUNK_BYTES, LogState, Nak
+from term.protocol import LOG_CHUNK_BYTES, LogChunk, LogState, LogStatus, Nak
 
 FLASH_BYTES = 128 * 1024
 FLASH_US_PER_BYTE = 15  # report 3.5: each byte takes 15 µs to write
@@ -307,6 +308,59 @@ class FlashLog:
         """Chunk ``index``: bytes 12i .. 12i+11 of the used flash, the last one padded with 0xFF."""
         start = index * LOG_CHUNK_BYTES
         return bytes(self.flash.mem[start : start + LOG_CHUNK_BYTES]).ljust(LOG_CHUNK_BYTES, b"\xff")
+
+    def status(self, state: LogState | None = None) -> LogStatus:
+        """The LogStatus packet: state (the log's own unless given), bytes used, records, CRC-32."""
+        return LogStatus(int(self.state if state is None else state), self.used, self.records, self.crc32())
+
+
+class Download:
+    """The board's side of a log download (docs/flash_log.md): ``LogStatus`` (DOWNLOADING), then the chunks in
+    order from the first one asked for, as many per telemetry run as the transmit buffer takes (the wire paces
+    the download), then ``LogStatus`` again. ``send`` is the board's packet output."""
+
+    def __init__(self) -> None:
+        self.next: int | None = None  # the next chunk to send, or None when no download runs
+        self.sent = 0  # chunks sent by this download
+
+    @property
+    def active(self) -> bool:
+        return self.next is not None
+
+    @staticmethod
+    def refusal(log: FlashLog, first: int) -> Nak:
+        """Why a download from chunk ``first`` cannot start now (Nak.OK if it can; SAFE is the board's check)."""
+        if log.recording:
+            return Nak.LOG_BUSY
+        if log.used == 0:
+            return Nak.LOG_EMPTY
+        if not 0 <= first < log.n_chunks:
+            return Nak.BAD_ARGUMENT
+        return Nak.OK
+
+    def begin(self, first: int, log: FlashLog, send: Callable[[Any], None]) -> None:
+        self.next = first
+        self.sent = 0
+        send(log.status(LogState.DOWNLOADING))
+
+    def step(self, log: FlashLog, has_room: Callable[[], bool], send: Callable[[Any], None]) -> tuple[int, bool]:
+        """Send chunks while ``has_room()``; returns (chunks sent now, whether the last one went)."""
+        count = 0
+        n = log.n_chunks
+        while self.next is not None and has_room():
+            i = self.next
+            send(LogChunk(i, log.chunk(i)))
+            self.sent += 1
+            count += 1
+            self.next = i + 1 if i + 1 < n else None
+            if self.next is None:
+                return count, True
+        return count, False
+
+    def end(self, log: FlashLog, send: Callable[[Any], None]) -> None:
+        """Stop (done, or the board left SAFE) and say where the log stands."""
+        self.next = None
+        send(log.status())
 
 
 def encode_log(rows: Iterable[Sequence[int]], scheme: str | int = "rice",

@@ -19,9 +19,9 @@ from fcb_sim.board import (
     UART_US_PER_BYTE,
     Board,
     BoardConfig,
-    run_profile,
 )
 from fcb_sim.modes import FLIGHT_MODES, LIFT_ZERO, STICK_NEUTRAL, ModeChange
+from fcb_sim.profile import run_profile
 from fcb_sim.timing import (
     COSTS,
     SD_ADV_CHUNKS,
@@ -747,7 +747,7 @@ def test_under_the_priority_scheduler_a_recompute_waits_if_it_might_not_fit_befo
             return
         if b.motors_at_us == start + dur:  # this parse run recomputed
             cost = b.reactions.durations[-1]
-            assert b.motors_at_us - cost + COSTS[f"control_{b.path}"].figure[3] <= b._next["sensor"]
+            assert b.motors_at_us - cost + COSTS[f"control_{b.path}"].figure[3] <= b.sched.next["sensor"]
             checked += 1
         elif b.modes.sticks() != b._sticks_used:
             skipped += 1  # left to the control step at the tick, which runs first

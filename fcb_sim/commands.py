@@ -1,0 +1,199 @@
+"""The board's keyboard commands: one handler per ``Op`` in a table (``COMMANDS``), like ``modes.TRANSITIONS``.
+
+A handler takes the board and the command's ``arg`` and returns ``(status, value, after)``: the ``Nak`` (OK when
+accepted), the value the ``Ack`` carries (the new mode, trim, gain in milli-units, bytes of log, ...) and an
+optional action run after the Ack is queued (packets that must follow it: a log status, the profile, a handover
+stopped after its Ack went over the cable). A handler refuses with a reason, never silently.
+
+``CommandDesk`` executes each command once: a repeat of the last command (same id, op and arg) within
+``COMMAND_DEDUPE_US`` is a retry whose first answer was lost, and it is answered again without being redone.
+A handler that raises is a bug: the command is refused (BAD_ARGUMENT) and the board keeps flying.
+
+The ``SET_PARAM`` ids, ranges and meanings are the protocol's table (``term.protocol.PARAMS``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any
+
+from fcb_sim.flash_log import FlashLog
+from fcb_sim.scheduler import TASKS
+from term.protocol import (
+    PARAMS,
+    SCHEDULERS,
+    SENSOR_PATHS,
+    Ack,
+    Command,
+    Mode,
+    Nak,
+    Op,
+    Param,
+    param_split,
+)
+
+if TYPE_CHECKING:
+    from fcb_sim.board import Board
+
+COMMAND_DEDUPE_US = 2_000_000  # a Command repeated (same id, op, arg) within this is a retry: answered, not redone
+
+Result = tuple[Nak, int, Callable[[], None] | None]
+Handler = Callable[["Board", int], Result]
+
+
+def _mode(b: Board, arg: int) -> Result:
+    if arg == Mode.WIRELESS:
+        return _wireless_start(b)
+    now_s = b.now / 1e6
+    b.modes.tick(now_s)
+    return b.modes.request(arg, now_s), int(b.modes.mode), None
+
+
+def _trim(axis: str) -> Handler:
+    def handler(b: Board, arg: int) -> Result:
+        return Nak.OK, b.modes.adjust_trim(axis, arg), None
+
+    return handler
+
+
+def _gain(name: str) -> Handler:
+    def handler(b: Board, arg: int) -> Result:
+        return Nak.OK, round(b.core.adjust_gain(name, arg) * 1000), None
+
+    return handler
+
+
+def _log_start(b: Board, arg: int) -> Result:
+    if b.download.active:
+        return Nak.LOG_BUSY, 0, None
+    reason, _ = b.log.start()
+    if reason == Nak.OK:
+        b.log_full_reported = False
+    return reason, b.log.used, None
+
+
+def _log_stop(b: Board, arg: int) -> Result:
+    reason, _ = b.log.stop()
+    return reason, b.log.used, None
+
+
+def _log_reset(b: Board, arg: int) -> Result:
+    if b.download.active:
+        return Nak.LOG_BUSY, 0, None
+    return b.log.reset(b.modes.mode == Mode.SAFE), 0, None
+
+
+def _log_status(b: Board, arg: int) -> Result:
+    return Nak.OK, b.log.used, lambda: b.send(b.log_status())
+
+
+def _log_download(b: Board, first: int) -> Result:
+    if b.modes.mode != Mode.SAFE:
+        return Nak.NOT_IN_SAFE, 0, None
+    reason = b.download.refusal(b.log, first)
+    if reason != Nak.OK:
+        return reason, b.log.n_chunks if reason == Nak.BAD_ARGUMENT else 0, None
+    return Nak.OK, b.log.n_chunks, lambda: b.download.begin(first, b.log, b.send)
+
+
+def _profile(b: Board, arg: int) -> Result:
+    return Nak.OK, len(TASKS), b.send_profile
+
+
+def _wireless(b: Board, arg: int) -> Result:
+    if arg == 1:
+        return _wireless_start(b)
+    if arg == 0:
+        return Nak.OK, 0, b.wireless_stop
+    return Nak.BAD_ARGUMENT, 0, None
+
+
+def _wireless_start(b: Board) -> Result:
+    if b.modes.mode != Mode.SAFE:
+        return Nak.NOT_IN_SAFE, int(b.wireless.state), None
+    reason = b.wireless.request_start()
+    b.wireless_events()
+    return reason, int(b.wireless.state), None
+
+
+def _set_param(b: Board, arg: int) -> Result:
+    pid, value = param_split(arg)
+    try:
+        spec = PARAMS[Param(pid)]
+    except ValueError:
+        return Nak.BAD_ARGUMENT, 0, None
+    if not spec.accepts(value):
+        return Nak.BAD_ARGUMENT, 0, None
+    if spec.safe_only and b.modes.mode != Mode.SAFE:
+        return Nak.NOT_IN_SAFE, 0, None
+    if spec.param == Param.LINK_TIMEOUT_MS:
+        b.config.link_timeout_s = value / 1000
+        b.modes.config.link_timeout_s = value / 1000
+    elif spec.param == Param.SCHEDULER:
+        b.set_scheduler(SCHEDULERS[value])
+    elif spec.param == Param.TELEMETRY_HZ:
+        b.config.telemetry_hz = float(value)
+    elif spec.param == Param.SENSOR_PATH:
+        b.config.sensor_path = SENSOR_PATHS[value]
+    elif spec.param == Param.LOG_SCHEME:
+        if b.log.used:
+            return Nak.LOG_BUSY, 0, None
+        b.log = FlashLog(size=b.log.flash.size, scheme=value, variables=b.log.variables)
+    return Nak.OK, value, None
+
+
+COMMANDS: dict[Op, Handler] = {
+    Op.MODE: _mode,
+    Op.TRIM_LIFT: _trim("lift"),
+    Op.TRIM_ROLL: _trim("roll"),
+    Op.TRIM_PITCH: _trim("pitch"),
+    Op.TRIM_YAW: _trim("yaw"),
+    Op.GAIN_YAW_P: _gain("yaw_p"),
+    Op.GAIN_P1: _gain("p1"),
+    Op.GAIN_P2: _gain("p2"),
+    Op.GAIN_HEIGHT_P: _gain("height_p"),
+    Op.GAIN_HEIGHT_D: _gain("height_d"),
+    Op.LOG_START: _log_start,
+    Op.LOG_STOP: _log_stop,
+    Op.LOG_RESET: _log_reset,
+    Op.LOG_STATUS: _log_status,
+    Op.LOG_DOWNLOAD: _log_download,
+    Op.PROFILE: _profile,
+    Op.WIRELESS: _wireless,
+    Op.SET_PARAM: _set_param,
+}
+
+
+def execute(board: Board, cmd: Command) -> Result:
+    """Run one command's handler; an unknown op is refused."""
+    handler = COMMANDS.get(cmd.op)  # type: ignore[call-overload]
+    if handler is None:
+        return Nak.UNKNOWN_COMMAND, 0, None
+    return handler(board, cmd.arg)
+
+
+class CommandDesk:
+    """Answers each command once (module docstring): ``answer`` returns the Ack, the action to run after it, and
+    whether the command was a retry (answered again, not redone)."""
+
+    def __init__(self) -> None:
+        self._last: tuple[int, int, int] | None = None
+        self._ack: Ack | None = None
+        self._at = 0
+
+    def forget(self) -> None:
+        """A terminal (re)connected: its cmd_ids start afresh, so an equal first command is not a retry."""
+        self._last = self._ack = None
+
+    def answer(self, board: Board, cmd: Command) -> tuple[Ack, Callable[[], Any] | None, bool]:
+        key = (cmd.cmd_id, cmd.op, cmd.arg)
+        if key == self._last and board.now - self._at < COMMAND_DEDUPE_US and self._ack:
+            return self._ack, None, True  # a retry: the first answer was lost; do not do it twice
+        after = None
+        try:
+            status, value, after = execute(board, cmd)
+        except Exception:  # a bug must not take the board down: refuse, and keep flying
+            status, value = Nak.BAD_ARGUMENT, 0
+        ack = Ack(cmd.cmd_id, cmd.op, int(status), int(value))
+        self._last, self._ack, self._at = key, ack, board.now
+        return ack, after, False
