@@ -250,6 +250,7 @@ class TermApp(LogDownloads, App[int]):
         self.recorder = recorder
         self.replay = replay
         self._noted: object = None  # the last events-list entry recorded
+        self._record_error_said = False
         if replay is not None:
             clock = replay.clock  # the panels, plots and events run on the recording's time
             joystick = False
@@ -402,6 +403,9 @@ class TermApp(LogDownloads, App[int]):
         if self.recorder is not None:
             self._record_notes(now)  # (notes written straight into the model, as the log download does)
             self.recorder.poll(now)
+            if self.recorder.error and not self._record_error_said:  # said once; the flight goes on
+                self._record_error_said = True
+                self.station.note("error", "term", self.recorder.error)
         if not self.screen_stack or not self.is_running:
             return  # shutting down
         model = self.model

@@ -22,6 +22,7 @@ from term.export import DecodedFrame, decode, export
 from term.protocol import Attitude, Encoder, Heartbeat, HeartbeatAck, Joystick, Mode
 from term.recording import (
     LinkBytes,
+    LoggedEvent,
     RecordingError,
     SessionRecorder,
     iter_file,
@@ -283,3 +284,26 @@ def test_term_killed_in_flight_leaves_a_recording_readable_up_to_its_last_second
     assert not res.complete and res.rows > len(frames)
     with (tmp_path / "out" / "flight.mcap").open("rb") as f:
         assert make_reader(f).get_summary() is not None
+
+
+async def test_the_app_records_its_events_list_and_says_once_when_the_recording_stops(tmp_path: Path) -> None:
+    from term.app import TermApp
+
+    rec = SessionRecorder(tmp_path, time.monotonic())
+    app = TermApp(None, joystick=False, recorder=rec)
+    async with app.run_test(size=(120, 44)) as pilot:
+        app.station.note("info", "term", "first line")
+        app.model.note(app.clock(), "warning", "term", "straight into the model")  # as the log download does
+        await pilot.pause(0.2)
+        rec.flush(app.clock())  # (a failure drops what waits in the open chunk)
+        rec._fail(OSError(28, "No space left on device"))
+        await pilot.pause(0.3)
+        said = [e.text for e in app.model.events if "recording stopped" in e.text]
+        assert said == ["recording stopped: [Errno 28] No space left on device"]
+        app.station.note("info", "term", "after the stop")
+        await pilot.pause(0.2)
+    rec.close()
+    assert rec.path is not None
+    lines = [(i.severity, i.text) for i in iter_file(rec.path) if isinstance(i, LoggedEvent)]
+    assert ("info", "first line") in lines and ("warning", "straight into the model") in lines
+    assert not any("after the stop" in t for _, t in lines)
