@@ -211,6 +211,26 @@ async def test_term_replay_shows_the_recorded_values_at_the_recorded_times(tmp_p
         assert not any("not sent" in e.text for e in app.model.events)
 
 
+async def test_a_replay_of_two_links_says_replay_in_the_link_panel(tmp_path: Path) -> None:
+    from term.app import TermApp
+
+    rec = SessionRecorder(tmp_path, 0.0, wall_ns=0, meta={"cable": "/dev/pts/7", "radio": "BLE F0:5A"})
+    model = Model(radio_name="BLE F0:5A")
+    live_session(rec, model, 0.0)
+    rec.station_event(LinkUp(RADIO, "BLE F0:5A", False), 4.1)
+    rec.close()
+    assert rec.path is not None
+    replay = Replay.load(rec.path)
+    replay.paused = True
+    app = TermApp(None, replay=replay)
+    assert app.model.radio_name == "BLE F0:5A"
+    async with app.run_test(size=(120, 44)) as pilot:
+        app.replay_seek(4.1)
+        await pilot.pause()
+        panel = str(app.screen.query_one("#link").render())
+        assert panel.startswith("REPLAY 00:04.1 / 00:04.1 paused") and "ble" in panel
+
+
 def test_term_replay_errors_are_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     from term.cli import main
 

@@ -62,6 +62,8 @@ class LinkPanel(ModelView):
     def _two_links(self, model: Model) -> Text:
         """The cable and the radio: which carries control (▶), each one's health, then the figures of both."""
         out = Text()
+        if model.link_name.startswith("REPLAY "):  # term replay: say so above the recorded links
+            out.append(f"{model.link_name}\n", style="bold yellow")
         if model.control_lost:
             out.append("  L I N K   L O S T  ", style="bold blink white on red")
             out.append("  (the link that carries control)\n", style="red")
