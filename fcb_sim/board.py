@@ -35,10 +35,9 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
-from fcb_sim import params as P
+from fcb_sim.calibration import CALIBRATED_VARS, DMP_ANGLE_LSB
 from fcb_sim.commands import COMMAND_DEDUPE_US, CommandDesk
 from fcb_sim.flash_log import FLASH_BYTES, FLASH_US_PER_BYTE, Download, FlashLog, LogVar
-from fcb_sim.flight import Calibration as FlightCalibration
 from fcb_sim.flight import FlightCore
 from fcb_sim.modes import FLIGHT_MODES, ModeChange, ModeConfig, ModeMachine
 from fcb_sim.physics import World
@@ -104,8 +103,8 @@ from term.protocol import (
 
 # Names that moved to the modules that own them, still importable from here.
 __all__ = [
-    "BARO_PERIOD_US", "BOARD_VERSION", "CALIBRATED_VARS", "CHAIN", "COMMAND_DEDUPE_US", "DOWNLOAD_US_PER_CHUNK",
-    "HEARTBEAT_PERIOD_US",
+    "BARO_PERIOD_US", "BOARD_VERSION", "CALIBRATED_VARS", "CHAIN", "COMMAND_DEDUPE_US", "DMP_ANGLE_LSB",
+    "DOWNLOAD_US_PER_CHUNK", "HEARTBEAT_PERIOD_US",
     "PARSE_MAX_BYTES", "PARSE_US_BASE", "PARSE_US_PER_BYTE", "PRIORITY_ORDER", "REPORT_MISS_RATE",
     "REPORT_MISS_RATE_999", "ROUND_ROBIN_ORDER", "RX_QUEUE_BYTES", "SENSOR_PERIOD_US", "TASKS", "TX_BUFFER_BYTES",
     "UART_BAUD", "UART_US_PER_BYTE", "WCET99_US", "WCET999_US", "Board", "BoardConfig", "TaskStats",
@@ -113,8 +112,6 @@ __all__ = [
 ]
 
 BOARD_VERSION = (0, 1)
-CALIBRATED_VARS = ("gx", "gy", "gz", "ax", "ay", "az", "dmp_phi", "dmp_theta", "pressure")
-DMP_ANGLE_LSB = P.ANGLE_LSB_PER_RAD  # DMP angles are summed as int16 angles of the lab's template
 
 
 @dataclass
@@ -428,20 +425,18 @@ class Board:
         self._sample_t = t
         fc = self.core
         fc.imu_sample(gx, gy, gz, ax, ay, az, dt)
-        cal = self.modes.mode == Mode.CALIBRATION
-        sample = {"gx": gx, "gy": gy, "gz": gz, "ax": ax, "ay": ay, "az": az} if cal else None
+        sums = self.modes.calibration if self.modes.mode == Mode.CALIBRATION else None
+        if sums is not None:
+            sums.add_imu(gx, gy, gz, ax, ay, az)
         if self._path == "dmp":
             q = w.dmp()
             if q is not None:
                 fc.dmp_sample(*q)
-                if sample is not None:
-                    sample["dmp_phi"] = round(fc.dmp_phi * DMP_ANGLE_LSB)
-                    sample["dmp_theta"] = round(fc.dmp_theta * DMP_ANGLE_LSB)
+                if sums is not None:
+                    sums.add_dmp(*q)
             cost = self._cost["sensor_dmp"]()
         else:
             cost = self._cost["sensor_raw_fixed" if self.config.fixed_point else "sensor_raw"]()
-        if sample is not None:
-            self.modes.calibration_sample(sample)
         if not self.sched.priority:
             self.sched.flags["control"] = True  # data ready: control follows
         return cost
@@ -611,21 +606,10 @@ class Board:
 
     def _on_mode_change(self, change: ModeChange) -> None:
         if change.old == Mode.CALIBRATION and self.modes.calibrated:
-            self._apply_calibration()
+            self.core.set_calibration(self.modes.calibration.result(self.pressure))
         if change.new != Mode.SAFE and self.download.active:
             self._end_download()
         self.core.enter_mode(int(change.new), self.modes.lift)
-
-    def _apply_calibration(self) -> None:
-        o = self.modes.offsets
-        c = self.modes.calibration
-        self.core.set_calibration(FlightCalibration(
-            gyro=(o["gx"], o["gy"], o["gz"]),
-            accel=(o["ax"], o["ay"], o["az"]),
-            dmp_phi=o["dmp_phi"] / DMP_ANGLE_LSB if c.counts["dmp_phi"] else 0.0,
-            dmp_theta=o["dmp_theta"] / DMP_ANGLE_LSB if c.counts["dmp_theta"] else 0.0,
-            pressure=float(o["pressure"]) if c.counts["pressure"] else float(self.pressure),
-        ))
 
     # --- packets from the PC ------------------------------------------------------------------------------
 

@@ -39,10 +39,11 @@ why this removes the sign puzzle of the report's Table 1.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import replace
 
 from fcb_sim import control as C
 from fcb_sim import params as P
+from fcb_sim.calibration import Calibration
 from fcb_sim.estimation import BEST, HeightEstimator, make_filter, quaternion_to_euler
 from fcb_sim.estimation.height import HEIGHT_BEST, HeightKalman, make_height_estimator
 from term.protocol import Mode
@@ -65,65 +66,6 @@ _mix = C.mix
 _RAD_S_PER_LSB = 1.0 / P.RATE_LSB_PER_RAD_S
 _MS2_PER_LSB = 1.0 / P.ACC_LSB_PER_MS2
 _lift_to_z = C.lift_to_z
-
-
-@dataclass(frozen=True)
-class Calibration:
-    """Means measured at rest in CALIBRATION mode. Gyro and accelerometer in raw chip words; ``dmp_phi`` and
-    ``dmp_theta`` the DMP's angles at rest (rad, FRD); ``pressure`` the barometer's mean (Pa)."""
-
-    gyro: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    accel: tuple[float, float, float] = (0.0, 0.0, P.ACC_LSB_PER_G)
-    dmp_phi: float = 0.0
-    dmp_theta: float = 0.0
-    pressure: float = P.P0
-
-
-class CalibrationAccumulator:
-    """Sums the samples of CALIBRATION mode (the report's 64-bit sums and a counter) and gives the means."""
-
-    def __init__(self) -> None:
-        self.g = [0, 0, 0]
-        self.a = [0, 0, 0]
-        self.n_imu = 0
-        self.dmp = [0.0, 0.0]
-        self.n_dmp = 0
-        self.pressure = 0
-        self.n_baro = 0
-
-    def add_imu(self, gx: int, gy: int, gz: int, ax: int, ay: int, az: int) -> None:
-        g, a = self.g, self.a
-        g[0] += gx
-        g[1] += gy
-        g[2] += gz
-        a[0] += ax
-        a[1] += ay
-        a[2] += az
-        self.n_imu += 1
-
-    def add_dmp(self, w: float, x: float, y: float, z: float) -> None:
-        roll, pitch, _ = quaternion_to_euler(w, x, y, z)
-        self.dmp[0] += roll
-        self.dmp[1] += -pitch
-        self.n_dmp += 1
-
-    def add_baro(self, pressure_pa: int) -> None:
-        self.pressure += pressure_pa
-        self.n_baro += 1
-
-    def result(self) -> Calibration:
-        """The means; raises ValueError when no IMU sample was collected."""
-        if self.n_imu == 0:
-            raise ValueError("no IMU samples collected")
-        n = self.n_imu
-        nd = max(1, self.n_dmp)
-        return Calibration(
-            gyro=(self.g[0] / n, self.g[1] / n, self.g[2] / n),
-            accel=(self.a[0] / n, self.a[1] / n, self.a[2] / n),
-            dmp_phi=self.dmp[0] / nd,
-            dmp_theta=self.dmp[1] / nd,
-            pressure=self.pressure / self.n_baro if self.n_baro else P.P0,
-        )
 
 
 def default_height_estimator() -> HeightEstimator | HeightKalman:

@@ -25,6 +25,7 @@ import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 
+from fcb_sim.calibration import CalibrationSums
 from term.protocol import (
     BATTERY_LOW,
     FLIGHT_MODES,
@@ -58,42 +59,6 @@ class ModeConfig:
     calibration_min_samples: int = 50
     tilt_limit_cdeg: int = 5000  # 50°
     low_battery: int = LOW_BATTERY
-
-
-class Calibration:
-    """Sums of sensor samples in unbounded integers (the report used 64-bit sums to avoid overflow; Python's
-    ints cannot overflow at all), one sum and one count per named variable (sensors come at different rates);
-    the means are taken when CALIBRATION is left."""
-
-    def __init__(self, names: Sequence[str] = ()) -> None:
-        self.names = tuple(names)
-        self.sums: dict[str, int] = {}
-        self.counts: dict[str, int] = {}
-        self.reset()
-
-    def reset(self) -> None:
-        self.sums = {name: 0 for name in self.names}
-        self.counts = {name: 0 for name in self.names}
-
-    @property
-    def count(self) -> int:
-        """Samples of the first (primary, fastest) variable: what the minimum-sample rule looks at."""
-        return self.counts[self.names[0]] if self.names else 0
-
-    def add(self, values: Mapping[str, int]) -> None:
-        for name, v in values.items():
-            if name not in self.sums:
-                raise KeyError(f"{name!r} is not calibrated (known: {', '.join(self.names)})")
-            self.sums[name] += int(v)
-            self.counts[name] += 1
-
-    def means(self) -> dict[str, int]:
-        """Rounded-to-nearest integer means: exact integer arithmetic, as the board's would be."""
-        out = {}
-        for name in self.names:
-            n, s = self.counts[name], self.sums[name]
-            out[name] = (2 * s + n) // (2 * n) if n else 0
-        return out
 
 
 @dataclass
@@ -286,7 +251,7 @@ class ModeMachine:
     battery_low_latched: bool = False  # set by a low-battery PANIC; only a new battery (a reboot) clears it
 
     def __post_init__(self) -> None:
-        self.calibration = Calibration(self.calibration_names)
+        self.calibration = CalibrationSums(self.calibration_names)
         self.calibration_started = 0.0
         self.panic_started = 0.0
         self.panic_start_level = 0

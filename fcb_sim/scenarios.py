@@ -24,9 +24,10 @@ from dataclasses import dataclass, field
 
 from fcb_sim import control as C
 from fcb_sim import params as P
+from fcb_sim.calibration import CalibrationSums
 from fcb_sim.errors import UsageError
 from fcb_sim.estimation import BEST, FILTERS, has_fixed_point
-from fcb_sim.flight import CalibrationAccumulator, FlightCore
+from fcb_sim.flight import FlightCore
 from fcb_sim.physics import World
 from term.protocol import Mode
 
@@ -53,7 +54,7 @@ class Sim:
         self.mode = int(Mode.SAFE)
         self.sticks = [0, 0, 0, 0]  # roll, pitch, yaw, lift
         self.pilot_target: float | None = None  # the pilot holds this true height with the lift stick
-        self.cal = CalibrationAccumulator()
+        self.cal = CalibrationSums()
         self.on_tick: Callable[[Sim], None] | None = None
 
     def _pilot(self) -> None:
@@ -69,7 +70,7 @@ class Sim:
         if self.mode == int(Mode.CALIBRATION) and mode != self.mode:
             self.fc.set_calibration(self.cal.result())
         if mode == int(Mode.CALIBRATION):
-            self.cal = CalibrationAccumulator()
+            self.cal = CalibrationSums()
         self.mode = mode
 
     def run_until(self, t_end: float) -> None:

@@ -5,8 +5,7 @@ from __future__ import annotations
 import pytest
 
 from fcb_sim import params as P
-from fcb_sim.flight import Calibration, CalibrationAccumulator, FlightCore
-from fcb_sim.physics import World
+from fcb_sim.flight import Calibration, FlightCore
 from fcb_sim.scenarios import run_scenario
 from term.protocol import Mode
 
@@ -28,25 +27,6 @@ def test_calibration_offsets_are_subtracted_in_the_body_frame():
     fc.imu_sample(40 + 164, -30 + 328, 10 - 492, 200, -100, 16500, 0.0025)
     assert (fc.sp, fc.sq, fc.sr) == (164.0, -328.0, 492.0)  # p = gx, q = -gy, r = -gz
     assert (fc.sax, fc.say, fc.saz) == (0.0, 0.0, -P.ACC_LSB_PER_G)  # gravity kept, saz about -16384
-
-
-def test_calibration_accumulator_means():
-    acc = CalibrationAccumulator()
-    w = World(3)
-    for i in range(1, 401):
-        w.advance_to(i * 0.0025)
-        acc.add_imu(*w.imu())
-        q = w.dmp()
-        if q is not None:
-            acc.add_dmp(*q)
-        if i % 20 == 0:
-            acc.add_baro(w.baro()[0])
-    cal = acc.result()
-    assert cal.gyro[0] == pytest.approx(w.mpu.gyro_bias[0], abs=3.0)
-    assert cal.accel[2] == pytest.approx(16384 + w.mpu.acc_bias[2], abs=10.0)
-    assert cal.pressure == pytest.approx(P.P0, abs=3.0)
-    with pytest.raises(ValueError):
-        CalibrationAccumulator().result()
 
 
 def test_manual_maps_sticks_to_moments():
