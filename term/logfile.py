@@ -26,26 +26,37 @@ from term.protocol import LOG_CHUNK_BYTES, LogChunk, LogStatus, decode_log
 
 @dataclass
 class LogDownload:
-    """One download in progress. ``feed`` packets; ``done`` when every chunk up to ``used`` bytes is here."""
+    """The chunks of one download and what the board said about them. ``feed`` packets; ``done`` when every chunk
+    up to ``used`` bytes is here. The retry policy around it is ``term.download.LogDownloader``."""
 
     started: float
-    used: int | None = None  # bytes, from the first LogStatus
-    crc32: int | None = None
+    used: int | None = None  # bytes, from the LogStatus (or the Ack of LOG_STATUS)
+    crc32: int | None = None  # only a LogStatus carries it
     records: int | None = None
     chunks: dict[int, bytes] = field(default_factory=dict)
-    last_progress: float = 0.0
+    last_progress: float = 0.0  # when the last chunk arrived (new or not)
     bytes_received: int = 0  # including duplicates: the transfer rate counts what crossed the link
+    n_chunks: int | None = None  # the chunk count from the Ack of LOG_DOWNLOAD, before any LogStatus came
+    restarts: int = 0  # the board's log changed under the download (another size or CRC): chunks thrown away
 
     @property
     def total_chunks(self) -> int | None:
         if self.used is None:
-            return None
+            return self.n_chunks
         return (self.used + LOG_CHUNK_BYTES - 1) // LOG_CHUNK_BYTES
 
     def feed(self, pkt: Any, now: float) -> bool:
-        """Take a LogStatus or LogChunk; returns True if it was one (and so changed the progress)."""
+        """Take a LogStatus or LogChunk; returns True if it was one (and so changed the progress). A LogStatus
+        that contradicts an earlier one (the log was recorded to or erased in between) starts the chunks afresh:
+        old chunks would not match the new CRC-32."""
         if type(pkt) is LogStatus:
+            if (self.used is not None and pkt.used != self.used) or (
+                self.crc32 is not None and pkt.crc32 != self.crc32
+            ):
+                self.chunks.clear()
+                self.restarts += 1
             self.used, self.crc32, self.records = pkt.used, pkt.crc32, pkt.records
+            self.n_chunks = self.total_chunks
             return True
         if type(pkt) is LogChunk:
             self.chunks[pkt.index] = pkt.data
@@ -54,12 +65,30 @@ class LogDownload:
             return True
         return False
 
+    def set_size(self, *, used: int | None = None, n_chunks: int | None = None) -> bool:
+        """What an Ack says about the log's size (LOG_STATUS: bytes used; LOG_DOWNLOAD: chunks), taken only while
+        no LogStatus has said it; returns True if it told something new."""
+        if used is not None and self.used is None and used >= 0:
+            self.used = used
+            self.n_chunks = self.total_chunks
+            return True
+        if n_chunks is not None and self.total_chunks is None and n_chunks >= 0:
+            self.n_chunks = n_chunks
+            return True
+        return False
+
+    @property
+    def received(self) -> int:
+        """Distinct chunks here (of the ``total_chunks``, when known)."""
+        total = self.total_chunks
+        return len(self.chunks) if total is None else sum(1 for i in self.chunks if i < total)
+
     @property
     def fraction(self) -> float:
         total = self.total_chunks
         if not total:
             return 1.0 if total == 0 else 0.0
-        return min(1.0, sum(1 for i in self.chunks if i < total) / total)
+        return min(1.0, self.received / total)
 
     def rate_kBps(self, now: float) -> float:
         span = max(now - self.started, 1e-6)
@@ -72,14 +101,19 @@ class LogDownload:
 
     @property
     def done(self) -> bool:
+        """Every chunk of ``used`` bytes is here (whether they match the CRC-32 is ``verify``'s question)."""
         total = self.total_chunks
-        return bool(total) and all(i in self.chunks for i in range(total or 0))
+        return self.used is not None and bool(total) and all(i in self.chunks for i in range(total or 0))
 
     def missing(self) -> int | None:
-        """The first chunk not received (where a resumed download starts), or None."""
+        """The first chunk not received (where a resumed download starts), or None (all here, or the size is not
+        known yet and no gap shows)."""
         total = self.total_chunks
         if total is None:
-            return 0 if not self.chunks else None
+            if not self.chunks:
+                return 0
+            gaps = [i for i in range(max(self.chunks)) if i not in self.chunks]
+            return gaps[0] if gaps else None
         for i in range(total):
             if i not in self.chunks:
                 return i
@@ -93,10 +127,12 @@ class LogDownload:
 
     def verify(self) -> str | None:
         """None if the data matches the board's CRC-32, else why not (one line)."""
+        if self.used is None or self.crc32 is None:
+            return "the board's LogStatus (size and CRC-32) has not arrived"
         if not self.done:
             return f"incomplete: chunk {self.missing()} of {self.total_chunks} missing"
         got = zlib.crc32(self.data())
-        if self.crc32 is not None and got != self.crc32:
+        if got != self.crc32:
             return f"CRC-32 mismatch: board {self.crc32:#010x}, received {got:#010x}"
         return None
 

@@ -13,7 +13,11 @@ Fault model, applied in this order to what one side writes:
    dropped with probability ``drop``; it still took its time on the wire;
 3. corruption: each delivered byte has one random bit flipped with probability ``corrupt``;
 4. delay: every byte arrives ``delay`` seconds (plus a uniform ``jitter``, never reordering) after it left the
-   wire.
+   wire;
+5. a frame filter (``drop_frame``, optional): a predicate on each frame's bytes as sent (up to and including its
+   0x00); a frame it is true for is dropped whole. The channel still knows nothing of packets: the caller's
+   predicate does (a test drops every frame of one packet type). With a filter, a frame's bytes are held until
+   its delimiter has been sent, so none of them arrives before the whole frame has left the wire.
 """
 
 from __future__ import annotations
@@ -24,7 +28,7 @@ import random
 import time
 from collections import deque
 from collections.abc import Callable, Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 from term.transports.base import Transport, TransportClosed, TransportError
 
@@ -41,6 +45,7 @@ class Faults:
     jitter: float = 0.0
     baud: float | None = None
     drop_unit: str = "frame"  # "frame" (up to a 0x00) or "byte"
+    drop_frame: Callable[[bytes], bool] | None = field(default=None, compare=False)  # True: drop this frame
 
     def __post_init__(self) -> None:
         if not (0.0 <= self.drop <= 1.0 and 0.0 <= self.corrupt <= 1.0):
@@ -59,6 +64,7 @@ class ChannelStats:
     bytes_corrupted: int = 0
     frames_in: int = 0  # delimiters seen
     frames_dropped: int = 0
+    frames_filtered: int = 0  # dropped by the frame filter
 
 
 class FaultyChannel:
@@ -75,6 +81,8 @@ class FaultyChannel:
         self._last_arrival = -math.inf  # keeps jittered bytes in order
         self._queue: deque[tuple[float, int]] = deque()  # (arrival time, byte)
         self._dropping: bool | None = None  # the current frame's fate; None until its first byte
+        self._frame = bytearray()  # with a frame filter: the current frame as sent
+        self._held: list[tuple[float, int]] = []  # with a frame filter: its bytes that will arrive, held to its end
 
     def send(self, data: bytes, now: float) -> None:
         """Put ``data`` on the wire at ``now``."""
@@ -86,8 +94,10 @@ class FaultyChannel:
         rng = self._rng
         by_frame = f.drop_unit == "frame"
         q = self._queue
+        flt = f.drop_frame
         for b in data:
             t += byte_time  # the byte has left the wire
+            sent = b
             if by_frame:
                 if self._dropping is None:  # a frame's first byte: decide its fate once
                     self._dropping = bool(f.drop) and rng.random() < f.drop
@@ -102,15 +112,32 @@ class FaultyChannel:
                     st.frames_in += 1
             if dropped:
                 st.bytes_dropped += 1
-                continue
-            if f.corrupt and rng.random() < f.corrupt:
-                b ^= 1 << rng.randrange(8)
-                st.bytes_corrupted += 1
-            arrival = t + f.delay + (rng.uniform(0.0, f.jitter) if f.jitter else 0.0)
-            arrival = max(arrival, self._last_arrival)
-            self._last_arrival = arrival
-            q.append((arrival, b))
+            else:
+                if f.corrupt and rng.random() < f.corrupt:
+                    b ^= 1 << rng.randrange(8)
+                    st.bytes_corrupted += 1
+                arrival = t + f.delay + (rng.uniform(0.0, f.jitter) if f.jitter else 0.0)
+                arrival = max(arrival, self._last_arrival)
+                self._last_arrival = arrival
+                if flt is None:
+                    q.append((arrival, b))
+                else:
+                    self._held.append((arrival, b))
+            if flt is not None:
+                self._frame.append(sent)
+                if sent == 0:
+                    self._frame_end(flt)
         self._wire_free = t
+
+    def _frame_end(self, flt: Callable[[bytes], bool]) -> None:
+        """A frame's delimiter has left the wire: its held bytes go on their way, or all of them are dropped."""
+        if flt(bytes(self._frame)):
+            self.stats.frames_filtered += 1
+            self.stats.bytes_dropped += len(self._held)
+        else:
+            self._queue.extend(self._held)
+        self._frame.clear()
+        self._held.clear()
 
     def receive(self, now: float) -> bytes:
         """The bytes that have arrived by ``now`` (possibly a partial frame, as a real UART read gives)."""

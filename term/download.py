@@ -1,0 +1,372 @@
+"""The terminal's log download as a small state machine, sans-IO: packets, command outcomes and time in; the next
+command to send and a final outcome out. Nothing here reads a clock or touches a link.
+
+The board's side (docs/flash_log.md): ``LOG_DOWNLOAD first`` is answered with an Ack (value: the number of
+chunks), then a ``LogStatus(DOWNLOADING, used, records, crc32)``, the chunks from ``first`` to the last, and at the
+end a ``LogStatus`` in its resting state and the event ``LOG_DONE``; ``LOG_STATUS`` is answered with an Ack (value:
+bytes used) and a ``LogStatus``. Any of these frames may be lost or damaged on the way.
+
+The policy (``LogDownloader``; it is a ``LogDownload``, so the model feeds it packets and the panel draws it):
+
+- one request at a time: ``poll(now)`` returns the command to send (or None); the caller sends it and reports
+  the cmd_id with ``sent``; its outcome comes back through ``on_event`` (the link session's CommandAcked or
+  CommandFailed). A LOG_DOWNLOAD whose chunks arrive counts as taken, whatever happened to its Ack;
+- a request that fails without a refusal from the board (no answer, not connected) is sent again after a pause
+  that grows (``BACKOFF_S``); nothing gives up on a number of tries;
+- a pass (the board streaming to the end) is over when its last chunk, its closing LogStatus or LOG_DONE
+  arrives, or when no chunk came for ``quiet_s`` (all three were lost); then the download resumes from the first
+  missing chunk (every chunk that arrived is kept), or asks LOG_STATUS again while the size or the CRC-32 is
+  unknown (the Ack of LOG_STATUS gives the size, only the LogStatus the CRC);
+- when every chunk is here and the bytes match the board's CRC-32 the download is ``done``; a mismatch (a
+  damaged frame that passed its CRC-16) throws the chunks away and starts again, at most ``MAX_CRC_RESTARTS``
+  times;
+- ``deadline_s`` without progress (a new chunk, or news of the log's size or CRC) ends it as ``failed`` with the
+  reason and the resume point (``reason``, ``resume_at``); the board's refusals (not in SAFE, recording) end it
+  at once, an empty log ends it as ``empty``. ``resume(now)`` (F5 again) carries on from the chunks it has.
+
+Time is in seconds on any monotonic clock, passed in. Tests drive it, the real board and a lossy byte proxy on
+a simulated clock (tests/test_download.py).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+from term.link import CommandAcked, CommandFailed, PacketReceived
+from term.logfile import LogDownload
+from term.protocol import Event, EventCode, LogChunk, LogState, LogStatus, Nak, Op
+
+DEADLINE_S = 20.0  # no progress for this long: the download fails, with the reason and where F5 resumes
+QUIET_S = 0.5  # no chunk for this long: the board's pass is over, though its end did not arrive
+STATUS_WAIT_S = 0.3  # the LogStatus follows the Ack of LOG_STATUS at once; asked again if it has not come by then
+REQUEST_TIMEOUT_S = 3.0  # a request with no outcome at all (its link went away with it) counts as failed
+BACKOFF_S = (0.1, 0.2, 0.4, 0.8, 1.6)  # pauses after failed requests in a row; the last one repeats
+MAX_CRC_RESTARTS = 3
+
+RUNNING, DONE, EMPTY, FAILED = "running", "done", "empty", "failed"
+
+
+@dataclass(frozen=True, slots=True)
+class Request:
+    """A command the download wants sent."""
+
+    op: Op
+    arg: int = 0
+
+    def text(self) -> str:
+        if self.op == Op.LOG_STATUS:
+            return "log status"
+        return "log download" if self.arg == 0 else f"log download from chunk {self.arg}"
+
+
+@dataclass
+class _Sent:
+    request: Request
+    cmd_id: int | None
+    at: float
+    n: int  # arrivals counted when it left: what arrives later may be its answer
+    streaming: bool  # chunks were still arriving when it left (a pass the board has not finished)
+    taken: bool = False  # chunks show the board took it
+
+
+@dataclass
+class LogDownloader(LogDownload):
+    """A download with its retry policy (module docstring). ``LogDownloader(started=now)``, then ``poll``."""
+
+    deadline_s: float = DEADLINE_S
+    quiet_s: float = QUIET_S
+    status_wait_s: float = STATUS_WAIT_S
+    request_timeout_s: float = REQUEST_TIMEOUT_S
+    backoff_s: tuple[float, ...] = BACKOFF_S
+    state: str = RUNNING
+    reason: str = ""  # why it failed (or that the log is empty); "" while running and when done
+    problem: str = ""  # the last thing that went wrong, for the failure's reason
+    requests: int = 0  # commands sent, retries included
+    passes: int = 0  # LOG_DOWNLOAD requests the board took
+    crc_restarts: int = 0
+    status_asks: int = 0  # LOG_STATUS requests sent
+    # The machine's own state, not for the constructor. Arrivals (chunks, LogStatus, LOG_DONE) are numbered, so
+    # "after a request left" or "after a pass began" is exact even when a whole read shares one timestamp.
+    _n: int = field(default=0, init=False, repr=False)  # arrivals so far
+    _out: _Sent | None = field(default=None, init=False, repr=False)  # the request waiting for its outcome
+    _want_sent: Request | None = field(default=None, init=False, repr=False)  # returned by poll, not yet sent
+    _failures: int = field(default=0, init=False, repr=False)  # failed requests since the last progress
+    _pause_until: float = field(default=0.0, init=False, repr=False)  # the backoff: no request before this
+    _progress_at: float = field(default=0.0, init=False, repr=False)  # the deadline runs from here
+    _pass_n: int | None = field(default=None, init=False, repr=False)  # the pass streaming: arrivals at its start
+    _pass_at: float = field(default=0.0, init=False, repr=False)  # ... and its time
+    _pass_max: int = field(default=-1, init=False, repr=False)  # the highest chunk index it brought
+    _pass_ended: bool = field(default=False, init=False, repr=False)  # a sign of its end arrived
+    _started_pass: bool = field(default=False, init=False, repr=False)  # a LOG_DOWNLOAD was ever taken
+    _chunk_at: float = field(default=-1e9, init=False, repr=False)  # the last chunk's arrival time
+    _last_index: int = field(default=-1, init=False, repr=False)  # the last chunk's index
+    _status_n: int = field(default=-1, init=False, repr=False)  # the last LogStatus's arrival
+    _status_acked: tuple[int, float] | None = field(default=None, init=False, repr=False)  # its LogStatus is due
+    _last_hole: int | None = field(default=None, init=False, repr=False)  # cache of the highest missing chunk
+
+    def __post_init__(self) -> None:
+        self._progress_at = self.started
+
+    # --- input ----------------------------------------------------------------------------------------------
+
+    def feed(self, pkt: Any, now: float) -> bool:
+        """A LogStatus or LogChunk from the board (the model calls this for every one); True if it was one."""
+        kind = type(pkt)
+        if kind is LogChunk:
+            self._n += 1
+            i = pkt.index
+            new = i not in self.chunks
+            super().feed(pkt, now)
+            out = self._out
+            if out is not None and out.request.op == Op.LOG_DOWNLOAD and not out.taken and (
+                not out.streaming or out.request.arg <= i < self._last_index
+            ):  # the board took it: chunks after a quiet spell, or the stream jumped back to where we asked
+                out.taken = True
+                self._begin_pass(self._n - 1, now)
+            if self._pass_n is not None:
+                self._pass_max = max(self._pass_max, i)
+                if i == (self.total_chunks or 0) - 1:
+                    self._pass_ended = True
+            self._chunk_at, self._last_index = now, i
+            if new:
+                self._progress(now)
+            return True
+        if kind is LogStatus:
+            self._n += 1
+            before = (self.used, self.crc32, self.restarts)
+            super().feed(pkt, now)
+            self._status_n = self._n
+            if pkt.state != LogState.DOWNLOADING:  # the board's resting state: a pass it was sending is over
+                self._pass_ended = True
+            if (self.used, self.crc32, self.restarts) != before:
+                self._last_hole = None
+                self._progress(now)
+            return True
+        return False
+
+    def on_event(self, ev: Any, now: float) -> None:
+        """A link event: the outcome of a request (CommandAcked, CommandFailed), or the board's LOG_DONE event.
+        Others are ignored (LogStatus and LogChunk come through ``feed``)."""
+        kind = type(ev)
+        if kind is PacketReceived:
+            pkt = ev.packet
+            if type(pkt) is Event and pkt.code == EventCode.LOG_DONE:
+                self._n += 1
+                self._pass_ended = True
+            return
+        if kind is not CommandAcked and kind is not CommandFailed:
+            return
+        if ev.op not in (Op.LOG_DOWNLOAD, Op.LOG_STATUS):
+            return
+        out = self._out
+        mine = out is not None and out.cmd_id == ev.cmd_id and out.request == Request(Op(ev.op), ev.arg)
+        if kind is CommandAcked:
+            if ev.op == Op.LOG_DOWNLOAD and self.set_size(n_chunks=ev.value):
+                self._last_hole = None
+                self._progress(now)
+            if not mine:
+                return  # a late answer to a request already settled: its size news is all it brings
+            self._out = None
+            if ev.op == Op.LOG_DOWNLOAD:
+                if not out.taken:  # type: ignore[union-attr]
+                    # The board queues its Ack behind what it was sending: all that arrives from now is the pass.
+                    self._begin_pass(self._n, now)
+            else:
+                if self.set_size(used=ev.value):
+                    self._last_hole = None
+                    self._progress(now)
+                self._status_acked = (self._n, now)
+            return
+        if not mine:
+            return
+        self._out = None
+        if ev.nak is None and out.taken:  # type: ignore[union-attr]
+            return  # its Ack was lost, but the chunks came
+        if ev.nak is None:  # not delivered: try again after a pause
+            self._failed(now, f"{out.request.text()}: {ev.reason}")  # type: ignore[union-attr]
+        elif ev.nak == Nak.LOG_EMPTY:
+            self._finish(EMPTY, "the board's log is empty (F2 starts recording)")
+        elif ev.nak == Nak.BAD_ARGUMENT and ev.op == Op.LOG_DOWNLOAD:
+            # The chunk is past the end: the log was erased or replaced. Start again from its new size.
+            self.chunks.clear()
+            self.used = self.crc32 = self.n_chunks = self._last_hole = None
+            self.restarts += 1
+            self._started_pass = False
+            self._failed(now, f"{out.request.text()}: the board's log changed")  # type: ignore[union-attr]
+        else:
+            self._fail(f"the board refused it: {ev.reason}")
+
+    def sent(self, cmd_id: int | None, now: float) -> None:
+        """The request ``poll`` returned went out as ``cmd_id`` (None: it could not be sent, e.g. no link)."""
+        req = self._want_sent
+        if req is None:
+            return
+        self._want_sent = None
+        self.requests += 1
+        if cmd_id is None:
+            self._failed(now, f"{req.text()}: not connected")
+            return
+        self._out = _Sent(req, cmd_id, now, self._n, streaming=now - self._chunk_at < self.quiet_s)
+        if req.op == Op.LOG_STATUS:
+            self.status_asks += 1
+            self._status_acked = None
+
+    def resume(self, now: float) -> None:
+        """Carry on after a failure (F5 again): the chunks that arrived are kept, the deadline starts afresh."""
+        if self.state != FAILED:
+            return
+        self.state, self.reason, self.problem = RUNNING, "", ""
+        self._out = self._want_sent = self._pass_n = self._status_acked = None
+        self._failures = 0
+        self._pause_until = self._progress_at = now
+
+    # --- output ---------------------------------------------------------------------------------------------
+
+    def poll(self, now: float) -> Request | None:
+        """Run the timers; returns the command to send now (then call ``sent``), or None."""
+        if self.state != RUNNING:
+            return None
+        if self._check_complete(now):
+            return None
+        out = self._out
+        if out is not None:
+            if out.taken:
+                self._out = None  # chunks came: its outcome no longer matters
+            elif now - out.at >= self.request_timeout_s:
+                self._out = None
+                self._failed(now, f"{out.request.text()}: no outcome after {self.request_timeout_s:.0f} s")
+            else:
+                return None
+        if now - self._progress_at >= self.deadline_s:
+            self._fail_deadline()
+            return None
+        if now < self._pause_until or self._streaming(now):
+            return None
+        req = self._next_request(now)
+        self._want_sent = req
+        return req
+
+    def next_deadline(self) -> float:
+        """When ``poll`` may next have something to do (a caller without a steady tick sleeps until then)."""
+        if self.state != RUNNING:
+            return float("inf")
+        times = [self._progress_at + self.deadline_s, self._pause_until]
+        if self._out is not None:
+            times.append(self._out.at + self.request_timeout_s)
+        if self._pass_n is not None:
+            times.append(max(self._pass_at, self._chunk_at) + self.quiet_s)
+        if self._status_acked is not None:
+            times.append(self._status_acked[1] + self.status_wait_s)
+        return min(times)
+
+    @property
+    def resume_at(self) -> int | None:
+        """The chunk a resumed download starts from (None: none missing)."""
+        return self.missing()
+
+    def progress_text(self) -> str:
+        total = self.total_chunks
+        return f"{self.received} of {total if total is not None else '?'} chunks"
+
+    # --- internals ------------------------------------------------------------------------------------------
+
+    def _progress(self, now: float) -> None:
+        self._progress_at = now
+        self._failures = 0
+
+    def _begin_pass(self, n: int, now: float) -> None:
+        self.passes += 1
+        self._started_pass = True
+        self._pass_n, self._pass_at, self._pass_max, self._pass_ended = n, now, -1, False
+
+    def _highest_hole(self) -> int | None:
+        """The highest missing chunk (None: none, or the size is unknown). Holes only close, so the search goes
+        down from the last answer: over a whole download it reads each index about once."""
+        total = self.total_chunks
+        if total is None:
+            return None
+        start = total - 1 if self._last_hole is None else self._last_hole
+        for i in range(min(start, total - 1), -1, -1):
+            if i not in self.chunks:
+                self._last_hole = i
+                return i
+        self._last_hole = -1
+        return None
+
+    def _streaming(self, now: float) -> bool:
+        """Whether the pass the board is sending may still bring something we lack."""
+        if self._pass_n is None:
+            return False
+        hole = self._highest_hole()
+        over = (
+            self._pass_ended  # its last chunk, its closing LogStatus or LOG_DONE arrived
+            or (self.total_chunks is not None and (hole is None or self._pass_max > hole))  # it is past every gap
+            or now - max(self._pass_at, self._chunk_at) >= self.quiet_s  # it went quiet: its end was lost
+        )
+        if over:
+            self._pass_n = None
+        return not over
+
+    def _next_request(self, now: float) -> Request | None:
+        acked = self._status_acked
+        if acked is not None and self._status_n > acked[0]:
+            self._status_acked = acked = None  # the LogStatus came
+        if not self._started_pass:
+            return Request(Op.LOG_DOWNLOAD, self.missing() or 0)
+        first = self.missing() if self.total_chunks is not None else None
+        if first is not None:
+            self._status_acked = None  # a resumed pass brings a LogStatus of its own
+            return Request(Op.LOG_DOWNLOAD, first)
+        if acked is not None:  # all that is missing is the LogStatus
+            if now - acked[1] < self.status_wait_s:
+                return None  # on its way
+            self._status_acked = None
+            self._failed(now, f"the board's LogStatus (size and CRC-32) did not come (asked {self.status_asks}"
+                         f" time{'s' if self.status_asks > 1 else ''})")
+            return None
+        return Request(Op.LOG_STATUS)  # the size or the CRC-32 is not known yet
+
+    def _failed(self, now: float, problem: str) -> None:
+        self.problem = problem
+        self._pause_until = now + self.backoff_s[min(self._failures, len(self.backoff_s) - 1)]
+        self._failures += 1
+
+    def _check_complete(self, now: float) -> bool:
+        if self.used == 0:
+            self._finish(EMPTY, "the board's log is empty (F2 starts recording)")
+            return True
+        total = self.total_chunks
+        if self.crc32 is None or total is None or len(self.chunks) < total or not self.done:
+            return False
+        problem = self.verify()
+        if problem is None:
+            self._finish(DONE, "")
+            return True
+        if self.crc_restarts >= MAX_CRC_RESTARTS:
+            self._fail(f"{problem} ({self.crc_restarts + 1} times)")
+            return True
+        self.crc_restarts += 1  # a damaged chunk passed its frame check: fetch everything again
+        self.problem = problem
+        self.chunks.clear()
+        self._last_hole = None
+        self._started_pass = False
+        self._progress(now)
+        return False
+
+    def _finish(self, state: str, reason: str) -> None:
+        self.state, self.reason = state, reason
+        self._out = self._want_sent = None
+
+    def _fail_deadline(self) -> None:
+        wait = f"{self.deadline_s:.0f} s"
+        if self.crc32 is None and self.total_chunks is not None and self.missing() is None:
+            head = f"no LogStatus (size and CRC-32) from the board in {wait}, asked {self.status_asks} times"
+        else:
+            head = f"nothing new from the board for {wait}"
+        self._fail(f"{head} (last: {self.problem or 'no answer'})")
+
+    def _fail(self, why: str) -> None:
+        first = self.missing()
+        where = "" if first is None else f": F5 resumes from chunk {first}"
+        self._finish(FAILED, f"{why}; {self.progress_text()} here{where}")
