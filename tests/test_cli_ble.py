@@ -43,7 +43,7 @@ def free_port() -> int:
 @pytest.mark.parametrize("argv, words", [
     (["--ble", "F0:5A:00:00:00:01", "--sim"], "--ble and --sim"),
     (["--serial", "/dev/null", "--hci", "usb:0"], "--hci needs --ble ADDR"),
-    (["--ble", "F0:5A:00:00:00:01", "--ble-timeout", "0"], "--ble-timeout must be positive"),
+    (["--ble", "F0:5A:00:00:00:01", "--ble-timeout", "0"], "--ble-timeout: must be a number between 0.1 and 600 s"),
 ])
 def test_option_errors(capsys: pytest.CaptureFixture[str], argv: list[str], words: str) -> None:
     code, err = run(capsys, *argv)
