@@ -55,7 +55,7 @@ def board_main(seed: int) -> int:
             super()._on_readable()
             n = self.bytes_in - before
             if n:  # decode a copy after the board has the bytes (the board is not held up by this)
-                for pkt in self.decoder.feed(bytes(self.board._rx[-n:])):
+                for pkt in self.decoder.feed(bytes(self.board.uart.rx[-n:])):
                     if type(pkt) is Joystick and pkt.lift != self.lift:
                         self.lift = pkt.lift
                         print(f"rx {t:.6f} {pkt.lift}", flush=True)

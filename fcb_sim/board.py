@@ -24,8 +24,8 @@ Sans-IO contract: ``uart_receive(data)`` (bytes arrive now), ``advance(until_us)
 BLE goes through ``board.wireless`` (a ``fcb_sim.wireless.WirelessLink``): every packet the board sends is offered
 to it. Without a radio, ``ble_connected()``, ``ble_disconnected()`` and ``ble_receive(data)`` drive the link; with
 ``wireless.BoardRadio`` its ``on_data`` is ``board.ble_data`` and its ``on_disconnect`` is ``board.ble_lost``
-(PANIC if the board was flown over BLE). ``status()``, ``profile()`` and ``profile_packets()`` report; the same
-loop runs as fast as possible (tests, ``fcb-sim profile``) or paced to the wall clock (fcb_sim/serve.py).
+(PANIC if the board was flown over BLE). ``status()`` and ``profile()`` report (``prof`` holds the measurements);
+the same loop runs as fast as possible (tests, ``fcb-sim profile``) or paced to the wall clock (fcb_sim/serve.py).
 """
 
 from __future__ import annotations
@@ -35,6 +35,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
+from fcb_sim import telemetry as tm
 from fcb_sim.calibration import CALIBRATED_VARS, DMP_ANGLE_LSB
 from fcb_sim.commands import COMMAND_DEDUPE_US, CommandDesk
 from fcb_sim.flash_log import FLASH_BYTES, FLASH_US_PER_BYTE, Download, FlashLog, LogVar
@@ -51,6 +52,7 @@ from fcb_sim.scheduler import (
     TASKS,
     Scheduler,
 )
+from fcb_sim.telemetry import Telemetry
 from fcb_sim.timing import (
     COSTS,
     DOWNLOAD_US_PER_CHUNK,
@@ -70,32 +72,26 @@ from fcb_sim.timing import (
     report_figures,
     report_rows,
 )
+from fcb_sim.transmit import Transmitter
 from fcb_sim.uart import RX_QUEUE_BYTES, TX_BUFFER_BYTES, UART_BAUD, Uart
 from fcb_sim.wireless import WirelessLink
 from term.logformat import SCHEME_RICE
 from term.protocol import (
     PROTOCOL_VERSION,
     SCHEDULERS,
-    Attitude,
+    SENSOR_PATHS,
     Button,
     Command,
-    Compact,
     Decoder,
     Encoder,
     Event,
     EventCode,
-    Flag,
-    Gains,
     Heartbeat,
     HeartbeatAck,
-    Height,
     Hello,
     Joystick,
     LogState,
-    LogStatus,
     Mode,
-    Motion,
-    Profile,
     Role,
     Status,
     WirelessState,
@@ -134,10 +130,11 @@ class BoardConfig:
     # idle wait, standing for interference the model does not know (bench/profile.py: "residual").
     residual_jitter_us: float = 0.0
 
-
-def _i16(v: float) -> int:
-    v = int(round(v))
-    return -32768 if v < -32768 else 32767 if v > 32767 else v
+    def __post_init__(self) -> None:
+        if self.scheduler not in SCHEDULERS:
+            raise ValueError(f"unknown scheduler {self.scheduler!r}")
+        if self.sensor_path not in SENSOR_PATHS:
+            raise ValueError(f"unknown sensor path {self.sensor_path!r}")
 
 
 class Board:
@@ -147,10 +144,6 @@ class Board:
                  core: FlightCore | None = None, wireless: WirelessLink | None = None,
                  log_vars: tuple[LogVar, ...] | None = None) -> None:
         self.config = cfg = config or BoardConfig()
-        if cfg.scheduler not in SCHEDULERS:
-            raise ValueError(f"unknown scheduler {cfg.scheduler!r}")
-        if cfg.sensor_path not in ("auto", "raw", "dmp"):
-            raise ValueError(f"unknown sensor path {cfg.sensor_path!r}")
         self.world = world if world is not None else World(cfg.seed)
         self.core = core if core is not None else FlightCore(fixed_point=cfg.fixed_point)
         self.wireless = wireless if wireless is not None else WirelessLink()
@@ -165,14 +158,13 @@ class Board:
         self._cost = {name: c.sampler(self.rng) for name, c in COSTS.items()}
         self.now = 0  # µs since boot
         self._present = 0  # the outside world's present: the latest time ``advance`` was asked to reach
-        self.encoder = Encoder()
         self.decoder = Decoder()
         self.ble_decoder = Decoder()
         self.uart = Uart()
+        self.tx = Transmitter(self.uart, self.wireless)
         self._ble_rx = bytearray()
         self._ble_overflow = 0  # bytes dropped from a full BLE receive queue
         self.rx_ignored = 0  # UART bytes while the parser reads BLE
-        self.tx_dropped = 0  # telemetry frames skipped for a full transmit buffer
         self.last_frame_us: int | None = None  # the last valid frame from the PC (the link timer)
         self.rtt_us: int | None = None  # the last heartbeat round trip (Heartbeat → HeartbeatAck)
         self._hb_sent: tuple[int, int] | None = None  # (counter, time) of the last heartbeat sent
@@ -190,8 +182,7 @@ class Board:
             "logging": self._task_logging}
         self._sample_t: float | None = None  # time of the previous sensor read, for dt
         self._baro_t: int | None = None
-        self._telemetry_n = 0
-        self._due_at: dict[str, float] = {}
+        self.telemetry = Telemetry()
         self.heartbeats = 0
         self.battery = self.world.battery()
         self.pressure, self.temperature = self.world.baro()
@@ -218,7 +209,17 @@ class Board:
 
     def uart_transmit(self) -> bytes:
         """What has left the UART by now: 115200 baud, 8N1."""
-        return self.uart.transmit(self.now)
+        return self.tx.transmit(self.now)
+
+    @property
+    def encoder(self) -> Encoder:
+        """The UART's encoder (its sequence numbers)."""
+        return self.tx.encoder
+
+    @property
+    def tx_dropped(self) -> int:
+        """Telemetry frames skipped for a full transmit buffer."""
+        return self.tx.tx_dropped
 
     @property
     def rx_overflow(self) -> int:
@@ -290,16 +291,6 @@ class Board:
     def reset_profile(self) -> None:
         self.prof.reset(self.now)
 
-    @property
-    def stats(self) -> dict[str, TaskStats]:
-        """Per task durations and periods since profiling (re)started."""
-        return self.prof.stats
-
-    @property
-    def reactions(self) -> TaskStats:
-        """The motor recomputes at a stick change (their time is in the parse task's too)."""
-        return self.prof.reactions
-
     # --- the main loop ------------------------------------------------------------------------------------
 
     def advance(self, until_us: int) -> None:
@@ -319,8 +310,7 @@ class Board:
                 # The loop was waiting: the flag is seen only once the interrupts in progress are over (those that
                 # hit a running task are in its measured duration already).
                 self._idle = False
-                free = self.irq.free_at(self.now, sched.timer_isr_end, self.uart.tx_clock, len(self.uart.tx),
-                                        self.ae)
+                free = self.irq.free_at(self.now, sched.timer_isr_end, *self.tx.wire(), self.ae)
                 if self.config.residual_jitter_us > 0:
                     free += int(self._residual_rng.expovariate(1.0 / self.config.residual_jitter_us))
                 if free > self.now:
@@ -397,7 +387,7 @@ class Board:
         sticks = m.sticks()
         self._set_motors(fc.control(int(mode), *sticks, 0.0), at + cost)
         self._sticks_used = sticks
-        self.reactions.add(at, cost)
+        self.prof.reactions.add(at, cost)
         return cost
 
     def _set_motors(self, ae: tuple[int, int, int, int], at: int) -> None:
@@ -508,35 +498,25 @@ class Board:
         return self._cost["heartbeat"]()
 
     def _task_telemetry(self) -> int:
-        self._telemetry_n += 1
+        self.telemetry.runs += 1
         self._drain_mode_events()
         if self.download.active:
             return self._download_step()
-        fc = self.core
-        phi, theta, psi = fc.attitude_centideg()
         if self.wireless.state is WirelessState.STARTED:
             if self.wireless.compact_due():  # as many as fill the notifications between two heartbeats
-                self.send(Compact(int(self.modes.mode), int(self.wireless.state), phi, theta, psi, self.battery))
-            return self._cost["telemetry"]()
-        self._telemetry(Attitude(int(self.modes.mode), _i16(phi), _i16(theta), _i16(psi),
-                                 _i16(fc.sp), _i16(fc.sq), _i16(fc.sr)))
-        self._telemetry(Motion(_i16(fc.sax), _i16(fc.say), _i16(fc.saz), *self.ae))
-        if self._due("height", 50_000):
-            self._telemetry(Height(self.pressure, _i16(fc.height * 1000), _i16(fc.setpoint * 1000),
-                                   _i16(fc.vz * 1000), self.battery, _i16(self.temperature)))
-        if self._due("status", 200_000):
-            self._telemetry(self.status())
-            g = fc.gains
-            self._telemetry(Gains(g.yaw_p, g.p1, g.p2, g.height_p, g.height_d))
+                self.send(tm.compact(self))
+        else:
+            for pkt in self.telemetry.packets(self):
+                self.tx.telemetry(pkt, self.now)
         return self._cost["telemetry"]()
 
     def _download_step(self) -> int:
         """Log chunks instead of telemetry: as many as the transmit buffer takes (the wire paces the download);
         a Status every tenth run."""
-        chunks, done = self.download.step(self.log, lambda: self.uart.tx_room > 20, self.send)
+        chunks, done = self.download.step(self.log, self.tx.bulk_room, self.send)
         if done:
             self._end_download()
-        if self._telemetry_n % 10 == 0:
+        if self.telemetry.runs % 10 == 0:
             self.send(self.status())
         return max(chunks * DOWNLOAD_US_PER_CHUNK, 20)
 
@@ -546,44 +526,12 @@ class Board:
 
     # --- telemetry and packets ----------------------------------------------------------------------------
 
-    def _due(self, name: str, period_us: float) -> bool:
-        """Whether a packet sent at its own rate (slower than the telemetry task) is due now."""
-        due = self._due_at.get(name, 0.0)
-        if self.now < due:
-            return False
-        self._due_at[name] = max(due + period_us, self.now - period_us / 2)
-        return True
-
     def status(self) -> Status:
-        m = self.modes
-        bits = ((Flag.CALIBRATED, m.calibrated), (Flag.ARMED, m.motors_enabled),
-                (Flag.LOGGING, self.log.recording), (Flag.BLE_CONNECTED, self.wireless.is_connected),
-                (Flag.WIRELESS_ACTIVE, self.wireless.state is WirelessState.STARTED),
-                (Flag.LOW_BATTERY, self.battery < m.config.low_battery or m.battery_low_latched),
-                (Flag.LINK_TIMEOUT, m.link_timed_out), (Flag.RAW_SENSORS, self._path == "raw"),
-                (Flag.FIXED_POINT, self.config.fixed_point), (Flag.PRIORITY_SCHEDULER, self.sched.priority),
-                (Flag.HEIGHT_HOLD, m.mode == Mode.HEIGHT))
-        flags = sum(int(flag) for flag, on in bits if on)
-        t = m.trims
-        return Status(flags, t.roll, t.pitch, t.yaw, t.lift, self.prof.load(self.now), self.log.fill_pct,
-                      int(self.wireless.state))
-
-    def log_status(self) -> LogStatus:
-        return self.log.status()
-
-    def _telemetry(self, pkt: Any) -> None:
-        """Telemetry is skipped, not queued behind itself, when the UART cannot keep up."""
-        if self.uart.tx_room < 20:
-            self.tx_dropped += 1
-            return
-        self.send(pkt)
+        return tm.status(self)
 
     def send(self, pkt: Any) -> None:
-        """A packet to the PC: offered to the wireless link, and queued on the UART while the cable is in use."""
-        link = self.wireless
-        link.send(pkt)
-        if link.writes_uart:
-            self.uart.write(self.encoder.encode(pkt), self.now)
+        """A packet to the PC, through the transmit side (fcb_sim/transmit.py)."""
+        self.tx.send(pkt, self.now)
 
     def _event(self, code: EventCode, arg: int) -> None:
         self.send(Event(int(code), int(arg), (self.now // 1000) & 0xFFFFFFFF))
@@ -599,10 +547,6 @@ class Board:
         """Report the handover's state changes (Event WIRELESS_STATE)."""
         for _old, new in self.wireless.take_transitions():
             self._event(EventCode.WIRELESS_STATE, int(new))
-
-    def wireless_stop(self) -> None:
-        self.wireless.request_stop()
-        self.wireless_events()
 
     def _on_mode_change(self, change: ModeChange) -> None:
         if change.old == Mode.CALIBRATION and self.modes.calibrated:
@@ -639,13 +583,6 @@ class Board:
             self._hello()
 
     # --- the profile --------------------------------------------------------------------------------------
-
-    def send_profile(self) -> None:
-        for pkt in self.profile_packets():
-            self.send(pkt)
-
-    def profile_packets(self) -> list[Profile]:
-        return self.prof.packets()
 
     def profile(self) -> dict[str, Any]:
         """The board's own profile: per task figures beside the report's (Figure 14), and the control deadline

@@ -84,7 +84,7 @@ def _log_reset(b: Board, arg: int) -> Result:
 
 
 def _log_status(b: Board, arg: int) -> Result:
-    return Nak.OK, b.log.used, lambda: b.send(b.log_status())
+    return Nak.OK, b.log.used, lambda: b.send(b.log.status())
 
 
 def _log_download(b: Board, first: int) -> Result:
@@ -97,15 +97,25 @@ def _log_download(b: Board, first: int) -> Result:
 
 
 def _profile(b: Board, arg: int) -> Result:
-    return Nak.OK, len(TASKS), b.send_profile
+    return Nak.OK, len(TASKS), lambda: _send_all(b, b.prof.packets())
+
+
+def _send_all(b: Board, pkts: list[Any]) -> None:
+    for pkt in pkts:
+        b.send(pkt)
 
 
 def _wireless(b: Board, arg: int) -> Result:
     if arg == 1:
         return _wireless_start(b)
     if arg == 0:
-        return Nak.OK, 0, b.wireless_stop
+        return Nak.OK, 0, lambda: _wireless_stop(b)
     return Nak.BAD_ARGUMENT, 0, None
+
+
+def _wireless_stop(b: Board) -> None:
+    b.wireless.request_stop()  # after the Ack: it still goes where the command came from
+    b.wireless_events()
 
 
 def _wireless_start(b: Board) -> Result:

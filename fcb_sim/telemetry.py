@@ -1,0 +1,78 @@
+"""What the board's telemetry task sends, built from the board's state (docs/board.md, "Tasks").
+
+Over the UART: Attitude and Motion at every telemetry run (50 Hz by default, ``Param.TELEMETRY_HZ``), Height at
+20 Hz, Status and Gains at 5 Hz, each field in the protocol's units (int16 fields clipped to their range, where
+``term.protocol.saturated`` recognises them). Over BLE (the handover STARTED): only the phone's Compact packet.
+``Telemetry.packets(board)`` gives the UART packets due now; ``status(board)`` and ``compact(board)`` build one
+packet each. Sans-IO: the board's clock decides what is due.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any
+
+from term.protocol import Attitude, Compact, Flag, Gains, Height, Mode, Motion, Status, WirelessState
+
+if TYPE_CHECKING:
+    from fcb_sim.board import Board
+
+HEIGHT_PERIOD_US = 50_000  # Height at 20 Hz
+STATUS_PERIOD_US = 200_000  # Status and Gains at 5 Hz
+
+
+def i16(v: float) -> int:
+    """``v`` rounded and clipped to an int16 field's range."""
+    v = int(round(v))
+    return -32768 if v < -32768 else 32767 if v > 32767 else v
+
+
+class Telemetry:
+    """The telemetry task's schedule: the packets slower than the task itself go when they are due."""
+
+    def __init__(self) -> None:
+        self.runs = 0  # telemetry task runs
+        self._due_at: dict[str, float] = {}
+
+    def due(self, name: str, period_us: float, now: int) -> bool:
+        """Whether a packet sent at its own rate (slower than the telemetry task) is due now."""
+        due = self._due_at.get(name, 0.0)
+        if now < due:
+            return False
+        self._due_at[name] = max(due + period_us, now - period_us / 2)
+        return True
+
+    def packets(self, b: Board) -> list[Any]:
+        """The UART telemetry due now, in the order it is sent."""
+        fc = b.core
+        phi, theta, psi = fc.attitude_centideg()
+        out: list[Any] = [Attitude(int(b.modes.mode), i16(phi), i16(theta), i16(psi), i16(fc.sp), i16(fc.sq),
+                                   i16(fc.sr)),
+                          Motion(i16(fc.sax), i16(fc.say), i16(fc.saz), *b.ae)]
+        if self.due("height", HEIGHT_PERIOD_US, b.now):
+            out.append(Height(b.pressure, i16(fc.height * 1000), i16(fc.setpoint * 1000), i16(fc.vz * 1000),
+                              b.battery, i16(b.temperature)))
+        if self.due("status", STATUS_PERIOD_US, b.now):
+            g = fc.gains
+            out += [status(b), Gains(g.yaw_p, g.p1, g.p2, g.height_p, g.height_d)]
+        return out
+
+
+def compact(b: Board) -> Compact:
+    """The phone's telemetry: mode, handover state, attitude, battery."""
+    phi, theta, psi = b.core.attitude_centideg()
+    return Compact(int(b.modes.mode), int(b.wireless.state), phi, theta, psi, b.battery)
+
+
+def status(b: Board) -> Status:
+    """The Status packet: flags, trims, CPU load since the last Status, log fill, handover state."""
+    m = b.modes
+    bits = ((Flag.CALIBRATED, m.calibrated), (Flag.ARMED, m.motors_enabled),
+            (Flag.LOGGING, b.log.recording), (Flag.BLE_CONNECTED, b.wireless.is_connected),
+            (Flag.WIRELESS_ACTIVE, b.wireless.state is WirelessState.STARTED),
+            (Flag.LOW_BATTERY, b.battery < m.config.low_battery or m.battery_low_latched),
+            (Flag.LINK_TIMEOUT, m.link_timed_out), (Flag.RAW_SENSORS, b.path == "raw"),
+            (Flag.FIXED_POINT, b.config.fixed_point), (Flag.PRIORITY_SCHEDULER, b.sched.priority),
+            (Flag.HEIGHT_HOLD, m.mode == Mode.HEIGHT))
+    flags = sum(int(flag) for flag, on in bits if on)
+    t = m.trims
+    return Status(flags, t.roll, t.pitch, t.yaw, t.lift, b.prof.load(b.now), b.log.fill_pct, int(b.wireless.state))
