@@ -34,6 +34,7 @@ from term.events import (
     StatsSample,
     StickSet,
 )
+from term.freshness import Arrivals, Reading, read
 from term.link import (
     CommandAcked,
     CommandFailed,
@@ -218,6 +219,7 @@ class Model:
     radio_note: str = ""  # why the radio is down and when it is tried again
     primary_ble: bool = False
     heard: bool = False  # a valid frame arrived from the board (on any link)
+    arrivals: Arrivals = field(default_factory=Arrivals)  # when each telemetry packet came: term.freshness
     _bad_noted: int = 0
     _link_noted: float = -1e9
     _loss_noted: float = -1e9
@@ -244,6 +246,7 @@ class Model:
     def _on_acked(self, event: CommandAcked, now: float) -> None:
         self.version += 1
         self.pending = max(0, self.pending - 1)
+        self.arrivals.note_ack(event.op, event.value, now)  # a trim's Ack carries the new trim
 
     def _on_failed(self, event: CommandFailed, now: float) -> None:
         self.version += 1
@@ -251,11 +254,11 @@ class Model:
         what = op_text(event.op, event.arg)
         if event.nak is not None:
             self.note(now, "error", "nak", f"NAK {what}: {event.reason}")
+        elif event.op in (Op.LOG_DOWNLOAD, Op.LOG_STATUS) and self.download is not None:
+            # The log download retries its own requests until its deadline (term.download): not the end of it.
+            self.note(now, "warning", "link", f"{what} failed: {event.reason}; the download tries again")
         else:
             self.note(now, "error", "link", f"{what} failed: {event.reason}")
-        if event.op == Op.LOG_DOWNLOAD and self.download is not None:
-            self.download = None
-            self.download_note = f"log download stopped: {event.reason}"
 
     def _on_lost(self, event: LinkLost, now: float) -> None:
         self.version += 1
@@ -364,6 +367,8 @@ class Model:
     def apply_packet(self, pkt: Any, now: float) -> None:
         kind = type(pkt)
         t = now - self.start
+        if kind in _TIMED:
+            self.arrivals.note(pkt, now)
         if kind is Attitude:
             self.attitude = pkt
             self._set_mode(pkt.mode, now)
@@ -387,7 +392,7 @@ class Model:
         elif kind is Event:
             self.board_ms = pkt.board_ms
             severity, text = event_text(pkt.code, pkt.arg)
-            self.note(now, severity, "board", f"[{pkt.board_ms / 1000:.3f}] {text}")
+            self.note(now, severity, "board", f"[{scaled(pkt, 'board_ms'):.3f}] {text}")
             if pkt.code == EventCode.MODE_CHANGED:
                 self._set_mode(pkt.arg & 0xFF, now)
             elif pkt.code == EventCode.WIRELESS_STATE:
@@ -484,6 +489,10 @@ class Model:
 
     # --- derived views ------------------------------------------------------------------------------------
 
+    def reading(self, name: str, now: float) -> Reading:
+        """A displayed figure with its age, staleness and bound (term.freshness)."""
+        return read(self, name, now)
+
     @property
     def flags(self) -> Flag:
         return Flag(self.status.flags) if self.status else Flag(0)
@@ -543,6 +552,8 @@ class Model:
                 ys.append(v)
         return xs, ys
 
+
+_TIMED = frozenset((Attitude, Motion, Height, Status, Gains, Compact))  # the packets whose figures can go stale
 
 _HANDLERS: dict[type, Callable[[Model, Any, float], None]] = {
     PacketReceived: Model._on_packet,

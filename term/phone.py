@@ -12,8 +12,9 @@ Controls (each returns the requests it makes, in order; the front end carries th
 - while nothing is touched, the pad and the slider follow the stick the terminal sends (``follow``: a hardware
   joystick's too), so they never show a stick that is not being flown.
 
-Readouts (pure functions of the ``Model``): ``readout`` gives the phone's telemetry (mode, the handover state,
-battery with its level, attitude: from the phone's own Compact frames while flying over BLE), and
+Readouts (pure functions of the ``Model`` and the time): ``readout`` gives the phone's telemetry (mode, the
+handover state, battery with its level, attitude: each a ``Reading`` with its age, from the phone's own Compact
+frames while flying over BLE), and
 ``link_states`` says which link carries control and how each one is (the link panel shows them too).
 Requests are ``SetAxes`` (change some stick axes, keep the others), ``RunAction`` (a key-map action by name) and
 ``SendCommand`` (an op and its argument).
@@ -23,9 +24,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from term.freshness import Reading
 from term.input.mapping import FULL
 from term.model import Model, battery_level, mode_name
-from term.protocol import Joystick, Mode, Op, WirelessState, scaled
+from term.protocol import Joystick, Mode, Op, WirelessState
 
 
 @dataclass(frozen=True, slots=True)
@@ -143,28 +145,22 @@ class Readout:
     mode: str
     panic: bool
     wireless: str  # the handover state's name
-    battery_v: float | None
-    battery_level: str  # "panic", "warn", "ok" ("" without a reading)
-    attitude: tuple[float, float, float] | None  # roll, pitch, yaw in degrees
+    battery: Reading  # V, with its age (term.freshness)
+    battery_level: str  # "panic", "warn", "ok" ("" without a reading shown)
+    attitude: tuple[Reading, Reading, Reading]  # roll, pitch, yaw in degrees
 
 
-def readout(model: Model) -> Readout:
-    """The phone's telemetry: over BLE from its own Compact frames, else from the cable's Attitude."""
+def readout(model: Model, now: float) -> Readout:
+    """The phone's telemetry, each figure from its freshest source (over BLE the phone's own Compact frames, on
+    the cable Attitude and Height), with its age."""
     try:
         ws = WirelessState(model.wireless).name
     except ValueError:
         ws = str(model.wireless)
-    v = model.battery_v
-    if model.over_ble and model.compact is not None:
-        c = model.compact
-        att: tuple[float, float, float] | None = (scaled(c, "phi"), scaled(c, "theta"), scaled(c, "psi"))
-    elif model.attitude is not None:
-        a = model.attitude
-        att = (scaled(a, "phi"), scaled(a, "theta"), scaled(a, "psi"))
-    else:
-        att = None
-    return Readout(mode_name(model.mode), model.mode == Mode.PANIC, ws, v,
-                   "" if v is None else battery_level(v), att)
+    bat = model.reading("battery", now)
+    level = battery_level(bat.value) if bat.shown and bat.value is not None else ""
+    att = (model.reading("phi", now), model.reading("theta", now), model.reading("psi", now))
+    return Readout(mode_name(model.mode), model.mode == Mode.PANIC, ws, bat, level, att)
 
 
 @dataclass(frozen=True, slots=True)

@@ -11,6 +11,7 @@
 from __future__ import annotations
 
 import asyncio
+import contextlib
 from collections.abc import Callable
 
 import pytest
@@ -292,6 +293,148 @@ def test_snapshot_flight_screen_over_ble(snap_compare, handover: Model) -> None:
     app = TermApp(joystick=False, clock=lambda: 3.0)
     app.model = handover
     assert snap_compare(app, terminal_size=(120, 44))
+
+
+# --- freshness through a handover: no stale figure unmarked --------------------------------------------------
+
+
+class TwoLinkBoard:
+    """fcb_sim's Board paced to the wall clock behind two loopback pairs: its UART on one, its BLE radio on the
+    other (each notification written as it comes). What ``fcb-sim serve --pty --ble-hci`` does, in process."""
+
+    def __init__(self, uart: Transport, radio: Transport, board: object) -> None:
+        self.uart, self.radio, self.board = uart, radio, board
+        self.t0 = 0.0
+        self.tasks: list[asyncio.Task[None]] = []
+
+    async def start(self) -> None:
+        import time
+
+        await self.uart.open()
+        await self.radio.open()
+        self.t0 = time.monotonic()
+        self.board.ble_connected()  # type: ignore[attr-defined]  # the terminal's radio holds the connection
+        self.tasks = [asyncio.create_task(self._read(self.uart, "uart_receive")),
+                      asyncio.create_task(self._read(self.radio, "ble_receive")), asyncio.create_task(self._run())]
+
+    def _advance(self) -> None:
+        import time
+
+        self.board.advance(int((time.monotonic() - self.t0) * 1e6))  # type: ignore[attr-defined]
+
+    async def _read(self, t: Transport, method: str) -> None:
+        while True:
+            data = await t.read()
+            self._advance()
+            getattr(self.board, method)(data)
+
+    async def _run(self) -> None:
+        b = self.board
+        while True:
+            self._advance()
+            out = b.uart_transmit()  # type: ignore[attr-defined]
+            if out:
+                await self.uart.write(out)
+            for note in b.wireless.notifications():  # type: ignore[attr-defined]
+                await self.radio.write(note)
+            await asyncio.sleep(0.002)
+
+    async def stop(self) -> None:
+        for t in self.tasks:
+            t.cancel()
+        for t in self.tasks:
+            with contextlib.suppress(asyncio.CancelledError, Exception):
+                await t
+
+
+# Each panel of the flight screen and the board figures it shows (independent of the widgets' own bookkeeping).
+PANEL_FIELDS = {
+    "#mode": ("mode",),
+    "#heading": ("phi", "theta", "psi"),
+    "#rates": ("sp", "sq", "sr"),
+    "#motors": ("ae1", "ae2", "ae3", "ae4"),
+    "#battery": ("battery",),
+    "#pressure": ("pressure", "temperature", "height", "setpoint", "vz"),
+    "#controls": ("trim_roll", "trim_pitch", "trim_yaw", "trim_lift", "yaw_p", "p1", "p2", "height_p", "height_d",
+                  "cpu_load", "log_fill"),
+}
+
+
+async def test_no_stale_figure_goes_unmarked_through_a_handover() -> None:
+    """TermApp over the cable and the radio to the real (sans-IO) board: on the cable, over BLE (key 8, MANUAL,
+    lift trims) and back on the cable, every panel of the flight screen is checked many times: a figure older
+    than its staleness limit is marked (its age, or "not over BLE"), and the trims flown over BLE are shown from
+    the board's Acks, not a stale +0."""
+    import time
+
+    from fcb_sim.board import Board, BoardConfig
+    from fcb_sim.physics import World
+
+    cable, radio = loopback_pair(), loopback_pair()
+    radio.a.name = "BLE loopback"
+    board = Board(BoardConfig(seed=2), world=World(2))
+    peer = TwoLinkBoard(cable.b, radio.b, board)
+    await peer.start()
+    frozen: list[float] = []  # while a check runs, the app's clock stands still: render and check see one instant
+    app = TermApp(cable.a, radio=radio.a, joystick=False, clock=lambda: frozen[0] if frozen else time.monotonic())
+    stats = {"checks": 0, "stale": 0, "not carried": 0}
+
+    def check() -> None:
+        frozen.append(time.monotonic())
+        try:
+            app.render_now()
+            now = frozen[0]
+            for wid, names in PANEL_FIELDS.items():
+                w = app.screen.query_one(wid)
+                shown = f"{w.render()} {w.border_subtitle or ''}"
+                for name in names:
+                    r = app.model.reading(name, now)
+                    if r.stale:
+                        assert r.mark and r.mark in shown, (wid, r, shown)
+                        stats["stale"] += 1
+                        stats["not carried"] += not r.carried
+            stats["checks"] += 1
+        finally:
+            frozen.clear()
+
+    try:
+        async with app.run_test(size=(120, 44)) as pilot:
+            m = app.model
+
+            async def until(cond: Callable[[], bool], timeout: float = 10.0) -> None:
+                async with asyncio.timeout(timeout):
+                    while not cond():
+                        await pilot.pause(0.03)
+                        check()
+
+            async def for_s(seconds: float) -> None:
+                end = time.monotonic() + seconds
+                await until(lambda: time.monotonic() >= end)
+
+            await until(lambda: m.mode == Mode.SAFE and m.radio_up and m.status is not None)
+            await for_s(0.3)
+            assert not [r for n in PANEL_FIELDS["#motors"] if (r := m.reading(n, app.clock())).stale]
+            app.simulate_key("8")
+            await until(lambda: m.over_ble)
+            app.simulate_key("2")
+            await until(lambda: m.mode == Mode.MANUAL)
+            for _ in range(5):  # lift trims over BLE: the Acks carry the new trim
+                app.simulate_key("a")
+                await for_s(0.1)
+            await until(lambda: m.reading("trim_lift", app.clock()).value == board.modes.trims.lift > 0)
+            assert m.reading("trim_lift", app.clock()).source == "Ack"
+            await for_s(1.5)  # long enough for the cable's last telemetry to go stale
+            assert "not over BLE" in str(app.screen.query_one("#motors").border_subtitle)
+            assert m.reading("phi", app.clock()).fresh and m.reading("battery", app.clock()).fresh  # Compact
+            app.send(Op.WIRELESS, 0)  # hand control back to the cable, still flying
+            await until(lambda: not m.over_ble and m.reading("ae1", app.clock()).fresh, 5.0)
+            await until(lambda: m.reading("trim_lift", app.clock()).source == "Status")
+            await for_s(0.3)
+            assert m.reading("trim_lift", app.clock()).value == board.modes.trims.lift
+            assert not app.screen.query_one("#motors").border_subtitle
+    finally:
+        await peer.stop()
+    assert stats["checks"] > 50 and stats["stale"] > 0 and stats["not carried"] > 0, stats
 
 
 # --- the model's rules for two links (pure) -----------------------------------------------------------------

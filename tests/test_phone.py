@@ -14,6 +14,7 @@ from term.phone import (
     PANIC,
     TRIM_BUTTONS,
     Phone,
+    Readout,
     RunAction,
     SendCommand,
     SetAxes,
@@ -67,20 +68,27 @@ def test_buttons_are_the_key_maps_actions_and_panic_lets_go_of_the_lift() -> Non
 
 def test_the_readout_is_the_phones_telemetry() -> None:
     m = Model(start=0.0, radio_name="ble")
-    r = readout(m)
-    assert r.mode == "—" and r.battery_v is None and r.battery_level == "" and r.attitude is None
+    r = readout(m, 0.0)
+    assert r.mode == "—" and not r.battery.known and r.battery_level == "" and not r.attitude[0].known
+
+    def att(r: Readout) -> tuple[float | None, ...]:
+        return tuple(a.value for a in r.attitude)
+
     m.apply_packet(Attitude(Mode.MANUAL, 1000, -500, 9000, 0, 0, 0), 0.1)
-    assert readout(m).attitude == (10.0, -5.0, 90.0)
-    # Over BLE the phone shows its own Compact frames.
+    assert att(readout(m, 0.1)) == (10.0, -5.0, 90.0)
+    # Over BLE the phone shows its own Compact frames (the freshest attitude).
     m.radio_up = True
     m.apply_packet(Compact(int(Mode.PANIC), int(WirelessState.STARTED), 200, 300, -400, 1040), 0.2)
-    r = readout(m)
-    assert r.mode == "PANIC" and r.panic and r.wireless == "STARTED" and r.attitude == (2.0, 3.0, -4.0)
-    assert r.battery_v == 10.4 and r.battery_level == "panic"
+    r = readout(m, 0.2)
+    assert r.mode == "PANIC" and r.panic and r.wireless == "STARTED" and att(r) == (2.0, 3.0, -4.0)
+    assert r.attitude[0].source == "Compact" and r.attitude[0].fresh
+    assert r.battery.value == 10.4 and r.battery_level == "panic"
     m.apply_packet(Compact(int(Mode.SAFE), int(WirelessState.STARTED), 0, 0, 0, 1100), 0.3)
-    assert readout(m).battery_level == "warn"
+    assert readout(m, 0.3).battery_level == "warn"
     m.apply_packet(Compact(int(Mode.SAFE), int(WirelessState.STARTED), 0, 0, 0, 1200), 0.4)
-    assert readout(m).battery_level == "ok"
+    assert readout(m, 0.4).battery_level == "ok"
+    later = readout(m, 10.0)  # nothing for ten seconds: the same figures, marked with their age
+    assert later.battery.stale and later.battery.mark == "9 s old" and later.attitude[0].stale
 
 
 def _stats(**kw: object) -> LinkStats:

@@ -8,7 +8,7 @@ from rich.text import Text
 
 from term.model import BATTERY_FULL_V, BATTERY_PANIC_V, BATTERY_WARN_V, Model, battery_level
 from term.widgets.bars import hbar
-from term.widgets.base import ModelView
+from term.widgets.base import STALE_STYLE, ModelView, figure
 
 LOW_END_V = 10.0
 
@@ -38,15 +38,17 @@ class BatteryGauge(ModelView):
         return None if v is None else battery_style(v)  # crossing a threshold shows at once
 
     def render_model(self, model: Model, now: float) -> RenderableType:
-        v = model.battery_v
+        r = self.read(model, "battery", now)
+        self.mark(r)
         width = max(10, (self.content_size.width or 30) - 10)
         out = Text()
-        if v is None:
+        if not r.shown or r.value is None:
             out.append("battery  —")
             return out
-        style = battery_style(v)
+        v = r.value
+        style = STALE_STYLE if r.stale else battery_style(v)
         out.append_text(hbar(v, LOW_END_V, BATTERY_FULL_V, width, style))
-        out.append(f" {v:5.2f} V", style=style)
+        out.append_text(figure(r, "5.2f", " V", style, pad=" "))
         out.append("\n")
         out.append_text(threshold_ruler(width))
         out.append("\n")

@@ -5,11 +5,12 @@ from __future__ import annotations
 from rich.console import RenderableType
 from rich.text import Text
 
+from term.freshness import Reading
 from term.input.mapping import FULL, LIFT_ZERO
 from term.model import Model
 from term.protocol import Button, Flag, LogState, Mode
 from term.widgets.bars import cbar, hbar
-from term.widgets.base import ModelView
+from term.widgets.base import STALE_STYLE, ModelView, figure
 
 FLAG_NAMES = (
     (Flag.CALIBRATED, "CAL"),
@@ -30,10 +31,22 @@ def _pct(v: int) -> str:
     return f"{100 * v / FULL:+4.0f}%"
 
 
+def _num(r: Reading) -> float:
+    return r.value if r.shown and r.value is not None and r.bound != "?" else 0.0
+
+
 class ControlsPanel(ModelView):
     def render_model(self, model: Model, now: float) -> RenderableType:
         s = model.stick
-        st = model.status
+        trims = [self.read(model, n, now) for n in ("trim_roll", "trim_pitch", "trim_yaw", "trim_lift")]
+        gains = [self.read(model, n, now) for n in ("yaw_p", "p1", "p2", "height_p", "height_d")]
+        flags_r, cpu, log = (self.read(model, n, now) for n in ("flags", "cpu_load", "log_fill"))
+        marks: dict[str, list[str]] = {}  # the same age said once for every group it applies to
+        for what, rs in (("trims", trims), ("gains", gains), ("status", [flags_r, cpu, log])):
+            for r in rs:
+                if r.mark and what not in marks.setdefault(r.mark, []):
+                    marks[r.mark].append(what)
+        self.border_subtitle = " · ".join(f"{', '.join(whats)}: {mark}" for mark, whats in marks.items())
         width = max(7, ((self.content_size.width or 44) - 26) | 1)
         out = Text()
         if model.joystick_name:
@@ -41,33 +54,44 @@ class ControlsPanel(ModelView):
             out.append(f"  ({model.joystick_mapping})\n" if model.joystick_mapping else "\n", style="dim")
         else:
             out.append("stick: none, keyboard only\n", style="dim")
-        trims = (st.trim_roll, st.trim_pitch, st.trim_yaw) if st else (0, 0, 0)
         for name, v, trim in (("roll ", s.roll, trims[0]), ("pitch", s.pitch, trims[1]), ("yaw  ", s.yaw, trims[2])):
             out.append(f"{name} ")
-            out.append_text(cbar(v + trim, FULL, width))
-            out.append(f" {_pct(v)} trim {trim:+6d}\n")
-        lift_trim = st.trim_lift if st else 0
+            out.append_text(cbar(v + _num(trim), FULL, width))
+            out.append(f" {_pct(v)} trim ")
+            out.append_text(figure(trim, "+6d"))
+            out.append("\n")
+        lift_trim = trims[3]
         out.append("lift  ")
-        out.append_text(hbar(s.lift + lift_trim, 0, FULL, width, "yellow" if s.lift > LIFT_ZERO else "green"))
-        out.append(f" {100 * s.lift / FULL:4.0f}% trim {lift_trim:+6d}\n")
+        out.append_text(hbar(s.lift + _num(lift_trim), 0, FULL, width, "yellow" if s.lift > LIFT_ZERO else "green"))
+        out.append(f" {100 * s.lift / FULL:4.0f}% trim ")
+        out.append_text(figure(lift_trim, "+6d"))
+        out.append("\n")
         if s.lift > LIFT_ZERO and model.mode in (None, Mode.SAFE):  # flying, lift is what it should be
             out.append("throttle up: SAFE cannot be left\n", style="yellow")
         if s.buttons & Button.FIRE:
             out.append("FIRE pressed: PANIC\n", style="bold red")
-        g = model.gains
-        if g:
-            out.append(f"gains  yaw P {g.yaw_p:.4g}  P1 {g.p1:.4g}  P2 {g.p2:.4g}  "
-                       f"height P {g.height_p:.4g}  D {g.height_d:.4g}\n")
+        if gains[0].shown:
+            out.append("gains ")
+            for label, r in zip((" yaw P ", "  P1 ", "  P2 ", "  height P ", "  D "), gains, strict=True):
+                out.append(label, style=STALE_STYLE if r.stale else "")
+                out.append_text(figure(r, ".4g"))
+            out.append("\n")
         else:
             out.append("gains  —\n", style="dim")
-        flags = model.flags
         out.append("flags  ")
-        for f, name in FLAG_NAMES:
-            if flags & f:
-                bad = f in (Flag.LOW_BATTERY, Flag.LINK_TIMEOUT)
-                out.append(name + " ", style="bold red" if bad else "bold green")
-        if st:
-            out.append(f"\ncpu {st.cpu_load:3d}%  log {st.log_fill:3d}%", style="")
+        if not flags_r.shown:
+            out.append("—", style=STALE_STYLE)
+        else:
+            flags = Flag(int(_num(flags_r)))
+            for f, name in FLAG_NAMES:
+                if flags & f:
+                    bad = f in (Flag.LOW_BATTERY, Flag.LINK_TIMEOUT)
+                    out.append(name + " ", style=STALE_STYLE if flags_r.stale else "bold red" if bad else "bold green")
+        if cpu.known:
+            out.append("\ncpu ")
+            out.append_text(figure(cpu, "3d", "%"))
+            out.append("  log ")
+            out.append_text(figure(log, "3d", "%"))
             ls = model.log_state
             if ls is not None and ls != LogState.IDLE:
                 out.append(f" {ls.name}", style="yellow")

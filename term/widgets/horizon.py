@@ -13,8 +13,7 @@ from rich.console import RenderableType
 from rich.text import Text
 
 from term.model import Model
-from term.protocol import scaled
-from term.widgets.base import ModelView
+from term.widgets.base import STALE_STYLE, ModelView, figure
 
 SKY = "rgb(40,110,200)"
 GROUND = "rgb(140,90,40)"
@@ -88,12 +87,17 @@ class Horizon(ModelView):
     def render_model(self, model: Model, now: float) -> RenderableType:
         w = max(20, self.content_size.width or 36)
         h = max(3, self.content_size.height or 9)
-        a = model.attitude
+        phi, theta = (self.read(model, n, now, figure=False) for n in ("phi", "theta"))  # a picture: the tape has
+        # the numbers
         out = Text()
-        for i, row in enumerate(horizon_rows(w, h, scaled(a, "phi") if a else 0.0, scaled(a, "theta") if a else 0.0)):
+        rows = horizon_rows(w, h, phi.value if phi.shown and phi.value is not None else 0.0,
+                            theta.value if theta.shown and theta.value is not None else 0.0)
+        for i, row in enumerate(rows):
             if i:
                 out.append("\n")
             out.append_text(row)
+        if phi.stale or theta.stale:
+            out.stylize(STALE_STYLE)  # an old attitude is not drawn as if it were now
         return out
 
 
@@ -102,16 +106,26 @@ class HeadingTape(ModelView):
 
     def render_model(self, model: Model, now: float) -> RenderableType:
         w = max(20, self.content_size.width or 36)
-        a = model.attitude
-        yaw = scaled(a, "psi") if a else 0.0
+        phi, theta, psi = (self.read(model, n, now) for n in ("phi", "theta", "psi"))
+        yaw = psi.value if psi.shown and psi.value is not None else 0.0
         out = heading_tape(w, yaw)
+        if psi.stale:
+            out.stylize(STALE_STYLE)
         out.append("\n")
-        hdg = f"{yaw % 360:05.1f}"
+        hdg = f"{psi.bound}{psi.edge:05.1f}" if psi.bound in (">", "<") else f"{yaw % 360:05.1f}"
         out.append("▲ ".rjust(w // 2 - len(hdg) // 2 + 1), style="bold")
-        out.append(f"{hdg}°", style="bold")
+        out.append(f"{hdg}°", style=STALE_STYLE if psi.stale else "bold")
         out.append("\n")
-        if a is None:
+        if not phi.known:
             out.append("no attitude yet", style="dim")
+        elif phi.stale:  # short figures, to leave room for the age
+            out.append_text(figure(phi, "+.0f", "°"))
+            out.append(" ")
+            out.append_text(figure(theta, "+.0f", "°"))
+            out.append(f" {phi.mark}", style="yellow")
         else:
-            out.append(f"roll {scaled(a, 'phi'):+6.1f}°   pitch {scaled(a, 'theta'):+6.1f}°")
+            out.append("roll ")
+            out.append_text(figure(phi, "+6.1f", "°"))
+            out.append("   pitch ")
+            out.append_text(figure(theta, "+6.1f", "°"))
         return out

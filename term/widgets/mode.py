@@ -33,6 +33,9 @@ class ModeBanner(ModelView):
 
     def render_model(self, model: Model, now: float) -> RenderableType:
         mode = model.mode
+        mode_r = self.read(model, "mode", now)
+        flags_r = self.read(model, "flags", now, figure=False)
+        flags = model.flags if flags_r.fresh else Flag(0)  # ARMED, LOW BATTERY: only while the board says so
         if model.version_mismatch is not None:
             text, style = "WRONG PROTOCOL VERSION", "bold white on red"
         elif mode is None:
@@ -42,9 +45,9 @@ class ModeBanner(ModelView):
             text = f"!!!  {spaced(name)}  !!!" if mode == Mode.PANIC else spaced(name)
             style = STYLE.get(mode, "bold")  # type: ignore[call-overload]
             extra = []
-            if mode != Mode.PANIC and model.flags & Flag.ARMED and mode == Mode.SAFE:
+            if mode != Mode.PANIC and flags & Flag.ARMED and mode == Mode.SAFE:
                 extra.append("ARMED")
-            if model.flags & Flag.LOW_BATTERY:
+            if flags & Flag.LOW_BATTERY:
                 extra.append("LOW BATTERY")
             if extra:
                 text += "   " + " · ".join(extra)
@@ -56,6 +59,8 @@ class ModeBanner(ModelView):
                                           else "")
         elif model.radio_name and model.over_ble:
             text += "   ·   over BLE"
+        if mode is not None and mode_r.stale:
+            text += f"   ·   mode {mode_r.mark}"
         if lost:
             style = "bold blink white on red" if mode is not None else style
         self.set_class(mode == Mode.PANIC or lost, "alarm")

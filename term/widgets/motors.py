@@ -7,22 +7,24 @@ from rich.text import Text
 
 from term.model import Model
 from term.widgets.bars import hbar
-from term.widgets.base import ModelView
+from term.widgets.base import STALE_STYLE, ModelView, figure
 
 NAMES = ("ae1 front", "ae2 right", "ae3 back ", "ae4 left ")
 
 
 class MotorBars(ModelView):
     def render_model(self, model: Model, now: float) -> RenderableType:
-        m = model.motion
-        values = (m.ae1, m.ae2, m.ae3, m.ae4) if m else (0, 0, 0, 0)
+        readings = [self.read(model, f"ae{i}", now) for i in range(1, 5)]
         width = max(5, (self.content_size.width or 40) - 16)
         out = Text()
-        for i, (name, v) in enumerate(zip(NAMES, values, strict=True)):
-            style = "red" if v >= 950 else "green" if v > 0 else "dim"
+        for i, (name, r) in enumerate(zip(NAMES, readings, strict=True)):
+            v = r.value if r.shown and r.value is not None else 0
+            style = STALE_STYLE if r.stale else "red" if v >= 950 else "green" if v > 0 else "dim"
             out.append(f"{name} ")
             out.append_text(hbar(v, 0, 1000, width, style))
-            out.append(f" {v:4d}" if m else "    —")
+            out.append(" ")
+            out.append_text(figure(r, "4d"))
             if i < 3:
                 out.append("\n")
+        self.mark(*readings)
         return out

@@ -5,10 +5,11 @@ from __future__ import annotations
 from rich.console import RenderableType
 from rich.text import Text
 
+from term.freshness import Reading
 from term.model import Model
-from term.protocol import Flag, Mode, scaled
+from term.protocol import Flag, Mode
 from term.widgets.bars import cbar, hbar
-from term.widgets.base import ModelView
+from term.widgets.base import STALE_STYLE, ModelView, figure
 
 HEIGHT_SPAN_M = 3.0
 VZ_SPAN = 2.0
@@ -21,27 +22,42 @@ class PressureIndicator(ModelView):
         return model.mode == Mode.HEIGHT
 
     def render_model(self, model: Model, now: float) -> RenderableType:
-        h = model.height
+        p, temp, hr, spr, vzr = (self.read(model, n, now)
+                                 for n in ("pressure", "temperature", "height", "setpoint", "vz"))
+        self.mark(p, hr, spr, vzr, temp)
         out = Text()
-        if h is None:
+        if not p.known:
             out.append("pressure  —\nheight    —\nvz        —")
             return out
         width = max(8, (self.content_size.width or 40) - 20)
-        height_m, sp_m, vz = scaled(h, "height"), scaled(h, "setpoint"), scaled(h, "vz")
-        out.append(f"pressure {h.pressure:7d} Pa  {scaled(h, 'temperature'):5.1f} °C\n")
-        out.append("height   ")
-        out.append_text(hbar(max(0.0, height_m), 0.0, HEIGHT_SPAN_M, width, "cyan"))
-        out.append(f" {height_m:+6.2f} m\n")
+
+        def num(r: Reading) -> float:
+            return r.value if r.shown and r.value is not None else 0.0
+
+        bar = STALE_STYLE if hr.stale else "cyan"
+        out.append("pressure ")
+        out.append_text(figure(p, "7d", " Pa"))
+        out.append("  ")
+        out.append_text(figure(temp, "5.1f", " °C"))
+        out.append("\nheight   ")
+        out.append_text(hbar(max(0.0, num(hr)), 0.0, HEIGHT_SPAN_M, width, bar))
+        out.append(" ")
+        out.append_text(figure(hr, "+6.2f", " m"))
         hold = model.mode == Mode.HEIGHT or bool(model.flags & Flag.HEIGHT_HOLD)
-        out.append("set pt   ")
+        out.append("\nset pt   ")
         if hold:
-            out.append_text(hbar(max(0.0, sp_m), 0.0, HEIGHT_SPAN_M, width, "magenta"))
-            out.append(f" {sp_m:+6.2f} m\n")
+            sp_bar = STALE_STYLE if spr.stale else "magenta"
+            out.append_text(hbar(max(0.0, num(spr)), 0.0, HEIGHT_SPAN_M, width, sp_bar))
+            out.append(" ")
+            out.append_text(figure(spr, "+6.2f", " m"))
         else:
             out.append("(HEIGHT mode)".ljust(width)[:width], style="dim")
-            out.append(f" {sp_m:+6.2f} m\n", style="dim")
+            out.append_text(figure(spr, "+6.2f", " m", style="dim", pad=" "))
+        vz = num(vzr)
         arrow = "↑" if vz > 0.05 else "↓" if vz < -0.05 else "·"
-        out.append("vz       ")
-        out.append_text(cbar(vz, VZ_SPAN, (width - 2) | 1, "cyan"))
-        out.append(f" {vz:+5.2f}m/s{arrow}")
+        out.append("\nvz       ")
+        out.append_text(cbar(vz, VZ_SPAN, (width - 2) | 1, STALE_STYLE if vzr.stale else "cyan"))
+        out.append(" ")
+        out.append_text(figure(vzr, "+5.2f", "m/s"))
+        out.append(arrow if vzr.shown else " ")
         return out

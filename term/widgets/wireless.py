@@ -23,7 +23,7 @@ from term.input.mapping import FULL
 from term.model import BATTERY_FULL_V, Model
 from term.phone import MODE_BUTTONS, TRIM_BUTTONS, Phone, Request, link_states, readout
 from term.widgets.bars import cbar, hbar
-from term.widgets.base import ModelView
+from term.widgets.base import STALE_STYLE, ModelView, figure
 from term.widgets.battery import LEVEL_STYLE as BATTERY_STYLE
 from term.widgets.battery import LOW_END_V
 from term.widgets.events import EventsList
@@ -184,27 +184,36 @@ class PhoneTelemetry(ModelView):
         return (model.mode, model.over_ble, model.control_lost, model.radio_up, model.wireless)
 
     def render_model(self, model: Model, now: float) -> RenderableType:
-        r = readout(model)
+        r = readout(model, now)
+        for reading in (r.battery, *r.attitude):
+            self.readings[reading.name] = reading
+        self.mark(r.battery, *r.attitude)
         out = Text()
         out.append("mode     ")
         out.append(r.mode, style="bold red" if r.panic else "bold")
         out.append(f"   wireless {r.wireless}\n", style="dim")
         out.append("battery  ")
-        if r.battery_v is None:
+        bat = r.battery
+        if not bat.shown or bat.value is None:
             out.append("—\n", style="dim")
         else:
-            style = BATTERY_STYLE[r.battery_level]
-            out.append_text(hbar(r.battery_v, LOW_END_V, BATTERY_FULL_V, 12, style))
-            out.append(f" {r.battery_v:5.2f} V\n", style=style)
-        if r.attitude is None:
+            style = STALE_STYLE if bat.stale else BATTERY_STYLE[r.battery_level]
+            out.append_text(hbar(bat.value, LOW_END_V, BATTERY_FULL_V, 12, style))
+            out.append_text(figure(bat, "5.2f", " V\n", style, pad=" "))
+        phi, theta, psi = r.attitude
+        if not phi.shown:
             out.append("attitude —\n", style="dim")
         else:
-            phi, theta, psi = r.attitude
-            out.append(f"roll  {phi:+6.1f}° ")
-            out.append_text(cbar(phi, 30.0, 11))
-            out.append(f"\npitch {theta:+6.1f}° ")
-            out.append_text(cbar(theta, 30.0, 11))
-            out.append(f"\nyaw   {psi:+6.1f}°\n")
+            bar = STALE_STYLE if phi.stale else "cyan"
+            out.append("roll  ")
+            out.append_text(figure(phi, "+6.1f", "° "))
+            out.append_text(cbar(phi.value or 0.0, 30.0, 11, bar))
+            out.append("\npitch ")
+            out.append_text(figure(theta, "+6.1f", "° "))
+            out.append_text(cbar(theta.value or 0.0, 30.0, 11, bar))
+            out.append("\nyaw   ")
+            out.append_text(figure(psi, "+6.1f", "°"))
+            out.append("\n")
         link_lines(model, out)
         return out
 

@@ -1,0 +1,159 @@
+"""Freshness as a property of the model (term.freshness): every figure knows the time of the packet behind it, goes
+stale after a few of its packet's periods, says when the current link does not carry it, and is shown as a bound
+at its field's limit. A property test feeds every field's whole range (its extremes included) through the model
+and every panel: no exception, no figure outside its field's range unmarked."""
+
+from __future__ import annotations
+
+import math
+
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from term.freshness import SOURCES, STALE_FLOOR_S, STALE_PERIODS, Arrivals, age_text, next_age_change
+from term.link import CommandAcked
+from term.model import Model
+from term.protocol import (
+    SPEC_OF,
+    Attitude,
+    Compact,
+    Gains,
+    Height,
+    Mode,
+    Motion,
+    Op,
+    Status,
+    WirelessState,
+    field_spec,
+)
+from term.widgets.base import figure
+
+TELEMETRY = (Attitude, Motion, Height, Status, Gains, Compact)
+
+
+def _attitude(mode: int = Mode.MANUAL, phi: int = 0) -> Attitude:
+    return Attitude(int(mode), phi, 0, 0, 0, 0, 0)
+
+
+def test_each_packet_learns_its_period_and_a_gap_is_not_one() -> None:
+    a = Arrivals()
+    assert a.limit(Status) == STALE_PERIODS * 0.25  # nothing yet: the assumed period
+    for i in range(20):
+        a.note(Status(0, 0, 0, 0, 0, 0, 0, 0), 0.2 * i)
+    assert math.isclose(a.limit(Status), STALE_PERIODS * 0.2, rel_tol=1e-6)
+    a.note(Status(0, 0, 0, 0, 0, 0, 0, 0), 100.0)  # back after a long silence (a handover)
+    assert math.isclose(a.limit(Status), STALE_PERIODS * 0.2, rel_tol=1e-6)
+    for i in range(20):
+        a.note(_attitude(), 0.02 * i)
+    assert a.limit(Attitude) == STALE_FLOOR_S  # fast packets: the floor
+
+
+def test_a_figure_goes_stale_with_its_age_and_says_so() -> None:
+    m = Model(start=0.0)
+    for i in range(10):
+        m.apply_packet(Height(101325, 1500, 0, 0, 1200, 2500), 0.05 * i)
+    r = m.reading("height", 0.5)
+    assert r.value == 1.5 and r.unit == "m" and r.fresh and r.mark == "" and r.source == "Height"
+    r = m.reading("height", 3.45)
+    assert r.stale and r.carried and r.mark == "3 s old" and r.shown
+    assert str(figure(r, "+6.2f", " m")) == " +1.50 m" and figure(r, "+6.2f").style == "dim"
+    assert not m.reading("ae1", 1.0).known  # never received
+
+
+def test_over_ble_the_pilot_sees_what_the_radio_carries() -> None:
+    m = Model(start=0.0, radio_name="ble")
+    m.apply_packet(Height(101325, 1500, 0, 0, 1200, 2500), 0.0)
+    m.apply_packet(_attitude(phi=1000), 0.0)
+    m.apply_packet(Status(0, 0, 0, 0, 0, 0, 0, 0), 0.0)
+    m.radio_up = True
+    m.apply_packet(Compact(int(Mode.MANUAL), int(WirelessState.STARTED), 500, 0, 0, 1150), 1.0)
+    assert m.over_ble
+    phi, battery, height = m.reading("phi", 1.0), m.reading("battery", 1.0), m.reading("height", 70.0)
+    assert phi.value == 5.0 and phi.source == "Compact" and battery.value == 11.5 and battery.fresh
+    assert height.stale and not height.carried and not height.shown
+    assert height.mark == "not over BLE (last 70 s ago)" and str(figure(height, "+6.2f", " m")) == "     — m"
+    # Trims: the board's Ack of a trim command carries the new trim, over BLE too.
+    m.apply(CommandAcked(7, Op.TRIM_LIFT, 1, 18040), 1.1)
+    lift = m.reading("trim_lift", 1.2)
+    assert lift.value == 18040 and lift.source == "Ack" and lift.fresh and lift.carried
+    roll = m.reading("trim_roll", 1.2)
+    assert roll.source == "Status" and roll.stale and not roll.shown  # not carried: not shown as a number
+    # Back on the cable: Status is the freshest again.
+    m.apply_packet(Status(0, 0, 0, 0, 18040, 0, 0, int(WirelessState.DISCONNECTED)), 2.0)
+    assert not m.over_ble and m.reading("trim_lift", 2.0).source == "Status"
+
+
+def test_a_value_at_its_fields_limit_is_a_bound() -> None:
+    m = Model(start=0.0)
+    m.apply_packet(Height(101325, 32767, -32768, 0, 1200, 2500), 0.0)
+    h, sp = m.reading("height", 0.0), m.reading("setpoint", 0.0)
+    assert h.bound == ">" and sp.bound == "<" and m.reading("vz", 0.0).bound == ""
+    assert str(figure(h, "+6.2f", " m")) == ">+32.76 m"  # rounded toward the limit: still true
+    assert str(figure(sp, "+6.2f", " m")) == "<-32.76 m"
+    m.apply_packet(Gains(float("nan"), float("inf"), float("-inf"), 1.0, 2.0), 0.0)
+    assert str(figure(m.reading("yaw_p", 0.0), ".4g")) == "?"
+    assert str(figure(m.reading("p1", 0.0), ".4g")).startswith(">")
+    assert str(figure(m.reading("p2", 0.0), ".4g")).startswith("<")
+    assert age_text(0.6) == "<1 s" and age_text(99.9) == "99 s" and age_text(250) == "4 min"
+    assert age_text(7200) == "2 h" and next_age_change(3.25) == 0.75 and next_age_change(250) == 50
+
+
+# --- the property: any telemetry value, through the model and every panel ----------------------------------------
+
+
+def _field_values(fmt: str) -> st.SearchStrategy:
+    if fmt == "e":
+        return st.one_of(st.sampled_from([65504.0, -65504.0, 0.0, math.inf, -math.inf, math.nan]),
+                         st.floats(-65504.0, 65504.0, width=16))
+    lo, hi = {"B": (0, 0xFF), "h": (-0x8000, 0x7FFF), "H": (0, 0xFFFF), "I": (0, 0xFFFFFFFF),
+              "i": (-0x80000000, 0x7FFFFFFF), "b": (-0x80, 0x7F)}[fmt]
+    return st.one_of(st.sampled_from([lo, hi, 0]), st.integers(lo, hi))
+
+
+@st.composite
+def packets(draw: st.DrawFn) -> object:
+    cls = draw(st.sampled_from(TELEMETRY))
+    return cls(*(draw(_field_values(fs.fmt)) for fs in SPEC_OF[cls].fields))
+
+
+def _panels() -> list:
+    from term.widgets.battery import BatteryGauge
+    from term.widgets.controls import ControlsPanel
+    from term.widgets.horizon import HeadingTape, Horizon
+    from term.widgets.link import LinkPanel
+    from term.widgets.mode import ModeBanner
+    from term.widgets.motors import MotorBars
+    from term.widgets.pressure import PressureIndicator
+    from term.widgets.rates import RateGauges
+    from term.widgets.wireless import PhoneTelemetry
+
+    return [ModeBanner(), Horizon(), HeadingTape(), RateGauges(), MotorBars(), BatteryGauge(), PressureIndicator(),
+            ControlsPanel(), LinkPanel(), PhoneTelemetry()]
+
+
+@settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(st.lists(packets(), min_size=1, max_size=6), st.booleans(), st.floats(0.0, 100.0))
+def test_any_telemetry_through_the_model_and_every_panel(pkts: list, over_ble: bool, later: float) -> None:
+    m = Model(start=0.0, radio_name="ble", radio_up=over_ble)
+    for i, pkt in enumerate(pkts):
+        m.apply_packet(pkt, 0.01 * i)
+    now = 0.01 * len(pkts) + later
+    for name, kinds in SOURCES.items():
+        r = m.reading(name, now)
+        if not r.known:
+            continue
+        spec = field_spec(kinds[0], name)
+        lo, hi = spec.limits  # type: ignore[misc]
+        value = r.value
+        assert r.bound or (lo * spec.scale <= value <= hi * spec.scale) or (spec.scale < 0), (name, r)
+        if isinstance(value, float) and math.isnan(value):
+            assert r.bound == "?"
+        assert r.fresh == (r.age <= r.limit) and (r.mark == "") == (r.fresh or not r.known)
+    for w in _panels():
+        text = str(w.render_model(m, now))
+        shown = " ".join((text, str(w.border_subtitle or "")))
+        for r in w.readings.values():
+            if r.shown and r.bound in (">", "<"):
+                assert r.bound in text, (type(w).__name__, r)
+            if r.stale:
+                assert r.mark in shown, (type(w).__name__, r, shown)
