@@ -8,6 +8,9 @@ front end's (notes, the joystick's name). ``Station.emit`` is its caller; tests 
 (``apply_packet``, ``radio_event``, ``set_link_stats``) directly. The two-link rules (which silence is an
 alarm, STARTED left only for DISCONNECTED) live in the handlers and the derived properties.
 
+Every telemetry figure knows the time of the packet behind it: ``reading(name, now)`` (term.freshness) gives its
+value, age, staleness, whether the current link carries it and its bound at the field's limit.
+
 ``version`` increases on every change so the renderer can skip frames when nothing happened.
 """
 

@@ -157,3 +157,47 @@ def test_any_telemetry_through_the_model_and_every_panel(pkts: list, over_ble: b
                 assert r.bound in text, (type(w).__name__, r)
             if r.stale:
                 assert r.mark in shown, (type(w).__name__, r, shown)
+
+
+def test_lift_trims_flown_over_ble_are_shown_as_the_board_has_them() -> None:
+    """Issue 10's +18040: 55 lift-trim presses over BLE (1 % each) while the screen showed the cable's last Status
+    (trim +0) and motors 0, unmarked. The board reports each new trim in its Ack; the model shows that (fresh),
+    and what BLE does not carry (motors, height) is not shown as a number."""
+    from fcb_sim.board import Board, BoardConfig
+    from fcb_sim.physics import World
+    from term.link import LinkSession
+    from term.station import RADIO_SESSION
+
+    board = Board(BoardConfig(seed=1), world=World(1))
+    cable, phone = LinkSession(0.0), LinkSession(0.0, **RADIO_SESSION)  # type: ignore[arg-type]
+    m = Model(start=0.0, radio_name="ble")
+    board.uart_receive(cable.hello())
+    presses, shown = 0, []
+    t_us = 0
+    while t_us < 9_000_000:
+        t_us += 1000
+        t = t_us / 1e6
+        if t_us == 200_000:
+            board.ble_connected()
+            m.radio_up = True
+        elif t_us == 500_000:
+            cable.send_command(Op.WIRELESS, 1, t)
+        elif t_us == 1_200_000:
+            phone.send_command(Op.MODE, Mode.MANUAL, t)
+        elif 1_500_000 <= t_us and t_us % 100_000 == 0 and presses < 55:
+            phone.send_command(Op.TRIM_LIFT, 1, t)
+            presses += 1
+        board.advance(t_us)
+        for ev in cable.receive(board.uart_transmit(), t) + cable.poll(t):
+            m.apply(ev, t)
+        for ev in phone.receive(b"".join(board.wireless.notifications()), t) + phone.poll(t):
+            m.radio_event(ev, t)
+            if type(ev) is CommandAcked and ev.op == Op.TRIM_LIFT:
+                shown.append((m.reading("trim_lift", t).value, board.modes.trims.lift))
+        board.uart_receive(cable.data_to_send(t))
+        board.ble_receive(phone.data_to_send(t))
+    assert m.over_ble and m.mode == Mode.MANUAL and len(shown) == 55
+    assert all(a == b for a, b in shown) and shown[-1][1] == 55 * shown[0][1]  # every press, as the board has it
+    motors, height = m.reading("ae1", t), m.reading("height", t)
+    assert not motors.shown and not height.shown and motors.mark.startswith("not over BLE")
+    assert m.reading("phi", t).fresh and m.reading("battery", t).fresh  # what the radio carries
