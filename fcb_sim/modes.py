@@ -9,7 +9,7 @@ entered, and a check that decides whether a transition is valid. Here the same t
 
 The mode diagram in docs/modes.md is generated from these tables (``mermaid()``), so it cannot drift.
 
-Safety rules (DESIGN.md): leaving SAFE needs neutral sticks and zero lift; modes 4 and up need a finished
+Safety rules (DESIGN.md): leaving SAFE needs neutral sticks and zero lift (joystick plus trims); modes 4 and up need a finished
 calibration; from a flight mode the way out is SAFE (with the lift at zero) or PANIC; PANIC is reachable from
 every mode that can turn the motors, holds a level just under hover for a few seconds, ramps the motors to zero
 and then returns to SAFE by itself; link silence, a low battery while flying and excessive tilt mean PANIC; the
@@ -104,8 +104,9 @@ def _zero_lift(m: ModeMachine) -> Nak:
 
 
 def _neutral_sticks(m: ModeMachine) -> Nak:
-    js = m.joystick
-    ok = abs(js.roll) <= STICK_NEUTRAL and abs(js.pitch) <= STICK_NEUTRAL and abs(js.yaw) <= STICK_NEUTRAL
+    # What the motors would get: joystick plus trims (a trimmed-in roll is a roll command like the stick's).
+    roll, pitch, yaw, _ = m.sticks()
+    ok = abs(roll) <= STICK_NEUTRAL and abs(pitch) <= STICK_NEUTRAL and abs(yaw) <= STICK_NEUTRAL
     return Nak.OK if ok else Nak.STICKS_NOT_NEUTRAL
 
 
@@ -132,8 +133,8 @@ def _calibration_time_up(m: ModeMachine) -> Nak:
     return Nak.OK if m.calibration_elapsed() >= m.config.calibration_s else Nak.BUSY
 
 
-ZERO_LIFT = Guard("lift zero", _zero_lift)
-NEUTRAL = Guard("sticks neutral", _neutral_sticks)
+ZERO_LIFT = Guard("lift + trim zero", _zero_lift)
+NEUTRAL = Guard("sticks + trims neutral", _neutral_sticks)
 CALIBRATED = Guard("calibrated", _calibrated)
 BATTERY = Guard("battery ok", _battery_ok)
 FROM_BASE = Guard("entered from it", _from_base)
@@ -472,9 +473,11 @@ The machine follows the report's design (section 3.2): a check decides whether a
 guards below, each refusal answered by a NAK with its reason), then the leave action of the old mode and the
 enter action of the new one run. The motors are zero in SAFE and CALIBRATION; they may turn in every other mode.
 
-- Leaving SAFE needs the sticks neutral (|roll|, |pitch|, |yaw| <= {neutral}) and the lift at zero (joystick lift
-  plus lift trim <= {lift}); YAW, FULL and RAW also need a finished calibration, and no flight mode starts on a
-  low battery (< {battery} V, or after a low-battery PANIC: the pack recovers at rest but is still flat).
+- Leaving SAFE needs the sticks neutral and the lift at zero, both read as the motors would get them, joystick
+  plus trim on every axis: |roll|, |pitch|, |yaw| each <= {neutral} (a roll trim of +8192 with the joystick centred
+  is a roll command, not neutral sticks) and lift + lift trim <= {lift}; YAW, FULL and RAW also need a finished
+  calibration, and no flight mode starts on a low battery (< {battery} V, or after a low-battery PANIC: the pack
+  recovers at rest but is still flat).
 - From a flight mode the way out is SAFE (only with the lift at zero, so a key press cannot cut the motors in the
   air) or PANIC. HEIGHT is entered from FULL or RAW (it holds the height it had) and falls back to the one it
   came from.

@@ -225,7 +225,7 @@ FLIGHT_MODES = frozenset({Mode.MANUAL, Mode.YAW, Mode.FULL, Mode.RAW, Mode.HEIGH
 # the terminal, which checks first to name the fix at once, uses the same numbers.
 STICK_MAX = 32767
 LIFT_ZERO = 500  # joystick lift plus lift trim at most this (1.5 %) counts as zero lift
-STICK_NEUTRAL = 1000  # |joystick| at most this on roll, pitch and yaw (3 %) counts as neutral
+STICK_NEUTRAL = 1000  # |joystick + trim| at most this on roll, pitch and yaw (3 %) counts as neutral
 
 # Battery thresholds in the Height/Compact ``battery`` unit (10 mV), for a 3S LiPo.
 BATTERY_LOW = 1050  # 10.5 V: under this while flying (for LOW_BATTERY_HOLD_S) the board PANICs
@@ -904,7 +904,7 @@ def facts_markdown() -> str:
         ("flight modes (motors under the flight core)", modes),
         ("stick range", f"±{STICK_MAX} (lift 0..{STICK_MAX})"),
         ("zero lift (leaving SAFE, going back to SAFE)", f"joystick lift + lift trim ≤ {LIFT_ZERO}"),
-        ("neutral sticks (leaving SAFE)", f"joystick roll, pitch and yaw each within ±{STICK_NEUTRAL}"),
+        ("neutral sticks (leaving SAFE)", f"joystick + trim within ±{STICK_NEUTRAL} on roll, pitch and yaw each"),
         ("battery: PANIC while flying", f"< {BATTERY_LOW} (× 10 mV) for {LOW_BATTERY_HOLD_S:g} s"),
         ("battery: time to land / full", f"< {BATTERY_WARN} / {BATTERY_FULL} (× 10 mV)"),
         ("gyro / accelerometer words", f"{GYRO_LSB_PER_DPS:g} LSB per °/s, {ACC_LSB_PER_G} LSB per g"),

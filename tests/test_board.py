@@ -56,6 +56,7 @@ from term.protocol import (
     Status,
     WirelessState,
     decode_log,
+    param_arg,
 )
 
 HOVER_LIFT = C.z_to_lift(-4.0 * 400**2)
@@ -128,7 +129,7 @@ def test_nak_reasons() -> None:
     pc.js = Joystick(0, 0, 0, 0, 0)
     assert pc.command(99).status == Nak.UNKNOWN_COMMAND
     assert pc.command(Op.MODE, 42).status == Nak.BAD_ARGUMENT
-    assert pc.command(Op.SET_PARAM, (77 << 16) | 1).status == Nak.BAD_ARGUMENT
+    assert pc.command(Op.SET_PARAM, param_arg(77, 1)).status == Nak.BAD_ARGUMENT
     assert pc.command(Op.LOG_DOWNLOAD, 0).status == Nak.LOG_EMPTY
     assert pc.command(Op.WIRELESS, 1).status == Nak.NO_BLE_CONNECTION
     assert pc.command(Op.MODE, Mode.WIRELESS).status == Nak.NO_BLE_CONNECTION
@@ -141,6 +142,18 @@ def test_nak_reasons() -> None:
     assert pc.command(Op.MODE, Mode.SAFE).status == Nak.PANIC_ACTIVE
     refused = [e for e in pc.of(Event) if e.code == EventCode.REFUSED]
     assert (refused[0].arg >> 8, refused[0].arg & 0xFF) == (Nak.NOT_CALIBRATED, Mode.FULL)
+
+
+def test_a_roll_trim_is_not_neutral_sticks_for_leaving_safe() -> None:
+    """Issue 11.3: 32 presses of roll trim (+8192, the limit) with the joystick centred: MANUAL is refused."""
+    b, pc = board_and_pc()
+    for _ in range(32):
+        pc.command(Op.TRIM_ROLL, 1)
+    assert b.modes.trims.roll == 8192
+    assert pc.command(Op.MODE, Mode.MANUAL).status == Nak.STICKS_NOT_NEUTRAL
+    assert b.mode == Mode.SAFE and b.ae == (0, 0, 0, 0)
+    assert pc.command(Op.TRIM_ROLL, -32).value == 0
+    assert pc.command(Op.MODE, Mode.MANUAL).status == Nak.OK
 
 
 def test_a_retried_command_is_answered_again_but_done_once() -> None:

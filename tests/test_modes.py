@@ -50,6 +50,19 @@ def test_leaving_safe_needs_zero_lift_then_neutral_sticks() -> None:
     assert m.mode == Mode.MANUAL
 
 
+@pytest.mark.parametrize("axis", ["roll", "pitch", "yaw"])
+def test_trims_count_as_stick_when_leaving_safe(axis: str) -> None:
+    """Issue 11.3: a roll trim of +8192 with the joystick centred is a roll command, not neutral sticks."""
+    m = machine()
+    m.adjust_trim(axis, 32)  # 32 key presses: the trim limit, +8192
+    assert getattr(m.trims, axis) == 8192
+    assert m.request(Mode.MANUAL, 0.0) == Nak.STICKS_NOT_NEUTRAL
+    assert m.request(Mode.CALIBRATION, 0.0) == Nak.STICKS_NOT_NEUTRAL
+    # the stick held against the trim: what the motors would get is neutral
+    m.joystick = Joystick(**{"roll": 0, "pitch": 0, "yaw": 0, "lift": 0, "buttons": 0, axis: -8192 + STICK_NEUTRAL})
+    assert m.request(Mode.MANUAL, 0.0) == Nak.OK
+
+
 def test_lift_trim_counts_as_lift_and_is_zeroed_on_entering_safe() -> None:
     m = machine()
     m.adjust_trim("lift", 3)
