@@ -44,11 +44,11 @@ def tilt_deg(f: AttitudeFilter, roll: float, pitch: float) -> float:
 
 def test_registry() -> None:
     assert {"complementary", "kalman", "kalman-cov", BEST} <= set(FILTERS)
-    assert BEST == "qgate"
+    assert BEST == "ikf"
     with pytest.raises(KeyError):
         make_filter("nope")
     with pytest.raises(ValueError):
-        make_filter("qgate", fixed_point=True)
+        make_filter("qgate", fixed_point=True)  # float only
 
 
 @pytest.mark.parametrize(("name", "fixed"), VARIANTS)

@@ -7,9 +7,10 @@ then ``roll``, ``pitch``, ``yaw`` (rad, ZYX) and ``quaternion()`` (w, x, y, z, b
 
 The report's RAW-path filters come in float and in Q16.16 fixed point (``fixed_point=True``):
 ``complementary`` (K_gyro 0.999, as flown), ``complementary-0.9`` (Table 2), ``kalman`` ([13], Table 2),
-``kalman-cov`` (TKJ with noise covariance, Table 2). Beyond the report, ``qgate`` (the default, ``BEST``)
-is a quaternion filter with gyro-bias estimation and accelerometer gating, built for real data. The DMP
-path is :mod:`.dmp`, the height estimator :mod:`.height`.
+``kalman-cov`` (TKJ with noise covariance, Table 2). Beyond the report: ``ikf`` (the default, ``BEST``;
+float and a fixed-point twin) tracks gravity with a small Kalman filter in an almost-inertial frame
+(:mod:`.ikf`, docs/attitude.md); ``qgate`` is the earlier quaternion filter with an earth-frame
+accelerometer low-pass and gate. The DMP path is :mod:`.dmp`, the height estimator :mod:`.height`.
 """
 
 from __future__ import annotations
@@ -20,6 +21,7 @@ from .base import AttitudeFilter, euler_to_quaternion
 from .complementary import K_GYRO_FLOWN, K_GYRO_TABLE2, ComplementaryFilter, ComplementaryFilterQ16
 from .dmp import quaternion_to_euler
 from .height import HeightEstimator
+from .ikf import InertialKalmanFilter
 from .kalman import KalmanFilter, KalmanFilterQ16
 from .kalman_cov import KalmanCovFilter, KalmanCovFilterQ16
 from .qgate import QGateFilter
@@ -30,6 +32,7 @@ _FLOAT: dict[str, Callable[[], AttitudeFilter]] = {
     "kalman": KalmanFilter,
     "kalman-cov": KalmanCovFilter,
     "qgate": QGateFilter,
+    "ikf": InertialKalmanFilter,
 }
 _FIXED: dict[str, Callable[[], AttitudeFilter]] = {
     "complementary": lambda: ComplementaryFilterQ16(K_GYRO_FLOWN),
@@ -39,7 +42,7 @@ _FIXED: dict[str, Callable[[], AttitudeFilter]] = {
 }
 
 FILTERS: tuple[str, ...] = tuple(_FLOAT)
-BEST: str = "qgate"
+BEST: str = "ikf"
 
 DESCRIPTIONS: dict[str, str] = {
     "complementary": "report eq. 1, K_gyro 0.999 (as flown)",
@@ -48,6 +51,7 @@ DESCRIPTIONS: dict[str, str] = {
     "kalman-cov": "TKJ Kalman with noise covariance, Q_angle 0.01, Q_bias 0.001, R 1 (Table 2)",
     "qgate": "quaternion, earth-frame accelerometer low-pass and gate, gyro bias in motion and at rest "
     "(float only)",
+    "ikf": "gravity by a Kalman filter in an almost-inertial frame, rest bias, latency prediction",
 }
 
 

@@ -156,12 +156,13 @@ class QGateFilter:
                 s = math.sin(0.5 * angle) / hn
                 c = math.cos(0.5 * angle)
                 cx, cy = fy_ * s, -fx_ * s  # earth-frame correction quaternion (c, cx, cy, 0)
-                # q <- dq (earth) * q
+                # q <- dq (earth) * q (the earth-frame correction multiplies from the left; until this was
+                # fixed it multiplied from the right, a body-frame rotation, which is only right near level)
                 w, x, y, z = (
                     c * w - cx * x - cy * y,
-                    c * x + cx * w - cy * z,
-                    c * y + cx * z + cy * w,
-                    c * z - cx * y + cy * x,
+                    c * x + cx * w + cy * z,
+                    c * y - cx * z + cy * w,
+                    c * z + cx * y - cy * x,
                 )
                 # rotate the filtered vector with the correction (small angle: f += theta x f)
                 tx, ty = fy_ / hn * angle, -fx_ / hn * angle

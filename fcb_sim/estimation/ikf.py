@@ -1,0 +1,249 @@
+"""The default RAW-path attitude filter ("ikf"): gravity tracked by a small Kalman filter in an almost-inertial
+frame, with sensor-latency prediction. Derivation, figures and the fixed-point twin: docs/attitude.md.
+
+Own design and code. Ideas learned from VQF (D. Laidig and T. Seel, "VQF: Highly accurate IMU orientation
+estimation with bias estimation and magnetic disturbance rejection", Information Fusion 91, 2023; the C++ of
+github.com/dlaidig/vqf): integrate the gyro alone into a frame that is almost inertial, low-pass the
+accelerometer *in that frame* (linear accelerations average out there, gravity does not), and estimate the gyro
+bias from rest phases. VQF's low-pass is a fixed 2nd-order Butterworth; here the same response is the steady
+state of a Kalman filter, which lets its bandwidth follow the motion.
+
+Per sample (chip z-up frame; gyro rad/s, specific force m/s²):
+
+1. Rest detection (VQF's test: gyro and accelerometer within 2 °/s and 0.5 m/s² of their 0.5 s low-pass for
+   1.5 s); at rest the bias is pulled towards the low-passed gyro (time constant ``rest_bias_tau``).
+2. Strapdown: q (body to earth) advanced by the exact rotation of the bias-corrected rate.
+3. The horizontal specific force f_h in the current earth frame feeds, per horizontal axis, the states V (the
+   integral of f_h - G_h, a velocity) and G_h (the horizontal gravity the estimate has not yet removed), and D
+   (a drift of G_h per radian turned). The model: G_h random walk whose rate grows with the turn rate
+   (gyro errors scale with rotation: q_G = (sqrt 2/tau)^4 (1 + k_rot |w|)), G_h' = D |w|, and a pseudo
+   measurement V = 0 (a hand or a quad does not keep accelerating one way: velocity stays bounded). At rest
+   (no rotation) the filter is exactly a 2nd-order Butterworth low-pass of time constant ``tau`` on the
+   earth-frame accelerometer, VQF's filter. The covariance (3x3, shared by both axes) is propagated, so a
+   burst of rotation keeps the gravity estimate agile for a while after it. At rest the velocity is known to
+   be zero: the pseudo measurement is trusted ``1 / rest_r`` times more and the estimate settles faster.
+4. Rebase: q is rotated (in the earth frame) by the small swing that makes the estimated gravity vertical,
+   and G_h restarts from zero; the correction is applied in full each sample, so the output's vertical is the
+   filtered one without a second lag.
+5. Output: q advanced by the current rate over ``latency`` seconds (a sensor's samples describe the body a
+   little in the past: the MPU6050's DLPF delays them 4.8 ms; on the BROAD recordings the optical truth is
+   about one sample ahead of the IMU). PX4's EKF2 "output predictor" does the same for its delayed states.
+
+Yaw is not observable without a magnetometer: it is the integrated, bias-corrected heading.
+
+Parameters are chosen as described in docs/attitude.md (tau, k_rot, latency by a leave-one-trial-out grid on the
+17 BROAD trials; the rest thresholds and bias time constants are VQF's defaults, not fitted). Non-finite samples
+and dt <= 0 are skipped; an all-zero accelerometer carries no gravity and leaves the estimate coasting on the gyro.
+"""
+
+from __future__ import annotations
+
+import math
+
+G0 = 9.81
+P_GG0 = 1.0  # initial gravity variance, (m/s²)²: the first sample may be taken in motion
+P_VV_MAX = 1e6  # covariance clamp against a runaway (it never gets near this in use)
+
+
+class InertialKalmanFilter:
+    """Gravity in an almost-inertial frame by a 3-state Kalman filter, rebased every sample (module docstring)."""
+
+    def __init__(
+        self,
+        *,
+        tau: float = 4.5,
+        k_rot: float = 0.5,
+        drift_init: float = 1e-3,
+        drift_noise: float = 1e-6,
+        latency: float = 0.0025,
+        rest_r: float = 0.01,
+        rest_gyro: float = math.radians(2.0),
+        rest_acc: float = 0.5,
+        rest_time: float = 1.5,
+        rest_tau: float = 0.5,
+        rest_bias_tau: float = 2.0,
+        bias_max: float = math.radians(5.0),
+    ) -> None:
+        if not (tau > 0.0 and k_rot >= 0.0 and drift_init >= 0.0 and drift_noise >= 0.0 and latency >= 0.0):
+            raise ValueError("tau must be > 0; k_rot, drift_init, drift_noise and latency >= 0")
+        self.tau = tau
+        self.k_rot = k_rot
+        self.drift_init = drift_init
+        self.drift_noise = drift_noise
+        self.latency = latency
+        self.rest_r = rest_r
+        self.rest_gyro = rest_gyro
+        self.rest_acc = rest_acc
+        self.rest_time = rest_time
+        self.rest_tau = rest_tau
+        self.rest_bias_tau = rest_bias_tau
+        self.bias_max = bias_max
+        self.q_g0 = (math.sqrt(2.0) / tau) ** 4  # gravity random-walk intensity per unit velocity-noise intensity
+        self.reset()
+
+    def reset(self) -> None:
+        self.w, self.x, self.y, self.z = 1.0, 0.0, 0.0, 0.0
+        self.vx = self.vy = 0.0
+        self.dx = self.dy = 0.0
+        # covariance of (V, G_h, D), the same for both horizontal axes
+        self.pvv = self.pvg = self.pvd = 0.0
+        self.pgg = P_GG0
+        self.pgd = 0.0
+        self.pdd = self.drift_init
+        self.bx = self.by = self.bz = 0.0
+        self.rx = self.ry = self.rz = 0.0  # last bias-corrected rate, for the output prediction
+        self._gl = [0.0, 0.0, 0.0]
+        self._al = [0.0, 0.0, G0]
+        self._rest_t = 0.0
+        self.at_rest = False
+        self._started = False
+
+    # --- outputs ---
+    def quaternion(self) -> tuple[float, float, float, float]:
+        """The attitude predicted ``latency`` seconds ahead along the current rate (body to earth, z up)."""
+        w, x, y, z = self.w, self.x, self.y, self.z
+        rx, ry, rz = self.rx, self.ry, self.rz
+        rate = math.sqrt(rx * rx + ry * ry + rz * rz)
+        half = 0.5 * rate * self.latency
+        if half <= 1e-12:
+            return w, x, y, z
+        s = math.sin(half) / rate
+        c = math.cos(half)
+        dx, dy, dz = rx * s, ry * s, rz * s
+        return (
+            w * c - x * dx - y * dy - z * dz,
+            w * dx + x * c + y * dz - z * dy,
+            w * dy - x * dz + y * c + z * dx,
+            w * dz + x * dy - y * dx + z * c,
+        )
+
+    @property
+    def roll(self) -> float:
+        w, x, y, z = self.quaternion()
+        return math.atan2(2.0 * (w * x + y * z), 1.0 - 2.0 * (x * x + y * y))
+
+    @property
+    def pitch(self) -> float:
+        w, x, y, z = self.quaternion()
+        s = 2.0 * (w * y - x * z)
+        return math.asin(1.0 if s > 1.0 else -1.0 if s < -1.0 else s)
+
+    @property
+    def yaw(self) -> float:
+        w, x, y, z = self.quaternion()
+        return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+
+    @property
+    def bias(self) -> tuple[float, float, float]:
+        return self.bx, self.by, self.bz
+
+    # --- the filter ---
+    def _start(self, gx: float, gy: float, gz: float, ax: float, ay: float, az: float) -> None:
+        n = math.sqrt(ax * ax + ay * ay + az * az)
+        if n < 0.5:
+            return  # no gravity in this sample (free fall, a dead sensor): wait for one that has it
+        # the swing that takes the measured up (a / |a|) to earth z: quaternion (1 + uz, uy, -ux, 0)
+        ux, uy, uz = ax / n, ay / n, az / n
+        if uz < -0.999999:
+            self.w, self.x, self.y, self.z = 0.0, 1.0, 0.0, 0.0  # upside down: any half turn about a level axis
+        else:
+            k = 1.0 / math.sqrt((1.0 + uz) ** 2 + uy * uy + ux * ux)
+            self.w, self.x, self.y, self.z = (1.0 + uz) * k, uy * k, -ux * k, 0.0
+        self._gl = [gx, gy, gz]
+        self._al = [ax, ay, az]
+        self._started = True
+
+    def update(self, gx: float, gy: float, gz: float, ax: float, ay: float, az: float, dt: float) -> None:
+        if not (dt > 0.0) or not math.isfinite(gx + gy + gz + ax + ay + az + dt):
+            return
+        if not self._started:
+            self._start(gx, gy, gz, ax, ay, az)
+            return
+        # 1. rest detection and the bias at rest
+        gl, al = self._gl, self._al
+        kr = dt / (self.rest_tau + dt)
+        gl[0] += kr * (gx - gl[0])
+        gl[1] += kr * (gy - gl[1])
+        gl[2] += kr * (gz - gl[2])
+        al[0] += kr * (ax - al[0])
+        al[1] += kr * (ay - al[1])
+        al[2] += kr * (az - al[2])
+        m = self.bias_max
+        still = (
+            (gx - gl[0]) ** 2 + (gy - gl[1]) ** 2 + (gz - gl[2]) ** 2 < self.rest_gyro ** 2
+            and (ax - al[0]) ** 2 + (ay - al[1]) ** 2 + (az - al[2]) ** 2 < self.rest_acc ** 2
+            and abs(gl[0]) < m and abs(gl[1]) < m and abs(gl[2]) < m
+        )
+        self._rest_t = self._rest_t + dt if still else 0.0
+        self.at_rest = self._rest_t >= self.rest_time
+        if self.at_rest:
+            kb = dt / (self.rest_bias_tau + dt)
+            self.bx += kb * (gl[0] - self.bx)
+            self.by += kb * (gl[1] - self.by)
+            self.bz += kb * (gl[2] - self.bz)
+        # 2. strapdown with the bias-corrected rate (exact axis-angle step)
+        wx, wy, wz = gx - self.bx, gy - self.by, gz - self.bz
+        self.rx, self.ry, self.rz = wx, wy, wz
+        w, x, y, z = self.w, self.x, self.y, self.z
+        rate = math.sqrt(wx * wx + wy * wy + wz * wz)
+        half = 0.5 * rate * dt
+        if half > 1e-12:
+            s = math.sin(half) / rate
+            c = math.cos(half)
+            dx, dy, dz = wx * s, wy * s, wz * s
+            w, x, y, z = (
+                w * c - x * dx - y * dy - z * dz,
+                w * dx + x * c + y * dz - z * dy,
+                w * dy - x * dz + y * c + z * dx,
+                w * dz + x * dy - y * dx + z * c,
+            )
+        # 3. horizontal specific force in the earth frame, and the Kalman filter
+        fx = (1.0 - 2.0 * (y * y + z * z)) * ax + 2.0 * (x * y - w * z) * ay + 2.0 * (x * z + w * y) * az
+        fy = 2.0 * (x * y + w * z) * ax + (1.0 - 2.0 * (x * x + z * z)) * ay + 2.0 * (y * z - w * x) * az
+        e = rate * dt  # radians turned in this step
+        vx = self.vx + fx * dt
+        vy = self.vy + fy * dt
+        gxh = self.dx * e  # G_h restarts from 0 after each rebase; the drift moves it
+        gyh = self.dy * e
+        pvv, pvg, pvd, pgg, pgd, pdd = self.pvv, self.pvg, self.pvd, self.pgg, self.pgd, self.pdd
+        # predict: x' = F x, F = [[1, -dt, 0], [0, 1, e], [0, 0, 1]], plus process noise on G and D
+        a_vv = pvv - 2.0 * dt * pvg + dt * dt * pgg
+        a_vg = pvg + e * pvd - dt * pgg - dt * e * pgd
+        a_vd = pvd - dt * pgd
+        a_gg = pgg + 2.0 * e * pgd + e * e * pdd + self.q_g0 * (1.0 + self.k_rot * rate) * dt
+        a_gd = pgd + e * pdd
+        a_dd = pdd + self.drift_noise * e
+        # update with the pseudo measurement V = 0, noise 1/dt (unit intensity; at rest the velocity is known to
+        # be zero, so the measurement is rest_r times as noisy: the filter settles faster on a still sensor)
+        inv_s = 1.0 / (a_vv + (self.rest_r if self.at_rest else 1.0) / dt)
+        kv, kg, kd = a_vv * inv_s, a_vg * inv_s, a_vd * inv_s
+        gxh -= kg * vx
+        gyh -= kg * vy
+        self.dx -= kd * vx
+        self.dy -= kd * vy
+        self.vx = vx - kv * vx
+        self.vy = vy - kv * vy
+        self.pvv = min(a_vv - kv * a_vv, P_VV_MAX)
+        self.pvg = a_vg - kv * a_vg
+        self.pvd = a_vd - kv * a_vd
+        self.pgg = a_gg - kg * a_vg
+        self.pgd = a_gd - kg * a_vd
+        self.pdd = a_dd - kd * a_vd
+        # 4. rebase: rotate the earth frame so that the estimated gravity (gxh, gyh, gz) is vertical
+        h2 = gxh * gxh + gyh * gyh
+        gz_ = math.sqrt(G0 * G0 - h2) if h2 < 0.81 * G0 * G0 else 0.4359 * G0  # at most a 64° step
+        cw, cx, cy = G0 + gz_, gyh, -gxh
+        k = 1.0 / math.sqrt(cw * cw + cx * cx + cy * cy)
+        cw, cx, cy = cw * k, cx * k, cy * k
+        w, x, y, z = (
+            cw * w - cx * x - cy * y,
+            cw * x + cx * w + cy * z,
+            cw * y - cx * z + cy * w,
+            cw * z + cx * y - cy * x,
+        )
+        n = 1.0 / math.sqrt(w * w + x * x + y * y + z * z)
+        self.w, self.x, self.y, self.z = w * n, x * n, y * n, z * n
+        # the bias is clamped last: a stuck-high rate must not become a stuck-high bias
+        self.bx = m if self.bx > m else -m if self.bx < -m else self.bx
+        self.by = m if self.by > m else -m if self.by < -m else self.by
+        self.bz = m if self.bz > m else -m if self.bz < -m else self.bz
