@@ -22,6 +22,7 @@ from .complementary import K_GYRO_FLOWN, K_GYRO_TABLE2, ComplementaryFilter, Com
 from .dmp import quaternion_to_euler
 from .height import HeightEstimator
 from .ikf import InertialKalmanFilter
+from .ikf_fixed import InertialKalmanFilterQ
 from .kalman import KalmanFilter, KalmanFilterQ16
 from .kalman_cov import KalmanCovFilter, KalmanCovFilterQ16
 from .qgate import QGateFilter
@@ -39,6 +40,7 @@ _FIXED: dict[str, Callable[[], AttitudeFilter]] = {
     "complementary-0.9": lambda: ComplementaryFilterQ16(K_GYRO_TABLE2),
     "kalman": KalmanFilterQ16,
     "kalman-cov": KalmanCovFilterQ16,
+    "ikf": InertialKalmanFilterQ,
 }
 
 FILTERS: tuple[str, ...] = tuple(_FLOAT)

@@ -1,0 +1,323 @@
+"""The fixed-point twin of ``ikf`` (:mod:`.ikf`): the same algorithm in 32-bit integers, as the board would run it.
+
+Every number is an int32 in a Q format (``Qm.n``: n fractional bits); a product is the exact 64-bit product
+shifted right with rounding half away from zero and saturated to int32, a quotient the 64-bit dividend over
+the divisor, rounded and saturated. That is libfixmath's ``fix16_mul``/``fix16_div`` with another shift: the
+same instructions on the Cortex-M0 (a 32x32->64 multiply in software), so the cost per operation is
+libfixmath's. Samples enter and the angles leave in Q16.16 (libfixmath's ``fix16_t``, as the report's RAW
+path); inside, the states that take tiny steps need more fractional bits than Q16.16 has:
+
+=================  ========  =======================================================================
+quantity           format    why not Q16.16
+=================  ========  =======================================================================
+gyro, accel in     Q16.16    the interface (rad/s, m/s²)
+dt                 Q2.30     2.5 ms is 163.84 LSB in Q16.16: rounding to 164 is a 0.1 % error on every
+                             integrated angle (a scale error the filter then has to correct)
+quaternion         Q2.30     a 1 °/s turn moves it 2.2e-5 per 400 Hz step, 1.4 LSB of Q16.16
+bias, rest gyro    Q8.24     the 2 s bias low-pass moves 0.1 % of the difference per step: a dead band
+                             of 0.7 °/s in Q16.16
+V, G_h             Q8.24     the gravity correction per step is ~1e-5 m/s², under one Q16.16 LSB
+D (drift)          Q4.28     steps of ~4e-7 m/s² per rad
+P, gains           Q2.30     increments ~1e-4 of their value per step
+=================  ========  =======================================================================
+
+docs/attitude.md measures the trade-off: the same code with every format set to Q16.16 against this one, both
+against the float filter on the BROAD trials. Non-linear functions: one square root per sample (the turn
+rate, bit by bit like ``fix16_sqrt``), sin and cos of the half step by their Taylor series to 4th order (the
+step is at most 0.044 rad at 2000 °/s and 400 Hz: error < 2e-10), normalisation by one Newton step, and three
+divisions (the Kalman gain and the swing). Angles are read back as floats from the quaternion (on the board
+the corrected fix16_atan2 of :mod:`.fixed` would add at most 0.06°).
+"""
+
+from __future__ import annotations
+
+import math
+
+from .ikf import G0, P_GG0, InertialKalmanFilter
+
+_I32_MAX = 0x7FFFFFFF
+_I32_MIN = -0x80000000
+
+
+def _sat(v: int) -> int:
+    return _I32_MAX if v > _I32_MAX else _I32_MIN if v < _I32_MIN else v
+
+
+def mul(a: int, b: int, shift: int) -> int:
+    """(a * b) >> shift, rounded half away from zero, saturated to int32 (fix16_mul is shift = 16)."""
+    p = a * b
+    h = 1 << (shift - 1)
+    r = (p + h) >> shift if p >= 0 else -((h - p) >> shift)
+    return _I32_MAX if r > _I32_MAX else _I32_MIN if r < _I32_MIN else r
+
+
+def div(a: int, b: int, shift: int) -> int:
+    """(a << shift) / b, rounded half away from zero, saturated to int32 (fix16_div is shift = 16)."""
+    if b == 0:
+        return _I32_MAX if a >= 0 else _I32_MIN
+    n, d = abs(a) << shift, abs(b)
+    r = (2 * n + d) // (2 * d)
+    r = -r if (a < 0) != (b < 0) else r
+    return _I32_MAX if r > _I32_MAX else _I32_MIN if r < _I32_MIN else r
+
+
+def sqrt(a: int, frac: int) -> int:
+    """Square root of a non-negative Q(32-frac).frac number in the same format, rounded (fix16_sqrt's result)."""
+    if a <= 0:
+        return 0
+    n = a << frac
+    r = math.isqrt(n)
+    return r + 1 if n - r * r > r else r
+
+
+def to_q(x: float, frac: int) -> int:
+    """A float to Q.frac, rounded half away from zero, saturated (fix16_from_float for frac = 16)."""
+    t = x * (1 << frac)
+    r = int(t + 0.5) if t >= 0.0 else int(t - 0.5)
+    return _sat(r)
+
+
+class Formats:
+    """Fractional bits of each group of quantities (the table in the module docstring)."""
+
+    def __init__(self, *, io: int = 16, dt: int = 30, quat: int = 30, bias: int = 24, vel: int = 24,
+                 drift: int = 28, cov: int = 30) -> None:
+        self.io, self.dt, self.quat, self.bias, self.vel, self.drift, self.cov = io, dt, quat, bias, vel, drift, cov
+
+    @classmethod
+    def all_q16(cls) -> Formats:
+        """Everything in libfixmath's Q16.16 (the trade-off measurement of docs/attitude.md)."""
+        return cls(io=16, dt=16, quat=16, bias=16, vel=16, drift=16, cov=16)
+
+
+class InertialKalmanFilterQ:
+    """:class:`~.ikf.InertialKalmanFilter` in fixed point (module docstring). Same parameters, same outputs."""
+
+    def __init__(self, formats: Formats | None = None, **params: float) -> None:
+        self.f = formats or Formats()
+        self.ref = InertialKalmanFilter(**params)  # holds the parameters (and validates them); never updated
+        F = self.f
+        p = self.ref
+        # q_g0 is ~0.01 (tau 4.5 s): keep up to 5 more fractional bits while it fits (exact to 3e-9)
+        self._qg_shift = next(s for s in range(5, -30, -1) if p.q_g0 * 2.0 ** (F.cov + s) < _I32_MAX)
+        self._q_g0 = to_q(p.q_g0, F.cov + self._qg_shift)
+        self._k_rot = to_q(p.k_rot, F.io)
+        self._drift_noise = to_q(p.drift_noise, F.cov + 16)
+        self._rest_r = to_q(p.rest_r, F.cov)
+        self._rest_g2 = to_q(p.rest_gyro ** 2, 2 * F.bias - 16)
+        self._rest_a2 = to_q(p.rest_acc ** 2, F.io)
+        self._bias_max = to_q(p.bias_max, F.bias)
+        self._inv_g0 = to_q(1.0 / G0, F.quat)
+        self._dt_cache: tuple[float, int, int, int, int, int] | None = None
+        self.reset()
+
+    def reset(self) -> None:
+        F = self.f
+        one = 1 << F.quat
+        self.qw, self.qx, self.qy, self.qz = one, 0, 0, 0
+        self.vx = self.vy = 0
+        self.dx = self.dy = 0
+        self.pvv = self.pvg = self.pvd = self.pgd = 0
+        self.pgg = to_q(P_GG0, F.cov)
+        self.pdd = to_q(self.ref.drift_init, F.cov)
+        self.bx = self.by = self.bz = 0
+        self.rx = self.ry = self.rz = 0  # bias-corrected rate, Q.bias
+        self.gl = [0, 0, 0]
+        self.al = [0, 0, to_q(G0, F.io)]
+        self.rest_t = 0.0  # a counter the board would keep in ticks; time itself needs no fixed point
+        self.at_rest = False
+        self._started = False
+
+    # --- outputs (floats read back from the fixed-point state) ---
+    def quaternion(self) -> tuple[float, float, float, float]:
+        F = self.f
+        w, x, y, z = self._predicted()
+        s = 1.0 / (1 << F.quat)
+        return w * s, x * s, y * s, z * s
+
+    def _predicted(self) -> tuple[int, int, int, int]:
+        F = self.f
+        lat = self._lat_half
+        if lat == 0 or (self.rx == 0 and self.ry == 0 and self.rz == 0):
+            return self.qw, self.qx, self.qy, self.qz
+        sh = F.bias + F.dt - F.quat
+        return self._rotate(mul(self.rx, lat, sh), mul(self.ry, lat, sh), mul(self.rz, lat, sh))
+
+    @property
+    def roll(self) -> float:
+        w, x, y, z = self.quaternion()
+        return math.atan2(2.0 * (w * x + y * z), 1.0 - 2.0 * (x * x + y * y))
+
+    @property
+    def pitch(self) -> float:
+        w, x, y, z = self.quaternion()
+        s = 2.0 * (w * y - x * z)
+        return math.asin(1.0 if s > 1.0 else -1.0 if s < -1.0 else s)
+
+    @property
+    def yaw(self) -> float:
+        w, x, y, z = self.quaternion()
+        return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+
+    @property
+    def bias(self) -> tuple[float, float, float]:
+        s = 1.0 / (1 << self.f.bias)
+        return self.bx * s, self.by * s, self.bz * s
+
+    # --- helpers ---
+    @property
+    def _lat_half(self) -> int:
+        return to_q(0.5 * self.ref.latency, self.f.dt)
+
+    def _rotate(self, hx: int, hy: int, hz: int) -> tuple[int, int, int, int]:
+        """q (x) (cos h, sin h * axis) for the half-angle vector h (Q.quat), by the 4th-order series."""
+        qb = self.f.quat
+        one = 1 << qb
+        h2 = mul(hx, hx, qb) + mul(hy, hy, qb) + mul(hz, hz, qb)
+        h4 = mul(h2, h2, qb)
+        c = one - (h2 >> 1) + h4 // 24
+        s = one - h2 // 6 + h4 // 120  # sin(h) / h
+        dx, dy, dz = mul(hx, s, qb), mul(hy, s, qb), mul(hz, s, qb)
+        w, x, y, z = self.qw, self.qx, self.qy, self.qz
+        return (
+            _sat(mul(w, c, qb) - mul(x, dx, qb) - mul(y, dy, qb) - mul(z, dz, qb)),
+            _sat(mul(w, dx, qb) + mul(x, c, qb) + mul(y, dz, qb) - mul(z, dy, qb)),
+            _sat(mul(w, dy, qb) - mul(x, dz, qb) + mul(y, c, qb) + mul(z, dx, qb)),
+            _sat(mul(w, dz, qb) + mul(x, dy, qb) - mul(y, dx, qb) + mul(z, c, qb)),
+        )
+
+    def _dt(self, dt: float) -> tuple[int, int, int, int, int]:
+        """dt and the constants derived from it (the board's dt is fixed: it would hold these as constants)."""
+        c = self._dt_cache
+        if c is None or c[0] != dt:
+            F = self.f
+            dq = to_q(dt, F.dt)
+            self._dt_cache = c = (dt, dq, to_q(dt * dt, F.dt), to_q(0.5 * dt, F.dt),
+                                  to_q(dt / (self.ref.rest_tau + dt), F.cov),
+                                  to_q(dt / (self.ref.rest_bias_tau + dt), F.cov))
+        return c[1], c[2], c[3], c[4], c[5]
+
+    # --- the filter (step for step the float one) ---
+    def update(self, gx: float, gy: float, gz: float, ax: float, ay: float, az: float, dt: float) -> None:
+        if not (dt > 0.0) or not math.isfinite(gx + gy + gz + ax + ay + az + dt):
+            return
+        F = self.f
+        io, qb, bb, vb, db, cb = F.io, F.quat, F.bias, F.vel, F.drift, F.cov
+        gxq, gyq, gzq = to_q(gx, io), to_q(gy, io), to_q(gz, io)
+        axq, ayq, azq = to_q(ax, io), to_q(ay, io), to_q(az, io)
+        if not self._started:
+            self._start(gxq, gyq, gzq, axq, ayq, azq)
+            return
+        dtq, dt2q, dthq, krq, kbq = self._dt(dt)
+        up = bb - io  # Q.io -> Q.bias
+        g = (gxq << up, gyq << up, gzq << up) if up >= 0 else (gxq >> -up, gyq >> -up, gzq >> -up)
+        # 1. rest detection and the bias at rest
+        gl, al = self.gl, self.al
+        for i in range(3):
+            gl[i] = _sat(gl[i] + mul(krq, g[i] - gl[i], cb))
+        a = (axq, ayq, azq)
+        for i in range(3):
+            al[i] = _sat(al[i] + mul(krq, a[i] - al[i], cb))
+        m = self._bias_max
+        dg = _sat(sum(mul(g[i] - gl[i], g[i] - gl[i], 16) for i in range(3)))  # Q(2*bias-16)
+        da = _sat(sum(mul(a[i] - al[i], a[i] - al[i], io) for i in range(3)))
+        still = dg < self._rest_g2 and da < self._rest_a2 and all(-m < v < m for v in gl)
+        self.rest_t = self.rest_t + dt if still else 0.0
+        self.at_rest = self.rest_t >= self.ref.rest_time
+        if self.at_rest:
+            self.bx = _sat(self.bx + mul(kbq, gl[0] - self.bx, cb))
+            self.by = _sat(self.by + mul(kbq, gl[1] - self.by, cb))
+            self.bz = _sat(self.bz + mul(kbq, gl[2] - self.bz, cb))
+        # 2. strapdown
+        wx, wy, wz = g[0] - self.bx, g[1] - self.by, g[2] - self.bz
+        self.rx, self.ry, self.rz = wx, wy, wz
+        sh = bb + F.dt - qb
+        w, x, y, z = self._rotate(mul(wx, dthq, sh), mul(wy, dthq, sh), mul(wz, dthq, sh))
+        rate = sqrt(_sat(mul(wx, wx, 2 * bb - io) + mul(wy, wy, 2 * bb - io) + mul(wz, wz, 2 * bb - io)), io)
+        # 3. horizontal specific force (Q.io) and the Kalman filter
+        two = 2
+        r00 = (1 << qb) - two * (mul(y, y, qb) + mul(z, z, qb))
+        r01 = two * (mul(x, y, qb) - mul(w, z, qb))
+        r02 = two * (mul(x, z, qb) + mul(w, y, qb))
+        r10 = two * (mul(x, y, qb) + mul(w, z, qb))
+        r11 = (1 << qb) - two * (mul(x, x, qb) + mul(z, z, qb))
+        r12 = two * (mul(y, z, qb) - mul(w, x, qb))
+        fx = _sat(mul(r00, axq, qb) + mul(r01, ayq, qb) + mul(r02, azq, qb))
+        fy = _sat(mul(r10, axq, qb) + mul(r11, ayq, qb) + mul(r12, azq, qb))
+        e = mul(rate, dtq, io + F.dt - cb)  # radians this step, Q.cov
+        vx = _sat(self.vx + mul(fx, dtq, io + F.dt - vb))
+        vy = _sat(self.vy + mul(fy, dtq, io + F.dt - vb))
+        gxh = mul(self.dx, e, db + cb - vb)
+        gyh = mul(self.dy, e, db + cb - vb)
+        pvv, pvg, pvd, pgg, pgd, pdd = self.pvv, self.pvg, self.pvd, self.pgg, self.pgd, self.pdd
+        sd = F.dt  # dt is Q.dt, covariances Q.cov: (P * dt) >> dt stays Q.cov
+        a_vv = _sat(pvv - 2 * mul(pvg, dtq, sd) + mul(pgg, dt2q, sd))
+        a_vg = _sat(pvg + mul(e, pvd, cb) - mul(pgg, dtq, sd) - mul(mul(e, pgd, cb), dtq, sd))
+        a_vd = _sat(pvd - mul(pgd, dtq, sd))
+        q_dt = mul(self._q_g0, dtq, self._qg_shift + sd)  # Q.cov
+        noise = _sat(q_dt + mul(mul(q_dt, self._k_rot, io), rate, io))
+        a_gg = _sat(pgg + 2 * mul(e, pgd, cb) + mul(mul(e, e, cb), pdd, cb) + noise)
+        a_gd = _sat(pgd + mul(e, pdd, cb))
+        a_dd = _sat(pdd + mul(self._drift_noise, e, cb + 16))
+        # gain K = dt a / (dt a_vv + r), r = 1 (rest_r at rest): dt scaled so nothing exceeds the format
+        r = self._rest_r if self.at_rest else 1 << cb
+        den = _sat(mul(a_vv, dtq, sd) + r)
+        kv = div(mul(a_vv, dtq, sd), den, cb)
+        kg = div(mul(a_vg, dtq, sd), den, cb)
+        kd = div(mul(a_vd, dtq, sd), den, cb)
+        gxh = _sat(gxh - mul(kg, vx, cb))
+        gyh = _sat(gyh - mul(kg, vy, cb))
+        self.dx = _sat(self.dx - mul(kd, vx, cb + vb - db))
+        self.dy = _sat(self.dy - mul(kd, vy, cb + vb - db))
+        self.vx = _sat(vx - mul(kv, vx, cb))
+        self.vy = _sat(vy - mul(kv, vy, cb))
+        self.pvv = _sat(a_vv - mul(kv, a_vv, cb))
+        self.pvg = _sat(a_vg - mul(kv, a_vg, cb))
+        self.pvd = _sat(a_vd - mul(kv, a_vd, cb))
+        self.pgg = _sat(a_gg - mul(kg, a_vg, cb))
+        self.pgd = _sat(a_gd - mul(kg, a_vd, cb))
+        self.pdd = _sat(a_dd - mul(kd, a_vd, cb))
+        # 4. rebase: the swing that makes (gxh, gyh, g0) vertical, VQF's form (sqrt((1+uz)/2), uy/2c, -ux/2c, 0)
+        one = 1 << qb
+        ux = mul(gxh, self._inv_g0, vb)  # Q.quat
+        uy = mul(gyh, self._inv_g0, vb)
+        uh2 = mul(ux, ux, qb) + mul(uy, uy, qb)
+        if uh2 > (81 * one) // 100:  # at most a 64° step, as the float filter
+            k = div(9 * one // 10, sqrt(uh2, qb), qb)
+            ux, uy, uh2 = mul(ux, k, qb), mul(uy, k, qb), (81 * one) // 100
+        uz = sqrt(one - uh2, qb)
+        cw = sqrt((one >> 1) + (uz >> 1), qb)
+        cx = div(uy, cw, qb - 1)  # uy / (2 cw): 2 cw would not fit Q2.30
+        cy = -div(ux, cw, qb - 1)
+        w, x, y, z = (
+            _sat(mul(cw, w, qb) - mul(cx, x, qb) - mul(cy, y, qb)),
+            _sat(mul(cw, x, qb) + mul(cx, w, qb) + mul(cy, z, qb)),
+            _sat(mul(cw, y, qb) - mul(cx, z, qb) + mul(cy, w, qb)),
+            _sat(mul(cw, z, qb) + mul(cx, y, qb) - mul(cy, x, qb)),
+        )
+        # normalise by one Newton step of 1/sqrt(n2) from 1: q *= (3 - n2) / 2 (n2 is 1 within 1e-6)
+        n2 = mul(w, w, qb) + mul(x, x, qb) + mul(y, y, qb) + mul(z, z, qb)
+        k = (3 * one - n2) >> 1
+        self.qw, self.qx, self.qy, self.qz = mul(w, k, qb), mul(x, k, qb), mul(y, k, qb), mul(z, k, qb)
+        self.bx = m if self.bx > m else -m if self.bx < -m else self.bx
+        self.by = m if self.by > m else -m if self.by < -m else self.by
+        self.bz = m if self.bz > m else -m if self.bz < -m else self.bz
+
+    def _start(self, gxq: int, gyq: int, gzq: int, axq: int, ayq: int, azq: int) -> None:
+        F = self.f
+        io, qb = F.io, F.quat
+        n = sqrt(mul(axq, axq, io) + mul(ayq, ayq, io) + mul(azq, azq, io), io)
+        if n < (1 << io) // 2:
+            return
+        one = 1 << qb
+        ux, uy, uz = div(axq, n, qb), div(ayq, n, qb), div(azq, n, qb)
+        if uz <= -one + 2:
+            self.qw, self.qx, self.qy, self.qz = 0, one, 0, 0
+        else:
+            # (1 + uz, uy, -ux, 0) normalised: |.| = sqrt(2 (1 + uz)); cw = sqrt((1 + uz) / 2)
+            cw = sqrt((one >> 1) + (uz >> 1), qb)
+            self.qw, self.qx, self.qy, self.qz = cw, div(uy, cw, qb - 1), -div(ux, cw, qb - 1), 0
+        up = F.bias - io
+        self.gl = [v << up if up >= 0 else v >> -up for v in (gxq, gyq, gzq)]
+        self.al = [axq, ayq, azq]
+        self._started = True
