@@ -1,12 +1,17 @@
+# PYTHON_ARGCOMPLETE_OK (shell completion: eval "$(register-python-argcomplete fcb-sim)")
 """`fcb-sim`: the simulated flight-control board from the command line.
 
 Argument parsing and wiring only; each subcommand's work lives in the module that owns it. Errors a user can
 cause (a missing file, a bad option) end in one line on stderr and exit status 2, never a traceback.
+``fcb-sim --version`` and ``python -m fcb_sim`` as for term; ``-v`` logs at INFO (bumble's too) to stderr, which
+``term --sim`` keeps in its log directory. ``serve`` needs pseudo-terminals (POSIX): elsewhere it is one line.
 """
 
 from __future__ import annotations
 
 import argparse
+import logging
+import os
 import sys
 from collections.abc import Sequence
 from typing import NoReturn
@@ -15,7 +20,6 @@ from fcb_sim.errors import EXIT_INTERRUPTED, EXIT_USAGE, UsageError
 from fcb_sim.estimation.replay import cmd_replay
 from fcb_sim.profile import cmd_profile
 from fcb_sim.scenarios import cmd_run
-from fcb_sim.serve import cmd_serve
 
 
 class _Parser(argparse.ArgumentParser):
@@ -31,6 +35,10 @@ def build_parser() -> argparse.ArgumentParser:
         description="The Quadrupel flight-control board as software: headless flights, IMU replay, "
         "profiling, and a board served over a pseudo-terminal (and a virtual BLE radio).",
     )
+    from term.protocol import PROTOCOL_VERSION
+
+    parser.add_argument("--version", action="version", version=f"%(prog)s {_version()} (protocol v{PROTOCOL_VERSION})")
+    parser.add_argument("-v", "--verbose", action="store_true", help="log INFO and up (bumble's too) to stderr")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
     # --- run: headless scenarios (owner: fcb_sim/scenarios.py) ---
@@ -73,12 +81,40 @@ def build_parser() -> argparse.ArgumentParser:
     serve.add_argument("--link-timeout", type=float, default=0.5, help="seconds of silence before PANIC")
     serve.add_argument("--ble-hci", default=None, metavar="TRANSPORT",
                        help="also expose the board's BLE radio, e.g. tcp-server:127.0.0.1:PORT")
-    serve.set_defaults(handler=cmd_serve)
+    serve.set_defaults(handler=_cmd_serve)
     return parser
 
 
+def _version() -> str:
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("quadrupel")
+    except PackageNotFoundError:
+        return "(not installed)"
+
+
+def _cmd_serve(args: argparse.Namespace) -> int:
+    """serve imports termios (POSIX): imported only here, so the other subcommands run on Windows too."""
+    if not hasattr(os, "openpty"):
+        raise UsageError("serve needs pseudo-terminals (Linux or macOS); this system has none")
+    from fcb_sim.serve import cmd_serve
+
+    return cmd_serve(args)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
+    parser = build_parser()
+    if "_ARGCOMPLETE" in os.environ:
+        try:
+            import argcomplete
+
+            argcomplete.autocomplete(parser)
+        except ImportError:
+            pass
+    args = parser.parse_args(argv)
+    logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING,
+                        format="%(asctime)s %(levelname)s %(name)s: %(message)s")
     try:
         return int(args.handler(args) or 0)
     except UsageError as exc:

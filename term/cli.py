@@ -1,3 +1,4 @@
+# PYTHON_ARGCOMPLETE_OK (shell completion: eval "$(register-python-argcomplete term)")
 """`term`: the pilot's terminal from the command line. Parsing and wiring only; the one place that knows every part.
 
     term --serial /dev/ttyUSB0 [--baud 115200]    fly the real board (or any pty)
@@ -10,6 +11,12 @@
     term export SESSION|LOG.csv|--latest -o OUT   a session recording or flash log as MCAP or CSV (its units)
     term recordings                               list the session recordings: start, length, size
     term replay SESSION|--latest                  play a recording back in the same screens, no board needed
+    term                                          no board given: one line naming the serial ports seen
+    term --version, python -m term                the version (and the protocol's); the same program
+
+term's own log (warnings always, everything with --verbose) and the simulated board's stderr are kept in the
+platform's log directory (term/applog.py): the TUI owns the terminal, so nothing can be printed while it runs.
+POSIX-only parts (SIGHUP, the hung-up-tty watcher, the child's PR_SET_PDEATHSIG) are skipped where missing.
 
 Errors a user can cause end in one line on stderr and a non-zero exit, never a traceback: 2 for bad arguments,
 a missing port or a board that will not start; 3 for a board that speaks another protocol version.
@@ -54,7 +61,9 @@ def build_parser() -> argparse.ArgumentParser:
         "Keys: press F1 in the terminal. Config: 'term --config-path' shows where term.toml is read from.",
     )
     src = p.add_mutually_exclusive_group()
-    src.add_argument("--serial", metavar="PATH", help="the board's serial port (or any pty), e.g. /dev/ttyUSB0")
+    serial_arg = src.add_argument("--serial", metavar="PATH",
+                                  help="the board's serial port (or any pty), e.g. /dev/ttyUSB0 or COM3")
+    serial_arg.completer = lambda **_: [device for device, _ in serial_ports()]  # type: ignore[attr-defined]
     src.add_argument("--sim", action="store_true", help="start the simulated board (fcb-sim serve --pty) and fly "
                      "it; its BLE radio is connected too, for the handover (key 8)")
     p.add_argument("--ble", metavar="ADDR", help="the board's BLE address: alone, fly over BLE; with --serial, "
@@ -76,7 +85,70 @@ def build_parser() -> argparse.ArgumentParser:
                    "both ways and every event is kept: 'term recordings')")
     p.add_argument("--record-dir", type=Path, default=None, help="where session recordings are kept (default: "
                    "the platform's user data directory)")
+    _add_common(p)
     return p
+
+
+def _add_common(p: argparse.ArgumentParser) -> None:
+    p.add_argument("-v", "--verbose", action="store_true",
+                   help="log everything of term's to term.log in the platform's log directory (warnings always go "
+                   "there)")
+    p.add_argument("--version", action="version", version=f"%(prog)s {version_text()}")
+
+
+def version_text() -> str:
+    """The installed package's version and the protocol version this terminal speaks."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    from term.protocol import PROTOCOL_VERSION
+
+    try:
+        installed = version("quadrupel")
+    except PackageNotFoundError:
+        installed = "(not installed)"
+    return f"{installed} (protocol v{PROTOCOL_VERSION})"
+
+
+def serial_ports() -> list[tuple[str, str]]:
+    """The serial ports this machine shows (pyserial's list_ports), as (device, description)."""
+    try:
+        from serial.tools import list_ports
+
+        return sorted((port.device, port.description) for port in list_ports.comports())
+    except Exception:  # a platform pyserial cannot enumerate: no list, not an error
+        return []
+
+
+def _ports_hint() -> str:
+    ports = serial_ports()
+    if not ports:
+        return "no serial ports seen here"
+    return "serial ports seen here: " + ", ".join(
+        device if desc in ("", "n/a", device) else f"{device} ({desc})" for device, desc in ports
+    )
+
+
+def _complete() -> None:
+    """Shell completion (argcomplete; it exits when the shell asked): term's options and subcommands in one parser."""
+    try:
+        import argcomplete
+    except ImportError:
+        return
+    parser = build_parser()
+    sub = parser.add_subparsers(dest="command", required=False)
+    for name, build in (("plot", build_plot_parser), ("scan", build_scan_parser), ("export", build_export_parser),
+                        ("recordings", build_recordings_parser), ("replay", build_replay_parser)):
+        child = build()
+        sub.add_parser(name, parents=[child], add_help=False, help=child.description)
+    argcomplete.autocomplete(parser)
+
+
+def _start_log(verbose: bool) -> None:
+    from term.applog import setup_logging
+
+    path = setup_logging(verbose)
+    if verbose and path is not None:
+        print(f"term: logging to {path}", file=sys.stderr)
 
 
 def build_plot_parser() -> argparse.ArgumentParser:
@@ -91,6 +163,7 @@ def build_scan_parser() -> argparse.ArgumentParser:
     p = _Parser(prog="term scan", description="List BLE boards advertising the board's service.")
     p.add_argument("--hci", metavar="TRANSPORT", default=None, help="bumble HCI transport instead of the system's")
     p.add_argument("--timeout", type=float, default=3.0, help="seconds to scan (default 3)")
+    _add_common(p)
     return p
 
 
@@ -207,6 +280,8 @@ def _recordings(a: argparse.Namespace) -> int:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    if "_ARGCOMPLETE" in os.environ:
+        _complete()
     argv = list(sys.argv[1:] if argv is None else argv)
     try:
         if argv and argv[0] == "plot":
@@ -266,13 +341,15 @@ def _fly(args: argparse.Namespace) -> int:
         raise UsageError("--ble and --sim: the simulator brings its own radio (term --sim connects it)")
     if args.hci and not args.ble:
         raise UsageError("--hci needs --ble ADDR")
+    _start_log(args.verbose)
 
     sim: SimBoard | None = None
     radio: Any = None
     with _terminate_on_signals():
         try:
             if args.sim:
-                sim = SimBoard(seed=args.seed, scenario=args.scenario, link_timeout=None, radio=not args.no_radio)
+                sim = SimBoard(seed=args.seed, scenario=args.scenario, link_timeout=None, radio=not args.no_radio,
+                               log=True)
                 port = sim.start()
                 transport = _serial(port, baud)
                 if sim.ble_address:
@@ -283,7 +360,7 @@ def _fly(args: argparse.Namespace) -> int:
                 port = args.serial or cfg.port
                 if not port:
                     raise UsageError("no board given: use --serial PATH, --sim or --ble ADDR "
-                                     "(or set [connection] port in the config)")
+                                     f"(or set [connection] port in the config); {_ports_hint()}")
                 if not os.path.exists(port) and not port.upper().startswith("COM"):
                     raise UsageError(f"serial port {port} not found: check the cable and the name "
                                      "(ls /dev/tty*), or try --sim")
@@ -312,6 +389,7 @@ def _ble(address: str, hci: str | None, timeout: float = 10.0) -> Any:
 
 
 def _scan(args: argparse.Namespace) -> int:
+    _start_log(args.verbose)
     try:
         from term.transports.ble import scan  # type: ignore[import-not-found,unused-ignore]
     except ImportError as exc:
@@ -408,7 +486,8 @@ def _terminate_on_signals() -> Any:
             raise SystemExit(128 + signum)
 
     old = {}
-    for sig in (signal.SIGTERM, signal.SIGHUP):
+    # getattr: Windows has no SIGHUP (a closed console window ends the process there anyway)
+    for sig in (getattr(signal, name) for name in ("SIGTERM", "SIGHUP") if hasattr(signal, name)):
         with contextlib.suppress(ValueError, OSError):
             old[sig] = signal.signal(sig, raise_exit)
     try:
@@ -439,7 +518,7 @@ async def _exit_on_hangup(stream: IO[str], period: float = 0.5) -> None:
         fd = stream.fileno()
     except (AttributeError, OSError, ValueError):
         return
-    if not os.isatty(fd):
+    if not os.isatty(fd) or not hasattr(select, "poll"):  # no poll() on Windows: the console ends us itself
         return
     poller = select.poll()
     poller.register(fd, 0)  # POLLHUP and POLLERR are reported whatever is asked for
@@ -468,10 +547,11 @@ def _die_with_parent() -> None:
 class SimBoard:
     """`fcb-sim serve --pty` in a child process; ``start()`` returns the pty path it printed first. With
     ``radio`` the board's BLE radio is on the air too (``--ble-hci`` on a free local port): ``ble_address`` and
-    ``ble_hci`` (the ``--hci`` to reach it) come from the child's second line."""
+    ``ble_hci`` (the ``--hci`` to reach it) come from the child's second line. With ``log`` the child's stderr
+    is appended to ``fcb-sim.log`` in term's log directory and kept (else a temporary file, gone at exit)."""
 
     def __init__(self, *, seed: int = 1, scenario: str | None = None, link_timeout: float | None = None,
-                 extra: Sequence[str] = (), radio: bool = False) -> None:
+                 extra: Sequence[str] = (), radio: bool = False, log: bool = False) -> None:
         # Through fcb_sim.cli.main (not "-m fcb_sim.cli", where its UsageError would be __main__'s, uncaught).
         self.cmd = [sys.executable, "-c", "import sys; from fcb_sim.cli import main; sys.exit(main())",
                     "serve", "--pty", "--seed", str(seed)]
@@ -487,9 +567,17 @@ class SimBoard:
         self.ble_name = self.ble_address = self.ble_hci = ""
         self.proc: subprocess.Popen[bytes] | None = None
         self._stderr: IO[bytes] | None = None
+        self._stderr_start = 0  # where this run's stderr begins in the file
+        self.log = log
 
     def start(self, timeout: float = SIM_START_TIMEOUT) -> str:
-        self._stderr = tempfile.TemporaryFile()
+        self._stderr, self._stderr_start = None, 0
+        if self.log:
+            from term.applog import child_log
+
+            self._stderr, self._stderr_start = child_log("fcb-sim.log")
+        if self._stderr is None:
+            self._stderr = tempfile.TemporaryFile()
         env = dict(os.environ, PYTHONUNBUFFERED="1")
         self.proc = subprocess.Popen(
             self.cmd, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=self._stderr, env=env,
@@ -522,7 +610,7 @@ class SimBoard:
         with contextlib.suppress(Exception):
             if self.proc is not None and self.proc.poll() is None:
                 return ""
-            self._stderr.seek(0)
+            self._stderr.seek(self._stderr_start)
             lines = [ln for ln in self._stderr.read().decode(errors="replace").splitlines() if ln.strip()]
             last = lines[-1].strip() if lines else ""
             return last.removeprefix("fcb-sim: ")

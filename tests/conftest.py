@@ -45,6 +45,18 @@ def _user_data_in_a_temporary_directory(tmp_path_factory: pytest.TempPathFactory
         os.environ["XDG_DATA_HOME"] = old
 
 
+@pytest.fixture(autouse=True, scope="session")
+def _term_log_in_a_temporary_directory(tmp_path_factory: pytest.TempPathFactory) -> Iterator[None]:
+    """term's own log and the simulated board's stderr (term/applog.py): kept apart from the user's too."""
+    old = os.environ.get("QUADRUPEL_LOG_DIR")
+    os.environ["QUADRUPEL_LOG_DIR"] = str(tmp_path_factory.mktemp("log"))
+    yield
+    if old is None:
+        os.environ.pop("QUADRUPEL_LOG_DIR", None)
+    else:
+        os.environ["QUADRUPEL_LOG_DIR"] = old
+
+
 # --- a real pseudo-terminal ---------------------------------------------------------------------------------
 
 
