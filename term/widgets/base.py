@@ -48,7 +48,7 @@ class ModelView(Widget):
             return
         if self.MAX_HZ is not None:
             wall = time.monotonic()  # a CPU budget: wall time, whatever clock the model runs on
-            urgent = self.urgent(model)
+            urgent = (self.urgent(model), model.over_ble)  # a hand-over changes what is carried: show it at once
             if wall - self._painted < 1.0 / self.MAX_HZ and urgent == self._urgent and not due:
                 return
             self._painted, self._urgent = wall, urgent
