@@ -40,14 +40,18 @@ def _one_line(exc: BaseException) -> str:
 
 def _adapter_error(exc: BaseException, hci: str | None) -> TransportError:
     """One line for a failure to reach the Bluetooth adapter at all."""
-    from bleak.exc import BleakBluetoothNotAvailableError
+    try:
+        from bleak.exc import BleakBluetoothNotAvailableError
+        not_available: tuple[type[BaseException], ...] = (BleakBluetoothNotAvailableError,)
+    except ImportError:  # bleak 1.x has no such class (new in 2.0): then no error is one
+        not_available = ()
 
     if hci:
         text = _one_line(exc)
         if "plug one in" in text:  # the bumble backend already said what to do with the dongle
             return TransportError(text)
         return TransportError(f"{text}: check --hci (e.g. tcp-client:127.0.0.1:9000, usb:0)")
-    if isinstance(exc, BleakBluetoothNotAvailableError):
+    if isinstance(exc, not_available):
         return TransportError(f"Bluetooth is not available: {_one_line(exc)}; switch it on, or use --hci usb:0")
     return TransportError(
         f"no Bluetooth adapter reachable ({_one_line(exc)}): is bluetoothd running? "
