@@ -12,6 +12,7 @@ No I/O, no Textual, no clock: plain frozen data.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Literal
 
 from term.link import LinkEvent, LinkStats
 from term.protocol import Joystick
@@ -89,7 +90,7 @@ class NotSent:
     what: str
     why: str
     title: str | None = None
-    severity: str = "error"
+    severity: Literal["information", "warning", "error"] = "error"  # the toast's
 
 
 @dataclass(frozen=True, slots=True)

@@ -138,14 +138,14 @@ class StationLink:
 
     def _on_event(self, ev: ConnectionEvent) -> None:
         st = self.station
-        if type(ev) is TransportFailed:
+        if isinstance(ev, TransportFailed):
             self.connection = None
             self.last_error = ev.message
             st.emit(LinkDown(self.role, ev.message))
             if st.running:
                 self.keep_up(immediate=False)
             return
-        st.emit(FromLink(self.role, ev))  # type: ignore[arg-type]
+        st.emit(FromLink(self.role, ev))
         if type(ev) is VersionMismatch:
             st.emit(Fatal(f"board speaks protocol v{ev.board_version}, this terminal v{ev.our_version}: "
                           "update the board's firmware or the terminal", EXIT_VERSION))
