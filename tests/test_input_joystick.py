@@ -1,6 +1,7 @@
-"""The joystick through pygame with SDL's dummy video driver, and a real SDL virtual joystick (SDL 2.0.14+, the
-library pygame ships) plugged in and out while the poller and the app run: hot-plug, the lab's mapping, the
-fire button, the throttle guard, and a stick lost in flight."""
+"""The joystick through pygame-ce with SDL's dummy video driver, and a real SDL virtual joystick (SDL 2.0.14+, the
+library pygame-ce ships) plugged in and out while the poller and the app run: hot-plug, the lab's mapping, the
+fire button, the throttle guard, and a stick lost in flight; a virtual game pad read through SDL's
+GameController API."""
 
 from __future__ import annotations
 
@@ -12,18 +13,20 @@ import time
 
 import pytest
 
-from term.input.joystick import JoystickPoller
-from term.input.mapping import FULL
+from term.input.joystick import GAMEPAD, JoystickPoller
+from term.input.mapping import FULL, LAB, mapping_from_dict
 from term.protocol import Button, Mode, Op
 
 
 class VirtualStick:
-    """An SDL virtual joystick (4 axes, 2 buttons) in this process's SDL, as a USB stick would appear."""
+    """An SDL virtual joystick (4 axes, 2 buttons) in this process's SDL, as a USB stick would appear; with
+    ``pad`` a virtual game controller (SDL_JOYSTICK_TYPE_GAMECONTROLLER: 6 axes, 15 buttons, SDL's own mapping)."""
 
-    def __init__(self) -> None:
+    def __init__(self, pad: bool = False) -> None:
         import pygame
 
-        libs = glob.glob(os.path.join(os.path.dirname(pygame.__file__), "..", "pygame.libs", "libSDL2-2*.so*"))
+        # the wheel's bundled SDL (pygame-ce: pygame_ce.libs; classic pygame: pygame.libs)
+        libs = glob.glob(os.path.join(os.path.dirname(pygame.__file__), "..", "pygame*.libs", "libSDL2-2*.so*"))
         if not libs:
             pytest.skip("pygame's bundled SDL2 not found")
         sdl = ctypes.CDLL(libs[0])
@@ -35,10 +38,18 @@ class VirtualStick:
         sdl.SDL_JoystickClose.argtypes = [ctypes.c_void_p]
         sdl.SDL_JoystickDetachVirtual.argtypes = [ctypes.c_int]
         self.sdl = sdl
-        self.index = sdl.SDL_JoystickAttachVirtual(0, 4, 2, 0)
+        self.index = sdl.SDL_JoystickAttachVirtual(1, 6, 15, 0) if pad else sdl.SDL_JoystickAttachVirtual(0, 4, 2, 0)
         assert self.index >= 0
         self.handle = sdl.SDL_JoystickOpen(self.index)
-        self.set(0, 0, 0, 1.0)  # the lab's throttle lever pulled back: no lift
+        if not pad:
+            self.set(0, 0, 0, 1.0)  # the lab's throttle lever pulled back: no lift
+
+    def axes(self, *values: float, button: int | None = None) -> None:
+        for axis, v in enumerate(values):
+            self.sdl.SDL_JoystickSetVirtualAxis(self.handle, axis, max(-32768, min(32767, round(v * 32767))))
+        if button is not None:
+            self.sdl.SDL_JoystickSetVirtualButton(self.handle, button, 1)
+        self.sdl.SDL_JoystickUpdate()
 
     def set(self, roll: float, pitch: float, yaw: float, throttle: float, fire: bool = False) -> None:
         for axis, v in enumerate((roll, pitch, yaw, throttle)):
@@ -72,6 +83,44 @@ def test_hot_plug_mapping_and_unplug(poller: JoystickPoller) -> None:
     stick.unplug()
     res = poller.poll()
     assert res.disconnected and res.packet is not None and res.packet.lift == 0 and not poller.connected
+
+
+def test_a_game_pad_is_read_through_the_game_controller_api(poller: JoystickPoller) -> None:
+    pad = VirtualStick(pad=True)
+    try:
+        res = poller.poll()
+        assert poller.connected and poller.gamepad, res.messages
+        assert "game controller" in res.messages[0] and f"mapping {GAMEPAD.name}" in res.messages[0]
+        # SDL's layout: left x yaw, left y lift (pushed up), right x roll, right y pitch, A fire
+        pad.axes(0.0, -1.0, 0.5, 1.0, 0.0, 0.0, button=0)
+        js = poller.poll().packet
+        assert js is not None and js.lift == FULL and js.pitch == FULL and js.yaw == 0
+        assert 0 < js.roll < FULL and js.buttons == Button.FIRE
+    finally:
+        pad.unplug()
+    assert poller.poll().disconnected and not poller.gamepad
+
+
+def test_a_mapping_from_the_config_reads_a_pad_raw() -> None:
+    mine = mapping_from_dict("mine", {"match": ["Virtual"], "lift": {"axis": 5, "kind": "throttle"}})
+    poller = JoystickPoller([mine])
+    poller.start()
+    pad = VirtualStick(pad=True)
+    try:
+        poller.poll()
+        assert poller.connected and not poller.gamepad and poller.mapping is mine
+    finally:
+        pad.unplug()
+        poller.close()
+
+
+def test_a_flight_stick_is_read_raw(poller: JoystickPoller) -> None:
+    stick = VirtualStick()
+    try:
+        poller.poll()
+        assert poller.connected and not poller.gamepad and poller.mapping is LAB
+    finally:
+        stick.unplug()
 
 
 async def test_the_app_flies_the_stick(scripted_board) -> None:  # noqa: ANN001
