@@ -191,6 +191,7 @@ class Board:
         self._sticks_used: tuple[int, int, int, int] | None = None  # what the motors were last computed from
         self.log_full_reported = False
         self._overflow_reported = 0
+        self._overflow_report_at = 0
         self.on_task: Any = None  # optional callback(name, start_us, duration_us) after every task run
         if cfg.boot_hello:
             self._hello()
@@ -310,7 +311,7 @@ class Board:
                 # The loop was waiting: the flag is seen only once the interrupts in progress are over (those that
                 # hit a running task are in its measured duration already).
                 self._idle = False
-                free = self.irq.free_at(self.now, sched.timer_isr_end, *self.tx.wire(), self.ae)
+                free = self.irq.free_at(self.now, sched.timer_isr_end, *self.tx.wire(self.now), self.ae)
                 if self.config.residual_jitter_us > 0:
                     free += int(self._residual_rng.expovariate(1.0 / self.config.residual_jitter_us))
                 if free > self.now:
@@ -361,9 +362,11 @@ class Board:
             self.rx_ignored += self.uart.discard_rx()
             chunk, decoder = bytes(self._ble_rx[:limit]), self.ble_decoder
             del self._ble_rx[: len(chunk)]
-        if self.rx_overflow > self._overflow_reported:
+        if self.rx_overflow > self._overflow_reported and self.now >= self._overflow_report_at:
+            # what was dropped since the last report, at most once per heartbeat period (a flood is one event)
             self._event(EventCode.OVERFLOW, self.rx_overflow - self._overflow_reported)
             self._overflow_reported = self.rx_overflow
+            self._overflow_report_at = self.now + HEARTBEAT_PERIOD_US
         cost = PARSE_US_BASE + PARSE_US_PER_BYTE * len(chunk)
         for pkt in decoder.feed(chunk):
             self.last_frame_us = self.now
@@ -513,7 +516,7 @@ class Board:
     def _download_step(self) -> int:
         """Log chunks instead of telemetry: as many as the transmit buffer takes (the wire paces the download);
         a Status every tenth run."""
-        chunks, done = self.download.step(self.log, self.tx.bulk_room, self.send)
+        chunks, done = self.download.step(self.log, lambda: self.tx.bulk_room(self.now), self.send)
         if done:
             self._end_download()
         if self.telemetry.runs % 10 == 0:
@@ -565,7 +568,10 @@ class Board:
                 self.modes.panic(self.now / 1e6, "fire")
                 self._drain_mode_events()
         elif kind is Command:
-            ack, after, retry = self.desk.answer(self, pkt)
+            answer = self.desk.answer(self, pkt)
+            if answer is None:
+                return  # shed: no room for its Ack; the terminal retries
+            ack, after, retry = answer
             self.send(ack)
             if not retry:
                 self._drain_mode_events()

@@ -7,7 +7,9 @@ stopped after its Ack went over the cable). A handler refuses with a reason, nev
 
 ``CommandDesk`` executes each command once: a repeat of the last command (same id, op and arg) within
 ``COMMAND_DEDUPE_US`` is a retry whose first answer was lost, and it is answered again without being redone.
-A handler that raises is a bug: the command is refused (BAD_ARGUMENT) and the board keeps flying.
+A command that finds no room for its Ack on the link (the transmit side's answer budget, fcb_sim/transmit.py)
+is shed: not done, not answered, counted; the terminal retries it. A handler that raises is a bug: the command
+is refused (BAD_ARGUMENT) and the board keeps flying.
 
 The ``SET_PARAM`` ids, ranges and meanings are the protocol's table (``term.protocol.PARAMS``).
 """
@@ -84,7 +86,7 @@ def _log_reset(b: Board, arg: int) -> Result:
 
 
 def _log_status(b: Board, arg: int) -> Result:
-    return Nak.OK, b.log.used, lambda: b.send(b.log.status())
+    return Nak.OK, b.log.used, lambda: b.tx.send_set("log_status", [b.log.status()], b.now)
 
 
 def _log_download(b: Board, first: int) -> Result:
@@ -97,12 +99,7 @@ def _log_download(b: Board, first: int) -> Result:
 
 
 def _profile(b: Board, arg: int) -> Result:
-    return Nak.OK, len(TASKS), lambda: _send_all(b, b.prof.packets())
-
-
-def _send_all(b: Board, pkts: list[Any]) -> None:
-    for pkt in pkts:
-        b.send(pkt)
+    return Nak.OK, len(TASKS), lambda: b.tx.send_set("profile", b.prof.packets(b.now), b.now)
 
 
 def _wireless(b: Board, arg: int) -> Result:
@@ -190,12 +187,17 @@ class CommandDesk:
         self._last: tuple[int, int, int] | None = None
         self._ack: Ack | None = None
         self._at = 0
+        self.shed = 0  # commands not done for want of room for their Ack
 
     def forget(self) -> None:
         """A terminal (re)connected: its cmd_ids start afresh, so an equal first command is not a retry."""
         self._last = self._ack = None
 
-    def answer(self, board: Board, cmd: Command) -> tuple[Ack, Callable[[], Any] | None, bool]:
+    def answer(self, board: Board, cmd: Command) -> tuple[Ack, Callable[[], Any] | None, bool] | None:
+        """(Ack, action after it, whether it was a retry), or None when the command is shed."""
+        if not board.tx.answer_room(board.now):
+            self.shed += 1
+            return None
         key = (cmd.cmd_id, cmd.op, cmd.arg)
         if key == self._last and board.now - self._at < COMMAND_DEDUPE_US and self._ack:
             return self._ack, None, True  # a retry: the first answer was lost; do not do it twice

@@ -9,11 +9,11 @@ entered, and a check that decides whether a transition is valid. Here the same t
 
 The mode diagram in docs/modes.md is generated from these tables (``mermaid()``), so it cannot drift.
 
-Safety rules (DESIGN.md): leaving SAFE needs neutral sticks and zero lift (joystick plus trims); modes 4 and up need a finished
-calibration; from a flight mode the way out is SAFE (with the lift at zero) or PANIC; PANIC is reachable from
-every mode that can turn the motors, holds a level just under hover for a few seconds, ramps the motors to zero
-and then returns to SAFE by itself; link silence, a low battery while flying and excessive tilt mean PANIC; the
-motors are zero in SAFE and CALIBRATION. Every refused request returns a ``Nak`` reason.
+Safety rules (DESIGN.md): leaving SAFE needs neutral sticks and zero lift (joystick plus trims); modes 4 and up
+need a finished calibration; from a flight mode the way out is SAFE (with the lift at zero) or PANIC; PANIC is
+reachable from every mode that can turn the motors, holds a level just under hover for a few seconds, ramps the
+motors to zero and then returns to SAFE by itself; link silence, a low battery while flying and excessive tilt
+mean PANIC; the motors are zero in SAFE and CALIBRATION. Every refused request returns a ``Nak`` reason.
 
 Sans-IO: time (``now``, seconds) is passed in; the machine reads no clock. Pilot inputs (joystick, trims),
 the battery and the motor level are pushed in by the board; events for the PC come out of ``events``.

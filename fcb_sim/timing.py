@@ -425,7 +425,10 @@ class Profiler:
         self._busy_mark = (0, 0)  # (time, busy) at the last ``load``
         self.reset(0)
 
+    PACKETS_REFRESH_US = 500_000
+
     def reset(self, now: int) -> None:
+        self._packets: tuple[int, list[Profile]] | None = None
         self.stats = {name: TaskStats() for name in self.tasks}
         self.reactions = TaskStats()
         self._mark = (now, self.busy_us)
@@ -473,14 +476,18 @@ class Profiler:
             "cpu_load_pct": round(100 * (self.busy_us - self._mark[1]) / max(1, now - self._mark[0]), 1),
         }
 
-    def packets(self) -> list[Profile]:
-        """The Profile packets, one per task in ``tasks`` order."""
+    def packets(self, now: int) -> list[Profile]:
+        """The Profile packets, one per task in ``tasks`` order; recomputed at most every ``PACKETS_REFRESH_US``
+        (the percentiles sort up to 50 000 durations per task: a flood of requests must not cost that each)."""
+        if self._packets is not None and now - self._packets[0] < self.PACKETS_REFRESH_US:
+            return self._packets[1]
         out = []
         for i, name in enumerate(self.tasks):
             s = self.stats[name].summary()
             out.append(Profile(i, min(65535, round(s["mean_us"])), min(65535, round(s["p99_us"])),
                                min(65535, round(s["p999_us"])), min(2**32 - 1, round(s["period_us"])),
                                min(65535, s["misses"])))
+        self._packets = (now, out)
         return out
 
 if __name__ == "__main__":

@@ -51,6 +51,7 @@ log = logging.getLogger(__name__)
 # The Nordic UART Service (NUS_SERVICE, NUS_RX written by the phone, NUS_TX notified by the board) and the
 # advertised name are protocol facts; the names stay importable from here.
 NAME_PREFIX = BOARD_NAME_PREFIX
+ANSWER_BUDGET = 640  # bytes of answers (Ack, Event, Profile, ...) that may wait on a link: fcb_sim/transmit.py
 ATT_MTU = 23  # the nRF51's S110 SoftDevice never negotiates more
 NOTIFY_PAYLOAD = ATT_MTU - 3  # 20 bytes of value per notification
 
@@ -94,6 +95,8 @@ class WirelessStats:
     rx_ignored: int = 0  # bytes written before the handover (DISCONNECTED): the board does not read them
     compacts: int = 0  # Compact frames queued
     compact_skipped: int = 0  # Compact frames beyond COMPACT_PER_HEARTBEAT in one heartbeat period
+    heartbeats_queued: int = 0
+    answers_dropped: int = 0  # answers refused for a backlog over ANSWER_BUDGET (the phone's radio stalls)
     payload: int = NOTIFY_PAYLOAD
 
     @property
@@ -132,6 +135,8 @@ class WirelessLink:
         self._tx = bytearray()  # the ble_tx_queue
         self._ready: list[bytes] = []  # whole notifications waiting for the radio
         self._compacts = 0  # Compact frames queued since the last heartbeat
+        self.bytes_queued = 0  # frame bytes ever queued, and ever handed to the radio: what still waits
+        self.bytes_taken = 0
         self.transitions: list[tuple[WirelessState, WirelessState]] = []  # drained by the board (events)
 
     # --- state ----------------------------------------------------------------------------------------------
@@ -184,6 +189,7 @@ class WirelessLink:
         self.stats.tx_dropped += len(self._tx) + sum(len(n) for n in self._ready)
         self._tx.clear()
         self._ready.clear()
+        self.bytes_taken = self.bytes_queued
         self._set(WirelessState.DISCONNECTED)
         return was_started
 
@@ -240,21 +246,33 @@ class WirelessLink:
             and self._compacts < COMPACT_PER_HEARTBEAT
         )
 
+    @property
+    def backlog_bytes(self) -> int:
+        """Bytes queued for BLE that the radio has not taken yet."""
+        return self.bytes_queued - self.bytes_taken
+
     def send(self, pkt: Any) -> bool:
-        """Encode ``pkt`` with the BLE encoder and queue it if it goes over BLE (``ble_wants``); heartbeats
-        flush the queue at once. A Compact beyond ``COMPACT_PER_HEARTBEAT`` per heartbeat period is skipped
-        (the phone shows the latest anyway). Returns True if it was queued."""
+        """Encode ``pkt`` with the BLE encoder and queue it if it goes over BLE (``ble_wants``); heartbeats are
+        never refused and flush the queue at once. The transmit rule (fcb_sim/transmit.py): answers wait only
+        while the backlog stays within ``ANSWER_BUDGET``; a Compact beyond ``COMPACT_PER_HEARTBEAT`` per
+        heartbeat period, or over a full backlog, is skipped (the phone shows the latest anyway). Returns True if
+        it was queued."""
         if not self.ble_wants(pkt):
             return False
         kind = type(pkt)
+        size = SPEC_OF[kind].frame_size
         if kind is Compact:
-            if self._compacts >= COMPACT_PER_HEARTBEAT:
+            if self._compacts >= COMPACT_PER_HEARTBEAT or self.backlog_bytes + size > ANSWER_BUDGET:
                 self.stats.compact_skipped += 1
                 return False
             self._compacts += 1
             self.stats.compacts += 1
         elif kind is Heartbeat:
             self._compacts = 0
+            self.stats.heartbeats_queued += 1
+        elif self.backlog_bytes + size > ANSWER_BUDGET:
+            self.stats.answers_dropped += 1
+            return False
         self.queue(self.encoder.encode(pkt), urgent=kind is Heartbeat)
         return True
 
@@ -265,6 +283,7 @@ class WirelessLink:
             self.stats.tx_dropped += len(frame)
             return
         self.stats.frames_queued += 1
+        self.bytes_queued += len(frame)
         self._tx += frame
         n = self.payload
         cut = len(self._tx) - len(self._tx) % n
@@ -300,6 +319,7 @@ class WirelessLink:
     def notifications(self) -> list[bytes]:
         """The notifications to send now, in order; each at most ``payload`` (20) bytes."""
         out, self._ready = self._ready, []
+        self.bytes_taken += sum(len(n) for n in out)
         return out
 
 
