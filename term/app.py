@@ -33,14 +33,16 @@ from textual.widgets import Footer, Input
 
 from term.config import Config
 from term.connection import Connection
+from term.download import EMPTY, FAILED, RUNNING, LogDownloader
 from term.errors import EXIT_USAGE
-from term.events import EventsCleared, Fatal, JoystickNamed, NotSent, StationEvent
+from term.events import EventsCleared, Fatal, FromLink, JoystickNamed, NotSent, StationEvent
 from term.input.joystick import JoystickPoller
 from term.input.keymap import Action, KeyBinding, action_by_name, pretty_key
-from term.logfile import LogDownload, log_filename, write_csv
+from term.link import PacketReceived
+from term.logfile import log_filename, write_csv
 from term.model import Model
 from term.phone import Phone, RunAction, SendCommand, SetAxes
-from term.protocol import Joystick, LogState, Mode, Op
+from term.protocol import Event, Joystick, LogChunk, LogStatus, Mode, Op
 from term.recording import SessionRecorder
 from term.replay import Replay
 from term.station import RADIO_SESSION, Station
@@ -64,9 +66,6 @@ from term.widgets.wireless import PhoneRequest, WirelessScreen
 
 __all__ = ["RADIO_SESSION", "FlightScreen", "PlotsScreen", "ProfileScreen", "TermApp"]
 
-DOWNLOAD_STALL_S = 1.0  # no chunk for this long: resume from the first missing one
-DOWNLOAD_RESUMES = 20
-DOWNLOAD_GAP_S = 0.2  # the board finished but chunks are missing: ask again from the first gap this soon
 FOOTER_ACTIONS = ("help", "show_plots", "show_flight", "show_profile", "show_wireless", "log_download")
 
 
@@ -128,67 +127,73 @@ class ProfileScreen(Screen[None]):
         yield Footer()
 
 
+_DOWNLOAD_PACKETS = (LogChunk, LogStatus, Event)  # the packets that may move a download on
+
+
 class LogDownloads:
-    """The log download: started by F5 or the palette, resumed from the first missing chunk when it stalls,
-    checked and saved as CSV. Mixed into ``TermApp`` (it uses the app's model, clock, send and workers); the
-    render tick calls ``_check_download``."""
+    """The log download: F5 or the palette starts it, or resumes one that failed; its policy (requests retried with
+    growing pauses until a deadline, resumes from the first gap, the LogStatus asked again) is the sans-IO
+    ``term.download.LogDownloader``, which the model feeds the LogStatus and LogChunk packets; the render tick
+    (``_check_download``) and the outcomes of its commands (``_download_event``) drive it. Done, it is checked
+    against the board's CRC-32 and saved as CSV. Mixed into ``TermApp`` (its model, clock, send and workers)."""
 
     model: Model
     clock: Callable[[], float]
     log_directory: Path
-    _resumes: int
-    _resumed_at: float
+    download_options: dict[str, float] = {}  # LogDownloader settings (a test shortens the deadline)
+    _failed_download: LogDownloader | None = None  # the last download that failed: F5 resumes it
 
     def local_log_download(self) -> None:
-        if self.model.download is not None:
-            self.model.note(self.clock(), "warning", "term", "a log download is already running")
+        now = self.clock()
+        d = self.model.download
+        if d is not None:
+            self.station.note("warning", "term", "a log download is already running"
+                              + (f" ({d.progress_text()})" if isinstance(d, LogDownloader) else ""))
             return
-        if self.connection is None:
-            self.model.note(self.clock(), "error", "term", "not sent: log download: not connected")
+        if self.control_connection() is None:
+            self.station.note("error", "term", "not sent: log download: not connected")
             return
-        self.model.download = LogDownload(started=self.clock())
+        d = self._failed_download
+        self._failed_download = None
+        if d is not None and d.state == FAILED:
+            d.resume(now)
+            self.station.note("info", "term", f"log download resumed: {d.progress_text()} here")
+        else:
+            d = LogDownloader(started=now, **self.download_options)
+        self.model.download = d
         self.model.download_note = ""
-        self._resumes = 0
-        self._resumed_at = -1e9
-        self.send(Op.LOG_STATUS)
-        self.send(Op.LOG_DOWNLOAD, 0)
+        self._check_download(now)
+
+    def _download_event(self, ev: object) -> None:
+        """A link's event: a command's outcome or LOG_DONE to the download (the model fed it its packets); the next
+        request may go at once, not at the next render tick."""
+        d = self.model.download
+        if isinstance(d, LogDownloader) and (type(ev) is not PacketReceived or type(ev.packet) in _DOWNLOAD_PACKETS):
+            now = self.clock()
+            d.on_event(ev, now)
+            self._check_download(now)
 
     def _check_download(self, now: float) -> None:
         d = self.model.download
-        if d is None:
+        if not isinstance(d, LogDownloader):
             return
-        if d.empty:
-            self.model.download = None
-            self.model.download_note = "log download: the board's log is empty (F2 starts recording)"
+        req = d.poll(now)
+        if req is not None:
+            # Not connected: the download pauses and tries again (no "not sent" line for every try).
+            d.sent(self.send(req.op, req.arg) if self.control_connection() is not None else None, now)
+        if d.state == RUNNING:
             return
-        if d.done:
-            self.model.download = None
-            problem = d.verify()
-            if problem:
-                self.model.note(now, "error", "term", f"log download failed: {problem}")
-                self.model.download_note = f"log download failed: {problem}"
-                return
+        self.model.download = None
+        if d.state == EMPTY:
+            self.model.download_note = f"log download: {d.reason}"
+        elif d.state == FAILED:
+            self._failed_download = d
+            self.model.download_note = f"log download failed: {d.reason}"
+            self.station.note("error", "term", self.model.download_note)
+        else:
             stamp = datetime.now().strftime("%Y%m%d-%H%M%S")
             path = self.log_directory / log_filename(stamp)
             self.run_worker(self._save_log(d.data(), path, d.rate_kBps(now)), exclusive=False)
-        elif d.used is not None and (
-            now - max(d.last_progress, d.started) > DOWNLOAD_STALL_S
-            or (d.chunks and d.last_progress > self._resumed_at and self._board_done_sending()
-                and now - d.last_progress > DOWNLOAD_GAP_S)
-        ):
-            first = d.missing()
-            if self._resumes >= DOWNLOAD_RESUMES or first is None:
-                self.model.download = None
-                self.model.download_note = "log download gave up: the board stopped sending"
-                self.model.note(now, "error", "term", self.model.download_note)
-                return
-            self._resumes += 1
-            d.last_progress = self._resumed_at = now
-            self.send(Op.LOG_DOWNLOAD, first)
-
-    def _board_done_sending(self) -> bool:
-        ls = self.model.log_status
-        return ls is not None and ls.state != LogState.DOWNLOADING
 
     async def _save_log(self, data: bytes, path: Path, rate: float) -> None:
         from term.logfile import decode_to_rows
@@ -274,8 +279,10 @@ class TermApp(LogDownloads, App[int]):
         self._want_joystick = joystick
         self.log_directory = log_directory or self.config.log_directory
         self.exit_message: str | None = None
-        self._resumes = 0
-        self._resumed_at = -1e9
+        self._bind_keys()
+
+    def _bind_keys(self) -> None:
+        """The key map's actions as priority bindings; local actions through the table ``local``."""
         self.local: dict[str, Callable[[], None]] = {
             "help": self.toggle_help,
             "show_flight": lambda: self.show_screen("flight"),
@@ -289,7 +296,7 @@ class TermApp(LogDownloads, App[int]):
         unknown = {b.action.local for b in self.keymap if b.action.local} - set(self.local)
         if unknown:
             raise ValueError(f"key map: no local action named {', '.join(sorted(unknown))}")
-        if replay is not None:
+        if self.replay is not None:
             self.keymap = tuple(b for b in self.keymap if b.action.local is not None)  # no board to command
             for keys, action, text in REPLAY_KEYS:
                 self._bindings.bind(keys, action, text, priority=True)
@@ -358,7 +365,9 @@ class TermApp(LogDownloads, App[int]):
             now = self.clock()
             self.recorder.station_event(ev, now)
             self._record_notes(now)
-        if type(ev) is Fatal:
+        if type(ev) is FromLink:
+            self._download_event(ev.event)
+        elif type(ev) is Fatal:
             self._fatal(ev.message, ev.code)
         elif type(ev) is NotSent and ev.title is not None:
             self.notify(ev.why, title=ev.title, severity=ev.severity)  # type: ignore[arg-type]

@@ -301,7 +301,7 @@ async def test_download_to_a_chosen_directory(scripted_board, tmp_path) -> None:
         inp.cursor_position = len(inp.value)
         await pilot.press("g", "s", "1", "5", "backspace", "backspace", "enter")  # typed keys go to the input
         await until(pilot, lambda: (Op.LOG_DOWNLOAD, 0) in sent(board))
-        assert app.log_directory == tmp_path / "logs" and (Op.LOG_STATUS, 0) in sent(board)
+        assert app.log_directory == tmp_path / "logs"
         assert not any(op == Op.MODE for op, _ in sent(board))  # typing the path flew nothing
         app.download_to()
         await pilot.pause(0.1)

@@ -1,6 +1,8 @@
 """Log start, stop, download and reset from the keys, against the real board (fcb_sim's sans-IO Board paced to
 the wall clock behind a loopback link): the download shows progress, resumes across lost chunks, checks the
-board's CRC-32 and writes the decoded records as CSV."""
+board's CRC-32 and writes the decoded records as CSV; through a byte proxy that damages 5 % of the bytes both ways
+it is byte-identical; with every LogStatus lost it fails with its reason and F5 resumes it (issue 11). The download's
+policy on its own, on a simulated clock: tests/test_download.py."""
 
 from __future__ import annotations
 
@@ -10,12 +12,14 @@ import csv
 import time
 from pathlib import Path
 
+import pytest
+
 from fcb_sim.board import Board, BoardConfig
 from fcb_sim.flash_log import encode_log
 from fcb_sim.physics import World
 from term.app import TermApp
 from term.logfile import LogDownload, decode_to_rows
-from term.protocol import LogChunk, LogState, LogStatus, Mode, Op, decode_log
+from term.protocol import SPEC_OF, LogChunk, LogState, LogStatus, Mode, Op, cobs_decode, decode_log
 from term.transports.loopback import Faults, loopback_pair
 
 
@@ -117,6 +121,101 @@ async def test_log_record_download_as_csv_and_reset(tmp_path: Path) -> None:
             app.simulate_key("f4")  # erase
             await until(lambda: board.log.used == 0)
             assert not [e for e in m.events if e.severity == "error" and e.source != "nak"]
+    finally:
+        await peer.stop()
+
+
+async def _recorded(pilot, app: TermApp, board: Board, seconds: float = 0.5):  # noqa: ANN001, ANN202
+    """Record ``seconds`` of log over the (clean) link with F2 and F3; returns ``until``."""
+    m = app.model
+
+    async def until(cond, timeout: float = 15.0) -> None:  # noqa: ANN001
+        async with asyncio.timeout(timeout):
+            while not cond():
+                await pilot.pause(0.02)
+
+    await until(lambda: m.mode == Mode.SAFE)
+    app.simulate_key("f2")
+    await until(lambda: board.log.recording)
+    await pilot.pause(seconds)
+    app.simulate_key("f3")
+    await until(lambda: not board.log.recording and m.pending == 0)
+    return until
+
+
+def _saved_rows(directory: Path) -> list[list[int]]:
+    files = list(directory.glob("quadrupel-log-*.csv"))
+    assert len(files) == 1
+    with files[0].open() as f:
+        rows = list(csv.reader(f))
+    assert rows[0][:3] == ["segment", "t_us", "mode"]
+    return [[int(v) for v in r[1:]] for r in rows[1:]]
+
+
+@pytest.mark.parametrize("seed", [3, 8])
+async def test_download_through_five_percent_byte_damage_is_byte_identical(tmp_path: Path, seed: int) -> None:
+    # Issue 11: at 5 % damaged bytes (about half the frames of every kind die) one lost Ack to a resume request
+    # used to end the download ("no answer from the board after 4 tries"). The link retries commands every 0.1 s
+    # here instead of 0.25 (the board answers within milliseconds), only to keep the test short; the default
+    # timing, over more seeds, is tests/test_download.py's.
+    pair = loopback_pair(seed=seed)
+    board = Board(BoardConfig(seed=seed, log_scheme="rice"), world=World(seed))
+    peer = RealTimeBoard(pair.b, board, speed=2.0)
+    await peer.start()
+    app = TermApp(pair.a, joystick=False, log_directory=tmp_path, session_options={"command_timeout": 0.1})
+    try:
+        async with app.run_test(size=(120, 44)) as pilot:
+            m = app.model
+            until = await _recorded(pilot, app, board, seconds=0.25)
+            pair.a_to_b.faults = pair.b_to_a.faults = Faults(corrupt=0.05)
+            app.simulate_key("f5")
+            await until(lambda: m.download is not None)
+            d = m.download
+            await until(lambda: m.download_note.startswith(("log saved", "log download")), timeout=60)
+            assert m.download_note.startswith("log saved"), m.download_note
+            truth = board.log.contents()[: board.log.used]
+            assert d.data() == truth  # type: ignore[union-attr]
+            assert _saved_rows(tmp_path) == [list(r) for r in decode_log(truth)[0].rows]
+            assert pair.b_to_a.stats.bytes_corrupted > 100
+    finally:
+        await peer.stop()
+
+
+async def test_download_with_every_logstatus_lost_fails_with_its_reason_and_f5_resumes_it(tmp_path: Path) -> None:
+    # Issue 11: without a LogStatus (the size and the CRC-32) the download never ended and never failed, and F5
+    # said "a log download is already running". Now it asks again with pauses, fails at its deadline (shortened
+    # here) with the reason, and F5 resumes it with the chunks it has.
+    logstatus = SPEC_OF[LogStatus].type_id
+    pair = loopback_pair(seed=5)
+    board = Board(BoardConfig(seed=5, log_scheme="rice"), world=World(5))
+    peer = RealTimeBoard(pair.b, board, speed=2.0)
+    await peer.start()
+    app = TermApp(pair.a, joystick=False, log_directory=tmp_path)
+    app.download_options = {"deadline_s": 3.0}
+    try:
+        async with app.run_test(size=(120, 44)) as pilot:
+            m = app.model
+            until = await _recorded(pilot, app, board)
+            pair.b_to_a.faults = Faults(drop_frame=lambda f: (cobs_decode(f[:-1]) or b"\0")[0] == logstatus)
+            app.simulate_key("f5")
+            await until(lambda: m.download is not None)
+            d = m.download
+            await until(lambda: m.download is None, timeout=20)
+            note = m.download_note
+            assert note.startswith("log download failed: no LogStatus (size and CRC-32) from the board"), note
+            assert any(e.text == note and e.severity == "error" for e in m.events)
+            assert d.received == d.total_chunks and pair.b_to_a.stats.frames_filtered > 2  # type: ignore[union-attr]
+            assert not list(tmp_path.iterdir())
+
+            pair.b_to_a.faults = Faults()  # the LogStatus gets through again
+            app.simulate_key("f5")  # resumes: no "already running", the chunks kept
+            await until(lambda: any(e.text.startswith("log download resumed: ") for e in m.events))
+            await until(lambda: m.download_note.startswith(("log saved", "log download")), timeout=20)
+            assert m.download_note.startswith("log saved"), m.download_note
+            assert not any("already running" in e.text for e in m.events)
+            truth = board.log.contents()[: board.log.used]
+            assert d.data() == truth  # type: ignore[union-attr]
+            assert _saved_rows(tmp_path) == [list(r) for r in decode_log(truth)[0].rows]
     finally:
         await peer.stop()
 

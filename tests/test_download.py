@@ -284,7 +284,9 @@ def test_chunks_arriving_count_as_the_answer_and_a_pass_end_triggers_the_resume(
     s.d.feed(LogChunk(5, CHUNKS[5]), s.now)
     s.d.feed(LogChunk(6, CHUNKS[6]), s.now)
     s.d.on_event(PacketReceived(Event(EventCode.LOG_DONE, 40, 0)), s.now)  # the end of the pass
-    s.tick(s.now + 0.02)
+    s.tick(s.now + 0.05)
+    assert s.last()[0] == Request(Op.LOG_DOWNLOAD, 5)  # chunks queued behind the end may still come
+    s.tick(s.now + 0.1)
     assert s.last()[0] == Request(Op.LOG_DOWNLOAD, 30)
     s.ack(len(CHUNKS))
     s.d.feed(LogChunk(30, CHUNKS[30]), s.now)
