@@ -376,6 +376,7 @@ class BoardRadio:
         self._wake = asyncio.Event()
         self._sender: asyncio.Task[None] | None = None
         self.notify_errors = 0
+        self.refused_writes = 0  # writes to a characteristic that does not declare them (TX is notify-only)
 
     async def start(self, hci_transport: str | None = None) -> None:
         """Power the radio on and advertise. ``hci_transport`` puts the board's own radio on a real HCI
@@ -398,20 +399,42 @@ class BoardRadio:
             source, sink = self._transport.source, self._transport.sink
         device = Device.with_hci(self.name, Address(self.address), source, sink)
         device.gatt_server.max_mtu = ATT_MTU  # the S110 keeps the default MTU: 20-byte notifications
-        rx = Characteristic(
+        declared = _declared_characteristic_class(self._refuse_write)
+        rx = declared(
             NUS_RX,
             Characteristic.WRITE_WITHOUT_RESPONSE | Characteristic.WRITE,
             Characteristic.WRITEABLE,
             CharacteristicValue(write=self._on_write),
         )
-        self._tx_char = Characteristic(NUS_TX, Characteristic.NOTIFY, Characteristic.READABLE, b"")
+        self._tx_char = declared(NUS_TX, Characteristic.NOTIFY, Characteristic.READABLE, b"")
         device.add_service(Service(NUS_SERVICE, [rx, self._tx_char]))
+        self._drop_undeclared_write_commands(device.gatt_server)
         device.on("connection", self._on_connection)
         self.device = device
         self.link.on_ready = self._wake.set
         await device.power_on()
         await self._advertise()
         self._sender = asyncio.create_task(self._send_loop(), name=f"{self.name} notifications")
+
+    def _refuse_write(self) -> None:
+        self.refused_writes += 1
+
+    def _drop_undeclared_write_commands(self, server: Any) -> None:
+        """A write command (no response) to a characteristic that does not declare WRITE_WITHOUT_RESPONSE is
+        dropped here, as the spec wants, counted; bumble would pass it to the value (it checks no permissions)."""
+        from bumble.gatt import Characteristic
+
+        accept = server.on_att_write_command
+
+        def on_att_write_command(bearer: Any, request: Any) -> None:
+            attribute = server.get_attribute(request.attribute_handle)
+            props = getattr(attribute, "properties", None)
+            if props is not None and not props & Characteristic.WRITE_WITHOUT_RESPONSE:
+                self.refused_writes += 1
+                return
+            accept(bearer, request)
+
+        server.on_att_write_command = on_att_write_command
 
     async def _advertise(self) -> None:
         from bumble.core import UUID, AdvertisingData
@@ -512,11 +535,35 @@ class BoardRadio:
         self.link.on_ready = None
 
 
+def _declared_characteristic_class(on_refused_write: Callable[[], None]) -> type:
+    """A bumble Characteristic that keeps its declared properties (bumble checks no permissions): a read without
+    READ and a write request without WRITE are answered with the ATT error (refused writes are reported)."""
+    from bumble import att
+    from bumble.gatt import Characteristic
+
+    class DeclaredCharacteristic(Characteristic):  # type: ignore[misc,type-arg]
+        async def read_value(self, bearer: Any) -> bytes:
+            if not self.properties & Characteristic.READ:
+                raise att.ATT_Error(att.ATT_READ_NOT_PERMITTED_ERROR, self.handle)
+            return await super().read_value(bearer)
+
+        async def write_value(self, bearer: Any, value: bytes) -> None:
+            if not self.properties & Characteristic.WRITE:
+                on_refused_write()
+                raise att.ATT_Error(att.ATT_WRITE_NOT_PERMITTED_ERROR, self.handle)
+            await super().write_value(bearer, value)
+
+    return DeclaredCharacteristic
+
+
 class HciTcpServer:
     """A virtual bumble controller on ``local_link``, served as an H4 HCI transport over TCP to one host at a
-    time (the latest to connect), like bumble's ``tcp-server`` transport but aware of the host: when the host
-    goes away (the terminal quit or crashed), its BLE connections are dropped as a real radio's supervision
-    timeout would, so the board sees the disconnection; its scanning and advertising stop."""
+    time, like bumble's ``tcp-server`` transport but aware of the host. A second host waits (``hosts_waiting``;
+    what it sends is kept) until the first has gone, and is then served: taking the radio from the first would
+    drop its BLE connection, and a board flown over it would PANIC; a terminal that reconnects at once gets the
+    radio as soon as its old connection is closed. When the host goes away (the terminal quit or crashed), its BLE
+    connections are dropped as a real radio's supervision timeout would, so the board sees the disconnection; its
+    scanning and advertising stop."""
 
     def __init__(self, local_link: Any, name: str = "hci") -> None:
         from bumble.controller import Controller
@@ -529,6 +576,7 @@ class HciTcpServer:
         self.host = ""
         self.port = 0
         self.hosts_served = 0
+        self._waiting: list[Any] = []  # hosts waiting for the radio, oldest first
 
     @property
     def client_spec(self) -> str:
@@ -547,21 +595,28 @@ class HciTcpServer:
         class _Host(asyncio.Protocol):
             transport: asyncio.Transport | None = None
 
+            held = b""  # what a waiting host sent before it got the radio
+
             def connection_made(self, transport: asyncio.BaseTransport) -> None:
-                # One host per controller: a new host takes it over (the old one may not have closed yet).
-                if server._peer is not None:
-                    server._peer.close()
-                    server._detach()
                 self.transport = transport  # type: ignore[assignment]
+                if server._peer is not None:  # one host per controller: the next one waits its turn
+                    log.warning("%s: a second HCI host waits (one is attached)", server.controller.name)
+                    server._waiting.append(self)
+                    return
                 server._attach(self.transport)  # type: ignore[arg-type]
 
             def data_received(self, data: bytes) -> None:
                 if self.transport is not None and server._peer is self.transport:
                     server._source.data_received(data)
+                elif self in server._waiting:
+                    self.held += data
 
             def connection_lost(self, exc: Exception | None) -> None:
-                if self.transport is not None and server._peer is self.transport:
+                if self in server._waiting:
+                    server._waiting.remove(self)
+                elif self.transport is not None and server._peer is self.transport:
                     server._detach()
+                    server._next_host()
 
         try:
             self._server = await asyncio.get_running_loop().create_server(_Host, host, port)
@@ -575,11 +630,26 @@ class HciTcpServer:
         self._source = _fresh_source(self.controller)  # a new host starts a new H4 stream
         self.hosts_served += 1
 
+    @property
+    def hosts_waiting(self) -> int:
+        return len(self._waiting)
+
     def _detach(self) -> None:
         self._peer = None
         drop_host_state(self.controller)
 
+    def _next_host(self) -> None:
+        """The radio is free: the host that has waited longest gets it, with what it already sent."""
+        if self._waiting:
+            host = self._waiting.pop(0)
+            self._attach(host.transport)
+            if host.held:
+                self._source.data_received(host.held)
+
     async def close(self) -> None:
+        for host in self._waiting:
+            host.transport.close()
+        self._waiting.clear()
         if self._peer is not None:
             self._peer.close()
             self._detach()

@@ -426,3 +426,82 @@ async def test_an_unreachable_radio_is_a_usage_error() -> None:
     with pytest.raises(UsageError, match=r"cannot open the BLE radio 'tcp-client:127\.0\.0\.1:1'") as err:
         await start_radio(WirelessLink(), hci="tcp-client:127.0.0.1:1")
     assert "\n" not in str(err.value)
+
+
+async def test_a_second_hci_client_waits_and_the_first_keeps_the_radio() -> None:
+    """Issue 11.7: a second local HCI client took the radio from the first without a word (a board flown over BLE
+    would PANIC). Now the radio serves one host at a time: a second waits, unserved, while the first flies on,
+    and gets the radio (with what it already sent) once the first has gone."""
+    from bumble.core import UUID
+    from bumble.device import Device, Peer
+    from bumble.hci import Address
+    from bumble.transport import open_transport
+
+    link = WirelessLink()
+    lost: list[bool] = []
+    radio = await start_radio(link, board_id=4, hci="tcp-server:127.0.0.1:0", on_disconnect=lost.append)
+    try:
+        transport = await open_transport(radio.hci.client_spec)
+        host = Device.with_hci("pc", Address("C0:00:00:00:00:03"), transport.source, transport.sink)
+        await host.power_on()
+        connection = await host.connect(radio.address, timeout=5.0)
+        peer = Peer(connection)
+        await peer.discover_services([UUID(NUS_SERVICE)])
+        await peer.discover_characteristics()
+        [rx] = peer.get_characteristics_by_uuid(UUID(NUS_RX))
+        await until(lambda: link.is_connected)
+        link.request_start()
+        await peer.write_value(rx, b"\x05", with_response=False)
+        await until(lambda: link.state is S.STARTED)
+
+        # A second terminal: its HCI Reset is not answered while the first holds the radio.
+        reader, writer = await asyncio.open_connection(radio.hci.host, radio.hci.port)
+        writer.write(bytes([0x01, 0x03, 0x0C, 0x00]))  # H4 command: HCI_Reset
+        await until(lambda: radio.hci.hosts_waiting == 1)
+        with pytest.raises(TimeoutError):
+            await asyncio.wait_for(reader.read(1), 0.5)
+        assert lost == [] and link.state is S.STARTED and link.is_connected
+        await peer.write_value(rx, b"\x06", with_response=False)  # the first host still flies
+        await until(lambda: link.stats.rx_bytes == 2)
+
+        await transport.close()  # the first terminal quits: the board sees it, the second gets the radio
+        await until(lambda: bool(lost))
+        event = await asyncio.wait_for(reader.read(1), 5.0)
+        assert event == bytes([0x04]) and radio.hci.hosts_waiting == 0 and radio.hci.hosts_served == 2
+        writer.close()
+    finally:
+        await radio.close()
+
+
+async def test_the_characteristics_keep_their_declared_properties() -> None:
+    """Issue 11.7: TX, declared notify-only, accepted writes. Now TX refuses reads and writes (a write request is
+    answered with an error, a write command is dropped), RX refuses reads, and nothing reaches the board."""
+    from bumble.att import ATT_READ_NOT_PERMITTED_ERROR, ATT_WRITE_NOT_PERMITTED_ERROR
+    from bumble.core import ProtocolError
+
+    link = WirelessLink()
+    parsed: list[bytes] = []
+    radio = await start_radio(link, on_data=parsed.append)
+    try:
+        phone = Phone(radio.local_link)
+        await phone.connect(radio.address)
+        await until(lambda: link.is_connected)
+        link.request_start()
+        await phone.write(b"\x00")
+        await until(lambda: link.state is S.STARTED)
+        parsed.clear()
+        with pytest.raises(ProtocolError) as err:
+            await phone.peer.write_value(phone.tx, b"\x01\x02", with_response=True)
+        assert err.value.error_code == ATT_WRITE_NOT_PERMITTED_ERROR
+        await phone.peer.write_value(phone.tx, b"\x03", with_response=False)
+        for char in (phone.tx, phone.rx):
+            with pytest.raises(ProtocolError) as err:
+                await phone.peer.read_value(char)
+            assert err.value.error_code == ATT_READ_NOT_PERMITTED_ERROR
+        await phone.write(b"\x07")  # RX still takes writes, and only those reach the board
+        await until(lambda: bool(parsed))
+        assert parsed == [b"\x07"] and radio.refused_writes == 2
+        link.send(HB)
+        assert Decoder().feed(b"".join(await phone.next_notes(1))) == [HB]  # TX still notifies
+    finally:
+        await radio.close()
