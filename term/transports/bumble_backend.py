@@ -15,6 +15,10 @@ passing ``backend=`` to ``BleakScanner`` / ``BleakClient`` together with the HCI
 --ble-hci tcp-server:...``), ``usb:0`` for a USB Bluetooth dongle, ``serial:...``, ``hci-socket:0``...
 Scanners and clients on the same transport in one process share one bumble host (one controller has one host),
 opened on first use and closed with the last user.
+
+bleak's backend base classes are not its public API: this module is tested with bleak 1.0 to 3.x (pyproject.toml
+allows ``>=1.0,<4``; 0.22's scanner base has other abstract methods) and bumble from 0.0.226 (older ones crash
+or hang on connect and reconnect); ``make test-lowest`` runs it at those floors.
 """
 
 from __future__ import annotations
