@@ -23,12 +23,15 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import cache
 from typing import TYPE_CHECKING, Any
 
 from term.protocol import TELEMETRY, Attitude, Compact, Gains, Height, Motion, Op, Status, field_spec
 
 if TYPE_CHECKING:
     from term.model import Model
+
+spec_of = cache(field_spec)  # the table's entry of (packet class, field): looked up for every figure drawn
 
 STALE_PERIODS = 4  # a figure older than this many of its packet's periods is stale
 STALE_FLOOR_S = 0.5  # ... and never younger than this (render ticks, BLE batching, a busy machine)
@@ -168,7 +171,7 @@ def bound(kind: type, name: str, raw: Any) -> str:
     """">" or "<" if ``raw`` sits at an end of its encoding (the board clipped it), "?" if not a number."""
     if isinstance(raw, float) and math.isnan(raw):
         return "?"
-    spec = field_spec(kind, name)
+    spec = spec_of(kind, name)
     if spec.unit in _NOT_QUANTITIES or not spec.saturated(raw):
         return ""
     lim = spec.limits
@@ -187,15 +190,15 @@ def read(model: Model, name: str, now: float) -> Reading:
     ack = arrivals.acks.get(name)
     if ack is not None and (best is None or ack[1] > best[0]):
         best = (ack[1], ack[0], ACK, arrivals.limit(kinds[0]))
-    spec = field_spec(kinds[0], name)
     is_carried = any(carried(model, k) for k in kinds)
     if best is None:
-        return Reading(name, None, spec.scaled_unit, carried=is_carried)
+        return Reading(name, None, spec_of(kinds[0], name).scaled_unit, carried=is_carried)
     t, raw, source, limit = best
     is_carried = is_carried or source == ACK  # an Ack came over the link that carries control
-    kind = next((k for k in kinds if k.__name__ == source), kinds[0])
+    kind = next((k for k in kinds if k.__name__ == source), kinds[0])  # an Ack's trim: in Status's terms
+    spec = spec_of(kind, name)
     value = raw * spec.scale if isinstance(raw, int | float) else raw
     b = bound(kind, name, raw)
-    lim = field_spec(kind, name).limits
+    lim = spec.limits
     edge = None if b not in (">", "<") or lim is None else (lim[1] if b == ">" else lim[0]) * spec.scale
     return Reading(name, value, spec.scaled_unit, now - t, limit, is_carried, b, source, edge)

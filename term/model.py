@@ -37,7 +37,7 @@ from term.events import (
     StatsSample,
     StickSet,
 )
-from term.freshness import Arrivals, Reading, read
+from term.freshness import Arrivals, Reading, read, spec_of
 from term.link import (
     CommandAcked,
     CommandFailed,
@@ -424,7 +424,7 @@ class Model:
         self.mode = mode
 
     def _push_scaled(self, t: float, pkt: Any, names: tuple[str, ...]) -> None:
-        self._push(t, **{name: scaled(pkt, name) for name in names})
+        self._push(t, **{name: getattr(pkt, name) * spec_of(type(pkt), name).scale for name in names})
 
     def _push(self, t: float, **values: float) -> None:
         h = self.history

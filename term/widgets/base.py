@@ -41,6 +41,7 @@ class ModelView(Widget):
         self._urgent: object = None
         self._expires = math.inf  # when a figure shown goes stale, or a stale one's age ticks on
         self.readings: dict[str, Reading] = {}  # the figures of the last frame (for the tests)
+        self._subtitle = ""
 
     def show(self, model: Model, now: float) -> None:
         due = now >= self._expires
@@ -88,7 +89,13 @@ class ModelView(Widget):
 
     def mark(self, *readings: Reading) -> None:
         """The panel's bottom border says what is not fresh among ``readings`` (the first such mark)."""
-        self.border_subtitle = next((r.mark for r in readings if r.mark), "")
+        self.subtitle(next((r.mark for r in readings if r.mark), ""))
+
+    def subtitle(self, text: str) -> None:
+        """Set the bottom border's text; only a change repaints (Textual repaints on every assignment)."""
+        if text != self._subtitle:
+            self._subtitle = text
+            self.border_subtitle = Text(text) if text else None
 
     def render_model(self, model: Model, now: float) -> RenderableType:
         raise NotImplementedError

@@ -46,7 +46,7 @@ class ControlsPanel(ModelView):
             for r in rs:
                 if r.mark and what not in marks.setdefault(r.mark, []):
                     marks[r.mark].append(what)
-        self.border_subtitle = " · ".join(f"{', '.join(whats)}: {mark}" for mark, whats in marks.items())
+        self.subtitle(" · ".join(f"{', '.join(whats)}: {mark}" for mark, whats in marks.items()))
         width = max(7, ((self.content_size.width or 44) - 26) | 1)
         out = Text()
         if model.joystick_name:
