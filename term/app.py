@@ -370,7 +370,7 @@ class TermApp(LogDownloads, App[int]):
         elif type(ev) is Fatal:
             self._fatal(ev.message, ev.code)
         elif type(ev) is NotSent and ev.title is not None:
-            self.notify(ev.why, title=ev.title, severity=ev.severity)  # type: ignore[arg-type]
+            self.notify(ev.why, title=ev.title, severity=ev.severity)
 
     def reconnect_now(self) -> None:
         """The palette's "reconnect now": every dead link is tried at once (and then with the usual pauses)."""
