@@ -288,6 +288,7 @@ class FlightCore:
         else:  # SAFE, CALIBRATION, WIRELESS: motors off
             out = (0, 0, 0, 0)
         self.ae = out
+        self.height_est.motors_off = not (out[0] or out[1] or out[2] or out[3])  # its on-the-ground test
         return out
 
     # ---- telemetry helpers -----------------------------------------------------------------------------------

@@ -136,6 +136,10 @@ DMP_YAW_DRIFT_RAD_S = math.radians(0.02)
 # --- MS5611 [MS] ------------------------------------------------------------------------------------------------
 P0 = 101325.0  # Pa [ISA]
 T0_K = 288.15  # K [ISA]
+# The air of the lab the simulator flies in: a room at 20 °C (the "standard room temperature" the report's eq. 3
+# assumes), so the barometric formula of the world and of the board's estimator agree; with ISA's 15 °C the
+# board's heights came out 1.7 % too high (0.5 m at 30 m). The chip reads its own, warmer die (BARO_TEMP_C).
+T_AIR_K = 293.15
 M_AIR = 0.0289644  # kg/mol [ISA]
 R_GAS = 8.31446  # J/(mol K)
 # OSR 4096: RMS resolution 0.012 mbar = 1.2 Pa (the report's "0.012mbar (10cm)"); output in 0.01 mbar = 1 Pa.
@@ -190,5 +194,6 @@ def ocv(soc: float) -> float:
 
 
 def pressure_at(height_m: float) -> float:
-    """Barometric formula (the report's eq. 2 with cT = R T / (M g)): pressure in Pa at a height above sea level."""
-    return P0 * math.exp(-M_AIR * G * height_m / (R_GAS * T0_K))
+    """Barometric formula (the report's eq. 2 with cT = R T / (M g)): pressure in Pa at a height above sea level,
+    in the lab's air (T_AIR_K)."""
+    return P0 * math.exp(-M_AIR * G * height_m / (R_GAS * T_AIR_K))

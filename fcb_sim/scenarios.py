@@ -318,6 +318,56 @@ def panic(seed: int, duration: float) -> dict:
     return m
 
 
+# Height profile (issue 10.3): the pilot's targets (m) and how long each is held (s) once reached, then a landing.
+PROFILE_LEVELS = ((2.0, 8.0), (10.0, 8.0), (30.0, 8.0))
+PROFILE_GROUND_S = 30.0  # on the ground, motors off, after the landing
+PROFILE_SETTLE_S = 5.0  # touch-down errors count from this long after the touch-down
+
+
+def height_profile(seed: int, duration: float = 0.0) -> dict:
+    """FULL mode: climb to 2, 10 and 30 m (holding each), descend, land, motors off, 30 s on the ground; the
+    board's height estimate against the true height.
+
+    ``height_flight_rms_m``: estimate error from take-off to touch-down; ``height_touchdown_err_m``: the largest
+    error from 5 s after touch-down on; ``height_ground_drift_m``: how far the estimate moves over the time on
+    the ground from then on (the truth does not move). ``duration`` (s) only lengthens the time on the ground."""
+    sim = Sim(seed)
+    errors: list[tuple[float, float, bool]] = []  # (t, estimate - truth, on the ground)
+
+    def record(s: Sim) -> None:
+        if s.k % 4 == 0:
+            errors.append((s.t, s.fc.height - (-s.world.d), s.world.on_ground))
+
+    sim.on_tick = record
+    sim.prologue(Mode.FULL)
+    sim.run_until(ACTION_AT)
+    for level, hold in PROFILE_LEVELS:
+        sim.pilot_target = level
+        give_up = sim.t + 60.0
+        while (abs(-sim.world.d - level) > 0.2 or abs(sim.world.vd) > 0.2) and sim.t < give_up:
+            sim.run_until(sim.t + 0.1)
+        sim.run_until(sim.t + hold)
+    sim.pilot_target = -0.5  # down to the floor, gently (the pilot's loop slows the descent near the ground)
+    give_up = sim.t + 120.0
+    while not sim.world.on_ground and sim.t < give_up:
+        sim.run_until(sim.t + 0.05)
+    touchdown = sim.t
+    sim.pilot_target = None
+    sim.sticks[3] = 0
+    sim.set_mode(Mode.SAFE)
+    sim.run_until(max(duration, touchdown + PROFILE_SETTLE_S + PROFILE_GROUND_S))
+    flight = [e for t, e, _g in errors if ACTION_AT - 1.0 <= t < touchdown]
+    settled = [(t, e) for t, e, _g in errors if t >= touchdown + PROFILE_SETTLE_S]
+    est0 = settled[0][1] if settled else 0.0
+    return {
+        "height_flight_rms_m": math.sqrt(sum(e * e for e in flight) / max(1, len(flight))),
+        "height_touchdown_err_m": max((abs(e) for _t, e in settled), default=float("nan")),
+        "height_ground_drift_m": max((abs(e - est0) for _t, e in settled), default=float("nan")),
+        "touchdown_s": touchdown,
+        "landing_speed_m_s": sim.world.landings[-1][1] if sim.world.landings else float("nan"),
+    }
+
+
 SCENARIOS: dict[str, Callable[[int, float], dict]] = {
     "hover": hover,
     "raw-hover": raw_hover,
@@ -328,6 +378,7 @@ SCENARIOS: dict[str, Callable[[int, float], dict]] = {
     "push": push,
     "motor-stuck": motor_stuck,
     "panic": panic,
+    "height-profile": height_profile,
 }
 
 

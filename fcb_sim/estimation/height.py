@@ -1,91 +1,25 @@
 """Height estimation from barometer and accelerometer: the report's Figure 10 (section 3.8) as the documented
-baseline, ``HeightEstimator``, and the robust estimator the board flies, ``HeightKalman``.
+baseline, ``HeightEstimator``, and the robust estimator the board flies, ``HeightKalman``. The derivations, the
+figures and why eq. 4 is not used literally: docs/height.md.
 
 ``make_height_estimator(name)`` builds either (``HEIGHT_ESTIMATORS``; ``HEIGHT_BEST`` is the board's default).
-Both have the seam's interface: ``update_imu(ax, ay, az, qw, qx, qy, qz, dt)``, ``update_baro(pressure_pa, dt)``,
-``reset(pressure_pa)``, attributes ``height`` (m, up, relative to the reset point) and ``vz`` (m/s, up), plus
-``baro_rejected`` (readings the spike guard refused or took as a spike's onset, for telemetry).
+Both have the seam's interface: ``update_imu(ax, ay, az, qw, qx, qy, qz, dt)`` (chip-frame specific force in
+m/s², attitude quaternion), ``update_baro(pressure_pa, dt)``, ``reset(pressure_pa)``, the thrust hint
+``motors_off`` (the flight core sets it at every control step), attributes ``height`` (m, up, relative to the
+reset point) and ``vz`` (m/s, up), plus ``baro_rejected`` (readings the spike guard refused, for telemetry).
+Pressure becomes height by eq. 2 exactly (``baro_height``: cT ln(p_ref / p), at the report's room temperature).
 
-HeightKalman: a Kalman filter on height, vertical speed, accelerometer bias and the barometer's spike, with a
-robust barometer update, because the spikes (Figure 9: a sudden jump that decays; the simulator draws 0.3-1.3 m
-decaying over 0.1-0.5 s, so several 20 Hz samples in a row) are what failed the HEIGHT hold with the
-complementary filter (0.16 m rms; a median-of-3 cannot remove them, a fixed spike gate lets their tails in):
+``HeightKalman``: a Kalman filter on height, vertical speed, accelerometer bias and the barometer's spike, with
+a spike-robust barometer update (an innovation beyond 3 sigma is the onset of a spike, given to the spike state;
+onsets that repeat with one sign are a real level change), and ``capture()`` for HEIGHT's set point (a clone
+state every later reading refines). On the ground (no thrust and the accelerometer at rest for
+``GROUND_REST_S``) it stops integrating: the speed is zero, the accelerometer's reading is its bias, and the
+height is re-anchored to the barometer (a trimmed mean over ``ANCHOR_S``) and then held, so neither a bad
+landing nor the barometer's drift moves it (``on_ground``, ``anchored``).
 
-* prediction at every IMU sample (400 Hz): the earth-frame vertical acceleration (the rotation described below)
-  minus the bias estimate is integrated into speed and height. The covariance is propagated once per baro
-  sample over the elapsed time (exact for this linear model, F(T) = F(dt)^n), so the 400 Hz path costs what
-  the complementary filter costs. Process noise: white acceleration (the motor vibration, default
-  0.075 m/s²/√Hz = the simulator's 0.15 g rms at 400 Hz) and a random-walk bias (0.005 m/s²/√s);
-* the barometer reads height + spike + noise (0.105 m: the MS5611's 1.2 Pa rms at OSR 4096 and its 1 Pa
-  steps). The spike state decays (tau 0.3 s) with an uncertain rate (σ 5/s, the 2-10/s of the spikes), and
-  while no spike runs its variance is (1 mm)², so the filter does not blame noise on it;
-* each innovation (baro minus the accelerometer-predicted reading) is judged in units of its predicted
-  standard deviation: beyond ``gate_sigma`` (3) it is the onset of a spike, of unknown size, so the spike's
-  variance takes the whole innovation and the update gives it to the spike, not to the height. The tail that
-  follows is then explained by the decaying spike instead of dragging the height, the speed and the bias
-  along; between ``huber_sigma`` (2) and the gate its variance is scaled up (a Huber weight);
-* never locked out: a real climb is seen by the accelerometer, so its innovations stay small (no reading of a
-  hard 1 m climb in 0.6 s is taken for a spike). A lasting change the accelerometer did not see (weather, a
-  door, a bias the filter got wrong) is first taken as a spike, but it does not decay: while the spike state
-  shrinks the height's variance grows, and the filter moves the difference into the height (a 1 m baro step
-  is on the new level within 2-5 s); if instead the onsets repeat with the same sign (``level_after`` in a
-  row, each within ``rejump_window_s``) the difference is declared a level change and goes to the height.
-* ``capture()`` remembers the height of an instant (HEIGHT's set point) as a clone state that keeps its
-  covariance with the live states, so every later reading refines it (stochastic cloning: a fixed-lag
-  smoother of that one instant). Its error is about half the live estimate's at the instant (tests), and the
-  hold no longer keeps an unlucky instant's error for the rest of the flight (seeds 1-32: 0.078 -> 0.070 m rms
-  mean, worst 0.124 -> 0.107 m).
-
-Figures (HEIGHT hold, 30 s, P 400 / D 400 / I 100, seeds 1-12): 0.077 m rms mean, worst 0.107 m, against
-0.167 / 0.38 m with the complementary filter (on its own gains, P 120 / D 320; on these it does worse, 0.25 m);
-without spikes 0.068 / 0.096 m (the floor: the estimate's error at 20 Hz baro noise and 0.15 g vibration,
-about 4 cm, and the baro's drift); with three times the spike rate 0.084 / 0.123 m (complementary
-0.40 / 0.56 m).
-
-HeightEstimator (the baseline): the report's Figure 10, after Klas Löfstedt's altitude estimator [9].
-
-Pipeline, one step per sample:
-
-* Barometer (``update_baro``): pressure -> height by the linearised barometric formula (eq. 3) relative to
-  the pressure at ``reset``. Beyond the report, two optional spike guards (Figure 9), both off by default:
-  ``median3`` (median of the last three samples: removes single-sample spikes, costs a sample of delay; our
-  simulated spikes last 0.1-0.5 s, so it only adds delay there) and ``spike_gate_m`` (skip readings farther
-  than this from the estimate, for at most ``spike_hold_s``, then re-lock; with 0.3 m the simulator's
-  HEIGHT hold improved on three seeds of four (0.11 -> 0.06-0.09 m rms) and got worse on one (0.20 -> 0.39 m:
-  a slowly decaying spike is let in half-way), so it stays off by default. Then two paths, as the report's
-  text describes them:
-  - velocity path: 0.1 Hz high-pass (removes slow drift: temperature, supply, weather) -> low-pass (the
-    report's "low pass filtered barometer readings", about 0.3 s) -> difference quotient = ``baro_vz``;
-  - position path: the *absolute* reading ("combined with the absolute barometer reading to obtain the
-    current position") -> the same low-pass = ``baro_height``.
-  A high-pass on the position path too (``position_highpass_hz``, default off) would make every lasting
-  height change decay with tau = 1.6 s: a HEIGHT hold around a captured set point then climbs or sinks
-  without end (tried in the simulator: +2 m in 15 s), so the default follows the report's text.
-* Accelerometer (``update_imu``): chip-frame specific force rotated into the earth frame with the attitude
-  quaternion, gravity removed -> 0.1 Hz high-pass (absorbs a calibration offset or a tilted calibration).
-* Velocity complementary filter: ``vz = a_v (vz + a dt) + (1 - a_v) baro_vz``, α_velocity = 0.995.
-* Position complementary filter: ``height = a_p (height + vz dt) + (1 - a_p) baro_height``, α_position = 0.98.
-
-The report's α values are per step at its 400 Hz loop. Here they are turned into time constants
-(tau = dt_ref α / (1 - α): 0.50 s for velocity, 0.12 s for position) so the filter behaves the same at any
-sample rate; at 400 Hz the per-step factor is exactly the report's.
-
-Units of eq. 3. Eq. 2 is P1 = P2 exp(-ΔH / (cT)) with c = R / (M g) = 29.27 m/K; at room temperature
-(T = 293.15 K) the scale height cT is 8.58 km. Linearising, P1 ≈ P2 (1 - ΔH / (cT)), so
-ΔH = (P1 - P2) / (-P2 / (cT)). Near sea level P2 / (cT) = 101325 Pa / 8581 m = 11.8 Pa/m = 0.118 mbar/m. So
-the report's "ΔH = (P1 - P2) / -0.12" is right with pressures in **mbar (hPa)** and ΔH in metres (its own
-figures agree: 0.012 mbar ≈ 10 cm, 1.5 mbar ≈ 12.5 m). With pressures in Pa, as our barometer and the
-protocol report them, the divisor is -11.8 (Pa per metre); using -0.12 with Pa would overstate heights by
-a factor of 100. We compute the divisor from the pressure at reset (P g M / (R T)), which is 11.8 Pa/m at
-sea level and smaller at altitude. Over the ±4 m of the lab the linearisation error is about 0.02 %.
-
-Why not eq. 4 literally. Eq. 4, ``sa_zI = sa_zB - (a² - b² - c² + d²) S``, subtracts gravity's projection on
-the body z axis from the body-z accelerometer reading: the result is the linear acceleration along body z,
-not along earth z (they differ by the factor cos(tilt) and by the leakage of the body x/y accelerations).
-The proper rotation takes the third row of the body-to-earth rotation matrix,
-``a_up = R20 fx + R21 fy + R22 fz - g`` with ``R22 = w² - x² - y² + z²`` (eq. 4's factor) and
-``R20 = 2(xz - wy)``, ``R21 = 2(yz + wx)``. At hover both agree; in a banked turn eq. 4 is wrong by
-(1 - cos φ) times the thrust acceleration (0.15 m/s² at 10°), which integrates into metres.
+``HeightEstimator``: the report's Figure 10, after Klas Löfstedt's altitude estimator: a velocity and a position
+complementary filter between the high-passed earth-frame acceleration and the low-passed barometer, with the
+report's alpha values turned into time constants.
 """
 
 from __future__ import annotations
@@ -115,6 +49,14 @@ def reference(pressure_pa: float, temperature_k: float) -> tuple[float, float]:
     if not pressure_pa > 0.0:
         raise ValueError(f"reference pressure must be positive, got {pressure_pa!r}")
     return float(pressure_pa), pa_per_metre(pressure_pa, temperature_k)
+
+
+def baro_height(pressure_pa: float, p_ref: float, k_pa_per_m: float) -> float:
+    """Height above the reference (m) by eq. 2, ``cT ln(p_ref / p)`` with ``cT = p_ref / k``; eq. 3 (linear) for
+    a pressure that is not positive (nothing a barometer reads)."""
+    if pressure_pa > 0.0:
+        return p_ref / k_pa_per_m * math.log(p_ref / pressure_pa)
+    return (pressure_pa - p_ref) / -k_pa_per_m
 
 
 def _alpha_to_tau(alpha: float, rate_hz: float) -> float:
@@ -151,6 +93,7 @@ class HeightEstimator:
         self.spike_gate_m = spike_gate_m
         self.spike_hold_s = spike_hold_s
         self.temperature_k = temperature_k
+        self.motors_off = False  # the seam's thrust hint (the Kalman filter uses it; the report's filter does not)
         self.reset(SEA_LEVEL_PA)
 
     def reset(self, pressure_pa: float) -> None:
@@ -175,8 +118,9 @@ class HeightEstimator:
         self._a_primed = False
 
     def baro_to_height(self, pressure_pa: float) -> float:
-        """Eq. 3 with the units made right: metres above the reset point (pressure in Pa)."""
-        return (pressure_pa - self.p_ref) / -self.k_pa_per_m
+        """Metres above the reset point (pressure in Pa): eq. 2 exactly, cT ln(p_ref / p) (eq. 3's linear form is
+        5 cm short at 30 m)."""
+        return baro_height(pressure_pa, self.p_ref, self.k_pa_per_m)
 
     def update_baro(self, pressure_pa: float, dt: float) -> None:
         """A new pressure sample (Pa); dt is the time since the previous pressure sample (s)."""
@@ -248,6 +192,13 @@ class HeightEstimator:
         self.height = ap * (self.height + self.vz * dt) + (1.0 - ap) * self.baro_height
 
 
+# On the ground (HeightKalman, docs/board.md "Height on the ground"): no thrust and the accelerometer at rest this
+# long means the craft stands on something; the barometer over ANCHOR_S then gives the height, which is held.
+GROUND_REST_S = 0.5
+REST_ACC = 0.5  # m/s²: |specific force| within this of g is at rest (no thrust, no vibration, no fall, no carry)
+ANCHOR_S = 1.0  # s of barometer readings (a trimmed mean: spikes and noise out) to re-anchor the height
+GROUND_BIAS_TAU_S = 2.0  # s: on the ground the accelerometer's earth-up reading is its bias
+
 # HeightKalman defaults (module docstring).
 ACC_NOISE_DENSITY = 0.075  # m/s²/√Hz: 0.15 g rms of motor vibration, white at 400 Hz (params.VIB_ACC_G)
 BIAS_WALK = 0.005  # m/s²/√s: the accelerometer's bias walk (2e-4 g/√s) with margin for attitude errors
@@ -286,6 +237,7 @@ class HeightKalman:
         self.level_after = level_after
         self.rejump_window_s = rejump_window_s
         self.temperature_k = temperature_k
+        self.motors_off = False  # told by the flight core at every control step: no thrust
         self.reset(SEA_LEVEL_PA)
 
     def reset(self, pressure_pa: float) -> None:
@@ -307,6 +259,11 @@ class HeightKalman:
         self._t_jump = math.inf  # s since the last spike onset
         self.baro_rejected = 0  # readings taken as the onset of a spike (telemetry)
         self.level_changes = 0  # lasting baro changes taken as real (telemetry)
+        self.on_ground = False  # no thrust and at rest for GROUND_REST_S (set by update_imu)
+        self.anchored = False  # on the ground, the height re-anchored to the barometer (then held)
+        self._rest_s = 0.0
+        self._ground_baro: list[float] = []
+        self._ground_baro_s = 0.0
         # the height at the last capture(), a clone state refined by every later reading (stochastic cloning)
         self.captured_height = 0.0
         self._c = [0.0, 0.0, 0.0, 0.0]  # its covariance with h, v, b, s
@@ -327,8 +284,9 @@ class HeightKalman:
         return self.height
 
     def baro_to_height(self, pressure_pa: float) -> float:
-        """Eq. 3 with the units made right: metres above the reset point (pressure in Pa)."""
-        return (pressure_pa - self.p_ref) / -self.k_pa_per_m
+        """Metres above the reset point (pressure in Pa): eq. 2 exactly, cT ln(p_ref / p) (eq. 3's linear form is
+        5 cm short at 30 m)."""
+        return baro_height(pressure_pa, self.p_ref, self.k_pa_per_m)
 
     def update_imu(
         self, ax: float, ay: float, az: float, qw: float, qx: float, qy: float, qz: float, dt: float
@@ -344,6 +302,16 @@ class HeightKalman:
             - G
             - self.bias
         )
+        rest = self.motors_off and abs(math.sqrt(ax * ax + ay * ay + az * az) - G) < REST_ACC
+        self._rest_s = self._rest_s + dt if rest else 0.0
+        if self.on_ground != (self._rest_s >= GROUND_REST_S):
+            self._set_ground(not self.on_ground)
+        if self.on_ground:
+            # Standing still: no speed, the height held; what the accelerometer reads is its bias.
+            self.bias += a * min(1.0, dt / GROUND_BIAS_TAU_S)
+            self.vz = 0.0
+            self.az_earth = 0.0
+            return
         self.az_earth = a
         v = self.vz
         self.height += (v + 0.5 * a * dt) * dt
@@ -385,10 +353,46 @@ class HeightKalman:
             phi * phi * ss + ds * ds + _SS_FLOOR * (1.0 - phi * phi),
         ]
 
+    def _set_ground(self, on: bool) -> None:
+        """Touch-down (at rest, no thrust) or lift-off (thrust, or moved): the state the filter carries on from."""
+        if not on:
+            # lift-off: the covariance of a filter at rest, no spike running; a height not yet anchored is unsure
+            sh, sv, _sb = INITIAL_SIGMA
+            var_h = sh * sh if self.anchored else max(self.p[0], 1.0)
+            self.p = [var_h, 0.0, 0.0, 0.0, sv * sv, 0.0, 0.0, self.p[7], 0.0, _SS_FLOOR]
+            self.spike = 0.0
+        self.on_ground = on
+        self.anchored = False
+        self._ground_baro = []
+        self._ground_baro_s = 0.0
+        self.vz = 0.0
+        self._t_pred = 0.0
+
+    def _ground_baro_update(self, z: float, dt: float) -> None:
+        """On the ground: the first ANCHOR_S of readings give the height (a trimmed mean, so neither the noise nor
+        a spike moves it); after that the height is held, whatever the barometer drifts (the craft stands)."""
+        if self.anchored:
+            return
+        buf = self._ground_baro
+        buf.append(z)
+        self._ground_baro_s += max(0.0, dt)
+        if self._ground_baro_s < ANCHOR_S:
+            return
+        ordered = sorted(buf)
+        cut = len(ordered) // 4
+        middle = ordered[cut : len(ordered) - cut]
+        self.height = sum(middle) / len(middle)
+        self.anchored = True
+        self.spike = 0.0
+
     def update_baro(self, pressure_pa: float, dt: float) -> None:
         """A new pressure sample (Pa); dt is the time since the previous pressure sample (s)."""
         z = self.baro_to_height(pressure_pa)
         self.baro_raw = z
+        if self.on_ground:
+            self._t_pred = 0.0
+            self._ground_baro_update(z, dt)
+            return
         # the IMU's clock decides how far the state was predicted; dt only if no IMU sample came in between
         t = self._t_pred if self._t_pred > 0.0 else max(0.0, dt)
         self._t_pred = 0.0
