@@ -55,9 +55,10 @@ def build_parser() -> argparse.ArgumentParser:
 
     # --- replay-imu: RAW-path filters over recorded data (owner: fcb_sim/estimation/replay.py) ---
     rep = sub.add_parser("replay-imu", help="run an attitude filter over recorded IMU data (CSV)")
-    rep.add_argument("input", nargs="?", help="CSV or CSV.gz with columns t, gx gy gz (rad/s), ax ay az (m/s²)")
+    rep.add_argument("input", nargs="?", help="CSV or CSV.gz with columns t, gx gy gz (rad/s), ax ay az (m/s²), "
+                     "or the board's flash log as term writes it (t_us, sp sq sr, sax say saz)")
     rep.add_argument("--filter", default=None, help="filter name (default: the best one); see --list-filters")
-    rep.add_argument("--fixed-point", action="store_true", help="run the Q16.16 fixed-point variant")
+    rep.add_argument("--fixed-point", action="store_true", help="run the filter's fixed-point variant (as the board)")
     rep.add_argument("--out", help="output CSV: t, roll, pitch, yaw (rad), qw, qx, qy, qz")
     rep.add_argument("--list-filters", action="store_true", help="list the filters and exit")
     rep.set_defaults(handler=cmd_replay)

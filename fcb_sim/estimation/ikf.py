@@ -41,7 +41,7 @@ from __future__ import annotations
 import math
 
 G0 = 9.81
-P_GG0 = 1.0  # initial gravity variance, (m/s²)²: the first sample may be taken in motion
+P_GG0 = 0.1  # initial gravity variance, (m/s²)², about its steady state: no extra trust in the first samples
 P_VV_MAX = 1e6  # covariance clamp against a runaway (it never gets near this in use)
 
 

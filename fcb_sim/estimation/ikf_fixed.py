@@ -174,6 +174,10 @@ class InertialKalmanFilterQ:
         qb = self.f.quat
         one = 1 << qb
         h2 = mul(hx, hx, qb) + mul(hy, hy, qb) + mul(hz, hz, qb)
+        if h2 > one >> 4:  # a half step over 0.25 rad (a wild rate or dt): beyond the series' 1e-6; clip it
+            k = div(one >> 2, sqrt(h2, qb), qb)
+            hx, hy, hz = mul(hx, k, qb), mul(hy, k, qb), mul(hz, k, qb)
+            h2 = one >> 4
         h4 = mul(h2, h2, qb)
         c = one - (h2 >> 1) + h4 // 24
         s = one - h2 // 6 + h4 // 120  # sin(h) / h
@@ -210,7 +214,7 @@ class InertialKalmanFilterQ:
             return
         dtq, dt2q, dthq, krq, kbq = self._dt(dt)
         up = bb - io  # Q.io -> Q.bias
-        g = (gxq << up, gyq << up, gzq << up) if up >= 0 else (gxq >> -up, gyq >> -up, gzq >> -up)
+        g = tuple(_sat(v << up) if up >= 0 else v >> -up for v in (gxq, gyq, gzq))  # Q8.24 holds 128 rad/s
         # 1. rest detection and the bias at rest
         gl, al = self.gl, self.al
         for i in range(3):
@@ -297,7 +301,11 @@ class InertialKalmanFilterQ:
         )
         # normalise by one Newton step of 1/sqrt(n2) from 1: q *= (3 - n2) / 2 (n2 is 1 within 1e-6)
         n2 = mul(w, w, qb) + mul(x, x, qb) + mul(y, y, qb) + mul(z, z, qb)
-        k = (3 * one - n2) >> 1
+        if one >> 1 < n2 < one + (one >> 1):
+            k = (3 * one - n2) >> 1
+        else:  # never in use (the steps keep |q| within 1e-6 of 1); a full normalisation if it ever is not
+            k = div(one, sqrt(n2, qb), qb) if n2 > 0 else one
+            w, x, y, z = (w, x, y, z) if n2 > 0 else (one, 0, 0, 0)
         self.qw, self.qx, self.qy, self.qz = mul(w, k, qb), mul(x, k, qb), mul(y, k, qb), mul(z, k, qb)
         self.bx = m if self.bx > m else -m if self.bx < -m else self.bx
         self.by = m if self.by > m else -m if self.by < -m else self.by
@@ -318,6 +326,6 @@ class InertialKalmanFilterQ:
             cw = sqrt((one >> 1) + (uz >> 1), qb)
             self.qw, self.qx, self.qy, self.qz = cw, div(uy, cw, qb - 1), -div(ux, cw, qb - 1), 0
         up = F.bias - io
-        self.gl = [v << up if up >= 0 else v >> -up for v in (gxq, gyq, gzq)]
+        self.gl = [_sat(v << up) if up >= 0 else v >> -up for v in (gxq, gyq, gzq)]
         self.al = [axq, ayq, azq]
         self._started = True

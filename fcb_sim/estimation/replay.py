@@ -1,8 +1,19 @@
 """`fcb-sim replay-imu`: run an attitude filter over recorded IMU data (CSV or CSV.gz).
 
-Input: a header naming at least ``t`` (s), ``gx gy gz`` (rad/s) and ``ax ay az`` (m/s², specific force, z up);
-other columns are ignored; any sample rate (dt from t, strictly increasing). The first row has no previous
-time: its dt is taken equal to the second row's. Output: one row per input row with ``t, roll, pitch, yaw``
+Two inputs, told apart by their header:
+
+- IMU CSV: a header naming at least ``t`` (s), ``gx gy gz`` (rad/s) and ``ax ay az`` (m/s², specific force, chip
+  frame z up); other columns are ignored (the BROAD trials of ../shared/data/broad are such files).
+- The board's flash log as ``term`` writes it after a download (docs/flash_log.md): ``t_us`` and the IMU words
+  the board logs every control period, ``sp sq sr`` (calibrated body rates, gyro LSB) and ``sax say saz``
+  (calibrated body accelerations, accelerometer LSB), in the firmware's FRD body frame. They are turned back
+  into the chip frame the filters take (docs/architecture.md: ``gx = sp, gy = -sq, gz = -sr``,
+  ``ax = sax, ay = -say, az = -saz``) and into SI units (16.4 LSB per °/s, 16384 LSB per g). A new ``segment``
+  (another recording in the same log) restarts the filter. The log's own angles (``phi theta psi``) are what
+  the board's filter said in flight: a replay through the same filter reproduces them (tests do).
+
+Any sample rate (dt from the time column, strictly increasing). The first row, and the first of each segment,
+has no previous time: its dt is the next interval. Output: one row per input row with ``t, roll, pitch, yaw``
 (rad) and ``qw, qx, qy, qz`` (body-to-earth, earth z up). A malformed file ends in one clear line (exit 2).
 """
 
@@ -18,11 +29,18 @@ import time
 from collections.abc import Iterator
 from typing import IO
 
+from fcb_sim import params as P
 from fcb_sim.errors import UsageError
 
 from . import BEST, DESCRIPTIONS, FILTERS, has_fixed_point, make_filter
 
 REQUIRED = ("t", "gx", "gy", "gz", "ax", "ay", "az")
+FLASH_LOG = ("t_us", "sp", "sq", "sr", "sax", "say", "saz")  # the board's flash log (term's CSV of a download)
+_G = 1.0 / P.RATE_LSB_PER_RAD_S
+_A = 1.0 / P.ACC_LSB_PER_MS2
+# chip-frame SI sample from the logged FRD words: (t, gx, gy, gz, ax, ay, az)
+_FROM_LOG = (1e-6, _G, -_G, -_G, _A, -_A, -_A)
+Sample = tuple[float, float, float, float, float, float, float]
 _PROGRESS_EVERY = 100_000  # rows; progress only when stderr is a terminal
 
 
@@ -41,8 +59,10 @@ def _open_text(path: str) -> IO[str]:
         raise UsageError(f"{path}: cannot read ({exc.strerror or exc})") from None
 
 
-def read_imu(path: str) -> Iterator[tuple[float, float, float, float, float, float, float]]:
-    """Yield (t, gx, gy, gz, ax, ay, az) rows, raising UsageError with the line number on bad input."""
+def read_imu(path: str) -> Iterator[tuple[Sample, bool]]:
+    """Yield ((t, gx, gy, gz, ax, ay, az), restart) in SI units and the chip frame, from either input (module
+    docstring); ``restart`` is True on the first row of a new flash-log segment. Bad input is a UsageError
+    naming the line."""
     fh = _open_text(path)
     with fh:
         try:
@@ -51,30 +71,41 @@ def read_imu(path: str) -> Iterator[tuple[float, float, float, float, float, flo
             if header is None:
                 raise UsageError(f"{path}: empty file; expected a CSV header with {', '.join(REQUIRED)}")
             names = [h.strip() for h in header]
+            log = all(c in names for c in FLASH_LOG)
+            cols = FLASH_LOG if log else REQUIRED
             missing = [c for c in REQUIRED if c not in names]
-            if missing:
+            if missing and not log:
                 raise UsageError(
-                    f"{path}: missing column(s) {', '.join(missing)}; the header needs {', '.join(REQUIRED)}"
+                    f"{path}: missing column(s) {', '.join(missing)}; the header needs {', '.join(REQUIRED)} "
+                    f"(or, for the board's flash log, {', '.join(FLASH_LOG)})"
                 )
-            idx = [names.index(c) for c in REQUIRED]
+            idx = [names.index(c) for c in cols]
+            seg = names.index("segment") if log and "segment" in names else None
+            scale = _FROM_LOG if log else (1.0,) * 7
             last_t = -math.inf
+            last_seg: str | None = None
             for row in reader:
                 if not row or (len(row) == 1 and not row[0].strip()):
                     continue  # blank line
+                if [c.strip() for c in row] == names:
+                    continue  # the header again (a log's next segment written by another tool)
                 line = reader.line_num
                 try:
-                    vals = tuple(float(row[i]) for i in idx)
+                    vals = tuple(float(row[i]) * k for i, k in zip(idx, scale, strict=True))
                 except IndexError:
                     raise UsageError(f"{path}:{line}: too few fields ({len(row)} for {len(names)} columns)") from None
                 except ValueError:
-                    col, i = next((c, i) for c, i in zip(REQUIRED, idx, strict=True) if not _is_float(row[i]))
+                    col, i = next((c, i) for c, i in zip(cols, idx, strict=True) if not _is_float(row[i]))
                     raise UsageError(f"{path}:{line}: column {col} is not a number: {row[i]!r}") from None
                 if not all(math.isfinite(v) for v in vals):
                     raise UsageError(f"{path}:{line}: non-finite value (nan or inf)")
+                restart = False
+                if seg is not None and row[seg] != last_seg:
+                    restart, last_seg, last_t = last_seg is not None, row[seg], -math.inf
                 if vals[0] <= last_t:
-                    raise UsageError(f"{path}:{line}: time t={vals[0]} does not increase (previous {last_t})")
+                    raise UsageError(f"{path}:{line}: time {cols[0]}={row[idx[0]]} does not increase")
                 last_t = vals[0]
-                yield vals  # type: ignore[misc]
+                yield vals, restart  # type: ignore[misc]
         except (UnicodeDecodeError, gzip.BadGzipFile, EOFError, csv.Error, OSError) as exc:
             raise UsageError(f"{path}: not a readable CSV file ({exc.__class__.__name__}: {exc})") from None
 
@@ -93,18 +124,13 @@ def replay(path: str, out: IO[str], name: str = BEST, fixed_point: bool = False)
     w = csv.writer(out, lineterminator="\n")
     w.writerow(["t", "roll", "pitch", "yaw", "qw", "qx", "qy", "qz"])
     rows = read_imu(path)
-    first = next(rows, None)
-    if first is None:
-        raise UsageError(f"{path}: no data rows")
-    second = next(rows, None)
-    pending = [first] if second is None else [first, second]
-    # dt of the first row: the first interval (a lone row has none: assume the report's 400 Hz)
-    prev_t = first[0] - (second[0] - first[0] if second is not None else 0.0025)
     progress = sys.stderr.isatty()
     n = 0
     t_start = time.monotonic()
+    pending: list[Sample] = []  # a segment's first row waits for the second, whose interval it takes as its dt
+    prev_t = 0.0
 
-    def step(r: tuple[float, ...]) -> None:
+    def step(r: Sample) -> None:
         nonlocal prev_t, n
         t, gx, gy, gz, ax, ay, az = r
         filt.update(gx, gy, gz, ax, ay, az, t - prev_t)
@@ -116,10 +142,30 @@ def replay(path: str, out: IO[str], name: str = BEST, fixed_point: bool = False)
         if progress and n % _PROGRESS_EVERY == 0:
             print(f"\r{n} rows, {n / max(time.monotonic() - t_start, 1e-9):.0f} rows/s", end="", file=sys.stderr)
 
-    for r in pending:
-        step(r)
-    for r in rows:
-        step(r)
+    def flush_first(next_t: float | None) -> None:
+        nonlocal prev_t
+        first = pending.pop()
+        # a lone row has no interval: assume the report's 400 Hz
+        prev_t = first[0] - (next_t - first[0] if next_t is not None else 0.0025)
+        step(first)
+
+    for r, restart in rows:
+        if restart:
+            if pending:
+                flush_first(None)
+            filt.reset()
+            pending.append(r)
+        elif pending:
+            flush_first(r[0])
+            step(r)
+        elif n == 0:
+            pending.append(r)
+        else:
+            step(r)
+    if pending:
+        flush_first(None)
+    if n == 0:
+        raise UsageError(f"{path}: no data rows")
     if progress and n >= _PROGRESS_EVERY:
         print(file=sys.stderr)
     return n
@@ -130,11 +176,11 @@ def cmd_replay(args: argparse.Namespace) -> int:
     if args.list_filters:
         for name in FILTERS:
             tags = ["default"] if name == BEST else []
-            tags.append("float, Q16.16" if has_fixed_point(name) else "float")
+            tags.append("float, fixed point" if has_fixed_point(name) else "float")
             print(f"{name:18s} {DESCRIPTIONS.get(name, '')} [{'; '.join(tags)}]")
         return 0
     if not args.input:
-        raise UsageError("replay-imu needs an input CSV (IN.csv or IN.csv.gz); see --help")
+        raise UsageError("replay-imu needs an input CSV (IN.csv or IN.csv.gz, or a flash-log CSV); see --help")
     if not args.out:
         raise UsageError("replay-imu needs --out OUT.csv (use --out - for standard output)")
     name = args.filter or BEST
@@ -154,5 +200,5 @@ def cmd_replay(args: argparse.Namespace) -> int:
             fh.write(buf.getvalue())
     except OSError as exc:
         raise UsageError(f"{args.out}: cannot write ({exc.strerror or exc})") from None
-    print(f"{n} rows -> {args.out} ({name}{', Q16.16' if args.fixed_point else ''})", file=sys.stderr)
+    print(f"{n} rows -> {args.out} ({name}{', fixed point' if args.fixed_point else ''})", file=sys.stderr)
     return 0
