@@ -14,6 +14,9 @@ object.
   seed): the height-profile scenario (climb, hold at 2, 10 and 30 m, land, 30 s on the ground), the estimate
   against the true height in flight, from 5 s after touch-down on, and its movement on the ground (goals 0.15,
   0.2, 0.05 m).
+- ``throw_estimate_rms_deg`` / ``raw_throw_estimate_rms_deg`` (and ``_fixed``): the roll stick thrown side to side
+  (+-20 deg every 0.6 s) in FULL and in RAW (float and fixed-point on-board filter): the attitude the control loop
+  flies on against the simulator's truth (goal for RAW <= 1 deg; issue 12), with the worst seed.
 
 Each figure is the mean over ``--seeds`` seeds (1..N) of ``--seconds`` simulated seconds (the per-seed values are
 printed too). Run: ``python -m bench.flight [--seconds S] [--seeds N]``.
@@ -30,7 +33,7 @@ from fcb_sim import params as P
 from fcb_sim.estimation import BEST
 from fcb_sim.estimation.height import HEIGHT_BEST, make_height_estimator
 from fcb_sim.flight import FlightCore
-from fcb_sim.scenarios import Sim, height_profile, hover, raw_hover
+from fcb_sim.scenarios import Sim, height_profile, hover, raw_hover, raw_throw, throw
 from fcb_sim.scenarios import height_hold as height_hold_scenario
 
 GOAL_HEIGHT_M = 0.10
@@ -61,6 +64,10 @@ def main() -> None:
         "height_hold_no_spikes_rms_m": [height_hold(s, args.seconds, spikes=False) for s in seeds],
         "height_hold_complementary_rms_m": [height_hold(s, args.seconds, estimator="complementary")
                                             for s in seeds],
+        "throw_estimate_rms_deg": [throw(s, args.seconds)["estimate_rms_deg"] for s in seeds],
+        "raw_throw_estimate_rms_deg": [raw_throw(s, args.seconds)["estimate_rms_deg"] for s in seeds],
+        "raw_throw_fixed_estimate_rms_deg": [raw_throw(s, args.seconds, fixed_point=True)["estimate_rms_deg"]
+                                             for s in seeds],
     }
     for name, values in runs.items():
         print(json.dumps({"metric": name, "per_seed": [round(v, 4) for v in values]}))
@@ -83,6 +90,8 @@ def main() -> None:
         "height_hold_seeds_over_goal": sum(v > GOAL_HEIGHT_M for v in height),
         "height_hold_complementary_worst_seed_m": max(runs["height_hold_complementary_rms_m"]),
         "goal_hover_attitude_rms_deg": 1.0,
+        "raw_throw_estimate_worst_seed_deg": max(runs["raw_throw_estimate_rms_deg"]),
+        "goal_raw_throw_estimate_rms_deg": 1.0,
         "goal_height_hold_rms_m": GOAL_HEIGHT_M,
         "raw_filter": BEST,
         "height_estimator": HEIGHT_BEST,

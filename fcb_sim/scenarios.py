@@ -368,6 +368,51 @@ def height_profile(seed: int, duration: float = 0.0) -> dict:
     }
 
 
+# Stick thrown side to side (issue 12): the roll set point reverses between +-THROW_DEG every THROW_HALF_S.
+THROW_DEG = 20.0
+THROW_HALF_S = 0.6
+
+
+def _throw(seed: int, duration: float, mode: int, **core_kw: object) -> dict:
+    sim, rec = _take_off(Sim(seed, core_kw=core_kw), mode)
+    est: list[float] = []
+    speed = [0.0]
+    record = sim.on_tick
+
+    def tick(s: Sim) -> None:
+        record(s)
+        if s.k % 4 == 0 and s.t >= ACTION_AT:
+            tr = s.world.truth
+            est.append(math.hypot(s.fc.phi - tr.phi, s.fc.theta - tr.theta))
+            speed[0] = max(speed[0], math.hypot(tr.vn, tr.ve))
+
+    sim.on_tick = tick
+    sim.run_until(ACTION_AT)
+    k = 0
+    while sim.t < duration - 1e-9:
+        sim.sticks[0] = _roll_stick((THROW_DEG if k % 2 else -THROW_DEG) * DEG)
+        sim.run_until(min(duration, ACTION_AT + THROW_HALF_S * (k + 1)))
+        k += 1
+    m = rec.metrics()  # attitude_*: the true tilt from level (the set point swings, so this is the swing itself)
+    m["estimate_rms_deg"] = math.sqrt(sum(e * e for e in est) / max(1, len(est))) / DEG
+    m["estimate_max_deg"] = max(est, default=0.0) / DEG
+    m["max_speed_m_s"] = speed[0]
+    return m
+
+
+def throw(seed: int, duration: float) -> dict:
+    """FULL mode, the roll stick thrown side to side (+-20 deg, reversing every 0.6 s) from t = 6 s.
+
+    ``estimate_rms_deg``: the attitude the control loop flies on (here the DMP's) against the truth."""
+    return _throw(seed, duration, Mode.FULL)
+
+
+def raw_throw(seed: int, duration: float, filter_name: str | None = None, fixed_point: bool = False) -> dict:
+    """RAW mode, the roll stick thrown side to side (as ``throw``): the on-board filter under hard sideways
+    acceleration (--filter, --fixed-point). ``estimate_rms_deg``: the filter's attitude against the truth."""
+    return _throw(seed, duration, Mode.RAW, filter_name=filter_name, fixed_point=fixed_point)
+
+
 SCENARIOS: dict[str, Callable[[int, float], dict]] = {
     "hover": hover,
     "raw-hover": raw_hover,
@@ -379,10 +424,12 @@ SCENARIOS: dict[str, Callable[[int, float], dict]] = {
     "motor-stuck": motor_stuck,
     "panic": panic,
     "height-profile": height_profile,
+    "throw": throw,
+    "raw-throw": raw_throw,
 }
 
 
-RAW_SCENARIOS = ("raw-hover",)
+RAW_SCENARIOS = ("raw-hover", "raw-throw")
 
 
 def run_scenario(name: str, duration: float = 10.0, seed: int = 1, *, filter_name: str | None = None,
