@@ -38,7 +38,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import IO, Any, NoReturn
 
-from term.errors import EXIT_USAGE, EXIT_VERSION, UsageError
+from term.errors import EXIT_INTERRUPTED, EXIT_USAGE, EXIT_VERSION, UsageError
 from term.schema import Number
 
 __all__ = ["EXIT_USAGE", "EXIT_VERSION", "SimBoard", "UsageError", "main"]
@@ -308,7 +308,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"term: {exc}", file=sys.stderr)
         return EXIT_USAGE
     except KeyboardInterrupt:
-        return 130
+        return EXIT_INTERRUPTED
 
 
 # --- flying ---------------------------------------------------------------------------------------------------
