@@ -3,7 +3,8 @@
 The faults live in a sans-IO core, ``FaultyChannel``: bytes go in with the time they were sent, and come out
 at their delivery times, so tests drive it with a fake clock and get exact, seeded results. ``loopback_pair``
 wraps two channels (one per direction) in two asyncio ``Transport``s on the real clock, for the link session,
-the app and the benchmarks.
+the app and the benchmarks. ``FaultyTransport`` is a byte proxy: it puts a channel in each direction of another
+transport (a real serial port, say), for loss and damage without delay or pacing (the real link has its own).
 
 Fault model, applied in this order to what one side writes:
 
@@ -251,3 +252,41 @@ def loopback_pair(
     directions, ``a_to_b``/``b_to_a`` to one."""
     both = Faults(**faults) if faults else None  # type: ignore[arg-type]
     return LoopbackPair(a_to_b or both, b_to_a or both, seed=seed, clock=clock)
+
+
+class FaultyTransport(Transport):
+    """A byte proxy around ``inner``: what is written passes ``up``'s faults, what is read ``down``'s. Loss,
+    corruption and the frame filter only (bytes pass at once: the inner link has its own timing)."""
+
+    def __init__(self, inner: Transport, up: Faults | None = None, down: Faults | None = None, *,
+                 seed: int | None = 0, clock: Callable[[], float] = time.monotonic) -> None:
+        for f in (up, down):
+            if f is not None and (f.delay or f.jitter or f.baud):
+                raise ValueError("the byte proxy passes bytes at once: no delay, jitter or baud")
+        self.inner = inner
+        self.name = inner.name
+        self.up = FaultyChannel(up or Faults(), seed=seed)
+        self.down = FaultyChannel(down or Faults(), seed=None if seed is None else seed + 1)
+        self._clock = clock
+
+    async def open(self) -> None:
+        await self.inner.open()
+
+    async def close(self) -> None:
+        await self.inner.close()
+
+    async def write(self, data: bytes) -> None:
+        now = self._clock()
+        self.up.send(data, now)
+        out = self.up.receive(now)
+        if out:
+            await self.inner.write(out)
+
+    async def read(self) -> bytes:
+        while True:
+            data = await self.inner.read()
+            now = self._clock()
+            self.down.send(data, now)
+            out = self.down.receive(now)
+            if out:
+                return out
