@@ -12,7 +12,8 @@
   board command (``Station.send``) or a local action, dispatched through a table of callables (``local``).
 - The wireless screen is a view of the headless ``Phone`` (``term.phone``); its controls post ``PhoneRequest``
   messages up, which the app carries out as the keys would. The joystick poller is read at ``joystick_hz``.
-- The log download (``LogDownloads``, mixed in) is driven from the render tick.
+- The log download (``LogDownloads``, mixed in; its policy is ``term.download``) is driven from the render tick and
+  from the link events that concern it.
 
 The routing rules, the reconnect policy and the model's two-link rules: docs/architecture.md and docs/wireless.md.
 """

@@ -258,3 +258,15 @@ def test_not_connected_is_retried_too() -> None:
     assert d.poll(0.05) is None and "not connected" in d.problem
     assert d.poll(0.11) == req
     assert Mode.SAFE == 0  # the board downloads only in SAFE
+
+
+def test_next_deadline_names_the_next_instant_poll_has_work() -> None:
+    d = LogDownloader(started=0.0)
+    assert d.poll(0.0) == Request(Op.LOG_DOWNLOAD, 0)
+    d.sent(None, 0.0)  # not connected: the first pause is 0.1 s
+    assert d.next_deadline() == pytest.approx(0.1)
+    assert d.poll(0.1) is not None
+    d.sent(7, 0.1)
+    assert d.next_deadline() == pytest.approx(0.1 + d.request_timeout_s)  # waiting for its outcome
+    d.on_event(CommandFailed(7, Op.LOG_DOWNLOAD, 0, "refused", Nak.NOT_IN_SAFE), 0.2)
+    assert d.state == FAILED and d.next_deadline() == float("inf")
