@@ -249,9 +249,11 @@ class LogDownloader(LogDownload):
         """When ``poll`` may next have something to do (a caller without a steady tick sleeps until then)."""
         if self.state != RUNNING:
             return float("inf")
-        times = [self._progress_at + self.deadline_s, self._pause_until]
+        times = [self._progress_at + self.deadline_s]
         if self._out is not None:
             times.append(self._out.at + self.request_timeout_s)
+        else:
+            times.append(self._pause_until)
         p = self._pass
         if p is not None and p.taken_at is not None:
             times.append(max(p.taken_at, self._chunk_at) + self.quiet_s)
