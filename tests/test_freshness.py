@@ -24,6 +24,8 @@ from term.protocol import (
     Op,
     Status,
     WirelessState,
+    field_limits,
+    field_scale,
     field_spec,
 )
 from term.widgets.base import figure
@@ -48,12 +50,17 @@ def test_each_packet_learns_its_period_and_a_gap_is_not_one() -> None:
     assert a.limit(Attitude) == STALE_FLOOR_S  # fast packets: the floor
 
 
+def _raw(cls: type, name: str, value: float) -> int:
+    """``value`` (in the shown unit) in the field's wire unit, whatever the table says it is."""
+    return round(value / field_scale(cls, name))
+
+
 def test_a_figure_goes_stale_with_its_age_and_says_so() -> None:
     m = Model(start=0.0)
     for i in range(10):
-        m.apply_packet(Height(101325, 1500, 0, 0, 1200, 2500), 0.05 * i)
+        m.apply_packet(Height(101325, _raw(Height, "height", 1.5), 0, 0, 1200, 2500), 0.05 * i)
     r = m.reading("height", 0.5)
-    assert r.value == 1.5 and r.unit == "m" and r.fresh and r.mark == "" and r.source == "Height"
+    assert math.isclose(r.value, 1.5) and r.unit == "m" and r.fresh and r.mark == "" and r.source == "Height"
     r = m.reading("height", 3.45)
     assert r.stale and r.carried and r.mark == "3 s old" and r.shown
     assert str(figure(r, "+6.2f", " m")) == " +1.50 m" and figure(r, "+6.2f").style == "dim"
@@ -85,11 +92,14 @@ def test_over_ble_the_pilot_sees_what_the_radio_carries() -> None:
 
 def test_a_value_at_its_fields_limit_is_a_bound() -> None:
     m = Model(start=0.0)
-    m.apply_packet(Height(101325, 32767, -32768, 0, 1200, 2500), 0.0)
+    hi, lo = field_limits(Height, "height")[1], field_limits(Height, "setpoint")[0]  # type: ignore[index]
+    m.apply_packet(Height(101325, hi, lo, 0, 1200, 2500), 0.0)
     h, sp = m.reading("height", 0.0), m.reading("setpoint", 0.0)
     assert h.bound == ">" and sp.bound == "<" and m.reading("vz", 0.0).bound == ""
-    assert str(figure(h, "+6.2f", " m")) == ">+32.76 m"  # rounded toward the limit: still true
-    assert str(figure(sp, "+6.2f", " m")) == "<-32.76 m"
+    shown_h, shown_sp = str(figure(h, "+6.2f", " m")), str(figure(sp, "+6.2f", " m"))
+    assert shown_h.startswith(">+") and shown_sp.startswith("<-") and shown_h.endswith(" m")
+    # rounded toward the limit, so the bound stays true: "> 32.76" for 32.767, never "> 32.77"
+    assert h.edge - 0.01 < float(shown_h[1:-2]) <= h.edge and sp.edge <= float(shown_sp[1:-2]) < sp.edge + 0.01
     m.apply_packet(Gains(float("nan"), float("inf"), float("-inf"), 1.0, 2.0), 0.0)
     assert str(figure(m.reading("yaw_p", 0.0), ".4g")) == "?"
     assert str(figure(m.reading("p1", 0.0), ".4g")).startswith(">")
