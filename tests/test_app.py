@@ -30,6 +30,7 @@ from term.protocol import (
     Op,
     Profile,
     Status,
+    field_scale,
 )
 from term.transports.base import TransportClosed, TransportError
 from term.transports.loopback import loopback_pair
@@ -232,7 +233,10 @@ def feed_all(app: TermApp) -> None:
     m, now = app.model, app.clock()
     m.apply_packet(Attitude(Mode.HEIGHT, 1200, -550, 9000, 164, -82, 33), now)
     m.apply_packet(Motion(10, -20, -16384, 410, 395, 402, 980), now)
-    m.apply_packet(Height(101300, 1234, 1500, -120, 1040, 2150), now)
+    def raw(name: str, value: float) -> int:  # in the wire unit the packet table gives
+        return round(value / field_scale(Height, name))
+
+    m.apply_packet(Height(101300, raw("height", 1.234), raw("setpoint", 1.5), raw("vz", -0.12), 1040, 2150), now)
     m.apply_packet(Status(int(Flag.CALIBRATED | Flag.ARMED | Flag.LOW_BATTERY | Flag.HEIGHT_HOLD), 10, -20, 5,
                           300, 42, 10, 0), now)
     m.apply_packet(Gains(-800.0, 0.4, 111.0, 1.5, 0.25), now)
