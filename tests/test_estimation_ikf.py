@@ -82,7 +82,7 @@ def make(fixed: bool):
 
 @pytest.mark.parametrize("fixed", [False, True])
 def test_excerpt_fast_rotation(fixed: bool) -> None:
-    """BROAD trial 07, 22 s excerpt (8.5 s still, then fast hand-held rotation): 0.57° RMS, 2.1° at worst (VQF
+    """BROAD trial 07, 22 s excerpt (8.5 s still, then fast hand-held rotation): 0.52° RMS, 1.6° at worst (VQF
     offline scores 0.96° on the whole trial). Bounds 0.8° and 3°."""
     rows, truth = read_trial(EXCERPT)
     errs = replay_errors(make(fixed), rows, truth)

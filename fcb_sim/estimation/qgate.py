@@ -25,9 +25,12 @@ Per sample:
 
 Yaw is not observable without a magnetometer; it is the integrated, bias-corrected heading.
 
-Tuned on the four BROAD trials (bench/filters.py: 0.61° mean inclination RMSE; VQF online 0.56°, Madgwick
-1.54°). The time constants are a trade-off: in the simulator's hover, shorter ones (tau_acc 2 s, tau_corr 1 s)
-track the truth slightly better (0.36° against 0.48° rms in pitch), on the real data they cost 25 %.
+Tuned on four BROAD trials of an earlier set (0.61° mean inclination RMSE there). On the 17 trials of
+../shared/data/broad it scores 1.35° mean, 5.5° worst (trial 15, fast translation; bench.filters), after a fix:
+step 3's earth-frame correction was multiplied from the right, a rotation in the body frame, which is right only
+near level (8.0° on trial 01 before). Superseded as the default by ``ikf`` (docs/attitude.md). The time
+constants are a trade-off: in the simulator's hover, shorter ones (tau_acc 2 s, tau_corr 1 s) track the truth
+slightly better (0.36° against 0.48° rms in pitch), on the real data they cost 25 %.
 Float only: on the board's Q16.16 the per-step corrections (a fraction dt / tau of a small angle) are below
 the resolution; see the report's filters for the fixed-point path.
 """
