@@ -5,7 +5,7 @@
 ``update(gx, gy, gz, ax, ay, az, dt)`` with gyro in rad/s and specific force in m/s² (z up, +9.81 when level),
 then ``roll``, ``pitch``, ``yaw`` (rad, ZYX) and ``quaternion()`` (w, x, y, z, body-to-earth, earth z up).
 
-The report's RAW-path filters come in float and in Q16.16 fixed point (``fixed_point=True``):
+The report's RAW-path filters come in float and in Q16.16 fixed point (``fixed_point=True``, libfixmath's semantics):
 ``complementary`` (K_gyro 0.999, as flown), ``complementary-0.9`` (Table 2), ``kalman`` ([13], Table 2),
 ``kalman-cov`` (TKJ with noise covariance, Table 2). Beyond the report: ``ikf`` (the default, ``BEST``;
 float and a fixed-point twin) tracks gravity with a small Kalman filter in an almost-inertial frame
@@ -58,7 +58,7 @@ DESCRIPTIONS: dict[str, str] = {
 
 
 def make_filter(name: str, *, fixed_point: bool = False) -> AttitudeFilter:
-    """A fresh filter by name; ``fixed_point=True`` for the Q16.16 variant. Raises KeyError for an unknown
+    """A fresh filter by name; ``fixed_point=True`` for the fixed-point variant. Raises KeyError for an unknown
     name, ValueError if the filter has no fixed-point variant."""
     if name not in _FLOAT:
         raise KeyError(f"unknown filter {name!r}; known: {', '.join(FILTERS)}")
