@@ -192,6 +192,7 @@ class Board:
         self.log_full_reported = False
         self._overflow_reported = 0
         self._overflow_report_at = 0
+        self._crashes_seen = len(self.world.crashes)
         self.on_task: Any = None  # optional callback(name, start_us, duration_us) after every task run
         if cfg.boot_hello:
             self._hello()
@@ -437,11 +438,17 @@ class Board:
     def _task_control(self) -> int:
         m = self.modes
         now_s = self.now / 1e6
+        crashes = self.world.crashes
+        while self._crashes_seen < len(crashes):  # the impact the accelerometer would feel
+            m.crash(now_s, round(crashes[self._crashes_seen].speed * 1000))
+            self._crashes_seen += 1
         m.tick(now_s)
         mode = m.mode
         fc = self.core
         if mode == Mode.PANIC:
-            fc.panic_scale = m.panic_motor_level(now_s) / max(1, fc.panic_ae)
+            if fc.panic_landed:
+                m.panic_ground(now_s)
+            fc.panic_scale = m.panic_scale(now_s)
         sticks = m.sticks()
         ae = fc.control(int(mode), *sticks, SENSOR_PERIOD_US[self._path] / 1e6)
         if not m.motors_enabled:
@@ -463,7 +470,7 @@ class Board:
         fc = self.core
         phi, theta, psi = fc.attitude_centideg()
         row = (self.now, int(self.modes.mode), phi, theta, psi, round(fc.sp), round(fc.sq), round(fc.sr),
-               round(fc.sax), round(fc.say), round(fc.saz), *self.ae, round(fc.height * 1000),
+               round(fc.sax), round(fc.say), round(fc.saz), *self.ae, round(fc.height / tm.HEIGHT_UNIT_M),
                self.pressure, self.battery)
         written = self.log.append(row)
         if self.log.state == LogState.FULL and not self.log_full_reported:

@@ -123,6 +123,10 @@ def _wireless_start(b: Board) -> Result:
     return reason, int(b.wireless.state), None
 
 
+def _ack_crash(b: Board, arg: int) -> Result:
+    return b.modes.acknowledge_crash(), 0, None
+
+
 def _set_param(b: Board, arg: int) -> Result:
     pid, value = param_split(arg)
     try:
@@ -168,6 +172,7 @@ COMMANDS: dict[Op, Handler] = {
     Op.PROFILE: _profile,
     Op.WIRELESS: _wireless,
     Op.SET_PARAM: _set_param,
+    Op.ACK_CRASH: _ack_crash,
 }
 
 

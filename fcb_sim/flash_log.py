@@ -77,7 +77,7 @@ LOG_VARS: tuple[LogVar, ...] = (
     LogVar("ae2", 1, "right motor"),
     LogVar("ae3", 1, "back motor"),
     LogVar("ae4", 1, "left motor"),
-    LogVar("height", 2, "estimated height, mm"),
+    LogVar("height", 1, "estimated height, cm (the Height packet's unit)"),
     LogVar("pressure", 1, "barometer, Pa"),
     LogVar("battery", 1, "battery, 10 mV"),
 )

@@ -15,8 +15,10 @@ API for the board::
 
 - ``control`` notices a mode change by itself (HEIGHT captures the height set point and the lift stick at entry;
   PANIC restarts at full descent level); ``enter_mode(mode, lift)`` does it explicitly.
-- Per mode: SAFE, CALIBRATION, WIRELESS: motors 0. PANIC: ``panic_motors(panic_scale)``, all four at
-  ``panic_ae`` (just under hover) times the scale, levelled by the attitude loops when calibrated. MANUAL:
+- Per mode: SAFE, CALIBRATION, WIRELESS: motors 0. PANIC: ``panic_motors(panic_scale, dt)``, a descent at a
+  bounded rate on the height estimator's vertical speed (1 m/s near the ground, up to 3 m/s high up), from the
+  motor level PANIC found, levelled by the attitude loops when calibrated, until the ground is sensed
+  (``panic_landed``: little thrust and no vertical speed); then the board ramps the scale to 0. MANUAL:
   sticks straight to Z/L/M/N. YAW: MANUAL plus yaw-rate control. FULL: cascaded roll/pitch on the DMP angles,
   yaw rate, lift from the stick. RAW: FULL on the on-board filter (``estimation.make_filter``, float or Q16.16).
   HEIGHT: FULL (or RAW, when entered from RAW) plus the height PID on the height estimator, the lift stick
@@ -57,6 +59,26 @@ HEIGHT_STICK_DEADBAND = 1500  # stick units around the entry position that leave
 # sag is small, it costs a little (seeds 1-12: 0.073 -> 0.077 m).
 HEIGHT_I = 100.0
 
+# PANIC's descent (issue 10.4: from about 100 m the old fixed level for 3.5 s, then motors off, hit the ground at
+# 23.5 m/s). A vertical-speed PI loop on the height estimate; ae per (m/s) and per m.
+PANIC_DESCENT_M_S = (1.0, 3.0)  # the rate at or below PANIC_SLOW_BELOW_M, and at or above PANIC_FAST_ABOVE_M
+PANIC_SLOW_BELOW_M = 10.0
+PANIC_FAST_ABOVE_M = 40.0
+PANIC_KP = 60.0
+PANIC_KI = 60.0
+PANIC_MAX_AE = 700  # enough to stop a fall on a sagging battery
+PANIC_MIN_FRAC = 0.4  # of panic_ae, in the air: the attitude loops keep some thrust to work with
+PANIC_LAND_FRAC = 0.6  # the ground: the loop asks for less than this share of panic_ae ...
+PANIC_LAND_VZ = 0.3  # ... and the craft does not move (m/s) ...
+PANIC_LAND_S = 0.5  # ... for this long
+
+
+def panic_descent_rate(height_m: float) -> float:
+    """PANIC's descent rate (m/s, positive) at an estimated height: slow near the ground, faster high up."""
+    slow, fast = PANIC_DESCENT_M_S
+    f = (height_m - PANIC_SLOW_BELOW_M) / (PANIC_FAST_ABOVE_M - PANIC_SLOW_BELOW_M)
+    return slow + (fast - slow) * max(0.0, min(1.0, f))
+
 _SAFE, _PANIC, _MANUAL, _CAL = int(Mode.SAFE), int(Mode.PANIC), int(Mode.MANUAL), int(Mode.CALIBRATION)
 _YAW, _FULL, _RAW, _HEIGHT = int(Mode.YAW), int(Mode.FULL), int(Mode.RAW), int(Mode.HEIGHT)
 _ANGLE = C.ANGLE_LSB_PER_RAD
@@ -95,6 +117,11 @@ class FlightCore:
         self.run_height = True  # so does the height estimator
         self.panic_ae = P.PANIC_AE
         self.panic_scale = 1.0
+        self.panic_landed = False  # PANIC sensed the ground (the board then ramps panic_scale to 0)
+        self._panic_i = 0.0
+        self.panic_level = 0.0
+        self._panic_start = 0.0
+        self._land_s = 0.0
         self.calibration = Calibration()
         self.calibrated = False
         self.mode = _SAFE
@@ -208,7 +235,12 @@ class FlightCore:
             self._z_int = 0.0
             self._height_raw = self.mode == _RAW or (self.mode == _HEIGHT and self._height_raw)
         elif mode == _PANIC:
+            # the descent starts from the level the motors ran at: PANIC never spins them up by itself
             self.panic_scale = 1.0
+            self.panic_landed = False
+            self._land_s = 0.0
+            self._panic_start = self.panic_level = sum(self.ae) / 4.0
+            self._panic_i = self._panic_start - self.panic_ae
         elif mode == _CAL:
             self.calibration = replace(self.calibration, dmp_phi=0.0, dmp_theta=0.0)
         if mode == _RAW:
@@ -216,9 +248,19 @@ class FlightCore:
             self._have_dmp = False
         self.mode = mode
 
-    def panic_motors(self, scale: float = 1.0) -> tuple[int, int, int, int]:
-        """PANIC: all motors at the descent level times ``scale`` (0..1; the board ramps it down)."""
-        level = int(self.panic_ae * max(0.0, min(1.0, scale)))
+    def panic_motors(self, scale: float = 1.0, dt: float = 0.0) -> tuple[int, int, int, int]:
+        """PANIC: the descent loop's level (module docstring) times ``scale`` (0..1; the board ramps it down once
+        ``panic_landed``); ``dt`` 0 (a recompute between control steps) moves no state."""
+        if not self.panic_landed and dt > 0.0:
+            err = -panic_descent_rate(self.height) - self.vz
+            self._panic_i = max(-self.panic_ae, min(float(PANIC_MAX_AE), self._panic_i + PANIC_KI * err * dt))
+            floor = min(PANIC_MIN_FRAC * self.panic_ae, self._panic_start)
+            level = max(floor, min(float(PANIC_MAX_AE), self.panic_ae + PANIC_KP * err + self._panic_i))
+            still = level < PANIC_LAND_FRAC * self.panic_ae and abs(self.vz) < PANIC_LAND_VZ
+            self._land_s = self._land_s + dt if still else 0.0
+            self.panic_landed = self._land_s >= PANIC_LAND_S
+            self.panic_level = level
+        level = int(self.panic_level * max(0.0, min(1.0, scale)))
         if self.calibrated and level > 0:
             g = self.gains
             if self.mode == _RAW or (self.mode == _HEIGHT and self._height_raw):
@@ -284,7 +326,7 @@ class FlightCore:
                 nm = yaw * C.MANUAL_N_GAIN
             out = C.mix(C.lift_to_z(lift), lm, mm, nm)
         elif mode == _PANIC:
-            out = self.panic_motors(self.panic_scale)
+            out = self.panic_motors(self.panic_scale, dt)
         else:  # SAFE, CALIBRATION, WIRELESS: motors off
             out = (0, 0, 0, 0)
         self.ae = out

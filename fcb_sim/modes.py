@@ -25,6 +25,7 @@ import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 
+from fcb_sim import params as P
 from fcb_sim.calibration import CalibrationSums
 from term.protocol import (
     BATTERY_LOW,
@@ -52,9 +53,9 @@ class ModeConfig:
     """Tunables of the machine; the defaults are the team's safety decisions."""
 
     link_timeout_s: float = 0.5
-    panic_level: int = 350  # motor command held in PANIC: just under hover (about 400)
-    panic_hold_s: float = 2.0
-    panic_ramp_s: float = 1.5
+    panic_level: int = 350  # PANIC's reference level: just under hover (about 400); the descent loop trims it
+    panic_ramp_s: float = 1.5  # motors to zero over this once the ground is sensed
+    panic_timeout_s: float = 300.0  # the ground not sensed by then (CEILING_M at 1-3 m/s): ramp to zero anyway
     calibration_s: float = 1.0  # CALIBRATION averages this long, then returns to SAFE by itself
     calibration_min_samples: int = 50
     tilt_limit_cdeg: int = 5000  # 50°
@@ -120,6 +121,10 @@ def _battery_ok(m: ModeMachine) -> Nak:
     return Nak.OK if m.battery is None or m.battery >= m.config.low_battery else Nak.BATTERY_LOW
 
 
+def _no_crash(m: ModeMachine) -> Nak:
+    return Nak.CRASHED if m.crashed else Nak.OK
+
+
 def _from_base(m: ModeMachine) -> Nak:
     # HEIGHT flies on top of FULL or RAW; it may only fall back to the one it was entered from.
     return Nak.OK if m.height_base == m.pending_target else Nak.INVALID_TRANSITION
@@ -139,13 +144,14 @@ CALIBRATED = Guard("calibrated", _calibrated)
 BATTERY = Guard("battery ok", _battery_ok)
 FROM_BASE = Guard("entered from it", _from_base)
 PANIC_DONE = Guard("motors ramped to zero", _panic_done)
+NO_CRASH = Guard("no crash unacknowledged", _no_crash)
 CAL_TIME = Guard("averaging time up", _calibration_time_up)
 
-_ARM = (ZERO_LIFT, NEUTRAL, BATTERY)
+_ARM = (ZERO_LIFT, NEUTRAL, NO_CRASH, BATTERY)
 
 TRANSITIONS: tuple[Transition, ...] = (
     Transition(Mode.SAFE, Mode.MANUAL, _ARM),
-    Transition(Mode.SAFE, Mode.CALIBRATION, (ZERO_LIFT, NEUTRAL)),
+    Transition(Mode.SAFE, Mode.CALIBRATION, (ZERO_LIFT, NEUTRAL, NO_CRASH)),
     Transition(Mode.SAFE, Mode.YAW, (*_ARM, CALIBRATED)),
     Transition(Mode.SAFE, Mode.FULL, (*_ARM, CALIBRATED)),
     Transition(Mode.SAFE, Mode.RAW, (*_ARM, CALIBRATED)),
@@ -159,6 +165,8 @@ TRANSITIONS: tuple[Transition, ...] = (
     *(Transition(m, Mode.PANIC, (), "request", "key 1, ESC, fire; or safety")
       for m in sorted(FLIGHT_MODES | {Mode.CALIBRATION})),
     Transition(Mode.PANIC, Mode.SAFE, (PANIC_DONE,), "auto"),
+    *(Transition(m, Mode.SAFE, (), "crash", "impact: motors off, event CRASH")
+      for m in sorted(FLIGHT_MODES | {Mode.CALIBRATION, Mode.PANIC})),
 )
 
 _ROWS: dict[tuple[Mode, Mode, str], Transition] = {(t.source, t.target, t.trigger): t for t in TRANSITIONS}
@@ -188,7 +196,8 @@ def _leave_calibration(m: ModeMachine, now: float) -> None:
 
 def _enter_panic(m: ModeMachine, now: float) -> None:
     m.panic_started = now
-    # Never spin motors up to enter PANIC: hold whichever is lower, the panic level or what they ran at.
+    m.panic_landed_at = None
+    # Never spin motors up to enter PANIC: the descent starts from what they ran at (none: nothing to do).
     m.panic_start_level = min(m.config.panic_level, max(0, m.motor_level))
 
 
@@ -250,12 +259,14 @@ class ModeMachine:
     changes: list[ModeChange] = field(default_factory=list)  # every change, for the board's listeners and tests
     link_timed_out: bool = False
     battery_low_latched: bool = False  # set by a low-battery PANIC; only a new battery (a reboot) clears it
+    crashed: bool = False  # an impact the pilot has not acknowledged (Op.ACK_CRASH): no leaving SAFE
 
     def __post_init__(self) -> None:
         self.calibration = CalibrationSums(self.calibration_names)
         self.calibration_started = 0.0
         self.panic_started = 0.0
         self.panic_start_level = 0
+        self.panic_landed_at: float | None = None
         self.pending_target: Mode | None = None
         self._low_battery_since: float | None = None
         self.listeners: list[Callable[[ModeChange], None]] = []
@@ -343,6 +354,21 @@ class ModeMachine:
             self._change(Mode.PANIC, now, f"panic:{why}")
         return self.mode == Mode.PANIC
 
+    def crash(self, now: float, speed_mm_s: int) -> None:
+        """The craft hit the ground (or the ceiling) too hard: event CRASH, motors off (SAFE), and SAFE is kept
+        until the pilot acknowledges it."""
+        self.crashed = True
+        self.emit(EventCode.CRASH, speed_mm_s, now)
+        if self.mode != Mode.SAFE:
+            self._change(Mode.SAFE, now, "crash")
+
+    def acknowledge_crash(self) -> Nak:
+        """The pilot has seen the crash (``Op.ACK_CRASH``): only in SAFE."""
+        if self.mode != Mode.SAFE:
+            return Nak.NOT_IN_SAFE
+        self.crashed = False
+        return Nak.OK
+
     def _change(self, target: Mode, now: float, reason: str) -> None:
         old = self.mode
         LEAVE[old](self, now)
@@ -363,22 +389,37 @@ class ModeMachine:
     def panic_elapsed(self) -> float:
         return self._now - self.panic_started
 
+    def panic_ground(self, now: float) -> None:
+        """The flight core sensed the ground during PANIC's descent: the motors ramp to zero from now."""
+        if self.mode == Mode.PANIC and self.panic_landed_at is None:
+            self.panic_landed_at = now
+
+    def _ramp_from(self) -> float | None:
+        if self.panic_landed_at is not None:
+            return self.panic_landed_at
+        timeout = self.panic_started + self.config.panic_timeout_s
+        return timeout if self._now >= timeout else None
+
     def panic_finished(self) -> bool:
         if self.panic_start_level == 0:
             return True
-        return self.panic_elapsed() >= self.config.panic_hold_s + self.config.panic_ramp_s
+        t0 = self._ramp_from()
+        return t0 is not None and self._now >= t0 + self.config.panic_ramp_s
+
+    def panic_scale(self, now: float) -> float:
+        """What PANIC's descent is multiplied by at ``now``: 1 until the ground is sensed (or the timeout), then
+        a linear ramp to 0 over ``panic_ramp_s``."""
+        if self.mode != Mode.PANIC:
+            return 0.0
+        self._now = max(self._now, now)
+        t0 = self._ramp_from()
+        if t0 is None:
+            return 1.0
+        return max(0.0, 1.0 - (now - t0) / self.config.panic_ramp_s)
 
     def panic_motor_level(self, now: float) -> int:
-        """The motor command the PANIC profile asks for at ``now``: hold, then a linear ramp to zero."""
-        if self.mode != Mode.PANIC:
-            return 0
-        t = now - self.panic_started
-        cfg = self.config
-        if t < cfg.panic_hold_s:
-            return self.panic_start_level
-        if t < cfg.panic_hold_s + cfg.panic_ramp_s:
-            return int(self.panic_start_level * (1.0 - (t - cfg.panic_hold_s) / cfg.panic_ramp_s))
-        return 0
+        """PANIC's reference level scaled as ``panic_scale`` says (the descent loop works around it)."""
+        return int(self.panic_start_level * self.panic_scale(now))
 
     def tick(self, now: float) -> None:
         """Take the automatic transitions whose guards pass (PANIC done, calibration time up)."""
@@ -482,8 +523,14 @@ enter action of the new one run. The motors are zero in SAFE and CALIBRATION; th
   air) or PANIC. HEIGHT is entered from FULL or RAW (it holds the height it had) and falls back to the one it
   came from.
 - PANIC is reachable from every mode that can turn the motors (a PANIC request in SAFE is accepted and changes
-  nothing: the motors are already off). It holds the motors at {panic} (just under hover; never more than they
-  ran at) for {hold} s, ramps them to zero over {ramp} s, and then returns to SAFE by itself.
+  nothing: the motors are already off). It descends at a bounded rate (1 m/s below 10 m of estimated height, up
+  to 3 m/s above 40 m) from the motor level it found (never spinning them up; levelled by the attitude loops when
+  calibrated) until the flight core senses the ground (little thrust, no vertical speed for 0.5 s), then ramps
+  the motors to zero over {ramp} s and returns to SAFE by itself; safe from any height the simulator allows
+  (its sky ends at {ceiling:g} m). If the ground is not sensed within {panic_timeout:g} s the ramp starts anyway.
+- A crash (an impact faster than {crash_speed:g} m/s, or a touch-down tilted past {crash_tilt:g}°) turns the
+  motors off from any mode (SAFE), is reported (event CRASH with the speed, Status flag CRASHED), and SAFE is
+  kept until the pilot acknowledges it (`Op.ACK_CRASH`, SAFE only).
 - The safety monitor (checked at the heartbeat rate, 10 Hz) enters PANIC from a flight mode on link silence
   longer than the link timeout (default {timeout} s), a battery under {battery} V for {bat_hold} s, or a tilt past
   {tilt}°.
@@ -523,7 +570,9 @@ def modes_doc() -> str:
         actions.append(f"| {mode.name} | {enter_doc} | {leave_doc} |")
     return _DOC_HEAD.format(
         neutral=STICK_NEUTRAL, lift=LIFT_ZERO, battery=cfg.low_battery / 100, panic=cfg.panic_level,
-        hold=cfg.panic_hold_s, ramp=cfg.panic_ramp_s, timeout=cfg.link_timeout_s, bat_hold=LOW_BATTERY_HOLD_S,
+        ramp=cfg.panic_ramp_s, panic_timeout=cfg.panic_timeout_s, ceiling=P.CEILING_M,
+        crash_speed=P.CRASH_SPEED_M_S, crash_tilt=P.CRASH_TILT_DEG, timeout=cfg.link_timeout_s,
+        bat_hold=LOW_BATTERY_HOLD_S,
         tilt=cfg.tilt_limit_cdeg / 100, cal=cfg.calibration_s, cal_min=cfg.calibration_min_samples,
         diagram=mermaid(), table=transition_table_markdown(), actions="\n".join(actions),
     )
@@ -534,7 +583,7 @@ _ACTION_TEXT: dict[Callable[[ModeMachine, float], None], str] = {
     _enter_safe: "lift trim to zero",
     _enter_calibration: "sums and count to zero, start the averaging timer",
     _leave_calibration: "means = sums / count (rounded); calibrated; event CALIBRATION_DONE",
-    _enter_panic: "start the PANIC timer; hold level = min(panic level, current motor level)",
+    _enter_panic: "start the PANIC timer; descend from min(panic level, current motor level) until the ground",
     _leave_panic: "event PANIC_DONE",
     _enter_height: "remember FULL or RAW as the base; the flight core holds the current height",
 }

@@ -140,6 +140,16 @@ T0_K = 288.15  # K [ISA]
 # assumes), so the barometric formula of the world and of the board's estimator agree; with ISA's 15 °C the
 # board's heights came out 1.7 % too high (0.5 m at 30 m). The chip reads its own, warmer die (BARO_TEMP_C).
 T_AIR_K = 293.15
+
+# --- the simulator's bounds -------------------------------------------------------------------------------------
+# The sky ends at CEILING_M above the floor: the world stops a climb there as the floor stops a descent, so every
+# height the board can report fits its encoding (the Height packet's int16 cm: 327 m). At full lift the craft
+# climbs at 42 m/s and would otherwise be 2 km up in a minute (a real flight meets the 120 m the law allows long
+# before). An impact at either end faster than CRASH_SPEED_M_S, or touching down tilted more than CRASH_TILT_DEG
+# (a rotor strikes), is a crash [ASSUMED]: the world records it and the board reports it.
+CEILING_M = 300.0
+CRASH_SPEED_M_S = 2.0
+CRASH_TILT_DEG = 35.0
 M_AIR = 0.0289644  # kg/mol [ISA]
 R_GAS = 8.31446  # J/(mol K)
 # OSR 4096: RMS resolution 0.012 mbar = 1.2 Pa (the report's "0.012mbar (10cm)"); output in 0.01 mbar = 1 Pa.

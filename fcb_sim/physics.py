@@ -13,7 +13,9 @@ Model, integrated at a fixed step (default 1 kHz, ``physics_hz`` may be raised):
   Euler (velocity, then position), quaternion attitude renormalised every 10 steps. Stable at 1 kHz: the
   fastest mode (motor lag, 30 ms) is integrated exactly and the drag time constants are seconds;
 - ground contact at h = 0: the quadrotor rests level on its feet until the thrust lifts it, lands inelastically
-  (vertical and horizontal speed to zero, levelled on its legs), and never goes below the floor;
+  (vertical and horizontal speed to zero, levelled on its legs), and never goes below the floor; the sky ends at
+  ``P.CEILING_M`` (a climb stops there); an impact faster than ``P.CRASH_SPEED_M_S``, or a touch-down tilted past
+  ``P.CRASH_TILT_DEG``, is recorded in ``crashes`` (time, speed, tilt);
 - 3S LiPo: resting voltage against state of charge, internal resistance (the voltage sags with the motors'
   current, which slows the motors for the same command), charge drawn by the motors' electrical power;
 - disturbances: wind (mean plus Ornstein-Uhlenbeck gusts), pushes (a force and torque for a while), a motor stuck
@@ -33,6 +35,16 @@ from fcb_sim import params as P
 from fcb_sim.sensors import BatteryAdc, Dmp, Mpu6050, Ms5611, NoiseTable
 
 SLOW_EVERY = 10  # physics steps between updates of the slow parts (battery, wind, pushes)
+
+
+class Crash(NamedTuple):
+    """An impact the craft does not walk away from: when (s), how fast (m/s, the whole speed), how tilted (deg),
+    and where ("ground" or "ceiling")."""
+
+    t: float
+    speed: float
+    tilt_deg: float
+    where: str
 
 
 class Truth(NamedTuple):
@@ -125,6 +137,8 @@ class World:
         self.w1 = self.w2 = self.w3 = self.w4 = w0
         self.requested = tuple(self.cmd)  # as the firmware last wrote them
         self.landings: list[tuple[float, float]] = []  # (time, vertical impact speed m/s)
+        self.crashes: list[Crash] = []  # impacts too fast or too tilted (params: CRASH_SPEED_M_S, CRASH_TILT_DEG)
+        self.ceiling_d = -P.CEILING_M  # NED down coordinate of the ceiling
         # disturbances
         self.wind_mean = (0.0, 0.0, 0.0)
         self.gust_std = 0.0
@@ -294,6 +308,13 @@ class World:
             self.ext = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
         self._update_forcing()
 
+    def _impact(self, t: float, vn: float, ve: float, vd: float, qx: float, qy: float, where: str) -> None:
+        """A hit on the floor or the ceiling: a crash if too fast or (on the floor) too tilted."""
+        speed = math.sqrt(vn * vn + ve * ve + vd * vd)
+        tilt = math.degrees(math.acos(max(-1.0, min(1.0, 1.0 - 2.0 * (qx * qx + qy * qy)))))
+        if speed > P.CRASH_SPEED_M_S or (where == "ground" and tilt > P.CRASH_TILT_DEG):
+            self.crashes.append(Crash(t, speed, tilt, where))
+
     def advance_to(self, t: float) -> None:
         """Integrate in fixed steps up to time ``t`` (s); a time in the past does nothing."""
         dt = self.dt
@@ -310,6 +331,7 @@ class World:
         an = ae = ad = 0.0
         on_ground = self.on_ground
         ground = self.ground_enabled
+        ceiling_d = self.ceiling_d
         c1, c2, c3, c4 = self._targets
         alpha, kbm, klm, kl, km, kn, dpx, dpy, dpz, gx_, gy_, gz_, hdt = self._consts
         wn, we, wd, fxn, fxe, fxdg, txb, tyb, tzb = self._forcing
@@ -352,9 +374,14 @@ class World:
                 hr = r * hdt
                 qw, qx, qy, qz = (qw - qx * hp - qy * hq - qz * hr, qx + qw * hp + qy * hr - qz * hq,
                                   qy + qw * hq + qz * hp - qx * hr, qz + qw * hr + qx * hq - qy * hp)
+                if d < ceiling_d:
+                    self._impact(k * dt, vn, ve, vd, qx, qy, "ceiling")
+                    d = ceiling_d
+                    vd = 0.0
                 if ground and d > 0.0:
                     # touch-down: inelastic, levelled on the legs, yaw kept
                     self.landings.append((k * dt, vd))
+                    self._impact(k * dt, vn, ve, vd, qx, qy, "ground")
                     d = 0.0
                     vn = ve = vd = 0.0
                     an = ae = ad = 0.0

@@ -295,27 +295,55 @@ def motor_stuck(seed: int, duration: float) -> dict:
     return m
 
 
-def panic(seed: int, duration: float) -> dict:
-    """FULL mode hover, then PANIC at t = 6 s: descent level 2 s, ramp to 0 in 1 s, SAFE.
-
-    The timing is the board mode machine's; reports the touch-down speed."""
-    sim, rec = _take_off(Sim(seed))
-    sim.run_until(ACTION_AT)
+def _panic_until_safe(sim: Sim, until: float, ramp: float = 1.5) -> None:
+    """PANIC as the board flies it: the flight core descends until it senses the ground, then the motors ramp to
+    zero over ``ramp`` s, then SAFE (or ``until`` comes first)."""
     sim.pilot_target = None
     sim.set_mode(Mode.PANIC)
-    hold, ramp = 2.0, 1.0
-    while sim.t < ACTION_AT + hold + ramp and sim.t < duration:
-        frac = (sim.t - ACTION_AT - hold) / ramp
-        sim.fc.panic_scale = 1.0 if frac <= 0.0 else max(0.0, 1.0 - frac)
-        sim.run_until(min(duration, sim.t + 0.01))
-    if sim.t < duration:
-        sim.set_mode(Mode.SAFE)
-        sim.run_until(duration)
+    landed_at = None
+    while sim.t < until:
+        if landed_at is None and sim.fc.panic_landed:
+            landed_at = sim.t
+        if landed_at is not None:
+            sim.fc.panic_scale = max(0.0, 1.0 - (sim.t - landed_at) / ramp)
+            if sim.t >= landed_at + ramp:
+                sim.set_mode(Mode.SAFE)
+                break
+        sim.run_until(min(until, sim.t + 0.01))
+    sim.run_until(until)
+
+
+def panic(seed: int, duration: float) -> dict:
+    """FULL mode hover at 1 m, then PANIC at t = 6 s: the descent to the floor, the motors ramped off, SAFE.
+
+    Reports the touch-down speed and whether it was a crash."""
+    sim, rec = _take_off(Sim(seed))
+    sim.run_until(ACTION_AT)
+    _panic_until_safe(sim, duration)
     m = rec.metrics()
     lands = [v for t, v in sim.world.landings if t >= ACTION_AT]
     m["landing_speed_m_s"] = lands[0] if lands else float("nan")
     m["landed"] = float(sim.world.on_ground)
+    m["crashes"] = float(len(sim.world.crashes))
     return m
+
+
+def panic_high(seed: int, duration: float, height: float = 100.0) -> dict:
+    """FULL mode: climb to ``height`` (100 m), PANIC there (issue 10.4): the bounded-rate descent, the touch-down
+    speed, crashes (none wanted) and how long it took; ``duration`` is how long it may take at most."""
+    sim = Sim(seed)
+    sim.prologue(Mode.FULL)
+    sim.pilot_target = height
+    give_up = sim.t + 120.0
+    while (abs(-sim.world.d - height) > 0.5 or abs(sim.world.vd) > 0.3) and sim.t < give_up:
+        sim.run_until(sim.t + 0.1)
+    start = sim.t
+    _panic_until_safe(sim, start + max(duration, height / 0.9 + 30.0))
+    lands = [v for t, v in sim.world.landings if t >= start]
+    return {"panic_height_m": height, "landing_speed_m_s": lands[0] if lands else float("nan"),
+            "crashes": float(len(sim.world.crashes)), "landed": float(sim.world.on_ground),
+            "descent_s": (sim.world.landings[-1][0] - start) if lands else float("nan"),
+            "motors_off": float(sim.fc.ae == (0, 0, 0, 0))}
 
 
 # Height profile (issue 10.3): the pilot's targets (m) and how long each is held (s) once reached, then a landing.
@@ -423,6 +451,7 @@ SCENARIOS: dict[str, Callable[[int, float], dict]] = {
     "push": push,
     "motor-stuck": motor_stuck,
     "panic": panic,
+    "panic-high": panic_high,
     "height-profile": height_profile,
     "throw": throw,
     "raw-throw": raw_throw,

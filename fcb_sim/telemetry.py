@@ -11,12 +11,14 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any
 
-from term.protocol import Attitude, Compact, Flag, Gains, Height, Mode, Motion, Status, WirelessState
+from term.protocol import Attitude, Compact, Flag, Gains, Height, Mode, Motion, Status, WirelessState, field_scale
 
 if TYPE_CHECKING:
     from fcb_sim.board import Board
 
 HEIGHT_PERIOD_US = 50_000  # Height at 20 Hz
+_H = HEIGHT_UNIT_M = field_scale(Height, "height")  # m per unit on the wire and in the log (the packet table)
+_VZ = field_scale(Height, "vz")
 STATUS_PERIOD_US = 200_000  # Status and Gains at 5 Hz
 
 
@@ -49,7 +51,7 @@ class Telemetry:
                                    i16(fc.sr)),
                           Motion(i16(fc.sax), i16(fc.say), i16(fc.saz), *b.ae)]
         if self.due("height", HEIGHT_PERIOD_US, b.now):
-            out.append(Height(b.pressure, i16(fc.height * 1000), i16(fc.setpoint * 1000), i16(fc.vz * 1000),
+            out.append(Height(b.pressure, i16(fc.height / _H), i16(fc.setpoint / _H), i16(fc.vz / _VZ),
                               b.battery, i16(b.temperature)))
         if self.due("status", STATUS_PERIOD_US, b.now):
             g = fc.gains
@@ -72,7 +74,7 @@ def status(b: Board) -> Status:
             (Flag.LOW_BATTERY, b.battery < m.config.low_battery or m.battery_low_latched),
             (Flag.LINK_TIMEOUT, m.link_timed_out), (Flag.RAW_SENSORS, b.path == "raw"),
             (Flag.FIXED_POINT, b.config.fixed_point), (Flag.PRIORITY_SCHEDULER, b.sched.priority),
-            (Flag.HEIGHT_HOLD, m.mode == Mode.HEIGHT))
+            (Flag.HEIGHT_HOLD, m.mode == Mode.HEIGHT), (Flag.CRASHED, m.crashed))
     flags = sum(int(flag) for flag, on in bits if on)
     t = m.trims
     return Status(flags, t.roll, t.pitch, t.yaw, t.lift, b.prof.load(b.now), b.log.fill_pct, int(b.wireless.state))

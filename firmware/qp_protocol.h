@@ -37,7 +37,7 @@ extern "C" {
 
 /* --- constants both ends share ---------------------------------------------------------------------------- */
 
-#define QP_PROTOCOL_VERSION 1
+#define QP_PROTOCOL_VERSION 2
 #define QP_MAX_FRAME 20
 #define QP_MAX_BODY 14
 #define QP_CRC_INIT 0xffffu
@@ -90,6 +90,7 @@ enum qp_op {
     QP_OP_PROFILE = 16,
     QP_OP_WIRELESS = 17,
     QP_OP_SET_PARAM = 18,
+    QP_OP_ACK_CRASH = 19,
 };
 
 /* Reasons a command is refused (``Ack.status``); 0 means accepted. */
@@ -110,6 +111,7 @@ enum qp_nak {
     QP_NAK_BUSY = 13,
     QP_NAK_PANIC_ACTIVE = 14,
     QP_NAK_NOT_IMPLEMENTED = 15,
+    QP_NAK_CRASHED = 16,
 };
 
 /* Board events (``Event.code``), each with an ``arg`` whose meaning is given here. */
@@ -128,6 +130,7 @@ enum qp_event_code {
     QP_EVENT_CODE_DEADLINE_MISS = 12,
     QP_EVENT_CODE_SENSOR_FAULT = 13,
     QP_EVENT_CODE_OVERFLOW = 14,
+    QP_EVENT_CODE_CRASH = 15,
 };
 
 enum qp_wireless_state {
@@ -155,6 +158,7 @@ enum qp_log_state {
 #define QP_FLAG_FIXED_POINT 0x0100u
 #define QP_FLAG_PRIORITY_SCHEDULER 0x0200u
 #define QP_FLAG_HEIGHT_HOLD 0x0400u
+#define QP_FLAG_CRASHED 0x0800u
 
 /* Joystick button bits (``Joystick.buttons``). */
 #define QP_BUTTON_FIRE 0x0001u
@@ -299,9 +303,9 @@ typedef struct {
 /* 0x14 Height, board→pc, 20 Hz: Barometer, height estimate and battery. */
 typedef struct {
     uint32_t pressure;     /* Pa: barometric pressure */
-    int16_t height;        /* mm: estimated height above the reference (x 0.001 -> m) */
-    int16_t setpoint;      /* mm: height set point (HEIGHT mode) (x 0.001 -> m) */
-    int16_t vz;            /* mm/s: estimated vertical speed, up positive (x 0.001 -> m/s) */
+    int16_t height;        /* cm: estimated height above the reference (x 0.01 -> m) */
+    int16_t setpoint;      /* cm: height set point (HEIGHT mode) (x 0.01 -> m) */
+    int16_t vz;            /* cm/s: estimated vertical speed, up positive (x 0.01 -> m/s) */
     uint16_t battery;      /* 10 mV: battery voltage (x 0.01 -> V) */
     int16_t temperature;   /* 0.01 °C: barometer temperature (x 0.01 -> °C) */
 } qp_height_t;

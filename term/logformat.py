@@ -27,7 +27,7 @@ SCHEME_DELTA8 = 1  # the report's: one scaled signed byte per variable, against 
 SCHEME_RICE = 2  # ours: prediction and an adaptive Rice code, the same error bound, no overload
 
 LOG_MAGIC = b"QL"
-LOG_FORMAT_VERSION = 1
+LOG_FORMAT_VERSION = 2  # 2: the height column in cm, as the Height packet (1: mm)
 LOG_HEADER = struct.Struct("<2sBBBBII")  # magic, version, scheme, n_vars, reserved, records, data length
 LOG_VAR_ENTRY = struct.Struct("<8sHH")  # name (ASCII, NUL padded), scale, reserved
 LOG_UNSET32 = 0xFFFFFFFF  # an erased header field: the segment was never closed (records run to the end)
@@ -166,8 +166,10 @@ def decode_log(data: bytes) -> list[LogSegment]:
     pos = 0
     while pos + LOG_HEADER.size <= len(data):
         magic, version, scheme, n_vars, _res, records, length = LOG_HEADER.unpack_from(data, pos)
-        if magic != LOG_MAGIC or version != LOG_FORMAT_VERSION:
+        if magic != LOG_MAGIC:
             raise ValueError(f"no log segment at byte {pos}")
+        if version != LOG_FORMAT_VERSION:
+            raise ValueError(f"log format version {version} at byte {pos}, this decoder reads {LOG_FORMAT_VERSION}")
         pos += LOG_HEADER.size
         names, scales = [], []
         for _ in range(n_vars):

@@ -30,7 +30,7 @@ import binascii
 import struct
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
-from enum import IntEnum, IntFlag
+from enum import IntEnum, IntFlag, unique
 from typing import Annotated, Any, NamedTuple, get_type_hints
 
 # The flash-log payload codec moved to its own module; these names stay importable from here.
@@ -56,7 +56,7 @@ from term.logformat import (  # noqa: F401
     zigzag,
 )
 
-PROTOCOL_VERSION = 1
+PROTOCOL_VERSION = 2  # 2: Height in cm and cm/s (was mm: saturated at 32.77 m), crash flag, event and command
 MAX_FRAME = 20  # bytes on the wire, delimiter included: one BLE notification
 MAX_BODY = MAX_FRAME - 6  # type, seq, crc16 (2), COBS overhead (1), delimiter (1)
 DELIMITER = b"\x00"
@@ -70,6 +70,7 @@ BOTH = "both"
 # --- enumerations carried in packets ------------------------------------------------------------------------
 
 
+@unique
 class Mode(IntEnum):
     """The board's modes, numbered as the lab's keys select them."""
 
@@ -84,6 +85,7 @@ class Mode(IntEnum):
     WIRELESS = 8
 
 
+@unique
 class Op(IntEnum):
     """Keyboard command operations (``Command.op``); ``arg`` meaning is given per op."""
 
@@ -105,8 +107,10 @@ class Op(IntEnum):
     PROFILE = 16  # asks for the Profile packets
     WIRELESS = 17  # arg: 1 hand over to BLE; 0 hand back to the cable
     SET_PARAM = 18  # generic set: arg = param_arg(Param, value), see PARAMS
+    ACK_CRASH = 19  # the pilot has seen the crash (SAFE only); until then the board will not leave SAFE
 
 
+@unique
 class Nak(IntEnum):
     """Reasons a command is refused (``Ack.status``); 0 means accepted."""
 
@@ -126,6 +130,7 @@ class Nak(IntEnum):
     BUSY = 13
     PANIC_ACTIVE = 14
     NOT_IMPLEMENTED = 15  # a board without the feature (the C reference board, firmware/examples/host_board.c)
+    CRASHED = 16
 
 
 NAK_TEXT = {
@@ -145,9 +150,11 @@ NAK_TEXT = {
     Nak.BUSY: "board busy",
     Nak.PANIC_ACTIVE: "PANIC in progress",
     Nak.NOT_IMPLEMENTED: "not implemented on this board",
+    Nak.CRASHED: "crashed: check the craft, then acknowledge the crash",
 }
 
 
+@unique
 class EventCode(IntEnum):
     """Board events (``Event.code``), each with an ``arg`` whose meaning is given here."""
 
@@ -165,14 +172,17 @@ class EventCode(IntEnum):
     DEADLINE_MISS = 12  # arg: period in µs
     SENSOR_FAULT = 13  # arg: sensor id
     OVERFLOW = 14  # arg: bytes dropped from a full receive queue
+    CRASH = 15  # arg: impact speed in mm/s (the craft hit the ground or the ceiling); the motors are off
 
 
+@unique
 class WirelessState(IntEnum):
     DISCONNECTED = 0
     STARTING = 1
     STARTED = 2
 
 
+@unique
 class LogState(IntEnum):
     IDLE = 0
     RECORDING = 1
@@ -180,6 +190,7 @@ class LogState(IntEnum):
     DOWNLOADING = 3
 
 
+@unique
 class Flag(IntFlag):
     """Board status bits (``Status.flags``)."""
 
@@ -194,14 +205,17 @@ class Flag(IntFlag):
     FIXED_POINT = 1 << 8
     PRIORITY_SCHEDULER = 1 << 9
     HEIGHT_HOLD = 1 << 10
+    CRASHED = 1 << 11  # a crash not yet acknowledged (Op.ACK_CRASH): the board stays in SAFE
 
 
+@unique
 class Button(IntFlag):
     """Joystick button bits (``Joystick.buttons``)."""
 
     FIRE = 1 << 0  # PANIC
 
 
+@unique
 class Role(IntEnum):
     """Who sent a ``Hello``."""
 
@@ -238,6 +252,7 @@ GYRO_LSB_PER_DPS = 16.4  # FS_SEL = 3, +-2000 °/s
 ACC_LSB_PER_G = 16384  # AFS_SEL = 0, +-2 g
 
 
+@unique
 class Param(IntEnum):
     """``SET_PARAM`` parameter ids (``Command.arg = param_arg(param, value)``); ranges and meanings in PARAMS."""
 
@@ -478,9 +493,9 @@ class Motion(NamedTuple):
 @packet(0x14, BOARD_TO_PC, "20 Hz", "Barometer, height estimate and battery.")
 class Height(NamedTuple):
     pressure: Annotated[int, F("I", "Pa", "barometric pressure")]
-    height: Annotated[int, F("h", "mm", "estimated height above the reference", 1e-3, "m")]
-    setpoint: Annotated[int, F("h", "mm", "height set point (HEIGHT mode)", 1e-3, "m")]
-    vz: Annotated[int, F("h", "mm/s", "estimated vertical speed, up positive", 1e-3, "m/s")]
+    height: Annotated[int, F("h", "cm", "estimated height above the reference", 0.01, "m")]
+    setpoint: Annotated[int, F("h", "cm", "height set point (HEIGHT mode)", 0.01, "m")]
+    vz: Annotated[int, F("h", "cm/s", "estimated vertical speed, up positive", 0.01, "m/s")]
     battery: Annotated[int, F("H", "10 mV", "battery voltage", 0.01, "V")]
     temperature: Annotated[int, F("h", "0.01 °C", "barometer temperature", 0.01, "°C")]
 
@@ -556,6 +571,7 @@ EVENT_ARG_SCALE: dict[EventCode, tuple[float, str]] = {
     EventCode.LINK_TIMEOUT: (1e-3, "s"),
     EventCode.TILT_LIMIT: (0.01, "°"),
     EventCode.DEADLINE_MISS: (1.0, "µs"),
+    EventCode.CRASH: (1e-3, "m/s"),
 }
 
 

@@ -57,6 +57,7 @@ from term.protocol import (
     WirelessState,
     decode_log,
     param_arg,
+    scaled,
 )
 
 HOVER_LIFT = C.z_to_lift(-4.0 * 400**2)
@@ -227,7 +228,7 @@ def test_fly_full_through_bytes_then_land() -> None:
     pc.js = Joystick(0, 0, 0, int(HOVER_LIFT * 1.1), 0)
     pc.run(1.5)
     assert b.world.truth.h > 0.5 and pc.of(Status)[-1].flags & Flag.ARMED
-    assert max(p.height for p in pc.of(Height)) > 300
+    assert max(scaled(p, "height") for p in pc.of(Height)) > 0.3
     assert abs(b.world.truth.phi) < 0.15 and abs(b.world.truth.theta) < 0.15
     pc.js = Joystick(0, 0, 0, int(HOVER_LIFT * 0.8), 0)
     pc.run(4.0)
@@ -249,7 +250,7 @@ def test_link_silence_while_flying_panics_then_safe() -> None:
     panic = [c for c in b.modes.changes if c.new == Mode.PANIC][-1]
     assert panic.reason == "panic:link"
     assert 0.3 < panic.now - last / 1e6 <= 0.3 + 0.1 + 0.01  # within the timeout plus one heartbeat
-    b.advance(b.now + 4_000_000)
+    b.advance(b.now + 8_000_000)  # PANIC's descent to the floor, the ground sensed, the motors ramped off
     assert b.mode == Mode.SAFE and b.ae == (0, 0, 0, 0)
     pc.read()
     assert EventCode.LINK_TIMEOUT in [e.code for e in pc.of(Event)]
@@ -400,7 +401,7 @@ def test_an_interrupt_in_progress_holds_back_an_idle_start() -> None:
 
 AXIS = st.sampled_from([0, 0, 0, 400, -900, 2500, -20000, 32767])
 LIFT = st.sampled_from([0, 0, 0, 300, 3000, HOVER_LIFT, 30000])
-HOLD_RAMP_S = 2.0 + 1.5
+PANIC_MAX_S = 30.0  # the highest a random flight gets, at PANIC's 1 m/s, plus sensing the ground and the ramp
 
 
 class BoardProperties(RuleBasedStateMachine):
@@ -412,7 +413,7 @@ class BoardProperties(RuleBasedStateMachine):
 
     def _on_change(self, ch: ModeChange) -> None:
         if ch.old == Mode.SAFE and ch.new != Mode.SAFE:
-            self.leaves.append((ch, self.board.modes.joystick, self.board.modes.lift))
+            self.leaves.append((ch, self.board.modes.sticks(), self.board.modes.lift))
 
     @rule(roll=AXIS, pitch=AXIS, yaw=AXIS, lift=LIFT)
     def sticks(self, roll: int, pitch: int, yaw: int, lift: int) -> None:
@@ -467,7 +468,11 @@ class BoardProperties(RuleBasedStateMachine):
             event(f"panic from {before.name}")
         else:
             assert b.mode in (Mode.SAFE, Mode.PANIC)
-        self.pc.run(HOLD_RAMP_S + 0.05)  # the PC keeps talking: PANIC ends by itself
+        for _ in range(int(PANIC_MAX_S / 0.5)):  # the PC keeps talking: PANIC comes down and ends by itself
+            if b.mode == Mode.SAFE:
+                break
+            self.pc.run(0.5)
+        self.pc.run(0.05)
         assert b.mode == Mode.SAFE and b.ae == (0, 0, 0, 0) and b.world.cmd == [0, 0, 0, 0]
 
     @rule(seconds=st.floats(0.0, 1.2))
@@ -488,11 +493,11 @@ class BoardProperties(RuleBasedStateMachine):
 
     @invariant()
     def safe_is_never_left_off_neutral(self) -> None:
-        for change, js, lift in self.leaves:
+        for change, (roll, pitch, yaw, _), lift in self.leaves:  # joystick plus trims, as the motors get them
             if change.new == Mode.PANIC:
                 continue
-            assert abs(js.roll) <= STICK_NEUTRAL and abs(js.pitch) <= STICK_NEUTRAL
-            assert abs(js.yaw) <= STICK_NEUTRAL and lift <= LIFT_ZERO, change
+            assert abs(roll) <= STICK_NEUTRAL and abs(pitch) <= STICK_NEUTRAL
+            assert abs(yaw) <= STICK_NEUTRAL and lift <= LIFT_ZERO, change
 
     @invariant()
     def motors_zero_when_off(self) -> None:
@@ -668,11 +673,11 @@ def test_safe_panic_and_fire_still_force_the_motors() -> None:
     b.advance(b.now + 10_000)
     assert b.mode == Mode.PANIC and b.prof.reactions.n == n0
     level = b.ae[0]
-    assert b.ae == (level,) * 4 and abs(level - b.modes.panic_motor_level(b.now / 1e6)) <= 1  # PANIC's hold
-    for lift in (30_000, 0, 15_000):  # sticks in PANIC move nothing
+    assert b.ae == (level,) * 4 and level == int(b.core.panic_level)  # PANIC's descent loop drives them
+    for lift in (30_000, 0, 15_000):  # sticks in PANIC move nothing: the motors are the descent loop's
         pc.send(Joystick(3000, -3000, 2000, lift, 0))
         b.advance(b.now + 10_000)
-        assert b.ae == (level,) * 4 and b.prof.reactions.n == n0
+        assert b.ae == (int(b.core.panic_level),) * 4 and b.prof.reactions.n == n0
 
 
 def test_the_recompute_in_height_steps_no_integral_filter_or_set_point() -> None:

@@ -62,16 +62,27 @@ def test_gains_settable_and_key_steps():
     assert b[0] - b[1] > a[0] - a[1] > 0
 
 
-def test_panic_level_and_ramp():
+def test_panic_descends_from_the_level_it_found_senses_the_ground_and_ramps():
     fc = FlightCore()
-    assert fc.control(Mode.PANIC, 0, 0, 0, 0) == (P.PANIC_AE,) * 4
+    fc.ae = (400,) * 4  # hovering
+    fc.vz, fc.height = 0.0, 5.0
+    out = fc.control(Mode.PANIC, 0, 0, 0, 0)
+    assert len(set(out)) == 1 and 300 < out[0] < 400  # a little less than it ran at: the descent starts
     assert P.PANIC_AE < P.AE_HOVER_NOMINAL
-    fc.panic_scale = 0.5
-    assert fc.control(Mode.PANIC, 0, 0, 0, 0) == (P.PANIC_AE // 2,) * 4
+    fc.vz = -1.0  # descending at the rate it wants near the ground: the level holds
+    held = [fc.control(Mode.PANIC, 0, 0, 0, 0)[0] for _ in range(40)]
+    assert max(held) - min(held) <= 1
+    fc.vz, fc.height = 0.0, 0.0  # on the floor: it stopped, the loop asks for ever less until the ground is sensed
+    for _ in range(int(4.0 / 0.0025)):
+        fc.control(Mode.PANIC, 0, 0, 0, 0)
+    assert fc.panic_landed
+    level = fc.ae[0]
+    fc.panic_scale = 0.5  # the board's ramp
+    assert fc.control(Mode.PANIC, 0, 0, 0, 0) == (level // 2,) * 4
     assert fc.panic_motors(0.0) == (0, 0, 0, 0)
     fc.control(Mode.SAFE, 0, 0, 0, 0)
-    fc.control(Mode.PANIC, 0, 0, 0, 0)
-    assert fc.panic_scale == 1.0  # entering PANIC restarts the descent level
+    assert fc.control(Mode.PANIC, 0, 0, 0, 0) == (0, 0, 0, 0)  # motors were off: PANIC never spins them up
+    assert fc.panic_scale == 1.0 and not fc.panic_landed  # entering PANIC restarts the descent
 
 
 def test_height_mode_captures_the_set_point_and_the_stick_moves_it():

@@ -118,21 +118,36 @@ def test_bad_and_wireless_arguments() -> None:
     assert m.request(Mode.SAFE, 0.0) == Nak.OK
 
 
-def test_panic_holds_then_ramps_then_safe_by_itself() -> None:
-    m = machine(panic_level=370, panic_hold_s=2.0, panic_ramp_s=1.0)
+def test_panic_descends_until_the_ground_then_ramps_then_safe_by_itself() -> None:
+    m = machine(panic_level=370, panic_ramp_s=1.0)
     m.request(Mode.MANUAL, 0.0)
     m.motor_level = 420
     assert m.request(Mode.PANIC, 10.0) == Nak.OK
-    assert m.panic_motor_level(10.5) == 370  # never above what they ran at, here the panic level
+    assert m.panic_scale(10.5) == 1.0 and m.panic_motor_level(10.5) == 370  # never above what they ran at
     assert m.request(Mode.SAFE, 10.6) == Nak.PANIC_ACTIVE
     assert m.request(Mode.MANUAL, 10.6) == Nak.PANIC_ACTIVE
-    assert m.panic_motor_level(12.5) == 185
-    m.tick(12.99)
+    m.tick(60.0)
+    assert m.mode == Mode.PANIC and m.panic_scale(60.0) == 1.0  # still coming down: no timer cuts the motors
+    m.panic_ground(60.0)  # the flight core sensed the ground
+    assert m.panic_scale(60.5) == 0.5 and m.panic_motor_level(60.5) == 185
+    m.tick(60.99)
     assert m.mode == Mode.PANIC
-    m.tick(13.0)
+    m.tick(61.0)
     assert m.mode == Mode.SAFE
-    assert m.panic_motor_level(13.0) == 0
+    assert m.panic_motor_level(61.0) == 0
     assert EventCode.PANIC_DONE in [e[0] for e in m.drain_events()]
+
+
+def test_a_panic_that_never_senses_the_ground_ends_at_its_timeout() -> None:
+    m = machine(panic_ramp_s=1.0, panic_timeout_s=100.0)
+    m.request(Mode.MANUAL, 0.0)
+    m.motor_level = 400
+    m.panic(0.0)
+    m.tick(99.9)
+    assert m.mode == Mode.PANIC and m.panic_scale(99.9) == 1.0
+    assert m.panic_scale(100.5) == 0.5
+    m.tick(101.0)
+    assert m.mode == Mode.SAFE
 
 
 def test_panic_never_spins_motors_up() -> None:
@@ -215,6 +230,7 @@ def test_a_low_battery_panic_latches() -> None:
     m.supervise(0.0, link_silent_s=0.0, battery=1040)
     m.supervise(0.3, link_silent_s=0.0, battery=1040)
     assert m.mode == Mode.PANIC and m.battery_low_latched
+    m.panic_ground(8.0)
     m.tick(10.0)
     m.supervise(10.0, link_silent_s=0.0, battery=1090)  # recovered at rest
     assert m.mode == Mode.SAFE and m.request(Mode.MANUAL, 10.1) == Nak.BATTERY_LOW

@@ -207,6 +207,9 @@ SPIKE_TAU_S = 0.3  # s: assumed decay of a spike (Figure 9; the simulator draws 
 SPIKE_RATE_SIGMA = 5.0  # 1/s: uncertainty of the decay rate 1/tau (1/0.5 to 1/0.1 s is 2 to 10 per s)
 INITIAL_SIGMA = (0.03, 0.05, 0.1)  # m, m/s, m/s²: at reset (on the floor after calibration)
 _SS_FLOOR = 1e-6  # m²: spike variance when no spike is running (keeps the filter from trusting s = 0 blindly)
+TREND_GAIN = 0.2  # per baro reading (20 Hz): the innovations' running mean over about a quarter second
+TREND_SIGMA = 1.5  # a running mean of this many sigmas of one sign is a wrong speed, not noise
+TREND_VZ_VAR = 0.25  # (m/s)² added to the speed's variance at such a reading
 
 
 class HeightKalman:
@@ -259,6 +262,8 @@ class HeightKalman:
         self._t_jump = math.inf  # s since the last spike onset
         self.baro_rejected = 0  # readings taken as the onset of a spike (telemetry)
         self.level_changes = 0  # lasting baro changes taken as real (telemetry)
+        self._trend = 0.0  # running mean of the signed, normalised innovations
+        self.trend_resets = 0  # times the speed was made unsure by a lasting trend (telemetry)
         self.on_ground = False  # no thrust and at rest for GROUND_REST_S (set by update_imu)
         self.anchored = False  # on the ground, the height re-anchored to the barometer (then held)
         self._rest_s = 0.0
@@ -405,6 +410,13 @@ class HeightKalman:
         r = self.r
         s = p[0] + 2.0 * p[3] + p[9] + r
         r_sigma = abs(nu) / math.sqrt(s)
+        # A speed the accelerometer got wrong (a touch-down its 2 g range clipped, a knock) shows as innovations
+        # that keep one sign: when their running mean passes TREND_SIGMA, the speed is made unsure, so the
+        # barometer corrects it within a few readings instead of the height running away (issue 10.3).
+        self._trend += TREND_GAIN * (math.copysign(r_sigma, nu) - self._trend)
+        if abs(self._trend) > TREND_SIGMA:
+            p[4] += TREND_VZ_VAR
+            self.trend_resets += 1
         if r_sigma > self.gate_sigma:
             # Far outside what the accelerometer predicts: the onset of a spike. Its size is unknown, so the
             # spike's variance takes the whole innovation and the update below gives it to the spike, not to
