@@ -51,6 +51,7 @@ from fcb_sim.scheduler import (
     ROUND_ROBIN_ORDER,
     TASKS,
     Scheduler,
+    timer_period,
 )
 from fcb_sim.telemetry import Telemetry
 from fcb_sim.timing import (
@@ -83,7 +84,6 @@ from term.protocol import (
     Button,
     Command,
     Decoder,
-    Encoder,
     Event,
     EventCode,
     Heartbeat,
@@ -214,16 +214,6 @@ class Board:
         return self.tx.transmit(self.now)
 
     @property
-    def encoder(self) -> Encoder:
-        """The UART's encoder (its sequence numbers)."""
-        return self.tx.encoder
-
-    @property
-    def tx_dropped(self) -> int:
-        """Telemetry frames skipped for a full transmit buffer."""
-        return self.tx.tx_dropped
-
-    @property
     def rx_overflow(self) -> int:
         """Bytes dropped from a full receive queue (UART and BLE)."""
         return self.uart.rx_overflow + self._ble_overflow
@@ -338,13 +328,7 @@ class Board:
         return self.sched.pick(self.now, lambda name: int(COSTS[name].figure[3]))
 
     def _period(self, name: str) -> int:
-        if name == "sensor":
-            return SENSOR_PERIOD_US[self._path]
-        if name == "baro":
-            return BARO_PERIOD_US
-        if name == "heartbeat":
-            return HEARTBEAT_PERIOD_US
-        return max(10_000, int(1e6 / max(0.2, self.config.telemetry_hz)))
+        return timer_period(name, self._path, self.config.telemetry_hz)
 
     def _deadline_missed(self, period: int) -> None:
         """A control period at least WCET99: reported while flying, at most every 10 s."""
@@ -377,9 +361,8 @@ class Board:
         return cost
 
     def _react(self, at: int) -> int:
-        """The sticks changed (the parse task decoded them by board time ``at``): recompute the motor commands
-        now from the latest estimate, as the control step would, but without a time step (docs/board.md,
-        "Sticks to motors"). Returns the cost (µs), 0 when it is not done."""
+        """The sticks changed (decoded by board time ``at``): the motor commands now, as the control step would
+        compute them but without a time step (docs/board.md, "Sticks to motors"); returns the cost (µs)."""
         m, fc = self.modes, self.core
         mode = m.mode
         if mode not in FLIGHT_MODES or int(mode) != fc.mode:

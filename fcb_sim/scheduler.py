@@ -23,6 +23,7 @@ from fcb_sim.timing import (
     APP_TIMER_ISR_US,
     PARSE_US_BASE,
     PARSE_US_PER_BYTE,
+    SENSOR_PERIOD_US,
     rtc_ticks,
     rtc_us,
     us_to_ticks,
@@ -35,6 +36,17 @@ CHAIN = frozenset({"control", "sensor", "logging"})  # never held back by the sl
 PARSE_MAX_BYTES = 64  # per parse run, so one run stays short
 BARO_PERIOD_US = 50_000
 HEARTBEAT_PERIOD_US = 100_000
+
+
+def timer_period(name: str, path: str, telemetry_hz: float) -> int:
+    """A timer's period (µs): the sensor's follows the path (RAW 400 Hz, DMP 200 Hz), telemetry its rate."""
+    if name == "sensor":
+        return SENSOR_PERIOD_US[path]
+    if name == "baro":
+        return BARO_PERIOD_US
+    if name == "heartbeat":
+        return HEARTBEAT_PERIOD_US
+    return max(10_000, int(1e6 / max(0.2, telemetry_hz)))
 
 
 class Scheduler:
