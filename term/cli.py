@@ -7,7 +7,7 @@
     term --ble ADDR [--hci TRANSPORT]             fly over BLE only (opens on the wireless screen)
     term --serial PATH --ble ADDR [--hci T]       the cable and the radio, for the handover (as --sim)
     term scan [--hci TRANSPORT]                   list BLE boards nearby
-    term plot LOG.csv -o out.png                  draw a downloaded flight log
+    term plot SESSION|LOG.csv|--latest -o out.png a recording or downloaded flight log, in SI units
     term export SESSION|LOG.csv|--latest -o OUT   a session recording or flash log as MCAP or CSV (its units)
     term recordings                               list the session recordings: start, length, size
     term replay SESSION|--latest                  play a recording back in the same screens, no board needed
@@ -152,10 +152,16 @@ def _start_log(verbose: bool) -> None:
 
 
 def build_plot_parser() -> argparse.ArgumentParser:
-    p = _Parser(prog="term plot", description="Draw a downloaded flight log (CSV) to an image.")
-    p.add_argument("log", type=Path, help="a CSV written by the terminal's log download (F5)")
+    p = _Parser(prog="term plot", description="Draw a session recording or a downloaded flight log to an image, "
+                "in SI units (°, °/s, g, m, V).")
+    p.add_argument("log", nargs="?", type=Path, help="a session recording (.mcap) or a CSV of the log download (F5)")
+    p.add_argument("--latest", action="store_true", help="the newest session recording (instead of a file)")
     p.add_argument("-o", "--output", type=Path, required=True, help="image to write (.png, .svg, .pdf)")
-    p.add_argument("--signals", default=None, help="comma-separated columns to draw (default: all groups)")
+    p.add_argument("--signals", default=None, help="comma-separated series to draw, by field or export column "
+                   "(phi,theta or phi_deg; default: every panel)")
+    p.add_argument("--from", dest="start", type=float, default=None, metavar="S", help="start of the time window (s)")
+    p.add_argument("--to", dest="end", type=float, default=None, metavar="S", help="end of the time window (s)")
+    p.add_argument("--dir", type=Path, default=None, help="where recordings are kept (default: 'term recordings')")
     return p
 
 
@@ -286,11 +292,15 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         if argv and argv[0] == "plot":
             from term.plot import PlotError, plot_log
+            from term.recording import RecordingError, latest
 
             a = build_plot_parser().parse_args(argv[1:])
+            if a.latest == (a.log is not None):
+                raise UsageError("give one recording or flight log, or --latest")
             try:
-                written = plot_log(a.log, a.output, a.signals.split(",") if a.signals else None)
-            except PlotError as exc:
+                src = latest(a.dir) if a.latest else a.log
+                written = plot_log(src, a.output, a.signals.split(",") if a.signals else None, a.start, a.end)
+            except (PlotError, RecordingError) as exc:
                 raise UsageError(str(exc)) from None
             print(f"wrote {written}")
             return 0
