@@ -148,7 +148,7 @@ def _raw_flight_log(tmp_path: Path, seconds: float = 12.0) -> tuple[Path, list[t
         fc = s.fc
         phi, theta, psi = fc.attitude_centideg()
         rows.append((round(s.t * 1e6), s.mode, phi, theta, psi, round(fc.sp), round(fc.sq), round(fc.sr),
-                     round(fc.sax), round(fc.say), round(fc.saz), *fc.ae, round(fc.height * 1000), 101325, 1200))
+                     round(fc.sax), round(fc.say), round(fc.saz), *fc.ae, round(fc.height * 100), 101325, 1200))
 
     sim.on_tick = log
     sim.prologue(Mode.RAW)
