@@ -1,6 +1,6 @@
 """`fcb-sim replay-imu`: run an attitude filter over recorded IMU data (CSV or CSV.gz).
 
-Two inputs, told apart by their header:
+Three inputs, told apart by their header:
 
 - IMU CSV: a header naming at least ``t`` (s), ``gx gy gz`` (rad/s) and ``ax ay az`` (m/s², specific force, chip
   frame z up); other columns are ignored (the BROAD trials of ../shared/data/broad are such files).
