@@ -22,13 +22,13 @@ P, gains           Q2.30     increments ~1e-4 of their value per step
 =================  ========  =======================================================================
 
 docs/attitude.md measures the trade-off: the same code with every format set to Q16.16 against this one, both
-against the float filter on the BROAD trials. Non-linear functions: one square root per sample (the turn
-rate, bit by bit like ``fix16_sqrt``), sin and cos of the half step by their Taylor series to 4th order (the
-step is at most 0.044 rad at 2000 °/s and 400 Hz: error < 2e-10), normalisation by one Newton step, and three
-divisions (the Kalman gain and the swing). Angles are read back as floats from the quaternion (on the board
-the corrected fix16_atan2 of :mod:`.fixed` would add at most 0.06°). Per sample: 119 multiplies, 5 divisions,
-3 square roots (26 multiplies more for the predicted output), three to four times the report's Kalman filter
-in Q16.16; about 0.45 ms at 16 MHz by the estimate in docs/attitude.md.
+against the float filter on the BROAD trials. Non-linear functions: three square roots per sample (the turn
+rate and two in the swing, bit by bit like ``fix16_sqrt``), sin and cos of the half step by their Taylor series
+to 4th order (the step is at most 0.044 rad at 2000 °/s and 400 Hz: error < 2e-10), normalisation by one Newton
+step, and five divisions (three Kalman gains, two in the swing). Angles are read back as floats from the
+quaternion (on the board the corrected fix16_atan2 of :mod:`.fixed` would add at most 0.06°). Per sample: 119
+multiplies, 5 divisions, 3 square roots (26 multiplies more for the predicted output), three to four times the
+report's Kalman filter in Q16.16; about 0.45 ms at 16 MHz by the estimate in docs/attitude.md.
 """
 
 from __future__ import annotations
