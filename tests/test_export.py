@@ -42,7 +42,7 @@ def record(directory: Path, *, close: bool = True) -> tuple[SessionRecorder, lis
         now = 10.0 + i * 0.01
         pkts = [Attitude(int(Mode.MANUAL), 1234 + i, -500, 9000, 164, -328, 0)]
         if i % 5 == 0:
-            pkts.append(Height(101325 - i, 1500 + i, 1000, -20, 1168, 2150))
+            pkts.append(Height(101325 - i, 150 + i, 100, -2, 1168, 2150))  # cm (protocol 2)
         data = b"".join(cable.encode(p) for p in pkts)
         rec.received("serial", data[:7], now)  # split mid-frame, as a UART read may
         rec.received("serial", data[7:], now + 0.0005)
@@ -73,7 +73,7 @@ def test_columns_are_named_and_scaled_from_the_packet_table() -> None:
     names = {c.field: c.name for c in packet_columns(SPEC_OF[Height])}
     assert names == {"pressure": "pressure_pa", "height": "height_m", "setpoint": "setpoint_m", "vz": "vz_mps",
                      "battery": "battery_v", "temperature": "temperature_degc"}
-    h = Height(101325, 1500, 1000, -20, 1168, 2150)
+    h = Height(101325, 150, 100, -2, 1168, 2150)  # cm, cm/s (protocol 2)
     rec = packet_record(h, packet_columns(SPEC_OF[Height]))
     for fs in SPEC_OF[Height].fields:  # the table's own conversion, to the last kept digit
         key = [c.name for c in packet_columns(SPEC_OF[Height]) if c.field == fs.name][0]

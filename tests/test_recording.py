@@ -19,7 +19,7 @@ from mcap.opcode import Opcode
 from mcap.reader import make_reader
 
 from term.export import DecodedFrame, decode, export
-from term.protocol import Attitude, Encoder, Heartbeat, HeartbeatAck, Joystick, Mode
+from term.protocol import PROTOCOL_VERSION, Attitude, Encoder, Heartbeat, HeartbeatAck, Joystick, Mode
 from term.recording import (
     LinkBytes,
     LoggedEvent,
@@ -82,7 +82,7 @@ def test_round_trip_in_order_with_times(tmp_path: Path) -> None:
     rec.close()
     assert rec.path is not None and rec.path.name == "20231114-221320.mcap"
     info = scan(rec.path)
-    assert info.complete and info.meta["protocol"] == "1" and info.meta["part"] == "1"
+    assert info.complete and info.meta["protocol"] == str(PROTOCOL_VERSION) and info.meta["part"] == "1"
     assert info.start_ns == WALL and info.duration_s == pytest.approx(2.99, abs=0.01)
     same(as_fed(list(iter_file(rec.path))), fed)
 
