@@ -10,6 +10,7 @@ import pytest
 from fcb_sim.flash_log import LOG_VARS, encode_log
 from term.cli import main
 from term.logfile import decode_to_rows, write_csv
+from term.protocol import PROTOCOL_VERSION
 
 
 def run(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, str, str]:
@@ -307,6 +308,6 @@ async def test_a_board_with_another_protocol_version_is_one_line_and_exit_3(pty_
     import re
 
     last = re.sub(r"\x1b(\[[0-9;?<>=$]*[a-zA-Z~]|\][^\x07\x1b]*(\x07|\x1b\\)?)", "", last)  # the screen given back
-    assert last.strip() == ("term: board speaks protocol v99, this terminal v1: update the board's firmware or "
-                            "the terminal")
+    assert last.strip() == (f"term: board speaks protocol v99, this terminal v{PROTOCOL_VERSION}: update the board's "
+                            "firmware or the terminal")
     assert text.count("board speaks protocol") == 1 and "Traceback" not in text
