@@ -9,7 +9,7 @@ import time
 
 from term.app import TermApp
 from term.cli import SimBoard
-from term.protocol import Joystick, Mode
+from term.protocol import Joystick, Mode, scaled
 from term.transports.serial import SerialTransport
 
 
@@ -42,7 +42,7 @@ async def test_take_off_hover_in_full_and_land() -> None:
             worst_tilt = 0.0
             t0 = time.monotonic()
             while (t := time.monotonic() - t0) < 7.0:
-                h, vz = m.height.height / 1000, m.height.vz / 1000
+                h, vz = scaled(m.height, "height"), scaled(m.height, "vz")
                 if t > 4.8:
                     target = -0.3  # land: below the floor, so the loop keeps easing off
                 base += 40 * (target - h)

@@ -12,7 +12,7 @@ import pytest
 from term.app import TermApp
 from term.link import LinkSession
 from term.model import Model
-from term.protocol import Joystick, Mode, Op
+from term.protocol import Joystick, Mode, Op, scaled
 
 SIZE = (120, 44)
 
@@ -50,7 +50,7 @@ def seeded_flight(seed: int = 1, seconds: float = 5.0) -> tuple[Model, float]:
             script.pop(0)[1](t)
         if t >= next_pilot and model.height is not None:
             next_pilot += 0.05
-            h, vz = model.height.height / 1000, model.height.vz / 1000
+            h, vz = scaled(model.height, "height"), scaled(model.height, "vz")
             base += 40 * (0.5 - h)
             lift = max(0, min(32767, int(base + 4000 * (0.5 - h) - 3000 * vz)))
             session.set_joystick(Joystick(2500, -1500, 0, lift, 0) if t >= 4.0 else Joystick(0, 0, 0, lift, 0))
