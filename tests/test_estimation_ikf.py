@@ -28,9 +28,9 @@ def read_trial(path: Path, every: int = 1) -> tuple[list[tuple[float, ...]], lis
         r = csv.reader(fh)
         next(r)
         for i, row in enumerate(r):
-            rows.append(tuple(float(v) for v in row[:7]))
+            rows.append(tuple(map(float, row[:7])))
             scored = i % every == 0 and row[11] == "1" and row[7] != ""
-            truth.append(tuple(float(v) for v in row[7:11]) if scored else None)
+            truth.append(tuple(map(float, row[7:11])) if scored else None)
     return rows, truth
 
 
@@ -50,12 +50,13 @@ def replay_errors(f, rows, truth) -> list[float]:
     """Inclination errors (deg) of filter f over the scored rows; asserts a finite unit quaternion throughout."""
     errs = []
     prev = rows[0][0] - (rows[1][0] - rows[0][0])
-    for (t, *s), q_true in zip(rows, truth, strict=True):
-        f.update(*s, t - prev)
+    update = f.update
+    for (t, gx, gy, gz, ax, ay, az), q_true in zip(rows, truth, strict=True):
+        update(gx, gy, gz, ax, ay, az, t - prev)
         prev = t
         if q_true is not None:
             q = f.quaternion()
-            assert abs(sum(c * c for c in q) - 1.0) < 1e-6
+            assert abs(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3] - 1.0) < 1e-6
             errs.append(tilt_between(q, q_true))
     return errs
 
