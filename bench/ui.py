@@ -11,7 +11,10 @@ out and rendered at the app's render rate; only the bytes to a real terminal are
 - ``lag_p99_ms``: the event loop's lag, from a probe that asks to wake every 10 ms and records how late it is;
 - ``record_cpu_pct``: the session recording's share (term/recording.py, on as in ``term``): time spent inside the
   recorder's calls (every byte both ways, the station's events, the flushes) over wall time, in % of one core,
-  with the bytes it wrote per second (``record_bytes_per_s``). ``--no-record`` measures without it.
+  with the bytes it wrote per second (``record_bytes_per_s``). ``--no-record`` measures without it;
+- ``plot_redraw_ms`` (plots screen): CPU time of one redraw of a live plot (term/widgets/plots.py, the native
+  braille widget: ``python -m bench.plots`` compares it with textual-plotext), with ``plot_redraws_per_s`` and
+  their share of a core, ``plot_cpu_pct``.
 
     python -m bench.ui [--seconds 6] [--render-hz 20] [--no-record]
 
@@ -61,6 +64,24 @@ def _timed(recorder: Any, spent: list[float]) -> None:
         setattr(recorder, name, wrap(getattr(recorder, name)))
 
 
+def _timed_plots(drawn: list[float]) -> Any:
+    """Count the CPU time and the calls of the live plots' redraws (on the event loop's thread); returns the undo."""
+    from term.widgets.plots import LivePlot
+
+    draw = LivePlot.draw
+
+    def timed(self: Any, *a: Any, **k: Any) -> Any:
+        t = time.thread_time()
+        try:
+            return draw(self, *a, **k)
+        finally:
+            drawn[0] += time.thread_time() - t
+            drawn[1] += 1
+
+    LivePlot.draw = timed  # type: ignore[method-assign]
+    return lambda: setattr(LivePlot, "draw", draw)
+
+
 async def run(seconds: float, render_hz: float | None, seed: int, policy: str = "stream",
               record: bool = True) -> dict[str, Any]:
     from term.app import TermApp
@@ -71,6 +92,8 @@ async def run(seconds: float, render_hz: float | None, seed: int, policy: str = 
     sim = SimBoard(seed=seed)
     port = sim.start()
     out: dict[str, Any] = {}
+    drawn = [0.0, 0]
+    untime_plots = _timed_plots(drawn)
     render_hz_used = render_hz
     try:
         import tempfile
@@ -109,10 +132,12 @@ async def run(seconds: float, render_hz: float | None, seed: int, policy: str = 
                 frames0 = app.model.link.frames_ok if app.model.link else 0
                 rx0 = app.model.link.rx_bytes if app.model.link else 0
                 s0, b0 = spent[0], _size(recorder)
+                d0, n0 = drawn
                 c0, w0 = _cpu(), time.perf_counter()
                 await asyncio.sleep(seconds)
                 c1, w1 = _cpu(), time.perf_counter()
                 s1, b1 = spent[0], _size(recorder)
+                d1, n1 = drawn
                 stop.set()
                 await probe
                 link = app.model.link
@@ -125,6 +150,9 @@ async def run(seconds: float, render_hz: float | None, seed: int, policy: str = 
                     "rx_bytes_per_s": round(((link.rx_bytes if link else 0) - rx0) / (w1 - w0)),
                     **({"record_cpu_pct": round(100 * (s1 - s0) / (w1 - w0), 2),
                         "record_bytes_per_s": round((b1 - b0) / (w1 - w0))} if recorder is not None else {}),
+                    **({"plot_redraw_ms": round(1e3 * (d1 - d0) / (n1 - n0), 2),
+                        "plot_redraws_per_s": round((n1 - n0) / (w1 - w0), 1),
+                        "plot_cpu_pct": round(100 * (d1 - d0) / (w1 - w0), 2)} if n1 > n0 else {}),
                 }
             _ = pilot
         if recorder is not None:
@@ -132,6 +160,7 @@ async def run(seconds: float, render_hz: float | None, seed: int, policy: str = 
             for p in recorder.paths:
                 p.unlink(missing_ok=True)
     finally:
+        untime_plots()
         sim.stop()
     out["render_hz"] = render_hz_used
     return out
@@ -162,6 +191,7 @@ def main(argv: list[str] | None = None) -> int:
         "goal_cpu_pct": 25, "goal_lag_p99_ms": 16,
         **({"record_cpu_pct": max(r["record_cpu_pct"] for r in res.values()), "goal_record_cpu_pct": 2}
            if not args.no_record else {}),
+        "plot_redraw_ms": res["plots"].get("plot_redraw_ms"), "plot_widget": "native braille (term/widgets/plots.py)",
     }))
     return 0
 
