@@ -81,6 +81,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--link-timeout", type=float, default=None, help="seconds without data before LINK LOST")
     p.add_argument("--log-dir", type=Path, default=None, help="where downloaded logs are written as CSV")
     p.add_argument("--no-joystick", action="store_true", help="keyboard only; do not look for a joystick")
+    p.add_argument("--no-bell", action="store_true", help="no terminal bell on LINK LOST, PANIC, low battery or a "
+                   "crash (the config's [alarms] bell)")
     p.add_argument("--no-record", action="store_true", help="do not record this session (by default every frame "
                    "both ways and every event is kept: 'term recordings')")
     p.add_argument("--record-dir", type=Path, default=None, help="where session recordings are kept (default: "
@@ -336,6 +338,8 @@ def _fly(args: argparse.Namespace) -> int:
         cfg = load_config(args.config, required=args.config is not None)
     except ConfigError as exc:
         raise UsageError(str(exc)) from None
+    if args.no_bell:
+        cfg.bell = False
     try:  # the same ranges as the config file's: nan, inf, 0 or a huge number is one line here
         if args.link_timeout is not None:
             cfg.link_timeout = LINK_TIMEOUT.check(args.link_timeout, "--link-timeout")

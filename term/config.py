@@ -14,7 +14,11 @@ keep a key (term/input/keymap.py). An example::
     joystick = "stream"        # or "on-change", "fixed-rate" (see JOYSTICK_POLICIES below)
 
     [keys]                     # rebind any action by name (see the help screen, F1)
+    preset = "lab"             # or "natural": ← banks left, → banks right (the lab's map banks right on ←)
     mode_panic = ["1", "escape"]
+
+    [alarms]
+    bell = true                # the terminal's bell on LINK LOST, PANIC, low battery and a crash
 
     [joystick]
     mapping = ""               # force a mapping by name; empty: pick by the stick's name
@@ -54,7 +58,7 @@ from term.input.mapping import (
     mapping_from_dict,
 )
 from term.logfile import check_directory
-from term.schema import ListOf, Number, OneOf, SchemaError, Table, TableOf, Text, nearest, one_line, shown
+from term.schema import Flag, ListOf, Number, OneOf, SchemaError, Table, TableOf, Text, nearest, one_line, shown
 
 APP_NAME = "quadrupel"
 FILE_NAME = "term.toml"
@@ -111,6 +115,8 @@ class Config:
     link_timeout: float = 0.5  # as the board's: LINK LOST shows no later than the board's own PANIC
     joystick_policy: str = "stream"
     keymap: tuple[KeyBinding, ...] = field(default_factory=build_keymap)
+    key_preset: str = "lab"
+    bell: bool = True  # the terminal's bell on an alarm (term/alarms.py)
     joystick_mapping: str = ""
     joystick_resolution: int = 64
     joystick_mappings: tuple[StickMapping, ...] = ()
@@ -168,10 +174,12 @@ class _KeysSpec:
     def describe(self) -> str:
         return "a table of action = key names"
 
-    def check(self, value: Any, where: str) -> tuple[KeyBinding, ...]:
+    def check(self, value: Any, where: str) -> tuple[tuple[KeyBinding, ...], str]:
         if not isinstance(value, Mapping):
             raise SchemaError(f"{where}: must be {self.describe()}, got {shown(value)}")
-        return build_keymap(dict(value))
+        overrides = dict(value)
+        preset = overrides.pop("preset", "lab")
+        return build_keymap(overrides, preset), preset
 
 
 # The file's format in one place: section -> key -> type and range (the defaults are Config's).
@@ -193,6 +201,7 @@ CONFIG_SCHEMA = Table({
         "window": PLOT_WINDOW,
     }, section=True),
     "log": Table({"directory": Text(nonempty=True, what="a directory")}, section=True),
+    "alarms": Table({"bell": Flag()}, section=True),
 })
 
 
@@ -207,7 +216,8 @@ def config_from_dict(data: Mapping[str, Any]) -> Config:
     cfg.link_timeout = conn.get("link_timeout", cfg.link_timeout)
     cfg.joystick_policy = conn.get("joystick", cfg.joystick_policy)
     if "keys" in v:
-        cfg.keymap = v["keys"]
+        cfg.keymap, cfg.key_preset = v["keys"]
+    cfg.bell = v.get("alarms", {}).get("bell", cfg.bell)
 
     js = v.get("joystick", {})
     cfg.joystick_resolution = js.get("resolution", cfg.joystick_resolution)
@@ -245,3 +255,56 @@ def forced_mapping(cfg: Config) -> StickMapping | None:
         if m.name == cfg.joystick_mapping:
             return m
     return None
+
+
+def mapping_table_name(device: str) -> str:
+    """A TOML bare key for a device's own mapping ("Logitech Extreme 3D" -> "logitech_extreme_3d")."""
+    import re
+
+    return (re.sub(r"[^a-z0-9_-]+", "_", device.lower()).strip("_") or "my_stick")[:40]
+
+
+def mapping_toml(name: str, mapping: StickMapping, device: str) -> str:
+    """One ``[joystick.mappings.NAME]`` table for ``mapping``, matching ``device`` by its name."""
+    import json
+
+    def axis(a: Any) -> str:
+        return (f"{{ axis = {a.index}, invert = {'true' if a.invert else 'false'}, deadzone = {a.deadzone:.3f}, "
+                f"kind = {json.dumps(a.kind)} }}")
+
+    lines = [f"[joystick.mappings.{name}]", f"match = [{json.dumps(device, ensure_ascii=False)}]"]
+    lines += [f"{k} = {axis(getattr(mapping, k))}" for k in ("roll", "pitch", "yaw", "lift")]
+    lines.append(f"fire = [{', '.join(str(b) for b in mapping.fire)}]")
+    return "\n".join(lines) + "\n"
+
+
+def save_joystick_mapping(path: Path, mapping: StickMapping, device: str) -> str:
+    """Write ``mapping`` into the config file at ``path`` as the device's own mapping (replacing an earlier one of
+    the same name, keeping the rest of the file as it is) and return the table's name. The new file is checked as
+    the terminal will read it before it is written; trouble is a ``ConfigError`` of one line."""
+    import re
+
+    name = mapping_table_name(device)
+    try:
+        old = path.read_text(encoding="utf-8") if path.exists() else ""
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ConfigError(f"cannot read config file {path}: {exc}") from None
+    header = re.compile(rf"^\[\s*joystick\.mappings\.{re.escape(name)}\s*[\].]")
+    kept, skipping = [], False
+    for line in old.splitlines():
+        if line.lstrip().startswith("["):
+            skipping = bool(header.match(line.strip()))
+        if not skipping:
+            kept.append(line)
+    body = "\n".join(kept).rstrip()
+    text = (body + "\n\n" if body else "") + mapping_toml(name, mapping, device)
+    try:
+        config_from_dict(tomllib.loads(text))
+    except (tomllib.TOMLDecodeError, SchemaError, KeymapError) as exc:
+        raise ConfigError(one_line(f"config file {path}: not saved, it would not load: {exc}")) from None
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(text, encoding="utf-8")
+    except OSError as exc:
+        raise ConfigError(f"cannot write config file {path}: {exc.strerror or exc}") from None
+    return name

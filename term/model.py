@@ -16,6 +16,7 @@ value, age, staleness, whether the current link carries it and its bound at the 
 
 from __future__ import annotations
 
+import re
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -38,6 +39,7 @@ from term.events import (
     StickSet,
 )
 from term.freshness import Arrivals, Reading, read, spec_of
+from term.input.keymap import ZERO_TRIM_STEPS
 from term.link import (
     CommandAcked,
     CommandFailed,
@@ -115,6 +117,8 @@ def op_text(op: int, arg: int) -> str:
     if o is Op.WIRELESS:
         return "wireless handover" if arg else "wireless hand-back"
     name = o.name.lower().replace("_", " ")
+    if o is Op.TRIM_LIFT and arg <= ZERO_TRIM_STEPS:
+        return "lift trim to zero"
     if o.name.startswith(("TRIM_", "GAIN_")):
         return f"{name} {'+' if arg > 0 else ''}{arg}"
     return name
@@ -181,6 +185,19 @@ class LogEntry:
     severity: str  # "info", "warning", "error"
     source: str  # "board", "nak", "link", "term", "joystick"
     text: str
+    count: int = 1  # the same line this many times (merged: ``Model.note``)
+    seq: int = 0  # the order lines were written in (a merged repeat is written again)
+
+
+MERGE_S = 60.0  # a line the same as one of the last MERGE_BACK lines within this is merged into it, with a count
+MERGE_BACK = 4
+REFUSAL_PAIR_S = 2.0  # the board's Ack NAK and its REFUSED event for one request: said once
+_BOARD_TIME = re.compile(r"^\[[0-9.]+\] ")
+
+
+def merge_key(text: str) -> str:
+    """What makes two lines the same: their text without the board's time stamp."""
+    return _BOARD_TIME.sub("", text)
 
 
 @dataclass
@@ -223,6 +240,13 @@ class Model:
     primary_ble: bool = False
     heard: bool = False  # a valid frame arrived from the board (on any link)
     arrivals: Arrivals = field(default_factory=Arrivals)  # when each telemetry packet came: term.freshness
+    refused: dict[int, tuple[str, float]] = field(default_factory=dict)  # Nak -> (the refusal's text, when)
+    params: dict[str, float] = field(default_factory=dict)  # the board's parameters by name, as last heard
+    event_times: dict[int, float] = field(default_factory=dict)  # EventCode -> when the board last said it
+    notes_written: int = 0  # lines written to the events list (merged repeats too): LogEntry.seq
+    _refusal_said: dict[tuple[int, int], float] = field(default_factory=dict)  # (mode, Nak) -> when said
+    _misses: tuple[int, int, float, int] = (0, 0, 0.0, 0)  # deadline misses: count, longest period, first, seq
+    _erasing: int | None = None  # records in the log when its erase was asked for
     _bad_noted: int = 0
     _link_noted: float = -1e9
     _loss_noted: float = -1e9
@@ -230,8 +254,47 @@ class Model:
     # --- updates ------------------------------------------------------------------------------------------
 
     def note(self, now: float, severity: str, source: str, text: str) -> None:
-        self.events.append(LogEntry(now - self.start, severity, source, text))
+        """A line in the events list. The same line (``merge_key``) as one of the last few, within ``MERGE_S``,
+        is merged into it: moved to the end with its count raised, not written again."""
+        t = now - self.start
+        events = self.events
+        key = merge_key(text)
+        for i in range(len(events) - 1, max(-1, len(events) - 1 - MERGE_BACK), -1):
+            e = events[i]
+            if e.source == source and e.severity == severity and t - e.t <= MERGE_S and merge_key(e.text) == key:
+                del events[i]
+                self._write(LogEntry(t, severity, source, text, e.count + 1))
+                return
+        self._write(LogEntry(t, severity, source, text))
+
+    def _write(self, entry: LogEntry) -> None:
+        self.notes_written += 1
+        self.events.append(LogEntry(entry.t, entry.severity, entry.source, entry.text, entry.count,
+                                    self.notes_written))
         self.version += 1
+
+    def _refusal(self, mode: int, nak: int, text: str, now: float) -> bool:
+        """Note a refusal of ``mode`` for ``nak`` (its readiness item shows it); False if it was just said (the
+        board answers a refused mode twice: the Ack's NAK and a REFUSED event)."""
+        self.refused[nak] = (text, now)
+        said = self._refusal_said.get((mode, nak))
+        self._refusal_said[(mode, nak)] = now
+        return said is None or now - said > REFUSAL_PAIR_S
+
+    def _deadline_miss(self, now: float, period_us: int) -> None:
+        """Deadline misses as one line, kept up to date: how many, since when, the longest period."""
+        n, worst, first, seq = self._misses
+        if n == 0:
+            first = now - self.start
+        n, worst = n + 1, max(worst, period_us)
+        for i, e in enumerate(self.events):
+            if e.seq == seq:
+                del self.events[i]
+                break
+        text = (f"deadline miss (period {period_us} µs)" if n == 1 else
+                f"deadline misses: {n} since {first:.0f} s (longest period {worst} µs)")
+        self._write(LogEntry(now - self.start, "warning", "board", text))
+        self._misses = (n, worst, first, self.notes_written)
 
     def apply(self, event: Any, now: float) -> None:
         """The one way the model changes: one event, from a link's session (the board's link; the radio's come
@@ -250,13 +313,19 @@ class Model:
         self.version += 1
         self.pending = max(0, self.pending - 1)
         self.arrivals.note_ack(event.op, event.value, now)  # a trim's Ack carries the new trim
+        said = _LOG_ACKS.get(event.op)
+        if said is not None:
+            self.note(now, "info", "term", said(self, event.value))
 
     def _on_failed(self, event: CommandFailed, now: float) -> None:
         self.version += 1
         self.pending = max(0, self.pending - 1)
         what = op_text(event.op, event.arg)
         if event.nak is not None:
-            self.note(now, "error", "nak", f"NAK {what}: {event.reason}")
+            text = f"NAK {what}: {event.reason}"
+            mode = event.arg if event.op == Op.MODE else -1
+            if self._refusal(mode, int(event.nak), text, now):
+                self.note(now, "error", "nak", text)
         elif event.op in (Op.LOG_DOWNLOAD, Op.LOG_STATUS) and self.download is not None:
             # The log download retries its own requests until its deadline (term.download): not the end of it.
             self.note(now, "warning", "link", f"{what} failed: {event.reason}; the download tries again")
@@ -344,6 +413,8 @@ class Model:
 
     def _on_requested(self, event: Requested, now: float) -> None:
         self.pending += 1
+        if event.op == Op.LOG_RESET:
+            self._erasing = self.log_status.records if self.log_status is not None else None
         if event.op == Op.MODE:
             self.note(now, "info", "term", f"request {mode_name(event.arg)}"
                       + (" over BLE" if event.link == RADIO else ""))
@@ -394,8 +465,12 @@ class Model:
             self._push_scaled(t, pkt, ("phi", "theta", "psi", "battery"))
         elif kind is Event:
             self.board_ms = pkt.board_ms
+            self.event_times[pkt.code] = now
             severity, text = event_text(pkt.code, pkt.arg)
-            self.note(now, severity, "board", f"[{scaled(pkt, 'board_ms'):.3f}] {text}")
+            if pkt.code == EventCode.DEADLINE_MISS:
+                self._deadline_miss(now, pkt.arg)
+            elif pkt.code != EventCode.REFUSED or self._refusal(pkt.arg & 0xFF, pkt.arg >> 8, text, now):
+                self.note(now, severity, "board", f"[{scaled(pkt, 'board_ms'):.3f}] {text}")
             if pkt.code == EventCode.MODE_CHANGED:
                 self._set_mode(pkt.arg & 0xFF, now)
             elif pkt.code == EventCode.WIRELESS_STATE:
@@ -492,6 +567,12 @@ class Model:
 
     # --- derived views ------------------------------------------------------------------------------------
 
+    def trim_steps(self) -> tuple[int | None, int | None]:
+        """Stick units per press of the lift and of the roll/pitch/yaw trim keys, as the board's parameters say
+        (None until they are known)."""
+        lift, trim = self.params.get("trim.lift_step"), self.params.get("trim.step")
+        return (None if lift is None else int(lift)), (None if trim is None else int(trim))
+
     def reading(self, name: str, now: float) -> Reading:
         """A displayed figure with its age, staleness and bound (term.freshness)."""
         return read(self, name, now)
@@ -555,6 +636,23 @@ class Model:
                 ys.append(v)
         return xs, ys
 
+
+def _log_started(m: Model, used: int) -> str:
+    return f"log recording started ({used / 1000:.1f} kB of flash used)"
+
+
+def _log_stopped(m: Model, used: int) -> str:
+    return f"log recording stopped ({used / 1000:.1f} kB of flash used; F5 downloads it)"
+
+
+def _log_erased(m: Model, value: int) -> str:
+    n, m._erasing = m._erasing, None
+    return "log erased" + (f": {n} records gone" if n is not None else "")
+
+
+# The log keys say what they did, when the board has done it.
+_LOG_ACKS: dict[int, Callable[[Model, int], str]] = {Op.LOG_START: _log_started, Op.LOG_STOP: _log_stopped,
+                                                     Op.LOG_RESET: _log_erased}
 
 _TIMED = frozenset((Attitude, Motion, Height, Status, Gains, Compact))  # the packets whose figures can go stale
 

@@ -48,12 +48,14 @@ from term.events import (
     StatsSample,
     StickSet,
 )
+from term.input.keymap import ZERO_TRIM_STEPS
 from term.input.mapping import leave_safe_refusal
 from term.link import LinkSession, VersionMismatch
 from term.model import Model, mode_name, op_text
 from term.protocol import Button, Joystick, Mode, Op
 from term.transports.base import Transport, TransportError
 
+ZERO_AGAIN_S = 1.0  # in flight, the lift trim goes to zero only on a second press within this
 RECONNECT_S = 1.0  # a dead cable is opened again this often
 BLE_BACKOFF_S = (1.0, 2.0, 4.0, 8.0)  # a lost or unreachable BLE link is tried again after these pauses
 # Over BLE the joystick goes out when it changes (at most 100 times a second: a mouse drag sends more events
@@ -187,6 +189,7 @@ class Station:
         self.on_event = on_event
         self.running = False
         self._fire_down = False
+        self._zero_asked = -1e9  # when a lift-trim-to-zero was first asked for in flight
         cable_backoff = BLE_BACKOFF_S if model.primary_ble else (RECONNECT_S,)
         self.cable = None if cable is None else StationLink(
             self, CABLE, cable, LinkPolicy(dict(cable_session or {}), cable_backoff))
@@ -268,6 +271,14 @@ class Station:
         if op == Op.WIRELESS and arg == 1 and model.primary_ble:
             why = "the handover is asked for over the cable: press 8 on the cable terminal"
             return NotSent("wireless handover", why, "wireless handover", "warning")
+        if op == Op.TRIM_LIFT and arg <= ZERO_TRIM_STEPS and model.flying:
+            # In the air the lift trim to zero cuts the lift: only a second press within ZERO_AGAIN_S does it.
+            now = self.clock()
+            if now - self._zero_asked > ZERO_AGAIN_S:
+                self._zero_asked = now
+                return NotSent("lift trim to zero", f"in flight this cuts the lift: press again within "
+                               f"{ZERO_AGAIN_S:g} s to do it", "lift trim to zero", "warning")
+            self._zero_asked = -1e9
         return None
 
     def send(self, op: Op, arg: int = 0) -> int | None:

@@ -127,6 +127,8 @@ class JoystickPoller:
         self.name: str | None = None
         self.gamepad = False  # the active device is read through the GameController API
         self.error: str | None = None
+        self.axes: list[float] = []  # the last raw read (-1..1), for the joystick screen
+        self.buttons: list[bool] = []
 
     @property
     def connected(self) -> bool:
@@ -190,12 +192,14 @@ class JoystickPoller:
                     res.messages.append(f"joystick disconnected: {self.name}")
                     res.disconnected = True
                     self._stick = self._reader = None
+                    self.axes, self.buttons = [], []
                     self.name = None
                     self.gamepad = False
                     self.state.reset()
                     res.packet = self.state.current
         if self._reader is not None:
             axes, buttons = self._reader.read()
+            self.axes, self.buttons = axes, buttons
             pkt = self.state.update(axes, buttons)
             if pkt is not None:
                 res.packet = pkt

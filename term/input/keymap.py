@@ -2,7 +2,9 @@
 
 Board actions carry the protocol ``Op`` and ``arg`` they send; terminal actions (help, log download, ...) carry a
 ``local`` name the app dispatches. The lab's map (DESIGN.md) comes first; the extras (height gains, log, profile,
-help) use keys the lab left free. A config file may rebind any action by name (``[keys]`` in term.toml).
+help) use keys the lab left free. A config file may rebind any action by name (``[keys]`` in term.toml), after a
+preset (``KEY_PRESETS``: "lab", the default, where ← is "roll up", i.e. banks right, as the lab's terminal did;
+"natural", where ← banks left and → right), chosen with ``preset = "natural"`` in ``[keys]``.
 """
 
 from __future__ import annotations
@@ -47,6 +49,10 @@ def _local(name: str, keys: tuple[str, ...], text: str, group: str) -> KeyBindin
     return KeyBinding(keys, Action(name, text, group, local=name))
 
 
+# Z: the lift trim to zero at once (so many steps down that the board clips it at 0, whatever its step size).
+ZERO_TRIM_STEPS = -32767
+
+
 DEFAULT_KEYMAP: tuple[KeyBinding, ...] = (
     _mode(Mode.SAFE, ("0",), "SAFE: motors off"),
     _mode(Mode.PANIC, ("1", "escape"), "PANIC: controlled descent, then SAFE"),
@@ -57,10 +63,12 @@ DEFAULT_KEYMAP: tuple[KeyBinding, ...] = (
     _mode(Mode.RAW, ("6",), "RAW: unfiltered sensors, on-board filter"),
     _mode(Mode.HEIGHT, ("7",), "HEIGHT hold"),
     KeyBinding(("8",), Action("wireless", "WIRELESS handover to BLE (in SAFE)", "Modes", Op.WIRELESS, 1)),
+    KeyBinding(("c",), Action("ack_crash", "crash seen: the board may leave SAFE again", "Modes", Op.ACK_CRASH)),
     _step("lift_up", "a", "lift up", "Trims", Op.TRIM_LIFT, +1),
     _step("lift_down", "z", "lift down", "Trims", Op.TRIM_LIFT, -1),
-    _step("roll_up", "left", "roll up", "Trims", Op.TRIM_ROLL, +1),
-    _step("roll_down", "right", "roll down", "Trims", Op.TRIM_ROLL, -1),
+    _step("lift_zero", "Z", "lift trim to zero (in flight: press twice)", "Trims", Op.TRIM_LIFT, ZERO_TRIM_STEPS),
+    _step("roll_up", "left", "roll up (trim +: banks right)", "Trims", Op.TRIM_ROLL, +1),
+    _step("roll_down", "right", "roll down (trim −: banks left)", "Trims", Op.TRIM_ROLL, -1),
     _step("pitch_down", "up", "pitch down (nose down)", "Trims", Op.TRIM_PITCH, -1),
     _step("pitch_up", "down", "pitch up (nose up)", "Trims", Op.TRIM_PITCH, +1),
     _step("yaw_down", "q", "yaw down (left)", "Trims", Op.TRIM_YAW, -1),
@@ -77,7 +85,7 @@ DEFAULT_KEYMAP: tuple[KeyBinding, ...] = (
     _step("height_d_down", "h", "height D down", "Gains", Op.GAIN_HEIGHT_D, -1),
     KeyBinding(("f2",), Action("log_start", "log: start recording", "Log", Op.LOG_START)),
     KeyBinding(("f3",), Action("log_stop", "log: stop recording", "Log", Op.LOG_STOP)),
-    KeyBinding(("f4",), Action("log_reset", "log: erase the flash (SAFE only)", "Log", Op.LOG_RESET)),
+    _local("log_reset", ("f4",), "log: erase the flash (SAFE only; asks first)", "Log"),
     _local("log_download", ("f5",), "log: download to CSV (SAFE only)", "Log"),
     _local("profile", ("f6",), "profile: ask the board for task timings", "Screen"),
     _local("help", ("f1", "question_mark"), "this help", "Screen"),
@@ -85,14 +93,23 @@ DEFAULT_KEYMAP: tuple[KeyBinding, ...] = (
     _local("show_plots", ("f8",), "live plots", "Screen"),
     _local("show_profile", ("f9",), "profiling table", "Screen"),
     _local("show_wireless", ("f10",), "wireless screen: the phone's controls, for the mouse", "Screen"),
+    _local("show_joystick", ("f12",), "joystick screen: live axes, mapping, dead zone, save", "Screen"),
     _local("clear_events", ("ctrl+l",), "clear the events list", "Screen"),
 )
 
 # Keys Textual itself gives meaning to; shown in the help table, not rebound.
 APP_KEYS: tuple[tuple[str, str], ...] = (
     ("ctrl+p", "command palette: every action by name"),
-    ("ctrl+q", "quit (the board sees the link drop and goes to PANIC if flying)"),
+    ("ctrl+q", "quit (while the motors run it asks first, and sends PANIC before it goes)"),
 )
+
+# Key presets: action name -> keys, applied to the default map before the config's own [keys].
+KEY_PRESETS: dict[str, dict[str, tuple[str, ...]]] = {
+    "lab": {},  # the lab's map, the default: ← is "roll up" (a positive roll trim banks right)
+    "natural": {"roll_down": ("left",), "roll_up": ("right",)},  # ← banks left, → banks right
+}
+PRESET_TEXT = {"lab": "the lab's map (default): ← rolls right, → rolls left",
+               "natural": "natural arrows: ← banks left, → banks right"}
 
 JOYSTICK_HELP: tuple[tuple[str, str], ...] = (
     ("joystick fire", "PANIC"),
@@ -153,14 +170,21 @@ def _canonical(key: str) -> str:
     return _key_names()[1].get(key, key)
 
 
-def build_keymap(overrides: Mapping[str, Sequence[str] | str] | None = None) -> tuple[KeyBinding, ...]:
-    """The default map with ``overrides`` (action name -> key or keys) applied.
+def build_keymap(overrides: Mapping[str, Sequence[str] | str] | None = None,
+                 preset: str = "lab") -> tuple[KeyBinding, ...]:
+    """The default map with the ``preset`` (``KEY_PRESETS``) and then ``overrides`` (action name -> key or keys)
+    applied.
 
     Refused, in one line: an unknown action, a value that is not a key name or a list of them, an unknown key
     name, a key given twice, an empty list, a key bound to two actions (aliases count: ctrl+i is tab), a key
     Textual keeps for itself, and a safety action (PANIC, SAFE, lift down) left without a plain key."""
+    if preset not in KEY_PRESETS:
+        raise KeymapError(f"[keys] preset: {shown(preset)} is not a key preset{nearest(str(preset), KEY_PRESETS)}; "
+                          f"known: {', '.join(KEY_PRESETS)}")
     table = list(DEFAULT_KEYMAP)
     by_name = {b.action.name: i for i, b in enumerate(table)}
+    for name, keys in KEY_PRESETS[preset].items():
+        table[by_name[name]] = replace(table[by_name[name]], keys=keys)
     if overrides is not None and not isinstance(overrides, Mapping):
         raise KeymapError(f"[keys]: must be a table of action = key names, got {shown(overrides)}")
     for name, keys in (overrides or {}).items():

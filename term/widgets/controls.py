@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 from rich.console import RenderableType
 from rich.text import Text
 
@@ -29,6 +31,12 @@ FLAG_NAMES = (
 
 def _pct(v: int) -> str:
     return f"{100 * v / FULL:+4.0f}%"
+
+
+def _as_pct(trim: Reading, stick: int) -> Reading:
+    """The lift trim (shown, a number) plus ``stick`` as a percentage of full lift, with the trim's age."""
+    assert trim.value is not None
+    return replace(trim, value=100 * (stick + float(trim.value)) / FULL, unit="%", bound="", edge=None)
 
 
 def _num(r: Reading) -> float:
@@ -61,10 +69,17 @@ class ControlsPanel(ModelView):
             out.append_text(figure(trim, "+6d"))
             out.append("\n")
         lift_trim = trims[3]
+        total = s.lift + _num(lift_trim)
         out.append("lift  ")
-        out.append_text(hbar(s.lift + _num(lift_trim), 0, FULL, width, "yellow" if s.lift > LIFT_ZERO else "green"))
-        out.append(f" {100 * s.lift / FULL:4.0f}% trim ")
-        out.append_text(figure(lift_trim, "+6d"))
+        out.append_text(hbar(total, 0, FULL, width - 7, "yellow" if total > LIFT_ZERO else "green"))
+        # The lift the board flies is the stick plus the trim: one percentage, then its two parts.
+        if lift_trim.shown and lift_trim.bound != "?":
+            out.append_text(figure(_as_pct(lift_trim, s.lift), "4.0f", "%", pad=" "))
+            out.append(f" (stick {100 * s.lift / FULL:.0f} + trim", style="dim")
+            out.append_text(figure(_as_pct(lift_trim, 0), ".0f", ")", style="dim", pad=" "))
+        else:
+            out.append(f" {100 * s.lift / FULL:4.0f}% (stick; trim ")
+            out.append_text(figure(lift_trim, "+d", ")"))
         out.append("\n")
         if s.lift > LIFT_ZERO and model.mode in (None, Mode.SAFE):  # flying, lift is what it should be
             out.append("throttle up: SAFE cannot be left\n", style="yellow")

@@ -16,6 +16,8 @@ def entry_text(e: LogEntry) -> Text:
     t = Text(f"{int(m):02d}:{s:06.3f} ", style="dim")
     t.append(f"{e.source:<8}", style="dim")
     t.append(e.text, style=STYLE.get(e.severity, ""))
+    if e.count > 1:
+        t.append(f"  ×{e.count}", style="bold")
     return t
 
 

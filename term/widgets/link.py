@@ -6,12 +6,22 @@ from rich.console import RenderableType
 from rich.text import Text
 
 from term.model import Model
+from term.protocol import WirelessState
 from term.widgets.base import ModelView
 from term.widgets.wireless import link_lines
 
 
 def _ms(v: float | None) -> str:
     return "—" if v is None else f"{v:.1f}"
+
+
+def _heartbeat(model: Model, name: str, age: float | None) -> str:
+    """The heartbeat's age, unless the link is quiet by design (then it would only count up): the radio before the
+    handover and after it ends, the cable while the board flies over BLE."""
+    quiet = model.wireless == WirelessState.DISCONNECTED if name == "ble" else model.over_ble
+    if quiet:
+        return "— (idle)" if name == "ble" else "— (over BLE)"
+    return "—" if age is None else f"{age * 1000:.0f} ms ago"
 
 
 class LinkPanel(ModelView):
@@ -75,6 +85,6 @@ class LinkPanel(ModelView):
             loss = "—" if s.loss_pct is None else f"{s.loss_pct:.1f}"
             out.append(f"{name:<6}RTT {_ms(s.rtt_mean_ms)} ms  loss {loss}%  rx/tx {s.rx_bytes_per_s:.0f}/"
                        f"{s.tx_bytes_per_s:.0f}\n", style="dim" if model.over_ble != (name == "ble") else "")
-            out.append(f"      frames {s.frames_ok} bad {s.frames_bad}  heartbeat "
-                       f"{'—' if hb is None else f'{hb * 1000:.0f} ms ago'}\n", style="dim")
+            out.append(f"      frames {s.frames_ok} bad {s.frames_bad}  heartbeat {_heartbeat(model, name, hb)}\n",
+                       style="dim")
         return out
