@@ -82,6 +82,9 @@ def build_parser() -> argparse.ArgumentParser:
     serve.add_argument("--link-timeout", type=float, default=0.5, help="seconds of silence before PANIC")
     serve.add_argument("--ble-hci", default=None, metavar="TRANSPORT",
                        help="also expose the board's BLE radio, e.g. tcp-server:127.0.0.1:PORT")
+    serve.add_argument("--instructor", default=None, metavar="TRANSPORT",
+                       help="the truth and the lessons' situations for term --sim (fcb_sim/instructor.py), e.g. "
+                       "tcp-server:127.0.0.1:0")
     serve.set_defaults(handler=_cmd_serve)
     return parser
 

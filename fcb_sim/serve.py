@@ -115,6 +115,7 @@ class PtyServer:
         self._stop: asyncio.Event | None = None
         self._t0 = 0.0
         self.closed = False
+        self.cable_open: Callable[[], bool] | None = None  # the instructor's cable cuts (fcb_sim/instructor.py)
 
     # --- the loop -----------------------------------------------------------------------------------------
 
@@ -179,7 +180,10 @@ class PtyServer:
         for start in self._batch:
             self.pacing.control_ran(start, done)
         self._batch.clear()
-        self._write(board.uart_transmit())
+        out = board.uart_transmit()
+        if self.cable_open is not None and not self.cable_open():
+            out = b""  # the instructor cut the cable: what the board sent is lost
+        self._write(out)
 
     def _on_readable(self) -> None:
         try:
@@ -189,6 +193,8 @@ class PtyServer:
         except OSError:
             return  # EIO: no client at the moment
         if data:
+            if self.cable_open is not None and not self.cable_open():
+                return  # the instructor cut the cable: the bytes are lost
             self.bytes_in += len(data)
             # bytes arrive at the present: bring the board up to now first, so they are not dated in the past
             self.board.advance(int(self._wall_us()))
@@ -279,7 +285,7 @@ async def _serve_main(args: Any) -> int:
     loop = asyncio.get_running_loop()
     for sig in (signal.SIGTERM, signal.SIGINT):
         loop.add_signal_handler(sig, stop.set)
-    radio = None
+    radio = instructor = None
     try:
         print(f"pty: {server.path}", flush=True)
         if getattr(args, "ble_hci", None):
@@ -289,8 +295,18 @@ async def _serve_main(args: Any) -> int:
                                       on_data=board.ble_data, on_disconnect=board.ble_lost)
             spec = getattr(getattr(radio, "hci", None), "client_spec", None)
             print(f"ble: {radio.name} {radio.address}" + (f" hci {spec}" if spec else ""), flush=True)
+        if getattr(args, "instructor", None):  # term --sim's truth and situations (fcb_sim/instructor.py)
+            from fcb_sim.instructor import Instructor, InstructorServer
+
+            instructor = InstructorServer(Instructor(board), radio=radio)
+            address = await instructor.start(args.instructor)
+            server.cable_open = lambda: instructor.instructor.cable_open(board.now / 1e6)
+            print(f"instructor: {address}", flush=True)
         await server.serve(stop)
     finally:
+        if instructor is not None:
+            with contextlib.suppress(Exception):
+                await instructor.close()
         if radio is not None:
             with contextlib.suppress(Exception):
                 await radio.close()
@@ -303,7 +319,8 @@ async def _serve_main(args: Any) -> int:
 
 
 def cmd_serve(args: Any) -> int:
-    """``fcb-sim serve --pty [--seed N] [--scenario NAME] [--link-timeout S] [--ble-hci TRANSPORT]``."""
+    """``fcb-sim serve --pty [--seed N] [--scenario NAME] [--link-timeout S] [--ble-hci TRANSPORT]
+    [--instructor TRANSPORT]``."""
     if not args.pty:
         raise UsageError("say where to serve the board: --pty (a fresh pseudo-terminal)")
     if args.scenario not in SCENARIOS:

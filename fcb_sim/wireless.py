@@ -458,6 +458,10 @@ class BoardRadio:
             advertising_interval_max=self.advertising_interval_ms,
         )
 
+    async def advertise(self) -> None:
+        """Advertise again after ``device.stop_advertising()`` (the instructor's radio cut, fcb_sim/instructor.py)."""
+        await self._advertise()
+
     def _on_connection(self, connection: Any) -> None:
         if self.connection is not None:  # one phone at a time
             asyncio.ensure_future(connection.disconnect())

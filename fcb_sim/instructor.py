@@ -1,0 +1,335 @@
+"""The instructor: what a flight school does to a training craft, and what only a simulator knows (the truth).
+
+term --sim's lessons, room view and demo need two things a real board cannot give: where the craft really is
+(position, velocity, attitude, ground contact) and a way to set up a situation (a breeze, a failing battery, a
+stuck motor, a cable or radio that drops out). Neither is the board's: they travel beside it, on the
+instructor channel (a line of JSON each way over a local TCP socket; its vocabulary, ``INSTRUCTOR_*``, is in
+term/protocol.py), never on the board's link, so a lesson that cuts the link still sees the craft.
+
+Sans-IO ``Instructor(board)``, on the board's clock (seconds, ``board.now / 1e6``):
+
+- ``apply(cmd, now)``: one situation command (a dict: ``{"do": "wind", "n": -1.5, ...}``, the verbs and their
+  arguments in ``INSTRUCTOR_SITUATIONS``); returns None or why it cannot be done (one line). ``reset`` puts the
+  craft back on the pad (the room's origin, nose north) with a fresh battery, still air and every fault cleared,
+  only while it stands on the floor in SAFE;
+- ``tick(now)``: the battery's drain (a failing cell), called at the truth rate;
+- ``cable_open(now)``: whether the cable carries bytes now (the server drops both ways while it does not);
+- ``truth(now)``: the truth sample (``INSTRUCTOR_TRUTH`` fields) as a dict; ``truth_line(now)`` as a JSON line.
+
+``InstructorServer`` is the asyncio edge for ``fcb-sim serve --instructor tcp-server:HOST:PORT``: one client at a
+time, a hello line, then a truth line every ``1 / INSTRUCTOR_TRUTH_HZ`` s; each command line is applied and a
+refusal answered with an error line. A radio cut disconnects the BLE central and stops advertising for a while.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import json
+import logging
+import math
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any
+
+from fcb_sim import params as P
+from fcb_sim.errors import UsageError
+from term.protocol import INSTRUCTOR_SITUATIONS, INSTRUCTOR_TRUTH_HZ, INSTRUCTOR_VERSION, Mode
+
+if TYPE_CHECKING:
+    from fcb_sim.board import Board
+
+log = logging.getLogger(__name__)
+
+SOC_FLOOR = 0.03  # a failing cell's drain stops here (the pack is not drawn to nothing)
+MAX_CUT_S = 60.0  # the longest a cable or radio may be cut for
+
+
+class Instructor:
+    """Situations for a board in its world, and the truth about it (module docstring)."""
+
+    def __init__(self, board: Board, on_radio_cut: Callable[[float], str | None] | None = None) -> None:
+        """``on_radio_cut(seconds)`` cuts the radio (the server's bumble radio; a test's own), returning why it
+        cannot (None: done)."""
+        self.board = board
+        self.on_radio_cut = on_radio_cut
+        self.drain = 0.0  # state of charge per second drawn by a failing cell, beside the motors' own
+        self.cuts: list[tuple[float, float]] = []  # (from, until) board seconds: the cable carries nothing
+        self._last_tick: float | None = None
+        self.applied = 0  # commands applied (for tests and the server's log)
+
+    # --- situations ---------------------------------------------------------------------------------------
+
+    def apply(self, cmd: dict[str, Any], now: float) -> str | None:
+        """Carry out one command; None, or why not (one line)."""
+        verb = cmd.get("do")
+        allowed = INSTRUCTOR_SITUATIONS.get(verb) if isinstance(verb, str) else None
+        if allowed is None:
+            return f"unknown situation {verb!r}; known: {', '.join(INSTRUCTOR_SITUATIONS)}"
+        extra = set(cmd) - {"do"} - set(allowed)
+        if extra:
+            return f"{verb}: unknown argument {', '.join(sorted(extra))}; known: {', '.join(allowed) or 'none'}"
+        try:
+            why = getattr(self, f"_do_{verb}")(cmd, now)
+        except (TypeError, ValueError) as exc:
+            return f"{verb}: {exc}"
+        if why is None:
+            self.applied += 1
+        return why
+
+    def _do_reset(self, cmd: dict[str, Any], now: float) -> str | None:
+        b, w = self.board, self.board.world
+        if b.mode != Mode.SAFE or not w.on_ground:
+            return "reset: only with the craft on the floor in SAFE (land, then 0)"
+        soc = _number(cmd, "soc", P.BATTERY_SOC_START, 0.0, 1.0)
+        # Carried back to the pad, nose north: the position and heading do not reach any sensor but the DMP's
+        # yaw (a jump in SAFE, as when the craft is picked up and turned).
+        w.n = w.e = 0.0
+        w.vn = w.ve = w.vd = 0.0
+        w.p = w.q = w.r = 0.0
+        w.qw, w.qx, w.qy, w.qz = 1.0, 0.0, 0.0, 0.0
+        w.gust = [0.0, 0.0, 0.0]
+        w.set_wind(0.0, 0.0, 0.0, gust_std=0.0)
+        for i in range(1, 5):
+            w.stick_motor(i, None)
+        w.pushes = []
+        self._battery(soc)
+        self.drain = 0.0
+        self.cuts = []
+        b.modes.battery_low_latched = False  # a fresh pack
+        if getattr(b.modes, "crashed", False):
+            b.modes.crashed = False  # a fresh craft: the instructor saw the crash
+        return None
+
+    def _do_wind(self, cmd: dict[str, Any], now: float) -> str | None:
+        n = _number(cmd, "n", 0.0, -15.0, 15.0)
+        e = _number(cmd, "e", 0.0, -15.0, 15.0)
+        gust = _number(cmd, "gust", 0.0, 0.0, 5.0)
+        self.board.world.set_wind(n, e, 0.0, gust_std=gust)
+        return None
+
+    def _do_battery(self, cmd: dict[str, Any], now: float) -> str | None:
+        if "soc" in cmd:
+            self._battery(_number(cmd, "soc", 0.9, 0.0, 1.0))
+        self.drain = _number(cmd, "drain", 0.0, 0.0, 1.0)
+        self._last_tick = now
+        return None
+
+    def _do_motor(self, cmd: dict[str, Any], now: float) -> str | None:
+        index = int(_number(cmd, "motor", 0, 1, 4))
+        level = int(_number(cmd, "level", -1, -1, P.AE_MAX))
+        self.board.world.stick_motor(index, None if level < 0 else level)
+        return None
+
+    def _do_cable(self, cmd: dict[str, Any], now: float) -> str | None:
+        cuts = cmd.get("cuts", [])
+        if not isinstance(cuts, list):
+            raise ValueError("cuts is a list of [after s, for s]")
+        out = []
+        for c in cuts:
+            if (not isinstance(c, list | tuple) or len(c) != 2 or not all(_finite(x) for x in c)
+                    or not (0.0 <= c[0] <= 3600.0 and 0.0 < c[1] <= MAX_CUT_S)):
+                raise ValueError(f"each cut is [after s (0..3600), for s (0..{MAX_CUT_S:g})], got {c!r}")
+            out.append((now + float(c[0]), now + float(c[0]) + float(c[1])))
+        self.cuts = sorted(out)  # an empty list: the cable is fine from now on
+        return None
+
+    def _do_radio(self, cmd: dict[str, Any], now: float) -> str | None:
+        seconds = _number(cmd, "cut", 5.0, 0.1, MAX_CUT_S)
+        if self.on_radio_cut is None:
+            return "radio: this board has no radio (fcb-sim serve without --ble-hci)"
+        return self.on_radio_cut(seconds)
+
+    def _battery(self, soc: float) -> None:
+        w = self.board.world
+        w.soc = soc
+        w.volts = max(0.0, P.ocv(soc) - w.current * P.R_INTERNAL)
+
+    # --- time ---------------------------------------------------------------------------------------------
+
+    def tick(self, now: float) -> None:
+        """The failing cell's drain since the last tick; cuts that are over are forgotten."""
+        last, self._last_tick = self._last_tick, now
+        if self.drain > 0.0 and last is not None and now > last:
+            w = self.board.world
+            if w.soc > SOC_FLOOR:
+                self._battery(max(SOC_FLOOR, w.soc - self.drain * (now - last)))
+        if self.cuts and self.cuts[0][1] <= now:
+            self.cuts = [c for c in self.cuts if c[1] > now]
+
+    def cable_open(self, now: float) -> bool:
+        return not any(a <= now < b for a, b in self.cuts)
+
+    # --- the truth ----------------------------------------------------------------------------------------
+
+    def truth(self, now: float) -> dict[str, Any]:
+        """What only the simulator knows, in SI units (INSTRUCTOR_TRUTH in term/protocol.py)."""
+        w = self.board.world
+        tr = w.truth
+        landing = w.landings[-1][1] if w.landings else 0.0
+        return {
+            "kind": "truth", "t": round(now, 4),
+            "n": round(tr.n, 4), "e": round(tr.e, 4), "h": round(tr.h, 4),
+            "vn": round(tr.vn, 4), "ve": round(tr.ve, 4), "vd": round(tr.vd, 4),
+            "phi": round(tr.phi, 5), "theta": round(tr.theta, 5), "psi": round(tr.psi, 5),
+            "p": round(tr.p, 4), "q": round(tr.q, 4), "r": round(tr.r, 4),
+            "on_ground": tr.on_ground, "volts": round(tr.volts, 3), "soc": round(tr.soc, 4),
+            "landings": len(w.landings), "touchdown": round(landing, 3), "crashes": len(w.crashes),
+            "cable": self.cable_open(now),
+            "wind_n": round(w.wind_mean[0], 2), "wind_e": round(w.wind_mean[1], 2), "gust": round(w.gust_std, 2),
+        }
+
+    def truth_line(self, now: float) -> bytes:
+        return (json.dumps(self.truth(now), separators=(",", ":")) + "\n").encode()
+
+
+def _finite(x: object) -> bool:
+    return isinstance(x, int | float) and not isinstance(x, bool) and math.isfinite(x)
+
+
+def _number(cmd: dict[str, Any], name: str, default: float, lo: float, hi: float) -> float:
+    v = cmd.get(name, default)
+    if not _finite(v):
+        raise ValueError(f"{name} must be a number, got {v!r}")
+    if not lo <= v <= hi:
+        raise ValueError(f"{name} must be between {lo:g} and {hi:g}, got {v:g}")
+    return float(v)
+
+
+def parse_tcp_server(spec: str) -> tuple[str, int]:
+    """``tcp-server:HOST:PORT`` (PORT 0: any free port) -> (host, port); UsageError otherwise."""
+    kind, _, rest = spec.partition(":")
+    host, _, port = rest.rpartition(":")
+    if kind != "tcp-server" or not host or not port.isdigit() or int(port) > 65535:
+        raise UsageError(f"--instructor {spec!r}: expected tcp-server:HOST:PORT (PORT 0 for any free port), e.g. "
+                         "tcp-server:127.0.0.1:0")
+    return host, int(port)
+
+
+# --- the asyncio edge -------------------------------------------------------------------------------------------
+
+WRITE_BACKLOG = 65536  # bytes queued for a client that does not read: truth lines are skipped beyond this
+MAX_LINE = 4096  # a command line longer than this is refused (and the client dropped)
+
+
+class InstructorServer:
+    """The instructor channel on a local TCP port (module docstring). ``radio``: the board's ``BoardRadio``."""
+
+    def __init__(self, instructor: Instructor, *, radio: Any = None) -> None:
+        self.instructor = instructor
+        self.radio = radio
+        if radio is not None:
+            instructor.on_radio_cut = self._cut_radio
+        self._server: asyncio.Server | None = None
+        self._writer: asyncio.StreamWriter | None = None
+        self._task: asyncio.Task[None] | None = None
+        self._radio_task: asyncio.Task[None] | None = None
+        self.address = ""
+        self.skipped = 0  # truth lines not sent to a slow client
+
+    @property
+    def now(self) -> float:
+        return self.instructor.board.now / 1e6
+
+    async def start(self, spec: str) -> str:
+        """Listen on ``spec``; returns the address a client connects to (``tcp-client:HOST:PORT``)."""
+        host, port = parse_tcp_server(spec)
+        try:
+            self._server = await asyncio.start_server(self._client, host, port, limit=MAX_LINE)
+        except OSError as exc:
+            raise UsageError(f"--instructor {spec}: {exc.strerror or exc}") from None
+        sock = self._server.sockets[0].getsockname()
+        self.address = f"tcp-client:{sock[0]}:{sock[1]}"
+        self._task = asyncio.create_task(self._ticker(), name="instructor truth")
+        return self.address
+
+    async def _ticker(self) -> None:
+        period = 1.0 / INSTRUCTOR_TRUTH_HZ
+        while True:
+            await asyncio.sleep(period)
+            now = self.now
+            self.instructor.tick(now)
+            w = self._writer
+            if w is None or w.is_closing():
+                continue
+            if w.transport.get_write_buffer_size() > WRITE_BACKLOG:
+                self.skipped += 1
+                continue
+            w.write(self.instructor.truth_line(now))
+
+    async def _client(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
+        if self._writer is not None and not self._writer.is_closing():
+            self._writer.close()  # one instructor at a time: the newest (a restarted term) wins
+        self._writer = writer
+        writer.write((json.dumps({"kind": "hello", "version": INSTRUCTOR_VERSION,
+                                  "hz": INSTRUCTOR_TRUTH_HZ}) + "\n").encode())
+        try:
+            while True:
+                try:
+                    line = await reader.readline()
+                except (ValueError, asyncio.LimitOverrunError):
+                    self._answer(writer, None, f"a command line longer than {MAX_LINE} bytes")
+                    break
+                if not line:
+                    break
+                self._answer(writer, *self._command(line))
+        except (ConnectionError, OSError):
+            pass
+        finally:
+            if self._writer is writer:
+                self._writer = None
+            with contextlib.suppress(Exception):
+                writer.close()
+
+    def _command(self, line: bytes) -> tuple[str | None, str | None]:
+        try:
+            cmd = json.loads(line)
+        except (ValueError, UnicodeDecodeError):
+            return None, "not a JSON line"
+        if not isinstance(cmd, dict):
+            return None, "a command is a JSON object with \"do\""
+        why = self.instructor.apply(cmd, self.now)
+        if why is None:
+            log.info("instructor: %s", cmd)
+        return str(cmd.get("do")), why
+
+    def _answer(self, writer: asyncio.StreamWriter, verb: str | None, why: str | None) -> None:
+        if why is not None and not writer.is_closing():
+            writer.write((json.dumps({"kind": "error", "do": verb, "why": why}) + "\n").encode())
+
+    def _cut_radio(self, seconds: float) -> str | None:
+        radio = self.radio
+        if radio is None or radio.device is None:
+            return "radio: not on the air"
+        if self._radio_task is not None and not self._radio_task.done():
+            self._radio_task.cancel()
+        self._radio_task = asyncio.get_running_loop().create_task(self._radio_silence(seconds), name="radio cut")
+        return None
+
+    async def _radio_silence(self, seconds: float) -> None:
+        """Out of range for ``seconds``: the connection drops (the board sees it lost) and nobody can connect."""
+        radio = self.radio
+        with contextlib.suppress(Exception):
+            await radio.device.stop_advertising()
+        conn = radio.connection
+        if conn is not None:
+            with contextlib.suppress(Exception):
+                await conn.disconnect()
+        try:
+            await asyncio.sleep(seconds)
+        finally:
+            with contextlib.suppress(Exception):
+                await radio.advertise()
+
+    async def close(self) -> None:
+        for task in (self._task, self._radio_task):
+            if task is not None:
+                task.cancel()
+                with contextlib.suppress(asyncio.CancelledError, Exception):
+                    await task
+        if self._writer is not None:
+            with contextlib.suppress(Exception):
+                self._writer.close()
+        if self._server is not None:
+            self._server.close()
+            with contextlib.suppress(Exception):
+                await self._server.wait_closed()
