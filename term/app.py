@@ -27,35 +27,39 @@ from collections.abc import Callable, Iterable
 from datetime import datetime
 from pathlib import Path
 
+from textual import events
 from textual.app import App, ComposeResult, SystemCommand
 from textual.containers import Horizontal, Vertical
 from textual.screen import Screen
-from textual.widgets import Footer, Input
+from textual.widgets import Footer, Input, Static
 
+from term.alarms import Alarms
 from term.config import Config
 from term.connection import Connection
 from term.download import EMPTY, FAILED, RUNNING, LogDownloader
 from term.errors import EXIT_USAGE
 from term.events import EventsCleared, Fatal, FromLink, JoystickNamed, NotSent, StationEvent
 from term.input.joystick import JoystickPoller
-from term.input.keymap import SAFETY_ACTIONS, Action, KeyBinding, action_by_name, pretty_key
+from term.input.keymap import PRESET_TEXT, SAFETY_ACTIONS, Action, KeyBinding, action_by_name, pretty_key
 from term.link import PacketReceived
 from term.logfile import log_filename, write_csv
-from term.model import Model
+from term.model import Model, mode_name
 from term.phone import Phone, RunAction, SendCommand, SetAxes
-from term.protocol import Event, Joystick, LogChunk, LogStatus, Mode, Op
+from term.protocol import FLIGHT_MODES, Event, Joystick, LogChunk, LogStatus, Mode, Op
 from term.recording import SessionRecorder
 from term.replay import Replay
 from term.station import RADIO_SESSION, Station
 from term.transports.base import Transport
 from term.widgets.base import ModelView
 from term.widgets.battery import BatteryGauge
+from term.widgets.confirm import ConfirmScreen
 from term.widgets.controls import ControlsPanel
 from term.widgets.dirprompt import DirectoryPrompt
 from term.widgets.download import DownloadPanel
 from term.widgets.events import EventsList
 from term.widgets.help import HelpScreen
 from term.widgets.horizon import HeadingTape, Horizon
+from term.widgets.joystick import JoystickScreen, SaveMapping
 from term.widgets.link import LinkPanel
 from term.widgets.mode import ModeBanner
 from term.widgets.motors import MotorBars
@@ -63,11 +67,20 @@ from term.widgets.plots import LivePlot, PlotsScreen
 from term.widgets.pressure import PressureIndicator
 from term.widgets.profile import ProfileTable
 from term.widgets.rates import RateGauges
+from term.widgets.readiness import ReadinessPanel
 from term.widgets.wireless import PhoneRequest, WirelessScreen
 
 __all__ = ["RADIO_SESSION", "FlightScreen", "PlotsScreen", "ProfileScreen", "TermApp"]
 
-FOOTER_ACTIONS = ("help", "show_plots", "show_flight", "show_profile", "show_wireless", "log_download")
+# The footer: the mode keys with PANIC first, then the screens; each with a short label (the help has the long one).
+FOOTER_LABELS = {
+    "mode_panic": "PANIC", "mode_safe": "SAFE", "mode_calibration": "CALIB", "mode_manual": "MANUAL",
+    "mode_yaw": "YAW", "mode_full": "FULL", "mode_raw": "RAW", "mode_height": "HEIGHT", "help": "help",
+    "show_plots": "plots", "show_flight": "flight", "show_profile": "profile", "show_wireless": "wireless",
+    "log_download": "log",
+}
+FOOTER_ACTIONS = tuple(FOOTER_LABELS)
+MIN_SIZE = (100, 34)  # the flight screen's panels need this many columns and rows; smaller: a notice instead
 
 
 def _panel(widget: ModelView, title: str, wid: str) -> ModelView:
@@ -77,9 +90,11 @@ def _panel(widget: ModelView, title: str, wid: str) -> ModelView:
 
 
 class FlightScreen(Screen[None]):
-    """The main screen: everything a pilot needs at a glance."""
+    """The main screen: everything a pilot needs at a glance; in SAFE, the readiness checks beside the events. In a
+    terminal too small for its panels, a notice says so instead of cut panels (the keys keep working)."""
 
     def compose(self) -> ComposeResult:
+        yield Static("", id="too-small")
         yield ModeBanner(id="mode")
         with Horizontal(id="top"):
             with Vertical(id="attitude") as v:
@@ -96,8 +111,21 @@ class FlightScreen(Screen[None]):
             yield _panel(ControlsPanel(), "sticks · trims · gains", "controls")
             yield _panel(LinkPanel(), "link", "link")
         yield DownloadPanel(id="download")
-        yield _panel(EventsList(), "events · errors", "events")
+        with Horizontal(id="bottom"):
+            keymap = self.app.keymap  # type: ignore[attr-defined]
+            yield _panel(ReadinessPanel(keymap), "ready to fly? (SAFE)", "readiness")
+            yield _panel(EventsList(), "events · errors", "events")
         yield Footer()
+
+    def on_resize(self, event: events.Resize) -> None:
+        w, h = event.size
+        small = w < MIN_SIZE[0] or h < MIN_SIZE[1]
+        self.set_class(small, "too-small")
+        if small:
+            self.query_one("#too-small", Static).update(
+                f"This terminal is {w}×{h}: the flight screen needs at least {MIN_SIZE[0]}×{MIN_SIZE[1]}.\n"
+                "Make the window larger (or the font smaller).\n\n"
+                "The keys still work: 1 or ESC is PANIC, 0 is SAFE, F1 the help.")
 
 
 class ProfileScreen(Screen[None]):
@@ -235,7 +263,7 @@ class TermApp(LogDownloads, App[int]):
         self.keymap: tuple[KeyBinding, ...] = self.config.keymap
         self.recorder = recorder
         self.replay = replay
-        self._noted: object = None  # the last events-list entry recorded
+        self._noted = 0  # the seq of the last events-list entry recorded
         self._record_error_said = False
         if replay is not None:
             clock = replay.clock  # the panels, plots and events run on the recording's time
@@ -260,6 +288,8 @@ class TermApp(LogDownloads, App[int]):
         self._want_joystick = joystick
         self.log_directory = log_directory or self.config.log_directory
         self.exit_message: str | None = None
+        self.alarms = Alarms()
+        self.alarms_rung: list[str] = []  # every alarm the bell was rung for (or would have been, bell off)
         self._bind_keys()
 
     def _bind_keys(self) -> None:
@@ -273,6 +303,8 @@ class TermApp(LogDownloads, App[int]):
             "profile": self.ask_profile,
             "clear_events": self.clear_events,
             "log_download": self.local_log_download,
+            "log_reset": self.ask_log_erase,
+            "show_joystick": lambda: self.show_screen("joystick"),
         }
         unknown = {b.action.local for b in self.keymap if b.action.local} - set(self.local)
         if unknown:
@@ -281,10 +313,12 @@ class TermApp(LogDownloads, App[int]):
             self.keymap = tuple(b for b in self.keymap if b.action.local is not None)  # no board to command
             for keys, action, text in REPLAY_KEYS:
                 self._bindings.bind(keys, action, text, priority=True)
-        for b in self.keymap:
+        order = {name: i for i, name in enumerate(FOOTER_ACTIONS)}  # the footer shows them in binding order
+        for b in sorted(self.keymap, key=lambda b: order.get(b.action.name, len(order))):
+            name = b.action.name
             self._bindings.bind(
-                ",".join(b.keys), f"pilot('{b.action.name}')", b.action.description,
-                show=b.action.name in FOOTER_ACTIONS,
+                ",".join(b.keys), f"pilot('{name}')", FOOTER_LABELS.get(name, b.action.description),
+                show=name in FOOTER_LABELS,
                 key_display=" ".join(pretty_key(k) for k in b.keys), priority=True,
             )
 
@@ -332,6 +366,7 @@ class TermApp(LogDownloads, App[int]):
         self.install_screen(PlotsScreen(self.config.plot_series, self.config.plot_window), "plots")
         self.install_screen(ProfileScreen(), "profile")
         self.install_screen(WirelessScreen(self.phone), "wireless")
+        self.install_screen(JoystickScreen(lambda: self.poller), "joystick")
         self.set_interval(1.0 / self.render_hz, self.render_now)
         await self.station.start()
         if self.start_screen != "flight":
@@ -390,6 +425,11 @@ class TermApp(LogDownloads, App[int]):
         now = self.clock()
         self.station.sample()
         self._check_download(now)
+        if self.replay is None:
+            for alarm in self.alarms.update(self.model, now):
+                self.alarms_rung.append(alarm)
+                if self.config.bell:
+                    self.bell()
         if self.recorder is not None:
             self._record_notes(now)  # (notes written straight into the model, as the log download does)
             self.recorder.poll(now)
@@ -451,6 +491,25 @@ class TermApp(LogDownloads, App[int]):
         if res.packet is not None:
             self.set_stick(res.packet)
 
+    def on_save_mapping(self, message: SaveMapping) -> None:
+        """The joystick screen's "save": the mapping into the config file as the device's own (term.config)."""
+        from dataclasses import replace
+
+        from term.config import ConfigError, default_path, save_joystick_mapping
+
+        path = self.config.source or default_path()
+        try:
+            name = save_joystick_mapping(path, message.mapping, message.device)
+        except ConfigError as exc:
+            self.station.note("error", "joystick", str(exc))
+            return
+        mine = replace(message.mapping, name=name, match=(message.device,))
+        self.config.joystick_mappings = (*(m for m in self.config.joystick_mappings if m.name != name), mine)
+        if self.poller is not None:
+            self.poller.state.mapping = mine
+            self.station.emit(JoystickNamed(self.poller.name, name))
+        self.station.note("info", "joystick", f"joystick mapping saved to {path} as [joystick.mappings.{name}]")
+
     def on_phone_request(self, message: PhoneRequest) -> None:
         """The phone's controls (the wireless screen): carried out as the keys would."""
         for r in message.requests:
@@ -467,7 +526,58 @@ class TermApp(LogDownloads, App[int]):
         if isinstance(self.screen, HelpScreen):
             self.pop_screen()
         else:
-            self.push_screen(HelpScreen(self.keymap))
+            self.push_screen(HelpScreen(self.keymap, PRESET_TEXT.get(self.config.key_preset, "")))
+
+    def ask_log_erase(self) -> None:
+        """F4: erase the flash log, after a question that says how much would be gone (the board is asked for
+        its log status first, so the count is its latest)."""
+        if self.control_connection() is None:
+            self.station.note("error", "term", "not sent: log erase: not connected")
+            return
+        self.send(Op.LOG_STATUS)
+
+        def question() -> str:
+            ls = self.model.log_status
+            what = ("how much is in it: asking the board…" if ls is None else
+                    f"{ls.records} records ({ls.used / 1000:.1f} kB) will be gone")
+            return f"Erase the board's flash log? {what}.\nDownload it first with F5 if you want to keep it."
+
+        def answer(yes: bool | None) -> None:
+            if yes:
+                self.send(Op.LOG_RESET)
+            else:
+                self.station.note("info", "term", "log erase cancelled: nothing erased")
+
+        self.push_screen(ConfirmScreen(question, "erase the log", "keep it", title="erase the flash log"), answer)
+
+    async def action_quit(self) -> None:
+        """Ctrl+Q. While the motors run it asks first; quitting then sends PANIC before it goes (and says so), so
+        the board descends under control at once rather than after its link timeout."""
+        mode = self.model.mode
+        running = mode in FLIGHT_MODES or mode == Mode.PANIC
+        if not running or self.replay is not None or self.control_connection() is None:
+            self.exit()
+            return
+        if isinstance(self.screen, ConfirmScreen):
+            return  # already asking
+
+        def answer(yes: bool | None) -> None:
+            if not yes:
+                self.station.note("info", "term", "quit cancelled: still flying")
+                return
+            if self.model.mode in FLIGHT_MODES:
+                self.send(Op.MODE, Mode.PANIC)
+                self.exit_message = "PANIC sent before quitting: the board descends and lands by itself"
+                self.station.note("error", "term", self.exit_message)
+                self.set_timer(QUIT_PANIC_WAIT_S, self.exit)  # time for the PANIC to go out (and be retried)
+            else:
+                self.exit()
+
+        text = (f"The motors are running ({mode_name(mode)}).\nQuitting sends PANIC first: the board descends and "
+                "lands by itself." if mode in FLIGHT_MODES else
+                "PANIC is in progress: the board lands by itself.\nQuit the terminal anyway?")
+        self.push_screen(ConfirmScreen(text, "PANIC and quit" if mode in FLIGHT_MODES else "quit", "keep flying",
+                                       title="quit while the motors run?"), answer)
 
     def show_screen(self, name: str) -> None:
         while len(self.screen_stack) > 1:
@@ -505,13 +615,14 @@ class TermApp(LogDownloads, App[int]):
         assert self.recorder is not None
         new = []
         for entry in reversed(self.model.events):
-            if entry is self._noted:
+            if entry.seq <= self._noted:
                 break
             new.append(entry)
-        for entry in reversed(new):
-            self.recorder.event(now, entry.severity, entry.source, entry.text)
+        for entry in reversed(new):  # (a merged repeat is written again, with its count)
+            text = entry.text if entry.count == 1 else f"{entry.text} (×{entry.count})"
+            self.recorder.event(now, entry.severity, entry.source, text)
         if new:
-            self._noted = new[0]
+            self._noted = new[0].seq
 
     def _replay_step(self) -> None:
         """Play the recording on by the wall time since the last step; the link panel says it is a replay."""
@@ -553,6 +664,7 @@ class TermApp(LogDownloads, App[int]):
         self.notify(replay.status(), timeout=1.5)
 
 
+QUIT_PANIC_WAIT_S = 0.5  # quitting in flight: the PANIC command's time to reach the board before the link closes
 REPLAY_SEEK_S = 5.0
 REPLAY_KEYS = (  # term replay: the pilot's keys have no board to command; these play the recording
     ("space", "replay('pause')", "pause / play"),
