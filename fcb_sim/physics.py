@@ -110,17 +110,38 @@ class World:
         self.drag_lin = P.DRAG_LINEAR if drag else 0.0
         self.drag_xy = P.DRAG_ROT_XY if drag else 0.0
         self.drag_z = P.DRAG_ROT_Z if drag else 0.0
-        # state
+        self._init_body(height, airborne, phi, theta, psi)
+        self._init_power(soc, airborne)
+        self._init_disturbances()
+        # sensors, all drawing from self.rng (in this order: a seed gives the same noise)
+        self.noise = NoiseTable(self.rng)
+        self.mpu = Mpu6050(self.rng, self.noise, vibration=vibration)
+        self.dmp_model = Dmp(self.rng, self.noise, latency=dmp_latency)
+        self.baro_model = Ms5611(self.rng, self.noise, spikes=baro_spikes)
+        self.adc = BatteryAdc(self.noise)
+        self._dmp_every = max(1, round(physics_hz / P.DMP_RATE_HZ))
+        self._schedule(0)
+        self._init_integrator()
+        self.dmp_model.sample(0.0, self.qw, self.qx, self.qy, self.qz)
+
+    def _init_body(self, height: float, airborne: bool, phi: float, theta: float, psi: float) -> None:
+        """Position, speed, attitude and rates: at rest on the floor, or in the air at ``height``."""
         self.n = self.e = 0.0
         self.d = -height
         self.vn = self.ve = self.vd = 0.0
         self.qw, self.qx, self.qy, self.qz = euler_to_quat(phi, theta, psi)
         self.p = self.q = self.r = 0.0
         self.acc_n = self.acc_e = self.acc_d = 0.0  # acceleration NED of the last step (m/s²)
-        self.on_ground = ground and height <= 0.0 and not airborne
+        self.on_ground = self.ground_enabled and height <= 0.0 and not airborne
         if self.on_ground:
             self.d = 0.0
             self.qw, self.qx, self.qy, self.qz = euler_to_quat(0.0, 0.0, psi)
+        self.landings: list[tuple[float, float]] = []  # (time, vertical impact speed m/s)
+        self.crashes: list[Crash] = []  # impacts too fast or too tilted (params: CRASH_SPEED_M_S, CRASH_TILT_DEG)
+        self.ceiling_d = -P.CEILING_M  # NED down coordinate of the ceiling
+
+    def _init_power(self, soc: float, airborne: bool) -> None:
+        """Battery and motors: idle, or (``airborne``) rotors at hover speed with the battery at that load."""
         self.soc = soc
         self.current = P.AVIONICS_CURRENT
         self.volts = P.ocv(soc) - self.current * P.R_INTERNAL
@@ -129,33 +150,25 @@ class World:
         self._any_stuck = False
         w0 = 0.0
         if airborne:
-            # rotors at hover speed, battery at the matching load
             w0 = P.OMEGA_HOVER
             self.current = 4.0 * P.POWER_COEF * w0**3 / self.volts + P.AVIONICS_CURRENT
             self.volts = P.ocv(soc) - self.current * P.R_INTERNAL
             self.cmd = [round(w0 / (P.OMEGA_PER_AE * self.volts / P.V_REF))] * 4
         self.w1 = self.w2 = self.w3 = self.w4 = w0
         self.requested = tuple(self.cmd)  # as the firmware last wrote them
-        self.landings: list[tuple[float, float]] = []  # (time, vertical impact speed m/s)
-        self.crashes: list[Crash] = []  # impacts too fast or too tilted (params: CRASH_SPEED_M_S, CRASH_TILT_DEG)
-        self.ceiling_d = -P.CEILING_M  # NED down coordinate of the ceiling
-        # disturbances
+
+    def _init_disturbances(self) -> None:
         self.wind_mean = (0.0, 0.0, 0.0)
         self.gust_std = 0.0
         self.gust_tau = 1.0
         self.gust = [0.0, 0.0, 0.0]
         self.pushes: list[tuple[float, float, tuple[float, ...]]] = []
         self.ext = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)  # force NED (N), torque body (N m) now acting
-        # sensors, all drawing from self.rng
-        self.noise = NoiseTable(self.rng)
-        self.mpu = Mpu6050(self.rng, self.noise, vibration=vibration)
-        self.dmp_model = Dmp(self.rng, self.noise, latency=dmp_latency)
-        self.baro_model = Ms5611(self.rng, self.noise, spikes=baro_spikes)
-        self.adc = BatteryAdc(self.noise)
-        self._dmp_every = max(1, round(physics_hz / P.DMP_RATE_HZ))
-        self._alpha = 1.0 - math.exp(-self.dt / P.MOTOR_TAU)
+
+    def _init_integrator(self) -> None:
+        """The integrator's constants: Euler's equations pre-divided by the inertia and multiplied by dt."""
         dt = self.dt
-        # the integrator's constants: Euler's equations pre-divided by the inertia and multiplied by dt
+        self._alpha = 1.0 - math.exp(-dt / P.MOTOR_TAU)
         self._consts = (
             self._alpha,
             P.B_ROTOR / P.MASS,  # thrust acceleration per rotor speed squared
@@ -171,7 +184,6 @@ class World:
         self._inv_4wh2 = 0.25 / (P.OMEGA_HOVER * P.OMEGA_HOVER)
         self._targets = [0.0, 0.0, 0.0, 0.0]
         self._update_targets()
-        self.dmp_model.sample(0.0, self.qw, self.qx, self.qy, self.qz)
 
     # ---- commands and disturbances ---------------------------------------------------------------------------
     def set_motors(self, ae1: int, ae2: int, ae3: int, ae4: int) -> None:
@@ -316,108 +328,87 @@ class World:
             self.crashes.append(Crash(t, speed, tilt, where))
 
     def advance_to(self, t: float) -> None:
-        """Integrate in fixed steps up to time ``t`` (s); a time in the past does nothing."""
+        """Integrate in fixed steps up to time ``t`` (s); a time in the past does nothing. The steps run in
+        stretches up to the next periodic event (``_event``), inlined on locals (CPython is much faster with them
+        than with attribute access in the hot loop)."""
         dt = self.dt
         k_end = int(t / dt + 1e-9)
-        k = self.k
-        if k_end <= k:
-            return
-        # locals: CPython is much faster with them than with attribute access in the hot loop
-        n, e, d = self.n, self.e, self.d
-        vn, ve, vd = self.vn, self.ve, self.vd
-        qw, qx, qy, qz = self.qw, self.qx, self.qy, self.qz
-        p, q, r = self.p, self.q, self.r
-        w1, w2, w3, w4 = self.w1, self.w2, self.w3, self.w4
-        an = ae = ad = 0.0
-        on_ground = self.on_ground
-        ground = self.ground_enabled
-        ceiling_d = self.ceiling_d
-        c1, c2, c3, c4 = self._targets
-        alpha, kbm, klm, kl, km, kn, dpx, dpy, dpz, gx_, gy_, gz_, hdt = self._consts
-        wn, we, wd, fxn, fxe, fxdg, txb, tyb, tzb = self._forcing
-        dmp_every = self._dmp_every
-        next_dmp = (k // dmp_every + 1) * dmp_every
-        next_slow = (k // SLOW_EVERY + 1) * SLOW_EVERY
-        next_evt = next_dmp if next_dmp < next_slow else next_slow
-        for k in range(self.k + 1, k_end + 1):
-            # motors: exact first-order response
-            w1 += (c1 - w1) * alpha
-            w2 += (c2 - w2) * alpha
-            w3 += (c3 - w3) * alpha
-            w4 += (c4 - w4) * alpha
-            s1 = w1 * w1
-            s2 = w2 * w2
-            s3 = w3 * w3
-            s4 = w4 * w4
-            ta = kbm * (s1 + s2 + s3 + s4)
-            t2 = ta + ta
-            # translational: thrust along body -z (third column of R), drag against the air, in NED
-            an = fxn - t2 * (qx * qz + qw * qy) - klm * (vn - wn)
-            ae = fxe - t2 * (qy * qz - qw * qx) - klm * (ve - we)
-            ad = fxdg - ta + t2 * (qx * qx + qy * qy) - klm * (vd - wd)
-            if on_ground and ad >= 0.0:
-                an = ae = ad = 0.0  # resting on the feet: the floor carries what the rotors do not
-            else:
+        while self.k < k_end:
+            k_stop = self._next_evt if self._next_evt < k_end else k_end
+            n, e, d, vn, ve, vd = self.n, self.e, self.d, self.vn, self.ve, self.vd
+            qw, qx, qy, qz, p, q, r = self.qw, self.qx, self.qy, self.qz, self.p, self.q, self.r
+            w1, w2, w3, w4 = self.w1, self.w2, self.w3, self.w4
+            on_ground, ground, ceiling_d = self.on_ground, self.ground_enabled, self.ceiling_d
+            c1, c2, c3, c4 = self._targets
+            alpha, kbm, klm, kl, km, kn, dpx, dpy, dpz, gx_, gy_, gz_, hdt = self._consts
+            wn, we, wd, fxn, fxe, fxdg, txb, tyb, tzb = self._forcing
+            for k in range(self.k + 1, k_stop + 1):  # (at least one step: an, ae, ad are always set)
+                # motors: exact first-order response
+                w1 += (c1 - w1) * alpha
+                w2 += (c2 - w2) * alpha
+                w3 += (c3 - w3) * alpha
+                w4 += (c4 - w4) * alpha
+                s1 = w1 * w1
+                s2 = w2 * w2
+                s3 = w3 * w3
+                s4 = w4 * w4
+                ta = kbm * (s1 + s2 + s3 + s4)
+                t2 = ta + ta
+                # translational: thrust along body -z (third column of R), drag against the air, in NED
+                an = fxn - t2 * (qx * qz + qw * qy) - klm * (vn - wn)
+                ae = fxe - t2 * (qy * qz - qw * qx) - klm * (ve - we)
+                ad = fxdg - ta + t2 * (qx * qx + qy * qy) - klm * (vd - wd)
+                if on_ground and ad >= 0.0:
+                    an = ae = ad = 0.0  # resting on the feet: the floor carries what the rotors do not
+                    continue
                 on_ground = False  # (take-off when the thrust beats the weight)
-                vn += an * dt
-                ve += ae * dt
-                vd += ad * dt
-                n += vn * dt
-                e += ve * dt
-                d += vd * dt
+                vn, ve, vd = vn + an * dt, ve + ae * dt, vd + ad * dt
+                n, e, d = n + vn * dt, e + ve * dt, d + vd * dt
                 # rotational: Euler's equations in the body frame (explicit, pre-scaled)
                 p, q, r = (p + kl * (s4 - s2) - dpx * p + txb - gx_ * q * r,
                            q + km * (s1 - s3) - dpy * q + tyb - gy_ * r * p,
                            r + kn * (s2 + s4 - s1 - s3) - dpz * r + tzb - gz_ * p * q)
-                hp = p * hdt
-                hq = q * hdt
-                hr = r * hdt
+                hp, hq, hr = p * hdt, q * hdt, r * hdt
                 qw, qx, qy, qz = (qw - qx * hp - qy * hq - qz * hr, qx + qw * hp + qy * hr - qz * hq,
                                   qy + qw * hq + qz * hp - qx * hr, qz + qw * hr + qx * hq - qy * hp)
                 if d < ceiling_d:
                     self._impact(k * dt, vn, ve, vd, qx, qy, "ceiling")
-                    d = ceiling_d
-                    vd = 0.0
-                if ground and d > 0.0:
-                    # touch-down: inelastic, levelled on the legs, yaw kept
-                    self.landings.append((k * dt, vd))
-                    self._impact(k * dt, vn, ve, vd, qx, qy, "ground")
-                    d = 0.0
-                    vn = ve = vd = 0.0
-                    an = ae = ad = 0.0
-                    p = q = r = 0.0
-                    psi = math.atan2(2.0 * (qw * qz + qx * qy), 1.0 - 2.0 * (qy * qy + qz * qz))
-                    qw, qx, qy, qz = math.cos(psi / 2), 0.0, 0.0, math.sin(psi / 2)
+                    d, vd = ceiling_d, 0.0
+                if ground and d > 0.0:  # touch-down: inelastic
+                    qw, qx, qy, qz = self._touch_down(k * dt, vn, ve, vd, qw, qx, qy, qz)
+                    d = vn = ve = vd = an = ae = ad = p = q = r = 0.0
                     on_ground = True
-            if k == next_evt:
-                # renormalise every 10 steps: one Newton step for 1/sqrt(n2) (n2 stays within 1e-5 of 1)
-                f = 1.5 - 0.5 * (qw * qw + qx * qx + qy * qy + qz * qz)
-                qw *= f
-                qx *= f
-                qy *= f
-                qz *= f
-                self.n, self.e, self.d = n, e, d
-                self.vn, self.ve, self.vd = vn, ve, vd
-                self.qw, self.qx, self.qy, self.qz = qw, qx, qy, qz
-                self.p, self.q, self.r = p, q, r
-                self.w1, self.w2, self.w3, self.w4 = w1, w2, w3, w4
-                self.k = k
-                self.t = k * dt
-                if k == next_dmp:
-                    self.dmp_model.sample(k * dt, qw, qx, qy, qz)
-                    next_dmp += dmp_every
-                if k == next_slow:
-                    self._slow(SLOW_EVERY * dt)
-                    c1, c2, c3, c4 = self._targets
-                    wn, we, wd, fxn, fxe, fxdg, txb, tyb, tzb = self._forcing
-                    next_slow += SLOW_EVERY
-                next_evt = next_dmp if next_dmp < next_slow else next_slow
-        self.n, self.e, self.d = n, e, d
-        self.vn, self.ve, self.vd = vn, ve, vd
-        self.qw, self.qx, self.qy, self.qz = qw, qx, qy, qz
-        self.p, self.q, self.r = p, q, r
-        self.w1, self.w2, self.w3, self.w4 = w1, w2, w3, w4
-        self.acc_n, self.acc_e, self.acc_d = an, ae, ad
-        self.on_ground = on_ground
-        self.k = k
-        self.t = k * dt
+            self.n, self.e, self.d, self.vn, self.ve, self.vd = n, e, d, vn, ve, vd
+            self.qw, self.qx, self.qy, self.qz, self.p, self.q, self.r = qw, qx, qy, qz, p, q, r
+            self.w1, self.w2, self.w3, self.w4 = w1, w2, w3, w4
+            self.acc_n, self.acc_e, self.acc_d, self.on_ground = an, ae, ad, on_ground
+            self.k, self.t = k_stop, k_stop * dt
+            if k_stop == self._next_evt:
+                self._event(k_stop)
+
+    def _event(self, k: int) -> None:
+        """The periodic event at step ``k`` (every DMP sample and every SLOW_EVERY steps): the attitude
+        renormalised by one Newton step for 1/sqrt(n2) (n2 stays within 1e-5 of 1 in between), then the DMP model
+        samples it and the slow parts are updated."""
+        qw, qx, qy, qz = self.qw, self.qx, self.qy, self.qz
+        f = 1.5 - 0.5 * (qw * qw + qx * qx + qy * qy + qz * qz)
+        self.qw, self.qx, self.qy, self.qz = qw * f, qx * f, qy * f, qz * f
+        if k % self._dmp_every == 0:
+            self.dmp_model.sample(k * self.dt, self.qw, self.qx, self.qy, self.qz)
+        if k % SLOW_EVERY == 0:
+            self._slow(SLOW_EVERY * self.dt)
+        self._schedule(k)
+
+    def _schedule(self, k: int) -> None:
+        """The step of the next periodic event after step ``k``."""
+        next_dmp = (k // self._dmp_every + 1) * self._dmp_every
+        next_slow = (k // SLOW_EVERY + 1) * SLOW_EVERY
+        self._next_evt = next_dmp if next_dmp < next_slow else next_slow
+
+    def _touch_down(self, t: float, vn: float, ve: float, vd: float,
+                    qw: float, qx: float, qy: float, qz: float) -> tuple[float, float, float, float]:
+        """Record a landing (and a crash if it was one); the attitude levelled on the legs, yaw kept."""
+        self.landings.append((t, vd))
+        self._impact(t, vn, ve, vd, qx, qy, "ground")
+        psi = math.atan2(2.0 * (qw * qz + qx * qy), 1.0 - 2.0 * (qy * qy + qz * qz))
+        return math.cos(psi / 2), 0.0, 0.0, math.sin(psi / 2)
