@@ -85,6 +85,8 @@ class Rig:
         self.results: list[Result] = []
         self.autopilot_ended: list[str] = []
         self.refused_situations: list[str] = []
+        self.captions: list[str] = []  # every caption line shown, in order (the app's LessonBar)
+        self.heights: list[tuple[float, float]] = []  # (time, true height) at every tick
         self.download: LogDownloader | None = None
         self.saved: bytes | None = None
         session = {"link_timeout": cfg.link_timeout, **JOYSTICK_POLICIES[cfg.joystick_policy]}
@@ -181,6 +183,9 @@ class Rig:
             self.results.append(tick.result)
         if tick.autopilot_ended is not None:
             self.autopilot_ended.append(tick.autopilot_ended)
+        caption = self.driver.caption
+        if caption and (not self.captions or self.captions[-1] != caption):
+            self.captions.append(caption)
 
     # --- the clock ----------------------------------------------------------------------------------------
 
@@ -217,6 +222,7 @@ class Rig:
             sample = parse_line(inst.truth_line(board_s))
             if isinstance(sample, Truth):
                 self.driver.truth(sample)
+                self.heights.append((t, sample.h))
             self.apply_tick(self.driver.tick(self.model, t))
             self._download_tick()
         if t >= self._next_render:

@@ -41,6 +41,8 @@ from term.errors import EXIT_USAGE
 from term.events import EventsCleared, Fatal, FromLink, JoystickNamed, NotSent, StationEvent
 from term.input.joystick import JoystickPoller
 from term.input.keymap import PRESET_TEXT, SAFETY_ACTIONS, Action, KeyBinding, action_by_name, pretty_key
+from term.instructor import InstructorClient
+from term.lessonapp import LessonsMixin
 from term.link import PacketReceived
 from term.logfile import log_filename, write_csv
 from term.model import Model, mode_name
@@ -60,6 +62,7 @@ from term.widgets.events import EventsList
 from term.widgets.help import HelpScreen
 from term.widgets.horizon import HeadingTape, Horizon
 from term.widgets.joystick import JoystickScreen, SaveMapping
+from term.widgets.lesson import LessonBar
 from term.widgets.link import LinkPanel
 from term.widgets.mode import ModeBanner
 from term.widgets.motors import MotorBars
@@ -68,6 +71,7 @@ from term.widgets.pressure import PressureIndicator
 from term.widgets.profile import ProfileTable
 from term.widgets.rates import RateGauges
 from term.widgets.readiness import ReadinessPanel
+from term.widgets.room import RoomView
 from term.widgets.wireless import PhoneRequest, WirelessScreen
 
 __all__ = ["RADIO_SESSION", "FlightScreen", "PlotsScreen", "ProfileScreen", "TermApp"]
@@ -96,6 +100,7 @@ class FlightScreen(Screen[None]):
     def compose(self) -> ComposeResult:
         yield Static("", id="too-small")
         yield ModeBanner(id="mode")
+        yield LessonBar(id="lesson-bar")  # term --sim: what the lesson or the autopilot does now (term/lessonapp.py)
         with Horizontal(id="top"):
             with Vertical(id="attitude") as v:
                 v.border_title = "attitude · heading"
@@ -110,6 +115,7 @@ class FlightScreen(Screen[None]):
         with Horizontal(id="middle"):
             yield _panel(ControlsPanel(), "sticks · trims · gains", "controls")
             yield _panel(LinkPanel(), "link", "link")
+            yield _panel(RoomView(getattr(self.app, "room", None)), "room", "room")  # the truth: term --sim only
         yield DownloadPanel(id="download")
         with Horizontal(id="bottom"):
             keymap = self.app.keymap  # type: ignore[attr-defined]
@@ -229,7 +235,7 @@ class LogDownloads:
         self.push_screen(DirectoryPrompt(self.log_directory), chosen)
 
 
-class TermApp(LogDownloads, App[int]):
+class TermApp(LessonsMixin, LogDownloads, App[int]):
     CSS_PATH = str(Path(__file__).with_name("app.tcss"))
     TITLE = "quadrupel term"
     ENABLE_COMMAND_PALETTE = True
@@ -250,12 +256,18 @@ class TermApp(LogDownloads, App[int]):
         start_screen: str = "flight",
         recorder: SessionRecorder | None = None,
         replay: Replay | None = None,
+        instructor: InstructorClient | None = None,
+        lesson: int | None = None,
+        demo: bool = False,
+        lessons_dirs: tuple[Path, ...] = (),
     ) -> None:
         """``transport``: the board's link (the cable, or BLE with ``primary_ble``); ``radio``: a BLE transport
         to the same board beside the cable, for the handover; ``start_screen``: "flight" or "wireless".
         ``recorder``: the session recording (the transports already tapped, term.recording), kept up to date
         with the station's events and the events list; ``replay``: play a recording instead of flying (no
-        transports: the panels show the recording, the pilot's keys play it)."""
+        transports: the panels show the recording, the pilot's keys play it). ``instructor``: the simulator's
+        instructor channel (term --sim): the room view, the lessons (``lesson``: start that one; ``demo``: the
+        autopilot's tour; ``lessons_dirs``: a teacher's lessons beside the built-in ones), term/lessonapp.py."""
         super().__init__()
         from term.config import JOYSTICK_POLICIES
 
@@ -290,6 +302,7 @@ class TermApp(LogDownloads, App[int]):
         self.exit_message: str | None = None
         self.alarms = Alarms()
         self.alarms_rung: list[str] = []  # every alarm the bell was rung for (or would have been, bell off)
+        self._init_lessons(instructor, lesson, demo, lessons_dirs)
         self._bind_keys()
 
     def _bind_keys(self) -> None:
@@ -373,6 +386,7 @@ class TermApp(LogDownloads, App[int]):
             self.show_screen(self.start_screen)
         if self._want_joystick:
             self.call_after_refresh(self._start_joystick)
+        self._mount_lessons()
         self.render_now()
 
     def _on_station_event(self, ev: StationEvent) -> None:
@@ -381,6 +395,7 @@ class TermApp(LogDownloads, App[int]):
             now = self.clock()
             self.recorder.station_event(ev, now)
             self._record_notes(now)
+        self._lesson_event(ev)
         if type(ev) is FromLink:
             self._download_event(ev.event)
         elif type(ev) is Fatal:
@@ -602,6 +617,7 @@ class TermApp(LogDownloads, App[int]):
                             self.reconnect_now)
         yield SystemCommand("Link: hand control back to the cable", "WIRELESS off: the board leaves BLE "
                             "(DISCONNECTED, the connection stays)", lambda: self.send(Op.WIRELESS, 0))
+        yield from self.lesson_commands()
         for b in self.keymap:
             a = b.action
             keys = ", ".join(pretty_key(k) for k in b.keys)

@@ -7,6 +7,7 @@
     term --ble ADDR [--hci TRANSPORT]             fly over BLE only (opens on the wireless screen)
     term --serial PATH --ble ADDR [--hci T]       the cable and the radio, for the handover (as --sim)
     term scan [--hci TRANSPORT]                   list BLE boards nearby
+    term params [--serial P|--ble A|--sim] list   the board's parameters; get, set, save, load, diff a file
     term plot SESSION|LOG.csv|--latest -o out.png a recording or downloaded flight log, in SI units
     term export SESSION|LOG.csv|--latest -o OUT   a session recording or flash log as MCAP or CSV (its units)
     term recordings                               list the session recordings: start, length, size
@@ -76,6 +77,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-radio", action="store_true", help="--sim: the cable only, no simulated BLE radio")
     p.add_argument("--seed", type=int, default=1, help="--sim: noise seed (same seed, same flight)")
     p.add_argument("--scenario", default=None, help="--sim: initial conditions and disturbances")
+    p.add_argument("--preset", default=None, help="--sim: the board's parameters, 'default' or 'report' (the lab "
+                   "report's board: Table 1, the complementary filter, the Figure 10 height estimator)")
     p.add_argument("--config", type=Path, default=None, help="config file (default: the platform's, see below)")
     p.add_argument("--config-path", action="store_true", help="print where the config file is read from and exit")
     p.add_argument("--link-timeout", type=float, default=None, help="seconds without data before LINK LOST")
@@ -87,6 +90,12 @@ def build_parser() -> argparse.ArgumentParser:
                    "both ways and every event is kept: 'term recordings')")
     p.add_argument("--record-dir", type=Path, default=None, help="where session recordings are kept (default: "
                    "the platform's user data directory)")
+    p.add_argument("--lesson", type=int, default=None, metavar="N", help="--sim: start lesson N (Ctrl+P lists them: "
+                   "'lesson'); docs/lessons.md")
+    p.add_argument("--demo", action="store_true", help="--sim: the autopilot flies a tour of the features, with "
+                   "captions (any key of yours takes control)")
+    p.add_argument("--lessons", type=Path, default=None, metavar="DIR", help="--sim: a directory of lesson files "
+                   "(*.toml) beside the built-in ones (a teacher's)")
     _add_common(p)
     return p
 
@@ -139,7 +148,8 @@ def _complete() -> None:
     parser = build_parser()
     sub = parser.add_subparsers(dest="command", required=False)
     for name, build in (("plot", build_plot_parser), ("scan", build_scan_parser), ("export", build_export_parser),
-                        ("recordings", build_recordings_parser), ("replay", build_replay_parser)):
+                        ("recordings", build_recordings_parser), ("replay", build_replay_parser),
+                        ("params", build_params_parser)):
         child = build()
         sub.add_parser(name, parents=[child], add_help=False, help=child.description)
     argcomplete.autocomplete(parser)
@@ -315,12 +325,81 @@ def main(argv: Sequence[str] | None = None) -> int:
             return _recordings(build_recordings_parser().parse_args(argv[1:]))
         if argv and argv[0] == "replay":
             return _replay(build_replay_parser().parse_args(argv[1:]))
+        if argv and argv[0] == "params":
+            return _params(build_params_parser().parse_args(argv[1:]))
         return _fly(build_parser().parse_args(argv))
     except UsageError as exc:
         print(f"term: {exc}", file=sys.stderr)
         return EXIT_USAGE
     except KeyboardInterrupt:
         return EXIT_INTERRUPTED
+
+
+def build_params_parser() -> argparse.ArgumentParser:
+    p = _Parser(prog="term params", description="The board's parameters (docs/parameters.md) over the same links as "
+                "term: list them (name, value, unit, default; * changed), get or set one, save them to a TOML file, "
+                "load one (only what differs is set) or diff the board against one.",
+                epilog="examples: term params --sim list; term params --serial /dev/ttyUSB0 set ctrl.p1 0.45; "
+                "term params --sim --preset report save report.toml")
+    src = p.add_mutually_exclusive_group()
+    src.add_argument("--serial", metavar="PATH", help="the board's serial port")
+    src.add_argument("--sim", action="store_true", help="start the simulated board (fcb-sim serve --pty) for this")
+    p.add_argument("--ble", metavar="ADDR", help="the board's BLE address (alone: over BLE)")
+    p.add_argument("--baud", type=int, default=None, help="serial speed (default 115200)")
+    p.add_argument("--hci", metavar="TRANSPORT", default=None, help="BLE through a bumble HCI transport")
+    p.add_argument("--ble-timeout", type=float, default=10.0, metavar="S", help="seconds to look for the BLE board")
+    p.add_argument("--seed", type=int, default=1, help="--sim: noise seed")
+    p.add_argument("--preset", default=None, help="--sim: the simulated board's preset (default, report)")
+    p.add_argument("--config", type=Path, default=None, help="config file (for [connection] port)")
+    p.add_argument("action", help="list | get NAME | set NAME VALUE | save FILE | load FILE | diff FILE")
+    p.add_argument("words", nargs="*", help="the action's NAME, VALUE or FILE")
+    return p
+
+
+def _params(a: argparse.Namespace) -> int:
+    """term params: the link named as for flying (the config's port if none), then term.params.run_command."""
+    from term.config import BAUD, ConfigError, load_config
+    from term.params import ParamError, run_command
+    from term.schema import SchemaError
+
+    try:
+        cfg = load_config(a.config, required=a.config is not None)
+        baud = BAUD.check(a.baud, "--baud") if a.baud is not None else cfg.baud
+        BLE_TIMEOUT.check(a.ble_timeout, "--ble-timeout")
+    except (ConfigError, SchemaError) as exc:
+        raise UsageError(str(exc)) from None
+    _check_preset(a)
+    sim: SimBoard | None = None
+    try:
+        if a.sim:
+            sim = SimBoard(seed=a.seed, extra=["--preset", a.preset] if a.preset else [], log=True)
+            transport = _serial(sim.start(), baud)
+        elif a.ble and not a.serial:
+            transport = _ble(a.ble, a.hci, a.ble_timeout)
+        else:
+            port = a.serial or cfg.port
+            if not port:
+                raise UsageError(f"no board given: use --serial PATH, --sim or --ble ADDR; {_ports_hint()}")
+            transport = _serial(port, baud)
+        try:
+            return asyncio.run(run_command(transport, a.action, a.words))
+        except ParamError as exc:
+            raise UsageError(str(exc)) from None
+    finally:
+        if sim is not None:
+            sim.stop()
+
+
+def _check_preset(a: argparse.Namespace) -> None:
+    from term.protocol import PRESETS
+    from term.schema import nearest
+
+    if a.preset is None:
+        return
+    if not a.sim:
+        raise UsageError("--preset needs --sim (a real board keeps its parameters: 'term params load FILE')")
+    if a.preset not in PRESETS:
+        raise UsageError(f"unknown preset {a.preset!r}{nearest(a.preset, PRESETS)}; known: {', '.join(PRESETS)}")
 
 
 # --- flying ---------------------------------------------------------------------------------------------------
@@ -351,10 +430,12 @@ def _fly(args: argparse.Namespace) -> int:
         raise UsageError(f"--log-dir: {why}")
     if args.scenario is not None and not args.sim:
         raise UsageError("--scenario needs --sim")
+    _check_preset(args)
     if args.ble and args.sim:
         raise UsageError("--ble and --sim: the simulator brings its own radio (term --sim connects it)")
     if args.hci and not args.ble:
         raise UsageError("--hci needs --ble ADDR")
+    _check_lessons(args)
     _start_log(args.verbose)
 
     sim: SimBoard | None = None
@@ -363,7 +444,9 @@ def _fly(args: argparse.Namespace) -> int:
         try:
             if args.sim:
                 sim = SimBoard(seed=args.seed, scenario=args.scenario, link_timeout=None, radio=not args.no_radio,
-                               log=True)
+                               log=True, instructor=True)
+                if args.preset:
+                    sim.cmd += ["--preset", args.preset]
                 port = sim.start()
                 transport = _serial(port, baud)
                 if sim.ble_address:
@@ -381,7 +464,7 @@ def _fly(args: argparse.Namespace) -> int:
                 transport = _serial(port, baud)
                 if args.ble:
                     radio = _ble(args.ble, args.hci, args.ble_timeout)
-            return asyncio.run(_run_app(transport, cfg, args, radio))
+            return asyncio.run(_run_app(transport, cfg, args, radio, sim.instructor_address if sim else ""))
         finally:
             if sim is not None:
                 sim.stop()
@@ -426,7 +509,8 @@ def _scan(args: argparse.Namespace) -> int:
     return 0
 
 
-async def _run_app(transport: Any, cfg: Any, args: argparse.Namespace, radio: Any = None) -> int:
+async def _run_app(transport: Any, cfg: Any, args: argparse.Namespace, radio: Any = None,
+                   instructor_address: str = "") -> int:
     from term.app import RADIO_SESSION, TermApp
     from term.transports.base import TransportError
 
@@ -441,6 +525,7 @@ async def _run_app(transport: Any, cfg: Any, args: argparse.Namespace, radio: An
             with contextlib.suppress(Exception):
                 await t.close()
         raise UsageError(str(exc)) from None
+    instructor = await _instructor(instructor_address, opening)
     ble_only = bool(args.ble and not args.serial)
     # Over BLE the joystick goes out on change (plus a keep-alive), as the protocol asks: the radio is slow.
     session = dict(RADIO_SESSION) if ble_only else {}
@@ -456,7 +541,8 @@ async def _run_app(transport: Any, cfg: Any, args: argparse.Namespace, radio: An
             radio = RecordingTransport(radio, recorder, RADIO, time.monotonic)
     app = TermApp(transport, config=cfg, joystick=not args.no_joystick, log_directory=args.log_dir,
                   session_options=session, radio=radio, primary_ble=ble_only,
-                  start_screen="wireless" if ble_only else "flight", recorder=recorder)
+                  start_screen="wireless" if ble_only else "flight", recorder=recorder, instructor=instructor,
+                  lesson=args.lesson, demo=args.demo, lessons_dirs=(args.lessons,) if args.lessons else ())
     _running[:] = [(app, asyncio.get_running_loop())]
     hangup = asyncio.create_task(_exit_on_hangup(sys.stdin))
     try:
@@ -469,6 +555,8 @@ async def _run_app(transport: Any, cfg: Any, args: argparse.Namespace, radio: An
             if t is not None:
                 with contextlib.suppress(Exception):
                     await t.close()
+        if instructor is not None:
+            await instructor.close()
         if recorder is not None:
             recorder.close()
     with contextlib.suppress(OSError, ValueError):  # (the terminal may be gone: term ended with it)
@@ -480,6 +568,51 @@ async def _run_app(transport: Any, cfg: Any, args: argparse.Namespace, radio: An
         print(f"term: {app.exit_message}", file=sys.stderr)
     code = app.return_code
     return int(code if code is not None else (result or 0))
+
+
+def _check_lessons(args: argparse.Namespace) -> None:
+    """--lesson, --demo and --lessons: only with --sim, and a lesson that exists (its file read here, so a bad one
+    is one line before the screen is taken over)."""
+    wanted = args.lesson is not None or args.demo or args.lessons is not None
+    if not wanted:
+        return
+    if not args.sim:
+        raise UsageError("--lesson, --demo and --lessons need --sim: only the simulator knows where the craft is")
+    if args.lesson is not None and args.demo:
+        raise UsageError("--lesson or --demo, not both")
+    if args.lessons is not None and not args.lessons.is_dir():
+        raise UsageError(f"--lessons {args.lessons}: not a directory")
+    from term.input.keymap import DEFAULT_KEYMAP
+    from term.lessons.spec import DEMO, LessonError, load_lessons, load_script
+
+    actions = [b.action.name for b in DEFAULT_KEYMAP]
+    if args.demo:
+        try:
+            load_script(DEMO, actions)
+        except LessonError as exc:
+            raise UsageError(str(exc)) from None
+    if args.lesson is not None:
+        lessons, skipped = load_lessons((args.lessons,) if args.lessons else (), actions)
+        if args.lesson not in lessons:
+            bad = next((s for s in skipped if f"{args.lesson:02d}" in s.split(":")[0]), "")
+            raise UsageError(bad or f"no lesson {args.lesson}; there are {', '.join(map(str, lessons)) or 'none'}")
+
+
+async def _instructor(address: str, opening: list[Any]) -> Any:
+    """The simulator's instructor channel (term/instructor.py), open; None without one."""
+    if not address:
+        return None
+    from term.instructor import InstructorClient
+
+    client = InstructorClient(address)
+    try:
+        await client.open()
+    except (OSError, TimeoutError, ValueError) as exc:
+        for t in opening:
+            with contextlib.suppress(Exception):
+                await t.close()
+        raise UsageError(f"the simulated board's instructor channel {address}: {exc}") from None
+    return client
 
 
 # The app while it runs, and its loop: a signal asks it to exit through the loop.
@@ -565,7 +698,7 @@ class SimBoard:
     is appended to ``fcb-sim.log`` in term's log directory and kept (else a temporary file, gone at exit)."""
 
     def __init__(self, *, seed: int = 1, scenario: str | None = None, link_timeout: float | None = None,
-                 extra: Sequence[str] = (), radio: bool = False, log: bool = False) -> None:
+                 extra: Sequence[str] = (), radio: bool = False, log: bool = False, instructor: bool = False) -> None:
         # Through fcb_sim.cli.main (not "-m fcb_sim.cli", where its UsageError would be __main__'s, uncaught).
         self.cmd = [sys.executable, "-c", "import sys; from fcb_sim.cli import main; sys.exit(main())",
                     "serve", "--pty", "--seed", str(seed)]
@@ -575,6 +708,10 @@ class SimBoard:
             self.cmd += ["--link-timeout", str(link_timeout)]
         if radio:
             self.cmd += ["--ble-hci", "tcp-server:127.0.0.1:0"]
+        if instructor:  # the truth and the lessons' situations (fcb_sim/instructor.py, term/instructor.py)
+            self.cmd += ["--instructor", "tcp-server:127.0.0.1:0"]
+        self.instructor = instructor
+        self.instructor_address = ""
         self.cmd += list(extra)
         self.radio = radio
         self.port = ""
@@ -613,6 +750,13 @@ class SimBoard:
                 self.stop()
                 raise UsageError(f"the simulated board's radio did not start: {why}")
             self.ble_name, self.ble_address, self.ble_hci = " ".join(words[1:-3]), words[-3], words[-1]
+        if self.instructor:  # "instructor: tcp-client:127.0.0.1:PORT"
+            words = _readline_with_timeout(self.proc, timeout).split()
+            if len(words) != 2 or words[0] != "instructor:":
+                why = self._child_error() or " ".join(words) or "no output"
+                self.stop()
+                raise UsageError(f"the simulated board's instructor channel did not start: {why}")
+            self.instructor_address = words[1]
         self.port = line[len("pty: "):].strip()
         # Drain its stdout from now on, so a chatty child never blocks on a full pipe.
         threading.Thread(target=_drain, args=(self.proc.stdout,), daemon=True).start()

@@ -1,17 +1,21 @@
 """The simulator's instructor channel: situations set on the real board and world (fcb_sim/instructor.py), the truth
-as the terminal parses it (term/instructor.py), and both ends over a real TCP socket."""
+as the terminal parses it (term/instructor.py), and both ends over a real TCP socket, from the child board that
+`term --sim` starts to a serial client that sees the instructor cut the cable."""
 
 from __future__ import annotations
 
 import asyncio
 import json
 import math
+import time
 
 import pytest
+import serial
 
 from fcb_sim.board import Board, BoardConfig
 from fcb_sim.instructor import Instructor, InstructorServer
 from fcb_sim.physics import World
+from term.cli import SimBoard
 from term.instructor import Hello, InstructorClient, Refused, Truth, check_situation, parse_line
 from term.link import LinkSession
 from term.protocol import INSTRUCTOR_SITUATIONS, INSTRUCTOR_TRUTH, Joystick, Mode, Op
@@ -162,3 +166,40 @@ async def test_the_channel_over_tcp_truth_out_situations_in_refusals_back() -> N
     finally:
         await client.close()
         await server.close()
+
+
+def test_term_sim_child_prints_the_channel_and_a_cable_cut_silences_the_pty() -> None:
+    """`fcb-sim serve --instructor` as `term --sim` starts it: the third line is the address; a cable cut of 0.6 s
+    leaves the serial port silent for that long (the board's heartbeats stop arriving), then it talks again."""
+    sim = SimBoard(seed=4, instructor=True)
+    port = sim.start()
+    try:
+        assert sim.instructor_address.startswith("tcp-client:127.0.0.1:")
+
+        async def cut() -> list[Truth]:
+            got: list[Truth] = []
+            client = InstructorClient(sim.instructor_address, on_truth=got.append)
+            await client.open()
+            async with asyncio.timeout(5):
+                while not got:
+                    await asyncio.sleep(0.01)
+            assert client.send({"do": "cable", "cuts": [[0.0, 0.6]]}) is None
+            await asyncio.sleep(0.05)
+            await client.close()
+            return got
+
+        with serial.Serial(port, 115200, timeout=0.05) as ser:
+            ser.reset_input_buffer()
+            before = ser.read(4096)
+            assert before  # heartbeats and the boot Hello: the board talks
+            truths = asyncio.run(cut())
+            assert truths[0].cable
+            ser.reset_input_buffer()
+            t0 = time.monotonic()
+            quiet = ser.read(4096)  # within the cut
+            assert time.monotonic() - t0 < 0.3 and quiet == b""
+            time.sleep(0.7)
+            ser.reset_input_buffer()
+            assert ser.read(4096)  # the cut is over
+    finally:
+        sim.stop()
