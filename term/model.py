@@ -124,8 +124,9 @@ def op_text(op: int, arg: int) -> str:
     return name
 
 
-def event_text(code: int, arg: int) -> tuple[str, str]:
-    """(severity, text) for a board Event."""
+def event_text(code: int, arg: int, flying: bool = True) -> tuple[str, str]:
+    """(severity, text) for a board Event; ``flying``: the board was in a flight mode when it sent it (a link
+    timeout PANICs only there)."""
     try:
         c = EventCode(code)
     except ValueError:
@@ -143,7 +144,8 @@ def event_text(code: int, arg: int) -> tuple[str, str]:
     if c is EventCode.LOW_BATTERY:
         return "error", f"LOW BATTERY {_event_arg(c, arg):.2f} V"
     if c is EventCode.LINK_TIMEOUT:
-        return "error", f"board saw link timeout ({_event_arg(c, arg) * 1000:.0f} ms silent): PANIC"
+        silent = f"board saw link timeout ({_event_arg(c, arg) * 1000:.0f} ms silent)"
+        return ("error", f"{silent}: PANIC") if flying else ("warning", f"{silent}: not flying, no PANIC")
     if c is EventCode.TILT_LIMIT:
         return "error", f"tilt limit {_event_arg(c, arg):.1f}°: PANIC"
     if c is EventCode.PANIC_DONE:
@@ -466,7 +468,7 @@ class Model:
         elif kind is Event:
             self.board_ms = pkt.board_ms
             self.event_times[pkt.code] = now
-            severity, text = event_text(pkt.code, pkt.arg)
+            severity, text = event_text(pkt.code, pkt.arg, self.flying)  # the mode it was sent in
             if pkt.code == EventCode.DEADLINE_MISS:
                 self._deadline_miss(now, pkt.arg)
             elif pkt.code != EventCode.REFUSED or self._refusal(pkt.arg & 0xFF, pkt.arg >> 8, text, now):

@@ -15,6 +15,8 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import importlib
+import sys
 from dataclasses import dataclass
 from typing import Any
 
@@ -23,6 +25,27 @@ from term.protocol import NUS_RX, NUS_SERVICE, NUS_TX  # we write RX; the board 
 from term.transports.base import Transport, TransportClosed, TransportError
 
 MAX_WRITE = 20  # ATT MTU 23 minus the 3-byte ATT header: what the nRF51 takes in one write
+
+
+# What opening a link imports: bumble's host takes 0.3-0.7 s to import (bumble.hci alone builds its tables in
+# 0.15 s) on a 2-core machine. Imported on the loop, that stalls every other link of the terminal for as long: the
+# cable's heartbeats go unanswered and both ends call a LINK LOST at start-up. So they are imported on a thread.
+_STACK = ("bleak",)
+_BUMBLE_STACK = ("term.transports.bumble_backend", "bumble.device", "bumble.transport", "bumble.core", "bumble.hci")
+
+
+def _import_all(names: tuple[str, ...]) -> None:
+    for name in names:
+        importlib.import_module(name)
+
+
+async def import_stack(hci: str | None) -> None:
+    """Import the BLE stack (bleak; with ``hci`` our bumble backend and bumble) on a worker thread, so the event
+    loop, which answers the other links' heartbeats, keeps running meanwhile. Cheap once imported."""
+    names = _STACK + (_BUMBLE_STACK if hci else ())
+    if all(name in sys.modules for name in names):
+        return
+    await asyncio.to_thread(_import_all, names)
 
 
 def _backend_kwargs(hci: str | None) -> dict[str, Any]:
@@ -86,6 +109,10 @@ class BleTransport(Transport):
     async def open(self) -> None:
         if self.is_open:
             return
+        try:
+            await import_stack(self.hci)
+        except ImportError as exc:
+            raise TransportError(f"BLE not available: {_one_line(exc)}") from None
         from bleak import BleakClient
         from bleak.exc import BleakDeviceNotFoundError, BleakError
 
@@ -193,6 +220,7 @@ class BoardInfo:
 
 async def scan(hci: str | None = None, timeout: float = 3.0) -> list[BoardInfo]:
     """The boards advertising nearby (name starting with ``BOARD_NAME_PREFIX``), strongest first."""
+    await import_stack(hci)
     from bleak import BleakScanner
     from bleak.exc import BleakError
 
