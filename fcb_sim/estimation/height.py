@@ -418,34 +418,42 @@ class HeightKalman:
             p[4] += TREND_VZ_VAR
             self.trend_resets += 1
         if r_sigma > self.gate_sigma:
-            # Far outside what the accelerometer predicts: the onset of a spike. Its size is unknown, so the
-            # spike's variance takes the whole innovation and the update below gives it to the spike, not to
-            # the height. A spike decays; onsets of the same sign again and again mean it does not: a real
-            # change of the barometer's level, which then goes to the height.
-            self.baro_rejected += 1
-            sign = 1 if nu > 0.0 else -1
-            same = sign == self._jump_sign and self._t_jump < self.rejump_window_s
-            self._rejumps = self._rejumps + 1 if same else 0
-            self._jump_sign = sign
-            self._t_jump = 0.0
-            if self._rejumps >= self.level_after:
-                self._rejumps = 0
-                self.level_changes += 1
-                hh, hv, hb, hs, vv, vb, vs, bb, bs, ss = p
-                # fold the spike into the height (h' = h + s), then own the new level's uncertainty
-                self.height += self.spike
-                self.spike = 0.0
-                c_ = self._c
-                self._c = [c_[0] + c_[3], c_[1], c_[2], 0.0]
-                nu = z - self.height
-                p = [hh + 2.0 * hs + ss + nu * nu, hv + vs, hb + bs, 0.0, vv, vb, 0.0, bb, 0.0, _SS_FLOOR]
-            else:
-                p[9] += nu * nu
+            p, nu = self._spike_onset(p, nu, z)
         elif r_sigma > self.huber_sigma:
             # a moderate outlier counts less (Huber weight)
             r *= r_sigma / self.huber_sigma
+        self._baro_correct(p, nu, r)
+
+    def _spike_onset(self, p: list[float], nu: float, z: float) -> tuple[list[float], float]:
+        """A reading far outside what the accelerometer predicts: the onset of a spike. Its size is unknown, so
+        the spike's variance takes the whole innovation and the update gives it to the spike, not to the height.
+        A spike decays; onsets of the same sign again and again mean it does not: a real change of the
+        barometer's level, which then goes to the height. Returns the covariance and innovation to update with."""
+        self.baro_rejected += 1
+        sign = 1 if nu > 0.0 else -1
+        same = sign == self._jump_sign and self._t_jump < self.rejump_window_s
+        self._rejumps = self._rejumps + 1 if same else 0
+        self._jump_sign = sign
+        self._t_jump = 0.0
+        if self._rejumps < self.level_after:
+            p[9] += nu * nu
+            return p, nu
+        self._rejumps = 0
+        self.level_changes += 1
         hh, hv, hb, hs, vv, vb, vs, bb, bs, ss = p
-        gh, gv, gb, gs = hh + hs, hv + vs, hb + bs, hs + ss  # P H', H = [1, 0, 0, 1]
+        # fold the spike into the height (h' = h + s), then own the new level's uncertainty
+        self.height += self.spike
+        self.spike = 0.0
+        c_ = self._c
+        self._c = [c_[0] + c_[3], c_[1], c_[2], 0.0]
+        nu = z - self.height
+        return [hh + 2.0 * hs + ss + nu * nu, hv + vs, hb + bs, 0.0, vv, vb, 0.0, bb, 0.0, _SS_FLOOR], nu
+
+    def _baro_correct(self, p: list[float], nu: float, r: float) -> None:
+        """The Kalman update with innovation ``nu`` (m) of noise variance ``r`` (m²): the barometer reads height
+        plus spike, H = [1, 0, 0, 1]; the captured height (the clone state) is refined too."""
+        hh, hv, hb, hs, vv, vb, vs, bb, bs, ss = p
+        gh, gv, gb, gs = hh + hs, hv + vs, hb + bs, hs + ss  # P H'
         s = gh + gs + r
         kh, kv, kb, ks = gh / s, gv / s, gb / s, gs / s
         self.height += kh * nu

@@ -161,7 +161,37 @@ class InertialKalmanFilter:
         if not self._started:
             self._start(gx, gy, gz, ax, ay, az)
             return
-        # 1. rest detection and the bias at rest
+        self._rest(gx, gy, gz, ax, ay, az, dt)  # 1.
+        # 2. strapdown with the bias-corrected rate (exact axis-angle step)
+        wx, wy, wz = gx - self.bx, gy - self.by, gz - self.bz
+        self.rx, self.ry, self.rz = wx, wy, wz
+        w, x, y, z = self.w, self.x, self.y, self.z
+        rate = math.sqrt(wx * wx + wy * wy + wz * wz)
+        half = 0.5 * rate * dt
+        if half > 1e-12:
+            s = math.sin(half) / rate
+            c = math.cos(half)
+            dx, dy, dz = wx * s, wy * s, wz * s
+            w, x, y, z = (
+                w * c - x * dx - y * dy - z * dz,
+                w * dx + x * c + y * dz - z * dy,
+                w * dy - x * dz + y * c + z * dx,
+                w * dz + x * dy - y * dx + z * c,
+            )
+        # 3. horizontal specific force in the earth frame, and the Kalman filter
+        fx = (1.0 - 2.0 * (y * y + z * z)) * ax + 2.0 * (x * y - w * z) * ay + 2.0 * (x * z + w * y) * az
+        fy = 2.0 * (x * y + w * z) * ax + (1.0 - 2.0 * (x * x + z * z)) * ay + 2.0 * (y * z - w * x) * az
+        gxh, gyh = self._gravity(fx, fy, rate, dt)
+        self._rebase(w, x, y, z, gxh, gyh)  # 4.
+        # the bias is clamped last: a stuck-high rate must not become a stuck-high bias
+        m = self.bias_max
+        self.bx = m if self.bx > m else -m if self.bx < -m else self.bx
+        self.by = m if self.by > m else -m if self.by < -m else self.by
+        self.bz = m if self.bz > m else -m if self.bz < -m else self.bz
+
+    def _rest(self, gx: float, gy: float, gz: float, ax: float, ay: float, az: float, dt: float) -> None:
+        """Step 1: rest detection (gyro and accelerometer near their low-pass for ``rest_time``), and at rest the
+        bias pulled towards the low-passed gyro."""
         gl, al = self._gl, self._al
         kr = dt / (self.rest_tau + dt)
         gl[0] += kr * (gx - gl[0])
@@ -183,25 +213,10 @@ class InertialKalmanFilter:
             self.bx += kb * (gl[0] - self.bx)
             self.by += kb * (gl[1] - self.by)
             self.bz += kb * (gl[2] - self.bz)
-        # 2. strapdown with the bias-corrected rate (exact axis-angle step)
-        wx, wy, wz = gx - self.bx, gy - self.by, gz - self.bz
-        self.rx, self.ry, self.rz = wx, wy, wz
-        w, x, y, z = self.w, self.x, self.y, self.z
-        rate = math.sqrt(wx * wx + wy * wy + wz * wz)
-        half = 0.5 * rate * dt
-        if half > 1e-12:
-            s = math.sin(half) / rate
-            c = math.cos(half)
-            dx, dy, dz = wx * s, wy * s, wz * s
-            w, x, y, z = (
-                w * c - x * dx - y * dy - z * dz,
-                w * dx + x * c + y * dz - z * dy,
-                w * dy - x * dz + y * c + z * dx,
-                w * dz + x * dy - y * dx + z * c,
-            )
-        # 3. horizontal specific force in the earth frame, and the Kalman filter
-        fx = (1.0 - 2.0 * (y * y + z * z)) * ax + 2.0 * (x * y - w * z) * ay + 2.0 * (x * z + w * y) * az
-        fy = 2.0 * (x * y + w * z) * ax + (1.0 - 2.0 * (x * x + z * z)) * ay + 2.0 * (y * z - w * x) * az
+
+    def _gravity(self, fx: float, fy: float, rate: float, dt: float) -> tuple[float, float]:
+        """Step 3: the Kalman filter on (V, G_h, D) per horizontal axis, fed the earth-frame horizontal specific
+        force (fx, fy); returns the horizontal gravity G_h not yet removed (it restarts from 0 at each rebase)."""
         e = rate * dt  # radians turned in this step
         vx = self.vx + fx * dt
         vy = self.vy + fy * dt
@@ -231,7 +246,11 @@ class InertialKalmanFilter:
         self.pgg = a_gg - kg * a_vg
         self.pgd = a_gd - kg * a_vd
         self.pdd = a_dd - kd * a_vd
-        # 4. rebase: rotate the earth frame so that the estimated gravity (gxh, gyh, gz) is vertical
+        return gxh, gyh
+
+    def _rebase(self, w: float, x: float, y: float, z: float, gxh: float, gyh: float) -> None:
+        """Step 4: q (strapped down) rotated in the earth frame so that the estimated gravity (gxh, gyh, g) is
+        vertical, normalised, kept."""
         h2 = gxh * gxh + gyh * gyh
         gz_ = math.sqrt(G0 * G0 - h2) if h2 < 0.81 * G0 * G0 else 0.4359 * G0  # at most a 64° step
         cw, cx, cy = G0 + gz_, gyh, -gxh
@@ -245,7 +264,3 @@ class InertialKalmanFilter:
         )
         n = 1.0 / math.sqrt(w * w + x * x + y * y + z * z)
         self.w, self.x, self.y, self.z = w * n, x * n, y * n, z * n
-        # the bias is clamped last: a stuck-high rate must not become a stuck-high bias
-        self.bx = m if self.bx > m else -m if self.bx < -m else self.bx
-        self.by = m if self.by > m else -m if self.by < -m else self.by
-        self.bz = m if self.bz > m else -m if self.bz < -m else self.bz

@@ -208,7 +208,7 @@ class InertialKalmanFilterQ:
         if not (dt > 0.0) or not math.isfinite(gx + gy + gz + ax + ay + az + dt):
             return
         F = self.f
-        io, qb, bb, vb, db, cb = F.io, F.quat, F.bias, F.vel, F.drift, F.cov
+        io, qb, bb = F.io, F.quat, F.bias
         gxq, gyq, gzq = to_q(gx, io), to_q(gy, io), to_q(gz, io)
         axq, ayq, azq = to_q(ax, io), to_q(ay, io), to_q(az, io)
         if not self._started:
@@ -217,23 +217,7 @@ class InertialKalmanFilterQ:
         dtq, dt2q, dthq, krq, kbq = self._dt(dt)
         up = bb - io  # Q.io -> Q.bias
         g = tuple(_sat(v << up) if up >= 0 else v >> -up for v in (gxq, gyq, gzq))  # Q8.24 holds 128 rad/s
-        # 1. rest detection and the bias at rest
-        gl, al = self.gl, self.al
-        for i in range(3):
-            gl[i] = _sat(gl[i] + mul(krq, g[i] - gl[i], cb))
-        a = (axq, ayq, azq)
-        for i in range(3):
-            al[i] = _sat(al[i] + mul(krq, a[i] - al[i], cb))
-        m = self._bias_max
-        dg = _sat(sum(mul(g[i] - gl[i], g[i] - gl[i], 16) for i in range(3)))  # Q(2*bias-16)
-        da = _sat(sum(mul(a[i] - al[i], a[i] - al[i], io) for i in range(3)))
-        still = dg < self._rest_g2 and da < self._rest_a2 and all(-m < v < m for v in gl)
-        self.rest_t = self.rest_t + dt if still else 0.0
-        self.at_rest = self.rest_t >= self.ref.rest_time
-        if self.at_rest:
-            self.bx = _sat(self.bx + mul(kbq, gl[0] - self.bx, cb))
-            self.by = _sat(self.by + mul(kbq, gl[1] - self.by, cb))
-            self.bz = _sat(self.bz + mul(kbq, gl[2] - self.bz, cb))
+        self._rest(g, (axq, ayq, azq), krq, kbq, dt)  # 1.
         # 2. strapdown
         wx, wy, wz = g[0] - self.bx, g[1] - self.by, g[2] - self.bz
         self.rx, self.ry, self.rz = wx, wy, wz
@@ -250,6 +234,38 @@ class InertialKalmanFilterQ:
         r12 = two * (mul(y, z, qb) - mul(w, x, qb))
         fx = _sat(mul(r00, axq, qb) + mul(r01, ayq, qb) + mul(r02, azq, qb))
         fy = _sat(mul(r10, axq, qb) + mul(r11, ayq, qb) + mul(r12, azq, qb))
+        gxh, gyh = self._gravity(fx, fy, rate, dtq, dt2q)
+        self._rebase(w, x, y, z, gxh, gyh)  # 4.
+        m = self._bias_max
+        self.bx = m if self.bx > m else -m if self.bx < -m else self.bx
+        self.by = m if self.by > m else -m if self.by < -m else self.by
+        self.bz = m if self.bz > m else -m if self.bz < -m else self.bz
+
+    def _rest(self, g: tuple[int, ...], a: tuple[int, int, int], krq: int, kbq: int, dt: float) -> None:
+        """Step 1: rest detection and the bias at rest (gyro ``g`` in Q.bias, accelerometer ``a`` in Q.io)."""
+        F = self.f
+        io, cb = F.io, F.cov
+        gl, al = self.gl, self.al
+        for i in range(3):
+            gl[i] = _sat(gl[i] + mul(krq, g[i] - gl[i], cb))
+        for i in range(3):
+            al[i] = _sat(al[i] + mul(krq, a[i] - al[i], cb))
+        m = self._bias_max
+        dg = _sat(sum(mul(g[i] - gl[i], g[i] - gl[i], 16) for i in range(3)))  # Q(2*bias-16)
+        da = _sat(sum(mul(a[i] - al[i], a[i] - al[i], io) for i in range(3)))
+        still = dg < self._rest_g2 and da < self._rest_a2 and all(-m < v < m for v in gl)
+        self.rest_t = self.rest_t + dt if still else 0.0
+        self.at_rest = self.rest_t >= self.ref.rest_time
+        if self.at_rest:
+            self.bx = _sat(self.bx + mul(kbq, gl[0] - self.bx, cb))
+            self.by = _sat(self.by + mul(kbq, gl[1] - self.by, cb))
+            self.bz = _sat(self.bz + mul(kbq, gl[2] - self.bz, cb))
+
+    def _gravity(self, fx: int, fy: int, rate: int, dtq: int, dt2q: int) -> tuple[int, int]:
+        """Step 3: the Kalman filter on (V, G_h, D), fed the horizontal specific force (Q.io) and the turn rate
+        (Q.io); returns G_h (Q.vel)."""
+        F = self.f
+        io, vb, db, cb = F.io, F.vel, F.drift, F.cov
         e = mul(rate, dtq, io + F.dt - cb)  # radians this step, Q.cov
         vx = _sat(self.vx + mul(fx, dtq, io + F.dt - vb))
         vy = _sat(self.vy + mul(fy, dtq, io + F.dt - vb))
@@ -283,7 +299,13 @@ class InertialKalmanFilterQ:
         self.pgg = _sat(a_gg - mul(kg, a_vg, cb))
         self.pgd = _sat(a_gd - mul(kg, a_vd, cb))
         self.pdd = _sat(a_dd - mul(kd, a_vd, cb))
-        # 4. rebase: the swing that makes (gxh, gyh, g0) vertical, VQF's form (sqrt((1+uz)/2), uy/2c, -ux/2c, 0)
+        return gxh, gyh
+
+    def _rebase(self, w: int, x: int, y: int, z: int, gxh: int, gyh: int) -> None:
+        """Step 4: the swing that makes (gxh, gyh, g0) vertical, VQF's form (sqrt((1+uz)/2), uy/2c, -ux/2c, 0),
+        applied to q (Q.quat), which is then normalised and kept."""
+        F = self.f
+        qb, vb = F.quat, F.vel
         one = 1 << qb
         ux = mul(gxh, self._inv_g0, vb)  # Q.quat
         uy = mul(gyh, self._inv_g0, vb)
@@ -309,9 +331,6 @@ class InertialKalmanFilterQ:
             k = div(one, sqrt(n2, qb), qb) if n2 > 0 else one
             w, x, y, z = (w, x, y, z) if n2 > 0 else (one, 0, 0, 0)
         self.qw, self.qx, self.qy, self.qz = mul(w, k, qb), mul(x, k, qb), mul(y, k, qb), mul(z, k, qb)
-        self.bx = m if self.bx > m else -m if self.bx < -m else self.bx
-        self.by = m if self.by > m else -m if self.by < -m else self.by
-        self.bz = m if self.bz > m else -m if self.bz < -m else self.bz
 
     def _start(self, gxq: int, gyq: int, gzq: int, axq: int, ayq: int, azq: int) -> None:
         F = self.f

@@ -134,7 +134,19 @@ class QGateFilter:
                 w * dy - x * dz + y * c + z * dx,
                 w * dz + x * dy - y * dx + z * c,
             )
-        # 2. specific force in the earth frame, low-passed there (with the magnitude gate)
+        self._lowpass(w, x, y, z, ax, ay, az, dt)  # 2.
+        w, x, y, z = self._correct(w, x, y, z, dt)  # 3. and 4a.
+        n = 1.0 / math.sqrt(w * w + x * x + y * y + z * z)
+        self.w, self.x, self.y, self.z = w * n, x * n, y * n, z * n
+        self._rest(gx, gy, gz, ax, ay, az, dt)  # 4b.
+        m = self.bias_max
+        self.bx = m if self.bx > m else -m if self.bx < -m else self.bx
+        self.by = m if self.by > m else -m if self.by < -m else self.by
+        self.bz = m if self.bz > m else -m if self.bz < -m else self.bz
+
+    def _lowpass(self, w: float, x: float, y: float, z: float, ax: float, ay: float, az: float, dt: float) -> None:
+        """Step 2: the specific force in the earth frame (attitude w, x, y, z), low-passed there, with the
+        magnitude gate."""
         an = math.sqrt(ax * ax + ay * ay + az * az)
         dev = abs(an - G)
         # Soft gate: full weight within `gate` of g, then falling as (gate / dev)^2, so a tap or an
@@ -148,42 +160,47 @@ class QGateFilter:
             self.fx += k * (ex - self.fx)
             self.fy += k * (ey - self.fy)
             self.fz += k * (ez - self.fz)
-        # 3. inclination correction: rotate about the horizontal axis f x z, a fraction of the angle
+
+    def _correct(self, w: float, x: float, y: float, z: float, dt: float) -> tuple[float, float, float, float]:
+        """Steps 3 and 4a: the attitude rotated about the horizontal axis f x z by a fraction of the angle that
+        makes the filtered vector f vertical (f turned with it), and the bias fed the correction in body
+        coordinates; returns the corrected attitude (not normalised)."""
         fx_, fy_, fz_ = self.fx, self.fy, self.fz
         fn = math.sqrt(fx_ * fx_ + fy_ * fy_ + fz_ * fz_)
-        if fn > 1e-6:
-            # axis (unnormalised) = f_hat x e_z = (fy, -fx, 0)/|f|; angle = atan2(horizontal, vertical)
-            hn = math.sqrt(fx_ * fx_ + fy_ * fy_)
-            if hn > 1e-12:
-                angle = math.atan2(hn, fz_) * dt / (self.tau_corr + dt)
-                s = math.sin(0.5 * angle) / hn
-                c = math.cos(0.5 * angle)
-                cx, cy = fy_ * s, -fx_ * s  # earth-frame correction quaternion (c, cx, cy, 0)
-                # q <- dq (earth) * q (the earth-frame correction multiplies from the left; until this was
-                # fixed it multiplied from the right, a body-frame rotation, which is only right near level)
-                w, x, y, z = (
-                    c * w - cx * x - cy * y,
-                    c * x + cx * w + cy * z,
-                    c * y - cx * z + cy * w,
-                    c * z + cx * y - cy * x,
-                )
-                # rotate the filtered vector with the correction (small angle: f += theta x f)
-                tx, ty = fy_ / hn * angle, -fx_ / hn * angle
-                self.fx = fx_ + ty * fz_
-                self.fy = fy_ - tx * fz_
-                self.fz = fz_ + tx * fy_ - ty * fx_
-                # 4a. bias during motion: the correction in body coordinates (R^T t), integrated
-                if self.tau_bias > 0.0:
-                    bx = (1.0 - 2.0 * (y * y + z * z)) * tx + 2.0 * (x * y + w * z) * ty
-                    by = 2.0 * (x * y - w * z) * tx + (1.0 - 2.0 * (x * x + z * z)) * ty
-                    bz = 2.0 * (x * z + w * y) * tx + 2.0 * (y * z - w * x) * ty
-                    kb = 1.0 / self.tau_bias
-                    self.bx -= kb * bx
-                    self.by -= kb * by
-                    self.bz -= kb * bz
-        n = 1.0 / math.sqrt(w * w + x * x + y * y + z * z)
-        self.w, self.x, self.y, self.z = w * n, x * n, y * n, z * n
-        # 4b. rest detection and bias at rest
+        # axis (unnormalised) = f_hat x e_z = (fy, -fx, 0)/|f|; angle = atan2(horizontal, vertical)
+        hn = math.sqrt(fx_ * fx_ + fy_ * fy_)
+        if not (fn > 1e-6 and hn > 1e-12):
+            return w, x, y, z
+        angle = math.atan2(hn, fz_) * dt / (self.tau_corr + dt)
+        s = math.sin(0.5 * angle) / hn
+        c = math.cos(0.5 * angle)
+        cx, cy = fy_ * s, -fx_ * s  # earth-frame correction quaternion (c, cx, cy, 0)
+        # q <- dq (earth) * q (the earth-frame correction multiplies from the left; until this was
+        # fixed it multiplied from the right, a body-frame rotation, which is only right near level)
+        w, x, y, z = (
+            c * w - cx * x - cy * y,
+            c * x + cx * w + cy * z,
+            c * y - cx * z + cy * w,
+            c * z + cx * y - cy * x,
+        )
+        # rotate the filtered vector with the correction (small angle: f += theta x f)
+        tx, ty = fy_ / hn * angle, -fx_ / hn * angle
+        self.fx = fx_ + ty * fz_
+        self.fy = fy_ - tx * fz_
+        self.fz = fz_ + tx * fy_ - ty * fx_
+        # 4a. bias during motion: the correction in body coordinates (R^T t), integrated
+        if self.tau_bias > 0.0:
+            bx = (1.0 - 2.0 * (y * y + z * z)) * tx + 2.0 * (x * y + w * z) * ty
+            by = 2.0 * (x * y - w * z) * tx + (1.0 - 2.0 * (x * x + z * z)) * ty
+            bz = 2.0 * (x * z + w * y) * tx + 2.0 * (y * z - w * x) * ty
+            kb = 1.0 / self.tau_bias
+            self.bx -= kb * bx
+            self.by -= kb * by
+            self.bz -= kb * bz
+        return w, x, y, z
+
+    def _rest(self, gx: float, gy: float, gz: float, ax: float, ay: float, az: float, dt: float) -> None:
+        """Step 4b: rest detection (gyro and accelerometer steady for ``rest_time``) and the bias at rest."""
         gl, al = self._gl, self._al
         kr = dt / (0.5 + dt)
         gl[0] += kr * (gx - gl[0])
@@ -206,7 +223,3 @@ class QGateFilter:
             self.bx += kb * (gl[0] - self.bx)
             self.by += kb * (gl[1] - self.by)
             self.bz += kb * (gl[2] - self.bz)
-        m = self.bias_max
-        self.bx = m if self.bx > m else -m if self.bx < -m else self.bx
-        self.by = m if self.by > m else -m if self.by < -m else self.by
-        self.bz = m if self.bz > m else -m if self.bz < -m else self.bz
