@@ -221,6 +221,11 @@ class LinkSession:
         self.decoder = Decoder()
         self._start = now
         self._now = now
+        self._init_queues()
+        self._init_stats(stats_window)
+
+    def _init_queues(self) -> None:
+        """What waits to go out (frames, commands, the joystick) and what the board last told us."""
         self._urgent: list[bytes] = []  # heartbeat ACKs and Hellos: out before anything else
         self._events: list[LinkEvent] = []  # produced outside receive/poll, delivered by the next of them
         self._new: deque[_Pending] = deque()  # commands not sent yet, in order
@@ -239,6 +244,8 @@ class LinkSession:
         self._mismatch: VersionMismatch | None = None
         self.board_hello: Hello | None = None
 
+    def _init_stats(self, stats_window: float) -> None:
+        """The counters and windows behind ``stats_at``."""
         self._rtt: deque[float] = deque(maxlen=RTT_SAMPLES)
         self._hb_delays: deque[tuple[float, float]] = deque()
         self._hb_delay_ms: float | None = None
