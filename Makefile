@@ -40,6 +40,26 @@ $(BENCH_STAMP): pyproject.toml $(LOCK) | $(BIN)/python
 run: $(RUN_STAMP)
 	$(BIN)/term --sim
 
+# The autopilot's tour of the features (term --sim --demo) in a 120x40 tmux session: Ctrl+Q quits, Ctrl+B D
+# detaches. Without a terminal (CI) it runs detached, waits for the tour's end, prints the last screen, and fails
+# if the tour did not finish within DEMO_TIMEOUT seconds.
+.PHONY: demo
+DEMO_TIMEOUT ?= 240
+demo: $(RUN_STAMP)
+	@command -v tmux >/dev/null || { echo "make demo needs tmux (Debian/Ubuntu: sudo apt install tmux)" >&2; exit 1; }
+	@tmux kill-session -t quadrupel-demo 2>/dev/null || true
+	@if [ -t 0 ] && [ -t 1 ]; then \
+		tmux new-session -s quadrupel-demo -x 120 -y 40 '$(BIN)/term --sim --demo --no-record'; \
+	else \
+		tmux new-session -d -s quadrupel-demo -x 120 -y 40 '$(BIN)/term --sim --demo --no-record; sleep 600'; \
+		ok=; for i in $$(seq 1 $(DEMO_TIMEOUT)); do sleep 1; \
+			if tmux capture-pane -p -t quadrupel-demo | grep -q 'demo: done'; then ok=1; break; fi; done; \
+		tmux capture-pane -p -t quadrupel-demo; \
+		tmux send-keys -t quadrupel-demo C-q; sleep 2; tmux kill-session -t quadrupel-demo 2>/dev/null; \
+		if [ -z "$$ok" ]; then echo "make demo: the tour did not finish within $(DEMO_TIMEOUT) s" >&2; exit 1; fi; \
+		echo "make demo: the tour flew to its end"; \
+	fi
+
 test: $(STAMP)
 	$(BIN)/ruff check term fcb_sim tests bench
 	$(BIN)/ruff check firmware
@@ -47,7 +67,7 @@ test: $(STAMP)
 	@command -v arm-none-eabi-gcc >/dev/null || echo "no arm-none-eabi-gcc: the Cortex-M0 size test is skipped"
 	$(BIN)/python -m pytest
 
-BENCHES := codec realtime flight filters profile log_compression pacing latency ui ble firmware download
+BENCHES := codec realtime flight filters profile log_compression pacing latency ui ble firmware download soak
 
 # Every benchmark runs (its last line, the JSON, is printed); make bench fails if any of them failed.
 bench: $(BENCH_STAMP)

@@ -1,0 +1,458 @@
+"""Soak: term's link and the simulator flying for ``--minutes`` through a byte proxy that damages the cable's bytes
+both ways, with handovers to BLE and back and a log download every cycle.
+
+The simulator is `fcb-sim serve --pty --ble-hci ...` in a child process (what ``term --sim`` starts); this process
+is the terminal without its screen: term's ``Station`` (the cable and the radio, routing, guards, reconnects) and
+its ``Model``, the sticks at 100 Hz as the joystick poller sends them, and the log download's ``LogDownloader``
+wired as the app wires it. The cable is the real pseudo-terminal behind ``FaultyTransport`` (term/transports/
+loopback.py): each byte, either way, has one bit flipped with probability ``--damage`` (default 2 %). The radio
+is the real BLE stack (bumble, our bleak backend) and is not damaged: BLE's link layer checks and retransmits
+its own packets.
+
+One cycle (about a minute): FULL over the cable (lift up to 60 % of hover: the motors and the whole control loop
+run while the craft stays on the floor; gentle stick circles; lift down; SAFE); the
+handover (key 8: WIRELESS over the cable, STARTED once the radio's bytes arrive); FULL over BLE while the flash
+log records; control back to the cable (WIRELESS off over BLE); the log downloaded over the damaged cable and
+checked against the board's CRC-32; the log erased. The board is calibrated once at the start.
+
+Printed (one JSON object on the last line): whether either side crashed; every command sent and its outcome
+(acked, failed with its reason, refused by the station with its reason, lost with a dead link, or unresolved:
+must be 0); heartbeat gaps (the board's heartbeat counter, merged over both links); handovers; downloads (done
+and CRC-checked, failed with their reason); the resident memory of both processes (start after the first cycle,
+end, growth per minute); damaged frames. A line per cycle goes to stderr.
+
+``python -m bench.soak [--minutes 10] [--damage 0.02] [--seed 1]``
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import contextlib
+import json
+import math
+import os
+import statistics
+import sys
+import time
+from collections import Counter
+from dataclasses import dataclass, field
+from typing import Any
+
+from fcb_sim.control import z_to_lift
+from term.download import RUNNING, LogDownloader
+from term.events import FromLink, LinkDown, NotSent
+from term.link import CommandAcked, CommandFailed, LinkLost, PacketReceived
+from term.model import Model
+from term.protocol import (
+    Event,
+    EventCode,
+    Heartbeat,
+    Joystick,
+    Mode,
+    Op,
+    WirelessState,
+)
+
+HOVER_LIFT = z_to_lift(-4.0 * 400**2)  # the stick at which the four motors hover (about 400 of 1000)
+STICK_HZ = 100.0
+FLY_S = 12.0  # each flight, lift ramps included
+FLY_LIFT = 0.6  # of the hover lift: the motors and the control loop run, the craft stays on the floor
+STEP_TIMEOUT_S = 8.0
+
+
+def rss_mb(pid: int | str = "self") -> float | None:
+    """Resident memory of a process in MB (Linux /proc), None if unreadable."""
+    try:
+        with open(f"/proc/{pid}/status", encoding="ascii") as f:
+            for line in f:
+                if line.startswith("VmRSS:"):
+                    return int(line.split()[1]) / 1024
+    except OSError:
+        return None
+    return None
+
+
+@dataclass
+class Tally:
+    """What the soak saw: commands and their outcomes, heartbeats, board events, downloads, memory."""
+
+    t0: float
+    pending: dict[tuple[str, int], tuple[str, float]] = field(default_factory=dict)  # (link, cmd_id) -> (what, t)
+    sent: int = 0
+    acked: int = 0
+    failed: Counter[str] = field(default_factory=Counter)
+    refused: Counter[str] = field(default_factory=Counter)
+    lost_with_link: int = 0
+    outcome: dict[tuple[str, int], str] = field(default_factory=dict)  # the latest outcome per (link, cmd_id)
+    overwritten: int = 0  # a cmd_id reused while its command was still unresolved
+    hb_times: list[float] = field(default_factory=list)
+    hb_last: int | None = None
+    hb_missing: int = 0
+    hb_by_link: Counter[str] = field(default_factory=Counter)
+    board_events: Counter[str] = field(default_factory=Counter)
+    link_lost: Counter[str] = field(default_factory=Counter)
+    link_down: Counter[str] = field(default_factory=Counter)
+    handovers: Counter[str] = field(default_factory=Counter)
+    steps_failed: Counter[str] = field(default_factory=Counter)
+    downloads: list[dict[str, Any]] = field(default_factory=list)
+    memory: dict[str, list[tuple[float, float]]] = field(default_factory=lambda: {"term": [], "sim": []})
+    download: LogDownloader | None = None
+    crashes_acked: int = 0
+    phase: str = "start"  # what the script is doing, for the notable events
+    notable: Counter[str] = field(default_factory=Counter)  # link timeouts and long heartbeat gaps, by phase
+
+    def on_event(self, ev: Any) -> None:
+        now = time.monotonic()
+        kind = type(ev)
+        if kind is FromLink:
+            self._link_event(ev.link, ev.event, now)
+        elif kind is NotSent:
+            self.refused[f"{ev.what}: {ev.why}"] += 1
+        elif kind is LinkDown:
+            self.link_down[ev.link] += 1
+            for key in [k for k in self.pending if k[0] == ev.link]:
+                del self.pending[key]
+                self.lost_with_link += 1
+
+    def _link_event(self, link: str, ev: Any, now: float) -> None:
+        kind = type(ev)
+        if self.download is not None:
+            self.download.on_event(ev, now)  # (the model feeds it the LogStatus and LogChunk packets)
+        if kind is PacketReceived:
+            pkt = ev.packet
+            if type(pkt) is Heartbeat:
+                self.hb_by_link[link] += 1
+                if self.hb_last is None or pkt.counter != self.hb_last:
+                    if self.hb_last is not None:
+                        self.hb_missing += max(0, (pkt.counter - self.hb_last - 1) & 0xFFFF)
+                    if self.hb_times and now - self.hb_times[-1] > 0.5:
+                        self.notable[f"heartbeat gap over 0.5 s: {self.phase}"] += 1
+                    self.hb_last = pkt.counter
+                    self.hb_times.append(now)
+            elif type(pkt) is Event:
+                try:
+                    name = EventCode(pkt.code).name
+                except ValueError:
+                    name = str(pkt.code)
+                self.board_events[name] += 1
+                if name in ("LINK_TIMEOUT", "CRASH", "LOW_BATTERY", "TILT_LIMIT", "OVERFLOW"):
+                    self.notable[f"{name}: {self.phase}"] += 1
+        elif kind is CommandAcked or kind is CommandFailed:
+            if self.pending.pop((link, ev.cmd_id), None) is None:
+                return
+            self.outcome[(link, ev.cmd_id)] = "acked" if kind is CommandAcked else ev.reason
+            if kind is CommandAcked:
+                self.acked += 1
+            else:
+                self.failed[ev.reason.split(" (")[0] if ev.nak is None else f"NAK: {ev.reason}"] += 1
+        elif kind is LinkLost:
+            self.link_lost[link] += 1
+
+    def note_sent(self, link: str, cmd_id: int, what: str) -> None:
+        self.sent += 1
+        if (link, cmd_id) in self.pending:
+            self.overwritten += 1
+        self.pending[(link, cmd_id)] = (what, time.monotonic())
+
+    def heartbeat_gaps(self) -> dict[str, Any]:
+        t = self.hb_times
+        gaps = sorted(b - a for a, b in zip(t, t[1:], strict=False))
+        if not gaps:
+            return {"received": len(t)}
+        return {
+            "received": len(t), "by_link": dict(self.hb_by_link), "missing": self.hb_missing,
+            "gap_median_ms": round(1000 * statistics.median(gaps), 1),
+            "gap_p99_ms": round(1000 * gaps[min(len(gaps) - 1, int(0.99 * len(gaps)))], 1),
+            "gap_max_ms": round(1000 * gaps[-1], 1),
+            "gaps_over_500ms": sum(1 for g in gaps if g > 0.5),
+        }
+
+    def memory_figures(self) -> dict[str, Any]:
+        """Resident memory from the end of the first cycle (imports and buffers warmed up) to the end."""
+        out: dict[str, Any] = {}
+        for name, xs in self.memory.items():
+            if len(xs) < 2:
+                out[name] = {"samples": len(xs)}
+                continue
+            (t0, m0), (t1, m1) = xs[0], xs[-1]
+            out[name] = {"start_mb": round(m0, 1), "end_mb": round(m1, 1), "max_mb": round(max(m for _, m in xs), 1),
+                         "growth_mb": round(m1 - m0, 2),
+                         "growth_mb_per_min": round((m1 - m0) / max((t1 - t0) / 60, 1e-9), 3),
+                         "per_cycle_mb": [round(b - a, 2) for (_, a), (_, b) in zip(xs, xs[1:], strict=False)]}
+        return out
+
+
+class Soak:
+    """The script: fly, hand over, fly over BLE, hand back, download, erase; repeated until the time is up."""
+
+    def __init__(self, station: Any, tally: Tally, model: Model) -> None:
+        self.st, self.tally, self.model = station, tally, model
+        self.stick = Joystick(0, 0, 0, 0, 0)
+        self.lift = 0.0  # 0..1 of HOVER_LIFT
+        self.circle = 0.0  # amplitude of the stick circles, 0..1
+        self._stick_task: asyncio.Task[None] | None = None
+
+    # --- plumbing ---------------------------------------------------------------------------------------------
+
+    def send(self, op: Op, arg: int = 0) -> int | None:
+        link = self.st.control()
+        cmd_id = self.st.send(op, arg)
+        if cmd_id is not None and link is not None:
+            self.tally.note_sent(link.role, cmd_id, f"{op.name} {arg}")
+        return cmd_id
+
+    async def sticks(self) -> None:
+        """The sticks at 100 Hz, as the joystick poller sends them; the links' statistics sampled at 12 Hz, as the
+        app's render tick does."""
+        t0 = time.monotonic()
+        n = 0
+        while True:
+            n += 1
+            if n % 8 == 0:
+                self.st.sample()
+            t = time.monotonic() - t0
+            a = self.circle * 1500
+            self.stick = Joystick(int(a * math.sin(1.1 * t)), int(a * math.cos(1.1 * t)), 0,
+                                  int(self.lift * FLY_LIFT * HOVER_LIFT), 0)
+            self.st.set_stick(self.stick)
+            await asyncio.sleep(1.0 / STICK_HZ)
+
+    async def until(self, cond: Any, timeout: float = STEP_TIMEOUT_S) -> bool:
+        end = time.monotonic() + timeout
+        while not cond():
+            if time.monotonic() > end:
+                return False
+            await asyncio.sleep(0.02)
+        return True
+
+    async def mode(self, mode: Mode, what: str) -> bool:
+        """Ask for ``mode`` until the board says so (a command can fail on the damaged link); False if never. A
+        crash the board reports is acknowledged first, as a pilot would after looking at the craft."""
+        for _ in range(4):
+            ack_crash = getattr(Op, "ACK_CRASH", None)
+            if ack_crash is not None and self.tally.board_events.get("CRASH", 0) > self.tally.crashes_acked:
+                self.tally.crashes_acked += 1
+                self.send(ack_crash)
+                await asyncio.sleep(0.3)
+            self.send(Op.MODE, int(mode))
+            if await self.until(lambda: self.model.mode == mode, 3.0):
+                return True
+        self.tally.steps_failed[what] += 1
+        return False
+
+    async def ramp(self, to: float, seconds: float) -> None:
+        start, t0 = self.lift, time.monotonic()
+        while (f := (time.monotonic() - t0) / seconds) < 1.0:
+            self.lift = start + (to - start) * f
+            await asyncio.sleep(0.02)
+        self.lift = to
+
+    async def fly(self, where: str, seconds: float = FLY_S) -> None:
+        self.tally.phase = f"flying over {where}"
+        self.lift, self.circle = 0.0, 0.0
+        await asyncio.sleep(0.1)
+        if not await self.mode(Mode.FULL, f"FULL over {where}"):
+            return
+        await self.ramp(1.0, 2.0)
+        self.circle = 1.0
+        await asyncio.sleep(max(0.0, seconds - 4.0))
+        self.circle = 0.0
+        await self.ramp(0.0, 2.0)
+        if not await self.mode(Mode.SAFE, f"SAFE over {where}"):
+            self.send(Op.MODE, int(Mode.PANIC))  # PANIC ends in SAFE by itself
+            await self.until(lambda: self.model.mode == Mode.SAFE, 15.0)
+
+    # --- the cycle -------------------------------------------------------------------------------------------
+
+    async def calibrate(self) -> None:
+        self.tally.phase = "calibrating"
+        self.lift = 0.0
+        await self.until(lambda: self.model.mode == Mode.SAFE, 15.0)
+        if await self.mode(Mode.CALIBRATION, "CALIBRATION"):
+            await self.until(lambda: self.model.mode == Mode.SAFE, 15.0)
+
+    async def handover(self) -> bool:
+        self.tally.phase = "handing over to BLE"
+        for _ in range(4):
+            self.send(Op.WIRELESS, 1)  # key 8, over the cable
+            if await self.until(lambda: self.model.over_ble, 4.0):
+                self.tally.handovers["to_ble"] += 1
+                return True
+        self.tally.handovers["to_ble_failed"] += 1
+        return False
+
+    async def hand_back(self) -> None:
+        self.tally.phase = "handing back to the cable"
+        for _ in range(4):
+            self.send(Op.WIRELESS, 0)  # the palette's "hand control back to the cable", over BLE
+            if await self.until(lambda: self.model.wireless == WirelessState.DISCONNECTED, 4.0):
+                self.tally.handovers["back"] += 1
+                return
+        self.tally.handovers["back_failed"] += 1
+
+    async def download(self) -> None:
+        self.tally.phase = "downloading the log"
+        t0 = time.monotonic()
+        d = LogDownloader(started=t0)
+        self.model.download = d  # the model feeds it LogStatus and LogChunk packets, as in the app
+        self.tally.download = d
+        while d.state == RUNNING and time.monotonic() - t0 < 300:
+            now = time.monotonic()
+            req = d.poll(now)
+            if req is not None:
+                d.sent(self.send(req.op, req.arg) if self.st.control() is not None else None, now)
+            await asyncio.sleep(0.02)
+        self.model.download = None
+        self.tally.download = None
+        row: dict[str, Any] = {"state": d.state, "s": round(time.monotonic() - t0, 1), "chunks": d.total_chunks,
+                               "requests": d.requests}
+        if d.state == "done":
+            row["crc_ok"] = d.verify() is None
+            row["bytes"] = len(d.data())
+        else:
+            row["reason"] = d.reason
+        self.tally.downloads.append(row)
+
+    async def cycle(self) -> None:
+        await self.fly("the cable")
+        if await self.handover():
+            self.send(Op.LOG_START)
+            await self.fly("BLE")
+            self.send(Op.LOG_STOP)
+            await self.hand_back()
+        else:
+            self.send(Op.LOG_START)
+            await asyncio.sleep(3.0)
+            self.send(Op.LOG_STOP)
+        await asyncio.sleep(0.5)
+        await self.download()
+        await self.erase()
+
+    async def erase(self) -> None:
+        """LOG_RESET until it is done (refused while the board still streams the download's last pass)."""
+        self.tally.phase = "erasing the log"
+        for _ in range(10):
+            link = self.st.control()
+            cmd_id = self.send(Op.LOG_RESET)
+            if cmd_id is None or link is None:
+                await asyncio.sleep(1.0)
+                continue
+            key = (link.role, cmd_id)
+            self.tally.outcome.pop(key, None)
+            await self.until(lambda k=key: k in self.tally.outcome, 3.0)
+            if self.tally.outcome.get(key) == "acked":
+                return
+            await asyncio.sleep(0.5)
+        self.tally.steps_failed["LOG_RESET"] += 1
+
+
+async def soak(minutes: float, damage: float, seed: int) -> dict[str, Any]:
+    from term.cli import SimBoard
+    from term.config import JOYSTICK_POLICIES
+    from term.station import Station
+    from term.transports.ble import BleTransport
+    from term.transports.loopback import Faults, FaultyTransport
+    from term.transports.serial import SerialTransport
+
+    sim = SimBoard(seed=seed, radio=True)
+    port = sim.start()
+    assert sim.proc is not None
+    sim_pid = sim.proc.pid
+    t0 = time.monotonic()
+    tally = Tally(t0)
+    cable = FaultyTransport(SerialTransport(port), Faults(corrupt=damage), Faults(corrupt=damage), seed=seed)
+    radio = BleTransport(sim.ble_address, hci=sim.ble_hci, timeout=10.0)
+    model = Model(start=t0, link_name=cable.name, radio_name=radio.name)
+    st = Station(model, cable=cable, radio=radio,
+                 cable_session={"link_timeout": 0.5, **JOYSTICK_POLICIES["stream"]},
+                 radio_session={"link_timeout": 0.5}, on_event=tally.on_event)
+    crash: str | None = None
+    cycles = 0
+    stats = None
+    s = Soak(st, tally, model)
+    try:
+        await st.start()
+        s._stick_task = asyncio.create_task(s.sticks())
+        await s.until(lambda: model.radio_up and model.mode is not None, 20.0)
+        await s.calibrate()
+        end = t0 + 60 * minutes
+        while time.monotonic() < end:
+            await s.cycle()
+            cycles += 1
+            now = time.monotonic()
+            tally.memory["term"].append((now, rss_mb() or 0.0))
+            tally.memory["sim"].append((now, rss_mb(sim_pid) or 0.0))
+            print(f"cycle {cycles} at {(now - t0) / 60:.1f} min: download {tally.downloads[-1]}, "
+                  f"rss term {tally.memory['term'][-1][1]:.1f} MB sim {tally.memory['sim'][-1][1]:.1f} MB",
+                  file=sys.stderr, flush=True)
+            if sim.proc is None or sim.proc.poll() is not None:
+                crash = f"the simulator exited ({None if sim.proc is None else sim.proc.returncode})"
+                break
+            for link in st.links:
+                if link.connection is not None and link.connection.crash is not None:
+                    crash = f"term's {link.role} connection crashed: {link.connection.crash!r}"
+            if crash:
+                break
+        await s.until(lambda: not tally.pending, 5.0)  # the last commands' outcomes
+        if st.cable is not None and st.cable.connection is not None:
+            stats = st.cable.connection.stats
+    except Exception as exc:  # the soak reports a crash rather than dying with it
+        crash = f"term side: {exc!r}"
+    finally:
+        if s._stick_task is not None:
+            s._stick_task.cancel()
+            with contextlib.suppress(asyncio.CancelledError):
+                await s._stick_task
+        if sim.proc is not None and sim.proc.poll() is not None and crash is None:
+            crash = f"the simulator exited ({sim.proc.returncode})"
+        with contextlib.suppress(Exception):
+            await st.shutdown()
+        sim.stop()
+    done = [d for d in tally.downloads if d["state"] == "done"]
+    return {
+        "bench": "soak", "minutes": round((time.monotonic() - t0) / 60, 2), "damage_pct": 100 * damage,
+        "seed": seed, "cycles": cycles, "crash": crash,
+        "commands": {"sent": tally.sent, "acked": tally.acked, "failed": sum(tally.failed.values()),
+                     "failed_reasons": dict(tally.failed), "refused_by_station": dict(tally.refused),
+                     "lost_with_a_dead_link": tally.lost_with_link, "id_reused_unresolved": tally.overwritten,
+                     "unresolved": len(tally.pending)},
+        "heartbeats": tally.heartbeat_gaps(),
+        "board_events": dict(tally.board_events),
+        "link_lost": dict(tally.link_lost), "link_down": dict(tally.link_down),
+        "handovers": dict(tally.handovers), "steps_failed": dict(tally.steps_failed),
+        "downloads": {"runs": len(tally.downloads), "done": len(done),
+                      "crc_ok": sum(1 for d in done if d.get("crc_ok")),
+                      "failed": [d.get("reason") for d in tally.downloads if d["state"] != "done"],
+                      "time_mean_s": round(statistics.mean(d["s"] for d in done), 1) if done else None,
+                      "bytes_mean": round(statistics.mean(d["bytes"] for d in done)) if done else None},
+        "notable": dict(tally.notable),
+        "memory": tally.memory_figures(),
+        "cable": {"bytes_damaged_up": cable.up.stats.bytes_corrupted,
+                  "bytes_damaged_down": cable.down.stats.bytes_corrupted,
+                  "frames_bad": None if stats is None else stats.frames_bad,
+                  "loss_pct_total": None if stats is None else round(stats.loss_pct_total, 2)},
+    }
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m bench.soak", description=__doc__.splitlines()[0])
+    ap.add_argument("--minutes", type=float, default=10.0, help="how long to fly (default 10)")
+    ap.add_argument("--damage", type=float, default=0.02, help="probability a cable byte is damaged (default 0.02)")
+    ap.add_argument("--seed", type=int, default=1)
+    a = ap.parse_args(argv)
+    if not 0.1 <= a.minutes <= 24 * 60:
+        print("bench.soak: --minutes must be between 0.1 and 1440", file=sys.stderr)
+        return 2
+    if not 0.0 <= a.damage <= 0.5:
+        print("bench.soak: --damage is a probability between 0 and 0.5", file=sys.stderr)
+        return 2
+    if not os.path.exists("/proc/self/status"):
+        print("bench.soak: memory figures need Linux (/proc)", file=sys.stderr)
+    result = asyncio.run(soak(a.minutes, a.damage, a.seed))
+    print(json.dumps(result))
+    return 0 if result["crash"] is None else 1
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
