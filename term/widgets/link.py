@@ -1,4 +1,5 @@
-"""The link panel: RTT, loss, bytes/s, frame errors, time since the last heartbeat, and a clear LINK LOST."""
+"""The link panel: RTT, loss, bytes/s, frame errors, time since the last heartbeat, and a clear LINK LOST; its
+bottom border names the board as its Hello did (id, firmware and protocol version)."""
 
 from __future__ import annotations
 
@@ -6,7 +7,7 @@ from rich.console import RenderableType
 from rich.text import Text
 
 from term.model import Model
-from term.protocol import WirelessState
+from term.protocol import Hello, WirelessState
 from term.widgets.base import ModelView
 from term.widgets.wireless import link_lines
 
@@ -24,6 +25,16 @@ def _heartbeat(model: Model, name: str, age: float | None) -> str:
     return "—" if age is None else f"{age * 1000:.0f} ms ago"
 
 
+def board_text(hello: Hello | None, width: int = 80) -> str:
+    """The board as its last Hello named it, in at most ``width`` characters where it can: "board 1 · fw 0.1 ·
+    protocol v3", narrower "#1 · fw 0.1 · protocol v3" ("" before any Hello)."""
+    if hello is None:
+        return ""
+    version = f"fw {hello.major}.{hello.minor} · protocol v{hello.protocol}"
+    full = f"board {hello.board_id} · {version}"
+    return full if len(full) <= width else f"#{hello.board_id} · {version}"
+
+
 class LinkPanel(ModelView):
     TIME_DEPENDENT = True  # ages grow without new data
     MAX_HZ = 4.0  # statistics; but LINK LOST and its end show at once
@@ -33,6 +44,8 @@ class LinkPanel(ModelView):
                 model.over_ble, model.radio_up, model.radio_lost)
 
     def render_model(self, model: Model, now: float) -> RenderableType:
+        # in the bottom border (the panel's rows are all taken), between its corners and the title's padding
+        self.subtitle(board_text(model.hello, self.size.width - 6))
         if model.radio_name:
             return self._two_links(model)
         s = model.link
