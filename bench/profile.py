@@ -9,6 +9,9 @@ Runs, each `--seconds` of board time:
 - the model: RAW and DMP, round robin and priority;
 - "report telemetry": RAW round robin with telemetry at 0.5 Hz, as in the report's profile (Figure 14: nine
   telemetry runs, 1.9 s apart), instead of our 50 Hz;
+- "ikf": RAW with the default filter instead of the report's (the report's complementary filter runs in the rest),
+  float and Q16.16, both schedulers: its cost beyond the report's filter, priced from its counted operations
+  (fcb_sim/timing.py RAW_FILTER_EXTRA_US; docs/board.md, "The RAW filter's price"), added to every sensor read;
 - "residual" (a diagnostic, not the model): the report's sensor-read period jitters more (sigma 193 µs for the
   RAW read) than the model's, and nothing the report documents accounts for it. This run adds the missing start
   jitter as an exponential delay on every start out of an idle wait, its mean set so the RAW sensor period
@@ -26,7 +29,7 @@ import time
 from typing import Any
 
 from fcb_sim.profile import run_profile
-from fcb_sim.timing import FIGURE14, residual_jitter_us
+from fcb_sim.timing import FIGURE14, RAW_FILTER_EXTRA_US, REPORT_RAW_FILTER, raw_filter_us, residual_jitter_us
 
 REPORT_SENSOR_PERIOD_SD = {"raw": FIGURE14["sensor_raw"][5], "dmp": FIGURE14["sensor_dmp"][5]}
 
@@ -83,6 +86,23 @@ def print_tasks(name: str, out: dict[str, Any]) -> None:
               f"  period {m['period_us']:7.0f} ({r['period_us']:7.0f}) ± {m['period_sd_us']:5.0f} ({rsd})")
 
 
+def print_filters(runs: dict[str, dict[str, Any]]) -> None:
+    """The RAW path's misses with ikf beside the report's filter (float, as Figure 14's 'MPU RAW - float' row)."""
+    print(f"\nRAW path by filter (priced per sample on the M0, fcb_sim/timing.py; the report's {REPORT_RAW_FILTER} "
+          f"filter {raw_filter_us(REPORT_RAW_FILTER):.0f} µs float, {raw_filter_us(REPORT_RAW_FILTER, True):.0f} µs "
+          "Q16.16, is inside Figure 14's sensor row)")
+    rows = (("report's filter (float)", "", REPORT_RAW_FILTER, False), ("ikf, Q16.16", "/ikf-fixed", "ikf", True),
+            ("ikf, float", "/ikf-float", "ikf", False))
+    for label, key, name, fixed in rows:
+        for sched in ("round-robin", "priority"):
+            out = runs[f"raw/{sched}{key}"]
+            lost = sum(out["ticks_lost"].values())
+            print(f"  {label:24s} {sched:11s} +{RAW_FILTER_EXTRA_US[(name, fixed)]:4d} µs/sample: sensor read "
+                  f"{out['tasks']['sensor']['mean_us']:6.0f} µs, >= WCET99 {pct(out['deadline_miss_rate'])}, "
+                  f">= WCET99.9 {pct(out['deadline_miss_rate_999'])}, CPU {out['cpu_load_pct']:.0f} %, "
+                  f"ticks lost {lost}")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seconds", type=float, default=20.0)
@@ -95,6 +115,10 @@ def main() -> None:
             runs[f"{path}/{sched}"] = run_profile(path, sched, args.seconds, args.seed)
     runs["raw/round-robin/report-telemetry"] = run_profile("raw", "round-robin", args.seconds, args.seed,
                                                            telemetry_hz=0.5)
+    for fixed in (True, False):
+        for sched in ("round-robin", "priority"):
+            runs[f"raw/{sched}/ikf-{'fixed' if fixed else 'float'}"] = run_profile(
+                "raw", sched, args.seconds, args.seed, filter_name="ikf", fixed_point=fixed)
     # The residual start jitter: an exponential of mean tau adds tau² to the variance of each start, 2 tau² to a
     # period's; the RAW sensor read's period is set to the report's sigma.
     model_sd = runs["raw/round-robin"]["tasks"]["sensor"]["period_sd_us"]
@@ -109,6 +133,7 @@ def main() -> None:
     print_tasks("DMP, round robin", runs["dmp/round-robin"])
     print(f"\nresidual start jitter (diagnostic): exponential, mean {tau} µs, from the RAW sensor period sigma "
           f"{model_sd} µs (model) vs {REPORT_SENSOR_PERIOD_SD['raw']} µs (report)")
+    print_filters(runs)
     rates = {k.replace("/", "_").replace("-", "_") + "_miss_rate": round(v["deadline_miss_rate"], 5)
              for k, v in runs.items()}
     rates999 = {k.replace("/", "_").replace("-", "_") + "_miss_rate_999": round(v["deadline_miss_rate_999"], 5)
@@ -124,6 +149,9 @@ def main() -> None:
         **rates999,
         "residual_jitter_us": tau,
         "residual_calibrated_on": "RAW sensor-read period sigma, Figure 14 'MPU RAW - float, Full': 193 µs",
+        "raw_filter": REPORT_RAW_FILTER,
+        "raw_filter_us": {f"{n}/{'fixed' if fx else 'float'}": round(raw_filter_us(n, fx), 1)
+                          for n, fx in RAW_FILTER_EXTRA_US},
         "runs": {k: summary(v) for k, v in runs.items()},
     }
     print(json.dumps(out))

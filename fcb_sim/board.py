@@ -59,6 +59,7 @@ from fcb_sim.timing import (
     DOWNLOAD_US_PER_CHUNK,
     PARSE_US_BASE,
     PARSE_US_PER_BYTE,
+    RAW_FILTER_EXTRA_US,
     REPORT_MISS_RATE,
     REPORT_MISS_RATE_999,
     REPORT_RECORD_BYTES,
@@ -414,6 +415,7 @@ class Board:
             cost = self._cost["sensor_dmp"]()
         else:
             cost = self._cost["sensor_raw_fixed" if self.config.fixed_point else "sensor_raw"]()
+            cost += RAW_FILTER_EXTRA_US[(fc.filter_name, fc.fixed_point)]  # the filter running now, beyond the report's
         if not self.sched.priority:
             self.sched.flags["control"] = True  # data ready: control follows
         return cost

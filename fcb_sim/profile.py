@@ -18,7 +18,9 @@ from typing import Any
 from fcb_sim.board import Board, BoardConfig
 from fcb_sim.errors import UsageError
 from fcb_sim.flash_log import FLASH_BYTES
+from fcb_sim.flight import FlightCore
 from fcb_sim.physics import World
+from fcb_sim.timing import REPORT_RAW_FILTER
 from term.protocol import (
     FLIGHT_MODES,
     Ack,
@@ -81,9 +83,12 @@ class BytePilot:
 def run_profile(path: str = "raw", scheduler: str = "round-robin", seconds: float = 30.0, seed: int = 1,
                 logging: bool = True, log_scheme: str = "delta8", telemetry_hz: float = 50.0,
                 softdevice: bool = True, residual_jitter_us: float = 0.0,
-                stick_reaction: bool = True) -> dict[str, Any]:
+                stick_reaction: bool = True, filter_name: str = REPORT_RAW_FILTER,
+                fixed_point: bool = False) -> dict[str, Any]:
     """Profile as the report did (4.2): calibrate, enter FULL (DMP path) or RAW, random sticks from the PC,
-    logging on; the props are off (motors held at zero in the world, so random sticks cannot crash it)."""
+    logging on; the props are off (motors held at zero in the world, so random sticks cannot crash it). The RAW
+    path runs ``filter_name`` (default the report's, whose cost is in Figure 14's rows; another is priced by
+    fcb_sim.timing.RAW_FILTER_EXTRA_US), in fixed point with ``fixed_point``."""
     world = World(seed)
     for i in range(1, 5):
         world.stick_motor(i, 0)  # on the bench without propellers, as a profiling run is done
@@ -92,7 +97,9 @@ def run_profile(path: str = "raw", scheduler: str = "round-robin", seconds: floa
     log_bytes = max(FLASH_BYTES, int(seconds * 400 * 40) + 4096)
     board = Board(BoardConfig(seed=seed, scheduler=scheduler, sensor_path=path, log_scheme=log_scheme,
                               log_bytes=log_bytes, telemetry_hz=telemetry_hz, softdevice=softdevice,
-                              residual_jitter_us=residual_jitter_us, stick_reaction=stick_reaction), world=world)
+                              residual_jitter_us=residual_jitter_us, stick_reaction=stick_reaction,
+                              fixed_point=fixed_point),
+                  world=world, core=FlightCore(filter_name=filter_name, fixed_point=fixed_point))
     board.modes.config.tilt_limit_cdeg = 18000
     pilot = BytePilot(board, seed)
     pilot.command(Op.MODE, Mode.CALIBRATION)
@@ -110,7 +117,7 @@ def run_profile(path: str = "raw", scheduler: str = "round-robin", seconds: floa
     out = board.profile()
     out.update(seconds=seconds, seed=seed, mode=board.mode.name, log_bytes=board.log.used, log_scheme=log_scheme,
                telemetry_hz=telemetry_hz, softdevice=softdevice, residual_jitter_us=residual_jitter_us,
-               stick_reaction=stick_reaction)
+               stick_reaction=stick_reaction, filter=filter_name, fixed_point=fixed_point)
     return out
 
 

@@ -1,27 +1,23 @@
 """The board's timing model: what each task costs on the Cortex-M0, when the timers tick, and the interrupts
-that take the CPU from the main loop (report sections 4.2 and 5, Figure 14). ``fcb_sim.board`` runs the loop.
+that take the CPU from the main loop (report sections 4.2 and 5, Figure 14). ``fcb_sim.board`` runs the loop;
+how the model was built and what it leaves out: docs/board.md, "The timing model".
 
-Three parts, each with its source:
-
-- Task durations (``COSTS``). Every run of a task costs a draw from a distribution fitted to the report's
-  Figure 14 row for it (mean, sigma, 99th and 99.9th percentile). Those rows have long right tails (the DMP read
-  1983 ± 145 µs has its p99 at 2590, four sigma up): a normal or a single log-normal cannot hold them. The shape
-  used is a log-normal body (the task's own work: I2C transfers, arithmetic) and, with a small probability, a
-  slower run (the task was pre-empted, by the SoftDevice's radio processing above all, or took a slow path).
-  The figures are wall-clock times on the board, so they already hold the interrupts that hit a task while it
-  ran; ``fit_cost`` finds the parameters (``python -m fcb_sim.timing`` refits and prints the table).
-- Timers (``rtc_ticks``). The report's periodic tasks run from the nRF SDK's timers (report section 2), the
-  app_timer on RTC1: a 32768 Hz clock, so a period is a whole number of 30.5 µs ticks (2.5 ms is 82 ticks,
-  2502.4 µs; 20 ms is 655 ticks, not 8 of those). The tasks' timers therefore slide past each other instead of
-  meeting at the same phase forever, and a slow task meets the sensor tick at every phase in turn. (Figure 14's
-  mean periods are 0.7-1.3 % below their set points for every timed task, 2477 µs for 2500, 49532 for 50000:
-  the report's stopwatch and its timers ran on different clocks. Not modelled: the board's clock is both.)
-- Interrupts that find the loop idle (``Interference``). When the loop waits for a tick, an interrupt in progress
-  at the tick delays the start of the task the tick releases. Those delays are not in any task's duration, so
-  they are added here: the SoftDevice's advertising events (the lab template advertises every 40 ms, forever,
-  with or without a phone), UART receive and transmit interrupts (one per byte at 115200 baud), the motor PWM
-  timer interrupts and the app_timer's own interrupt at every tick. Figures marked [ASSUMED] are estimates, not
-  measurements; the SoftDevice figures are Nordic's.
+- Task durations (``COSTS``): every run of a task costs a draw from a distribution fitted to the report's Figure 14
+  row for it (mean, sigma, p99, p99.9): a log-normal body and, with a small probability, a slower run (``Cost``;
+  ``fit_cost`` fits them, ``python -m fcb_sim.timing`` refits and prints the table). The rows are wall-clock times
+  on the board, so they already hold the interrupts that hit a task while it ran.
+- The RAW filter (``RAW_FILTER_EXTRA_US``): the RAW rows hold the report's filter; a board running another one pays
+  the difference of the two filters' prices, their counted operations (``fcb_sim.opcount``) times cycles on the
+  M0 (qfplib's measured float cycles; libfixmath-style fixed point, [ASSUMED]): docs/board.md, "The RAW filter's
+  price".
+- Timers (``rtc_ticks``): the app_timer on the 32768 Hz RTC1, so a period is a whole number of 30.5 µs ticks and
+  the tasks' timers slide past one another (a slow task meets the sensor tick at every phase in turn).
+- Interrupts that find the loop idle (``Interference``) delay the start of the task a tick releases: the
+  SoftDevice's advertising events, UART interrupts (one per byte at 115200 baud), the motor PWM timer and the
+  app_timer's own interrupt. Figures marked [ASSUMED] are estimates, not measurements; the SoftDevice's are
+  Nordic's.
+- Measuring (``TaskStats``, ``Profiler``): per task durations and periods, and the control periods at least the
+  report's WCET99 and WCET99.9 (the deadline misses), beside Figure 14.
 """
 
 from __future__ import annotations
@@ -336,6 +332,54 @@ RICE_ENCODE_EXTRA_US = 40  # bit packing on a Cortex-M0 without a barrel-shift-f
 PARSE_US_BASE = 6  # our frames carry COBS and a CRC-16: a call costs a base plus per byte [ASSUMED]
 PARSE_US_PER_BYTE = 4
 DOWNLOAD_US_PER_CHUNK = 20  # flash read and frame encode per LogChunk [ASSUMED]
+
+
+# --- the RAW path's attitude filter: priced by the filter that runs (docs/board.md, "The RAW filter's price") ----
+
+CPU_HZ = 16_000_000  # the nRF51822's core clock
+# The report's RAW rows ("MPU RAW - float/fixed", Figure 14) hold the filter its board flew, at its real cost; a
+# board running another filter pays the difference of the two filters' priced cost.
+REPORT_RAW_FILTER = "complementary"
+# Cycles per operation on the Cortex-M0, which has no FPU, no divide instruction and no 32x32->64 multiply.
+# Float: qfplib-M0-full (the report used qfplib, 4.2), its author's cycle counts with call overhead, measured on an
+# LPC11U68 Cortex-M0 (quinapalus.com/qfplib-m0-full.html); "add" is fadd 76 / fsub 78; asin is eq. 5 (atan2 and
+# sqrt). Fixed: libfixmath's Q16.16 (the report's [5]) and ikf_fixed's primitives, [ASSUMED] from their code paths:
+# a rounded, saturated 64-bit product from four 16x16 MULS with carries; a division by repeated 32/32 software
+# divisions (1-3, libfixmath's comment) with a software clz; a bit-by-bit square root (2 x 16 iterations); atan2
+# is fix16_atan2 (a division, four products) plus the report's correction (a modulo, a search of 18 knots, one
+# product and one division); saturating additions test for overflow; plain integer additions are one cycle.
+M0_CYCLES_FLOAT: dict[str, float] = {"add": 77, "mul": 62, "div": 83, "sqrt": 67, "sin": 584, "cos": 595,
+                                     "atan2": 673, "asin": 673 + 67 + 62 + 77}
+M0_CYCLES_FIXED: dict[str, float] = {"add": 1, "mul": 40, "div": 180, "sqrt": 300, "sadd": 8, "sat": 4,
+                                     "atan2_correction": 150, "atan2": 180 + 4 * 40 + 20 + 150, "asin": 1000}
+# Operations per sample, update and the angles the control step reads (``python -m fcb_sim.opcount`` counts them
+# and prints this table; a test keeps the two equal).
+RAW_FILTER_OPS: dict[tuple[str, bool], dict[str, float]] = {
+    ("complementary", False): {"add": 8.0, "atan2": 2.0, "mul": 7.0, "sqrt": 1.0},
+    ("complementary", True): {"atan2_correction": 2.0, "div": 2.0, "mul": 15.0, "sadd": 7.0, "sqrt": 1.0},
+    ("complementary-0.9", False): {"add": 8.0, "atan2": 2.0, "mul": 7.0, "sqrt": 1.0},
+    ("complementary-0.9", True): {"atan2_correction": 2.0, "div": 2.0, "mul": 15.0, "sadd": 7.0, "sqrt": 1.0},
+    ("kalman", False): {"add": 12.0, "atan2": 2.0, "div": 4.0, "mul": 5.0, "sqrt": 1.0},
+    ("kalman", True): {"atan2_correction": 2.0, "div": 6.0, "mul": 13.0, "sadd": 11.0, "sqrt": 1.0},
+    ("kalman-cov", False): {"add": 12.0, "atan2": 2.0, "mul": 9.0, "sqrt": 1.0},
+    ("kalman-cov", True): {"atan2_correction": 2.0, "div": 6.0, "mul": 33.0, "sadd": 35.0, "sqrt": 1.0},
+    ("qgate", False): {"add": 110.0, "atan2": 4.0, "cos": 2.0, "div": 6.0, "mul": 161.0, "sin": 2.0, "sqrt": 6.0},
+    ("ikf", False): {"add": 121.0, "atan2": 3.0, "cos": 2.0, "div": 5.0, "mul": 165.0, "sin": 2.0, "sqrt": 6.0},
+    ("ikf", True): {"add": 12.0, "atan2": 3.0, "div": 5.5, "mul": 167.0, "sat": 55.0, "sqrt": 4.5},
+}
+
+
+def raw_filter_us(name: str, fixed_point: bool = False) -> float:
+    """The priced cost (µs at CPU_HZ) of one sample of RAW filter ``name``: its counted operations times the cycle
+    table of its arithmetic. KeyError for a filter (or fixed-point variant) not in RAW_FILTER_OPS."""
+    cycles = M0_CYCLES_FIXED if fixed_point else M0_CYCLES_FLOAT
+    return sum(n * cycles[op] for op, n in RAW_FILTER_OPS[(name, fixed_point)].items()) * 1e6 / CPU_HZ
+
+
+# What a sample of each filter costs beyond the report's filter in the same arithmetic (µs, whole): added to the
+# RAW sensor read's Figure 14 draw. 0 for the report's own filter, so its profile is the report's.
+RAW_FILTER_EXTRA_US: dict[tuple[str, bool], int] = {
+    key: round(raw_filter_us(*key) - raw_filter_us(REPORT_RAW_FILTER, key[1])) for key in RAW_FILTER_OPS}
 
 
 # --- measuring the loop: durations, periods, deadline misses beside the report's -----------------------------
