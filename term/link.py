@@ -203,10 +203,13 @@ class LinkSession:
         stats_window: float = 2.0,
         max_queued: int = 32,
     ) -> None:
-        if link_timeout <= 0 or command_timeout <= 0 or joystick_rate <= 0 or keepalive <= 0:
-            raise ValueError("timeouts, rate and keep-alive must be positive")
-        if command_retries < 0:
-            raise ValueError("command_retries must be >= 0")
+        for name, value in (("link_timeout", link_timeout), ("command_timeout", command_timeout),
+                            ("joystick_rate", joystick_rate), ("keepalive", keepalive), ("stats_window", stats_window)):
+            # (a nan passes a "<= 0" test and a timer that never fires spins the terminal; inf never fires at all)
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0 < value < math.inf:
+                raise ValueError(f"{name} must be a finite number above 0, got {value!r}")
+        if isinstance(command_retries, bool) or not isinstance(command_retries, int) or command_retries < 0:
+            raise ValueError(f"command_retries must be a whole number >= 0, got {command_retries!r}")
         if not 0 < max_queued < 255:
             raise ValueError("max_queued must be in 1..254 (command ids are 8-bit)")
         self.link_timeout = link_timeout

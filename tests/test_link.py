@@ -449,6 +449,27 @@ def test_no_board_at_all_is_a_lost_link() -> None:
     assert of(s.poll(11.0), LinkLost)
 
 
+@pytest.mark.parametrize("option", ["link_timeout", "command_timeout", "joystick_rate", "keepalive", "stats_window"])
+@pytest.mark.parametrize("value", [math.nan, math.inf, -math.inf, 0.0, -1.0, "1", None, True])
+def test_a_timer_option_that_is_not_a_finite_positive_number_is_refused_in_one_line(option: str, value: object) -> None:
+    # nan passed the old "<= 0" test: a link timeout that never fires, and the terminal spun on it
+    with pytest.raises(ValueError) as err:
+        LinkSession(0.0, **{option: value})  # type: ignore[arg-type]
+    assert str(err.value) == f"{option} must be a finite number above 0, got {value!r}"
+
+
+@pytest.mark.parametrize("value", [-1, 1.5, math.nan, True, "3"])
+def test_command_retries_must_be_a_whole_number(value: object) -> None:
+    with pytest.raises(ValueError, match="command_retries must be a whole number >= 0"):
+        LinkSession(0.0, command_retries=value)  # type: ignore[arg-type]
+
+
+def test_the_smallest_and_largest_sane_options_are_accepted() -> None:
+    s = LinkSession(0.0, link_timeout=0.05, command_timeout=1e-3, joystick_rate=1e4, keepalive=3600.0,
+                    stats_window=86400.0, command_retries=0)
+    assert s.link_timeout == 0.05 and s.joystick_interval == pytest.approx(1e-4)
+
+
 def test_commands_in_flight_fail_when_the_link_is_lost_and_new_ones_fail_fast() -> None:
     s = LinkSession(0.0, link_timeout=1.0, command_timeout=0.4, command_retries=5)
     s.receive(Board()(Heartbeat(0, 0)), 0.0)
