@@ -13,26 +13,11 @@ API for the board::
     ae1, ae2, ae3, ae4 = fc.control(mode, roll, pitch, yaw, lift, dt)   # sticks + trims, int16 / 0..32767
     fc.panic_scale = s                                       # PANIC: the mode machine ramps 1 -> 0 over time
 
-- ``control`` notices a mode change by itself (HEIGHT captures the height set point and the lift stick at entry;
-  PANIC restarts at full descent level); ``enter_mode(mode, lift)`` does it explicitly.
-- Per mode: SAFE, CALIBRATION, WIRELESS: motors 0. PANIC: ``panic_motors(panic_scale, dt)``, a descent at a
-  bounded rate on the height estimator's vertical speed (1 m/s near the ground, up to 3 m/s high up), from the
-  motor level PANIC found, levelled by the attitude loops when calibrated, until the ground is sensed
-  (``panic_landed``: little thrust and no vertical speed); then the board ramps the scale to 0. MANUAL:
-  sticks straight to Z/L/M/N. YAW: MANUAL plus yaw-rate control. FULL: cascaded roll/pitch on the DMP angles,
-  yaw rate, lift from the stick. RAW: FULL on the on-board filter (``estimation.make_filter``, float or Q16.16).
-  HEIGHT: FULL (or RAW, when entered from RAW) plus the height PID on the height estimator, the lift stick
-  (relative to its position at entry) moving the set point at up to ``HEIGHT_STICK_RATE`` m/s. The set point
-  is the height at entry, refined during the next seconds by the estimator's ``captured_height`` (later
-  readings tell where the quadcopter really was at that instant; a few cm).
-- CALIBRATION: entering it clears the DMP angle offsets, so ``dmp_phi``/``dmp_theta`` are uncorrected while the
-  board collects their means; ``set_calibration(Calibration(...))`` applies all means when it ends.
-- Gains: ``fc.gains`` (params.Gains: yaw_p, p1, p2, height_p, height_d) may be changed at any time;
-  ``adjust_gain(name, steps)`` applies the key steps of params.GAIN_STEPS and returns the new value. The height
-  integral ``fc.height_i`` (``HEIGHT_I``) is not a protocol gain (the Gains packet carries P and D only).
-- Outputs for telemetry: ``phi, theta, psi`` (rad, FRD, of the path the mode uses), ``sp, sq, sr`` (calibrated
-  body rates, gyro LSB), ``sax, say, saz`` (body accelerations, accel LSB, saz about -16384 at rest), ``height``
-  and ``vz`` (m, m/s, up), ``setpoint`` (m), ``ae`` (last motor commands), ``attitude_centideg()``.
+``control`` notices a mode change by itself (``enter_mode(mode, lift)`` does it explicitly): HEIGHT captures its
+set point and the lift stick at entry, PANIC restarts at its full descent level. Gains: ``fc.gains``
+(params.Gains), ``adjust_gain(name, steps)``. Telemetry reads ``phi, theta, psi``, ``sp, sq, sr``, ``sax, say,
+saz``, ``height``, ``vz``, ``setpoint``, ``ae`` and ``attitude_centideg()``. What each mode does, the gains and the
+outputs in full: docs/board.md, "The flight core".
 
 Chip-to-body mapping is done here, once, where samples enter (docs/architecture.md): ``p = gx, q = -gy,
 r = -gz``; the z-up estimators' angles become ``phi = roll, theta = -pitch, psi = -yaw``. control.py explains

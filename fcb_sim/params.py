@@ -1,45 +1,25 @@
 """Physical constants of the simulated Quadrupel, each with its source.
 
-Sources (cited below by their tag):
+Sources (cited below by their tag; full references in docs/board.md, "The model's constants"):
 
 - [OS4]   S. Bouabdallah, R. Siegwart, "Full control of a quadrotor", IEEE/RSJ IROS 2007, Table I: the identified
-          parameters of the OS4 quadrotor (a published small-quadrotor identification): m 0.65 kg, l 0.23 m,
-          Ixx = Iyy 7.5e-3 kg m², Izz 1.3e-2 kg m², thrust factor b 3.13e-5 N s², drag factor d 7.5e-7 N m s².
-- [MPU]   InvenSense MPU-6000/MPU-6050 Product Specification PS-MPU-6000A-00 rev 3.4 (tables 6.1, 6.2) and
-          Register Map RM-MPU-6000A-00 rev 4.2 (register 26, DLPF_CFG).
-- [MS]    MEAS MS5611-01BA03 barometric pressure sensor datasheet (DA5611-01BA03_011).
+          parameters of the OS4 quadrotor (mass, arm, inertia, thrust and drag factors).
+- [MPU]   InvenSense MPU-6000/MPU-6050 Product Specification rev 3.4 and Register Map rev 4.2.
+- [MS]    MEAS MS5611-01BA03 barometric pressure sensor datasheet.
 - [LAB]   the lab report (seed/000_...txt): Table 1 gains, Table 2 filter constants, eq. 2-3, Figure 9, 100 Hz DMP,
-          400 Hz RAW, 20 Hz barometer task (Figure 14: "ADC + Baro" period 49.6 ms).
-- [TPL]   the lab's in4073 firmware template (mpu_wrapper.c, I. Protonotarios 2016): angles as int16 with 10430
-          LSB per rad (``phi = atan2(...) * 10430.0``, ``theta = -asin(...) * 10430.0``), rates as the raw gyro
-          words (``sp = gyro[0]; sq = gyro[1]; sr = gyro[2]``), DMP FIFO at 100 Hz with the DLPF at 10 Hz.
-- [LIPO]  typical 3S lithium-polymer figures: 4.20 V full / 3.0 V empty per cell, a resting-voltage curve as
-          published by pack vendors, about 20 mOhm per cell internal resistance for a 2200 mAh 25C pack.
-- [ISA]   ICAO standard atmosphere at sea level: p0 101325 Pa, T0 288.15 K, rho 1.225 kg/m³.
+          400 Hz RAW, 20 Hz barometer task (Figure 14).
+- [TPL]   the lab's in4073 firmware template (mpu_wrapper.c): angles as int16 at 10430 LSB per rad, rates as the
+          raw gyro words, the DMP FIFO at 100 Hz with the DLPF at 10 Hz.
+- [LIPO]  typical 3S lithium-polymer figures (pack vendors' curves, about 20 mOhm per cell).
+- [ISA]   ICAO standard atmosphere at sea level.
 - [ASSUMED] values for which no published figure for this airframe exists; each says why it is plausible.
 
-Scaling to the lab's board: the motor command ``ae`` (0..1000) sets the rotor speed in proportion (an ESC holds
-speed roughly proportional to throttle times supply voltage), and the proportionality is chosen so that the OS4
-airframe hovers at ae = 400 at the reference supply voltage V_REF, as the lab's quadcopter did (DESIGN.md).
+Scaling to the lab's board: the motor command ``ae`` (0..1000) sets the rotor speed in proportion, chosen so that
+the OS4 airframe hovers at ae = 400 at the reference supply voltage V_REF, as the lab's quadcopter did.
 
-Meaning of the report's Table 1 gains in the model's units (see control.py, which uses the table's numbers as is):
-
-- angles are int16 in the template's unit, ANGLE_LSB_PER_RAD = 10430 LSB per rad (182 LSB per degree);
-- rates are raw gyro words, RATE_LSB_PER_RAD_S = 16.4 * 180/pi = 939.65 LSB per rad/s;
-- lift and moments Z, L, M, N are in "ae² units": the mixing of DESIGN.md with b = d = 1, so that
-  ae_i² follows from Z/L/M/N by integer arithmetic alone. One ae² unit of L or M is
-  B_FW * ARM = 2.29e-6 N m of torque, one of N is D_FW = 2.39e-7 N m, one of Z is B_FW = 9.96e-6 N of thrust.
-
-With these units: P1 = 0.4 commands 0.4 rate-LSB per angle-LSB, i.e. 4.44 rad/s of rate per rad of angle error
-(an angle-loop bandwidth of 4.4 rad/s); P2 = 111 is 111 ae² per rate-LSB = 1.04e5 ae² per rad/s = 0.239 N m per
-rad/s, a rate-loop bandwidth P2/Ixx = 32 rad/s; yaw P = 800 is 7.5e5 ae² per rad/s = 0.180 N m per rad/s, a
-yaw-rate bandwidth of 13.8 rad/s. Height P = 400 ae² per mm is 4.0 N per m (omega_n = 2.5 rad/s at 0.65 kg) and
-height D = 400 ae² per mm/s is 4.0 N per m/s (damping ratio 1.2), plus the integral of flight.HEIGHT_I. These
-suit the robust height Kalman filter (estimation/height.py), which neither lags nor follows the barometer's
-spikes: over seeds 1-12 (30 s) 0.073 m rms (worst 0.101) against 0.095 (worst 0.144) with the earlier
-P 120 / D 320 (both without integral). That slow, over-damped pair was chosen for the report's complementary filter,
-whose estimate lags by a few tenths of a second and carries the spikes (with P 250 / D 200 it limit-cycled with
-1 m swings after spikes); fly the complementary filter on it (0.167 m) rather than on these gains (0.25 m).
+The report's Table 1 gains are used as is, in the model's units: angles in 10430 LSB per rad, rates in raw gyro
+words, lift and moments in ae² units (``Gains``). What they mean physically (loop bandwidths) and why the height
+gains are what they are: docs/board.md, "The model's units and gains".
 """
 
 from __future__ import annotations

@@ -8,10 +8,9 @@ Model, integrated at a fixed step (default 1 kHz, ``physics_hz`` may be raised):
 - motors: first-order speed response (time constant MOTOR_TAU, discretised exactly so any step is stable) towards
   ``ae * OMEGA_PER_AE * V_loaded / V_REF``; thrust ``B_ROTOR w²`` along -z, yaw torque ``D_ROTOR w²``, so that
   Z, L, M, N are the mixing of DESIGN.md with b = B_ROTOR (and l = ARM), d = D_ROTOR;
-- rigid body: Newton in NED and Euler's equations in FRD (with the gyroscopic term w x Iw), linear drag against
-  the air's velocity (wind) acting at the rotor plane (so gusts also tilt it), rotational drag; semi-implicit
-  Euler (velocity, then position), quaternion attitude renormalised every 10 steps. Stable at 1 kHz: the
-  fastest mode (motor lag, 30 ms) is integrated exactly and the drag time constants are seconds;
+- rigid body: Newton in NED and Euler's equations in FRD (gyroscopic term w x Iw included), linear drag against
+  the wind acting at the rotor plane (gusts tilt it), rotational drag; semi-implicit Euler, the quaternion
+  renormalised every 10 ms; stable at 1 kHz (the fastest mode, the 30 ms motor lag, is integrated exactly);
 - ground contact at h = 0: the quadrotor rests level on its feet until the thrust lifts it, lands inelastically
   (vertical and horizontal speed to zero, levelled on its legs), and never goes below the floor; the sky ends at
   ``P.CEILING_M`` (a climb stops there); an impact faster than ``P.CRASH_SPEED_M_S``, or a touch-down tilted past

@@ -19,18 +19,8 @@ A ``LinkSession`` knows the protocol's rules for talking to a board and nothing 
 Nothing here reads a clock: every call takes ``now`` (seconds, any monotonic origin). The caller (an asyncio
 pump in ``term.connection``, a test with a fake clock, a benchmark) owns time and I/O.
 
-What the figures mean (measured on the PC; the PC cannot see into the board):
-
-- **RTT** has two sources, merged into one series: the heartbeat round trip (board → PC → board) that the
-  board measures from our HeartbeatAck and reports in its next ``Heartbeat.rtt``, ten samples a second; and
-  the time from sending a ``Command`` to receiving its ``Ack`` (PC → board → PC), measured here. Retried
-  commands give no sample (Karn's rule: the Ack cannot be matched to one attempt). Heartbeats also give
-  ``heartbeat_delay_ms``: the latest heartbeat's one-way
-  delay above the smallest one seen in the last ``HB_DELAY_WINDOW`` seconds (arrival time minus the board's
-  ``board_ms``, so the clock offset cancels): the queueing and batching delay on the board-to-PC path.
-- **loss** counts board-to-PC frames missing from the sequence numbers (frames dropped or destroyed by
-  corruption) over the frames that should have arrived: ``loss_pct`` over the last ``stats_window`` seconds,
-  ``loss_pct_total`` since the start. PC-to-board loss is invisible here (retries hide it from commands).
+What the figures mean (RTT from heartbeats and command round trips, Karn's rule, the heartbeat delay, loss from
+sequence numbers): docs/link.md.
 """
 
 from __future__ import annotations

@@ -8,33 +8,17 @@ accelerometer *in that frame* (linear accelerations average out there, gravity d
 bias from rest phases. VQF's low-pass is a fixed 2nd-order Butterworth; here the same response is the steady
 state of a Kalman filter, which lets its bandwidth follow the motion.
 
-Per sample (chip z-up frame; gyro rad/s, specific force m/s²):
+Per sample (chip z-up frame; gyro rad/s, specific force m/s²; docs/attitude.md, "The algorithm"): 1. rest
+detection, and at rest the bias pulled towards the low-passed gyro; 2. strapdown by the exact rotation of the
+bias-corrected rate; 3. a Kalman filter per horizontal axis on V (velocity), G_h (horizontal gravity not yet
+removed) and D (its drift per radian turned), fed the earth-frame horizontal specific force, with the pseudo
+measurement V = 0; 4. rebase: q rotated by the swing that makes the estimated gravity vertical, G_h restarts from
+zero; 5. output: q carried ``latency`` seconds ahead along the current rate. Yaw is the integrated, bias-corrected
+heading (no magnetometer).
 
-1. Rest detection (VQF's test: gyro and accelerometer within 2 °/s and 0.5 m/s² of their 0.5 s low-pass for
-   1.5 s); at rest the bias is pulled towards the low-passed gyro (time constant ``rest_bias_tau``).
-2. Strapdown: q (body to earth) advanced by the exact rotation of the bias-corrected rate.
-3. The horizontal specific force f_h in the current earth frame feeds, per horizontal axis, the states V (the
-   integral of f_h - G_h, a velocity) and G_h (the horizontal gravity the estimate has not yet removed), and D
-   (a drift of G_h per radian turned). The model: G_h random walk whose rate grows with the turn rate
-   (gyro errors scale with rotation: q_G = (sqrt 2/tau)^4 (1 + k_rot |w|)), G_h' = D |w|, and a pseudo
-   measurement V = 0 (a hand or a quad does not keep accelerating one way: velocity stays bounded). At rest
-   (no rotation) the filter is exactly a 2nd-order Butterworth low-pass of time constant ``tau`` on the
-   earth-frame accelerometer, VQF's filter. The covariance (3x3, shared by both axes) is propagated, so a
-   burst of rotation keeps the gravity estimate agile for a while after it. At rest the velocity is known to
-   be zero: the pseudo measurement is trusted ``1 / rest_r`` times more and the estimate settles faster.
-4. Rebase: q is rotated (in the earth frame) by the small swing that makes the estimated gravity vertical,
-   and G_h restarts from zero; the correction is applied in full each sample, so the output's vertical is the
-   filtered one without a second lag.
-5. Output: q advanced by the current rate over ``latency`` seconds (a sensor's samples describe the body a
-   little in the past: the MPU6050's DLPF delays them 4.8 ms; on the BROAD recordings the optical truth is
-   about one sample ahead of the IMU). PX4's EKF2 "output predictor" does the same for its delayed states.
-
-Yaw is not observable without a magnetometer: it is the integrated, bias-corrected heading.
-
-Parameters (docs/attitude.md says how each was chosen): tau, k_rot and latency were chosen on the 17 BROAD trials
-and are scored leave-one-trial-out by bench.filters (0.52° mean, VQF offline 0.53°); the rest thresholds and times
-are VQF's defaults, not fitted. Cost per sample: about qgate's (some 125 multiplies, 4 square roots, 4 divisions, one
-sin/cos pair, one more per output read); the fixed-point twin is :mod:`.ikf_fixed`. Non-finite samples and
+Parameters: tau, k_rot and latency chosen on the 17 BROAD trials and scored leave-one-trial-out by bench.filters
+(0.52° mean, VQF offline 0.53°); the rest thresholds and times are VQF's defaults. Cost per sample on the board:
+docs/board.md, "The RAW filter's price"; the fixed-point twin is :mod:`.ikf_fixed`. Non-finite samples and
 dt <= 0 are skipped; an all-zero accelerometer carries no gravity and leaves the estimate coasting on the gyro.
 """
 

@@ -5,30 +5,16 @@ shifted right with rounding half away from zero and saturated to int32, a quotie
 the divisor, rounded and saturated. That is libfixmath's ``fix16_mul``/``fix16_div`` with another shift: the
 same instructions on the Cortex-M0 (a 32x32->64 multiply in software), so the cost per operation is
 libfixmath's. Samples enter and the angles leave in Q16.16 (libfixmath's ``fix16_t``, as the report's RAW
-path); inside, the states that take tiny steps need more fractional bits than Q16.16 has:
+path); inside, the states that take tiny steps need more fractional bits than Q16.16 has (``Formats``): dt and
+the quaternion Q2.30, the bias and the rest low-pass Q8.24, V and G_h Q8.24, D Q4.28, covariances and gains
+Q2.30. docs/attitude.md ("Fixed point") says why each, and measures the trade-off against all-Q16.16.
 
-=================  ========  =======================================================================
-quantity           format    why not Q16.16
-=================  ========  =======================================================================
-gyro, accel in     Q16.16    the interface (rad/s, m/s²)
-dt                 Q2.30     2.5 ms is 163.84 LSB in Q16.16: rounding to 164 is a 0.1 % error on every
-                             integrated angle (a scale error the filter then has to correct)
-quaternion         Q2.30     a 1 °/s turn moves it 2.2e-5 per 400 Hz step, 1.4 LSB of Q16.16
-bias, rest gyro    Q8.24     the 2 s bias low-pass moves 0.1 % of the difference per step: a dead band
-                             of 0.7 °/s in Q16.16
-V, G_h             Q8.24     the gravity correction per step is ~1e-5 m/s², under one Q16.16 LSB
-D (drift)          Q4.28     steps of ~4e-7 m/s² per rad
-P, gains           Q2.30     increments ~1e-4 of their value per step
-=================  ========  =======================================================================
-
-docs/attitude.md measures the trade-off: the same code with every format set to Q16.16 against this one, both
-against the float filter on the BROAD trials. Non-linear functions: three square roots per sample (the turn
-rate and two in the swing, bit by bit like ``fix16_sqrt``), sin and cos of the half step by their Taylor series
-to 4th order (the step is at most 0.044 rad at 2000 °/s and 400 Hz: error < 2e-10), normalisation by one Newton
-step, and five divisions (three Kalman gains, two in the swing). Angles are read back as floats from the
-quaternion (on the board the corrected fix16_atan2 of :mod:`.fixed` would add at most 0.06°). Per sample: 119
-multiplies, 5 divisions, 3 square roots (26 multiplies more for the predicted output), three to four times the
-report's Kalman filter in Q16.16; about 0.45 ms at 16 MHz by the estimate in docs/attitude.md.
+Non-linear functions: three square roots per sample (the turn rate and two in the swing, bit by bit like
+``fix16_sqrt``), sin and cos of the half step by their Taylor series to 4th order (the step is at most 0.044 rad
+at 2000 °/s and 400 Hz: error < 2e-10), normalisation by one Newton step, and five divisions (three Kalman gains,
+two in the swing). Angles are read back as floats from the quaternion (on the board the corrected fix16_atan2 of
+:mod:`.fixed` would add at most 0.06°). Per sample: 119 multiplies, 5 divisions, 3 square roots (26 multiplies
+more for the predicted output); its price on the board: docs/board.md, "The RAW filter's price".
 """
 
 from __future__ import annotations

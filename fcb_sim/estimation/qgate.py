@@ -1,38 +1,24 @@
-"""Beyond the report: a quaternion attitude filter that holds up on real data ("qgate").
+"""Beyond the report: a quaternion attitude filter that holds up on real data ("qgate"), the default before ikf.
 
 Own design, using ideas from VQF (D. Laidig and T. Seel, "VQF: Highly accurate IMU orientation estimation
 with bias estimation and magnetic disturbance rejection", Information Fusion 91, 2023): correct the
 inclination with the accelerometer low-pass filtered in an (almost) inertial frame, and estimate the gyro
 bias both at rest and during motion. No code of theirs is used.
 
-Per sample:
+Per sample (docs/attitude.md, "How qgate works", says why each step is as it is):
 
 1. Strapdown: integrate the bias-corrected gyro exactly (axis-angle increment) into q (body-to-earth).
-2. Rotate the specific force into the earth frame with q and low-pass it there (first order, ``tau_acc``).
-   In the earth frame the linear accelerations of a hand-held or flying body average out over a second or
-   two (velocity stays bounded), while gravity stays put; filtering in the body frame would smear gravity as
-   the body turns. This is the accelerometer gating during acceleration in its smooth form. On top of it a
-   magnitude gate: a sample whose |a| is more than ``gate`` (10 m/s²) from g (a tap, an impact) enters with
-   weight (gate / deviation)². The gate is wide on purpose: on BROAD's fast rotations the sensor sits off
-   the rotation axis and sees sustained centripetal loads of several m/s², and gating those out at 2 or
-   4 m/s² raised trial 07's error from 1.2° to 9° or 4.9°: the gyro needs the accelerometer most then.
+2. Rotate the specific force into the earth frame with q and low-pass it there (first order, ``tau_acc``),
+   a sample whose |a| is more than ``gate`` (10 m/s²) from g entering with weight (gate / deviation)².
 3. Correct: rotate q about the horizontal earth axis that brings the filtered vector to vertical, by the
    fraction ``dt / tau_corr`` of the angle; rotate the filtered vector with it so the loop stays consistent.
-4. Bias: during motion, the correction's body-frame component feeds an integral (Mahony-like, ``tau_bias``):
-   a constant correction means a constant gyro error. At rest (gyro and accelerometer steady for
-   ``rest_time``) the bias is pulled towards the low-passed gyro reading itself, which is far quicker and
-   also observes the yaw-axis bias. The bias is clamped to ``bias_max``.
+4. Bias: during motion the correction's body-frame component feeds an integral (``tau_bias``); at rest (gyro and
+   accelerometer steady for ``rest_time``) the bias is pulled towards the low-passed gyro. Clamped to
+   ``bias_max``.
 
-Yaw is not observable without a magnetometer; it is the integrated, bias-corrected heading.
-
-Tuned on four BROAD trials of an earlier set (0.61° mean inclination RMSE there). On the 17 trials of
-../shared/data/broad it scores 1.35° mean, 5.5° worst (trial 15, fast translation; bench.filters), after a fix:
-step 3's earth-frame correction was multiplied from the right, a rotation in the body frame, which is right only
-near level (8.0° on trial 01 before). Superseded as the default by ``ikf`` (docs/attitude.md). The time
-constants are a trade-off: in the simulator's hover, shorter ones (tau_acc 2 s, tau_corr 1 s) track the truth
-slightly better (0.36° against 0.48° rms in pitch), on the real data they cost 25 %.
-Float only: on the board's Q16.16 the per-step corrections (a fraction dt / tau of a small angle) are below
-the resolution; see the report's filters for the fixed-point path.
+Yaw is not observable without a magnetometer; it is the integrated, bias-corrected heading. On the 17 BROAD trials
+it scores 1.35° mean, 5.5° worst (bench.filters). Float only: on the board's Q16.16 the per-step corrections (a
+fraction dt / tau of a small angle) are below the resolution.
 """
 
 from __future__ import annotations
