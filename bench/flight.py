@@ -18,6 +18,11 @@ object.
   (+-20 deg every 0.6 s) in FULL and in RAW (float and fixed-point on-board filter): the attitude the control loop
   flies on against the simulator's truth (goal for RAW <= 1 deg; issue 12), with the worst seed.
 
+- ``report_*``: the same flights on the report's board (the "report" preset, docs/parameters.md: Table 1's gains,
+  the complementary filter with K_gyro 0.999, the Figure 10 height estimator on its PD gains): hover in FULL
+  (``report_hover_attitude_rms_deg``), in RAW on the report's filter (``report_raw_hover_attitude_rms_deg``) and
+  HEIGHT on the Figure 10 estimator (``report_height_hold_rms_m``), beside the default preset's figures above.
+
 Each figure is the mean over ``--seeds`` seeds (1..N) of ``--seconds`` simulated seconds (the per-seed values are
 printed too). Run: ``python -m bench.flight [--seconds S] [--seeds N]``.
 """
@@ -33,8 +38,10 @@ from fcb_sim import params as P
 from fcb_sim.estimation import BEST
 from fcb_sim.estimation.height import HEIGHT_BEST, make_height_estimator
 from fcb_sim.flight import FlightCore
-from fcb_sim.scenarios import Sim, height_profile, hover, raw_hover, raw_throw, throw
+from fcb_sim.paramtable import preset_core
+from fcb_sim.scenarios import Sim, fly_core, height_profile, hover, raw_hover, raw_throw, throw
 from fcb_sim.scenarios import height_hold as height_hold_scenario
+from term.protocol import Mode
 
 GOAL_HEIGHT_M = 0.10
 
@@ -68,6 +75,13 @@ def main() -> None:
         "raw_throw_estimate_rms_deg": [raw_throw(s, args.seconds)["estimate_rms_deg"] for s in seeds],
         "raw_throw_fixed_estimate_rms_deg": [raw_throw(s, args.seconds, fixed_point=True)["estimate_rms_deg"]
                                              for s in seeds],
+        # the report's board (preset "report"), the same flights
+        "report_hover_attitude_rms_deg": [fly_core(s, args.seconds, preset_core("report"))["attitude_rms_deg"]
+                                          for s in seeds],
+        "report_raw_hover_attitude_rms_deg": [
+            fly_core(s, args.seconds, preset_core("report"), Mode.RAW)["attitude_rms_deg"] for s in seeds],
+        "report_height_hold_rms_m": [
+            height_hold_scenario(s, args.seconds, Sim(s, core=preset_core("report")))["height_rms_m"] for s in seeds],
     }
     for name, values in runs.items():
         print(json.dumps({"metric": name, "per_seed": [round(v, 4) for v in values]}))
@@ -93,6 +107,7 @@ def main() -> None:
         "raw_throw_estimate_worst_seed_deg": max(runs["raw_throw_estimate_rms_deg"]),
         "goal_raw_throw_estimate_rms_deg": 1.0,
         "goal_height_hold_rms_m": GOAL_HEIGHT_M,
+        "report_height_hold_worst_seed_m": max(runs["report_height_hold_rms_m"]),
         "raw_filter": BEST,
         "height_estimator": HEIGHT_BEST,
         "seeds": seeds,

@@ -10,11 +10,17 @@ CLOCK_MONOTONIC, which the two processes share. The board changes the motors in 
 new stick value (fcb_sim/board.py, "Sticks to motors"); ``by_parse_pct`` says how often it did.
 
     python -m bench.latency [--events 120] [--policy stream|on-change|fixed-rate] [--raw] [--seed 1]
+                            [--no-report-board]
 
 Prints one JSON line: mean_ms, p50_ms, p99_ms (and n, the report's 23.4 ms mean and the 3 ms goal), and where the
 time goes: term_mean_ms (to the frame handed to the serial port), to_board_mean_ms (to the board's server reading
 it from the pty) and board_mean_ms (the frame's 1.3 ms on the board's UART, waiting for the loop, parse and the
 recompute).
+
+In the same run, measured the same way, the report's board (``report_board_*``): the board with the "report"
+preset (docs/parameters.md: no stick reaction, so only the next control step moves the motors; the report's
+queue rule) and a PC that samples the joystick every 10 ms as in the report's section 4.3 (a stick moved between
+two samples waits for the next one; the random moments of the stick events give every phase).
 """
 
 from __future__ import annotations
@@ -37,7 +43,7 @@ LIFTS = (8000, 12000)  # two lift levels, both above idle in MANUAL
 # --- the board side (child process) ---------------------------------------------------------------------------
 
 
-def board_main(seed: int) -> int:
+def board_main(seed: int, preset: str = "default") -> int:
     from fcb_sim.serve import PtyServer, event_loop, make_board
     from term.protocol import Decoder, Joystick
 
@@ -72,7 +78,7 @@ def board_main(seed: int) -> int:
                 print(f"ae {t:.6f} {name} {' '.join(map(str, ae))}", flush=True)
 
     async def main() -> None:
-        server = Reporting(make_board(seed))
+        server = Reporting(make_board(seed, preset=preset))
         print(f"pty: {server.path}", flush=True)
         stop = asyncio.Event()
         loop = asyncio.get_running_loop()
@@ -94,9 +100,9 @@ def board_main(seed: int) -> int:
 
 
 class BoardChild:
-    def __init__(self, seed: int) -> None:
-        self.proc = subprocess.Popen([sys.executable, "-m", "bench.latency", "--board", "--seed", str(seed)],
-                                     stdout=subprocess.PIPE, text=True, bufsize=1)
+    def __init__(self, seed: int, preset: str = "default") -> None:
+        self.proc = subprocess.Popen([sys.executable, "-m", "bench.latency", "--board", "--seed", str(seed),
+                                      "--preset", preset], stdout=subprocess.PIPE, text=True, bufsize=1)
         assert self.proc.stdout is not None
         line = self.proc.stdout.readline()
         if not line.startswith("pty: "):
@@ -140,7 +146,9 @@ by_task: list[str] = []  # per event: the board task that changed the motors (pa
 
 
 async def measure(path: str, board: BoardChild, events: int, policy: str, seed: int,
-                  raw: bool = False) -> list[float]:
+                  raw: bool = False, pc_sample_s: float = 0.0) -> list[float]:
+    """The latencies (ms) of ``events`` stick changes; ``pc_sample_s``: the PC reads the stick only every this
+    many seconds (0: at once, as term does), so a change waits for the next sample."""
     from term.connection import Connection
     from term.link import CommandAcked, PacketReceived
     from term.protocol import SENSOR_PATHS, Decoder, Event, EventCode, Joystick, Mode, Op, Param, param_arg
@@ -187,6 +195,7 @@ async def measure(path: str, board: BoardChild, events: int, policy: str, seed: 
         conn.send_command(Op.MODE, Mode.MANUAL)
         await until(lambda: acked(Op.MODE, Mode.MANUAL))
         rng = random.Random(seed)
+        t_start = time.monotonic()  # the phase of the PC's sampling ticks
         latencies: list[float] = []
         level = 0
         term_part.clear()
@@ -197,6 +206,8 @@ async def measure(path: str, board: BoardChild, events: int, policy: str, seed: 
             level ^= 1
             js = Joystick(0, 0, 0, LIFTS[level], 0)
             t_event = time.monotonic()
+            if pc_sample_s:  # the report's PC: the stick is read at the next sampling tick
+                await asyncio.sleep(pc_sample_s - (t_event - t_start) % pc_sample_s)
             conn.set_joystick(js)  # the joystick event in term: from here on it is term's link and the board
             try:
                 await until(lambda t=t_event: bool(board.changes_after(t)), timeout=1.0)
@@ -239,15 +250,17 @@ def main(argv: list[str] | None = None) -> int:
                     help="term's joystick send policy ([connection] joystick in term.toml; default stream)")
     ap.add_argument("--raw", action="store_true", help="board on the RAW sensor path (control at 400 Hz)")
     ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--no-report-board", action="store_true", help="skip the report's board (measured second)")
     ap.add_argument("--board", action="store_true", help=argparse.SUPPRESS)  # the child process
+    ap.add_argument("--preset", default="default", help=argparse.SUPPRESS)  # the child's parameters
     args = ap.parse_args(argv)
     if args.board:
-        return board_main(args.seed)
-    board = BoardChild(args.seed)
-    try:
-        lat = asyncio.run(measure(board.path, board, args.events, args.policy, args.seed, args.raw))
-    finally:
-        board.stop()
+        return board_main(args.seed, args.preset)
+    lat = _run(args, "default", 0.0)
+    report_lat = [] if args.no_report_board else _run(args, "report", REPORT_PC_SAMPLE_S)
+    report_by_parse = by_task.count("parse") / len(by_task) if by_task and report_lat else 0.0
+    if report_lat:
+        _restore()  # the first run's parts for the main keys below
     if not lat:
         print(json.dumps({"error": "no motor change observed"}))
         return 1
@@ -275,8 +288,37 @@ def main(argv: list[str] | None = None) -> int:
         "goal_mean_ms": 3.0,
         "cpus": os.cpu_count(),
     }
+    if report_lat:
+        out.update({
+            "report_board_mean_ms": round(statistics.fmean(report_lat), 2),
+            "report_board_p50_ms": round(pct(report_lat, 50), 2),
+            "report_board_p99_ms": round(pct(report_lat, 99), 2),
+            "report_board_n": len(report_lat),
+            "report_board_by_parse_pct": round(100 * report_by_parse, 1),
+            "report_board_pc_sample_ms": REPORT_PC_SAMPLE_S * 1e3,
+        })
     print(json.dumps(out))
     return 0
+
+
+REPORT_PC_SAMPLE_S = 0.010  # the report's PC read the joystick every 10 ms (section 4.3)
+_saved: dict[str, list[Any]] = {}
+
+
+def _run(args: argparse.Namespace, preset: str, pc_sample_s: float) -> list[float]:
+    """One board (with ``preset``) measured; the per-event parts of the first run are kept for the main keys."""
+    board = BoardChild(args.seed, preset)
+    try:
+        lat = asyncio.run(measure(board.path, board, args.events, args.policy, args.seed, args.raw, pc_sample_s))
+    finally:
+        board.stop()
+    if not _saved:
+        _saved.update(term=list(term_part), pty=list(pty_part), task=list(by_task))
+    return lat
+
+
+def _restore() -> None:
+    term_part[:], pty_part[:], by_task[:] = _saved["term"], _saved["pty"], _saved["task"]
 
 
 if __name__ == "__main__":

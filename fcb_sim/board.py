@@ -38,9 +38,11 @@ from typing import Any
 from fcb_sim import telemetry as tm
 from fcb_sim.calibration import CALIBRATED_VARS, DMP_ANGLE_LSB
 from fcb_sim.commands import COMMAND_DEDUPE_US, CommandDesk
+from fcb_sim.estimation.height import make_height_estimator
 from fcb_sim.flash_log import FLASH_BYTES, FLASH_US_PER_BYTE, Download, FlashLog, LogVar
 from fcb_sim.flight import FlightCore
 from fcb_sim.modes import FLIGHT_MODES, ModeChange, ModeConfig, ModeMachine
+from fcb_sim.paramtable import apply_values
 from fcb_sim.physics import World
 from fcb_sim.scheduler import (
     BARO_PERIOD_US,
@@ -79,7 +81,11 @@ from fcb_sim.uart import RX_QUEUE_BYTES, TX_BUFFER_BYTES, UART_BAUD, Uart
 from fcb_sim.wireless import WirelessLink
 from term.logformat import SCHEME_RICE
 from term.protocol import (
+    PARAMS,
+    PRESETS,
     PROTOCOL_VERSION,
+    QUEUE_DISCARD_FRAMES,
+    QUEUE_RULES,
     SCHEDULERS,
     SENSOR_PATHS,
     Button,
@@ -93,6 +99,7 @@ from term.protocol import (
     Joystick,
     LogState,
     Mode,
+    Param,
     Role,
     Status,
     WirelessState,
@@ -111,22 +118,31 @@ __all__ = [
 BOARD_VERSION = (0, 1)
 
 
+def _default(param: Param) -> Any:
+    return PARAMS[param].default
+
+
 @dataclass
 class BoardConfig:
+    """The board's start-up settings; those that are parameters default to the protocol's table (PARAMS), and
+    ``preset`` (term.protocol.PRESETS: "default", "report") sets the ones it names after the rest."""
+
     seed: int = 1
-    scheduler: str = "round-robin"  # or "priority"
-    sensor_path: str = "auto"  # "auto": RAW path in RAW mode (and HEIGHT entered from RAW), DMP otherwise
-    link_timeout_s: float = 0.5
-    telemetry_hz: float = 50.0
-    log_scheme: str = "rice"
-    fixed_point: bool = False  # RAW filter in Q16.16 (and the fixed-point read cost)
+    scheduler: str = _default(Param.SCHEDULER)  # or "priority"
+    sensor_path: str = _default(Param.SENSOR_PATH)  # "auto": RAW path in RAW mode (and HEIGHT from RAW), else DMP
+    link_timeout_s: float = _default(Param.LINK_TIMEOUT_MS) / 1000
+    telemetry_hz: float = _default(Param.TELEMETRY_HZ)
+    log_scheme: str = _default(Param.LOG_SCHEME)
+    fixed_point: bool = _default(Param.FIXED_POINT)  # RAW filter in Q16.16 (and the fixed-point read cost)
+    queue_rule: str = _default(Param.QUEUE_RULE)  # "discard-20": the report's parser, the whole queue at 20 frames
+    preset: str = "default"
     board_id: int = 1
     boot_hello: bool = True
     log_bytes: int = FLASH_BYTES  # the flash log's size (128 KB on the board)
     softdevice: bool = True  # the BLE stack advertises (and takes the CPU for it) whether a phone is there or not
     # A changed stick moves the motors in the parse task that decodes it, not at the next control step
     # (docs/board.md, "Sticks to motors"); False is the report's firmware, where only the control step does.
-    stick_reaction: bool = True
+    stick_reaction: bool = _default(Param.STICK_REACTION)
     # A diagnostic, not part of the model: an extra exponential delay of this mean (µs) on every start out of an
     # idle wait, standing for interference the model does not know (bench/profile.py: "residual").
     residual_jitter_us: float = 0.0
@@ -136,6 +152,10 @@ class BoardConfig:
             raise ValueError(f"unknown scheduler {self.scheduler!r}")
         if self.sensor_path not in SENSOR_PATHS:
             raise ValueError(f"unknown sensor path {self.sensor_path!r}")
+        if self.queue_rule not in QUEUE_RULES:
+            raise ValueError(f"unknown queue rule {self.queue_rule!r}")
+        if self.preset not in PRESETS:
+            raise ValueError(f"unknown preset {self.preset!r}; known: {', '.join(PRESETS)}")
 
 
 class Board:
@@ -146,7 +166,9 @@ class Board:
                  log_vars: tuple[LogVar, ...] | None = None) -> None:
         self.config = cfg = config or BoardConfig()
         self.world = world if world is not None else World(cfg.seed)
-        self.core = core if core is not None else FlightCore(fixed_point=cfg.fixed_point)
+        self.core = core if core is not None else FlightCore(
+            fixed_point=cfg.fixed_point, filter_name=_default(Param.ATTITUDE_FILTER),
+            height_estimator=make_height_estimator(_default(Param.HEIGHT_ESTIMATOR)))
         self.wireless = wireless if wireless is not None else WirelessLink()
         mc = ModeConfig(link_timeout_s=cfg.link_timeout_s, panic_level=self.core.panic_ae)
         self.modes = ModeMachine(mc, calibration_names=CALIBRATED_VARS)
@@ -195,6 +217,8 @@ class Board:
         self._overflow_report_at = 0
         self._crashes_seen = len(self.world.crashes)
         self.on_task: Any = None  # optional callback(name, start_us, duration_us) after every task run
+        self.apply_queue_rule()
+        apply_values(self, PRESETS[cfg.preset])  # the preset's parameters over the defaults (fcb_sim/paramtable.py)
         if cfg.boot_hello:
             self._hello()
             self._event(EventCode.BOOT, PROTOCOL_VERSION)
@@ -274,6 +298,10 @@ class Board:
     @property
     def path(self) -> str:
         return self._path
+
+    def apply_queue_rule(self) -> None:
+        """The receive queue's rule (Param.QUEUE_RULE): bounded, or the report's discard at 20 frames."""
+        self.uart.discard_at_frames = QUEUE_DISCARD_FRAMES if self.config.queue_rule == "discard-20" else None
 
     def set_scheduler(self, name: str) -> None:
         if name not in SCHEDULERS:

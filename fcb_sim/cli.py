@@ -35,7 +35,7 @@ def build_parser() -> argparse.ArgumentParser:
         description="The Quadrupel flight-control board as software: headless flights, IMU replay, "
         "profiling, and a board served over a pseudo-terminal (and a virtual BLE radio).",
     )
-    from term.protocol import PROTOCOL_VERSION
+    from term.protocol import PRESETS, PROTOCOL_VERSION
 
     parser.add_argument("--version", action="version", version=f"%(prog)s {_version()} (protocol v{PROTOCOL_VERSION})")
     parser.add_argument("-v", "--verbose", action="store_true", help="log INFO and up (bumble's too) to stderr")
@@ -80,6 +80,9 @@ def build_parser() -> argparse.ArgumentParser:
     serve.add_argument("--seed", type=int, default=1)
     serve.add_argument("--scenario", default="bench", help="initial conditions and disturbances")
     serve.add_argument("--link-timeout", type=float, default=0.5, help="seconds of silence before PANIC")
+    serve.add_argument("--preset", default="default", choices=sorted(PRESETS),
+                       help="the board's parameters: default (the team's best) or report (the lab report's board: "
+                       "Table 1, the complementary filter, the Figure 10 height estimator); docs/parameters.md")
     serve.add_argument("--ble-hci", default=None, metavar="TRANSPORT",
                        help="also expose the board's BLE radio, e.g. tcp-server:127.0.0.1:PORT")
     serve.add_argument("--instructor", default=None, metavar="TRANSPORT",

@@ -11,7 +11,9 @@ A command that finds no room for its Ack on the link (the transmit side's answer
 is shed: not done, not answered, counted; the terminal retries it. A handler that raises is a bug: the command
 is refused (BAD_ARGUMENT) and the board keeps flying.
 
-The ``SET_PARAM`` ids, ranges and meanings are the protocol's table (``term.protocol.PARAMS``).
+The parameters (``SET_PARAM``, ``PARAM_GET``, ``PARAM_LIST``) are the protocol's table (``term.protocol.PARAMS``)
+bound to the board in ``fcb_sim.paramtable``; every change, by ``SET_PARAM`` or by a gain key, is reported after
+its Ack as ``EventCode.PARAM_CHANGED`` (the terminal's parameter screen and files follow the board's events).
 """
 
 from __future__ import annotations
@@ -19,18 +21,19 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
-from fcb_sim.flash_log import FlashLog
+from fcb_sim import paramtable
 from fcb_sim.scheduler import TASKS
 from term.protocol import (
     PARAMS,
-    SCHEDULERS,
-    SENSOR_PATHS,
     Ack,
     Command,
+    EventCode,
     Mode,
     Nak,
     Op,
     Param,
+    ParamValue,
+    param_arg,
     param_split,
 )
 
@@ -58,11 +61,15 @@ def _trim(axis: str) -> Handler:
     return handler
 
 
-def _gain(name: str) -> Handler:
+def _gain(name: str, param: Param) -> Handler:
     def handler(b: Board, arg: int) -> Result:
-        return Nak.OK, round(b.core.adjust_gain(name, arg) * 1000), None
+        return Nak.OK, round(b.core.adjust_gain(name, arg) * 1000), lambda: _changed(b, param)
 
     return handler
+
+
+def _changed(b: Board, param: Param) -> None:
+    b._event(EventCode.PARAM_CHANGED, param_arg(param, paramtable.get_raw(b, param)))
 
 
 def _log_start(b: Board, arg: int) -> Result:
@@ -128,29 +135,27 @@ def _ack_crash(b: Board, arg: int) -> Result:
 
 
 def _set_param(b: Board, arg: int) -> Result:
-    pid, value = param_split(arg)
+    pid, raw = param_split(arg)
+    nak, param = paramtable.set_raw(b, pid, raw)
+    if nak != Nak.OK or param is None:
+        return nak, 0 if param is None else paramtable.get_raw(b, param), None
+    return Nak.OK, paramtable.get_raw(b, param), lambda: _changed(b, param)
+
+
+def _param_get(b: Board, arg: int) -> Result:
     try:
-        spec = PARAMS[Param(pid)]
+        param = Param(arg)
     except ValueError:
-        return Nak.BAD_ARGUMENT, 0, None
-    if not spec.accepts(value):
-        return Nak.BAD_ARGUMENT, 0, None
-    if spec.safe_only and b.modes.mode != Mode.SAFE:
-        return Nak.NOT_IN_SAFE, 0, None
-    if spec.param == Param.LINK_TIMEOUT_MS:
-        b.config.link_timeout_s = value / 1000
-        b.modes.config.link_timeout_s = value / 1000
-    elif spec.param == Param.SCHEDULER:
-        b.set_scheduler(SCHEDULERS[value])
-    elif spec.param == Param.TELEMETRY_HZ:
-        b.config.telemetry_hz = float(value)
-    elif spec.param == Param.SENSOR_PATH:
-        b.config.sensor_path = SENSOR_PATHS[value]
-    elif spec.param == Param.LOG_SCHEME:
-        if b.log.used:
-            return Nak.LOG_BUSY, 0, None
-        b.log = FlashLog(size=b.log.flash.size, scheme=value, variables=b.log.variables)
-    return Nak.OK, value, None
+        return Nak.UNKNOWN_PARAM, 0, None
+    return Nak.OK, paramtable.get_raw(b, param), None
+
+
+def _param_list(b: Board, arg: int) -> Result:
+    """Every parameter as a ParamValue packet after the Ack (whose value is how many)."""
+    params = sorted(PARAMS)
+    n = len(params)
+    return Nak.OK, n, lambda: b.tx.send_set(
+        "params", [ParamValue(int(p), paramtable.get_raw(b, p), i, n) for i, p in enumerate(params)], b.now)
 
 
 COMMANDS: dict[Op, Handler] = {
@@ -159,11 +164,11 @@ COMMANDS: dict[Op, Handler] = {
     Op.TRIM_ROLL: _trim("roll"),
     Op.TRIM_PITCH: _trim("pitch"),
     Op.TRIM_YAW: _trim("yaw"),
-    Op.GAIN_YAW_P: _gain("yaw_p"),
-    Op.GAIN_P1: _gain("p1"),
-    Op.GAIN_P2: _gain("p2"),
-    Op.GAIN_HEIGHT_P: _gain("height_p"),
-    Op.GAIN_HEIGHT_D: _gain("height_d"),
+    Op.GAIN_YAW_P: _gain("yaw_p", Param.YAW_P),
+    Op.GAIN_P1: _gain("p1", Param.P1),
+    Op.GAIN_P2: _gain("p2", Param.P2),
+    Op.GAIN_HEIGHT_P: _gain("height_p", Param.HEIGHT_P),
+    Op.GAIN_HEIGHT_D: _gain("height_d", Param.HEIGHT_D),
     Op.LOG_START: _log_start,
     Op.LOG_STOP: _log_stop,
     Op.LOG_RESET: _log_reset,
@@ -173,6 +178,8 @@ COMMANDS: dict[Op, Handler] = {
     Op.WIRELESS: _wireless,
     Op.SET_PARAM: _set_param,
     Op.ACK_CRASH: _ack_crash,
+    Op.PARAM_GET: _param_get,
+    Op.PARAM_LIST: _param_list,
 }
 
 

@@ -33,7 +33,7 @@ from fcb_sim import params as P
 from fcb_sim.calibration import Calibration
 from fcb_sim.estimation import BEST, HeightEstimator, make_filter, quaternion_to_euler
 from fcb_sim.estimation.height import HEIGHT_BEST, HeightKalman, make_height_estimator
-from term.protocol import Mode
+from term.protocol import PARAMS, Mode, Param
 
 HEIGHT_STICK_RATE = 0.5  # m/s of set-point change at full lift deflection away from the entry position
 HEIGHT_STICK_DEADBAND = 1500  # stick units around the entry position that leave the set point alone
@@ -42,7 +42,7 @@ HEIGHT_STICK_DEADBAND = 1500  # stick units around the entry position that leave
 # grows with the flight: over 120 s of HEIGHT on the true height P 400 / D 400 alone hold 4.4 cm rms, with this
 # integral 0.3 cm; on the estimator, seeds 1-6, 0.097 -> 0.087 m rms (worst 0.17 -> 0.13). Over 30 s, where the
 # sag is small, it costs a little (seeds 1-12: 0.073 -> 0.077 m).
-HEIGHT_I = 100.0
+HEIGHT_I = float(PARAMS[Param.HEIGHT_I].default)  # 100: the protocol's parameter table (ctrl.height_i)
 
 # PANIC's descent (issue 10.4: from about 100 m the old fixed level for 3.5 s, then motors off, hit the ground at
 # 23.5 m/s). A vertical-speed PI loop on the height estimate; ae per (m/s) and per m.

@@ -32,19 +32,20 @@ from term.protocol import (
     FLIGHT_MODES,
     LIFT_ZERO,
     LOW_BATTERY_HOLD_S,
+    PARAMS,
     STICK_MAX,
     STICK_NEUTRAL,
     EventCode,
     Joystick,
     Mode,
     Nak,
+    Param,
 )
 
 # FLIGHT_MODES (the motors may turn under the flight core), LIFT_ZERO and STICK_NEUTRAL (the guards for leaving
 # SAFE) and the battery threshold are protocol facts: the terminal checks the same numbers.
 MOTORS_OFF_MODES = frozenset({Mode.SAFE, Mode.CALIBRATION})
 LOW_BATTERY = BATTERY_LOW  # 10 mV units: 10.5 V (the older name)
-TRIM_STEP = {"roll": 256, "pitch": 256, "yaw": 256, "lift": 328}  # per key press (lift: 1 %)
 TRIM_LIMIT = 8192  # roll/pitch/yaw trims stay within a quarter of full deflection
 
 
@@ -60,6 +61,8 @@ class ModeConfig:
     calibration_min_samples: int = 50
     tilt_limit_cdeg: int = 5000  # 50°
     low_battery: int = LOW_BATTERY
+    trim_step: int = int(PARAMS[Param.TRIM_STEP].default)  # roll, pitch, yaw trim per key press (stick units)
+    lift_step: int = int(PARAMS[Param.LIFT_STEP].default)  # lift trim per key press (1 %)
 
 
 @dataclass
@@ -291,9 +294,9 @@ class ModeMachine:
     def adjust_trim(self, axis: str, steps: int) -> int:
         """Move one trim by ``steps`` key presses; returns the new value."""
         if axis == "lift":
-            self.trims.lift = max(0, min(STICK_MAX, self.trims.lift + steps * TRIM_STEP["lift"]))
+            self.trims.lift = max(0, min(STICK_MAX, self.trims.lift + steps * self.config.lift_step))
             return self.trims.lift
-        value = getattr(self.trims, axis) + steps * TRIM_STEP[axis]
+        value = getattr(self.trims, axis) + steps * self.config.trim_step
         value = max(-TRIM_LIMIT, min(TRIM_LIMIT, value))
         setattr(self.trims, axis, value)
         return value

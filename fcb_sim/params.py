@@ -149,20 +149,28 @@ BARO_TEMP_C = 25.0
 ANGLE_LSB_PER_RAD = 10430.0
 
 
+_GAIN_PARAMS = {"yaw_p": _protocol.Param.YAW_P, "p1": _protocol.Param.P1, "p2": _protocol.Param.P2,
+                "height_p": _protocol.Param.HEIGHT_P, "height_d": _protocol.Param.HEIGHT_D}
+
+
+def _gain_default(name: str) -> float:
+    return float(_protocol.PARAMS[_GAIN_PARAMS[name]].default)
+
+
 @dataclass
 class Gains:
-    """Controller gains in the model's units (module docstring). Start values: the report's Table 1 with
-    consistent signs (control.py explains the sign), plus our height PD."""
+    """Controller gains in the model's units (module docstring). Start values: the protocol's parameter table
+    (term.protocol.PARAMS): the report's Table 1 as magnitudes (control.py explains the sign), plus our height PD."""
 
-    yaw_p: float = 800.0
-    p1: float = 0.4
-    p2: float = 111.0
-    height_p: float = 400.0
-    height_d: float = 400.0
+    yaw_p: float = _gain_default("yaw_p")
+    p1: float = _gain_default("p1")
+    p2: float = _gain_default("p2")
+    height_p: float = _gain_default("height_p")
+    height_d: float = _gain_default("height_d")
 
 
-# Per-step changes for the pilot's gain keys (u/j, i/k, o/l).
-GAIN_STEPS = {"yaw_p": 50.0, "p1": 0.05, "p2": 5.0, "height_p": 10.0, "height_d": 10.0}
+# Per-step changes for the pilot's gain keys (u/j, i/k, o/l, t/g, y/h): the table's steps.
+GAIN_STEPS = {name: float(_protocol.PARAMS[p].step) for name, p in _GAIN_PARAMS.items()}
 
 # Motor limits used by the mixing.
 AE_IDLE = 150  # minimum while armed: the rotors keep turning (thrust 14% of weight, stays on the floor)

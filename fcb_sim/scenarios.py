@@ -200,6 +200,14 @@ def _hover(seed: int, duration: float, mode: int = Mode.FULL, **core_kw: object)
     return rec.metrics()
 
 
+def fly_core(seed: int, duration: float, core: FlightCore, mode: int = Mode.FULL) -> dict:
+    """The flight of ``hover`` (``raw_hover`` with ``mode`` RAW) on a prepared flight core: another preset's
+    (fcb_sim.paramtable.preset_core), for bench.flight's report-against-default figures."""
+    sim, rec = _take_off(Sim(seed, core=core), mode)
+    sim.run_until(duration)
+    return rec.metrics()
+
+
 def hover(seed: int, duration: float) -> dict:
     """FULL mode (DMP path), still air, the pilot holding 1 m."""
     return _hover(seed, duration)

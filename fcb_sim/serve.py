@@ -279,7 +279,7 @@ class ThreadedServer:
 
 
 async def _serve_main(args: Any) -> int:
-    board = make_board(args.seed, args.scenario, args.link_timeout)
+    board = make_board(args.seed, args.scenario, args.link_timeout, preset=getattr(args, "preset", "default"))
     server = PtyServer(board)
     stop = asyncio.Event()
     loop = asyncio.get_running_loop()

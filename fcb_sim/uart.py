@@ -5,7 +5,8 @@ Sans-IO, no clock of its own: the board passes its time in.
 - Receive: bytes from the PC reach the UART as a burst and occupy the wire one after another, so a burst can be
   parsed once its last byte is in (``arrived(now)``); a pty or a test hands a burst over at once, the board's UART
   does not. The receive queue is bounded (``RX_QUEUE_BYTES``): a flood is dropped and counted
-  (``rx_overflow``), it never stalls the loop.
+  (``rx_overflow``), it never stalls the loop. With ``discard_at_frames`` (the report's parser, Param.QUEUE_RULE
+  "discard-20") the whole queue is thrown away once that many frames wait in it (``rx_discarded`` counts).
 - Transmit: frames are queued in a bounded buffer (``TX_BUFFER_BYTES``) and leave at the baud rate;
   ``transmit(now)`` returns what has left the UART by then. What may be queued, and in what order, is the
   board's transmit scheduler's decision (docs/board.md, "The transmit side").
@@ -37,6 +38,8 @@ class Uart:
         self.tx = bytearray()  # the transmit buffer
         self.tx_clock = 0.0  # board time up to which the transmit wire has been busy
         self.rx_overflow = 0  # bytes dropped from a full receive queue
+        self.discard_at_frames: int | None = None  # the report's rule: discard the queue when this many frames wait
+        self.rx_discarded = 0  # bytes thrown away by that rule
 
     # --- receive ------------------------------------------------------------------------------------------
 
@@ -55,6 +58,8 @@ class Uart:
         self._wire_free = end = start + len(data) * UART_US_PER_BYTE
         self._wire.append((end, len(data)))
         self._wire_bytes += len(data)
+        if self.discard_at_frames is not None and self.rx.count(0) >= self.discard_at_frames:
+            self.rx_discarded += self.discard_rx()  # "all the packets in the queue are discarded" (report 3.4)
         return len(data)
 
     def arrived(self, now: int) -> int:

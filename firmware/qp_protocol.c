@@ -299,6 +299,17 @@ size_t qp_encode_compact(qp_encoder_t *enc, const qp_compact_t *pkt, uint8_t out
     return finish_frame(enc, raw, QP_BODY_SIZE_COMPACT, out);
 }
 
+size_t qp_encode_param_value(qp_encoder_t *enc, const qp_param_value_t *pkt, uint8_t out[QP_MAX_FRAME])
+{
+    uint8_t raw[QP_MAX_FRAME];
+    raw[0] = QP_TYPE_PARAM_VALUE;
+    raw[2] = (uint8_t)pkt->param;
+    put32(raw + 3, (uint32_t)pkt->value);
+    raw[7] = (uint8_t)pkt->index;
+    raw[8] = (uint8_t)pkt->count;
+    return finish_frame(enc, raw, QP_BODY_SIZE_PARAM_VALUE, out);
+}
+
 size_t qp_encode(qp_encoder_t *enc, const qp_packet_t *pkt, uint8_t out[QP_MAX_FRAME])
 {
     switch (pkt->type) {
@@ -334,6 +345,8 @@ size_t qp_encode(qp_encoder_t *enc, const qp_packet_t *pkt, uint8_t out[QP_MAX_F
         return qp_encode_log_chunk(enc, &pkt->u.log_chunk, out);
     case QP_TYPE_COMPACT:
         return qp_encode_compact(enc, &pkt->u.compact, out);
+    case QP_TYPE_PARAM_VALUE:
+        return qp_encode_param_value(enc, &pkt->u.param_value, out);
     default:
         return 0;
     }
@@ -485,6 +498,14 @@ static int unpack(const uint8_t *raw, size_t body_len, qp_packet_t *pkt)
         pkt->u.compact.theta = s16(get16(b + 4));
         pkt->u.compact.psi = s16(get16(b + 6));
         pkt->u.compact.battery = get16(b + 8);
+        break;
+    case QP_TYPE_PARAM_VALUE:
+        if (body_len != QP_BODY_SIZE_PARAM_VALUE)
+            return 0;
+        pkt->u.param_value.param = b[0];
+        pkt->u.param_value.value = s32(get32(b + 1));
+        pkt->u.param_value.index = b[5];
+        pkt->u.param_value.count = b[6];
         break;
     default:
         return 0;

@@ -37,7 +37,7 @@ extern "C" {
 
 /* --- constants both ends share ---------------------------------------------------------------------------- */
 
-#define QP_PROTOCOL_VERSION 2
+#define QP_PROTOCOL_VERSION 3
 #define QP_MAX_FRAME 20
 #define QP_MAX_BODY 14
 #define QP_CRC_INIT 0xffffu
@@ -91,6 +91,8 @@ enum qp_op {
     QP_OP_WIRELESS = 17,
     QP_OP_SET_PARAM = 18,
     QP_OP_ACK_CRASH = 19,
+    QP_OP_PARAM_GET = 20,
+    QP_OP_PARAM_LIST = 21,
 };
 
 /* Reasons a command is refused (``Ack.status``); 0 means accepted. */
@@ -112,6 +114,8 @@ enum qp_nak {
     QP_NAK_PANIC_ACTIVE = 14,
     QP_NAK_NOT_IMPLEMENTED = 15,
     QP_NAK_CRASHED = 16,
+    QP_NAK_OUT_OF_RANGE = 17,
+    QP_NAK_UNKNOWN_PARAM = 18,
 };
 
 /* Board events (``Event.code``), each with an ``arg`` whose meaning is given here. */
@@ -131,6 +135,7 @@ enum qp_event_code {
     QP_EVENT_CODE_SENSOR_FAULT = 13,
     QP_EVENT_CODE_OVERFLOW = 14,
     QP_EVENT_CODE_CRASH = 15,
+    QP_EVENT_CODE_PARAM_CHANGED = 16,
 };
 
 enum qp_wireless_state {
@@ -169,13 +174,27 @@ enum qp_role {
     QP_ROLE_BOARD = 1,
 };
 
-/* ``SET_PARAM`` parameter ids (``Command.arg = param_arg(param, value)``); ranges and meanings in PARAMS. */
+/* Board parameter ids (1..127), one per row of ``PARAMS``: ``SET_PARAM`` (``param_arg``), ``PARAM_GET``, */
 enum qp_param {
     QP_PARAM_LINK_TIMEOUT_MS = 1,
     QP_PARAM_SCHEDULER = 2,
     QP_PARAM_TELEMETRY_HZ = 3,
     QP_PARAM_SENSOR_PATH = 4,
     QP_PARAM_LOG_SCHEME = 5,
+    QP_PARAM_YAW_P = 6,
+    QP_PARAM_P1 = 7,
+    QP_PARAM_P2 = 8,
+    QP_PARAM_HEIGHT_P = 9,
+    QP_PARAM_HEIGHT_D = 10,
+    QP_PARAM_HEIGHT_I = 11,
+    QP_PARAM_ATTITUDE_FILTER = 12,
+    QP_PARAM_K_GYRO = 13,
+    QP_PARAM_FIXED_POINT = 14,
+    QP_PARAM_HEIGHT_ESTIMATOR = 15,
+    QP_PARAM_STICK_REACTION = 16,
+    QP_PARAM_QUEUE_RULE = 17,
+    QP_PARAM_TRIM_STEP = 18,
+    QP_PARAM_LIFT_STEP = 19,
 };
 
 /* --- packets: type ids, sizes and structs ----------------------------------------------------------------- */
@@ -198,6 +217,7 @@ enum qp_param {
 #define QP_TYPE_LOG_STATUS 0x19
 #define QP_TYPE_LOG_CHUNK 0x1a
 #define QP_TYPE_COMPACT 0x1b
+#define QP_TYPE_PARAM_VALUE 0x1c
 
 #define QP_BODY_SIZE_JOYSTICK 9
 #define QP_FRAME_SIZE_JOYSTICK 15
@@ -231,6 +251,8 @@ enum qp_param {
 #define QP_FRAME_SIZE_LOG_CHUNK 20
 #define QP_BODY_SIZE_COMPACT 10
 #define QP_FRAME_SIZE_COMPACT 16
+#define QP_BODY_SIZE_PARAM_VALUE 7
+#define QP_FRAME_SIZE_PARAM_VALUE 13
 
 /* 0x01 Joystick, pc→board, ≤100 Hz; on change + 2 Hz keep-alive over BLE: Absolute joystick position. */
 typedef struct {
@@ -372,6 +394,14 @@ typedef struct {
     uint16_t battery;      /* 10 mV (x 0.01 -> V) */
 } qp_compact_t;
 
+/* 0x1c ParamValue, board→pc, on PARAM_LIST, one per parameter: One board parameter's value (PARAMS). */
+typedef struct {
+    uint8_t param;         /* Param: the parameter's id */
+    int32_t value;         /* raw: its raw value (ParamSpec.from_raw gives it in its unit) */
+    uint8_t index;         /* 0-based place in this listing */
+    uint8_t count;         /* parameters in this listing */
+} qp_param_value_t;
+
 /* Any packet: ``type`` (QP_TYPE_*) says which member of ``u`` holds it; ``seq`` is the frame's sequence number. */
 typedef struct {
     uint8_t type;
@@ -393,6 +423,7 @@ typedef struct {
         qp_log_status_t log_status;
         qp_log_chunk_t log_chunk;
         qp_compact_t compact;
+        qp_param_value_t param_value;
     } u;
 } qp_packet_t;
 
@@ -423,6 +454,7 @@ size_t qp_encode_profile(qp_encoder_t *enc, const qp_profile_t *pkt, uint8_t out
 size_t qp_encode_log_status(qp_encoder_t *enc, const qp_log_status_t *pkt, uint8_t out[QP_MAX_FRAME]);
 size_t qp_encode_log_chunk(qp_encoder_t *enc, const qp_log_chunk_t *pkt, uint8_t out[QP_MAX_FRAME]);
 size_t qp_encode_compact(qp_encoder_t *enc, const qp_compact_t *pkt, uint8_t out[QP_MAX_FRAME]);
+size_t qp_encode_param_value(qp_encoder_t *enc, const qp_param_value_t *pkt, uint8_t out[QP_MAX_FRAME]);
 
 /* Any packet by its type; returns 0 (and writes nothing) for an unknown type. */
 size_t qp_encode(qp_encoder_t *enc, const qp_packet_t *pkt, uint8_t out[QP_MAX_FRAME]);

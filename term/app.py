@@ -46,6 +46,7 @@ from term.lessonapp import LessonsMixin
 from term.link import PacketReceived
 from term.logfile import log_filename, write_csv
 from term.model import Model, mode_name
+from term.paramsapp import ParamsMixin
 from term.phone import Phone, RunAction, SendCommand, SetAxes
 from term.protocol import FLIGHT_MODES, Event, Joystick, LogChunk, LogStatus, Mode, Op
 from term.recording import SessionRecorder
@@ -66,6 +67,7 @@ from term.widgets.lesson import LessonBar
 from term.widgets.link import LinkPanel
 from term.widgets.mode import ModeBanner
 from term.widgets.motors import MotorBars
+from term.widgets.params import ParamsScreen
 from term.widgets.plots import LivePlot, PlotsScreen
 from term.widgets.pressure import PressureIndicator
 from term.widgets.profile import ProfileTable
@@ -235,7 +237,7 @@ class LogDownloads:
         self.push_screen(DirectoryPrompt(self.log_directory), chosen)
 
 
-class TermApp(LessonsMixin, LogDownloads, App[int]):
+class TermApp(ParamsMixin, LessonsMixin, LogDownloads, App[int]):
     CSS_PATH = str(Path(__file__).with_name("app.tcss"))
     TITLE = "quadrupel term"
     ENABLE_COMMAND_PALETTE = True
@@ -318,6 +320,7 @@ class TermApp(LessonsMixin, LogDownloads, App[int]):
             "log_download": self.local_log_download,
             "log_reset": self.ask_log_erase,
             "show_joystick": lambda: self.show_screen("joystick"),
+            "show_params": lambda: self.show_screen("params"),
         }
         unknown = {b.action.local for b in self.keymap if b.action.local} - set(self.local)
         if unknown:
@@ -380,6 +383,7 @@ class TermApp(LessonsMixin, LogDownloads, App[int]):
         self.install_screen(ProfileScreen(), "profile")
         self.install_screen(WirelessScreen(self.phone), "wireless")
         self.install_screen(JoystickScreen(lambda: self.poller), "joystick")
+        self.install_screen(ParamsScreen(lambda: self.model), "params")
         self.set_interval(1.0 / self.render_hz, self.render_now)
         await self.station.start()
         if self.start_screen != "flight":
@@ -398,6 +402,7 @@ class TermApp(LessonsMixin, LogDownloads, App[int]):
         self._lesson_event(ev)
         if type(ev) is FromLink:
             self._download_event(ev.event)
+            self._params_event(ev)
         elif type(ev) is Fatal:
             self._fatal(ev.message, ev.code)
         elif type(ev) is NotSent and ev.title is not None:

@@ -20,6 +20,10 @@ keep a key (term/input/keymap.py). An example::
     [alarms]
     bell = true                # the terminal's bell on LINK LOST, PANIC, low battery and a crash
 
+    [params]
+    file = "~/quadrupel/my-board.toml"   # a set saved with 'term params save' (or the parameter screen)
+    apply_on_connect = false   # true: sent to the board each time it says Hello (docs/parameters.md)
+
     [joystick]
     mapping = ""               # force a mapping by name; empty: pick by the stick's name
     resolution = 64            # stick units below which a change is jitter
@@ -117,6 +121,8 @@ class Config:
     keymap: tuple[KeyBinding, ...] = field(default_factory=build_keymap)
     key_preset: str = "lab"
     bell: bool = True  # the terminal's bell on an alarm (term/alarms.py)
+    params_file: Path | None = None  # a parameter set (term/params.py) ...
+    params_apply: bool = False  # ... sent to the board when it says Hello
     joystick_mapping: str = ""
     joystick_resolution: int = 64
     joystick_mappings: tuple[StickMapping, ...] = ()
@@ -202,6 +208,7 @@ CONFIG_SCHEMA = Table({
     }, section=True),
     "log": Table({"directory": Text(nonempty=True, what="a directory")}, section=True),
     "alarms": Table({"bell": Flag()}, section=True),
+    "params": Table({"file": Text(nonempty=True, what="a parameter file"), "apply_on_connect": Flag()}, section=True),
 })
 
 
@@ -218,6 +225,12 @@ def config_from_dict(data: Mapping[str, Any]) -> Config:
     if "keys" in v:
         cfg.keymap, cfg.key_preset = v["keys"]
     cfg.bell = v.get("alarms", {}).get("bell", cfg.bell)
+    params = v.get("params", {})
+    if "file" in params:
+        cfg.params_file = Path(params["file"]).expanduser()
+    cfg.params_apply = params.get("apply_on_connect", cfg.params_apply)
+    if cfg.params_apply and cfg.params_file is None:
+        raise SchemaError("[params] apply_on_connect: needs [params] file, the set to apply")
 
     js = v.get("joystick", {})
     cfg.joystick_resolution = js.get("resolution", cfg.joystick_resolution)

@@ -56,6 +56,7 @@ from term.protocol import (
     BATTERY_WARN,
     EVENT_ARG_SCALE,
     FLIGHT_MODES,
+    PARAMS,
     Attitude,
     Compact,
     Event,
@@ -72,10 +73,12 @@ from term.protocol import (
     Motion,
     Nak,
     Op,
+    ParamValue,
     Profile,
     Status,
     WirelessState,
     field_scale,
+    param_split,
     scaled,
 )
 
@@ -116,6 +119,15 @@ def op_text(op: int, arg: int) -> str:
         return f"mode {mode_name(arg)}"
     if o is Op.WIRELESS:
         return "wireless handover" if arg else "wireless hand-back"
+    if o is Op.SET_PARAM:
+        pid, raw = param_split(arg)
+        spec = PARAMS.get(pid)  # type: ignore[call-overload]
+        return f"set param {pid} = {raw}" if spec is None else f"set {spec.name} = {spec.text(spec.from_raw(raw))}"
+    if o is Op.PARAM_GET:
+        spec = PARAMS.get(arg)  # type: ignore[call-overload]
+        return f"get param {arg}" if spec is None else f"get {spec.name}"
+    if o is Op.PARAM_LIST:
+        return "list the parameters"
     name = o.name.lower().replace("_", " ")
     if o is Op.TRIM_LIFT and arg <= ZERO_TRIM_STEPS:
         return "lift trim to zero"
@@ -167,6 +179,14 @@ def event_text(code: int, arg: int, flying: bool = True) -> tuple[str, str]:
         return "error", f"sensor fault (sensor {arg})"
     if c is EventCode.OVERFLOW:
         return "warning", f"board receive queue overflow ({arg} bytes dropped)"
+    if c is EventCode.PARAM_CHANGED:
+        pid, raw = param_split(arg)
+        spec = PARAMS.get(pid)  # type: ignore[call-overload]
+        if spec is None:
+            return "info", f"param {pid}: {raw} (not in this terminal's table)"
+        value = spec.from_raw(raw)
+        default = "" if raw == spec.to_raw(spec.default) else f" (default {spec.text(spec.default)})"
+        return "info", f"param {spec.name}: {spec.text(value)}{(' ' + spec.unit) if spec.unit else ''}{default}"
     return "info", f"{c.name.lower()} ({arg})"
 
 
@@ -195,11 +215,15 @@ MERGE_S = 60.0  # a line the same as one of the last MERGE_BACK lines within thi
 MERGE_BACK = 4
 REFUSAL_PAIR_S = 2.0  # the board's Ack NAK and its REFUSED event for one request: said once
 _BOARD_TIME = re.compile(r"^\[[0-9.]+\] ")
+_PARAM_LINE = re.compile(r"^param (\S+): ")
 
 
 def merge_key(text: str) -> str:
-    """What makes two lines the same: their text without the board's time stamp."""
-    return _BOARD_TIME.sub("", text)
+    """What makes two lines the same: their text without the board's time stamp; a parameter's changes are one
+    line (its latest value, with the count)."""
+    text = _BOARD_TIME.sub("", text)
+    m = _PARAM_LINE.match(text)
+    return f"param {m.group(1)}" if m else text
 
 
 @dataclass
@@ -243,7 +267,9 @@ class Model:
     heard: bool = False  # a valid frame arrived from the board (on any link)
     arrivals: Arrivals = field(default_factory=Arrivals)  # when each telemetry packet came: term.freshness
     refused: dict[int, tuple[str, float]] = field(default_factory=dict)  # Nak -> (the refusal's text, when)
-    params: dict[str, float] = field(default_factory=dict)  # the board's parameters by name, as last heard
+    params: dict[str, float | str | bool] = field(default_factory=dict)  # the board's parameters by name, as heard
+    param_raw: dict[int, int] = field(default_factory=dict)  # Param -> raw value, as heard
+    param_refused: dict[str, str] = field(default_factory=dict)  # name -> why the board refused the last set
     event_times: dict[int, float] = field(default_factory=dict)  # EventCode -> when the board last said it
     notes_written: int = 0  # lines written to the events list (merged repeats too): LogEntry.seq
     _refusal_said: dict[tuple[int, int], float] = field(default_factory=dict)  # (mode, Nak) -> when said
@@ -318,11 +344,23 @@ class Model:
         said = _LOG_ACKS.get(event.op)
         if said is not None:
             self.note(now, "info", "term", said(self, event.value))
+        if event.op == Op.SET_PARAM:
+            self._param(param_split(event.arg)[0], event.value)
+        elif event.op == Op.PARAM_GET:
+            self._param(event.arg, event.value)
 
     def _on_failed(self, event: CommandFailed, now: float) -> None:
         self.version += 1
         self.pending = max(0, self.pending - 1)
         what = op_text(event.op, event.arg)
+        if event.nak is not None and event.op == Op.SET_PARAM:
+            spec = PARAMS.get(param_split(event.arg)[0])  # type: ignore[call-overload]
+            if spec is not None:
+                self.param_refused[spec.name] = event.reason
+        if event.op == Op.PARAM_LIST and event.nak in (Nak.NOT_IMPLEMENTED, Nak.UNKNOWN_COMMAND):
+            # the terminal asks every board it meets; one without parameters is no error
+            self.note(now, "info", "params", f"this board has no parameter list ({event.reason})")
+            return
         if event.nak is not None:
             text = f"NAK {what}: {event.reason}"
             mode = event.arg if event.op == Op.MODE else -1
@@ -417,6 +455,10 @@ class Model:
         self.pending += 1
         if event.op == Op.LOG_RESET:
             self._erasing = self.log_status.records if self.log_status is not None else None
+        elif event.op == Op.SET_PARAM:  # a new try: an older refusal is not its answer
+            spec = PARAMS.get(param_split(event.arg)[0])  # type: ignore[call-overload]
+            if spec is not None:
+                self.param_refused.pop(spec.name, None)
         if event.op == Op.MODE:
             self.note(now, "info", "term", f"request {mode_name(event.arg)}"
                       + (" over BLE" if event.link == RADIO else ""))
@@ -469,6 +511,8 @@ class Model:
             self.board_ms = pkt.board_ms
             self.event_times[pkt.code] = now
             severity, text = event_text(pkt.code, pkt.arg, self.flying)  # the mode it was sent in
+            if pkt.code == EventCode.PARAM_CHANGED:
+                self._param(*param_split(pkt.arg))
             if pkt.code == EventCode.DEADLINE_MISS:
                 self._deadline_miss(now, pkt.arg)
             elif pkt.code != EventCode.REFUSED or self._refusal(pkt.arg & 0xFF, pkt.arg >> 8, text, now):
@@ -481,6 +525,8 @@ class Model:
             self.profiles[pkt.task] = pkt
         elif kind is Hello:
             self.hello = pkt
+        elif kind is ParamValue:
+            self._param(pkt.param, pkt.value)
         elif kind in (LogStatus, LogChunk):
             if kind is LogStatus:
                 self.log_status = pkt
@@ -488,6 +534,15 @@ class Model:
                 self.download.feed(pkt, now)
         else:
             return  # heartbeats and acks change nothing on screen (the link panel shows their stats)
+        self.version += 1
+
+    def _param(self, pid: int, raw: int) -> None:
+        """A parameter's value as the board has it (a listing, a change, an Ack)."""
+        self.param_raw[pid] = raw
+        spec = PARAMS.get(pid)  # type: ignore[call-overload]
+        if spec is not None:
+            self.params[spec.name] = spec.from_raw(raw)
+            self.param_refused.pop(spec.name, None)
         self.version += 1
 
     def _set_wireless(self, state: int) -> None:

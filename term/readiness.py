@@ -50,10 +50,11 @@ NAK_ITEM: dict[Nak, str | None] = {
     Nak.NO_BLE_CONNECTION: "wireless",
     Nak.BUSY: "calibrated",  # the board is still averaging (CALIBRATION)
     Nak.PANIC_ACTIVE: None,
+    Nak.NOT_IMPLEMENTED: None,
+    Nak.CRASHED: "crash",
+    Nak.OUT_OF_RANGE: None,  # a parameter's value: the parameter screen shows it beside the parameter
+    Nak.UNKNOWN_PARAM: None,
 }
-for _name in ("CRASHED", "NOT_IMPLEMENTED"):  # reasons the board may not have yet (a newer protocol's)
-    if hasattr(Nak, _name):
-        NAK_ITEM.setdefault(Nak[_name], "crash" if _name == "CRASHED" else None)
 
 REFUSAL_SHOWN_S = 30.0  # a refusal marks its item this long (or until the item is fixed)
 LOG_LOW_PCT = 90  # log fill at which the log check asks for a download

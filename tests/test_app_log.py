@@ -118,8 +118,14 @@ async def test_log_record_download_as_csv_and_reset(tmp_path: Path) -> None:
             assert [int(v) for v in rows[-1][1:]] == list(truth[-1])
 
             await until(lambda: board.download_next is None)  # a resumed pass may still be on its way
-            app.simulate_key("f4")  # erase
+            app.simulate_key("f4")  # erase: it asks first, "keep it" has the focus
+            from term.widgets.confirm import ConfirmScreen
+
+            await until(lambda: isinstance(app.screen, ConfirmScreen))
+            app.simulate_key("tab")
+            app.simulate_key("enter")
             await until(lambda: board.log.used == 0)
+            await until(lambda: m.events[-1].text.startswith("log erased: "))
             assert not [e for e in m.events if e.severity == "error" and e.source != "nak"]
     finally:
         await peer.stop()

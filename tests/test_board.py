@@ -130,7 +130,7 @@ def test_nak_reasons() -> None:
     pc.js = Joystick(0, 0, 0, 0, 0)
     assert pc.command(99).status == Nak.UNKNOWN_COMMAND
     assert pc.command(Op.MODE, 42).status == Nak.BAD_ARGUMENT
-    assert pc.command(Op.SET_PARAM, param_arg(77, 1)).status == Nak.BAD_ARGUMENT
+    assert pc.command(Op.SET_PARAM, param_arg(77, 1)).status == Nak.UNKNOWN_PARAM
     assert pc.command(Op.LOG_DOWNLOAD, 0).status == Nak.LOG_EMPTY
     assert pc.command(Op.WIRELESS, 1).status == Nak.NO_BLE_CONNECTION
     assert pc.command(Op.MODE, Mode.WIRELESS).status == Nak.NO_BLE_CONNECTION

@@ -47,6 +47,7 @@ const char *qp_text_name(uint8_t type)
     case QP_TYPE_LOG_STATUS: return "LogStatus";
     case QP_TYPE_LOG_CHUNK: return "LogChunk";
     case QP_TYPE_COMPACT: return "Compact";
+    case QP_TYPE_PARAM_VALUE: return "ParamValue";
     default: return NULL;
     }
 }
@@ -162,6 +163,12 @@ void qp_text_print(FILE *f, const qp_packet_t *pkt)
         fprintf(f, " theta=%ld", (long)pkt->u.compact.theta);
         fprintf(f, " psi=%ld", (long)pkt->u.compact.psi);
         fprintf(f, " battery=%ld", (long)pkt->u.compact.battery);
+        break;
+    case QP_TYPE_PARAM_VALUE:
+        fprintf(f, " param=%ld", (long)pkt->u.param_value.param);
+        fprintf(f, " value=%ld", (long)pkt->u.param_value.value);
+        fprintf(f, " index=%ld", (long)pkt->u.param_value.index);
+        fprintf(f, " count=%ld", (long)pkt->u.param_value.count);
         break;
     default:
         break;
@@ -341,6 +348,16 @@ int qp_text_parse(const char *name, char **tok, int ntok, qp_packet_t *pkt)
         pkt->u.compact.theta = (int16_t)strtoll(tok[3], NULL, 0);
         pkt->u.compact.psi = (int16_t)strtoll(tok[4], NULL, 0);
         pkt->u.compact.battery = (uint16_t)strtoll(tok[5], NULL, 0);
+        return 1;
+    }
+    if (strcmp(name, "ParamValue") == 0) {
+        if (ntok != 4)
+            return 0;
+        pkt->type = QP_TYPE_PARAM_VALUE;
+        pkt->u.param_value.param = (uint8_t)strtoll(tok[0], NULL, 0);
+        pkt->u.param_value.value = (int32_t)strtoll(tok[1], NULL, 0);
+        pkt->u.param_value.index = (uint8_t)strtoll(tok[2], NULL, 0);
+        pkt->u.param_value.count = (uint8_t)strtoll(tok[3], NULL, 0);
         return 1;
     }
     return 0;

@@ -93,6 +93,7 @@ DEFAULT_KEYMAP: tuple[KeyBinding, ...] = (
     _local("show_plots", ("f8",), "live plots", "Screen"),
     _local("show_profile", ("f9",), "profiling table", "Screen"),
     _local("show_wireless", ("f10",), "wireless screen: the phone's controls, for the mouse", "Screen"),
+    _local("show_params", ("f11",), "parameter screen: the board's parameters, search, edit", "Screen"),
     _local("show_joystick", ("f12",), "joystick screen: live axes, mapping, dead zone, save", "Screen"),
     _local("clear_events", ("ctrl+l",), "clear the events list", "Screen"),
 )
