@@ -483,6 +483,7 @@ class TermApp(ParamsMixin, LessonsMixin, LogDownloads, App[int]):
 
     def perform(self, action: Action) -> None:
         """Run one key-map action (from a key, the palette, the phone or a test)."""
+        self._lesson_action(action)  # a pilot's own board command takes over from the autopilot (lessonapp.py)
         if action.local is not None:
             self.local[action.local]()
             return

@@ -5,8 +5,9 @@ The sans-IO parts do the work: ``term.lessons.driver.LessonDriver`` (observer, a
 
 - the instructor channel (``term.instructor.InstructorClient``, opened by the cli beside the child board): each
   truth sample goes to the room and the driver; a situation the simulator refused is said in the events;
-- every station event goes to the driver (``_lesson_event``, from the app's station-event hook); a key press, a
-  stick or a command from the pilot while the autopilot flies hands control back to the pilot;
+- every station event goes to the driver (``_lesson_event``, from the app's station-event hook); a board command
+  of the pilot's (a key, the palette, the phone: ``_lesson_action``, from ``perform``) or a stick moved away from
+  the autopilot's while it flies hands control back to the pilot;
 - a timer at the truth's rate (``_lesson_tick``) runs the driver and carries out its tick: situations to the
   simulator, the autopilot's presses through ``perform`` (exactly a key's path) and its stick through
   ``set_stick``; the caption line shows what happens; an attempt's end records the progress (not for "show me")
@@ -25,22 +26,21 @@ from typing import TYPE_CHECKING, Any
 
 from textual.app import SystemCommand
 
-from term.events import NotSent, Requested, StationEvent, StickSet
+from term.events import StationEvent, StickSet
+from term.input.keymap import Action, action_by_name
 from term.instructor import InstructorClient, Refused, Truth
 from term.lessons.autopilot import COMMANDS, Press, Stick
 from term.lessons.driver import LessonDriver
 from term.lessons.engine import Result
 from term.lessons.progress import Progress, load
 from term.lessons.spec import DEMO, Lesson, LessonError, load_lessons, load_script
-from term.protocol import INSTRUCTOR_TRUTH_HZ, Op
+from term.protocol import INSTRUCTOR_TRUTH_HZ, STICK_NEUTRAL, Joystick
 from term.room import Room
 from term.widgets.lesson import LessonBar, SummaryScreen
 
 if TYPE_CHECKING:
     from term.model import Model
     from term.station import Station
-
-_DOWNLOAD_OPS = (Op.LOG_DOWNLOAD, Op.LOG_STATUS)  # the log download's own requests: not the pilot's
 
 
 class LessonsMixin:
@@ -69,6 +69,7 @@ class LessonsMixin:
         self._start_lesson = lesson
         self._start_demo = demo
         self._autopilot_acting = False
+        self._autopilot_stick = Joystick(0, 0, 0, 0, 0)  # the last stick the autopilot held
         self._shown_attempt = False  # the attempt running is the autopilot's ("show me")
         self.lesson_results: list[Result] = []
 
@@ -145,13 +146,24 @@ class LessonsMixin:
 
     def _lesson_event(self, ev: StationEvent) -> None:
         self.driver.event(ev, self.model, self.clock())
-        if self._autopilot_acting or not self.driver.flying:
-            return
-        kind = type(ev)
-        pilot = (kind is Requested and ev.op not in _DOWNLOAD_OPS) or kind is StickSet or (
-            kind is NotSent and ev.title is not None)
-        if pilot and self.driver.pilot_acted(self.clock()):
+        if type(ev) is StickSet and not self._autopilot_acting and self._moved(ev.stick):
+            self._take_over()
+
+    def _lesson_action(self, action: Action) -> None:
+        """A key map action is being performed: the pilot's own (a key, the palette, the phone) if the autopilot
+        is not the one pressing; a board command of the pilot's takes control (looking at a screen does not)."""
+        if action.op is not None and not self._autopilot_acting:
+            self._take_over()
+
+    def _take_over(self) -> None:
+        if self.driver.pilot_acted(self.clock()):
             self.station.note("info", "lesson", "autopilot off: you have control")
+
+    def _moved(self, stick: Joystick) -> bool:
+        """A stick of the pilot's, not the autopilot's: an axis away from the autopilot's by more than the neutral
+        band (a joystick at rest, its first report, a little noise: not a pilot taking over)."""
+        mine = self._autopilot_stick
+        return any(abs(a - b) > STICK_NEUTRAL for a, b in zip(stick[:4], mine[:4], strict=True))
 
     def _lesson_tick(self) -> None:
         now = self.clock()
@@ -167,6 +179,7 @@ class LessonsMixin:
                 if type(act) is Press:
                     self._autopilot_press(act.action)
                 elif type(act) is Stick:
+                    self._autopilot_stick = act.js
                     if act.js != self.model.stick:
                         self.set_stick(act.js)  # type: ignore[attr-defined]
         finally:
@@ -184,8 +197,6 @@ class LessonsMixin:
         if name in COMMANDS:
             self.send(*COMMANDS[name])  # type: ignore[attr-defined]
             return
-        from term.input.keymap import action_by_name
-
         action = action_by_name(self.keymap, name)
         if action is not None:
             self.perform(action)  # type: ignore[attr-defined]

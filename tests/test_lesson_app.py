@@ -46,7 +46,7 @@ async def sim_app(seed: int = 3, **app_kw: object) -> AsyncIterator[tuple[TermAp
     served.server.cable_open = lambda: inst.cable_open(board.now / 1e6)
     client = InstructorClient(address)
     await client.open()
-    app = TermApp(SerialTransport(port), joystick=False, instructor=client, **app_kw)  # type: ignore[arg-type]
+    app = TermApp(SerialTransport(port), instructor=client, **{"joystick": False, **app_kw})  # type: ignore[arg-type]
     try:
         async with app.run_test(size=SIZE) as pilot:
             yield app, pilot, board

@@ -308,3 +308,11 @@ def test_the_autopilot_gives_up_after_a_timeout_and_says_where() -> None:
     ap.update(ns(mode="SAFE"), None, 0.0)
     ap.update(ns(mode="SAFE"), None, 2.5)
     assert ap.state == "failed" and ap.why == "gave up on step 1 (wait: mode == 'FULL') after 2 s"
+
+
+def test_the_guides_table_of_variables_is_the_observers() -> None:
+    from term.lessons.observe import names_markdown
+
+    text = (Path(__file__).resolve().parent.parent / "docs" / "lessons.md").read_text()
+    table = text.split("<!-- variables:begin -->\n", 1)[1].split("<!-- variables:end -->", 1)[0]
+    assert table == names_markdown(), "regenerate the table: term.lessons.observe.names_markdown()"

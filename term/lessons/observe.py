@@ -222,3 +222,9 @@ class Observer:
         for name in STEP_NAMES:
             ns[name] = (step or {}).get(name, 0.0)
         return ns
+
+
+def names_markdown() -> str:
+    """The variables as the Markdown table of docs/lessons.md (a test keeps the copy there equal to this)."""
+    rows = ["| variable | meaning |", "|---|---|", *(f"| `{k}` | {v.replace('|', '/')} |" for k, v in NAMES.items())]
+    return "\n".join(rows) + "\n"
