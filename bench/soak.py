@@ -348,8 +348,8 @@ class Soak:
 
 
 async def soak(minutes: float, damage: float, seed: int) -> dict[str, Any]:
-    from term.cli import SimBoard
     from term.config import JOYSTICK_POLICIES
+    from term.sim import SimBoard
     from term.station import Station
     from term.transports.ble import BleTransport
     from term.transports.loopback import Faults, FaultyTransport

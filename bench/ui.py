@@ -85,8 +85,8 @@ def _timed_plots(drawn: list[float]) -> Any:
 async def run(seconds: float, render_hz: float | None, seed: int, policy: str = "stream",
               record: bool = True) -> dict[str, Any]:
     from term.app import TermApp
-    from term.cli import SimBoard
     from term.protocol import Op, Param, param_arg
+    from term.sim import SimBoard
     from term.transports.serial import SerialTransport
 
     sim = SimBoard(seed=seed)

@@ -8,8 +8,8 @@ import asyncio
 import time
 
 from term.app import TermApp
-from term.cli import SimBoard
 from term.protocol import Joystick, Mode, scaled
+from term.sim import SimBoard
 from term.transports.serial import SerialTransport
 
 

@@ -11,9 +11,9 @@ from contextlib import asynccontextmanager
 from pathlib import Path
 
 from term.app import TermApp
-from term.cli import SimBoard
 from term.config import Config
 from term.protocol import Op
+from term.sim import SimBoard
 from term.transports.serial import SerialTransport
 from term.widgets.params import ParamsScreen, ParamTable
 

@@ -33,8 +33,8 @@ TERM_TIMEOUT_S = 0.45
 
 async def _probe() -> dict[str, object]:
     from term.app import TermApp
-    from term.cli import SimBoard
     from term.config import Config
+    from term.sim import SimBoard
     from term.transports.ble import BleTransport
     from term.transports.serial import SerialTransport
 

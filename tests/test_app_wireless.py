@@ -17,11 +17,11 @@ from collections.abc import Callable
 import pytest
 
 from term.app import FlightScreen, TermApp
-from term.cli import SimBoard
 from term.input.mapping import FULL
 from term.link import LinkSession
 from term.model import Model
 from term.protocol import Attitude, Command, Decoder, Joystick, Mode, Motion, Op, WirelessState
+from term.sim import SimBoard
 from term.transports.base import Transport
 from term.transports.ble import BleTransport
 from term.transports.loopback import loopback_pair

@@ -225,7 +225,7 @@ def test_the_simulated_board_dies_with_term_even_when_term_is_killed() -> None:
     import time
 
     code = ("import os, signal\n"
-            "from term.cli import SimBoard\n"
+            "from term.sim import SimBoard\n"
             "s = SimBoard(); path = s.start()\n"
             "print(s.proc.pid, path, flush=True)\n"
             "os.kill(os.getpid(), signal.SIGKILL)\n")

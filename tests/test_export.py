@@ -280,11 +280,11 @@ async def test_a_flight_with_a_handover_is_recorded_whole_and_agrees_with_the_fl
     from collections.abc import Callable
 
     from term.app import TermApp
-    from term.cli import SimBoard
     from term.events import CABLE, RADIO, FromLink
     from term.link import PacketReceived
     from term.protocol import Decoder, Heartbeat, Joystick, Op
     from term.recording import RecordingTransport
+    from term.sim import SimBoard
     from term.transports.ble import BleTransport
     from term.transports.serial import SerialTransport
 

@@ -15,10 +15,10 @@ import serial
 from fcb_sim.board import Board, BoardConfig
 from fcb_sim.instructor import Instructor, InstructorServer
 from fcb_sim.physics import World
-from term.cli import SimBoard
 from term.instructor import Hello, InstructorClient, Refused, Truth, check_situation, parse_line
 from term.link import LinkSession
 from term.protocol import INSTRUCTOR_SITUATIONS, INSTRUCTOR_TRUTH, Joystick, Mode, Op
+from term.sim import SimBoard
 
 
 def flying_board(seed: int = 1) -> tuple[Board, LinkSession]:

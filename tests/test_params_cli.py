@@ -8,8 +8,9 @@ from pathlib import Path
 
 import pytest
 
-from term.cli import SimBoard, main
+from term.cli import main
 from term.protocol import PARAMS
+from term.sim import SimBoard
 
 
 @pytest.fixture(scope="module")
