@@ -86,7 +86,7 @@ FOOTER_LABELS = {
     "log_download": "log",
 }
 FOOTER_ACTIONS = tuple(FOOTER_LABELS)
-MIN_SIZE = (100, 34)  # the flight screen's panels need this many columns and rows; smaller: a notice instead
+MIN_SIZE = (110, 35)  # the flight screen's panels need this many columns and rows; smaller: a notice instead
 
 
 def _panel(widget: ModelView, title: str, wid: str) -> ModelView:

@@ -64,7 +64,7 @@ async def test_a_terminal_too_small_says_so(scripted_board) -> None:  # noqa: AN
     async with flying(scripted_board, size=(80, 24)) as (app, pilot, board, peer):
         await pilot.pause(0.1)
         notice = app.screen.query_one("#too-small")
-        assert notice.display and "80×24" in str(notice.render()) and "100×34" in str(notice.render())
+        assert notice.display and "80×24" in str(notice.render()) and "110×35" in str(notice.render())
         assert not app.screen.query_one("#mode").display
         await pilot.press("1")  # the keys still work
         await until(pilot, lambda: (Op.MODE, Mode.PANIC) in sent(board))

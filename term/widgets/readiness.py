@@ -29,6 +29,7 @@ class ReadinessPanel(ModelView):
 
     def render_model(self, model: Model, now: float) -> RenderableType:
         self.display = model.mode in SHOWN_IN or model.version_mismatch is not None
+        self.screen.set_class(bool(self.display), "safe")  # the screen's layout gives the checks their rows
         for name in _FIGURES:  # redrawn when one of them goes stale
             self.read(model, name, now, figure=False)
         lift_step, trim_step = model.trim_steps()
