@@ -19,8 +19,9 @@ How it flies (module ``_Flight``): the lift stick on a PID of the true height (i
 pilot does, starting from a guess); in FULL, RAW and HEIGHT the roll and pitch sticks ask for the tilt that
 accelerates it towards the target (a position PID, leaning into the wind), the yaw stick for a turn rate; in
 MANUAL (and YAW) the sticks are moments, so it closes the attitude loops itself on the true angles and rates, as
-a MANUAL pilot must. In HEIGHT it keeps the lift stick where it was when HEIGHT was engaged (moving it would move
-the held height). Gains are a pilot's feel, not the board's parameters: docs/lessons.md.
+a MANUAL pilot must. In HEIGHT it keeps the lift stick where it was when HEIGHT was engaged, and nudges it (which
+moves the held height) when the true height wanders off, as a pilot watching the craft would. Gains are a pilot's
+feel, not the board's parameters: docs/lessons.md.
 """
 
 from __future__ import annotations
@@ -48,6 +49,9 @@ MANUAL_YAW_RATE = 60000.0
 LIFT_GUESS = 14000.0
 LIFT_KP, LIFT_KD, LIFT_KI = 4000.0, 3000.0, 800.0
 TAKEOFF_RAMP = 3000.0  # stick per s while still on the floor with somewhere to go
+# HEIGHT: beyond HEIGHT_NUDGE_FROM m off, the lift stick is moved this much per m (at most _MAX, past the board's
+# dead band of 1500) and the held height follows at up to 0.5 m/s per full stick.
+HEIGHT_NUDGE_FROM, HEIGHT_NUDGE, HEIGHT_NUDGE_MAX = 0.06, 40000.0, 10000.0
 LAND_SLOW, LAND_SLOW_PER_M = 0.12, 0.5  # landing: at most this descent rate (m/s) plus this per m of height
 # Position: m/s² asked for per m, per m/s and per m s, at most POS_ACC; tilt at most TILT_MAX.
 POS_KP, POS_KD, POS_KI = 2.0, 2.4, 0.5
@@ -97,6 +101,7 @@ class _Flight:
         self.base = LIFT_GUESS
         self.i_n = self.i_e = 0.0
         self.height_lift: int | None = None  # the lift stick HEIGHT was engaged with
+        self._last_lift = 0
         self.land_rate: float | None = None
         self._mode: str | None = None
 
@@ -113,7 +118,7 @@ class _Flight:
     def sticks(self, mode: str | None, truth: Truth | None, dt: float) -> Joystick:
         if mode != self._mode:
             if mode == "HEIGHT":
-                self.height_lift = None  # (set below from the lift it is holding)
+                self.height_lift = self._last_lift  # the stick the board took as HEIGHT's neutral
             self._mode = mode
         if mode not in _FLIGHT or truth is None:
             self.base, self.i_n, self.i_e = LIFT_GUESS, 0.0, 0.0
@@ -150,9 +155,13 @@ class _Flight:
         if not airborne and th <= GROUND_H:
             lift = 0.0  # on the floor with nowhere to go: hands off the lift
         if mode == "HEIGHT":
+            # The board holds its estimate of the height it had: the stick stays where it was, but when the true
+            # height wanders (the barometer's error) a pilot nudges it, which moves the held height.
             if self.height_lift is None:
                 self.height_lift = _stick(max(0.0, lift))
-            lift = self.height_lift
+            nudge = 0.0 if abs(err) < HEIGHT_NUDGE_FROM else _clip(HEIGHT_NUDGE * err, HEIGHT_NUDGE_MAX)
+            lift = self.height_lift + nudge
+        self._last_lift = _stick(max(0.0, lift))
         # heading
         if self.yaw_rate is not None:
             r_sp = self.yaw_rate

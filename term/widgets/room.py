@@ -3,11 +3,14 @@
 Drawn from ``term.room.Room`` (the simulator's truth; set by the app: attributes down) at the app's render rate,
 in braille dots: the walls dim, the pad a cross, the box green while the craft is inside it and yellow while it
 is not, the last seconds of its path as a dotted trail, and the craft as an arrow pointing where its nose points
-(top view) and a diamond (side view). The last line gives the figures: position from the pad, height, heading,
-speed, the wind. Without the simulator (a real board has no position) the panel says so and why.
+(top view) and a diamond (side view). The last line gives the figures (position from the pad, height, heading,
+in the box or not); the bottom border the room's size and the wind. Without the simulator (a real board has no
+position) the panel says so.
 """
 
 from __future__ import annotations
+
+import math
 
 from rich.text import Text
 
@@ -124,16 +127,28 @@ def draw(room: Room, width: int, height: int) -> tuple[Text, TopView, SideView]:
 
 
 def figures(room: Room, inside: bool) -> Text:
+    """Position from the pad, height, heading, and whether in the lesson's box: one short line."""
     t = room.truth
     if t is None:
         return Text("waiting for the simulator's truth…", style="dim")
-    text = Text(f"n {t.n:+.2f} e {t.e:+.2f} h {t.h:.2f} m  hdg {round(t.heading_deg) % 360:03d}°  {t.speed:.1f} m/s")
+    text = Text(f"n {t.n:+.2f} e {t.e:+.2f} h {t.h:.2f} m hdg {round(t.heading_deg) % 360:03d}°")
     if room.box is not None:
-        text.append("  in the box" if inside else "  outside the box", style=BOX_IN if inside else BOX_OUT)
-    if t.wind_n or t.wind_e or t.gust:
-        speed = (t.wind_n ** 2 + t.wind_e ** 2) ** 0.5
-        text.append(f"  wind {speed:.1f} m/s" + (f" ±{t.gust:.1f}" if t.gust else ""), style="dim")
+        text.append("  in box" if inside else "  outside", style=BOX_IN if inside else BOX_OUT)
     return text
+
+
+_COMPASS = ("N", "NE", "E", "SE", "S", "SW", "W", "NW")
+
+
+def wind_text(room: Room) -> str:
+    """The wind as a pilot says it: its speed, where it blows from, its gusts."""
+    t = room.truth
+    if t is None or not (t.wind_n or t.wind_e or t.gust):
+        return ""
+    speed = math.hypot(t.wind_n, t.wind_e)
+    origin = _COMPASS[round(math.degrees(math.atan2(-t.wind_e, -t.wind_n)) % 360 / 45) % 8]
+    gusts = f" ±{t.gust:.1f}" if t.gust else ""
+    return f"wind {speed:.1f} m/s" + (f" from {origin}" if speed >= 0.05 else "") + gusts
 
 
 class RoomView(ModelView):
@@ -159,5 +174,6 @@ class RoomView(ModelView):
             return Text("")
         text, self.top, self.side = draw(room, w, h)
         self._drawn = room.version
-        self.subtitle(f"room {2 * room.extent:.0f} m · top · side (looking north)")
+        wind = wind_text(room)
+        self.subtitle(f"top · side (looking N) · {2 * room.extent:.0f} m room" + (f" · {wind}" if wind else ""))
         return text
