@@ -105,6 +105,8 @@ class LessonDriver:
 
     def tick(self, model: Model, now: float) -> Tick:
         out = Tick()
+        if not self.active:
+            return out  # nothing runs: nothing to evaluate (the app ticks at the truth's rate all along)
         run = self.run
         if run is not None and run.state != ENDED:
             ns = self.observer.namespace(model, now, run.step_vars(now))
