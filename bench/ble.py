@@ -1,19 +1,23 @@
-"""BLE link figures: notification fill at telemetry load, and the PC's writes per second with the stick still and
-moving (change-only joystick sends, report section 3.9).
+"""BLE link figures: notification fill and airtime at telemetry load (with and without Compact2, the flight
+screen's second frame), and the PC's writes per second with the stick still and moving (change-only joystick sends,
+report section 3.9).
 
 Two measurements:
 
 - **simulated** (exact, deterministic): the board's ``WirelessLink`` (STARTED) and the PC's ``LinkSession``
   (``change_only=True``) exchange bytes on a 1 ms simulated clock for ``--seconds``: the board sends a 10 Hz
-  heartbeat, Compact telemetry (30 Hz, and 10 Hz for comparison) and an Ack per command; the pilot presses a
-  key every 2 s; the stick is still, or moving (a slow sweep sampled at 100 Hz, as the joystick poller does);
-  the PC's output is cut into ATT writes of at most 20 bytes, as ``BleTransport`` does.
+  heartbeat, Compact telemetry (asked at every 50 Hz telemetry tick: 40 Hz; and 10 Hz for comparison), Compact2
+  once per heartbeat (or not, for comparison) and an Ack per command; the pilot presses a key every 2 s; the
+  stick is still, or moving (a slow sweep sampled at 100 Hz, as the joystick poller does); the PC's output is cut
+  into ATT writes of at most 20 bytes, as ``BleTransport`` does. Per case: the notification fill, notifications
+  and payload bytes per second, and their airtime (``airtime_us``).
 - **radio** (real time, real stack): the same board stand-in behind the bumble radio (``start_radio`` with the
   phone-side controller on 127.0.0.1) and the terminal's ``Connection(BleTransport(..., hci=...),
   LinkSession(change_only=True))`` through our bleak backend: writes per second still and moving, notification
   fill and size as received, heartbeat round trip.
 - **board** (real time): the real ``fcb_sim.board.Board`` paced to the wall clock behind the radio, the
-  terminal's ``Connection`` in front: the board's own fill, and the stick-to-motor latency over BLE in MANUAL.
+  terminal's ``Connection`` in front: the board's own fill and airtime with Compact2 and without it, and the
+  stick-to-motor latency over BLE in MANUAL.
 - **app** (real time): the same board, but in front of it term's own app (``TermApp``, Textual running
   headless and rendering) with its cable (a loopback pair to the board's UART) and its radio, as ``term --sim``
   wires them: key 8 over the cable, MANUAL over BLE once the app routes there, then the stick-to-motor latency
@@ -39,6 +43,7 @@ from term.protocol import (
     Ack,
     Command,
     Compact,
+    Compact2,
     Decoder,
     Heartbeat,
     HeartbeatAck,
@@ -52,6 +57,18 @@ HEARTBEAT_HZ = 10.0
 TELEMETRY_HZ = 50.0  # the board's telemetry timer; over BLE it asks compact_due() at each tick
 KEY_EVERY_S = 2.0
 STICK_HZ = 100.0  # the joystick poller's rate
+# Airtime on the LE 1M PHY (1 µs a bit), Bluetooth Core Specification 4.2: a notification of n value bytes is an LL
+# data PDU of n + 17 bytes (preamble 1, access address 4, LL header 2, CRC 3: Vol 6 Part B 2.1 and 2.4; L2CAP
+# header 4: Vol 3 Part A 3.1; ATT opcode and handle 3: Vol 3 Part F 3.4.7.1), answered by the central's empty PDU
+# (10 bytes), with T_IFS = 150 µs before each (Vol 6 Part B 4.1). No encryption (no MIC), no retransmissions.
+PDU_OVERHEAD_BYTES = 17
+EMPTY_PDU_US = 80
+T_IFS_US = 150
+
+
+def airtime_us(notifications: int, payload_bytes: int) -> int:
+    """The radio's busy time for ``notifications`` carrying ``payload_bytes`` in all (see PDU_OVERHEAD_BYTES)."""
+    return 8 * (payload_bytes + PDU_OVERHEAD_BYTES * notifications) + (EMPTY_PDU_US + 2 * T_IFS_US) * notifications
 
 
 def stick_at(t: float, moving: bool) -> Joystick:
@@ -66,6 +83,7 @@ class BoardStandIn:
     an Ack for every command. Enough to load the link as the board will; not the firmware."""
 
     def __init__(self, link: WirelessLink, telemetry_hz: float, phase: float = 0.0137) -> None:
+        # Compact2 at a telemetry tick as the board sends it (link.compact2_per_heartbeat: 0 turns it off)
         self.link = link
         self.compact_period = 1.0 / telemetry_hz
         self.decoder = Decoder()
@@ -83,6 +101,8 @@ class BoardStandIn:
             t = self.next_compact
             if self.link.compact_due():
                 self.link.send(Compact(Mode.SAFE, self.link.state, int(500 * math.sin(t)), 0, 0, 1150))
+            if self.link.compact2_due():
+                self.link.send(Compact2(100, 101, 99, 100, int(100 * math.sin(t)), 100, 0, 0x1B, 0))
             self.next_compact += self.compact_period
         while now >= self.next_hb - 1e-9:
             self.hb_counter = (self.hb_counter + 1) & 0xFFFF
@@ -104,8 +124,8 @@ class BoardStandIn:
                 self.link.send(Ack(pkt.cmd_id, pkt.op, 0, pkt.arg))
 
 
-def started_link() -> WirelessLink:
-    link = WirelessLink()
+def started_link(compact2: bool = True) -> WirelessLink:
+    link = WirelessLink(compact2_per_heartbeat=1 if compact2 else 0)
     link.connected()
     link.request_start()
     link.ble_receive(b"\x00")  # the phone's first bytes: STARTED
@@ -123,13 +143,14 @@ class SimResult:
     joysticks: int = 0
     fill_pct: float = 0.0
     notifications: int = 0
+    payload_bytes: int = 0
     largest: int = 0
     extra: dict = field(default_factory=dict)
 
 
-def simulate(seconds: float, telemetry_hz: float, moving: bool) -> SimResult:
+def simulate(seconds: float, telemetry_hz: float, moving: bool, compact2: bool = True) -> SimResult:
     """Board and PC on one 1 ms simulated clock; bytes pass at once (the radio's delay does not change counts)."""
-    link = started_link()
+    link = started_link(compact2)
     board = BoardStandIn(link, telemetry_hz)
     session = LinkSession(0.0, change_only=True)
     res = SimResult()
@@ -158,6 +179,7 @@ def simulate(seconds: float, telemetry_hz: float, moving: bool) -> SimResult:
     res.joysticks = board.joysticks
     res.fill_pct = st.fill_pct
     res.notifications = st.notifications
+    res.payload_bytes = st.payload_bytes
     res.largest = st.largest
     return res
 
@@ -237,9 +259,9 @@ async def radio_run(seconds: float) -> dict:
 
 async def board_run(seconds: float, steps: int = 20) -> dict:
     """The real board (``fcb_sim.board``) paced to the wall clock behind the radio, the terminal's BLE path in
-    front: handover over the cable, then the board's own BLE output (fill) with the stick still, and the
-    stick-to-motor latency over BLE in MANUAL (lift steps; from ``set_joystick`` to the board's motor
-    command changing)."""
+    front: handover over the cable, then the board's own BLE output (fill, rates, airtime) with the stick still,
+    with Compact2 and then without it, and the stick-to-motor latency over BLE in MANUAL (lift steps; from
+    ``set_joystick`` to the board's motor command changing)."""
     from fcb_sim.board import Board, BoardConfig
     from term.connection import Connection
     from term.transports.ble import BleTransport
@@ -275,12 +297,18 @@ async def board_run(seconds: float, steps: int = 20) -> dict:
         cable.send_command(Op.WIRELESS, 1, clock())
         await _wait_for(lambda: board.wireless.state is WirelessState.STARTED, conn, "no handover")
         st = board.wireless.stats
-        n0, b0, w0 = st.notifications, st.payload_bytes, transport.writes
-        c0 = st.compacts
-        await asyncio.sleep(seconds)
-        notes, payload = st.notifications - n0, st.payload_bytes - b0
-        compacts = st.compacts - c0
-        still_writes = (transport.writes - w0) / seconds
+        output = {}
+        for label, per_heartbeat in (("with_compact2", 1), ("without_compact2", 0)):
+            board.wireless.compact2_per_heartbeat = per_heartbeat
+            await asyncio.sleep(0.2)  # a heartbeat period or two in the new regime before counting
+            n0, b0, w0, c0, d0 = st.notifications, st.payload_bytes, transport.writes, st.compacts, st.compact2s
+            await asyncio.sleep(seconds)
+            output[label] = _link_figures(st.notifications - n0, st.payload_bytes - b0, seconds) | {
+                "compact_per_s": round((st.compacts - c0) / seconds, 1),
+                "compact2_per_s": round((st.compact2s - d0) / seconds, 1),
+                "writes_per_s_still": round((transport.writes - w0) / seconds, 1),
+            }
+        board.wireless.compact2_per_heartbeat = 1
         conn.send_command(Op.MODE, Mode.MANUAL)
         await _wait_for(lambda: board.mode is Mode.MANUAL, conn, "MANUAL refused")
         latencies = []
@@ -293,11 +321,8 @@ async def board_run(seconds: float, steps: int = 20) -> dict:
             latencies.append(changes[0] - sent)
         latencies.sort()
         return {
-            "compact_per_s": round(compacts / seconds, 1),
-            "fill_pct": round(100.0 * payload / (notes * NOTIFY_PAYLOAD), 1) if notes else 0.0,
-            "notifications_per_s": round(notes / seconds, 1),
+            **output,
             "largest_notification": st.largest,
-            "writes_per_s_still": round(still_writes, 1),
             "stick_to_motor_ms_median": round(1000 * statistics.median(latencies), 2),
             "stick_to_motor_ms_p90": round(1000 * latencies[int(0.9 * (len(latencies) - 1))], 2),
             "stick_to_motor_ms_max": round(1000 * latencies[-1], 2),
@@ -390,6 +415,16 @@ async def app_run(steps: int = 20) -> dict:
     }
 
 
+def _link_figures(notifications: int, payload_bytes: int, seconds: float) -> dict:
+    """Fill, rates and airtime of the board's notifications over ``seconds``."""
+    return {
+        "fill_pct": round(100.0 * payload_bytes / (notifications * NOTIFY_PAYLOAD), 1) if notifications else 0.0,
+        "notifications_per_s": round(notifications / seconds, 1),
+        "payload_bytes_per_s": round(payload_bytes / seconds, 1),
+        "airtime_ms_per_s": round(airtime_us(notifications, payload_bytes) / 1000 / seconds, 2),
+    }
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m bench.ble", description=__doc__.splitlines()[0])
     parser.add_argument("--seconds", type=float, default=20.0, help="simulated seconds per case (default 20)")
@@ -399,17 +434,17 @@ def main(argv: list[str] | None = None) -> int:
 
     out: dict = {"bench": "ble", "notification_payload": NOTIFY_PAYLOAD, "seconds": args.seconds}
     fill = {}
-    for label, hz in (("compact_at_telemetry_rate", TELEMETRY_HZ), ("compact_1_per_heartbeat", HEARTBEAT_HZ)):
-        r = simulate(args.seconds, hz, moving=False)
-        fill[label] = {
-            "fill_pct": round(r.fill_pct, 1),
-            "notifications_per_s": round(r.notifications / args.seconds, 1),
-            "largest": r.largest,
-        }
-        print(f"notification fill, {label.replace('_', ' ')} + heartbeat 10 Hz + acks: {r.fill_pct:5.1f} % "
-              f"({r.notifications / args.seconds:.1f} notifications/s, largest {r.largest} B)")
+    cases = (("with_compact2", TELEMETRY_HZ, True), ("without_compact2", TELEMETRY_HZ, False),
+             ("compact_1_per_heartbeat", HEARTBEAT_HZ, False))
+    for label, hz, compact2 in cases:
+        r = simulate(args.seconds, hz, moving=False, compact2=compact2)
+        fill[label] = _link_figures(r.notifications, r.payload_bytes, args.seconds) | {"largest": r.largest}
+        f = fill[label]
+        print(f"notification fill, {label.replace('_', ' ')} + heartbeat 10 Hz + acks: {f['fill_pct']:5.1f} % "
+              f"({f['notifications_per_s']:.1f} notifications/s, {f['payload_bytes_per_s']:.0f} B/s, airtime "
+              f"{f['airtime_ms_per_s']:.1f} ms/s, largest {r.largest} B)")
     out["fill"] = fill
-    out["fill_goal_met"] = fill["compact_at_telemetry_rate"]["fill_pct"] >= 90.0
+    out["fill_goal_met"] = fill["with_compact2"]["fill_pct"] >= 90.0
     writes = {}
     for label, moving in (("still", False), ("moving", True)):
         r = simulate(args.seconds, TELEMETRY_HZ, moving)
@@ -432,8 +467,12 @@ def main(argv: list[str] | None = None) -> int:
               f"largest notification {radio['largest_notification']} B")
         board = asyncio.run(board_run(args.radio_seconds))
         out["board"] = board
-        print(f"the real board over the radio: Compact {board['compact_per_s']}/s, fill {board['fill_pct']} % "
-              f"({board['notifications_per_s']} notifications/s), PC writes {board['writes_per_s_still']}/s still")
+        for label in ("with_compact2", "without_compact2"):
+            b = board[label]
+            print(f"the real board over the radio, {label.replace('_', ' ')}: Compact {b['compact_per_s']}/s, "
+                  f"Compact2 {b['compact2_per_s']}/s, fill {b['fill_pct']} % ({b['notifications_per_s']} "
+                  f"notifications/s, {b['payload_bytes_per_s']:.0f} B/s, airtime {b['airtime_ms_per_s']} ms/s), "
+                  f"PC writes {b['writes_per_s_still']}/s still")
         print(f"stick-to-motor latency over BLE: median {board['stick_to_motor_ms_median']} ms, "
               f"p90 {board['stick_to_motor_ms_p90']} ms, max {board['stick_to_motor_ms_max']} ms "
               f"({board['steps']} lift steps)")

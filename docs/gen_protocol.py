@@ -50,6 +50,8 @@ EXAMPLES: list[tuple[int, Any]] = [
     (16, p.Event(code=p.EventCode.PARAM_CHANGED, arg=p.param_arg(p.Param.P1, 4500), board_ms=99000)),
     (17, p.ParamValue(param=p.Param.ATTITUDE_FILTER, value=0, index=11, count=19)),
     (18, p.ParamValue(param=p.Param.K_GYRO, value=99900, index=12, count=19)),
+    (19, p.Compact2(ae1=100, ae2=0, ae3=250, ae4=101, height=153, setpoint=150, vz=-12,
+                    flags=int(p.Flag.CALIBRATED | p.Flag.ARMED | p.Flag.WIRELESS_ACTIVE), trim_lift=3280)),
 ]
 
 

@@ -528,6 +528,8 @@ class Board:
         if self.wireless.state is WirelessState.STARTED:
             if self.wireless.compact_due():  # as many as fill the notifications between two heartbeats
                 self.send(tm.compact(self))
+            if self.wireless.compact2_due():  # the rest of the flight screen, once per heartbeat period
+                self.send(tm.compact2(self))
         else:
             for pkt in self.telemetry.packets(self):
                 self.tx.telemetry(pkt, self.now)

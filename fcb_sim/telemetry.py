@@ -2,16 +2,30 @@
 
 Over the UART: Attitude and Motion at every telemetry run (50 Hz by default, ``Param.TELEMETRY_HZ``), Height at
 20 Hz, Status and Gains at 5 Hz, each field in the protocol's units (int16 fields clipped to their range, where
-``term.protocol.saturated`` recognises them). Over BLE (the handover STARTED): only the phone's Compact packet.
-``Telemetry.packets(board)`` gives the UART packets due now; ``status(board)`` and ``compact(board)`` build one
-packet each. Sans-IO: the board's clock decides what is due.
+``term.protocol.saturated`` recognises them). Over BLE (the handover STARTED): the phone's Compact packet and, at a
+lower rate, Compact2 (the rest of the flight screen: motors, height, vz, set point, flags, lift trim); the link
+decides how many of each (fcb_sim/wireless.py). ``Telemetry.packets(board)`` gives the UART packets due now;
+``status(board)``, ``compact(board)`` and ``compact2(board)`` build one packet each. Sans-IO: the board's clock
+decides what is due.
 """
 
 from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any
 
-from term.protocol import Attitude, Compact, Flag, Gains, Height, Mode, Motion, Status, WirelessState, field_scale
+from term.protocol import (
+    Attitude,
+    Compact,
+    Compact2,
+    Flag,
+    Gains,
+    Height,
+    Mode,
+    Motion,
+    Status,
+    WirelessState,
+    field_scale,
+)
 
 if TYPE_CHECKING:
     from fcb_sim.board import Board
@@ -19,6 +33,7 @@ if TYPE_CHECKING:
 HEIGHT_PERIOD_US = 50_000  # Height at 20 Hz
 _H = HEIGHT_UNIT_M = field_scale(Height, "height")  # m per unit on the wire and in the log (the packet table)
 _VZ = field_scale(Height, "vz")
+_AE2 = int(field_scale(Compact2, "ae1"))  # Compact2 carries a motor command in units of this many
 STATUS_PERIOD_US = 200_000  # Status and Gains at 5 Hz
 
 
@@ -65,8 +80,16 @@ def compact(b: Board) -> Compact:
     return Compact(int(b.modes.mode), int(b.wireless.state), phi, theta, psi, b.battery)
 
 
-def status(b: Board) -> Status:
-    """The Status packet: flags, trims, CPU load since the last Status, log fill, handover state."""
+def compact2(b: Board) -> Compact2:
+    """The rest of the flight screen over BLE: motors (rounded to Compact2's unit), height, set point, vertical
+    speed, the Status flags and the lift trim."""
+    fc = b.core
+    ae = (min(255, max(0, (int(a) + _AE2 // 2) // _AE2)) for a in b.ae)
+    return Compact2(*ae, i16(fc.height / _H), i16(fc.setpoint / _H), i16(fc.vz / _VZ), flags(b), b.modes.trims.lift)
+
+
+def flags(b: Board) -> int:
+    """The status bits (``Flag``), as Status and Compact2 carry them."""
     m = b.modes
     bits = ((Flag.CALIBRATED, m.calibrated), (Flag.ARMED, m.motors_enabled),
             (Flag.LOGGING, b.log.recording), (Flag.BLE_CONNECTED, b.wireless.is_connected),
@@ -75,6 +98,10 @@ def status(b: Board) -> Status:
             (Flag.LINK_TIMEOUT, m.link_timed_out), (Flag.RAW_SENSORS, b.path == "raw"),
             (Flag.FIXED_POINT, b.config.fixed_point), (Flag.PRIORITY_SCHEDULER, b.sched.priority),
             (Flag.HEIGHT_HOLD, m.mode == Mode.HEIGHT), (Flag.CRASHED, m.crashed))
-    flags = sum(int(flag) for flag, on in bits if on)
-    t = m.trims
-    return Status(flags, t.roll, t.pitch, t.yaw, t.lift, b.prof.load(b.now), b.log.fill_pct, int(b.wireless.state))
+    return sum(int(flag) for flag, on in bits if on)
+
+
+def status(b: Board) -> Status:
+    """The Status packet: flags, trims, CPU load since the last Status, log fill, handover state."""
+    t = b.modes.trims
+    return Status(flags(b), t.roll, t.pitch, t.yaw, t.lift, b.prof.load(b.now), b.log.fill_pct, int(b.wireless.state))

@@ -32,6 +32,7 @@ from term.protocol import (
     TELEMETRY,
     Ack,
     Compact,
+    Compact2,
     Encoder,
     Heartbeat,
     LogChunk,
@@ -40,7 +41,7 @@ from term.protocol import (
 __all__ = ["ANSWER_BUDGET", "Transmitter"]
 
 HEARTBEAT, ANSWER, TELEMETRY_CLASS, BULK = range(4)
-_CLASS = {Heartbeat: HEARTBEAT, LogChunk: BULK, Compact: TELEMETRY_CLASS,
+_CLASS = {Heartbeat: HEARTBEAT, LogChunk: BULK, Compact: TELEMETRY_CLASS, Compact2: TELEMETRY_CLASS,
           **{cls: TELEMETRY_CLASS for cls in TELEMETRY}}
 ACK_BYTES = SPEC_OF[Ack].frame_size
 

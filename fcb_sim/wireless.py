@@ -12,7 +12,7 @@ Two layers, so the rules can be tested at full speed without a radio:
   A connection alone changes nothing. In STARTING the board keeps talking over the UART and also sends its
   heartbeats over BLE; the phone answers them, and that first data moves the link to STARTED: from then the
   parser reads only BLE and every reply goes to BLE. Over BLE the telemetry is reduced to the phone's
-  ``Compact`` packet.
+  ``Compact`` packet and, once per heartbeat, ``Compact2`` (the rest of the flight screen).
 
   Transmit batching: frames wait in the BLE tx queue until 20 bytes are ready, then leave as full 20-byte
   notifications (a frame may span two: the decoder is a stream decoder); a heartbeat flushes the queue at once.
@@ -40,6 +40,7 @@ from term.protocol import (
     SPEC_OF,
     TELEMETRY,
     Compact,
+    Compact2,
     Encoder,
     Heartbeat,
     Nak,
@@ -71,9 +72,15 @@ def compacts_per_heartbeat(compact: int, heartbeat: int, payload: int = NOTIFY_P
     return next((n for n in candidates if fill(n) >= 0.95), max(candidates, key=fill))
 
 
-# Derived from the frame sizes, so a change to either packet keeps the notifications full: with the 16-byte
-# Compact and the 14-byte Heartbeat, four Compacts and a heartbeat are 78 bytes, four notifications 97.5 % full.
-COMPACT_PER_HEARTBEAT = compacts_per_heartbeat(SPEC_OF[Compact].frame_size, SPEC_OF[Heartbeat].frame_size)
+# Compact2 (motors, height, vz, set point, flags, lift trim: the rest of the flight screen) goes once per heartbeat
+# period, 10 Hz: the pilot reads those figures, the phone's attitude moves faster.
+COMPACT2_PER_HEARTBEAT = 1
+# Derived from the frame sizes, so a change to any of the packets keeps the notifications full: with the 16-byte
+# Compact, the 20-byte Compact2 and the 14-byte Heartbeat, four Compacts, a Compact2 and a heartbeat are 98 bytes,
+# five notifications 98 % full (without Compact2: 78 bytes, four notifications, 97.5 %).
+COMPACT_PER_HEARTBEAT = compacts_per_heartbeat(
+    SPEC_OF[Compact].frame_size,
+    SPEC_OF[Heartbeat].frame_size + COMPACT2_PER_HEARTBEAT * SPEC_OF[Compact2].frame_size)
 
 
 def board_name(board_id: int) -> str:
@@ -95,6 +102,7 @@ class WirelessStats:
     rx_ignored: int = 0  # bytes written before the handover (DISCONNECTED): the board does not read them
     compacts: int = 0  # Compact frames queued
     compact_skipped: int = 0  # Compact frames beyond COMPACT_PER_HEARTBEAT in one heartbeat period
+    compact2s: int = 0  # Compact2 frames queued
     heartbeats_queued: int = 0
     answers_dropped: int = 0  # answers refused for a backlog over ANSWER_BUDGET (the phone's radio stalls)
     payload: int = NOTIFY_PAYLOAD
@@ -123,10 +131,12 @@ class WirelessLink:
     - ``notifications()`` for what the radio must send now (the radio does this itself, woken by ``on_ready``).
     """
 
-    def __init__(self, payload: int = NOTIFY_PAYLOAD, on_ready: Callable[[], None] | None = None) -> None:
+    def __init__(self, payload: int = NOTIFY_PAYLOAD, on_ready: Callable[[], None] | None = None,
+                 compact2_per_heartbeat: int = COMPACT2_PER_HEARTBEAT) -> None:
         if payload < 1:
             raise ValueError("payload must be at least one byte")
         self.payload = payload
+        self.compact2_per_heartbeat = compact2_per_heartbeat  # 0: Compact only (bench.ble compares)
         self.on_ready = on_ready  # called when notifications are waiting (the radio's wake-up)
         self.encoder = Encoder()  # BLE has its own sequence numbers: the phone sees no gaps from UART frames
         self.stats = WirelessStats(payload=payload)
@@ -135,6 +145,7 @@ class WirelessLink:
         self._tx = bytearray()  # the ble_tx_queue
         self._ready: list[bytes] = []  # whole notifications waiting for the radio
         self._compacts = 0  # Compact frames queued since the last heartbeat
+        self._compact2s = 0  # Compact2 frames queued since the last heartbeat
         self.bytes_queued = 0  # frame bytes ever queued, and ever handed to the radio: what still waits
         self.bytes_taken = 0
         self.transitions: list[tuple[WirelessState, WirelessState]] = []  # drained by the board (events)
@@ -246,6 +257,15 @@ class WirelessLink:
             and self._compacts < COMPACT_PER_HEARTBEAT
         )
 
+    def compact2_due(self) -> bool:
+        """Whether a Compact2 frame is wanted now: over BLE (STARTED) and fewer than ``compact2_per_heartbeat``
+        since the last heartbeat (ask at every telemetry tick, as for ``compact_due``)."""
+        return (
+            self._connected
+            and self._state is WirelessState.STARTED
+            and self._compact2s < self.compact2_per_heartbeat
+        )
+
     @property
     def backlog_bytes(self) -> int:
         """Bytes queued for BLE that the radio has not taken yet."""
@@ -255,8 +275,8 @@ class WirelessLink:
         """Encode ``pkt`` with the BLE encoder and queue it if it goes over BLE (``ble_wants``); heartbeats are
         never refused and flush the queue at once. The transmit rule (fcb_sim/transmit.py): answers wait only
         while the backlog stays within ``ANSWER_BUDGET``; a Compact beyond ``COMPACT_PER_HEARTBEAT`` per
-        heartbeat period, or over a full backlog, is skipped (the phone shows the latest anyway). Returns True if
-        it was queued."""
+        heartbeat period, or over a full backlog, is skipped (the phone shows the latest anyway), and so is a Compact2
+        beyond ``compact2_per_heartbeat``. Returns True if it was queued."""
         if not self.ble_wants(pkt):
             return False
         kind = type(pkt)
@@ -267,8 +287,14 @@ class WirelessLink:
                 return False
             self._compacts += 1
             self.stats.compacts += 1
+        elif kind is Compact2:
+            if self._compact2s >= self.compact2_per_heartbeat or self.backlog_bytes + size > ANSWER_BUDGET:
+                self.stats.compact_skipped += 1
+                return False
+            self._compact2s += 1
+            self.stats.compact2s += 1
         elif kind is Heartbeat:
-            self._compacts = 0
+            self._compacts = self._compact2s = 0
             self.stats.heartbeats_queued += 1
         elif self.backlog_bytes + size > ANSWER_BUDGET:
             self.stats.answers_dropped += 1

@@ -310,6 +310,22 @@ size_t qp_encode_param_value(qp_encoder_t *enc, const qp_param_value_t *pkt, uin
     return finish_frame(enc, raw, QP_BODY_SIZE_PARAM_VALUE, out);
 }
 
+size_t qp_encode_compact2(qp_encoder_t *enc, const qp_compact2_t *pkt, uint8_t out[QP_MAX_FRAME])
+{
+    uint8_t raw[QP_MAX_FRAME];
+    raw[0] = QP_TYPE_COMPACT2;
+    raw[2] = (uint8_t)pkt->ae1;
+    raw[3] = (uint8_t)pkt->ae2;
+    raw[4] = (uint8_t)pkt->ae3;
+    raw[5] = (uint8_t)pkt->ae4;
+    put16(raw + 6, (uint16_t)pkt->height);
+    put16(raw + 8, (uint16_t)pkt->setpoint);
+    put16(raw + 10, (uint16_t)pkt->vz);
+    put16(raw + 12, (uint16_t)pkt->flags);
+    put16(raw + 14, (uint16_t)pkt->trim_lift);
+    return finish_frame(enc, raw, QP_BODY_SIZE_COMPACT2, out);
+}
+
 size_t qp_encode(qp_encoder_t *enc, const qp_packet_t *pkt, uint8_t out[QP_MAX_FRAME])
 {
     switch (pkt->type) {
@@ -347,6 +363,8 @@ size_t qp_encode(qp_encoder_t *enc, const qp_packet_t *pkt, uint8_t out[QP_MAX_F
         return qp_encode_compact(enc, &pkt->u.compact, out);
     case QP_TYPE_PARAM_VALUE:
         return qp_encode_param_value(enc, &pkt->u.param_value, out);
+    case QP_TYPE_COMPACT2:
+        return qp_encode_compact2(enc, &pkt->u.compact2, out);
     default:
         return 0;
     }
@@ -506,6 +524,19 @@ static int unpack(const uint8_t *raw, size_t body_len, qp_packet_t *pkt)
         pkt->u.param_value.value = s32(get32(b + 1));
         pkt->u.param_value.index = b[5];
         pkt->u.param_value.count = b[6];
+        break;
+    case QP_TYPE_COMPACT2:
+        if (body_len != QP_BODY_SIZE_COMPACT2)
+            return 0;
+        pkt->u.compact2.ae1 = b[0];
+        pkt->u.compact2.ae2 = b[1];
+        pkt->u.compact2.ae3 = b[2];
+        pkt->u.compact2.ae4 = b[3];
+        pkt->u.compact2.height = s16(get16(b + 4));
+        pkt->u.compact2.setpoint = s16(get16(b + 6));
+        pkt->u.compact2.vz = s16(get16(b + 8));
+        pkt->u.compact2.flags = get16(b + 10);
+        pkt->u.compact2.trim_lift = s16(get16(b + 12));
         break;
     default:
         return 0;

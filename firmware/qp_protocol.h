@@ -218,6 +218,7 @@ enum qp_param {
 #define QP_TYPE_LOG_CHUNK 0x1a
 #define QP_TYPE_COMPACT 0x1b
 #define QP_TYPE_PARAM_VALUE 0x1c
+#define QP_TYPE_COMPACT2 0x1d
 
 #define QP_BODY_SIZE_JOYSTICK 9
 #define QP_FRAME_SIZE_JOYSTICK 15
@@ -253,6 +254,8 @@ enum qp_param {
 #define QP_FRAME_SIZE_COMPACT 16
 #define QP_BODY_SIZE_PARAM_VALUE 7
 #define QP_FRAME_SIZE_PARAM_VALUE 13
+#define QP_BODY_SIZE_COMPACT2 14
+#define QP_FRAME_SIZE_COMPACT2 20
 
 /* 0x01 Joystick, pc→board, ≤100 Hz; on change + 2 Hz keep-alive over BLE: Absolute joystick position. */
 typedef struct {
@@ -384,7 +387,7 @@ typedef struct {
     uint8_t data[12];      /* log bytes; the last chunk is padded with 0xFF (erased flash) */
 } qp_log_chunk_t;
 
-/* 0x1b Compact, board→pc, 3 per heartbeat over BLE (30 Hz): The phone's telemetry: mode, attitude, battery. */
+/* 0x1b Compact, board→pc, 4 per heartbeat over BLE (40 Hz): The phone's telemetry: mode, attitude, battery. */
 typedef struct {
     uint8_t mode;          /* Mode */
     uint8_t wireless;      /* WirelessState */
@@ -401,6 +404,19 @@ typedef struct {
     uint8_t index;         /* 0-based place in this listing */
     uint8_t count;         /* parameters in this listing */
 } qp_param_value_t;
+
+/* 0x1d Compact2, board→pc, 1 per heartbeat over BLE (10 Hz): The rest of the flight screen over BLE: motors, height, vertical speed, set point, flags, lift trim. */
+typedef struct {
+    uint8_t ae1;           /* 4 units: front motor command / 4, rounded (x 4 -> 0..1000) */
+    uint8_t ae2;           /* 4 units: right motor command / 4, rounded (x 4 -> 0..1000) */
+    uint8_t ae3;           /* 4 units: back motor command / 4, rounded (x 4 -> 0..1000) */
+    uint8_t ae4;           /* 4 units: left motor command / 4, rounded (x 4 -> 0..1000) */
+    int16_t height;        /* cm: estimated height above the reference (x 0.01 -> m) */
+    int16_t setpoint;      /* cm: height set point (HEIGHT mode) (x 0.01 -> m) */
+    int16_t vz;            /* cm/s: estimated vertical speed, up positive (x 0.01 -> m/s) */
+    uint16_t flags;        /* Flag: status bits, as Status.flags */
+    int16_t trim_lift;     /* stick: keyboard lift trim */
+} qp_compact2_t;
 
 /* Any packet: ``type`` (QP_TYPE_*) says which member of ``u`` holds it; ``seq`` is the frame's sequence number. */
 typedef struct {
@@ -424,6 +440,7 @@ typedef struct {
         qp_log_chunk_t log_chunk;
         qp_compact_t compact;
         qp_param_value_t param_value;
+        qp_compact2_t compact2;
     } u;
 } qp_packet_t;
 
@@ -455,6 +472,7 @@ size_t qp_encode_log_status(qp_encoder_t *enc, const qp_log_status_t *pkt, uint8
 size_t qp_encode_log_chunk(qp_encoder_t *enc, const qp_log_chunk_t *pkt, uint8_t out[QP_MAX_FRAME]);
 size_t qp_encode_compact(qp_encoder_t *enc, const qp_compact_t *pkt, uint8_t out[QP_MAX_FRAME]);
 size_t qp_encode_param_value(qp_encoder_t *enc, const qp_param_value_t *pkt, uint8_t out[QP_MAX_FRAME]);
+size_t qp_encode_compact2(qp_encoder_t *enc, const qp_compact2_t *pkt, uint8_t out[QP_MAX_FRAME]);
 
 /* Any packet by its type; returns 0 (and writes nothing) for an unknown type. */
 size_t qp_encode(qp_encoder_t *enc, const qp_packet_t *pkt, uint8_t out[QP_MAX_FRAME]);

@@ -5,13 +5,16 @@ own period from its arrivals (a gap longer than the staleness limit is a gap, no
 a ``Reading`` (``read(model, name, now)``):
 
 - its **value** in the shown unit (through the packet table's scales), from the freshest of its sources: phi,
-  theta, psi and the battery come from the cable's Attitude and Height or the radio's Compact, whichever arrived
-  last; a trim also from the board's Ack of a trim command (the Ack carries the new trim, over either link);
+  theta, psi and the battery come from the cable's Attitude and Height or the radio's Compact; the motors, height,
+  set point, vz, flags and lift trim from the cable's Motion, Height and Status or the radio's Compact2 (motors in
+  steps of 4 there), whichever arrived last; a trim also from the board's Ack of a trim command (the Ack carries
+  the new trim, over either link);
 - its **age** (seconds since the packet behind it arrived) and its **limit**: ``STALE_PERIODS`` of its packet's
   periods, never less than ``STALE_FLOOR_S``; older is **stale** (drawn dimmed, with its age);
-- whether the link that carries control **carries** it now: over BLE the board sends Compact, events and acks,
-  not the full telemetry (``term.protocol.TELEMETRY``); a figure that is stale and not carried is not shown
-  as a number at all: the panel says "not over BLE";
+- whether the link that carries control **carries** it now: over BLE the board sends Compact, Compact2, events
+  and acks, not the full telemetry (``term.protocol.TELEMETRY``: rates, accelerations, pressure, temperature, the
+  roll/pitch/yaw trims' Status, CPU load, log fill, gains); a figure that is stale and not carried is not shown as
+  a number at all: the panel says "not over BLE";
 - its **bound**: a value at its field's encoding limit (the board clips there) is ">" or "<" that limit, never a
   plain number; "?" for a value that is not a number.
 
@@ -26,7 +29,7 @@ from dataclasses import dataclass
 from functools import cache
 from typing import TYPE_CHECKING, Any
 
-from term.protocol import TELEMETRY, Attitude, Compact, Gains, Height, Motion, Op, Status, field_spec
+from term.protocol import TELEMETRY, Attitude, Compact, Compact2, Gains, Height, Motion, Op, Status, field_spec
 
 if TYPE_CHECKING:
     from term.model import Model
@@ -42,10 +45,13 @@ PERIOD_GAIN = 0.2  # smoothing of the period estimate
 SOURCES: dict[str, tuple[type, ...]] = {
     **{n: (Attitude, Compact) for n in ("phi", "theta", "psi", "mode")},
     **{n: (Attitude,) for n in ("sp", "sq", "sr")},
-    **{n: (Motion,) for n in ("sax", "say", "saz", "ae1", "ae2", "ae3", "ae4")},
-    **{n: (Height,) for n in ("pressure", "height", "setpoint", "vz", "temperature")},
+    **{n: (Motion,) for n in ("sax", "say", "saz")},
+    **{n: (Motion, Compact2) for n in ("ae1", "ae2", "ae3", "ae4")},
+    **{n: (Height,) for n in ("pressure", "temperature")},
+    **{n: (Height, Compact2) for n in ("height", "setpoint", "vz")},
     "battery": (Height, Compact),
-    **{n: (Status,) for n in ("flags", "trim_roll", "trim_pitch", "trim_yaw", "trim_lift", "cpu_load", "log_fill")},
+    **{n: (Status, Compact2) for n in ("flags", "trim_lift")},
+    **{n: (Status,) for n in ("trim_roll", "trim_pitch", "trim_yaw", "cpu_load", "log_fill")},
     **{n: (Gains,) for n in ("yaw_p", "p1", "p2", "height_p", "height_d")},
 }
 # A trim command's Ack carries the trim's new value (stick units): a second source of the trim, on either link.
@@ -158,13 +164,13 @@ def next_age_change(age: float) -> float:
 
 
 def carried(model: Model, kind: type | str) -> bool:
-    """Whether the link that carries control brings ``kind`` now: over BLE the board sends Compact, events and
-    acks but not the full telemetry; the cable sends no Compact."""
+    """Whether the link that carries control brings ``kind`` now: over BLE the board sends Compact, Compact2,
+    events and acks but not the full telemetry; the cable sends neither Compact."""
     if kind == ACK:
         return True
     if model.over_ble:
         return kind not in TELEMETRY
-    return kind is not Compact
+    return kind not in (Compact, Compact2)
 
 
 def bound(kind: type, name: str, raw: Any) -> str:

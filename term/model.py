@@ -59,6 +59,7 @@ from term.protocol import (
     PARAMS,
     Attitude,
     Compact,
+    Compact2,
     Event,
     EventCode,
     Flag,
@@ -256,6 +257,8 @@ class Model:
     pending: int = 0  # commands sent and not yet answered
     wireless: int = 0  # WirelessState, as the board last said
     compact: Compact | None = None  # the phone's telemetry (over BLE): mode, attitude, battery
+    compact2: Compact2 | None = None  # the rest of the flight screen over BLE: motors, height, vz, flags, lift trim
+    flag_bits: int = 0  # the board's status bits from the latest of Status (cable) and Compact2 (BLE)
     # The radio: a second link over BLE beside the cable (term --sim, term --serial P --ble A). Empty name: none.
     # ``primary_ble``: the only link is BLE (term --ble), so it always carries control.
     radio_name: str = ""
@@ -499,6 +502,7 @@ class Model:
             self._push_scaled(t, pkt, ("height", "setpoint", "vz", "pressure", "battery"))
         elif kind is Status:
             self.status = pkt
+            self.flag_bits = pkt.flags
             self._set_wireless(pkt.wireless)
         elif kind is Gains:
             self.gains = pkt
@@ -507,6 +511,10 @@ class Model:
             self._set_mode(pkt.mode, now)
             self._set_wireless(pkt.wireless)
             self._push_scaled(t, pkt, ("phi", "theta", "psi", "battery"))
+        elif kind is Compact2:
+            self.compact2 = pkt
+            self.flag_bits = pkt.flags
+            self._push_scaled(t, pkt, ("ae1", "ae2", "ae3", "ae4", "height", "setpoint", "vz"))
         elif kind is Event:
             self.board_ms = pkt.board_ms
             self.event_times[pkt.code] = now
@@ -636,7 +644,7 @@ class Model:
 
     @property
     def flags(self) -> Flag:
-        return Flag(self.status.flags) if self.status else Flag(0)
+        return Flag(self.flag_bits)
 
     @property
     def flying(self) -> bool:
@@ -711,7 +719,7 @@ def _log_erased(m: Model, value: int) -> str:
 _LOG_ACKS: dict[int, Callable[[Model, int], str]] = {Op.LOG_START: _log_started, Op.LOG_STOP: _log_stopped,
                                                      Op.LOG_RESET: _log_erased}
 
-_TIMED = frozenset((Attitude, Motion, Height, Status, Gains, Compact))  # the packets whose figures can go stale
+_TIMED = frozenset((Attitude, Motion, Height, Status, Gains, Compact, Compact2))  # figures that can go stale
 
 _HANDLERS: dict[type, Callable[[Model, Any, float], None]] = {
     PacketReceived: Model._on_packet,

@@ -58,7 +58,8 @@ from term.logformat import (  # noqa: F401
 )
 
 PROTOCOL_VERSION = 3  # 3: the parameter table (SET_PARAM id 8 + value 24 bits, PARAM_GET, PARAM_LIST, ParamValue,
-#   PARAM_CHANGED); 2: Height in cm and cm/s (was mm: saturated at 32.77 m), crash flag, event and command
+#   PARAM_CHANGED), Compact2 (the flight screen's figures over BLE); 2: Height in cm and cm/s (was mm: saturated at
+#   32.77 m), crash flag, event and command
 MAX_FRAME = 20  # bytes on the wire, delimiter included: one BLE notification
 MAX_BODY = MAX_FRAME - 6  # type, seq, crc16 (2), COBS overhead (1), delimiter (1)
 DELIMITER = b"\x00"
@@ -722,7 +723,7 @@ class LogChunk(NamedTuple):
     data: Annotated[bytes, F("12s", "", "log bytes; the last chunk is padded with 0xFF (erased flash)")]
 
 
-@packet(0x1B, BOARD_TO_PC, "3 per heartbeat over BLE (30 Hz)", "The phone's telemetry: mode, attitude, battery.")
+@packet(0x1B, BOARD_TO_PC, "4 per heartbeat over BLE (40 Hz)", "The phone's telemetry: mode, attitude, battery.")
 class Compact(NamedTuple):
     mode: Annotated[int, F("B", "Mode", "")]
     wireless: Annotated[int, F("B", "WirelessState", "")]
@@ -738,6 +739,20 @@ class ParamValue(NamedTuple):
     value: Annotated[int, F("i", "raw", "its raw value (ParamSpec.from_raw gives it in its unit)")]
     index: Annotated[int, F("B", "", "0-based place in this listing")]
     count: Annotated[int, F("B", "", "parameters in this listing")]
+
+
+@packet(0x1D, BOARD_TO_PC, "1 per heartbeat over BLE (10 Hz)",
+        "The rest of the flight screen over BLE: motors, height, vertical speed, set point, flags, lift trim.")
+class Compact2(NamedTuple):
+    ae1: Annotated[int, F("B", "4 units", "front motor command / 4, rounded", 4, "0..1000")]
+    ae2: Annotated[int, F("B", "4 units", "right motor command / 4, rounded", 4, "0..1000")]
+    ae3: Annotated[int, F("B", "4 units", "back motor command / 4, rounded", 4, "0..1000")]
+    ae4: Annotated[int, F("B", "4 units", "left motor command / 4, rounded", 4, "0..1000")]
+    height: Annotated[int, F("h", "cm", "estimated height above the reference", 0.01, "m")]
+    setpoint: Annotated[int, F("h", "cm", "height set point (HEIGHT mode)", 0.01, "m")]
+    vz: Annotated[int, F("h", "cm/s", "estimated vertical speed, up positive", 0.01, "m/s")]
+    flags: Annotated[int, F("H", "Flag", "status bits, as Status.flags")]
+    trim_lift: Annotated[int, F("h", "stick", "keyboard lift trim")]
 
 
 LOG_CHUNK_BYTES = 12

@@ -356,15 +356,16 @@ PANEL_FIELDS = {
     "#battery": ("battery",),
     "#pressure": ("pressure", "temperature", "height", "setpoint", "vz"),
     "#controls": ("trim_roll", "trim_pitch", "trim_yaw", "trim_lift", "yaw_p", "p1", "p2", "height_p", "height_d",
-                  "cpu_load", "log_fill"),
+                  "flags", "cpu_load", "log_fill"),
 }
 
 
 async def test_no_stale_figure_goes_unmarked_through_a_handover() -> None:
     """TermApp over the cable and the radio to the real (sans-IO) board: on the cable, over BLE (key 8, MANUAL,
     lift trims) and back on the cable, every panel of the flight screen is checked many times: a figure older
-    than its staleness limit is marked (its age, or "not over BLE"), and the trims flown over BLE are shown from
-    the board's Acks, not a stale +0."""
+    than its staleness limit is marked (its age, or "not over BLE"), the trims flown over BLE are shown from the
+    board's Acks and Compact2, not a stale +0, and what Compact2 carries (motors, height, vz, flags, lift trim) is
+    fresh over BLE."""
     import time
 
     from fcb_sim.board import Board, BoardConfig
@@ -422,10 +423,15 @@ async def test_no_stale_figure_goes_unmarked_through_a_handover() -> None:
                 app.simulate_key("a")
                 await for_s(0.1)
             await until(lambda: m.reading("trim_lift", app.clock()).value == board.modes.trims.lift > 0)
-            assert m.reading("trim_lift", app.clock()).source == "Ack"
+            assert m.reading("trim_lift", app.clock()).source in ("Ack", "Compact2")
             await for_s(1.5)  # long enough for the cable's last telemetry to go stale
-            assert "not over BLE" in str(app.screen.query_one("#motors").border_subtitle)
-            assert m.reading("phi", app.clock()).fresh and m.reading("battery", app.clock()).fresh  # Compact
+            now = app.clock()
+            assert "not over BLE" in str(app.screen.query_one("#rates").border_subtitle)  # the cable's only
+            assert not app.screen.query_one("#motors").border_subtitle
+            assert m.reading("phi", now).fresh and m.reading("battery", now).fresh  # Compact
+            flown = [m.reading(n, now) for n in ("ae1", "ae2", "ae3", "ae4", "height", "vz", "flags", "trim_lift")]
+            assert all(r.fresh and r.source == "Compact2" for r in flown), flown  # Compact2
+            assert m.reading("ae1", now).value > 0 and m.reading("trim_lift", now).value == board.modes.trims.lift
             app.send(Op.WIRELESS, 0)  # hand control back to the cable, still flying
             await until(lambda: not m.over_ble and m.reading("ae1", app.clock()).fresh, 5.0)
             await until(lambda: m.reading("trim_lift", app.clock()).source == "Status")

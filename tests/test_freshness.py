@@ -17,6 +17,8 @@ from term.protocol import (
     SPEC_OF,
     Attitude,
     Compact,
+    Compact2,
+    Flag,
     Gains,
     Height,
     Mode,
@@ -30,7 +32,7 @@ from term.protocol import (
 )
 from term.widgets.base import figure
 
-TELEMETRY = (Attitude, Motion, Height, Status, Gains, Compact)
+TELEMETRY = (Attitude, Motion, Height, Status, Gains, Compact, Compact2)
 
 
 def _attitude(mode: int = Mode.MANUAL, phi: int = 0) -> Attitude:
@@ -75,16 +77,28 @@ def test_over_ble_the_pilot_sees_what_the_radio_carries() -> None:
     m.radio_up = True
     m.apply_packet(Compact(int(Mode.MANUAL), int(WirelessState.STARTED), 500, 0, 0, 1150), 1.0)
     assert m.over_ble
-    phi, battery, height = m.reading("phi", 1.0), m.reading("battery", 1.0), m.reading("height", 70.0)
+    phi, battery, pressure = m.reading("phi", 1.0), m.reading("battery", 1.0), m.reading("pressure", 70.0)
     assert phi.value == 5.0 and phi.source == "Compact" and battery.value == 11.5 and battery.fresh
-    assert height.stale and not height.carried and not height.shown
-    assert height.mark == "not over BLE (last 70 s ago)" and str(figure(height, "+6.2f", " m")) == "     — m"
+    assert pressure.stale and not pressure.carried and not pressure.shown
+    assert pressure.mark == "not over BLE (last 70 s ago)" and str(figure(pressure, "6.0f", " Pa")) == "     — Pa"
+    # Height is carried over BLE (Compact2): until one comes, the cable's last height is shown as old, not hidden.
+    height = m.reading("height", 70.0)
+    assert height.stale and height.carried and height.shown and height.mark == "70 s old"
     # Trims: the board's Ack of a trim command carries the new trim, over BLE too.
     m.apply(CommandAcked(7, Op.TRIM_LIFT, 1, 18040), 1.1)
     lift = m.reading("trim_lift", 1.2)
     assert lift.value == 18040 and lift.source == "Ack" and lift.fresh and lift.carried
     roll = m.reading("trim_roll", 1.2)
     assert roll.source == "Status" and roll.stale and not roll.shown  # not carried: not shown as a number
+    # Compact2 over BLE: motors (in steps of 4), height, set point, vz, flags and the lift trim, fresh.
+    m.apply_packet(Compact2(100, 101, 99, 250, 123, 150, -45, int(Flag.ARMED | Flag.CALIBRATED), 3280), 1.5)
+    got = {n: m.reading(n, 1.6) for n in ("ae1", "ae2", "ae3", "ae4", "height", "setpoint", "vz", "flags",
+                                            "trim_lift")}
+    assert all(r.fresh and r.carried and r.source == "Compact2" for r in got.values()), got
+    assert [got[f"ae{i}"].value for i in range(1, 5)] == [400, 404, 396, 1000]
+    assert math.isclose(got["height"].value, 1.23) and math.isclose(got["vz"].value, -0.45)
+    assert got["trim_lift"].value == 3280 and m.flags == Flag.ARMED | Flag.CALIBRATED
+    assert not m.reading("sp", 1.6).shown and not m.reading("cpu_load", 1.6).shown  # still cable-only figures
     # Back on the cable: Status is the freshest again.
     m.apply_packet(Status(0, 0, 0, 0, 18040, 0, 0, int(WirelessState.DISCONNECTED)), 2.0)
     assert not m.over_ble and m.reading("trim_lift", 2.0).source == "Status"
@@ -172,7 +186,8 @@ def test_any_telemetry_through_the_model_and_every_panel(pkts: list, over_ble: b
 def test_lift_trims_flown_over_ble_are_shown_as_the_board_has_them() -> None:
     """Issue 10's +18040: 55 lift-trim presses over BLE (1 % each) while the screen showed the cable's last Status
     (trim +0) and motors 0, unmarked. The board reports each new trim in its Ack; the model shows that (fresh),
-    and what BLE does not carry (motors, height) is not shown as a number."""
+    what the second BLE frame carries (motors, height: Compact2) is fresh and the board's, and what BLE does not
+    carry (rates, pressure) is not shown as a number."""
     from fcb_sim.board import Board, BoardConfig
     from fcb_sim.physics import World
     from term.link import LinkSession
@@ -208,6 +223,10 @@ def test_lift_trims_flown_over_ble_are_shown_as_the_board_has_them() -> None:
         board.ble_receive(phone.data_to_send(t))
     assert m.over_ble and m.mode == Mode.MANUAL and len(shown) == 55
     assert all(a == b for a, b in shown) and shown[-1][1] == 55 * shown[0][1]  # every press, as the board has it
-    motors, height = m.reading("ae1", t), m.reading("height", t)
-    assert not motors.shown and not height.shown and motors.mark.startswith("not over BLE")
+    motors, height, rate = m.reading("ae1", t), m.reading("height", t), m.reading("sp", t)
+    assert motors.fresh and motors.source == "Compact2" and abs(motors.value - board.ae[0]) <= 2  # steps of 4
+    # the board's estimate, less what it climbed since it was sampled (up to a heartbeat period in the BLE batch)
+    assert height.fresh and height.source == "Compact2"
+    assert abs(height.value - board.core.height) <= abs(board.core.vz) * (height.age + 0.1) + 0.01
+    assert not rate.shown and rate.mark.startswith("not over BLE")
     assert m.reading("phi", t).fresh and m.reading("battery", t).fresh  # what the radio carries

@@ -10,6 +10,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from fcb_sim.wireless import (
+    COMPACT2_PER_HEARTBEAT,
     COMPACT_PER_HEARTBEAT,
     NOTIFY_PAYLOAD,
     NUS_RX,
@@ -24,23 +25,28 @@ from term.protocol import (
     Ack,
     Attitude,
     Compact,
+    Compact2,
     Decoder,
     Encoder,
     Event,
+    Flag,
     Heartbeat,
     HeartbeatAck,
     Joystick,
+    Mode,
     Motion,
     Nak,
     Op,
     Status,
     WirelessState,
     encode,
+    field_scale,
 )
 
 S = WirelessState
 HB = Heartbeat(1, 100)
 COMPACT = Compact(0, 2, 100, -200, 300, 1200)
+COMPACT2 = Compact2(100, 101, 99, 100, 150, 150, -20, 3, 0)
 
 # --- the state machine --------------------------------------------------------------------------------------
 
@@ -168,6 +174,68 @@ def test_compact_rate_fills_the_notifications() -> None:
     assert link.stats.fill_pct >= 95.0
 
 
+def test_compact2_once_per_heartbeat_and_the_notifications_stay_full() -> None:
+    """Compact2 (the rest of the flight screen) once per heartbeat period beside the Compacts: still 95 % full, and
+    a second Compact2 in the same period is skipped."""
+    link = started()
+    assert COMPACT2_PER_HEARTBEAT == 1
+    for counter in range(50):
+        assert link.compact2_due() and link.send(COMPACT2)
+        assert not link.compact2_due() and not link.send(COMPACT2)
+        for _ in range(COMPACT_PER_HEARTBEAT):
+            assert link.send(COMPACT)
+        link.send(Heartbeat(counter, counter * 100))
+        link.notifications()
+    per_period = len(encode(COMPACT2)) + COMPACT_PER_HEARTBEAT * len(encode(COMPACT)) + len(encode(HB))
+    assert link.stats.notifications == 50 * -(-per_period // NOTIFY_PAYLOAD)
+    assert link.stats.fill_pct >= 95.0 and link.stats.compact2s == 50 and link.stats.compact_skipped == 50
+    off = started()
+    off.compact2_per_heartbeat = 0  # Compact only (bench.ble compares the two)
+    assert not off.compact2_due() and not off.send(COMPACT2)
+
+
+def test_the_board_sends_compact2_over_ble_with_its_own_figures() -> None:
+    """The real board handed over to BLE and flown in MANUAL from the phone's session: Compact2 at 10 Hz beside
+    40 Hz of Compact, its figures the board's own, every notification at most 20 bytes, the mean fill at least
+    90 % (the issue's goal)."""
+    from fcb_sim.board import Board, BoardConfig
+    from fcb_sim.telemetry import flags
+    from term.link import LinkSession, PacketReceived
+    from term.station import RADIO_SESSION
+
+    board = Board(BoardConfig(seed=1))
+    cable, phone = LinkSession(0.0), LinkSession(0.0, **RADIO_SESSION)  # type: ignore[arg-type]
+    board.uart_receive(cable.hello())
+    board.ble_connected()
+    got: list[tuple[float, Compact2]] = []
+    for ms in range(1, 3001):
+        t = ms / 1000
+        if ms == 100:
+            cable.send_command(Op.WIRELESS, 1, t)
+        elif ms == 600:
+            phone.send_command(Op.MODE, Mode.MANUAL, t)
+        elif ms == 800:
+            phone.set_joystick(Joystick(0, 0, 0, 9000, 0))
+        board.advance(ms * 1000)
+        cable.receive(board.uart_transmit(), t)
+        notes = board.wireless.notifications()
+        assert all(len(n) <= NOTIFY_PAYLOAD for n in notes)
+        for ev in phone.receive(b"".join(notes), t) + phone.poll(t):
+            if type(ev) is PacketReceived and type(ev.packet) is Compact2:
+                got.append((t, ev.packet))
+        board.uart_receive(cable.data_to_send(t))
+        board.ble_receive(phone.data_to_send(t))
+    assert board.wireless.state is S.STARTED and board.mode == Mode.MANUAL
+    span = got[-1][0] - got[0][0]
+    assert 9.5 <= (len(got) - 1) / span <= 10.5  # 10 Hz
+    st = board.wireless.stats
+    assert st.fill_pct >= 90.0 and 3.8 <= st.compacts / st.compact2s <= 4.2
+    last = got[-1][1]
+    assert all(a > 0 for a in board.ae) and all(abs(4 * c - a) <= 2 for c, a in zip(last[:4], board.ae, strict=True))
+    assert last.flags == flags(board) and last.flags & Flag.WIRELESS_ACTIVE and last.trim_lift == 0
+    assert abs(last.height * field_scale(Compact2, "height") - board.core.height) < 0.05
+
+
 @pytest.mark.parametrize(("compact", "heartbeat", "expected"), [(16, 12, 3), (16, 14, 4), (15, 15, 3)])
 def test_compacts_per_heartbeat_picks_the_fullest_count(compact: int, heartbeat: int, expected: int) -> None:
     assert compacts_per_heartbeat(compact, heartbeat) == expected
@@ -180,20 +248,22 @@ def test_a_heartbeat_is_never_held_back() -> None:
     assert HB.__class__ in {type(p) for p in Decoder().feed(b"".join(link.notifications()))}
 
 
-@given(st.lists(st.sampled_from(["compact", "hb", "ack", "event"]), max_size=200))
+@given(st.lists(st.sampled_from(["compact", "compact2", "hb", "ack", "event"]), max_size=200))
 def test_every_notification_is_at_most_twenty_bytes_and_the_stream_is_intact(kinds: list[str]) -> None:
-    packets = {"compact": COMPACT, "hb": HB, "ack": Ack(1, 1, 0, 2), "event": Event(3, 4, 5)}
+    packets = {"compact": COMPACT, "compact2": COMPACT2, "hb": HB, "ack": Ack(1, 1, 0, 2), "event": Event(3, 4, 5)}
     link = started()
     sent = []
     notes: list[bytes] = []
     dec = Decoder()
     got = []
-    compacts = 0
+    compacts = compact2s = 0
     for kind in kinds:
         pkt = packets[kind]
         compacts = 0 if kind == "hb" else compacts + (kind == "compact")
-        if kind == "compact" and compacts > COMPACT_PER_HEARTBEAT:
-            assert not link.send(pkt)  # at most COMPACT_PER_HEARTBEAT Compact frames per heartbeat period
+        compact2s = 0 if kind == "hb" else compact2s + (kind == "compact2")
+        if (kind == "compact" and compacts > COMPACT_PER_HEARTBEAT
+                or kind == "compact2" and compact2s > COMPACT2_PER_HEARTBEAT):
+            assert not link.send(pkt)  # at most so many of each per heartbeat period
             continue
         assert link.send(pkt)
         sent.append(pkt)

@@ -48,6 +48,7 @@ const char *qp_text_name(uint8_t type)
     case QP_TYPE_LOG_CHUNK: return "LogChunk";
     case QP_TYPE_COMPACT: return "Compact";
     case QP_TYPE_PARAM_VALUE: return "ParamValue";
+    case QP_TYPE_COMPACT2: return "Compact2";
     default: return NULL;
     }
 }
@@ -169,6 +170,17 @@ void qp_text_print(FILE *f, const qp_packet_t *pkt)
         fprintf(f, " value=%ld", (long)pkt->u.param_value.value);
         fprintf(f, " index=%ld", (long)pkt->u.param_value.index);
         fprintf(f, " count=%ld", (long)pkt->u.param_value.count);
+        break;
+    case QP_TYPE_COMPACT2:
+        fprintf(f, " ae1=%ld", (long)pkt->u.compact2.ae1);
+        fprintf(f, " ae2=%ld", (long)pkt->u.compact2.ae2);
+        fprintf(f, " ae3=%ld", (long)pkt->u.compact2.ae3);
+        fprintf(f, " ae4=%ld", (long)pkt->u.compact2.ae4);
+        fprintf(f, " height=%ld", (long)pkt->u.compact2.height);
+        fprintf(f, " setpoint=%ld", (long)pkt->u.compact2.setpoint);
+        fprintf(f, " vz=%ld", (long)pkt->u.compact2.vz);
+        fprintf(f, " flags=%ld", (long)pkt->u.compact2.flags);
+        fprintf(f, " trim_lift=%ld", (long)pkt->u.compact2.trim_lift);
         break;
     default:
         break;
@@ -358,6 +370,21 @@ int qp_text_parse(const char *name, char **tok, int ntok, qp_packet_t *pkt)
         pkt->u.param_value.value = (int32_t)strtoll(tok[1], NULL, 0);
         pkt->u.param_value.index = (uint8_t)strtoll(tok[2], NULL, 0);
         pkt->u.param_value.count = (uint8_t)strtoll(tok[3], NULL, 0);
+        return 1;
+    }
+    if (strcmp(name, "Compact2") == 0) {
+        if (ntok != 9)
+            return 0;
+        pkt->type = QP_TYPE_COMPACT2;
+        pkt->u.compact2.ae1 = (uint8_t)strtoll(tok[0], NULL, 0);
+        pkt->u.compact2.ae2 = (uint8_t)strtoll(tok[1], NULL, 0);
+        pkt->u.compact2.ae3 = (uint8_t)strtoll(tok[2], NULL, 0);
+        pkt->u.compact2.ae4 = (uint8_t)strtoll(tok[3], NULL, 0);
+        pkt->u.compact2.height = (int16_t)strtoll(tok[4], NULL, 0);
+        pkt->u.compact2.setpoint = (int16_t)strtoll(tok[5], NULL, 0);
+        pkt->u.compact2.vz = (int16_t)strtoll(tok[6], NULL, 0);
+        pkt->u.compact2.flags = (uint16_t)strtoll(tok[7], NULL, 0);
+        pkt->u.compact2.trim_lift = (int16_t)strtoll(tok[8], NULL, 0);
         return 1;
     }
     return 0;

@@ -73,7 +73,7 @@ class ControlsPanel(ModelView):
         out.append("lift  ")
         out.append_text(hbar(total, 0, FULL, width - 7, "yellow" if total > LIFT_ZERO else "green"))
         # The lift the board flies is the stick plus the trim: one percentage, then its two parts.
-        if lift_trim.shown and lift_trim.bound != "?":
+        if lift_trim.shown and not lift_trim.bound:  # a bound ("<", ">", "?") is said as the trim itself, below
             out.append_text(figure(_as_pct(lift_trim, s.lift), "4.0f", "%", pad=" "))
             out.append(f" (stick {100 * s.lift / FULL:.0f} + trim", style="dim")
             out.append_text(figure(_as_pct(lift_trim, 0), ".0f", ")", style="dim", pad=" "))

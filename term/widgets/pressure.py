@@ -26,7 +26,7 @@ class PressureIndicator(ModelView):
                                  for n in ("pressure", "temperature", "height", "setpoint", "vz"))
         self.mark(p, hr, spr, vzr, temp)
         out = Text()
-        if not p.known:
+        if not (p.known or hr.known):  # over BLE alone the height comes without the pressure (Compact2)
             out.append("pressure  —\nheight    —\nvz        —")
             return out
         width = max(8, (self.content_size.width or 40) - 20)
