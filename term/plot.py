@@ -189,7 +189,8 @@ class Source:
 
 
 MCAP_MAGIC = b"\x89MCAP0\r\n"
-SESSION_PACKETS = ("Attitude", "Motion", "Height", "Status", "Gains", "Compact", "Heartbeat")  # the board's figures
+SESSION_PACKETS = ("Attitude", "Motion", "Height", "Status", "Gains", "Compact", "Compact2",  # the board's figures
+                   "Heartbeat")
 
 
 def read_flash_log(path: Path) -> Source:

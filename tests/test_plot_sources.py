@@ -119,3 +119,27 @@ def test_bad_input_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str
     code, out, err = run(capsys, "plot", *argv, "-o", str(out_png))
     assert code == 2 and out == "" and not out_png.exists()
     assert words in err and err.count("\n") == 1, err
+
+
+def test_over_ble_the_motors_and_height_come_from_compact2(tmp_path: Path) -> None:
+    """A session flown over BLE: Compact2 brings the motors and the height; plotted per link, in the table's units
+    (a motor command in steps of 4)."""
+    from term.protocol import Compact2, Encoder, Motion
+    from term.recording import SessionRecorder
+
+    rec = SessionRecorder(tmp_path / "rec", 10.0, wall_ns=1_700_000_000_000_000_000)
+    cable, radio = Encoder(), Encoder()
+    for i in range(20):
+        now = 10.0 + 0.1 * i
+        if i < 10:  # on the cable first, then handed over
+            rec.received("serial", cable.encode(Motion(0, 0, -16384, 400, 401, 402, 403)), now)
+            rec.received("serial", cable.encode(Height(101325, 100 + i, 0, 0, 1168, 2150)), now)
+        else:
+            rec.received("ble", radio.encode(Compact2(100, 101, 99, 250, 100 + i, 0, 5, 2, 0)), now)
+        rec.poll(now)
+    rec.close()
+    src = read_source(rec.path)
+    ae1 = {tr.label: tr for tr in src.traces["ae1"]}
+    assert set(ae1) == {"ae1 (serial)", "ae1 (ble)"} and list(ae1["ae1 (ble)"].v) == [400.0] * 10
+    height = {tr.label: list(tr.v) for tr in src.traces["height"]}
+    assert height["height (ble)"] == pytest.approx([(100 + i) * 0.01 for i in range(10, 20)])
