@@ -4,10 +4,10 @@ term/widgets/room.py); a real board has no position, so there is no room without
 
 The room is the lab: the pad at its centre, walls ``extent`` m away on every side (3 m: a 6 m room), ``CEILING_M``
 high in the side view. It grows (never shrinks while the attempt lasts) when the craft flies beyond it, so it stays
-in view. The top view looks down (north up, east right), the side view looks north (east right, up up); both use
-the same metres per dot across, so a craft drawn above a point of the top view is at the same column in the side
-view. ``TopView``/``SideView`` give, for a canvas of so many character cells, the cell of a point: the widget draws
-with them and the tests check the craft's cell against the simulator's position with them.
+in view. The top view looks down (north up, east right; its dots square), the side view looks north (east right,
+the floor at the bottom) with the same metres per dot across, so distances read the same in both.
+``TopView``/``SideView`` give, for a canvas of so many character cells, the cell of a point: the widget draws with
+them and the tests check the craft's cell against the simulator's position with them.
 """
 
 from __future__ import annotations
