@@ -230,3 +230,36 @@ def test_lift_trims_flown_over_ble_are_shown_as_the_board_has_them() -> None:
     assert abs(height.value - board.core.height) <= abs(board.core.vz) * (height.age + 0.1) + 0.01
     assert not rate.shown and rate.mark.startswith("not over BLE")
     assert m.reading("phi", t).fresh and m.reading("battery", t).fresh  # what the radio carries
+
+
+def test_over_ble_the_controls_panel_names_what_is_not_carried() -> None:
+    """Over BLE the flags are fresh (Compact2) while the CPU load and log fill are not carried: the panel's border
+    names those, not the flags."""
+    from term.widgets.controls import ControlsPanel
+
+    m = Model(start=0.0, radio_name="ble")
+    m.apply_packet(Status(int(Flag.CALIBRATED), 0, 0, 0, 0, 40, 3, 0), 0.0)
+    m.apply_packet(Gains(800.0, 0.4, 111.0, 400.0, 400.0), 0.0)
+    m.radio_up = True
+    m.apply_packet(Compact(int(Mode.MANUAL), int(WirelessState.STARTED), 0, 0, 0, 1150), 5.0)
+    m.apply_packet(Compact2(40, 40, 40, 40, 0, 0, 0, int(Flag.CALIBRATED | Flag.ARMED), 0), 5.0)
+    w = ControlsPanel()
+    text = str(w.render_model(m, 5.1))
+    assert "ARMED" in text and "flags" not in str(w.border_subtitle)
+    assert str(w.border_subtitle) == "trims, gains, cpu, log: not over BLE (last 5 s ago)"
+
+
+def test_a_panel_of_two_packets_names_each_age() -> None:
+    """Over BLE the pressure panel mixes the cable's pressure (not carried) and Compact2's height: when both are
+    old, the border names each figure's age, not only the first."""
+    from term.widgets.pressure import PressureIndicator
+
+    m = Model(start=0.0, radio_name="ble")
+    m.apply_packet(Height(101325, 100, 0, 0, 1150, 2500), 0.0)
+    m.radio_up = True
+    m.apply_packet(Compact(int(Mode.MANUAL), int(WirelessState.STARTED), 0, 0, 0, 1150), 8.0)
+    m.apply_packet(Compact2(40, 40, 40, 40, 150, 0, 3, 0, 0), 8.0)  # then BLE stalls
+    w = PressureIndicator()
+    w.render_model(m, 10.5)
+    assert str(w.border_subtitle) == ("pressure, temperature: not over BLE (last 10 s ago) · height, setpoint, vz: "
+                                      "2 s old")

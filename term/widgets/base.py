@@ -88,8 +88,17 @@ class ModelView(Widget):
         return r
 
     def mark(self, *readings: Reading) -> None:
-        """The panel's bottom border says what is not fresh among ``readings`` (the first such mark)."""
-        self.subtitle(next((r.mark for r in readings if r.mark), ""))
+        """The panel's bottom border says what is not fresh among ``readings``: their mark, or, when they differ
+        (figures from two packets, e.g. the pressure not over BLE and the height from Compact2 a second old), each
+        mark after the names of its figures."""
+        marks: dict[str, list[str]] = {}
+        for r in readings:
+            if r.mark:
+                marks.setdefault(r.mark, []).append(r.name)
+        if len(marks) <= 1:
+            self.subtitle(next(iter(marks), ""))
+        else:
+            self.subtitle(" · ".join(f"{', '.join(names)}: {mark}" for mark, names in marks.items()))
 
     def subtitle(self, text: str) -> None:
         """Set the bottom border's text; only a change repaints (Textual repaints on every assignment)."""

@@ -50,7 +50,8 @@ class ControlsPanel(ModelView):
         gains = [self.read(model, n, now) for n in ("yaw_p", "p1", "p2", "height_p", "height_d")]
         flags_r, cpu, log = (self.read(model, n, now) for n in ("flags", "cpu_load", "log_fill"))
         marks: dict[str, list[str]] = {}  # the same age said once for every group it applies to
-        for what, rs in (("trims", trims), ("gains", gains), ("status", [flags_r, cpu, log])):
+        # named by what they are: over BLE the flags come (Compact2), the CPU load and log fill do not
+        for what, rs in (("trims", trims), ("gains", gains), ("flags", [flags_r]), ("cpu, log", [cpu, log])):
             for r in rs:
                 if r.mark and what not in marks.setdefault(r.mark, []):
                     marks[r.mark].append(what)
