@@ -344,6 +344,10 @@ class ModeMachine:
             return Nak.BAD_ARGUMENT  # a handover, not a mode: the board routes Op.WIRELESS itself
         if target == Mode.PANIC and self.mode in (Mode.SAFE, Mode.PANIC):
             return Nak.OK  # already safe (motors off) or already descending
+        if target == self.mode:  # already there: no re-entry (HEIGHT would forget its base), no event
+            if target == Mode.SAFE:
+                _enter_safe(self, now)  # but 0 in SAFE still zeroes the lift trim
+            return Nak.OK
         reason = self.check(target)
         if reason != Nak.OK:
             self.emit(EventCode.REFUSED, (int(reason) << 8) | int(target), now)

@@ -234,3 +234,20 @@ def test_a_low_battery_panic_latches() -> None:
     m.tick(10.0)
     m.supervise(10.0, link_silent_s=0.0, battery=1090)  # recovered at rest
     assert m.mode == Mode.SAFE and m.request(Mode.MANUAL, 10.1) == Nak.BATTERY_LOW
+
+
+def test_asking_for_the_current_mode_changes_nothing() -> None:
+    # Pressing 0 in SAFE or 7 in HEIGHT logged "mode SAFE → SAFE" and re-ran the enter action: HEIGHT took
+    # itself as the mode to return to, and a second 3 restarted a calibration under way.
+    m = machine()
+    m.adjust_trim("lift", 2)
+    assert m.request(Mode.SAFE, 0.0) == Nak.OK
+    assert m.trims.lift == 0  # 0 in SAFE still zeroes the lift trim, as entering SAFE does
+    t = calibrate(m)
+    m.drain_events()
+    assert m.request(Mode.RAW, t) == Nak.OK and m.request(Mode.HEIGHT, t) == Nak.OK
+    changes = len(m.changes)
+    assert m.request(Mode.HEIGHT, t) == Nak.OK
+    assert len(m.changes) == changes
+    assert [e for e in m.drain_events() if e[0] == EventCode.MODE_CHANGED][-1][1] == (Mode.RAW << 8) | Mode.HEIGHT
+    assert m.request(Mode.RAW, t) == Nak.OK and m.mode == Mode.RAW  # HEIGHT still returns to RAW
