@@ -35,7 +35,7 @@ import zlib
 from pathlib import Path
 
 from fcb_sim.flash_log import FLASH_BYTES, LOG_VARS, LogVar, encode_log
-from term.protocol import decode_log
+from term.logformat import decode_log
 
 BROAD_DIR = Path(os.environ.get("BROAD_DIR", "/work/shared/data/broad"))
 RAW = struct.Struct("<iB3h3h3h4Hhih")  # the uncompressed record: 39 bytes

@@ -6,7 +6,7 @@ A download (``Op.LOG_DOWNLOAD``, arg = first chunk) streams chunk i = bytes 12i.
 ``missing()`` names the first gap, and a new ``LOG_DOWNLOAD`` with that index resumes from it.
 
 The record format inside the bytes (self-describing segments of compressed records, docs/flash_log.md) is part
-of the protocol: ``term.protocol.decode_log``. Bytes that do not decode are written as a hex dump, one 12-byte
+of the protocol: ``term.logformat.decode_log``. Bytes that do not decode are written as a hex dump, one 12-byte
 chunk per row, so a download is never lost.
 """
 
@@ -21,7 +21,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from term.protocol import LOG_CHUNK_BYTES, LogChunk, LogStatus, decode_log
+from term.logformat import decode_log
+from term.protocol import LOG_CHUNK_BYTES, LogChunk, LogStatus
 
 
 @dataclass

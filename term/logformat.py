@@ -23,8 +23,7 @@ import struct
 from collections.abc import Sequence
 from dataclasses import dataclass
 
-SCHEME_DELTA8 = 1  # the report's: one scaled signed byte per variable, against the reconstruction
-SCHEME_RICE = 2  # ours: prediction and an adaptive Rice code, the same error bound, no overload
+from term.protocol import LOG_TIME_COLUMN, SCHEME_DELTA8, SCHEME_NAMES, SCHEME_RICE  # noqa: F401 (re-exported)
 
 LOG_MAGIC = b"QL"
 LOG_FORMAT_VERSION = 2  # 2: the height column in cm, as the Height packet (1: mm)
@@ -32,8 +31,6 @@ LOG_HEADER = struct.Struct("<2sBBBBII")  # magic, version, scheme, n_vars, reser
 LOG_VAR_ENTRY = struct.Struct("<8sHH")  # name (ASCII, NUL padded), scale, reserved
 LOG_UNSET32 = 0xFFFFFFFF  # an erased header field: the segment was never closed (records run to the end)
 
-LOG_TIME_COLUMN = "t_us"  # the board time of each record, µs; the other columns are named after telemetry fields
-SCHEME_NAMES = {SCHEME_DELTA8: "delta8", SCHEME_RICE: "rice"}
 
 RICE_ESCAPE = 20  # a unary quotient this long is an escape: 32 raw bits of the zigzagged residual follow
 RICE_RESET = 64  # LOCO-I: halve the statistics every this many samples so the code adapts

@@ -34,28 +34,11 @@ from dataclasses import dataclass
 from enum import IntEnum, IntFlag, unique
 from typing import Annotated, Any, NamedTuple, get_type_hints
 
-# The flash-log payload codec moved to its own module; these names stay importable from here.
-from term.logformat import (  # noqa: F401
-    LOG_FORMAT_VERSION,
-    LOG_HEADER,
-    LOG_MAGIC,
-    LOG_TIME_COLUMN,
-    LOG_UNSET32,
-    LOG_VAR_ENTRY,
-    RICE_ESCAPE,
-    RICE_RESET,
-    SCHEME_DELTA8,
-    SCHEME_NAMES,
-    SCHEME_RICE,
-    BitReader,
-    LogSegment,
-    RiceState,
-    decode_log,
-    decode_log_records,
-    quantise,
-    unzigzag,
-    zigzag,
-)
+# The flash-log facts the parameter table and the log columns need; the payload codec is term.logformat.
+SCHEME_DELTA8 = 1  # the report's: one scaled signed byte per variable, against the reconstruction
+SCHEME_RICE = 2  # ours: prediction and an adaptive Rice code, the same error bound, no overload
+SCHEME_NAMES = {SCHEME_DELTA8: "delta8", SCHEME_RICE: "rice"}
+LOG_TIME_COLUMN = "t_us"  # the board time of each record, µs; the other columns are named after telemetry fields
 
 PROTOCOL_VERSION = 3  # 3: the parameter table (SET_PARAM id 8 + value 24 bits, PARAM_GET, PARAM_LIST, ParamValue,
 #   PARAM_CHANGED), Compact2 (the flight screen's figures over BLE); 2: Height in cm and cm/s (was mm: saturated at

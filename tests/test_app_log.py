@@ -19,7 +19,8 @@ from fcb_sim.flash_log import encode_log
 from fcb_sim.physics import World
 from term.app import TermApp
 from term.logfile import LogDownload, decode_to_rows
-from term.protocol import SPEC_OF, LogChunk, LogState, LogStatus, Mode, Op, cobs_decode, decode_log
+from term.logformat import decode_log
+from term.protocol import SPEC_OF, LogChunk, LogState, LogStatus, Mode, Op, cobs_decode
 from term.transports.loopback import Faults, loopback_pair
 
 
