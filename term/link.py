@@ -8,7 +8,8 @@ A ``LinkSession`` knows the protocol's rules for talking to a board and nothing 
   then reports ``CommandFailed`` with the reason; a NAK reports the board's reason. One in flight keeps the
   order of mode requests and lets the board spot a retry by remembering only its last command (it must answer
   a repeat of its last (cmd_id, op, arg) with the same Ack without doing it again). A PANIC request jumps the
-  queue and cancels what waits before it;
+  queue and cancels what waits before it; presses of a stepping op (``STEP_OPS``) not sent yet add up in one
+  command (docs/link.md);
 - it sends the joystick latest-wins (a new value replaces an unsent one, never queues behind it), at most
   ``joystick_rate`` times per second, and with ``change_only`` (BLE, and the serial ``stream`` policy) only when
   the value changed, plus a keep-alive every ``keepalive`` seconds, which never delays the next change;
@@ -33,6 +34,7 @@ from typing import Any
 from term.protocol import (
     NAK_TEXT,
     PROTOCOL_VERSION,
+    STEP_OPS,
     Ack,
     Command,
     Decoder,
@@ -306,8 +308,12 @@ class LinkSession:
         panic = op == Op.MODE and arg == Mode.PANIC
         if panic:  # safety first: nothing queued or unanswered may hold a PANIC back
             self._cancel_all("cancelled: PANIC requested", self._events)
-        cmd_id = self._alloc_id()
         reason = self._refusal()
+        last = self._new[-1] if self._new else None
+        if reason is None and op in STEP_OPS and last is not None and last.op == op:
+            last.arg += int(arg)  # one command for the burst: its Ack settles every press merged into it
+            return last.cmd_id
+        cmd_id = self._alloc_id()
         if len(self._new) >= self.max_queued:
             reason = "too many commands waiting for the board: wait for its answers"
         pending = _Pending(cmd_id, _as_op(op), int(arg))  # type: ignore[arg-type]

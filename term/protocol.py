@@ -98,6 +98,12 @@ class Op(IntEnum):
     PARAM_LIST = 21  # Ack.value: how many parameters; then one ParamValue packet each
 
 
+# Ops whose arg counts key presses: two of them in a row are the same as one with the args added (the link merges
+# presses the board has not been sent yet, so a burst of keys is neither refused nor sent one round trip each).
+STEP_OPS = frozenset({Op.TRIM_LIFT, Op.TRIM_ROLL, Op.TRIM_PITCH, Op.TRIM_YAW, Op.GAIN_YAW_P, Op.GAIN_P1, Op.GAIN_P2,
+                      Op.GAIN_HEIGHT_P, Op.GAIN_HEIGHT_D})
+
+
 @unique
 class Nak(IntEnum):
     """Reasons a command is refused (``Ack.status``); 0 means accepted."""

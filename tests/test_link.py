@@ -185,13 +185,14 @@ def test_ack_for_another_op_does_not_match() -> None:
 def test_commands_go_one_at_a_time_in_order() -> None:
     s = LinkSession(0.0, link_timeout=100.0)
     board = Board()
-    ids = [s.send_command(Op.TRIM_ROLL, k, 0.0) for k in range(3)]
+    ops = (Op.TRIM_ROLL, Op.TRIM_PITCH, Op.TRIM_ROLL)  # no two alike in a row: those would merge
+    ids = [s.send_command(op, k, 0.0) for k, op in enumerate(ops)]
     assert len(set(ids)) == 3
     assert packets(s.data_to_send(0.0)) == [Command(ids[0], Op.TRIM_ROLL, 0)]  # the others wait their turn
     assert s.next_deadline() == pytest.approx(0.25)  # only the retry timer: waiting commands are not due
     s.receive(board(Ack(ids[0], Op.TRIM_ROLL, 0, 0)), 0.01)
-    assert packets(s.data_to_send(0.01)) == [Command(ids[1], Op.TRIM_ROLL, 1)]
-    s.receive(board(Ack(ids[1], Op.TRIM_ROLL, Nak.BAD_ARGUMENT, 0)), 0.02)  # a NAK settles it too
+    assert packets(s.data_to_send(0.01)) == [Command(ids[1], Op.TRIM_PITCH, 1)]
+    s.receive(board(Ack(ids[1], Op.TRIM_PITCH, Nak.BAD_ARGUMENT, 0)), 0.02)  # a NAK settles it too
     assert packets(s.data_to_send(0.02)) == [Command(ids[2], Op.TRIM_ROLL, 2)]
 
 
@@ -207,7 +208,7 @@ def test_a_failed_command_lets_the_next_one_go() -> None:
 
 def test_waiting_commands_are_bounded() -> None:
     s = LinkSession(0.0, link_timeout=100.0, max_queued=32)
-    ids = [s.send_command(Op.TRIM_ROLL, 1, 0.0) for _ in range(40)]
+    ids = [s.send_command((Op.TRIM_ROLL, Op.TRIM_PITCH)[k % 2], 1, 0.0) for k in range(40)]
     assert len(set(ids)) == 40 and all(0 <= i < 256 for i in ids)
     failed = of(s.poll(0.0), CommandFailed)
     assert [f.cmd_id for f in failed] == ids[32:] and "too many commands" in failed[0].reason
@@ -545,3 +546,22 @@ def test_session_against_scripted_board_keeps_the_link_and_answers_every_heartbe
     assert sim.of_type(CommandAcked) == [CommandAcked(cmd, Op.MODE, 2, 20)]
     assert 990 <= len(board.joysticks) <= 1000
     assert s.stats.loss_pct_total == 0.0 and s.stats.frames_bad == 0
+
+
+def test_a_burst_of_key_presses_is_merged_not_refused() -> None:
+    # Seen from the outside: 45 presses of 'a' typed at once gave "trim lift +1 failed: too many commands
+    # waiting for the board" 12 times; those presses were lost. Presses not sent yet now add up in one command.
+    s = LinkSession(0.0, link_timeout=100.0, max_queued=32)
+    first = s.send_command(Op.TRIM_LIFT, 1, 0.0)
+    s.data_to_send(0.0)  # in flight: not merged into
+    ids = [s.send_command(Op.TRIM_LIFT, 1, 0.0) for _ in range(44)]
+    mode = s.send_command(Op.MODE, 2, 0.0)
+    down = s.send_command(Op.TRIM_LIFT, -1, 0.0)  # after another command: its own, in order
+    assert not of(s.poll(0.0), CommandFailed)
+    assert len(set(ids)) == 1 and first not in ids
+    s.receive(Board()(Ack(first, Op.TRIM_LIFT, Nak.OK, 1)), 0.01)
+    assert packets(s.data_to_send(0.01)) == [Command(ids[0], Op.TRIM_LIFT, 44)]
+    s.receive(Board()(Ack(ids[0], Op.TRIM_LIFT, Nak.OK, 45)), 0.02)
+    assert packets(s.data_to_send(0.02)) == [Command(mode, Op.MODE, 2)]
+    s.receive(Board()(Ack(mode, Op.MODE, Nak.OK, 0)), 0.03)
+    assert packets(s.data_to_send(0.03)) == [Command(down, Op.TRIM_LIFT, -1)]
