@@ -44,7 +44,7 @@ NAK_ITEM: dict[Nak, str | None] = {
     Nak.UNKNOWN_COMMAND: None,
     Nak.BAD_ARGUMENT: None,
     Nak.LOG_FULL: "log",
-    Nak.LOG_EMPTY: "log",
+    Nak.LOG_EMPTY: None,  # nothing to download: no fault of the log space, nothing stops a flight
     Nak.LOG_BUSY: "log",
     Nak.BATTERY_LOW: "battery",
     Nak.NO_BLE_CONNECTION: "wireless",
@@ -209,6 +209,8 @@ def _wireless(model: Model, now: float) -> Check:
 def _log(model: Model, now: float, keymap: tuple[KeyBinding, ...]) -> Check:
     fill = _value(model, "log_fill", now)
     state = model.log_state
+    if fill is None and not model.reading("log_fill", now).carried:  # nothing to wait for: BLE never sends it
+        return Check("log", "info", "not over BLE (the cable's status carries it)")
     if fill is None:
         return Check("log", "wait", "not known yet")
     if state == LogState.FULL or fill >= 100:

@@ -263,3 +263,22 @@ def test_the_natural_preset_swaps_the_roll_arrows_only() -> None:
     changed = {b.action.name for b, c in zip(lab, natural, strict=True) if b.keys != c.keys}
     assert changed == set(KEY_PRESETS["natural"]) == {"roll_up", "roll_down"}
     assert [b.keys for b in natural if b.action.name == "roll_down"] == [("left",)]
+
+
+def test_over_ble_the_log_space_is_not_a_wait_and_an_empty_log_is_no_fault() -> None:
+    # Seen flying over BLE: the panel's top line said "waiting for the board…" with every check green but the log,
+    # whose fill only the cable carries; then F5 on an empty log (NAK log empty) made "next: the log — not known
+    # yet" the pilot's next step, though an empty log stops nothing.
+    m = good_model(log_fill=12)
+    m.radio_name, m.radio_up = "ble", True
+    m.apply_packet(status(log_fill=12, wireless=WirelessState.STARTED), NOW)
+    later = NOW + 30.0  # the cable's Status is long stale; BLE carries no log fill
+    m.apply_packet(Attitude(Mode.SAFE, 0, 0, 0, 0, 0, 0), later)
+    m.apply_packet(Height(101325, 0, 0, 0, volts(12.4), 2500), later)
+    m.set_link_stats(link_stats(), later)
+    log = {c.item: c for c in checks(m, later, KEYMAP)}["log"]
+    assert log.state == "info" and "not over BLE" in log.text
+    m.apply(CommandFailed(1, Op.LOG_DOWNLOAD, 0, NAK_TEXT[Nak.LOG_EMPTY], Nak.LOG_EMPTY), later)
+    found = checks(m, later, KEYMAP)
+    assert next_step(found) is None or next_step(found).item != "log"
+    assert NAK_ITEM[Nak.LOG_EMPTY] is None

@@ -42,8 +42,9 @@ class ReadinessPanel(ModelView):
         elif ready(found):
             keys = ", ".join(f"{keys_for(self.keymap, f'mode_{m}')} {m.upper()}" for m in ("manual", "full"))
             out.append(f"ready to fly: {keys}, …\n", style="bold green")
-        else:
-            out.append("waiting for the board…\n", style="dim")
+        else:  # nothing to do, something not known yet: say what, not a vague wait
+            waiting = ", ".join(c.label for c in found if c.state == "wait")
+            out.append(f"waiting to hear: {waiting}\n", style="dim")
         for c in found:
             icon, style = ICON[c.state]
             if c.refused:
