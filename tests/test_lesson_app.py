@@ -194,3 +194,16 @@ def test_a_broken_lesson_of_a_teacher_is_named_on_the_command_line(tmp_path: Pat
     assert main(["--sim", "--lessons", str(tmp_path), "--lesson", "9"]) == 2
     err = capsys.readouterr().err.strip()
     assert err.startswith("term: ") and "09-loop.toml.step[0].done: 'looping': unknown name" in err
+
+
+def test_the_room_figures_never_read_minus_zero() -> None:
+    # Seen on the pad: "h -0.00 m" (the truth a millimetre under the pad's height).
+    from dataclasses import fields
+
+    from term.instructor import Truth
+    from term.room import Room
+    from term.widgets.room import figures
+
+    room = Room()
+    room.update(Truth(**{f.name: (-0.001 if f.name in ("n", "e", "h") else 0.0) for f in fields(Truth)}))
+    assert str(figures(room, False)).startswith("n +0.00 e +0.00 h 0.00 m")
