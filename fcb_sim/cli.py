@@ -35,13 +35,23 @@ def build_parser() -> argparse.ArgumentParser:
         description="The Quadrupel flight-control board as software: headless flights, IMU replay, "
         "profiling, and a board served over a pseudo-terminal (and a virtual BLE radio).",
     )
-    from term.protocol import PRESETS, PROTOCOL_VERSION
+    from term.protocol import PROTOCOL_VERSION
 
     parser.add_argument("--version", action="version", version=f"%(prog)s {_version()} (protocol v{PROTOCOL_VERSION})")
     parser.add_argument("-v", "--verbose", action="store_true", help="log INFO and up (bumble's too) to stderr")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    _add_run(sub)
+    _add_replay_imu(sub)
+    _add_profile(sub)
+    _add_serve(sub)
+    return parser
 
-    # --- run: headless scenarios (owner: fcb_sim/scenarios.py) ---
+
+# One helper a subcommand, in the order --help lists them (argparse names no public type for `sub`).
+
+
+def _add_run(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    """run: headless scenarios (owner: fcb_sim/scenarios.py)."""
     run = sub.add_parser("run", help="fly a scripted scenario as fast as possible and print metrics")
     run.add_argument("--scenario", default="hover", help="scenario name (see --list)")
     run.add_argument("--duration", type=float, default=10.0, help="simulated seconds (default 10)")
@@ -53,7 +63,9 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--fixed-point", action="store_true", help="RAW-mode scenarios: the Q16.16 filter variant")
     run.set_defaults(handler=cmd_run)
 
-    # --- replay-imu: RAW-path filters over recorded data (owner: fcb_sim/estimation/replay.py) ---
+
+def _add_replay_imu(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    """replay-imu: RAW-path filters over recorded data (owner: fcb_sim/estimation/replay.py)."""
     rep = sub.add_parser("replay-imu", help="run an attitude filter over recorded IMU data (CSV)")
     rep.add_argument("input", nargs="?", help="CSV or CSV.gz with columns t, gx gy gz (rad/s), ax ay az (m/s²), "
                      "or the board's flash log as term writes it (t_us, sp sq sr, sax say saz)")
@@ -63,7 +75,9 @@ def build_parser() -> argparse.ArgumentParser:
     rep.add_argument("--list-filters", action="store_true", help="list the filters and exit")
     rep.set_defaults(handler=cmd_replay)
 
-    # --- profile: the board's task timing (owner: fcb_sim/profile.py) ---
+
+def _add_profile(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    """profile: the board's task timing (owner: fcb_sim/profile.py)."""
     prof = sub.add_parser("profile", help="profile the firmware loop with the Cortex-M0 cycle-cost model")
     prof.add_argument("--mode", choices=["raw", "dmp"], default="raw", help="sensor path (default raw)")
     prof.add_argument("--scheduler", choices=["round-robin", "priority"], default="round-robin")
@@ -74,7 +88,11 @@ def build_parser() -> argparse.ArgumentParser:
                       help="flash log codec while profiling (default delta8, the report's)")
     prof.set_defaults(handler=cmd_profile)
 
-    # --- serve: the board in real time behind a pseudo-terminal (owner: fcb_sim/serve.py) ---
+
+def _add_serve(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    """serve: the board in real time behind a pseudo-terminal (owner: fcb_sim/serve.py)."""
+    from term.protocol import PRESETS
+
     serve = sub.add_parser("serve", help="run the board in real time behind a pseudo-terminal")
     serve.add_argument("--pty", action="store_true", help="expose the UART on a fresh pseudo-terminal")
     serve.add_argument("--seed", type=int, default=1)
@@ -89,7 +107,6 @@ def build_parser() -> argparse.ArgumentParser:
                        help="the truth and the lessons' situations for term --sim (fcb_sim/instructor.py), e.g. "
                        "tcp-server:127.0.0.1:0")
     serve.set_defaults(handler=_cmd_serve)
-    return parser
 
 
 def _version() -> str:
