@@ -190,13 +190,7 @@ def _read_export(path: str, reader: Iterator[list[str]], names: list[str]) -> It
             link = link or row[where["link"]]
             if row[where["link"]] != link:
                 continue  # the same board seen over the other link
-        try:
-            vals = [float(row[i]) * k if row[i] else 0.0 for i, k in zip(idx, _FROM_EXPORT, strict=True)]
-        except ValueError:
-            col = next(c for c, i in zip(EXPORT, idx, strict=True) if row[i] and not _is_float(row[i]))
-            raise UsageError(f"{path}:{line}: column {col} is not a number: {row[names.index(col)]!r}") from None
-        if not all(math.isfinite(v) for v in vals):
-            raise UsageError(f"{path}:{line}: non-finite value (nan or inf)")
+        vals = _export_values(path, line, row, names, idx)
         if "segment" in where:
             segment = row[where["segment"]]
         if has_g and has_a:  # a flash log's record
@@ -212,6 +206,18 @@ def _read_export(path: str, reader: Iterator[list[str]], names: list[str]) -> It
                 pending = None
     if pending is not None and accel is not None:
         yield sample(pending[0], pending[1], accel, pending[2])
+
+
+def _export_values(path: str, line: int, row: list[str], names: list[str], idx: list[int]) -> list[float]:
+    """The row's EXPORT columns as a chip-frame SI sample (an empty cell reads 0.0); a bad number is one clear line."""
+    try:
+        vals = [float(row[i]) * k if row[i] else 0.0 for i, k in zip(idx, _FROM_EXPORT, strict=True)]
+    except ValueError:
+        col = next(c for c, i in zip(EXPORT, idx, strict=True) if row[i] and not _is_float(row[i]))
+        raise UsageError(f"{path}:{line}: column {col} is not a number: {row[names.index(col)]!r}") from None
+    if not all(math.isfinite(v) for v in vals):
+        raise UsageError(f"{path}:{line}: non-finite value (nan or inf)")
+    return vals
 
 
 def _is_float(s: str) -> bool:
