@@ -125,6 +125,18 @@ class _Flight:
             self.target = None if mode in ("SAFE", "CALIBRATION", None) else self.target
             return Joystick(0, 0, 0, 0, 0)
         s = truth
+        tn, te, th, vz_ref = self._advance_target(s, dt)
+        airborne = not s.on_ground
+        lift = self._lift(mode, s, th, vz_ref, dt, airborne)
+        r_sp = self._yaw_rate_setpoint(s)
+        if not airborne:
+            self.i_n = self.i_e = 0.0
+            return Joystick(0, 0, 0, _stick(max(0.0, lift)), 0)
+        roll, pitch, yaw = self._attitude_sticks(mode, s, tn, te, r_sp, dt)
+        return Joystick(_stick(roll), _stick(pitch), _stick(yaw), _stick(max(0.0, lift)), 0)
+
+    def _advance_target(self, s: Truth, dt: float) -> tuple[float, float, float, float]:
+        """Moves the target one step toward the goal (or down while landing): its north, east, height and climb rate."""
         if self.target is None:
             self.target = (s.n, s.e, s.h)
         tn, te, th = self.target
@@ -144,8 +156,10 @@ class _Flight:
                 tn, te, th = tn + dn * step / dist, te + de * step / dist, th + dh * step / dist
                 vz_ref = self.speed * dh / dist
         self.target = (tn, te, th)
-        airborne = not s.on_ground
-        # height
+        return tn, te, th, vz_ref
+
+    def _lift(self, mode: str, s: Truth, th: float, vz_ref: float, dt: float, airborne: bool) -> float:
+        """The lift stick that holds the target height (HEIGHT mode: the held stick plus a pilot's nudge)."""
         err = th - s.h
         if not airborne and th > GROUND_H:
             self.base += TAKEOFF_RAMP * dt  # winding up to the hover stick it does not know yet
@@ -162,19 +176,22 @@ class _Flight:
             nudge = 0.0 if abs(err) < HEIGHT_NUDGE_FROM else _clip(HEIGHT_NUDGE * err, HEIGHT_NUDGE_MAX)
             lift = self.height_lift + nudge
         self._last_lift = _stick(max(0.0, lift))
-        # heading
+        return lift
+
+    def _yaw_rate_setpoint(self, s: Truth) -> float:
+        """The yaw rate asked for: the scripted turn, or back to the heading held."""
         if self.yaw_rate is not None:
-            r_sp = self.yaw_rate
             self.heading = None
-        else:
-            if self.heading is None:
-                self.heading = s.psi
-            d = (self.heading - s.psi + math.pi) % (2 * math.pi) - math.pi
-            r_sp = _clip(HEADING_KP * d, TURN_MAX)
-        if not airborne:
-            self.i_n = self.i_e = 0.0
-            return Joystick(0, 0, 0, _stick(max(0.0, lift)), 0)
-        # position: the acceleration asked for, then the tilt that gives it
+            return self.yaw_rate
+        if self.heading is None:
+            self.heading = s.psi
+        d = (self.heading - s.psi + math.pi) % (2 * math.pi) - math.pi
+        return _clip(HEADING_KP * d, TURN_MAX)
+
+    def _attitude_sticks(
+        self, mode: str, s: Truth, tn: float, te: float, r_sp: float, dt: float
+    ) -> tuple[float, float, float]:
+        """Roll, pitch and yaw sticks: the acceleration toward the target, then the tilt that gives it."""
         self.i_n = _clip(self.i_n + POS_KI * (tn - s.n) * dt, POS_I_MAX)
         self.i_e = _clip(self.i_e + POS_KI * (te - s.e) * dt, POS_I_MAX)
         an = _clip(POS_KP * (tn - s.n) - POS_KD * s.vn + self.i_n, POS_ACC)
@@ -187,9 +204,8 @@ class _Flight:
             roll = MANUAL_ANGLE * (phi_sp - s.phi) - MANUAL_RATE * s.p
             pitch = MANUAL_ANGLE * (theta_sp - s.theta) - MANUAL_RATE * s.q
             yaw = MANUAL_YAW_RATE * (r_sp - s.r) if mode == "MANUAL" else r_sp * YAW_STICK
-        else:
-            roll, pitch, yaw = phi_sp * ANGLE_STICK, theta_sp * ANGLE_STICK, r_sp * YAW_STICK
-        return Joystick(_stick(roll), _stick(pitch), _stick(yaw), _stick(max(0.0, lift)), 0)
+            return roll, pitch, yaw
+        return phi_sp * ANGLE_STICK, theta_sp * ANGLE_STICK, r_sp * YAW_STICK
 
 
 class Autopilot:
