@@ -158,6 +158,34 @@ class BoardConfig:
             raise ValueError(f"unknown preset {self.preset!r}; known: {', '.join(PRESETS)}")
 
 
+def _parts(cfg: BoardConfig, world: World | None, core: FlightCore | None, wireless: WirelessLink | None,
+           log_vars: tuple[LogVar, ...] | None) -> tuple[World, FlightCore, WirelessLink, ModeMachine, FlashLog]:
+    """The board's parts: the world, flight core and BLE link it is given, or its own built from the config and
+    the parameter table's defaults; its mode machine and flash log (in this order: the world draws first)."""
+    if world is None:
+        world = World(cfg.seed)
+    if core is None:
+        core = FlightCore(fixed_point=cfg.fixed_point, filter_name=_default(Param.ATTITUDE_FILTER),
+                          height_estimator=make_height_estimator(_default(Param.HEIGHT_ESTIMATOR)))
+    if wireless is None:
+        wireless = WirelessLink()
+    mc = ModeConfig(link_timeout_s=cfg.link_timeout_s, panic_level=core.panic_ae)
+    modes = ModeMachine(mc, calibration_names=CALIBRATED_VARS)
+    log = FlashLog(size=cfg.log_bytes, scheme=cfg.log_scheme, **({} if log_vars is None else {"variables": log_vars}))
+    return world, core, wireless, modes, log
+
+
+def _sensor_path(setting: str, modes: ModeMachine) -> str:
+    """The sensor path to run: the setting (Param.SENSOR_PATH), or for "auto" RAW in RAW mode (and HEIGHT from
+    RAW), else DMP."""
+    if setting != "auto":
+        return setting
+    m = modes.mode
+    if m == Mode.RAW or (m == Mode.HEIGHT and modes.height_base == Mode.RAW):
+        return "raw"
+    return "dmp"
+
+
 class Board:
     """The simulated flight-control board (module docstring)."""
 
@@ -165,16 +193,8 @@ class Board:
                  core: FlightCore | None = None, wireless: WirelessLink | None = None,
                  log_vars: tuple[LogVar, ...] | None = None) -> None:
         self.config = cfg = config or BoardConfig()
-        self.world = world if world is not None else World(cfg.seed)
-        self.core = core if core is not None else FlightCore(
-            fixed_point=cfg.fixed_point, filter_name=_default(Param.ATTITUDE_FILTER),
-            height_estimator=make_height_estimator(_default(Param.HEIGHT_ESTIMATOR)))
-        self.wireless = wireless if wireless is not None else WirelessLink()
-        mc = ModeConfig(link_timeout_s=cfg.link_timeout_s, panic_level=self.core.panic_ae)
-        self.modes = ModeMachine(mc, calibration_names=CALIBRATED_VARS)
+        self.world, self.core, self.wireless, self.modes, self.log = _parts(cfg, world, core, wireless, log_vars)
         self.modes.listeners.append(self._on_mode_change)
-        self.log = FlashLog(size=cfg.log_bytes, scheme=cfg.log_scheme,
-                            **({} if log_vars is None else {"variables": log_vars}))
         self.download = Download()
         self.desk = CommandDesk()
         self.rng = random.Random(cfg.seed ^ 0x5EED)
@@ -194,7 +214,7 @@ class Board:
         self._hb_rtt_fresh = False  # whether rtt_us answers the last heartbeat (it is reported in the next)
         self.prof = Profiler(TASKS)
         self.misses_reported_at = -10**9
-        self._path = self._want_path()
+        self._path = _sensor_path(cfg.sensor_path, self.modes)
         self.sched = Scheduler(self.rng, self._period, priority=cfg.scheduler == "priority")
         self.irq = Interference(random.Random(cfg.seed ^ 0x150), softdevice=cfg.softdevice)
         self._residual_rng = random.Random(cfg.seed ^ 0x7E5)
@@ -414,14 +434,6 @@ class Board:
         self.world.advance_to(at / 1e6)
         self.world.set_motors(*ae)
 
-    def _want_path(self) -> str:
-        if self.config.sensor_path != "auto":
-            return self.config.sensor_path
-        m = self.modes.mode
-        if m == Mode.RAW or (m == Mode.HEIGHT and self.modes.height_base == Mode.RAW):
-            return "raw"
-        return "dmp"
-
     def _task_sensor(self) -> int:
         t = self.now / 1e6
         w = self.world
@@ -470,7 +482,7 @@ class Board:
         self._set_motors(ae, self.now)
         if self.log.recording:
             self.sched.flags["logging"] = True
-        want = self._want_path()
+        want = _sensor_path(self.config.sensor_path, self.modes)
         if want != self._path:
             self._path = want
             self.sched.restart("sensor", self.now)
