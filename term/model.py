@@ -486,62 +486,14 @@ class Model:
         self.version += 1
 
     def apply_packet(self, pkt: Any, now: float) -> None:
+        """One packet from the board, whatever link brought it: each kind has its applier (``_PACKETS``)."""
         kind = type(pkt)
-        t = now - self.start
         if kind in _TIMED:
             self.arrivals.note(pkt, now)
-        if kind is Attitude:
-            self.attitude = pkt
-            self._set_mode(pkt.mode, now)
-            self._push_scaled(t, pkt, ("phi", "theta", "psi", "sp", "sq", "sr"))
-        elif kind is Motion:
-            self.motion = pkt
-            self._push(t, ae1=pkt.ae1, ae2=pkt.ae2, ae3=pkt.ae3, ae4=pkt.ae4)
-        elif kind is Height:
-            self.height = pkt
-            self._push_scaled(t, pkt, ("height", "setpoint", "vz", "pressure", "battery"))
-        elif kind is Status:
-            self.status = pkt
-            self.flag_bits = pkt.flags
-            self._set_wireless(pkt.wireless)
-        elif kind is Gains:
-            self.gains = pkt
-        elif kind is Compact:
-            self.compact = pkt
-            self._set_mode(pkt.mode, now)
-            self._set_wireless(pkt.wireless)
-            self._push_scaled(t, pkt, ("phi", "theta", "psi", "battery"))
-        elif kind is Compact2:
-            self.compact2 = pkt
-            self.flag_bits = pkt.flags
-            self._push_scaled(t, pkt, ("ae1", "ae2", "ae3", "ae4", "height", "setpoint", "vz"))
-        elif kind is Event:
-            self.board_ms = pkt.board_ms
-            self.event_times[pkt.code] = now
-            severity, text = event_text(pkt.code, pkt.arg, self.flying)  # the mode it was sent in
-            if pkt.code == EventCode.PARAM_CHANGED:
-                self._param(*param_split(pkt.arg))
-            if pkt.code == EventCode.DEADLINE_MISS:
-                self._deadline_miss(now, pkt.arg)
-            elif pkt.code != EventCode.REFUSED or self._refusal(pkt.arg & 0xFF, pkt.arg >> 8, text, now):
-                self.note(now, severity, "board", f"[{scaled(pkt, 'board_ms'):.3f}] {text}")
-            if pkt.code == EventCode.MODE_CHANGED:
-                self._set_mode(pkt.arg & 0xFF, now)
-            elif pkt.code == EventCode.WIRELESS_STATE:
-                self._set_wireless(pkt.arg)
-        elif kind is Profile:
-            self.profiles[pkt.task] = pkt
-        elif kind is Hello:
-            self.hello = pkt
-        elif kind is ParamValue:
-            self._param(pkt.param, pkt.value)
-        elif kind in (LogStatus, LogChunk):
-            if kind is LogStatus:
-                self.log_status = pkt
-            if self.download is not None:
-                self.download.feed(pkt, now)
-        else:
+        applier = _PACKETS.get(kind)
+        if applier is None:
             return  # heartbeats and acks change nothing on screen (the link panel shows their stats)
+        applier(self, pkt, now)
         self.version += 1
 
     def _param(self, pid: int, raw: int) -> None:
@@ -720,6 +672,100 @@ _LOG_ACKS: dict[int, Callable[[Model, int], str]] = {Op.LOG_START: _log_started,
                                                      Op.LOG_RESET: _log_erased}
 
 _TIMED = frozenset((Attitude, Motion, Height, Status, Gains, Compact, Compact2))  # figures that can go stale
+
+
+# --- the packet appliers: one per kind of packet (Model.apply_packet counts the change) ----------------------
+
+
+def _on_attitude(m: Model, pkt: Attitude, now: float) -> None:
+    m.attitude = pkt
+    m._set_mode(pkt.mode, now)
+    m._push_scaled(now - m.start, pkt, ("phi", "theta", "psi", "sp", "sq", "sr"))
+
+
+def _on_motion(m: Model, pkt: Motion, now: float) -> None:
+    m.motion = pkt
+    m._push(now - m.start, ae1=pkt.ae1, ae2=pkt.ae2, ae3=pkt.ae3, ae4=pkt.ae4)
+
+
+def _on_height(m: Model, pkt: Height, now: float) -> None:
+    m.height = pkt
+    m._push_scaled(now - m.start, pkt, ("height", "setpoint", "vz", "pressure", "battery"))
+
+
+def _on_status(m: Model, pkt: Status, now: float) -> None:
+    m.status = pkt
+    m.flag_bits = pkt.flags
+    m._set_wireless(pkt.wireless)
+
+
+def _on_gains(m: Model, pkt: Gains, now: float) -> None:
+    m.gains = pkt
+
+
+def _on_compact(m: Model, pkt: Compact, now: float) -> None:
+    m.compact = pkt
+    m._set_mode(pkt.mode, now)
+    m._set_wireless(pkt.wireless)
+    m._push_scaled(now - m.start, pkt, ("phi", "theta", "psi", "battery"))
+
+
+def _on_compact2(m: Model, pkt: Compact2, now: float) -> None:
+    m.compact2 = pkt
+    m.flag_bits = pkt.flags
+    m._push_scaled(now - m.start, pkt, ("ae1", "ae2", "ae3", "ae4", "height", "setpoint", "vz"))
+
+
+def _on_event(m: Model, pkt: Event, now: float) -> None:
+    m.board_ms = pkt.board_ms
+    m.event_times[pkt.code] = now
+    severity, text = event_text(pkt.code, pkt.arg, m.flying)  # the mode it was sent in
+    if pkt.code == EventCode.PARAM_CHANGED:
+        m._param(*param_split(pkt.arg))
+    if pkt.code == EventCode.DEADLINE_MISS:
+        m._deadline_miss(now, pkt.arg)
+    elif pkt.code != EventCode.REFUSED or m._refusal(pkt.arg & 0xFF, pkt.arg >> 8, text, now):
+        m.note(now, severity, "board", f"[{scaled(pkt, 'board_ms'):.3f}] {text}")
+    if pkt.code == EventCode.MODE_CHANGED:
+        m._set_mode(pkt.arg & 0xFF, now)
+    elif pkt.code == EventCode.WIRELESS_STATE:
+        m._set_wireless(pkt.arg)
+
+
+def _on_profile(m: Model, pkt: Profile, now: float) -> None:
+    m.profiles[pkt.task] = pkt
+
+
+def _on_hello(m: Model, pkt: Hello, now: float) -> None:
+    m.hello = pkt
+
+
+def _on_param_value(m: Model, pkt: ParamValue, now: float) -> None:
+    m._param(pkt.param, pkt.value)
+
+
+def _on_log_packet(m: Model, pkt: LogStatus | LogChunk, now: float) -> None:
+    if type(pkt) is LogStatus:
+        m.log_status = pkt
+    if m.download is not None:
+        m.download.feed(pkt, now)
+
+
+_PACKETS: dict[type, Callable[[Model, Any, float], None]] = {
+    Attitude: _on_attitude,
+    Motion: _on_motion,
+    Height: _on_height,
+    Status: _on_status,
+    Gains: _on_gains,
+    Compact: _on_compact,
+    Compact2: _on_compact2,
+    Event: _on_event,
+    Profile: _on_profile,
+    Hello: _on_hello,
+    ParamValue: _on_param_value,
+    LogStatus: _on_log_packet,
+    LogChunk: _on_log_packet,
+}
 
 _HANDLERS: dict[type, Callable[[Model, Any, float], None]] = {
     PacketReceived: Model._on_packet,
