@@ -271,8 +271,6 @@ class TermApp(ParamsMixin, LessonsMixin, LogDownloads, App[int]):
         instructor channel (term --sim): the room view, the lessons (``lesson``: start that one; ``demo``: the
         autopilot's tour; ``lessons_dirs``: a teacher's lessons beside the built-in ones), term/lessonapp.py."""
         super().__init__()
-        from term.config import JOYSTICK_POLICIES
-
         self.config = config or Config()
         self.keymap: tuple[KeyBinding, ...] = self.config.keymap
         self.recorder = recorder
@@ -285,17 +283,8 @@ class TermApp(ParamsMixin, LessonsMixin, LogDownloads, App[int]):
         self.clock = clock
         self.render_hz = render_hz
         self.joystick_hz = joystick_hz
-        model = Model(start=clock(), link_name=transport.name if transport else "",
-                      radio_name=radio.name if radio is not None else "", primary_ble=primary_ble)
-        if replay is not None:  # the links the recording was made over
-            model.radio_name = replay.meta.get("radio", "")
-            model.primary_ble = replay.meta.get("primary_ble", "") == "1"
         self._replay_wall: float | None = None
-        cable_session = {"link_timeout": self.config.link_timeout,
-                         **JOYSTICK_POLICIES[self.config.joystick_policy], **(session_options or {})}
-        self.station = Station(model, cable=transport, radio=radio, cable_session=cable_session,
-                               radio_session={"link_timeout": self.config.link_timeout}, clock=clock,
-                               on_event=self._on_station_event)
+        self.station = self._make_station(transport, radio, primary_ble, session_options)
         self.phone = Phone()
         self.start_screen = start_screen
         self.poller: JoystickPoller | None = None
@@ -306,6 +295,23 @@ class TermApp(ParamsMixin, LessonsMixin, LogDownloads, App[int]):
         self.alarms_rung: list[str] = []  # every alarm the bell was rung for (or would have been, bell off)
         self._init_lessons(instructor, lesson, demo, lessons_dirs)
         self._bind_keys()
+
+    def _make_station(self, transport: Transport | None, radio: Transport | None, primary_ble: bool,
+                      session_options: dict[str, float | bool] | None) -> Station:
+        """The model and the station that feeds it, on ``self.clock`` (a replay: the recording's links)."""
+        from term.config import JOYSTICK_POLICIES
+
+        clock, replay = self.clock, self.replay
+        model = Model(start=clock(), link_name=transport.name if transport else "",
+                      radio_name=radio.name if radio is not None else "", primary_ble=primary_ble)
+        if replay is not None:  # the links the recording was made over
+            model.radio_name = replay.meta.get("radio", "")
+            model.primary_ble = replay.meta.get("primary_ble", "") == "1"
+        cable_session = {"link_timeout": self.config.link_timeout,
+                         **JOYSTICK_POLICIES[self.config.joystick_policy], **(session_options or {})}
+        return Station(model, cable=transport, radio=radio, cable_session=cable_session,
+                       radio_session={"link_timeout": self.config.link_timeout}, clock=clock,
+                       on_event=self._on_station_event)
 
     def _bind_keys(self) -> None:
         """The key map's actions as priority bindings; local actions through the table ``local``."""
