@@ -30,6 +30,7 @@ from fcb_sim.timing import (
     rtc_us,
 )
 from term.logfile import LogDownload, decode_to_rows
+from term.logformat import decode_log
 from term.protocol import (
     Ack,
     Attitude,
@@ -55,7 +56,6 @@ from term.protocol import (
     Profile,
     Status,
     WirelessState,
-    decode_log,
     param_arg,
     scaled,
 )
