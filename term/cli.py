@@ -35,11 +35,14 @@ import sys
 import threading
 from collections.abc import Sequence
 from pathlib import Path
-from typing import IO, Any, NoReturn
+from typing import IO, TYPE_CHECKING, Any, NoReturn
 
 from term.errors import EXIT_INTERRUPTED, EXIT_USAGE, EXIT_VERSION, UsageError
 from term.schema import Number
 from term.sim import SimBoard
+
+if TYPE_CHECKING:
+    from term.config import Config
 
 __all__ = ["EXIT_USAGE", "EXIT_VERSION", "UsageError", "main"]
 
@@ -403,14 +406,11 @@ def _check_preset(a: argparse.Namespace) -> None:
 # --- flying ---------------------------------------------------------------------------------------------------
 
 
-def _fly(args: argparse.Namespace) -> int:
-    from term.config import BAUD, LINK_TIMEOUT, ConfigError, default_path, load_config
-    from term.logfile import check_directory
+def _fly_config(args: argparse.Namespace) -> tuple[Config, int]:
+    """The config file with the command line's overrides, and the baud rate: one clear line if either is bad."""
+    from term.config import BAUD, LINK_TIMEOUT, ConfigError, load_config
     from term.schema import SchemaError
 
-    if args.config_path:
-        print(args.config or default_path())
-        return 0
     try:
         cfg = load_config(args.config, required=args.config is not None)
     except ConfigError as exc:
@@ -424,6 +424,13 @@ def _fly(args: argparse.Namespace) -> int:
         BLE_TIMEOUT.check(args.ble_timeout, "--ble-timeout")
     except SchemaError as exc:
         raise UsageError(str(exc)) from None
+    return cfg, baud
+
+
+def _check_fly_args(args: argparse.Namespace) -> None:
+    """The options that do not go together, or need another, each refused in one line."""
+    from term.logfile import check_directory
+
     if args.log_dir is not None and (why := check_directory(args.log_dir)):
         raise UsageError(f"--log-dir: {why}")
     if args.scenario is not None and not args.sim:
@@ -434,6 +441,16 @@ def _fly(args: argparse.Namespace) -> int:
     if args.hci and not args.ble:
         raise UsageError("--hci needs --ble ADDR")
     _check_lessons(args)
+
+
+def _fly(args: argparse.Namespace) -> int:
+    from term.config import default_path
+
+    if args.config_path:
+        print(args.config or default_path())
+        return 0
+    cfg, baud = _fly_config(args)
+    _check_fly_args(args)
     _start_log(args.verbose)
 
     sim: SimBoard | None = None
