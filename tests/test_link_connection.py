@@ -158,7 +158,8 @@ async def test_over_the_faulty_loopback_commands_survive_loss() -> None:
     task = asyncio.create_task(board_loop())
     try:
         await conn.start()
-        ids = [conn.send_command(Op.TRIM_PITCH, 1) for _ in range(10)]
+        # Alternating ops: two presses of one trim in a row would merge into one command (STEP_OPS).
+        ids = [conn.send_command((Op.TRIM_PITCH, Op.TRIM_ROLL)[k % 2], 1) for k in range(10)]
         await events.wait(lambda: len(events.of(CommandAcked)) + len(events.of(CommandFailed)) == 10)
         assert {e.cmd_id for e in events.of(CommandAcked)} == set(ids)
         assert len(board.executed) == 10
