@@ -71,6 +71,29 @@ class EulerFilterMixin:
         return euler_to_quaternion(self.roll, self.pitch, self.yaw)
 
 
+class QuaternionAnglesMixin:
+    """ZYX Euler angles for the filters whose state is a quaternion (qgate, ikf and its fixed-point twin)."""
+
+    def quaternion(self) -> tuple[float, float, float, float]:
+        raise NotImplementedError
+
+    @property
+    def roll(self) -> float:
+        w, x, y, z = self.quaternion()
+        return math.atan2(2.0 * (w * x + y * z), 1.0 - 2.0 * (x * x + y * y))
+
+    @property
+    def pitch(self) -> float:
+        w, x, y, z = self.quaternion()
+        s = 2.0 * (w * y - x * z)
+        return math.asin(1.0 if s > 1.0 else -1.0 if s < -1.0 else s)
+
+    @property
+    def yaw(self) -> float:
+        w, x, y, z = self.quaternion()
+        return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+
+
 class Q16AnglesMixin(EulerFilterMixin):
     """The float view of a Q16.16 filter whose state is the angles ``r``, ``p``, ``y`` in fix16 radians."""
 

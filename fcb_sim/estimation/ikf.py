@@ -26,12 +26,14 @@ from __future__ import annotations
 
 import math
 
+from fcb_sim.estimation.base import QuaternionAnglesMixin
+
 G0 = 9.81
 P_GG0 = 0.1  # initial gravity variance, (m/s²)², about its steady state: no extra trust in the first samples
 P_VV_MAX = 1e6  # covariance clamp against a runaway (it never gets near this in use)
 
 
-class InertialKalmanFilter:
+class InertialKalmanFilter(QuaternionAnglesMixin):
     """Gravity in an almost-inertial frame by a 3-state Kalman filter, rebased every sample (module docstring)."""
 
     def __init__(
@@ -102,22 +104,6 @@ class InertialKalmanFilter:
             w * dy - x * dz + y * c + z * dx,
             w * dz + x * dy - y * dx + z * c,
         )
-
-    @property
-    def roll(self) -> float:
-        w, x, y, z = self.quaternion()
-        return math.atan2(2.0 * (w * x + y * z), 1.0 - 2.0 * (x * x + y * y))
-
-    @property
-    def pitch(self) -> float:
-        w, x, y, z = self.quaternion()
-        s = 2.0 * (w * y - x * z)
-        return math.asin(1.0 if s > 1.0 else -1.0 if s < -1.0 else s)
-
-    @property
-    def yaw(self) -> float:
-        w, x, y, z = self.quaternion()
-        return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
 
     @property
     def bias(self) -> tuple[float, float, float]:

@@ -21,6 +21,8 @@ from __future__ import annotations
 
 import math
 
+from fcb_sim.estimation.base import QuaternionAnglesMixin
+
 from .ikf import G0, P_GG0, InertialKalmanFilter
 
 _I32_MAX = 0x7FFFFFFF
@@ -78,7 +80,7 @@ class Formats:
         return cls(io=16, dt=16, quat=16, bias=16, vel=16, drift=16, cov=16)
 
 
-class InertialKalmanFilterQ:
+class InertialKalmanFilterQ(QuaternionAnglesMixin):
     """:class:`~.ikf.InertialKalmanFilter` in fixed point (module docstring). Same parameters, same outputs."""
 
     def __init__(self, formats: Formats | None = None, **params: float) -> None:
@@ -130,22 +132,6 @@ class InertialKalmanFilterQ:
             return self.qw, self.qx, self.qy, self.qz
         sh = F.bias + F.dt - F.quat
         return self._rotate(mul(self.rx, lat, sh), mul(self.ry, lat, sh), mul(self.rz, lat, sh))
-
-    @property
-    def roll(self) -> float:
-        w, x, y, z = self.quaternion()
-        return math.atan2(2.0 * (w * x + y * z), 1.0 - 2.0 * (x * x + y * y))
-
-    @property
-    def pitch(self) -> float:
-        w, x, y, z = self.quaternion()
-        s = 2.0 * (w * y - x * z)
-        return math.asin(1.0 if s > 1.0 else -1.0 if s < -1.0 else s)
-
-    @property
-    def yaw(self) -> float:
-        w, x, y, z = self.quaternion()
-        return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
 
     @property
     def bias(self) -> tuple[float, float, float]:

@@ -25,10 +25,12 @@ from __future__ import annotations
 
 import math
 
+from fcb_sim.estimation.base import QuaternionAnglesMixin
+
 G = 9.81
 
 
-class QGateFilter:
+class QGateFilter(QuaternionAnglesMixin):
     """Quaternion filter with earth-frame accelerometer low-pass, gating and gyro-bias estimation."""
 
     def __init__(
@@ -69,21 +71,6 @@ class QGateFilter:
     # --- outputs ---
     def quaternion(self) -> tuple[float, float, float, float]:
         return self.w, self.x, self.y, self.z
-
-    @property
-    def roll(self) -> float:
-        w, x, y, z = self.w, self.x, self.y, self.z
-        return math.atan2(2.0 * (w * x + y * z), 1.0 - 2.0 * (x * x + y * y))
-
-    @property
-    def pitch(self) -> float:
-        s = 2.0 * (self.w * self.y - self.x * self.z)
-        return math.asin(1.0 if s > 1.0 else -1.0 if s < -1.0 else s)
-
-    @property
-    def yaw(self) -> float:
-        w, x, y, z = self.w, self.x, self.y, self.z
-        return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
 
     # --- the filter ---
     def _init_from_acc(self, ax: float, ay: float, az: float) -> None:
