@@ -38,8 +38,8 @@ import time
 from dataclasses import dataclass, field
 
 from fcb_sim.wireless import NOTIFY_PAYLOAD, WirelessLink, start_radio
-from term.link import LinkSession
-from term.protocol import (
+from term.core.link import LinkSession
+from term.core.protocol import (
     Ack,
     Command,
     Compact,
@@ -195,7 +195,7 @@ async def _wait_for(condition, conn, what: str, timeout: float = 10.0) -> None:
 
 async def radio_run(seconds: float) -> dict:
     """The same exchange over the bumble radio in real time, through the terminal's own BLE path."""
-    from term.connection import Connection
+    from term.session.connection import Connection
     from term.transports.ble import BleTransport
 
     link = WirelessLink()
@@ -263,7 +263,7 @@ async def board_run(seconds: float, steps: int = 20) -> dict:
     with Compact2 and then without it, and the stick-to-motor latency over BLE in MANUAL (lift steps; from
     ``set_joystick`` to the board's motor command changing)."""
     from fcb_sim.board import Board, BoardConfig
-    from term.connection import Connection
+    from term.session.connection import Connection
     from term.transports.ble import BleTransport
 
     clock = time.monotonic
@@ -340,9 +340,9 @@ async def app_run(steps: int = 20) -> dict:
     """Stick-to-motor latency over BLE through term's own app: ``TermApp`` with a cable and a radio to the real
     board (paced to the wall clock in this process), handed over with key 8, flown in MANUAL over BLE."""
     from fcb_sim.board import Board, BoardConfig
-    from term.app import TermApp
     from term.transports.ble import BleTransport
     from term.transports.loopback import loopback_pair
+    from term.ui.app import TermApp
 
     clock = time.monotonic
     board = Board(BoardConfig(seed=1, link_timeout_s=0.5))

@@ -16,7 +16,7 @@ import platform
 import random
 import time
 
-from term import protocol as p
+from term.core import protocol as p
 
 # (packet factory, rate in Hz) per second of traffic; the log download uses what the 115200-baud line has left.
 _RATES = [

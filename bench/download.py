@@ -1,7 +1,7 @@
 """The log download through damaged bytes: how often it ends byte-identical, and how long it takes.
 
 The real board (fcb_sim's ``Board``) and the terminal's side (a ``LinkSession`` and the ``LogDownloader`` of
-term/download.py, wired as the app wires them) joined by a byte proxy in each direction (``FaultyChannel``: each
+term/session/download.py, wired as the app wires them) joined by a byte proxy in each direction (``FaultyChannel``: each
 byte has one bit flipped with the given probability), all on one simulated 1 ms clock: a download of a minute
 costs seconds and every seed is exactly repeatable. The board records ``--record`` s of log in SAFE (about 120
 chunks of 12 bytes for 1 s) over a clean link, then the damage is switched on and the download runs until it is
@@ -26,9 +26,9 @@ from collections.abc import Callable
 
 from fcb_sim.board import Board, BoardConfig
 from fcb_sim.physics import World
-from term.download import DONE, FAILED, RUNNING, LogDownloader
-from term.link import LinkSession, PacketReceived
-from term.protocol import SPEC_OF, Joystick, LogChunk, LogStatus, Op, cobs_decode
+from term.core.link import LinkSession, PacketReceived
+from term.core.protocol import SPEC_OF, Joystick, LogChunk, LogStatus, Op, cobs_decode
+from term.session.download import DONE, FAILED, RUNNING, LogDownloader
 from term.transports.loopback import Faults, FaultyChannel
 
 STEP = 0.001  # s: the rig's time step (the board's UART drains 11.5 bytes per ms)

@@ -9,7 +9,7 @@ line (the last); a missing compiler is one line before it, and its figures are n
   -fcallgraph-info; memset/memcpy's frames are not in it); ``board_ram_bytes`` the sum. Goal: <= 4096 B flash,
   <= 256 B RAM. The report's whole firmware was 52 160 B of text, 244 B of data and 3232 B of bss (report 4.1).
 - Host: bench.codec's realistic traffic (one simulated minute, both directions), cut into 32-byte reads, decoded by
-  the C decoder (timed inside the C process: firmware/test/qp_runner.c, built -O2) and by term.protocol.Decoder.
+  the C decoder (timed inside the C process: firmware/test/qp_runner.c, built -O2) and by term.core.protocol.Decoder.
 
 Run: `python -m bench.firmware [--seconds S]`.
 """
@@ -28,7 +28,7 @@ from pathlib import Path
 from typing import Any
 
 from bench.codec import traffic
-from term import protocol as p
+from term.core import protocol as p
 
 FIRMWARE = Path(__file__).resolve().parent.parent / "firmware"
 REPORT_FIRMWARE_TEXT = 52160  # report section 4.1: the lab's whole firmware

@@ -21,9 +21,9 @@ import statistics
 
 from fcb_sim.board import Board, BoardConfig
 from fcb_sim.physics import World
-from term.link import LinkSession
-from term.model import Model
-from term.protocol import Joystick, Mode, Op, scaled
+from term.core.link import LinkSession
+from term.core.protocol import Joystick, Mode, Op, scaled
+from term.session.model import Model
 
 TARGET_M = 1.0
 LOOK_HZ = 5.0  # how often the pilot reads the screen and may press

@@ -45,7 +45,7 @@ LIFTS = (8000, 12000)  # two lift levels, both above idle in MANUAL
 
 def board_main(seed: int, preset: str = "default") -> int:
     from fcb_sim.serve import PtyServer, event_loop, make_board
-    from term.protocol import Decoder, Joystick
+    from term.core.protocol import Decoder, Joystick
 
     class Reporting(PtyServer):
         """Reports every change of the motor commands with the wall time it took effect and the task that made
@@ -149,9 +149,9 @@ async def measure(path: str, board: BoardChild, events: int, policy: str, seed: 
                   raw: bool = False, pc_sample_s: float = 0.0) -> list[float]:
     """The latencies (ms) of ``events`` stick changes; ``pc_sample_s``: the PC reads the stick only every this
     many seconds (0: at once, as term does), so a change waits for the next sample."""
-    from term.connection import Connection
-    from term.link import CommandAcked, PacketReceived
-    from term.protocol import SENSOR_PATHS, Decoder, Event, EventCode, Joystick, Mode, Op, Param, param_arg
+    from term.core.link import CommandAcked, PacketReceived
+    from term.core.protocol import SENSOR_PATHS, Decoder, Event, EventCode, Joystick, Mode, Op, Param, param_arg
+    from term.session.connection import Connection
     from term.transports.serial import SerialTransport
 
     class TimedSerial(SerialTransport):
@@ -231,9 +231,9 @@ async def measure(path: str, board: BoardChild, events: int, policy: str, seed: 
 
 
 def _session(policy: str) -> Any:
-    """The LinkSession the app builds for this joystick policy (term.config.JOYSTICK_POLICIES)."""
-    from term.config import JOYSTICK_POLICIES
-    from term.link import LinkSession
+    """The LinkSession the app builds for this joystick policy (term.session.config.JOYSTICK_POLICIES)."""
+    from term.core.link import LinkSession
+    from term.session.config import JOYSTICK_POLICIES
 
     return LinkSession(time.monotonic(), **JOYSTICK_POLICIES[policy])  # type: ignore[arg-type]
 

@@ -6,10 +6,10 @@ The rig is the terminal's side as the app wires it, minus the screen: term's ``S
 fcb_sim's ``Board`` in its ``World`` with the ``Instructor`` (truth out, situations in). The cable's bytes go
 straight between the session and the board's UART (cut while the instructor cuts the cable); the radio's between a
 second session and the board's ``WirelessLink``, as the phone's would. Truth lines go through the terminal's own
-parser (``term.instructor.parse_line``). All on one 1 ms clock: a minute of flight costs a few wall seconds and
+parser (``term.lessons.instructor.parse_line``). All on one 1 ms clock: a minute of flight costs a few wall seconds and
 every seed is exactly repeatable. What the app does with a tick (situations to the simulator, the autopilot's
 presses as the key map's actions, its stick) the rig does the same way (``perform``); the log download is
-term.download's ``LogDownloader`` wired as the app wires it.
+term.session.download's ``LogDownloader`` wired as the app wires it.
 
 ``python -m bench.lessons [--seed 1] [--lesson N]``; one JSON object on the last line.
 """
@@ -25,19 +25,19 @@ from typing import Any
 from fcb_sim.board import Board, BoardConfig
 from fcb_sim.instructor import Instructor
 from fcb_sim.physics import World
-from term.config import JOYSTICK_POLICIES, Config
-from term.download import DONE, EMPTY, FAILED, RUNNING, LogDownloader
-from term.events import CABLE, RADIO, FromLink, LinkDown, LinkUp, StationEvent
+from term.core.events import CABLE, RADIO, FromLink, LinkDown, LinkUp, StationEvent
+from term.core.link import LinkSession, LinkStats, PacketReceived
+from term.core.protocol import INSTRUCTOR_TRUTH_HZ, Event, Joystick, LogChunk, LogStatus
 from term.input.keymap import DEFAULT_KEYMAP, action_by_name
-from term.instructor import Truth, parse_line
 from term.lessons.autopilot import COMMANDS, Press, Stick
 from term.lessons.driver import LessonDriver, Tick
 from term.lessons.engine import Result
+from term.lessons.instructor import Truth, parse_line
 from term.lessons.spec import DEMO, Lesson, load_lessons, load_script
-from term.link import LinkSession, LinkStats, PacketReceived
-from term.model import Model
-from term.protocol import INSTRUCTOR_TRUTH_HZ, Event, Joystick, LogChunk, LogStatus
-from term.station import RADIO_SESSION, LinkPolicy, Station, StationLink
+from term.session.config import JOYSTICK_POLICIES, Config
+from term.session.download import DONE, EMPTY, FAILED, RUNNING, LogDownloader
+from term.session.model import Model
+from term.session.station import RADIO_SESSION, LinkPolicy, Station, StationLink
 
 STEP_US = 2000  # the UART moves 23 bytes per step at 115200 baud; the board runs every task at its own time
 TICK_S = 1.0 / INSTRUCTOR_TRUTH_HZ  # the driver's tick, at the truth's rate (as the app's lesson timer)

@@ -35,7 +35,7 @@ import zlib
 from pathlib import Path
 
 from fcb_sim.flash_log import FLASH_BYTES, LOG_VARS, LogVar, encode_log
-from term.logformat import decode_log
+from term.core.logformat import decode_log
 
 BROAD_DIR = Path(os.environ.get("BROAD_DIR", "/work/shared/data/broad"))
 RAW = struct.Struct("<iB3h3h3h4Hhih")  # the uncompressed record: 39 bytes
@@ -74,7 +74,7 @@ def simulated_rows(seconds: float = 20.0, seed: int = 1) -> list[tuple[int, ...]
     from fcb_sim import control as C
     from fcb_sim.board import Board, BoardConfig
     from fcb_sim.profile import BytePilot
-    from term.protocol import Joystick, Mode, Op
+    from term.core.protocol import Joystick, Mode, Op
 
     board = Board(BoardConfig(seed=seed))
     rows: list[tuple[int, ...]] = []

@@ -20,7 +20,7 @@ import time
 import serial
 
 from fcb_sim.serve import ThreadedServer, make_board
-from term.protocol import Decoder, Encoder, Heartbeat, HeartbeatAck, Joystick
+from term.core.protocol import Decoder, Encoder, Heartbeat, HeartbeatAck, Joystick
 
 
 def pct(data: list[float], q: float) -> float:

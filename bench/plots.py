@@ -1,4 +1,4 @@
-"""Redraw cost of the live plots: the native braille widget (term/widgets/plots.py) beside the textual-plotext one
+"""Redraw cost of the live plots: the native braille widget (term/ui/widgets/plots.py) beside the textual-plotext one
 it replaced. Prints one JSON line.
 
 Both widgets sit on a real plots screen (TermApp headless, 120 × 44 cells; the screen's default series: roll,
@@ -14,7 +14,7 @@ Textual's rendering of that text into lines). Figures per redraw of the whole sc
   held to one redraw a second on a worker thread because of its cost).
 
 textual-plotext is measured only when it is installed (it is no dependency any more: ``pip install
-textual-plotext``); its widget is kept below as it was in term/widgets/plots.py.
+textual-plotext``); its widget is kept below as it was in term/ui/widgets/plots.py.
 
     python -m bench.plots [--redraws 200]
 """
@@ -50,14 +50,14 @@ def _fill(model: Any) -> None:
 
 
 def _plotext_class() -> Any:
-    """The textual-plotext widget as term/widgets/plots.py had it (drawing part), or None when not installed."""
+    """The textual-plotext widget as term/ui/widgets/plots.py had it (drawing part), or None when not installed."""
     try:
         from textual_plotext import PlotextPlot
     except ImportError:
         return None
     from rich.text import Text
 
-    from term.config import PLOT_SERIES
+    from term.session.config import PLOT_SERIES
 
     class PlotextLivePlot(PlotextPlot):  # type: ignore[misc]
         def __init__(self, series: tuple[str, ...], window: float) -> None:
@@ -110,8 +110,8 @@ def _figures(times: list[float]) -> dict[str, float]:
 async def run(redraws: int) -> dict[str, Any]:
     from textual.containers import Vertical
 
-    from term.app import TermApp
-    from term.widgets.plots import LivePlot
+    from term.ui.app import TermApp
+    from term.ui.widgets.plots import LivePlot
 
     clock = [0.0]
     app = TermApp(joystick=False, clock=lambda: clock[0])

@@ -24,7 +24,7 @@ from fcb_sim.estimation import BEST, FILTERS, make_filter
 from fcb_sim.flight import FlightCore
 from fcb_sim.physics import World
 from fcb_sim.scenarios import Sim
-from term.protocol import Mode
+from term.core.protocol import Mode
 
 
 def flight_core_factor(seconds: float, filter_name: str, fixed_point: bool = False, chunks: int = 5) -> dict:

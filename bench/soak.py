@@ -40,11 +40,9 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from fcb_sim.control import z_to_lift
-from term.download import RUNNING, LogDownloader
-from term.events import FromLink, LinkDown, NotSent
-from term.link import CommandAcked, CommandFailed, LinkLost, PacketReceived
-from term.model import Model
-from term.protocol import (
+from term.core.events import FromLink, LinkDown, NotSent
+from term.core.link import CommandAcked, CommandFailed, LinkLost, PacketReceived
+from term.core.protocol import (
     Event,
     EventCode,
     Heartbeat,
@@ -53,6 +51,8 @@ from term.protocol import (
     Op,
     WirelessState,
 )
+from term.session.download import RUNNING, LogDownloader
+from term.session.model import Model
 
 HOVER_LIFT = z_to_lift(-4.0 * 400**2)  # the stick at which the four motors hover (about 400 of 1000)
 STICK_HZ = 100.0
@@ -348,9 +348,9 @@ class Soak:
 
 
 async def soak(minutes: float, damage: float, seed: int) -> dict[str, Any]:
-    from term.config import JOYSTICK_POLICIES
-    from term.sim import SimBoard
-    from term.station import Station
+    from term.session.config import JOYSTICK_POLICIES
+    from term.session.sim import SimBoard
+    from term.session.station import Station
     from term.transports.ble import BleTransport
     from term.transports.loopback import Faults, FaultyTransport
     from term.transports.serial import SerialTransport

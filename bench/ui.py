@@ -9,10 +9,10 @@ out and rendered at the app's render rate; only the bytes to a real terminal are
 - ``cpu_pct``: CPU time of this process (all threads: Textual, the link, the serial reader) over wall time,
   in % of one core;
 - ``lag_p99_ms``: the event loop's lag, from a probe that asks to wake every 10 ms and records how late it is;
-- ``record_cpu_pct``: the session recording's share (term/recording.py, on as in ``term``): time spent inside the
+- ``record_cpu_pct``: the session recording's share (term/data/recording.py, on as in ``term``): time spent inside the
   recorder's calls (every byte both ways, the station's events, the flushes) over wall time, in % of one core,
   with the bytes it wrote per second (``record_bytes_per_s``). ``--no-record`` measures without it;
-- ``plot_redraw_ms`` (plots screen): CPU time of one redraw of a live plot (term/widgets/plots.py, the native
+- ``plot_redraw_ms`` (plots screen): CPU time of one redraw of a live plot (term/ui/widgets/plots.py, the native
   braille widget: ``python -m bench.plots`` compares it with textual-plotext), with ``plot_redraws_per_s`` and
   their share of a core, ``plot_cpu_pct``.
 
@@ -66,7 +66,7 @@ def _timed(recorder: Any, spent: list[float]) -> None:
 
 def _timed_plots(drawn: list[float]) -> Any:
     """Count the CPU time and the calls of the live plots' redraws (on the event loop's thread); returns the undo."""
-    from term.widgets.plots import LivePlot
+    from term.ui.widgets.plots import LivePlot
 
     draw = LivePlot.draw
 
@@ -84,10 +84,10 @@ def _timed_plots(drawn: list[float]) -> Any:
 
 async def run(seconds: float, render_hz: float | None, seed: int, policy: str = "stream",
               record: bool = True) -> dict[str, Any]:
-    from term.app import TermApp
-    from term.protocol import Op, Param, param_arg
-    from term.sim import SimBoard
+    from term.core.protocol import Op, Param, param_arg
+    from term.session.sim import SimBoard
     from term.transports.serial import SerialTransport
+    from term.ui.app import TermApp
 
     sim = SimBoard(seed=seed)
     port = sim.start()
@@ -99,9 +99,9 @@ async def run(seconds: float, render_hz: float | None, seed: int, policy: str = 
         import tempfile
         from pathlib import Path
 
-        from term.config import Config
-        from term.events import CABLE
-        from term.recording import RecordingTransport, SessionRecorder
+        from term.core.events import CABLE
+        from term.data.recording import RecordingTransport, SessionRecorder
+        from term.session.config import Config
 
         transport: Any = SerialTransport(port)
         recorder = None
@@ -191,7 +191,8 @@ def main(argv: list[str] | None = None) -> int:
         "goal_cpu_pct": 25, "goal_lag_p99_ms": 16,
         **({"record_cpu_pct": max(r["record_cpu_pct"] for r in res.values()), "goal_record_cpu_pct": 2}
            if not args.no_record else {}),
-        "plot_redraw_ms": res["plots"].get("plot_redraw_ms"), "plot_widget": "native braille (term/widgets/plots.py)",
+        "plot_redraw_ms": res["plots"].get("plot_redraw_ms"),
+        "plot_widget": "native braille (term/ui/widgets/plots.py)",
     }))
     return 0
 

@@ -1,6 +1,6 @@
 """Regenerate the packet tables in docs/protocol.md and the test vectors in tests/vectors/protocol.json.
 
-Both come from the packet table in term/protocol.py, the one source of truth; tests/test_protocol_docs.py fails
+Both come from the packet table in term/core/protocol/, the one source of truth; tests/test_protocol_docs.py fails
 when either file is out of date. Run: `.venv/bin/python docs/gen_protocol.py`.
 """
 
@@ -14,7 +14,8 @@ from typing import Any
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from term import protocol as p  # noqa: E402
+from docs import protocol_tables as tables  # noqa: E402
+from term.core import protocol as p  # noqa: E402
 
 DOC = ROOT / "docs" / "protocol.md"
 VECTORS = ROOT / "tests" / "vectors" / "protocol.json"
@@ -65,10 +66,10 @@ def vectors_json() -> str:
 
 def generated_markdown() -> str:
     parts = ["## Shared facts", "",
-             "The numbers both ends need, from `term/protocol.py` (the one home of each; `tests/test_house_rules.py`",
-             "fails on a copy elsewhere).", "", p.facts_markdown(),
+             "The numbers both ends need, from `term/core/protocol/` (the one home of each;",
+             "`tests/test_house_rules.py` fails on a copy elsewhere).", "", tables.facts_markdown(),
              "## Parameters", "",
-             "One table (`PARAMS` in `term/protocol.py`; with the presets and what each one does in",
+             "One table (`PARAMS` in `term/core/protocol/`; with the presets and what each one does in",
              "`docs/parameters.md`). Each parameter has an id (1..127) and a raw value, a signed integer: a number",
              "times its scale is the value in its unit, an enum is its choice's number, a bool 0 or 1.", "",
              "- `Command(op=SET_PARAM, arg=param_arg(id, raw))`: the id in the top 8 bits of `arg`, the raw value as",
@@ -80,12 +81,12 @@ def generated_markdown() -> str:
              "- `Command(op=PARAM_GET, arg=id)`: `Ack.value` is the raw value (`UNKNOWN_PARAM` if none).",
              "- `Command(op=PARAM_LIST)`: `Ack.value` is how many; then one `ParamValue` per parameter, `index`",
              "  0..`count`-1 (a lost one is asked again with `PARAM_GET`).", "",
-             p.params_markdown(),
+             tables.params_markdown(),
              "## Packets", "",
              "Each field's `unit` is what the wire carries; multiply by the factor under *shown as* to get the unit",
              "the terminal shows (`scaled(pkt, name)`). A signed field at either end of its range, or any field at",
              "its top, is clipped by the board (`saturated(pkt, name)`): the true value may lie beyond.", "",
-             p.spec_markdown(), "## Enumerations", "", p.enum_markdown(), "## Test vectors", "",
+             tables.spec_markdown(), "## Enumerations", "", tables.enum_markdown(), "## Test vectors", "",
              "Each line: the packet, its sequence number, the whole frame in hex (delimiter included). The same",
              "vectors are in `tests/vectors/protocol.json`.", "", "```"]
     for v in vectors():

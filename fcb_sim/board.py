@@ -42,7 +42,7 @@ from fcb_sim.estimation.height import make_height_estimator
 from fcb_sim.flash_log import FLASH_BYTES, FLASH_US_PER_BYTE, Download, FlashLog, LogVar
 from fcb_sim.flight import FlightCore
 from fcb_sim.modes import FLIGHT_MODES, ModeChange, ModeConfig, ModeMachine
-from fcb_sim.paramtable import apply_values
+from fcb_sim.param_bindings import apply_values
 from fcb_sim.physics import World
 from fcb_sim.scheduler import (
     BARO_PERIOD_US,
@@ -79,8 +79,8 @@ from fcb_sim.timing import (
 from fcb_sim.transmit import Transmitter
 from fcb_sim.uart import RX_QUEUE_BYTES, TX_BUFFER_BYTES, UART_BAUD, Uart
 from fcb_sim.wireless import WirelessLink
-from term.logformat import SCHEME_RICE
-from term.protocol import (
+from term.core.logformat import SCHEME_RICE
+from term.core.protocol import (
     PARAMS,
     PRESETS,
     PROTOCOL_VERSION,
@@ -125,7 +125,7 @@ def _default(param: Param) -> Any:
 @dataclass
 class BoardConfig:
     """The board's start-up settings; those that are parameters default to the protocol's table (PARAMS), and
-    ``preset`` (term.protocol.PRESETS: "default", "report") sets the ones it names after the rest."""
+    ``preset`` (term.core.protocol.PRESETS: "default", "report") sets the ones it names after the rest."""
 
     seed: int = 1
     scheduler: str = _default(Param.SCHEDULER)  # or "priority"
@@ -238,7 +238,7 @@ class Board:
         self._crashes_seen = len(self.world.crashes)
         self.on_task: Any = None  # optional callback(name, start_us, duration_us) after every task run
         self.apply_queue_rule()
-        apply_values(self, PRESETS[cfg.preset])  # the preset's parameters over the defaults (fcb_sim/paramtable.py)
+        apply_values(self, PRESETS[cfg.preset])  # the preset's parameters over the defaults (fcb_sim/param_bindings.py)
         if cfg.boot_hello:
             self._hello()
             self._event(EventCode.BOOT, PROTOCOL_VERSION)

@@ -18,7 +18,7 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
-from fcb_sim import params as P
+from fcb_sim import constants as P
 from fcb_sim.estimation import quaternion_to_euler
 
 CALIBRATED_VARS = ("gx", "gy", "gz", "ax", "ay", "az", "dmp_phi", "dmp_theta", "pressure")

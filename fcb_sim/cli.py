@@ -35,7 +35,7 @@ def build_parser() -> argparse.ArgumentParser:
         description="The Quadrupel flight-control board as software: headless flights, IMU replay, "
         "profiling, and a board served over a pseudo-terminal (and a virtual BLE radio).",
     )
-    from term.protocol import PROTOCOL_VERSION
+    from term.core.protocol import PROTOCOL_VERSION
 
     parser.add_argument("--version", action="version", version=f"%(prog)s {_version()} (protocol v{PROTOCOL_VERSION})")
     parser.add_argument("-v", "--verbose", action="store_true", help="log INFO and up (bumble's too) to stderr")
@@ -91,7 +91,7 @@ def _add_profile(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> No
 
 def _add_serve(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     """serve: the board in real time behind a pseudo-terminal (owner: fcb_sim/serve.py)."""
-    from term.protocol import PRESETS
+    from term.core.protocol import PRESETS
 
     serve = sub.add_parser("serve", help="run the board in real time behind a pseudo-terminal")
     serve.add_argument("--pty", action="store_true", help="expose the UART on a fresh pseudo-terminal")

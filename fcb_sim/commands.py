@@ -11,8 +11,8 @@ A command that finds no room for its Ack on the link (the transmit side's answer
 is shed: not done, not answered, counted; the terminal retries it. A handler that raises is a bug: the command
 is refused (BAD_ARGUMENT) and the board keeps flying.
 
-The parameters (``SET_PARAM``, ``PARAM_GET``, ``PARAM_LIST``) are the protocol's table (``term.protocol.PARAMS``)
-bound to the board in ``fcb_sim.paramtable``; every change, by ``SET_PARAM`` or by a gain key, is reported after
+The parameters (``SET_PARAM``, ``PARAM_GET``, ``PARAM_LIST``) are the protocol's table (``term.core.protocol.PARAMS``)
+bound to the board in ``fcb_sim.param_bindings``; every change, by ``SET_PARAM`` or by a gain key, is reported after
 its Ack as ``EventCode.PARAM_CHANGED`` (the terminal's parameter screen and files follow the board's events).
 """
 
@@ -21,9 +21,9 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
-from fcb_sim import paramtable
+from fcb_sim import param_bindings
 from fcb_sim.scheduler import TASKS
-from term.protocol import (
+from term.core.protocol import (
     PARAMS,
     Ack,
     Command,
@@ -69,7 +69,7 @@ def _gain(name: str, param: Param) -> Handler:
 
 
 def _changed(b: Board, param: Param) -> None:
-    b._event(EventCode.PARAM_CHANGED, param_arg(param, paramtable.get_raw(b, param)))
+    b._event(EventCode.PARAM_CHANGED, param_arg(param, param_bindings.get_raw(b, param)))
 
 
 def _log_start(b: Board, arg: int) -> Result:
@@ -136,10 +136,10 @@ def _ack_crash(b: Board, arg: int) -> Result:
 
 def _set_param(b: Board, arg: int) -> Result:
     pid, raw = param_split(arg)
-    nak, param = paramtable.set_raw(b, pid, raw)
+    nak, param = param_bindings.set_raw(b, pid, raw)
     if nak != Nak.OK or param is None:
-        return nak, 0 if param is None else paramtable.get_raw(b, param), None
-    return Nak.OK, paramtable.get_raw(b, param), lambda: _changed(b, param)
+        return nak, 0 if param is None else param_bindings.get_raw(b, param), None
+    return Nak.OK, param_bindings.get_raw(b, param), lambda: _changed(b, param)
 
 
 def _param_get(b: Board, arg: int) -> Result:
@@ -147,7 +147,7 @@ def _param_get(b: Board, arg: int) -> Result:
         param = Param(arg)
     except ValueError:
         return Nak.UNKNOWN_PARAM, 0, None
-    return Nak.OK, paramtable.get_raw(b, param), None
+    return Nak.OK, param_bindings.get_raw(b, param), None
 
 
 def _param_list(b: Board, arg: int) -> Result:
@@ -155,7 +155,7 @@ def _param_list(b: Board, arg: int) -> Result:
     params = sorted(PARAMS)
     n = len(params)
     return Nak.OK, n, lambda: b.tx.send_set(
-        "params", [ParamValue(int(p), paramtable.get_raw(b, p), i, n) for i, p in enumerate(params)], b.now)
+        "params", [ParamValue(int(p), param_bindings.get_raw(b, p), i, n) for i, p in enumerate(params)], b.now)
 
 
 COMMANDS: dict[Op, Handler] = {

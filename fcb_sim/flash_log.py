@@ -20,7 +20,7 @@ loop. A segment's record count and length are programmed into its header when lo
 log does it without rewriting flash.
 
 This module is the board side: the flash, the logger and the record encoder. The format itself (segment header,
-the decoders whose state machines the encoder mirrors) is shared with the terminal, in ``term.logformat``,
+the decoders whose state machines the encoder mirrors) is shared with the terminal, in ``term.core.logformat``,
 because the terminal decodes what ``LogChunk`` packets carry with it.
 """
 
@@ -32,7 +32,7 @@ from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from term.logformat import (
+from term.core.logformat import (
     LOG_FORMAT_VERSION,
     LOG_HEADER,
     LOG_MAGIC,
@@ -45,7 +45,7 @@ from term.logformat import (
     quantise,
     zigzag,
 )
-from term.protocol import LOG_CHUNK_BYTES, LogChunk, LogState, LogStatus, Nak
+from term.core.protocol import LOG_CHUNK_BYTES, LogChunk, LogState, LogStatus, Nak
 
 FLASH_BYTES = 128 * 1024
 FLASH_US_PER_BYTE = 15  # report 3.5: each byte takes 15 µs to write

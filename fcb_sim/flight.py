@@ -29,11 +29,11 @@ from __future__ import annotations
 from dataclasses import replace
 
 from fcb_sim import control as C
-from fcb_sim import params as P
+from fcb_sim import constants as P
 from fcb_sim.calibration import Calibration
 from fcb_sim.estimation import BEST, HeightEstimator, make_filter, quaternion_to_euler
 from fcb_sim.estimation.height import HEIGHT_BEST, HeightKalman, make_height_estimator
-from term.protocol import PARAMS, Mode, Param
+from term.core.protocol import PARAMS, Mode, Param
 
 HEIGHT_STICK_RATE = 0.5  # m/s of set-point change at full lift deflection away from the entry position
 HEIGHT_STICK_DEADBAND = 1500  # stick units around the entry position that leave the set point alone

@@ -4,7 +4,7 @@ term --sim's lessons, room view and demo need two things a real board cannot giv
 (position, velocity, attitude, ground contact) and a way to set up a situation (a breeze, a failing battery, a
 stuck motor, a cable or radio that drops out). Neither is the board's: they travel beside it, on the
 instructor channel (a line of JSON each way over a local TCP socket; its vocabulary, ``INSTRUCTOR_*``, is in
-term/protocol.py), never on the board's link, so a lesson that cuts the link still sees the craft.
+term/core/protocol/), never on the board's link, so a lesson that cuts the link still sees the craft.
 
 Sans-IO ``Instructor(board)``, on the board's clock (seconds, ``board.now / 1e6``):
 
@@ -31,9 +31,9 @@ import math
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
-from fcb_sim import params as P
+from fcb_sim import constants as P
 from fcb_sim.errors import UsageError
-from term.protocol import INSTRUCTOR_SITUATIONS, INSTRUCTOR_TRUTH_HZ, INSTRUCTOR_VERSION, Mode
+from term.core.protocol import INSTRUCTOR_SITUATIONS, INSTRUCTOR_TRUTH_HZ, INSTRUCTOR_VERSION, Mode
 
 if TYPE_CHECKING:
     from fcb_sim.board import Board
@@ -162,7 +162,7 @@ class Instructor:
     # --- the truth ----------------------------------------------------------------------------------------
 
     def truth(self, now: float) -> dict[str, Any]:
-        """What only the simulator knows, in SI units (INSTRUCTOR_TRUTH in term/protocol.py)."""
+        """What only the simulator knows, in SI units (INSTRUCTOR_TRUTH in term/core/protocol/)."""
         w = self.board.world
         tr = w.truth
         landing = w.landings[-1][1] if w.landings else 0.0

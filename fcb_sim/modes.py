@@ -25,9 +25,9 @@ import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 
-from fcb_sim import params as P
+from fcb_sim import constants as P
 from fcb_sim.calibration import CalibrationSums
-from term.protocol import (
+from term.core.protocol import (
     BATTERY_LOW,
     FLIGHT_MODES,
     LIFT_ZERO,

@@ -21,7 +21,7 @@ from fcb_sim.flash_log import FLASH_BYTES
 from fcb_sim.flight import FlightCore
 from fcb_sim.physics import World
 from fcb_sim.timing import REPORT_RAW_FILTER
-from term.protocol import (
+from term.core.protocol import (
     FLIGHT_MODES,
     Ack,
     Command,

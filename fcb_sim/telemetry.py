@@ -2,7 +2,7 @@
 
 Over the UART: Attitude and Motion at every telemetry run (50 Hz by default, ``Param.TELEMETRY_HZ``), Height at
 20 Hz, Status and Gains at 5 Hz, each field in the protocol's units (int16 fields clipped to their range, where
-``term.protocol.saturated`` recognises them). Over BLE (the handover STARTED): the phone's Compact packet and, at a
+``term.core.protocol.saturated`` recognises them). Over BLE (the handover STARTED): the phone's Compact packet and, at a
 lower rate, Compact2 (the rest of the flight screen: motors, height, vz, set point, flags, lift trim); the link
 decides how many of each (fcb_sim/wireless.py). ``Telemetry.packets(board)`` gives the UART packets due now;
 ``status(board)``, ``compact(board)`` and ``compact2(board)`` build one packet each. Sans-IO: the board's clock
@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any
 
-from term.protocol import (
+from term.core.protocol import (
     Attitude,
     Compact,
     Compact2,

@@ -29,7 +29,7 @@ from dataclasses import dataclass
 from statistics import NormalDist
 from typing import Any
 
-from term.protocol import Profile
+from term.core.protocol import Profile
 
 # --- timers ----------------------------------------------------------------------------------------------------
 

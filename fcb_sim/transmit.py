@@ -26,7 +26,7 @@ from typing import Any
 from fcb_sim.timing import UART_US_PER_BYTE
 from fcb_sim.uart import TX_BUFFER_BYTES, Uart
 from fcb_sim.wireless import ANSWER_BUDGET, WirelessLink
-from term.protocol import (
+from term.core.protocol import (
     MAX_FRAME,
     SPEC_OF,
     TELEMETRY,

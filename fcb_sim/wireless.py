@@ -32,7 +32,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
-from term.protocol import (
+from term.core.protocol import (
     BOARD_NAME_PREFIX,
     NUS_RX,
     NUS_SERVICE,

@@ -1,7 +1,7 @@
-"""``python -m term``: the same as the ``term`` command (term/cli.py)."""
+"""``python -m term``: the same as the ``term`` command (term/cli/main.py)."""
 
 import sys
 
-from term.cli import main
+from term.cli.main import main
 
 sys.exit(main())

@@ -1,4 +1,4 @@
-"""Shared fixtures: a real pseudo-terminal pair, and a small scripted board peer speaking term.protocol.
+"""Shared fixtures: a real pseudo-terminal pair, and a small scripted board peer speaking term.core.protocol.
 
 The scripted board is not the simulated board (fcb_sim.board): it is the least that exercises the link: it
 sends heartbeats, answers Hello with Hello and every Command with an Ack (or a chosen NAK), executing a retried
@@ -17,7 +17,7 @@ from collections.abc import Callable, Iterator
 
 import pytest
 
-from term.protocol import (
+from term.core.protocol import (
     PROTOCOL_VERSION,
     Ack,
     Command,
@@ -47,7 +47,7 @@ def _user_data_in_a_temporary_directory(tmp_path_factory: pytest.TempPathFactory
 
 @pytest.fixture(autouse=True, scope="session")
 def _term_log_in_a_temporary_directory(tmp_path_factory: pytest.TempPathFactory) -> Iterator[None]:
-    """term's own log and the simulated board's stderr (term/applog.py): kept apart from the user's too."""
+    """term's own log and the simulated board's stderr (term/session/applog.py): kept apart from the user's too."""
     old = os.environ.get("QUADRUPEL_LOG_DIR")
     os.environ["QUADRUPEL_LOG_DIR"] = str(tmp_path_factory.mktemp("log"))
     yield

@@ -25,7 +25,7 @@ from typing import Any
 
 import pytest
 
-from term import protocol as p
+from term.core import protocol as p
 
 ROOT = Path(__file__).resolve().parent.parent
 FIRMWARE = ROOT / "firmware"

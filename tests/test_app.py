@@ -11,10 +11,7 @@ from collections.abc import Callable
 import pytest
 from rich.console import Console
 
-from term.app import FlightScreen, PlotsScreen, ProfileScreen, TermApp
-from term.input.keymap import DEFAULT_KEYMAP
-from term.input.mapping import FULL
-from term.protocol import (
+from term.core.protocol import (
     Attitude,
     Button,
     Command,
@@ -32,11 +29,17 @@ from term.protocol import (
     Status,
     field_scale,
 )
+from term.input.keymap import DEFAULT_KEYMAP
+from term.input.mapping import FULL
 from term.transports.base import TransportClosed, TransportError
 from term.transports.loopback import loopback_pair
-from term.widgets.base import ModelView
-from term.widgets.help import HelpScreen
-from term.widgets.profile import ProfileTable
+from term.ui.app import TermApp
+from term.ui.screens.flight import FlightScreen
+from term.ui.screens.help import HelpScreen
+from term.ui.screens.plots import PlotsScreen
+from term.ui.screens.profile import ProfileScreen
+from term.ui.widgets.base import ModelView
+from term.ui.widgets.profile import ProfileTable
 
 
 class LoopBoard:
@@ -316,7 +319,7 @@ async def test_download_to_a_chosen_directory(scripted_board, tmp_path) -> None:
 
 
 async def test_joystick_policy_from_the_config_and_ctrl_q_quits() -> None:
-    from term.config import Config
+    from term.session.config import Config
 
     pair = loopback_pair()
     await pair.b.open()
@@ -354,7 +357,7 @@ async def test_a_dead_transport_is_reopened(scripted_board) -> None:  # noqa: AN
 
 
 async def test_silence_after_a_wireless_handover_says_so(scripted_board) -> None:  # noqa: ANN001
-    from term.protocol import WirelessState
+    from term.core.protocol import WirelessState
 
     async with flying(scripted_board) as (app, pilot, board, peer):
         await until(pilot, lambda: app.model.link is not None and app.model.link.frames_ok > 0)

@@ -7,10 +7,10 @@ from __future__ import annotations
 import asyncio
 import time
 
-from term.app import TermApp
-from term.protocol import Joystick, Mode, scaled
-from term.sim import SimBoard
+from term.core.protocol import Joystick, Mode, scaled
+from term.session.sim import SimBoard
 from term.transports.serial import SerialTransport
+from term.ui.app import TermApp
 
 
 async def test_take_off_hover_in_full_and_land() -> None:

@@ -6,11 +6,11 @@ from __future__ import annotations
 import time
 from pathlib import Path
 
-from term.app import TermApp
-from term.config import Config, load_config
 from term.input.mapping import FULL
+from term.session.config import Config, load_config
 from term.transports.loopback import loopback_pair
-from term.widgets.joystick import JoystickScreen
+from term.ui.app import TermApp
+from term.ui.screens.joystick import JoystickScreen
 from tests.test_app import LoopBoard, until
 from tests.test_input_joystick import VirtualStick
 

@@ -17,11 +17,11 @@ import pytest
 from fcb_sim.board import Board, BoardConfig
 from fcb_sim.flash_log import encode_log
 from fcb_sim.physics import World
-from term.app import TermApp
-from term.logfile import LogDownload, decode_to_rows
-from term.logformat import decode_log
-from term.protocol import SPEC_OF, LogChunk, LogState, LogStatus, Mode, Op, cobs_decode
+from term.core.logfile import LogDownload, decode_to_rows
+from term.core.logformat import decode_log
+from term.core.protocol import SPEC_OF, LogChunk, LogState, LogStatus, Mode, Op, cobs_decode
 from term.transports.loopback import Faults, loopback_pair
+from term.ui.app import TermApp
 
 
 class RealTimeBoard:
@@ -120,7 +120,7 @@ async def test_log_record_download_as_csv_and_reset(tmp_path: Path) -> None:
 
             await until(lambda: board.download_next is None)  # a resumed pass may still be on its way
             app.simulate_key("f4")  # erase: it asks first, "keep it" has the focus
-            from term.widgets.confirm import ConfirmScreen
+            from term.ui.screens.confirm import ConfirmScreen
 
             await until(lambda: isinstance(app.screen, ConfirmScreen))
             app.simulate_key("tab")

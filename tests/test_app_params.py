@@ -10,12 +10,12 @@ from collections.abc import AsyncIterator, Callable
 from contextlib import asynccontextmanager
 from pathlib import Path
 
-from term.app import TermApp
-from term.config import Config
-from term.protocol import Op
-from term.sim import SimBoard
+from term.core.protocol import Op
+from term.session.config import Config
+from term.session.sim import SimBoard
 from term.transports.serial import SerialTransport
-from term.widgets.params import ParamsScreen, ParamTable
+from term.ui.app import TermApp
+from term.ui.screens.params import ParamsScreen, ParamTable
 
 
 @asynccontextmanager

@@ -4,10 +4,10 @@ the bell's alarms, the lift trim to zero (twice in flight), the help's preset la
 
 from __future__ import annotations
 
-from term.config import Config
+from term.core.protocol import Attitude, Flag, Mode, Op, Status
 from term.input.keymap import build_keymap
-from term.protocol import Attitude, Flag, Mode, Op, Status
-from term.widgets.confirm import ConfirmScreen
+from term.session.config import Config
+from term.ui.screens.confirm import ConfirmScreen
 from tests.test_app import flying, sent, until
 
 
@@ -32,7 +32,7 @@ async def test_the_readiness_panel_shows_in_safe_and_names_the_first_step(script
 
 
 async def test_a_nak_of_the_scripted_board_marks_the_item(scripted_board) -> None:  # noqa: ANN001
-    from term.protocol import Command, Nak
+    from term.core.protocol import Command, Nak
 
     def refuse(cmd: Command) -> Nak:
         return Nak.NOT_CALIBRATED if cmd.op == Op.MODE and cmd.arg == Mode.FULL else Nak.OK
@@ -44,7 +44,7 @@ async def test_a_nak_of_the_scripted_board_marks_the_item(scripted_board) -> Non
         await until(pilot, lambda: any(e.source == "nak" for e in app.model.events))
         app.render_now()
         await pilot.pause(0.05)
-        from term.readiness import checks
+        from term.session.readiness import checks
 
         c = {c.item: c for c in checks(app.model, app.clock(), app.keymap)}["calibrated"]
         assert c.refused and c.state == "todo"
@@ -155,7 +155,7 @@ async def test_the_lift_trim_to_zero_needs_two_presses_in_flight(scripted_board)
 
 
 async def test_the_help_labels_the_key_preset() -> None:
-    from term.app import TermApp
+    from term.ui.app import TermApp
 
     app = TermApp(joystick=False, config=Config(keymap=build_keymap(preset="natural"), key_preset="natural"))
     async with app.run_test(size=(120, 44)) as pilot:

@@ -9,10 +9,10 @@ from collections.abc import Callable
 
 import pytest
 
-from term.app import TermApp
-from term.link import LinkSession
-from term.model import Model
-from term.protocol import Joystick, Mode, Op, scaled
+from term.core.link import LinkSession
+from term.core.protocol import Joystick, Mode, Op, scaled
+from term.session.model import Model
+from term.ui.app import TermApp
 
 SIZE = (120, 44)
 
@@ -85,7 +85,7 @@ def test_the_seeded_flight_is_what_the_screen_claims(flight: tuple[Model, float]
 
 def test_profile_task_names_match_the_board() -> None:
     from fcb_sim.board import TASKS
-    from term.widgets.profile import TASK_NAMES
+    from term.ui.widgets.profile import TASK_NAMES
 
     assert tuple(TASK_NAMES[i] for i in range(len(TASK_NAMES))) == TASKS
 
@@ -103,7 +103,7 @@ def test_snapshot_profile(snap_compare, flight) -> None:  # noqa: ANN001
 
 
 def test_snapshot_panic_is_unmistakable(snap_compare, flight) -> None:  # noqa: ANN001
-    from term.protocol import Attitude
+    from term.core.protocol import Attitude
 
     model, end = flight
     app = app_for(flight)

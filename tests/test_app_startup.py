@@ -19,10 +19,10 @@ import sys
 from pathlib import Path
 
 from fcb_sim.board import Board, BoardConfig
-from term.events import CABLE, FromLink
-from term.link import PacketReceived
-from term.model import Model
-from term.protocol import PROTOCOL_VERSION, Decoder, Encoder, Event, EventCode, Hello, Mode, Role
+from term.core.events import CABLE, FromLink
+from term.core.link import PacketReceived
+from term.core.protocol import PROTOCOL_VERSION, Decoder, Encoder, Event, EventCode, Hello, Mode, Role
+from term.session.model import Model
 
 ROOT = Path(__file__).resolve().parent.parent
 WATCH_S = 3.0  # after the app mounted: the radio connects within about a second
@@ -32,17 +32,17 @@ TERM_TIMEOUT_S = 0.45
 
 
 async def _probe() -> dict[str, object]:
-    from term.app import TermApp
-    from term.config import Config
-    from term.sim import SimBoard
+    from term.session.config import Config
+    from term.session.sim import SimBoard
     from term.transports.ble import BleTransport
     from term.transports.serial import SerialTransport
+    from term.ui.app import TermApp
 
     sim = SimBoard(seed=1, radio=True)
     port = sim.start()
     try:
         cable = SerialTransport(port)
-        await cable.open()  # as term/cli.py's _run_app: the cable is open before the screen starts
+        await cable.open()  # as term/cli/main.py's _run_app: the cable is open before the screen starts
         radio = BleTransport(sim.ble_address, hci=sim.ble_hci, timeout=5.0)
         app = TermApp(cable, config=Config(link_timeout=TERM_TIMEOUT_S), joystick=False, radio=radio)
         async with app.run_test(size=(160, 50)) as pilot:

@@ -16,17 +16,18 @@ from collections.abc import Callable
 
 import pytest
 
-from term.app import FlightScreen, TermApp
+from term.core.link import LinkSession
+from term.core.protocol import Attitude, Command, Decoder, Joystick, Mode, Motion, Op, WirelessState
 from term.input.mapping import FULL
-from term.link import LinkSession
-from term.model import Model
-from term.protocol import Attitude, Command, Decoder, Joystick, Mode, Motion, Op, WirelessState
-from term.sim import SimBoard
+from term.session.model import Model
+from term.session.sim import SimBoard
 from term.transports.base import Transport
 from term.transports.ble import BleTransport
 from term.transports.loopback import loopback_pair
 from term.transports.serial import SerialTransport
-from term.widgets.wireless import LiftSlider, StickPad, WirelessScreen
+from term.ui.app import TermApp
+from term.ui.screens.flight import FlightScreen
+from term.ui.screens.wireless import LiftSlider, StickPad, WirelessScreen
 
 S = WirelessState
 
@@ -158,7 +159,7 @@ async def test_the_wireless_screen_controls_send_the_right_commands(scripted_boa
     board = scripted_board(start=time.monotonic())
     peer = LoopBoard(pair.b, board, time.monotonic)
     await peer.start()
-    from term.app import RADIO_SESSION
+    from term.session.station import RADIO_SESSION
 
     app = TermApp(pair.a, joystick=False, session_options={**RADIO_SESSION, "link_timeout": 0.5},
                   primary_ble=True, start_screen="wireless")
@@ -226,7 +227,7 @@ def seeded_handover(seed: int = 1, seconds: float = 3.0) -> Model:
     1.2 s, then lift with a little roll. Returns the model the screen renders."""
     from fcb_sim.board import Board, BoardConfig
     from fcb_sim.physics import World
-    from term.app import RADIO_SESSION
+    from term.session.station import RADIO_SESSION
 
     board = Board(BoardConfig(seed=seed), world=World(seed))
     cable = LinkSession(0.0)
@@ -447,8 +448,8 @@ async def test_no_stale_figure_goes_unmarked_through_a_handover() -> None:
 
 
 def test_the_model_follows_figure_12_and_names_the_expected_silence() -> None:
-    from term.link import LinkLost
-    from term.protocol import Compact, Event, EventCode, Status
+    from term.core.link import LinkLost
+    from term.core.protocol import Compact, Event, EventCode, Status
 
     m = Model(start=0.0)
     m.radio_name, m.radio_up = "BLE test", True

@@ -9,7 +9,7 @@ import asyncio
 import pytest
 
 from fcb_sim.wireless import WirelessLink, start_radio
-from term.protocol import (
+from term.core.protocol import (
     Ack,
     Compact,
     Decoder,
@@ -152,7 +152,7 @@ async def test_the_simulator_going_away_is_a_lost_connection(board) -> None:
 RADIO_PROCESS = """
 import asyncio, sys
 from fcb_sim.wireless import WirelessLink, start_radio
-from term.protocol import Heartbeat
+from term.core.protocol import Heartbeat
 
 async def main():
     link = WirelessLink()

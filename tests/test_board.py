@@ -29,9 +29,9 @@ from fcb_sim.timing import (
     rtc_ticks,
     rtc_us,
 )
-from term.logfile import LogDownload, decode_to_rows
-from term.logformat import decode_log
-from term.protocol import (
+from term.core.logfile import LogDownload, decode_to_rows
+from term.core.logformat import decode_log
+from term.core.protocol import (
     Ack,
     Attitude,
     Command,
@@ -512,8 +512,8 @@ TestBoardProperties = BoardProperties.TestCase
 
 
 def test_the_terminals_link_session_flies_the_board() -> None:
-    """Both sides sans-IO on one clock: term.link.LinkSession (the PC) and the Board, with a UART between."""
-    from term.link import CommandAcked, CommandFailed, LinkLost, LinkSession, VersionMismatch
+    """Both sides sans-IO on one clock: term.core.link.LinkSession (the PC) and the Board, with a UART between."""
+    from term.core.link import CommandAcked, CommandFailed, LinkLost, LinkSession, VersionMismatch
 
     b = Board(BoardConfig(seed=6))
     s = LinkSession(0.0)

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import pytest
 
-from fcb_sim import params as P
+from fcb_sim import constants as P
 from fcb_sim.calibration import DMP_ANGLE_LSB, CalibrationSums
 from fcb_sim.estimation import quaternion_to_euler
 from fcb_sim.physics import World

@@ -8,9 +8,9 @@ from pathlib import Path
 import pytest
 
 from fcb_sim.flash_log import LOG_VARS, encode_log
-from term.cli import main
-from term.logfile import decode_to_rows, write_csv
-from term.protocol import PROTOCOL_VERSION
+from term.cli.main import main
+from term.core.logfile import decode_to_rows, write_csv
+from term.core.protocol import PROTOCOL_VERSION
 
 
 def run(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, str, str]:
@@ -20,7 +20,7 @@ def run(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, str, str]:
 
 
 def test_help_lists_everything() -> None:
-    out = subprocess.run([sys.executable, "-m", "term.cli", "--help"], capture_output=True, text=True, timeout=60)
+    out = subprocess.run([sys.executable, "-m", "term.cli.main", "--help"], capture_output=True, text=True, timeout=60)
     assert out.returncode == 0
     for word in ("--serial", "--baud", "--sim", "--seed", "--scenario", "--ble", "--hci", "term plot", "term scan",
                  "--config", "--no-joystick", "--log-dir"):
@@ -225,7 +225,7 @@ def test_the_simulated_board_dies_with_term_even_when_term_is_killed() -> None:
     import time
 
     code = ("import os, signal\n"
-            "from term.sim import SimBoard\n"
+            "from term.session.sim import SimBoard\n"
             "s = SimBoard(); path = s.start()\n"
             "print(s.proc.pid, path, flush=True)\n"
             "os.kill(os.getpid(), signal.SIGKILL)\n")
@@ -257,7 +257,7 @@ def test_term_ends_with_its_terminal_and_stops_the_board() -> None:
 
     master, slave = os.openpty()
     fcntl.ioctl(slave, termios.TIOCSWINSZ, struct.pack("HHHH", 40, 120, 0, 0))
-    proc = subprocess.Popen([sys.executable, "-m", "term.cli", "--sim", "--no-joystick", "--no-radio"],
+    proc = subprocess.Popen([sys.executable, "-m", "term.cli.main", "--sim", "--no-joystick", "--no-radio"],
                             stdin=slave, stdout=slave, stderr=slave, start_new_session=True,
                             env={**os.environ, "TERM": "xterm-256color"})
     os.close(slave)
@@ -295,7 +295,7 @@ async def test_a_board_with_another_protocol_version_is_one_line_and_exit_3(pty_
     await board.start()
     try:
         proc = await asyncio.create_subprocess_exec(
-            "script", "-qec", f"{sys.executable} -m term.cli --serial {path} --no-joystick", "/dev/null",
+            "script", "-qec", f"{sys.executable} -m term.cli.main --serial {path} --no-joystick", "/dev/null",
             stdout=asyncio.subprocess.PIPE, stderr=asyncio.subprocess.PIPE, stdin=asyncio.subprocess.DEVNULL,
             env={**os.environ, "TERM": "xterm-256color", "COLUMNS": "120", "LINES": "40"},
         )

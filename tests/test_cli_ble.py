@@ -12,8 +12,8 @@ from collections.abc import Callable, Iterator
 
 import pytest
 
-from term.cli import main
-from term.sim import SimBoard
+from term.cli.main import main
+from term.session.sim import SimBoard
 
 
 def run(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, str]:
@@ -84,7 +84,7 @@ def test_an_unknown_address_beside_the_cable(capsys: pytest.CaptureFixture[str],
 
 
 def test_scan_finds_the_simulator(sim: SimBoard) -> None:
-    out = subprocess.run([sys.executable, "-m", "term.cli", "scan", "--hci", sim.ble_hci, "--timeout", "1"],
+    out = subprocess.run([sys.executable, "-m", "term.cli.main", "scan", "--hci", sim.ble_hci, "--timeout", "1"],
                          capture_output=True, text=True, timeout=60)
     assert out.returncode == 0 and f"{sim.ble_name}" in out.stdout and sim.ble_address in out.stdout
 
@@ -93,9 +93,10 @@ async def test_ble_alone_waits_for_the_handover_and_reconnects_a_lost_radio() ->
     """The app as `term --ble ADDR --hci T` builds it: BLE the only link, on the wireless screen. Before the
     handover the board says nothing over BLE: that is no alarm. The radio's HCI transport drops: one visible
     LINK LOST line, then it is connected again (a pause, then a retry) without the pilot doing anything."""
-    from term.app import RADIO_SESSION, TermApp
+    from term.session.station import RADIO_SESSION
     from term.transports.ble import BleTransport
-    from term.widgets.wireless import WirelessScreen
+    from term.ui.app import TermApp
+    from term.ui.screens.wireless import WirelessScreen
 
     sim = SimBoard(seed=5, radio=True)
     sim.start()

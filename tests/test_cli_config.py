@@ -4,9 +4,9 @@ from pathlib import Path
 
 import pytest
 
-from term.config import Config, ConfigError, forced_mapping, load_config
 from term.input.keymap import action_for_key
 from term.input.mapping import XBOX
+from term.session.config import Config, ConfigError, forced_mapping, load_config
 
 
 def write(tmp_path: Path, text: str) -> Path:

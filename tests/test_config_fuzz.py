@@ -17,9 +17,9 @@ from typing import Any
 from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 
-from term.cli import main
-from term.config import CONFIG_SCHEMA, PLOT_SERIES, ConfigError, load_config
+from term.cli.main import main
 from term.input.keymap import DEFAULT_KEYMAP
+from term.session.config import CONFIG_SCHEMA, PLOT_SERIES, ConfigError, load_config
 
 PORT = "/nonexistent-port-42"  # start-up goes as far as opening the port, which is not there
 

@@ -6,8 +6,8 @@ import math
 
 import pytest
 
+from fcb_sim import constants as P
 from fcb_sim import control as C
-from fcb_sim import params as P
 from fcb_sim.physics import World
 from fcb_sim.scenarios import run_scenario
 

@@ -8,12 +8,12 @@ from typing import Any
 
 import pytest
 
-from fcb_sim import params as P
+from fcb_sim import constants as P
 from fcb_sim.board import Board, BoardConfig
 from fcb_sim.modes import ModeConfig, ModeMachine
 from fcb_sim.physics import World
 from fcb_sim.scenarios import panic_high
-from term.protocol import (
+from term.core.protocol import (
     Command,
     Decoder,
     Encoder,

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from bench.lessons import Rig
 from fcb_sim.modes import Mode
-from term.protocol import WirelessState
+from term.core.protocol import WirelessState
 
 
 def test_the_demo_flies_the_whole_tour() -> None:

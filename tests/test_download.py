@@ -1,4 +1,4 @@
-"""The log download's state machine (term.download) on its own, and against the real board: fcb_sim's Board and
+"""The log download's state machine (term.session.download) on its own, and against the real board: fcb_sim's Board and
 term's LinkSession joined by a lossy byte proxy (two FaultyChannels), all on one simulated clock (bench.download's
 ``Rig``), so a download of simulated seconds costs a fraction of a second and every seed is exactly repeatable."""
 
@@ -9,9 +9,9 @@ import zlib
 import pytest
 
 from bench.download import Rig, is_type
-from term.download import DONE, EMPTY, FAILED, RUNNING, LogDownloader, Request
-from term.link import CommandAcked, CommandFailed, PacketReceived
-from term.protocol import Event, EventCode, LogChunk, LogState, LogStatus, Mode, Nak, Op
+from term.core.link import CommandAcked, CommandFailed, PacketReceived
+from term.core.protocol import Event, EventCode, LogChunk, LogState, LogStatus, Mode, Nak, Op
+from term.session.download import DONE, EMPTY, FAILED, RUNNING, LogDownloader, Request
 from term.transports.loopback import Faults
 
 # --- against the real board ------------------------------------------------------------------------------------

@@ -136,8 +136,8 @@ def _raw_flight_log(tmp_path: Path, seconds: float = 12.0) -> tuple[Path, list[t
     term writes it (decode_to_rows, write_csv)."""
     from fcb_sim.flash_log import encode_log
     from fcb_sim.scenarios import Sim, _roll_stick
-    from term.logfile import decode_to_rows, write_csv
-    from term.protocol import Mode
+    from term.core.logfile import decode_to_rows, write_csv
+    from term.core.protocol import Mode
 
     sim = Sim(3)
     rows: list[tuple[int, ...]] = []

@@ -11,10 +11,9 @@ import pytest
 from mcap.reader import make_reader
 
 from fcb_sim.flash_log import LOG_VARS, encode_log
-from term.events import LinkDown
-from term.export import ExportError, all_packet_schemas, export, packet_columns, packet_record
-from term.logfile import decode_to_rows, write_csv
-from term.protocol import (
+from term.core.events import LinkDown
+from term.core.logfile import decode_to_rows, write_csv
+from term.core.protocol import (
     PACKETS,
     SPEC_OF,
     Attitude,
@@ -28,7 +27,8 @@ from term.protocol import (
     column_scale,
     scaled,
 )
-from term.recording import LinkBytes, SessionRecorder, StationRecord, iter_file
+from term.data.export import ExportError, all_packet_schemas, export, packet_columns, packet_record
+from term.data.recording import LinkBytes, SessionRecorder, StationRecord, iter_file
 
 WALL = 1_700_000_000_000_000_000
 
@@ -241,7 +241,7 @@ def test_bad_input_is_one_clear_line(tmp_path: Path) -> None:
 
 
 def test_the_command_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    from term.cli import main
+    from term.cli.main import main
 
     rec, sent = record(tmp_path / "rec")
     assert rec.path is not None
@@ -279,14 +279,14 @@ async def test_a_flight_with_a_handover_is_recorded_whole_and_agrees_with_the_fl
     import time
     from collections.abc import Callable
 
-    from term.app import TermApp
-    from term.events import CABLE, RADIO, FromLink
-    from term.link import PacketReceived
-    from term.protocol import Decoder, Heartbeat, Joystick, Op
-    from term.recording import RecordingTransport
-    from term.sim import SimBoard
+    from term.core.events import CABLE, RADIO, FromLink
+    from term.core.link import PacketReceived
+    from term.core.protocol import Decoder, Heartbeat, Joystick, Op
+    from term.data.recording import RecordingTransport
+    from term.session.sim import SimBoard
     from term.transports.ble import BleTransport
     from term.transports.serial import SerialTransport
+    from term.ui.app import TermApp
 
     sim = SimBoard(seed=3, radio=True)
     port = sim.start()

@@ -1,4 +1,4 @@
-"""The C codec (firmware/) against the Python one (term/protocol.py): generated from the same table and up to date,
+"""The C codec (firmware/) against the Python one (term/core/protocol/): generated from the same table and up to date,
 the same bytes for the test vectors both ways, the same packets and the same decoder counts for any stream (valid
 frames, any slicing, byte by byte, corrupted, inserted and dropped bytes, garbage), under ASan and UBSan; no libc
 beyond <string.h>, no static state; the Cortex-M0 build within its budget."""
@@ -18,7 +18,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from term import protocol as p
+from term.core import protocol as p
 from tests.firmware_support import (
     FIRMWARE,
     NO_ARM,

@@ -1,5 +1,5 @@
 """The C reference board (firmware/examples/host_board.c, built with ASan and UBSan) on a real pseudo-terminal,
-spoken to by term.protocol's own Encoder and Decoder: Hello both ways, heartbeats with their round trip, command
+spoken to by term.core.protocol's own Encoder and Decoder: Hello both ways, heartbeats with their round trip, command
 ACK/NAK and retries, joystick frames counted, link silence -> PANIC -> SAFE, garbage on the line, and a clean end
 on SIGTERM."""
 
@@ -10,7 +10,7 @@ import subprocess
 
 import pytest
 
-from term import protocol as p
+from term.core import protocol as p
 from tests.firmware_support import HostBoard, PtyPeer, build
 
 BOARD_HELLO = p.Hello(p.PROTOCOL_VERSION, p.Role.BOARD, 0, 1, 4242)

@@ -6,9 +6,9 @@ from __future__ import annotations
 
 import asyncio
 
-from term.app import TermApp
-from term.protocol import NAK_TEXT, PROTOCOL_VERSION, Mode, Nak, Role
+from term.core.protocol import NAK_TEXT, PROTOCOL_VERSION, Mode, Nak, Role
 from term.transports.serial import SerialTransport
+from term.ui.app import TermApp
 from tests.firmware_support import HostBoard
 
 

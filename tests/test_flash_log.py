@@ -11,9 +11,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from fcb_sim.flash_log import LOG_VARS, FlashLog, LogVar, encode_log
-from term.logfile import LogDownload, decode_to_rows, write_csv
-from term.logformat import SCHEME_DELTA8, SCHEME_RICE, decode_log
-from term.protocol import LogChunk, LogState, LogStatus, Nak
+from term.core.logfile import LogDownload, decode_to_rows, write_csv
+from term.core.logformat import SCHEME_DELTA8, SCHEME_RICE, decode_log
+from term.core.protocol import LogChunk, LogState, LogStatus, Nak
 
 VARS = (LogVar("t", 32), LogVar("a", 1), LogVar("b", 4), LogVar("c", 8))
 BOUND = [v.scale // 2 for v in VARS]

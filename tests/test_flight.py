@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import pytest
 
-from fcb_sim import params as P
+from fcb_sim import constants as P
 from fcb_sim.flight import Calibration, FlightCore
 from fcb_sim.scenarios import run_scenario
-from term.protocol import Mode
+from term.core.protocol import Mode
 
 
 def _calibrated() -> FlightCore:

@@ -1,4 +1,4 @@
-"""Freshness as a property of the model (term.freshness): every figure knows the time of the packet behind it, goes
+"""Freshness as a property of the model (term.core.freshness): every figure knows the time of the packet behind it, goes
 stale after a few of its packet's periods, says when the current link does not carry it, and is shown as a bound
 at its field's limit. A property test feeds every field's whole range (its extremes included) through the model
 and every panel: no exception, no figure outside its field's range unmarked."""
@@ -10,10 +10,9 @@ import math
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from term.freshness import SOURCES, STALE_FLOOR_S, STALE_PERIODS, Arrivals, age_text, next_age_change
-from term.link import CommandAcked
-from term.model import Model
-from term.protocol import (
+from term.core.freshness import SOURCES, STALE_FLOOR_S, STALE_PERIODS, Arrivals, age_text, next_age_change
+from term.core.link import CommandAcked
+from term.core.protocol import (
     SPEC_OF,
     Attitude,
     Compact,
@@ -30,7 +29,8 @@ from term.protocol import (
     field_scale,
     field_spec,
 )
-from term.widgets.base import figure
+from term.session.model import Model
+from term.ui.widgets.base import figure
 
 TELEMETRY = (Attitude, Motion, Height, Status, Gains, Compact, Compact2)
 
@@ -141,15 +141,15 @@ def packets(draw: st.DrawFn) -> object:
 
 
 def _panels() -> list:
-    from term.widgets.battery import BatteryGauge
-    from term.widgets.controls import ControlsPanel
-    from term.widgets.horizon import HeadingTape, Horizon
-    from term.widgets.link import LinkPanel
-    from term.widgets.mode import ModeBanner
-    from term.widgets.motors import MotorBars
-    from term.widgets.pressure import PressureIndicator
-    from term.widgets.rates import RateGauges
-    from term.widgets.wireless import PhoneTelemetry
+    from term.ui.screens.wireless import PhoneTelemetry
+    from term.ui.widgets.battery import BatteryGauge
+    from term.ui.widgets.controls import ControlsPanel
+    from term.ui.widgets.horizon import HeadingTape, Horizon
+    from term.ui.widgets.link import LinkPanel
+    from term.ui.widgets.mode import ModeBanner
+    from term.ui.widgets.motors import MotorBars
+    from term.ui.widgets.pressure import PressureIndicator
+    from term.ui.widgets.rates import RateGauges
 
     return [ModeBanner(), Horizon(), HeadingTape(), RateGauges(), MotorBars(), BatteryGauge(), PressureIndicator(),
             ControlsPanel(), LinkPanel(), PhoneTelemetry()]
@@ -190,8 +190,8 @@ def test_lift_trims_flown_over_ble_are_shown_as_the_board_has_them() -> None:
     carry (rates, pressure) is not shown as a number."""
     from fcb_sim.board import Board, BoardConfig
     from fcb_sim.physics import World
-    from term.link import LinkSession
-    from term.station import RADIO_SESSION
+    from term.core.link import LinkSession
+    from term.session.station import RADIO_SESSION
 
     board = Board(BoardConfig(seed=1), world=World(1))
     cable, phone = LinkSession(0.0), LinkSession(0.0, **RADIO_SESSION)  # type: ignore[arg-type]
@@ -235,7 +235,7 @@ def test_lift_trims_flown_over_ble_are_shown_as_the_board_has_them() -> None:
 def test_over_ble_the_controls_panel_names_what_is_not_carried() -> None:
     """Over BLE the flags are fresh (Compact2) while the CPU load and log fill are not carried: the panel's border
     names those, not the flags."""
-    from term.widgets.controls import ControlsPanel
+    from term.ui.widgets.controls import ControlsPanel
 
     m = Model(start=0.0, radio_name="ble")
     m.apply_packet(Status(int(Flag.CALIBRATED), 0, 0, 0, 0, 40, 3, 0), 0.0)
@@ -252,7 +252,7 @@ def test_over_ble_the_controls_panel_names_what_is_not_carried() -> None:
 def test_a_panel_of_two_packets_names_each_age() -> None:
     """Over BLE the pressure panel mixes the cable's pressure (not carried) and Compact2's height: when both are
     old, the border names each figure's age, not only the first."""
-    from term.widgets.pressure import PressureIndicator
+    from term.ui.widgets.pressure import PressureIndicator
 
     m = Model(start=0.0, radio_name="ble")
     m.apply_packet(Height(101325, 100, 0, 0, 1150, 2500), 0.0)

@@ -7,7 +7,7 @@ import pytest
 from fcb_sim import control as C
 from fcb_sim.flight import HEIGHT_I, Calibration, FlightCore
 from fcb_sim.scenarios import Sim, height_hold
-from term.protocol import Mode
+from term.core.protocol import Mode
 
 
 def test_integral_accumulates_below_the_set_point_and_is_clamped() -> None:

@@ -9,7 +9,7 @@ import math
 
 import pytest
 
-from fcb_sim import params as P
+from fcb_sim import constants as P
 from fcb_sim.estimation.height import GROUND_REST_S, HeightKalman
 from fcb_sim.scenarios import height_profile
 

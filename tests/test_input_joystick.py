@@ -13,9 +13,9 @@ import time
 
 import pytest
 
+from term.core.protocol import Button, Mode, Op
 from term.input.joystick import GAMEPAD, JoystickPoller
 from term.input.mapping import FULL, LAB, mapping_from_dict
-from term.protocol import Button, Mode, Op
 
 
 class VirtualStick:
@@ -124,8 +124,8 @@ def test_a_flight_stick_is_read_raw(poller: JoystickPoller) -> None:
 
 
 async def test_the_app_flies_the_stick(scripted_board) -> None:  # noqa: ANN001
-    from term.app import TermApp
     from term.transports.loopback import loopback_pair
+    from term.ui.app import TermApp
     from tests.test_app import LoopBoard, until
 
     pair = loopback_pair()

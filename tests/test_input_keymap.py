@@ -2,6 +2,7 @@
 
 import pytest
 
+from term.core.protocol import Mode, Op
 from term.input.keymap import (
     DEFAULT_KEYMAP,
     KeymapError,
@@ -10,7 +11,6 @@ from term.input.keymap import (
     help_markdown,
     help_rows,
 )
-from term.protocol import Mode, Op
 
 # DESIGN.md's table, key by key.
 LAB = {

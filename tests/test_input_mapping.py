@@ -6,6 +6,7 @@ import sys
 
 import pytest
 
+from term.core.protocol import Button, Joystick, Mode
 from term.input.mapping import (
     FULL,
     LAB,
@@ -18,7 +19,6 @@ from term.input.mapping import (
     leave_safe_refusal,
     mapping_from_dict,
 )
-from term.protocol import Button, Joystick, Mode
 
 # The lab's stick at rest: centred, throttle lever pulled back (+1 on axis 3 = no lift).
 REST = [0.0, 0.0, 0.0, 1.0]

@@ -1,5 +1,5 @@
 """The simulator's instructor channel: situations set on the real board and world (fcb_sim/instructor.py), the truth
-as the terminal parses it (term/instructor.py), and both ends over a real TCP socket, from the child board that
+as the terminal parses it (term/lessons/instructor.py), and both ends over a real TCP socket, from the child board that
 `term --sim` starts to a serial client that sees the instructor cut the cable."""
 
 from __future__ import annotations
@@ -15,10 +15,10 @@ import serial
 from fcb_sim.board import Board, BoardConfig
 from fcb_sim.instructor import Instructor, InstructorServer
 from fcb_sim.physics import World
-from term.instructor import Hello, InstructorClient, Refused, Truth, check_situation, parse_line
-from term.link import LinkSession
-from term.protocol import INSTRUCTOR_SITUATIONS, INSTRUCTOR_TRUTH, Joystick, Mode, Op
-from term.sim import SimBoard
+from term.core.link import LinkSession
+from term.core.protocol import INSTRUCTOR_SITUATIONS, INSTRUCTOR_TRUTH, Joystick, Mode, Op
+from term.lessons.instructor import Hello, InstructorClient, Refused, Truth, check_situation, parse_line
+from term.session.sim import SimBoard
 
 
 def flying_board(seed: int = 1) -> tuple[Board, LinkSession]:

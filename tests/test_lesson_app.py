@@ -17,17 +17,17 @@ import pytest
 
 from fcb_sim.instructor import Instructor, InstructorServer
 from fcb_sim.serve import ThreadedServer, make_board
-from term.app import TermApp
-from term.cli import main
-from term.instructor import InstructorClient
+from term.cli.main import main
+from term.core.protocol import Mode
+from term.lessons.instructor import InstructorClient
 from term.lessons.observe import Box
 from term.lessons.progress import default_path
+from term.lessons.room import arrow
 from term.lessons.spec import maneuvers
-from term.protocol import Mode
-from term.room import arrow
 from term.transports.serial import SerialTransport
-from term.widgets.lesson import LessonBar, SummaryScreen
-from term.widgets.room import NO_ROOM, RoomView
+from term.ui.app import TermApp
+from term.ui.widgets.lesson import LessonBar, SummaryScreen
+from term.ui.widgets.room import NO_ROOM, RoomView
 
 SIZE = (120, 44)
 
@@ -200,9 +200,9 @@ def test_the_room_figures_never_read_minus_zero() -> None:
     # Seen on the pad: "h -0.00 m" (the truth a millimetre under the pad's height).
     from dataclasses import fields
 
-    from term.instructor import Truth
-    from term.room import Room
-    from term.widgets.room import figures
+    from term.lessons.instructor import Truth
+    from term.lessons.room import Room
+    from term.ui.widgets.room import figures
 
     room = Room()
     room.update(Truth(**{f.name: (-0.001 if f.name in ("n", "e", "h") else 0.0) for f in fields(Truth)}))

@@ -17,7 +17,7 @@ from term.lessons.expr import Expr, ExprError
 from term.lessons.observe import NAMES, Box
 from term.lessons.progress import Progress, load
 from term.lessons.spec import DEMO, LessonError, load_lesson, load_lessons, load_script, maneuvers
-from term.model import Model
+from term.session.model import Model
 
 ACTIONS = [b.action.name for b in DEFAULT_KEYMAP]
 

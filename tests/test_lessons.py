@@ -15,11 +15,11 @@ from typing import Any
 import pytest
 
 from bench.lessons import Rig
-from term.events import NotSent
+from term.core.events import NotSent
+from term.core.protocol import Mode, WirelessState
 from term.input.keymap import DEFAULT_KEYMAP
 from term.lessons.engine import Result
 from term.lessons.spec import Lesson, load_lessons, maneuvers
-from term.protocol import Mode, WirelessState
 
 LESSONS, SKIPPED = load_lessons(actions=[b.action.name for b in DEFAULT_KEYMAP])
 CAL: list[dict[str, Any]] = [{"press": "mode_calibration"}, {"wait": "calibrations >= 1 and mode == 'SAFE'"}]

@@ -7,7 +7,7 @@ import math
 
 import pytest
 
-from term.link import (
+from term.core.link import (
     CommandAcked,
     CommandFailed,
     LinkLost,
@@ -16,7 +16,7 @@ from term.link import (
     PacketReceived,
     VersionMismatch,
 )
-from term.protocol import (
+from term.core.protocol import (
     NAK_TEXT,
     PROTOCOL_VERSION,
     Ack,

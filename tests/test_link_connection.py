@@ -10,9 +10,9 @@ from collections.abc import Callable
 
 import pytest
 
-from term.connection import Connection, TransportFailed
-from term.link import CommandAcked, CommandFailed, LinkSession, PacketReceived, VersionMismatch
-from term.protocol import PROTOCOL_VERSION, Command, Decoder, Encoder, Heartbeat, Hello, Joystick, Nak, Op
+from term.core.link import CommandAcked, CommandFailed, LinkSession, PacketReceived, VersionMismatch
+from term.core.protocol import PROTOCOL_VERSION, Command, Decoder, Encoder, Heartbeat, Hello, Joystick, Nak, Op
+from term.session.connection import Connection, TransportFailed
 from term.transports.base import TransportError
 from term.transports.loopback import loopback_pair
 from term.transports.serial import SerialTransport

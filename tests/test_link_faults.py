@@ -7,8 +7,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from term.link import CommandAcked, CommandFailed, LinkLost, LinkRestored, LinkSession
-from term.protocol import Joystick, Op
+from term.core.link import CommandAcked, CommandFailed, LinkLost, LinkRestored, LinkSession
+from term.core.protocol import Joystick, Op
 from term.transports.loopback import Faults, FaultyChannel
 from tests.conftest import LinkSim, ScriptedBoard
 

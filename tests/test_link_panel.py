@@ -10,9 +10,10 @@ import pytest
 
 from fcb_sim.board import BOARD_VERSION, Board, BoardConfig
 from fcb_sim.serve import ThreadedServer
-from term.app import MIN_SIZE, TermApp
-from term.protocol import PROTOCOL_VERSION
+from term.core.protocol import PROTOCOL_VERSION
 from term.transports.serial import SerialTransport
+from term.ui.app import TermApp
+from term.ui.screens.flight import MIN_SIZE
 
 VERSION = f"fw {BOARD_VERSION[0]}.{BOARD_VERSION[1]} · protocol v{PROTOCOL_VERSION}"
 

@@ -8,9 +8,9 @@ from pathlib import Path
 import pytest
 from textual.widgets import Input, Label
 
-from term.app import TermApp
-from term.logfile import check_directory, write_csv
-from term.widgets.dirprompt import DirectoryPrompt
+from term.core.logfile import check_directory, write_csv
+from term.ui.app import TermApp
+from term.ui.screens.dirprompt import DirectoryPrompt
 
 
 @pytest.mark.parametrize("folder, words", [

@@ -18,7 +18,7 @@ from fcb_sim.modes import (
     modes_doc,
     tilt_cdeg,
 )
-from term.protocol import EventCode, Joystick, Mode, Nak
+from term.core.protocol import EventCode, Joystick, Mode, Nak
 
 DOC = pathlib.Path(__file__).resolve().parent.parent / "docs" / "modes.md"
 

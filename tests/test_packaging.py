@@ -16,7 +16,7 @@ from pathlib import Path
 import pytest
 from packaging.requirements import Requirement
 
-from term.protocol import PROTOCOL_VERSION
+from term.core.protocol import PROTOCOL_VERSION
 
 ROOT = Path(__file__).resolve().parents[1]
 BIN = Path(sys.executable).parent
@@ -97,7 +97,7 @@ async def traced_open(self):
     print("opening", self.port, file=sys.stderr, flush=True)
     return await real_open(self)
 serial.SerialTransport.open = traced_open
-from term.cli import main
+from term.cli.main import main
 sys.exit(main(sys.argv[1:]))
 """
 
@@ -146,7 +146,7 @@ def test_the_simulators_stderr_and_the_log_are_kept(tmp_path: Path) -> None:
 
 
 def test_the_log_file_takes_library_warnings(tmp_path: Path) -> None:
-    code = ("import logging, warnings\nfrom term.applog import setup_logging\np = setup_logging()\n"
+    code = ("import logging, warnings\nfrom term.session.applog import setup_logging\np = setup_logging()\n"
             "logging.getLogger('bumble.device').warning('a bumble warning')\nwarnings.warn('a py warning')\n"
             "logging.getLogger('term.x').info('not without --verbose')\nprint(p)")
     res = _run([sys.executable, "-c", code], {"QUADRUPEL_LOG_DIR": str(tmp_path)})
@@ -196,7 +196,7 @@ def test_the_sdist_carries_docs_tests_and_licence(tmp_path: Path) -> None:
         meta = info.read().decode()
     for path in ("LICENSE", "docs/user-guide.md", "docs/protocol.md", "tests/vectors/protocol.json",
                  "tests/data/broad_07_fast_rotation_excerpt.csv.gz", "tests/conftest.py", "constraints.txt",
-                 "term/app.tcss", "fcb_sim/cli.py"):
+                 "term/ui/app.tcss", "fcb_sim/cli.py"):
         assert path in names, path
     assert "License-Expression: MIT" in meta and "License-File: LICENSE" in meta
     assert "Classifier: Operating System :: Microsoft :: Windows" in meta

@@ -1,5 +1,6 @@
-"""The parameter table (term/protocol.py PARAMS), its wire packing, the terminal's parsing and files (term/params.py),
-and the board's side (fcb_sim/paramtable.py, the SET_PARAM / PARAM_GET / PARAM_LIST handlers): the board starts
+"""The parameter table (term/core/protocol/ PARAMS), its wire packing, the terminal's parsing and files
+(term/session/param_client.py),
+and the board's side (fcb_sim/param_bindings.py, the SET_PARAM / PARAM_GET / PARAM_LIST handlers): the board starts
 from the table's defaults, refuses with the right reason, reports every change as an event."""
 
 from __future__ import annotations
@@ -14,11 +15,9 @@ from hypothesis import strategies as st
 from fcb_sim.board import Board, BoardConfig
 from fcb_sim.commands import execute
 from fcb_sim.estimation.height import make_height_estimator
-from fcb_sim.paramtable import BINDINGS, build_filter, get_value, preset_core
+from fcb_sim.param_bindings import BINDINGS, build_filter, get_value, preset_core
 from fcb_sim.uart import Uart
-from term.model import Model
-from term.params import ParamError, diff, from_toml, line, load_file, parse_text, spec_by_name, to_toml
-from term.protocol import (
+from term.core.protocol import (
     ATTITUDE_FILTERS,
     HEIGHT_ESTIMATORS,
     PARAMS,
@@ -38,6 +37,8 @@ from term.protocol import (
     param_split,
     preset_values,
 )
+from term.session.model import Model
+from term.session.param_client import ParamError, diff, from_toml, line, load_file, parse_text, spec_by_name, to_toml
 
 
 def test_every_parameter_is_whole() -> None:
@@ -190,7 +191,7 @@ def events(board: Board) -> list[Event]:
 
 
 def _sent(board: Board) -> list[object]:
-    from term.protocol import Decoder
+    from term.core.protocol import Decoder
 
     board.advance(board.now + 200_000)
     return Decoder().feed(board.uart_transmit())

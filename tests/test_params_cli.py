@@ -8,9 +8,9 @@ from pathlib import Path
 
 import pytest
 
-from term.cli import main
-from term.protocol import PARAMS
-from term.sim import SimBoard
+from term.cli.main import main
+from term.core.protocol import PARAMS
+from term.session.sim import SimBoard
 
 
 @pytest.fixture(scope="module")
@@ -51,13 +51,13 @@ def _flash_some_log(port: str) -> None:
     """Start and stop the board's log over the same port, so the flash holds a little."""
     import asyncio
 
-    from term.params import ParamClient
-    from term.protocol import Op
+    from term.core.protocol import Op
+    from term.session.param_client import ParamClient
     from term.transports.serial import SerialTransport
 
     async def go() -> None:
-        from term.connection import Connection
-        from term.link import LinkSession
+        from term.core.link import LinkSession
+        from term.session.connection import Connection
 
         loop = asyncio.get_running_loop()
         conn = Connection(SerialTransport(port), LinkSession(loop.time()), loop.time)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import importlib.util
 from pathlib import Path
 
-from term.protocol import PARAMS, PRESETS
+from term.core.protocol import PARAMS, PRESETS
 
 ROOT = Path(__file__).resolve().parent.parent
 

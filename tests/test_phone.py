@@ -1,14 +1,16 @@
-"""The phone app's logic (term.phone) without any UI: the pad springs back, the lift slider stays, the buttons ask
+"""The phone app's logic (term.session.phone) without any UI: the pad springs back, the lift slider stays, the buttons
+ask
 for the key map's actions, PANIC lets go of the lift, and the readouts (battery, attitude, links) say what the
 model holds."""
 
 from __future__ import annotations
 
+from term.core.link import LinkStats
+from term.core.protocol import Attitude, Compact, Joystick, Mode, Op, WirelessState
 from term.input.keymap import DEFAULT_KEYMAP, action_by_name
 from term.input.mapping import FULL
-from term.link import LinkStats
-from term.model import Model
-from term.phone import (
+from term.session.model import Model
+from term.session.phone import (
     BUTTONS,
     MODE_BUTTONS,
     PANIC,
@@ -21,7 +23,6 @@ from term.phone import (
     link_states,
     readout,
 )
-from term.protocol import Attitude, Compact, Joystick, Mode, Op, WirelessState
 
 
 def test_the_pad_springs_back_and_the_lift_stays() -> None:

@@ -6,7 +6,7 @@ import math
 
 import pytest
 
-from fcb_sim import params as P
+from fcb_sim import constants as P
 from fcb_sim.physics import World
 
 

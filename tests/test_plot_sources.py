@@ -7,10 +7,10 @@ from pathlib import Path
 
 import pytest
 
-from term.cli import main
-from term.export import export
-from term.plot import PlotError, panels_of, read_source
-from term.protocol import Attitude, Height, column_scale, field_spec
+from term.cli.main import main
+from term.core.protocol import Attitude, Height, column_scale, field_spec
+from term.data.export import export
+from term.data.plot import PlotError, panels_of, read_source
 from tests.test_export import flash_log_csv, record
 
 
@@ -124,8 +124,8 @@ def test_bad_input_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str
 def test_over_ble_the_motors_and_height_come_from_compact2(tmp_path: Path) -> None:
     """A session flown over BLE: Compact2 brings the motors and the height; plotted per link, in the table's units
     (a motor command in steps of 4)."""
-    from term.protocol import Compact2, Encoder, Motion
-    from term.recording import SessionRecorder
+    from term.core.protocol import Compact2, Encoder, Motion
+    from term.data.recording import SessionRecorder
 
     rec = SessionRecorder(tmp_path / "rec", 10.0, wall_ns=1_700_000_000_000_000_000)
     cable, radio = Encoder(), Encoder()

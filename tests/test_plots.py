@@ -9,11 +9,12 @@ import math
 import pytest
 from textual.events import MouseScrollDown, MouseScrollUp
 
-from term.app import PlotsScreen, TermApp
-from term.config import PLOT_SERIES, Config
-from term.protocol import Mode, Op
-from term.widgets.braille import BLANK, Canvas, nice_range, window_of
-from term.widgets.plots import LivePlot, SeriesChooser
+from term.core.protocol import Mode, Op
+from term.session.config import PLOT_SERIES, Config
+from term.ui.app import TermApp
+from term.ui.screens.plots import PlotsScreen, SeriesChooser
+from term.ui.widgets.braille import BLANK, Canvas, nice_range, window_of
+from term.ui.widgets.plots import LivePlot
 from tests.test_app import flying, sent, until
 
 # --- the chart ---------------------------------------------------------------------------------------------------

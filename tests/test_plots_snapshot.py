@@ -4,7 +4,7 @@ snapshots: the same seed always gives the same plots. Update after a deliberate 
 
 from __future__ import annotations
 
-from term.model import Model
+from term.session.model import Model
 from tests.test_app_snapshot import SIZE, app_for, seeded_flight
 
 

@@ -10,7 +10,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from term import protocol as p
+from term.core import protocol as p
 
 VECTORS = json.loads((Path(__file__).parent / "vectors" / "protocol.json").read_text())
 

@@ -28,7 +28,7 @@ def test_vectors_are_up_to_date() -> None:
 
 
 def test_doc_names_every_packet() -> None:
-    from term import protocol as p
+    from term.core import protocol as p
 
     doc = (ROOT / "docs" / "protocol.md").read_text()
     for spec in p.PACKETS.values():

@@ -1,17 +1,14 @@
-"""The readiness checks (term/readiness.py), each driven true and false from the packets the board sends; every
+"""The readiness checks (term/session/readiness.py), each driven true and false from the packets the board sends; every
 refusal reason mapped to its check; refusals said once; repeated events merged; deadline misses summarised; the
-log keys' reports; the alarms' rising edges (term/alarms.py)."""
+log keys' reports; the alarms' rising edges (term/session/alarms.py)."""
 
 from __future__ import annotations
 
 import pytest
 
-from term.alarms import Alarms
-from term.events import NotSent, Requested
-from term.input.keymap import KEY_PRESETS, build_keymap
-from term.link import CommandAcked, CommandFailed, LinkLost, LinkStats
-from term.model import Model
-from term.protocol import (
+from term.core.events import NotSent, Requested
+from term.core.link import CommandAcked, CommandFailed, LinkLost, LinkStats
+from term.core.protocol import (
     LIFT_ZERO,
     NAK_TEXT,
     STICK_NEUTRAL,
@@ -30,7 +27,10 @@ from term.protocol import (
     WirelessState,
     field_scale,
 )
-from term.readiness import ITEMS, NAK_ITEM, checks, next_step, ready
+from term.input.keymap import KEY_PRESETS, build_keymap
+from term.session.alarms import Alarms
+from term.session.model import Model
+from term.session.readiness import ITEMS, NAK_ITEM, checks, next_step, ready
 
 KEYMAP = build_keymap()
 NOW = 10.0

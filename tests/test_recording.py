@@ -18,9 +18,9 @@ import pytest
 from mcap.opcode import Opcode
 from mcap.reader import make_reader
 
-from term.export import DecodedFrame, decode, export
-from term.protocol import PROTOCOL_VERSION, Attitude, Encoder, Heartbeat, HeartbeatAck, Joystick, Mode
-from term.recording import (
+from term.core.protocol import PROTOCOL_VERSION, Attitude, Encoder, Heartbeat, HeartbeatAck, Joystick, Mode
+from term.data.export import DecodedFrame, decode, export
+from term.data.recording import (
     LinkBytes,
     LoggedEvent,
     RecordingError,
@@ -248,7 +248,7 @@ def test_term_killed_in_flight_leaves_a_recording_readable_up_to_its_last_second
     to within a second of the kill, frames in order, and exports to a complete MCAP."""
     master, slave = os.openpty()
     fcntl.ioctl(slave, termios.TIOCSWINSZ, struct.pack("HHHH", 40, 120, 0, 0))
-    proc = subprocess.Popen([sys.executable, "-m", "term.cli", "--sim", "--no-joystick", "--no-radio",
+    proc = subprocess.Popen([sys.executable, "-m", "term.cli.main", "--sim", "--no-joystick", "--no-radio",
                              "--record-dir", str(tmp_path)], stdin=slave, stdout=slave, stderr=slave,
                             start_new_session=True, env={**os.environ, "TERM": "xterm-256color"})
     os.close(slave)
@@ -287,7 +287,7 @@ def test_term_killed_in_flight_leaves_a_recording_readable_up_to_its_last_second
 
 
 async def test_the_app_records_its_events_list_and_says_once_when_the_recording_stops(tmp_path: Path) -> None:
-    from term.app import TermApp
+    from term.ui.app import TermApp
 
     rec = SessionRecorder(tmp_path, time.monotonic())
     app = TermApp(None, joystick=False, recorder=rec)

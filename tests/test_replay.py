@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from term.events import (
+from term.core.events import (
     CABLE,
     RADIO,
     EventsCleared,
@@ -28,11 +28,19 @@ from term.events import (
     StatsSample,
     StickSet,
 )
-from term.link import CommandAcked, CommandFailed, LinkLost, LinkRestored, LinkStats, PacketReceived, VersionMismatch
-from term.model import Model
-from term.protocol import Attitude, Encoder, Height, Joystick, Mode, Nak, Op, Status
-from term.recording import LinkBytes, RecordingTransport, SessionRecorder, decode_event, encode_event, iter_file
-from term.replay import Replay
+from term.core.link import (
+    CommandAcked,
+    CommandFailed,
+    LinkLost,
+    LinkRestored,
+    LinkStats,
+    PacketReceived,
+    VersionMismatch,
+)
+from term.core.protocol import Attitude, Encoder, Height, Joystick, Mode, Nak, Op, Status
+from term.data.recording import LinkBytes, RecordingTransport, SessionRecorder, decode_event, encode_event, iter_file
+from term.data.replay import Replay
+from term.session.model import Model
 from term.transports.loopback import loopback_pair
 
 STATS = LinkStats(1.5, 2.0, 3.25, 0.0, 0.5, 1200.0, 300.0, 42, 1, 0.01, 0.05, 0.7, False, 5000, 900, 3, 1, 0, 10, 1)
@@ -173,7 +181,7 @@ def test_playback_speed_pause_and_seek(tmp_path: Path) -> None:
 async def test_term_replay_shows_the_recorded_values_at_the_recorded_times(tmp_path: Path) -> None:
     """The replay through the app itself (Textual's Pilot): the panels show what was recorded at the time sought,
     the link panel says it is a replay, and the keys play, pause and seek."""
-    from term.app import TermApp
+    from term.ui.app import TermApp
 
     rec = SessionRecorder(tmp_path, 0.0, wall_ns=0, meta={"cable": "/dev/pts/7"})
     live_session(rec, Model(), 0.0)
@@ -212,7 +220,7 @@ async def test_term_replay_shows_the_recorded_values_at_the_recorded_times(tmp_p
 
 
 async def test_a_replay_of_two_links_says_replay_in_the_link_panel(tmp_path: Path) -> None:
-    from term.app import TermApp
+    from term.ui.app import TermApp
 
     rec = SessionRecorder(tmp_path, 0.0, wall_ns=0, meta={"cable": "/dev/pts/7", "radio": "BLE F0:5A"})
     model = Model(radio_name="BLE F0:5A")
@@ -232,7 +240,7 @@ async def test_a_replay_of_two_links_says_replay_in_the_link_panel(tmp_path: Pat
 
 
 def test_term_replay_errors_are_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    from term.cli import main
+    from term.cli.main import main
 
     bad = tmp_path / "x.csv"
     bad.write_text("t_us,phi\n")

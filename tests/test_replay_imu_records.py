@@ -13,9 +13,9 @@ import pytest
 from fcb_sim.cli import main
 from fcb_sim.estimation.replay import EXPORT, FLASH_LOG
 from fcb_sim.telemetry import i16
-from term.export import column_name, export
-from term.protocol import Attitude, Encoder, Joystick, Mode, Motion, field_spec
-from term.recording import SessionRecorder
+from term.core.protocol import Attitude, Encoder, Joystick, Mode, Motion, field_spec
+from term.data.export import column_name, export
+from term.data.recording import SessionRecorder
 from tests.test_estimation_replay import _raw_flight_log
 
 WALL = 1_700_000_000_000_000_000
@@ -55,7 +55,7 @@ def _recorded_flight(directory: Path, seconds: float = 10.0, gap: tuple[float, f
     fifth pair read together with the next), the sticks going out, and the radio's Compact beside. Returns the
     recording and the board's own (t, phi, theta) in degrees at each Attitude."""
     from fcb_sim.scenarios import Sim, _roll_stick
-    from term.protocol import Compact
+    from term.core.protocol import Compact
 
     sim = Sim(3)
     rec = SessionRecorder(directory, 0.0, wall_ns=WALL)

@@ -7,7 +7,7 @@ import statistics
 
 import pytest
 
-from fcb_sim import params as P
+from fcb_sim import constants as P
 from fcb_sim.estimation import quaternion_to_euler
 from fcb_sim.physics import World
 

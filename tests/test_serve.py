@@ -1,5 +1,5 @@
 """`fcb-sim serve --pty` for real: a plain pyserial client flies the board over the pseudo-terminal with bytes
-built by term.protocol; signals end it cleanly; floods and garbage do not stop it; bad options are one line."""
+built by term.core.protocol; signals end it cleanly; floods and garbage do not stop it; bad options are one line."""
 
 from __future__ import annotations
 
@@ -17,7 +17,7 @@ import serial
 
 from fcb_sim import control as C
 from fcb_sim.serve import ThreadedServer, make_board
-from term.protocol import (
+from term.core.protocol import (
     PROTOCOL_VERSION,
     Ack,
     Attitude,

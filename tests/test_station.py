@@ -1,4 +1,4 @@
-"""The station without a screen (term.station): two links to one board over real connections on loopback pairs,
+"""The station without a screen (term.session.station): two links to one board over real connections on loopback pairs,
 each with the scripted board of conftest.py at the other end; routing, send guards, the fire button, reconnects
 and their pauses (an injected sleep records them), fatal ends. The model is updated only through its events."""
 
@@ -10,12 +10,12 @@ from collections.abc import Callable
 
 import pytest
 
-from term.errors import EXIT_USAGE, EXIT_VERSION
-from term.events import CABLE, RADIO, Fatal, LinkDown, LinkFailed, LinkUp, NotSent, Requested, StationEvent
+from term.core.errors import EXIT_USAGE, EXIT_VERSION
+from term.core.events import CABLE, RADIO, Fatal, LinkDown, LinkFailed, LinkUp, NotSent, Requested, StationEvent
+from term.core.protocol import Button, Event, EventCode, Joystick, Mode, Op, WirelessState
 from term.input.mapping import FULL
-from term.model import Model
-from term.protocol import Button, Event, EventCode, Joystick, Mode, Op, WirelessState
-from term.station import BLE_BACKOFF_S, RECONNECT_S, Station
+from term.session.model import Model
+from term.session.station import BLE_BACKOFF_S, RECONNECT_S, Station
 from term.transports.loopback import loopback_pair
 from term.transports.serial import SerialTransport
 from tests.test_app import LoopBoard, sent
@@ -235,8 +235,8 @@ async def test_a_lost_radio_hands_control_back_to_the_cable(scripted_board) -> N
                                   "FromLink"])
 def test_every_station_event_changes_the_model_in_one_place(kind: str) -> None:
     """Each event type the station emits has the model's handler (Fatal is the front end's alone)."""
-    from term import events
-    from term.model import _HANDLERS
+    from term.core import events
+    from term.session.model import _HANDLERS
 
     assert getattr(events, kind) in _HANDLERS
     assert events.Fatal not in _HANDLERS

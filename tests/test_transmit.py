@@ -14,7 +14,7 @@ from fcb_sim.board import Board, BoardConfig
 from fcb_sim.serve import ThreadedServer, make_board
 from fcb_sim.transmit import ANSWER_BUDGET
 from fcb_sim.uart import UART_US_PER_BYTE
-from term.protocol import (
+from term.core.protocol import (
     Ack,
     Attitude,
     Command,

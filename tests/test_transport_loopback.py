@@ -6,7 +6,7 @@ import asyncio
 
 import pytest
 
-from term.protocol import Decoder, Encoder, Status
+from term.core.protocol import Decoder, Encoder, Status
 from term.transports.base import TransportClosed, TransportError
 from term.transports.loopback import Faults, FaultyChannel, loopback_pair
 

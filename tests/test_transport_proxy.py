@@ -7,7 +7,7 @@ import asyncio
 
 import pytest
 
-from term.protocol import SPEC_OF, Decoder, Encoder, Heartbeat, LogStatus, cobs_decode
+from term.core.protocol import SPEC_OF, Decoder, Encoder, Heartbeat, LogStatus, cobs_decode
 from term.transports.loopback import Faults, FaultyChannel, FaultyTransport, loopback_pair
 
 STATUS = LogStatus(0, 1234, 5, 0xDEADBEEF)

@@ -14,7 +14,7 @@ import time
 
 import pytest
 
-from term.protocol import Decoder, Encoder, Joystick
+from term.core.protocol import Decoder, Encoder, Joystick
 from term.transports.base import TransportClosed, TransportError
 from term.transports.serial import SerialTransport
 

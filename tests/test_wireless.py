@@ -21,7 +21,7 @@ from fcb_sim.wireless import (
     compacts_per_heartbeat,
     start_radio,
 )
-from term.protocol import (
+from term.core.protocol import (
     Ack,
     Attitude,
     Compact,
@@ -200,8 +200,8 @@ def test_the_board_sends_compact2_over_ble_with_its_own_figures() -> None:
     90 % (the issue's goal)."""
     from fcb_sim.board import Board, BoardConfig
     from fcb_sim.telemetry import flags
-    from term.link import LinkSession, PacketReceived
-    from term.station import RADIO_SESSION
+    from term.core.link import LinkSession, PacketReceived
+    from term.session.station import RADIO_SESSION
 
     board = Board(BoardConfig(seed=1))
     cable, phone = LinkSession(0.0), LinkSession(0.0, **RADIO_SESSION)  # type: ignore[arg-type]

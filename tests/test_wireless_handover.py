@@ -12,9 +12,9 @@ import pytest
 
 from fcb_sim.board import Board, BoardConfig
 from fcb_sim.wireless import start_radio
-from term.connection import Connection
-from term.link import LinkSession, PacketReceived
-from term.protocol import Ack, Attitude, Compact, Joystick, Mode, Op, WirelessState
+from term.core.link import LinkSession, PacketReceived
+from term.core.protocol import Ack, Attitude, Compact, Joystick, Mode, Op, WirelessState
+from term.session.connection import Connection
 from term.transports.ble import BleTransport
 
 S = WirelessState

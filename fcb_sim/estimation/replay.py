@@ -13,7 +13,7 @@ Three inputs, told apart by their header:
   the board's filter said in flight: a replay through the same filter reproduces them (tests do).
 - ``term export``'s CSV in SI units (docs/recording.md), of a flash log or of a session recording: ``t_s``,
   ``sp_dps sq_dps sr_dps`` (°/s) and ``sax_g say_g saz_g`` (g), the same FRD words scaled by the packet table
-  (``term.protocol.column_scale``), so they are turned back the same way. A session's rows are one per packet:
+  (``term.core.protocol.column_scale``), so they are turned back the same way. A session's rows are one per packet:
   each Attitude row (the rates) is a sample with the accelerations of the Motion row the board sent after it (the
   one before, if that was lost), from the first link that brought them, ``dir`` rx only. Its times are when the
   frames were read, so two frames read together share one (the second is moved 1 µs on: their intervals still
@@ -21,7 +21,8 @@ Three inputs, told apart by their header:
   there, from the accelerometer of a quad in flight, was 28° off against 6° in the test of it).
   A session recording itself (MCAP) is refused with the command that exports it: fcb_sim imports nothing of
   ``term`` but its protocol, and the recording's reader (chunks, a file cut short by a crash, the link bytes decoded
-  with the codec of the day) lives once, in term.recording and term.export; their CSV is what both programs share.
+  with the codec of the day) lives once, in term.data.recording and term.data.export; their CSV is what both programs
+  share.
 
 Any sample rate (dt from the time column, strictly increasing). The first row, and the first of each segment,
 has no previous time: its dt is the next interval. Output: one row per sample with ``t, roll, pitch, yaw``
@@ -43,9 +44,9 @@ import time
 from collections.abc import Iterator
 from typing import IO
 
-from fcb_sim import params as P
+from fcb_sim import constants as P
 from fcb_sim.errors import UsageError
-from term.protocol import column_scale
+from term.core.protocol import column_scale
 
 from . import BEST, DESCRIPTIONS, FILTERS, has_fixed_point, make_filter
 
@@ -56,7 +57,7 @@ _A = 1.0 / P.ACC_LSB_PER_MS2
 # chip-frame SI sample from the logged FRD words: (t, gx, gy, gz, ax, ay, az)
 _FROM_LOG = (1e-6, _G, -_G, -_G, _A, -_A, -_A)
 Sample = tuple[float, float, float, float, float, float, float]
-# term export's SI columns (term/export.py names them from the packet table; a test checks they agree)
+# term export's SI columns (term/data/export.py names them from the packet table; a test checks they agree)
 EXPORT = ("t_s", "sp_dps", "sq_dps", "sr_dps", "sax_g", "say_g", "saz_g")
 _FROM_EXPORT = (1.0, *(k / column_scale(f)[0] for f, k in zip(FLASH_LOG[1:], _FROM_LOG[1:], strict=True)))
 LINE_MAX = 65536  # characters of a CSV line; an IMU row has a few hundred

@@ -7,7 +7,7 @@
 
 #include "qp_protocol.h"
 
-/* The packet type's name as in term/protocol.py, or NULL for an unknown type. */
+/* The packet type's name as in term/core/protocol/, or NULL for an unknown type. */
 const char *qp_text_name(uint8_t type);
 
 /* ``Name field=value ...``: integers in decimal, half floats as their raw bits, byte strings in hex. */

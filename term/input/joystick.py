@@ -23,8 +23,8 @@ from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
 from typing import Any
 
+from term.core.protocol import Joystick
 from term.input.mapping import AxisMap, StickMapping, StickState, choose_mapping
-from term.protocol import Joystick
 
 # SDL's GameController layout, as indices into the axes and buttons handed to the mapping
 PAD_AXES = ("LEFTX", "LEFTY", "RIGHTX", "RIGHTY", "TRIGGERLEFT", "TRIGGERRIGHT")

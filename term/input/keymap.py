@@ -15,8 +15,8 @@ from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, replace
 from functools import cache
 
-from term.protocol import Mode, Op
-from term.schema import nearest, shown
+from term.core.protocol import Mode, Op
+from term.core.schema import nearest, shown
 
 
 @dataclass(frozen=True, slots=True)

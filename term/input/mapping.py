@@ -11,8 +11,13 @@ from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
-from term.protocol import LIFT_ZERO, STICK_MAX, Button, Joystick  # LIFT_ZERO: the board's guard, checked here first
-from term.schema import Flag, ListOf, Number, OneOf, SchemaError, Table, Text
+from term.core.protocol import (  # LIFT_ZERO: the board's guard, checked here first
+    LIFT_ZERO,
+    STICK_MAX,
+    Button,
+    Joystick,
+)
+from term.core.schema import Flag, ListOf, Number, OneOf, SchemaError, Table, Text
 
 FULL = STICK_MAX  # full deflection, stick units
 
@@ -207,7 +212,7 @@ _EDGES = (0, FULL, -FULL)
 def leave_safe_refusal(current_mode: int, requested_mode: int, stick: Joystick) -> str | None:
     """Why the terminal refuses to ask the board to leave SAFE now, or None. The board guards too; this one
     answers at once and names the fix."""
-    from term.protocol import Mode
+    from term.core.protocol import Mode
 
     leaving_safe = current_mode == Mode.SAFE and requested_mode not in (Mode.SAFE, Mode.PANIC, Mode.WIRELESS)
     if leaving_safe and stick.lift > LIFT_ZERO:

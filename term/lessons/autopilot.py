@@ -3,7 +3,7 @@
 It is the demo (``term --sim --demo``), a lesson's "show me", and the pilot of the lesson tests. Sans-IO: every
 ``update(ns, truth, now)`` (about 50 times a second) returns what to do now: ``Press(action)`` (a key map action,
 performed exactly as the key would be) and ``Stick(joystick)`` (the stick it holds). Its eyes are the
-simulator's truth (as a pilot's eyes see the craft: ``term.instructor.Truth``) and the lesson variables
+simulator's truth (as a pilot's eyes see the craft: ``term.lessons.instructor.Truth``) and the lesson variables
 (term/lessons/observe.py) for its waits; it never touches the board any other way.
 
 A script is a list of maneuvers (``term.lessons.spec.Maneuver``, from a lesson's ``[[show]]`` or demo.toml):
@@ -30,9 +30,9 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
-from term.instructor import Truth
+from term.core.protocol import STICK_MAX, Joystick
+from term.lessons.instructor import Truth
 from term.lessons.spec import COMMANDS, Maneuver
-from term.protocol import STICK_MAX, Joystick
 
 FLYING, DONE, FAILED = "flying", "done", "failed"
 G = 9.81

@@ -22,13 +22,13 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
-from term.events import StationEvent
-from term.instructor import Truth
+from term.core.events import StationEvent
 from term.lessons.autopilot import DONE, FAILED, FLYING, Act, Autopilot
 from term.lessons.engine import ENDED, RUNNING, LessonRun, Result
+from term.lessons.instructor import Truth
 from term.lessons.observe import Observer
 from term.lessons.spec import Lesson, Maneuver
-from term.model import Model
+from term.session.model import Model
 
 
 @dataclass

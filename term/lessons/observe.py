@@ -2,7 +2,7 @@
 what happened.
 
 ``Observer`` is sans-IO. The front end hands it every station event (``event(ev, model, now)``: the same events
-the model applies, term/events.py) and every truth sample (``truth(sample)``); ``namespace(model, now)`` gives
+the model applies, term/core/events.py) and every truth sample (``truth(sample)``); ``namespace(model, now)`` gives
 the variables below as a dict, the one thing lesson expressions read. ``reset(now)`` starts an attempt: counters
 and touch-downs count from then. A figure that is not known yet (no truth sample, no battery reading) is None, which
 every comparison reads as false.
@@ -16,11 +16,11 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
-from term.events import RADIO, FromLink, LinkDown, NotSent, Requested, StationEvent
-from term.instructor import Truth
-from term.link import CommandFailed, PacketReceived
-from term.model import Model, battery_level, mode_name
-from term.protocol import Event, EventCode, Flag, Mode, Op, WirelessState
+from term.core.events import RADIO, FromLink, LinkDown, NotSent, Requested, StationEvent
+from term.core.link import CommandFailed, PacketReceived
+from term.core.protocol import Event, EventCode, Flag, Mode, Op, WirelessState
+from term.lessons.instructor import Truth
+from term.session.model import Model, battery_level, mode_name
 
 NAMES: dict[str, str] = {
     # the truth (only the simulator knows it)

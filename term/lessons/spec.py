@@ -24,10 +24,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from term.instructor import check_situation
+from term.core.protocol import Op
 from term.lessons.expr import Expr, ExprError
+from term.lessons.instructor import check_situation
 from term.lessons.observe import NAMES, Box
-from term.protocol import Op
 
 BUILTIN = Path(__file__).resolve().parent
 DEMO = BUILTIN / "demo.toml"

@@ -20,8 +20,8 @@ import sys
 from dataclasses import dataclass
 from typing import Any
 
-from term.protocol import BOARD_NAME_PREFIX as NAME_PREFIX
-from term.protocol import NUS_RX, NUS_SERVICE, NUS_TX  # we write RX; the board notifies TX
+from term.core.protocol import BOARD_NAME_PREFIX as NAME_PREFIX
+from term.core.protocol import NUS_RX, NUS_SERVICE, NUS_TX  # we write RX; the board notifies TX
 from term.transports.base import Transport, TransportClosed, TransportError
 
 MAX_WRITE = 20  # ATT MTU 23 minus the 3-byte ATT header: what the nRF51 takes in one write

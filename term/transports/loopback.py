@@ -212,7 +212,7 @@ class LoopbackTransport(Transport):
             self._wake.clear()
             timeout = None if nxt is None else max(0.0, nxt - self._clock())
             try:
-                async with asyncio.timeout(timeout):  # not wait_for: see term.connection
+                async with asyncio.timeout(timeout):  # not wait_for: see term.session.connection
                     await self._wake.wait()
             except TimeoutError:
                 pass

@@ -1,0 +1,212 @@
+"""The board's parameters: each row of the protocol's table (``term.core.protocol.PARAMS``) bound to where the board
+keeps
+it, read and written in the table's units. The table is the one source of truth: its defaults are the board's
+(``BoardConfig``, ``params.Gains``, ``ModeConfig``'s trim steps come from it; a test checks a fresh board reads
+them back), its ranges are what ``set_value`` accepts, its ``in_flight`` says what may change outside SAFE.
+
+- ``get_raw(board, param)`` / ``get_value``: the value in force;
+- ``set_raw(board, param, raw)``: the guards in order (unknown id: ``Nak.UNKNOWN_PARAM``; out of the table's range:
+  ``Nak.OUT_OF_RANGE``; a SAFE-only parameter in another mode: ``Nak.NOT_IN_SAFE``; the parameter's own rule: the
+  log scheme needs an empty log, ``Nak.LOG_BUSY``; a filter without a fixed-point twin in fixed point,
+  ``Nak.BAD_ARGUMENT``), then the change; the caller reports it (``EventCode.PARAM_CHANGED``);
+- ``apply_values(board, values)``: a preset or a file at boot (SAFE: every guard but the mode's applies).
+
+An attitude filter or height estimator changed by name is built afresh (the filter converges on the ground in
+SAFE; the height estimator is re-anchored at the calibration's pressure).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from typing import TYPE_CHECKING
+
+from fcb_sim import constants as P
+from fcb_sim.estimation import has_fixed_point, make_filter
+from fcb_sim.estimation.complementary import ComplementaryFilter, ComplementaryFilterQ16
+from fcb_sim.estimation.height import make_height_estimator
+from fcb_sim.flash_log import FlashLog
+from fcb_sim.flight import FlightCore
+from term.core.protocol import PARAMS, Mode, Nak, Param, preset_values
+
+if TYPE_CHECKING:
+    from fcb_sim.board import Board
+
+Value = float | str | bool
+Getter = Callable[["Board"], Value]
+Setter = Callable[["Board", Value], Nak]
+
+
+def _gain(name: str) -> tuple[Getter, Setter]:
+    def get(b: Board) -> Value:
+        return float(getattr(b.core.gains, name))
+
+    def put(b: Board, v: Value) -> Nak:
+        setattr(b.core.gains, name, float(v))
+        return Nak.OK
+
+    return get, put
+
+
+def _config(name: str, convert: Callable[[Value], Value] = lambda v: v) -> tuple[Getter, Setter]:
+    def get(b: Board) -> Value:
+        return getattr(b.config, name)
+
+    def put(b: Board, v: Value) -> Nak:
+        setattr(b.config, name, convert(v))
+        return Nak.OK
+
+    return get, put
+
+
+def build_filter(name: str, k_gyro: float, fixed_point: bool) -> object:
+    """The RAW path's filter by the table's name; the complementary filter takes the table's K_gyro."""
+    if name == "complementary":
+        return ComplementaryFilterQ16(k_gyro) if fixed_point else ComplementaryFilter(k_gyro)
+    return make_filter(name, fixed_point=fixed_point)
+
+
+def _refilter(b: Board, name: str, k_gyro: float, fixed: bool) -> Nak:
+    if fixed and name != "complementary" and not has_fixed_point(name):
+        return Nak.BAD_ARGUMENT  # no fixed-point twin of this filter
+    core = b.core
+    core.filter = build_filter(name, k_gyro, fixed)  # type: ignore[assignment]
+    core.filter_name, core.k_gyro, core.fixed_point = name, k_gyro, fixed
+    b.config.fixed_point = fixed
+    return Nak.OK
+
+
+def _k_gyro(b: Board) -> float:
+    return float(getattr(b.core, "k_gyro", PARAMS[Param.K_GYRO].default))
+
+
+def _set_filter(b: Board, v: Value) -> Nak:
+    return _refilter(b, str(v), _k_gyro(b), b.config.fixed_point)
+
+
+def _set_k_gyro(b: Board, v: Value) -> Nak:
+    return _refilter(b, b.core.filter_name, float(v), b.config.fixed_point)
+
+
+def _set_fixed(b: Board, v: Value) -> Nak:
+    return _refilter(b, b.core.filter_name, _k_gyro(b), bool(v))
+
+
+def _height_name(b: Board) -> Value:
+    return getattr(b.core, "height_name", PARAMS[Param.HEIGHT_ESTIMATOR].default)
+
+
+def _set_height(b: Board, v: Value) -> Nak:
+    core = b.core
+    core.height_est = make_height_estimator(str(v))
+    core.height_name = str(v)
+    if core.calibrated:
+        core.height_est.reset(core.calibration.pressure)
+    core.height = core.vz = 0.0
+    return Nak.OK
+
+
+def _set_scheduler(b: Board, v: Value) -> Nak:
+    b.set_scheduler(str(v))
+    return Nak.OK
+
+
+def _set_timeout(b: Board, v: Value) -> Nak:
+    b.config.link_timeout_s = b.modes.config.link_timeout_s = float(v) / 1000
+    return Nak.OK
+
+
+def _set_queue_rule(b: Board, v: Value) -> Nak:
+    b.config.queue_rule = str(v)
+    b.apply_queue_rule()
+    return Nak.OK
+
+
+def _set_log_scheme(b: Board, v: Value) -> Nak:
+    if b.log.used:
+        return Nak.LOG_BUSY
+    b.log = FlashLog(size=b.log.flash.size, scheme=str(v), variables=b.log.variables)
+    b.config.log_scheme = str(v)
+    return Nak.OK
+
+
+def _mode_config(name: str) -> tuple[Getter, Setter]:
+    def get(b: Board) -> Value:
+        return getattr(b.modes.config, name)
+
+    def put(b: Board, v: Value) -> Nak:
+        setattr(b.modes.config, name, int(v))
+        return Nak.OK
+
+    return get, put
+
+
+BINDINGS: dict[Param, tuple[Getter, Setter]] = {
+    Param.YAW_P: _gain("yaw_p"),
+    Param.P1: _gain("p1"),
+    Param.P2: _gain("p2"),
+    Param.HEIGHT_P: _gain("height_p"),
+    Param.HEIGHT_D: _gain("height_d"),
+    Param.HEIGHT_I: (lambda b: float(b.core.height_i), lambda b, v: setattr(b.core, "height_i", float(v)) or Nak.OK),
+    Param.ATTITUDE_FILTER: (lambda b: b.core.filter_name, _set_filter),
+    Param.K_GYRO: (_k_gyro, _set_k_gyro),
+    Param.FIXED_POINT: (lambda b: bool(b.config.fixed_point), _set_fixed),
+    Param.HEIGHT_ESTIMATOR: (_height_name, _set_height),
+    Param.SENSOR_PATH: _config("sensor_path", str),
+    Param.SCHEDULER: (lambda b: b.config.scheduler, _set_scheduler),
+    Param.STICK_REACTION: _config("stick_reaction", bool),
+    Param.LINK_TIMEOUT_MS: (lambda b: round(b.config.link_timeout_s * 1000), _set_timeout),
+    Param.TELEMETRY_HZ: (lambda b: round(b.config.telemetry_hz), lambda b, v: setattr(b.config, "telemetry_hz",
+                                                                                      float(v)) or Nak.OK),
+    Param.QUEUE_RULE: (lambda b: b.config.queue_rule, _set_queue_rule),
+    Param.LOG_SCHEME: (lambda b: b.config.log_scheme, _set_log_scheme),
+    Param.TRIM_STEP: _mode_config("trim_step"),
+    Param.LIFT_STEP: _mode_config("lift_step"),
+}
+
+
+def get_value(board: Board, param: Param) -> Value:
+    return BINDINGS[param][0](board)
+
+
+def get_raw(board: Board, param: Param) -> int:
+    return PARAMS[param].to_raw(get_value(board, param))
+
+
+def set_raw(board: Board, pid: int, raw: int, *, mode_guard: bool = True) -> tuple[Nak, Param | None]:
+    """Set parameter ``pid`` to ``raw`` if every guard passes; (Nak.OK or the reason, the Param if known)."""
+    try:
+        param = Param(pid)
+    except ValueError:
+        return Nak.UNKNOWN_PARAM, None
+    spec = PARAMS[param]
+    if not spec.accepts(raw):
+        return Nak.OUT_OF_RANGE, param
+    if mode_guard and not spec.in_flight and board.modes.mode != Mode.SAFE:
+        return Nak.NOT_IN_SAFE, param
+    return BINDINGS[param][1](board, spec.from_raw(raw)), param
+
+
+def apply_values(board: Board, values: Mapping[Param, Value]) -> list[tuple[Param, Nak]]:
+    """Set each parameter (a preset, a file); returns the ones refused, with why."""
+    refused = []
+    for param, value in values.items():
+        nak, _ = set_raw(board, param, PARAMS[param].to_raw(value), mode_guard=False)
+        if nak != Nak.OK:
+            refused.append((param, nak))
+    return refused
+
+
+def preset_core(name: str) -> FlightCore:
+    """A flight core with preset ``name``'s gains, filter and height estimator (term.core.protocol.PRESETS): the
+    scenarios and bench.flight fly the report's board on it without a whole Board."""
+    values = preset_values(name)
+    gains = P.Gains(**{g: float(values[p]) for g, p in P._GAIN_PARAMS.items()})
+    fixed = bool(values[Param.FIXED_POINT])
+    core = FlightCore(gains=gains, filter_name=str(values[Param.ATTITUDE_FILTER]), fixed_point=fixed,
+                      height_estimator=make_height_estimator(str(values[Param.HEIGHT_ESTIMATOR])))
+    core.filter = build_filter(str(values[Param.ATTITUDE_FILTER]), float(values[Param.K_GYRO]),  # type: ignore
+                               fixed)
+    core.k_gyro = float(values[Param.K_GYRO])
+    core.height_name = str(values[Param.HEIGHT_ESTIMATOR])
+    core.height_i = float(values[Param.HEIGHT_I])
+    return core

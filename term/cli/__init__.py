@@ -1,0 +1,2 @@
+"""Floor 7: argument parsing and wiring; the only place that knows every part; nothing imports it.
+"""

@@ -1,0 +1,141 @@
+"""The one protocol codec shared by the terminal and the board: packets, framing, CRC, streaming decoder, and
+every fact both ends need. Pure and sans-IO: standard library only, bytes in and packets out.
+
+A frame on the wire is ``COBS(type | seq | body | crc16) 0x00``:
+
+- ``type``  one byte, the packet id from the table below; it fixes the body's length and layout;
+- ``seq``   one byte, a per-direction counter (mod 256) that the receiver uses to count lost frames;
+- ``body``  the packet's fields, little-endian, at most 14 bytes;
+- ``crc16`` CRC-16/CCITT-FALSE (poly 0x1021, init 0xFFFF) over type, seq and body, big-endian;
+- COBS (consistent overhead byte stuffing) removes every 0x00 from the frame, so 0x00 only ever marks a frame's end.
+
+A receiver that loses sync (a corrupted, lost or inserted byte) is back in step at the next 0x00: a corrupted byte
+costs at most the two frames on either side of it, and the CRC keeps a damaged frame from being misread.
+Every frame is at most 20 bytes, one BLE notification.
+
+Each field in the packet table carries its wire format, its unit, and the ``scale`` that turns a raw value into
+the unit the terminal shows (``scaled_unit``): convert with ``scaled(pkt, name)`` or ``field_scale(cls, name)``,
+never with a retyped factor. ``field_limits`` and ``saturated`` tell a value pinned at the edge of its encoding
+from a true one.
+
+The shared facts (one home each; a test fails on a copy elsewhere): ``Role``, the Nordic UART Service UUIDs and
+``BOARD_NAME_PREFIX``, ``FLIGHT_MODES``, the stick guards ``LIFT_ZERO`` and ``STICK_NEUTRAL``, the battery
+thresholds, the board's parameter table (``Param``, ``PARAMS``: name, type, unit, range, default, in flight or not;
+``PRESETS``; ``param_arg``/``param_split``; docs/parameters.md is generated from it). The flash-log payload codec
+lives in ``term.core.logformat``.
+"""
+
+from __future__ import annotations
+
+from term.core.protocol.facts import (  # noqa: F401
+    ACC_LSB_PER_G,
+    BATTERY_FULL,
+    BATTERY_LOW,
+    BATTERY_WARN,
+    BOARD_NAME_PREFIX,
+    BOARD_TO_PC,
+    BOTH,
+    CRC_INIT,
+    DELIMITER,
+    FLIGHT_MODES,
+    GYRO_LSB_PER_DPS,
+    LIFT_ZERO,
+    LOG_TIME_COLUMN,
+    LOW_BATTERY_HOLD_S,
+    MAX_BODY,
+    MAX_FRAME,
+    NAK_TEXT,
+    NUS_RX,
+    NUS_SERVICE,
+    NUS_TX,
+    PC_TO_BOARD,
+    PROTOCOL_VERSION,
+    SCHEME_DELTA8,
+    SCHEME_NAMES,
+    SCHEME_RICE,
+    STEP_OPS,
+    STICK_MAX,
+    STICK_NEUTRAL,
+    Button,
+    EventCode,
+    Flag,
+    LogState,
+    Mode,
+    Nak,
+    Op,
+    Role,
+    WirelessState,
+)
+from term.core.protocol.framing import (  # noqa: F401
+    Decoder,
+    DecoderStats,
+    Encoder,
+    ProtocolError,
+    cobs_decode,
+    cobs_encode,
+    decode_frame,
+    encode,
+    frame_seq,
+    from_dict,
+    to_dict,
+)
+from term.core.protocol.instructor import (  # noqa: F401
+    INSTRUCTOR_SITUATIONS,
+    INSTRUCTOR_TRUTH,
+    INSTRUCTOR_TRUTH_HZ,
+    INSTRUCTOR_VERSION,
+)
+from term.core.protocol.packets import (  # noqa: F401
+    EVENT_ARG_SCALE,
+    LOG_CHUNK_BYTES,
+    PACKETS,
+    SPEC_OF,
+    TELEMETRY,
+    Ack,
+    Attitude,
+    Command,
+    Compact,
+    Compact2,
+    Event,
+    F,
+    FieldSpec,
+    Gains,
+    Heartbeat,
+    HeartbeatAck,
+    Height,
+    Hello,
+    Joystick,
+    LogChunk,
+    LogStatus,
+    Motion,
+    PacketSpec,
+    ParamValue,
+    Profile,
+    Status,
+    column_scale,
+    field_limits,
+    field_scale,
+    field_spec,
+    field_unit,
+    packet,
+    saturated,
+    scaled,
+)
+from term.core.protocol.params import (  # noqa: F401
+    ATTITUDE_FILTERS,
+    GAIN_OPS,
+    HEIGHT_ESTIMATORS,
+    PARAM_BY_NAME,
+    PARAM_RAW_BITS,
+    PARAMS,
+    PRESETS,
+    QUEUE_DISCARD_FRAMES,
+    QUEUE_RULES,
+    SCHEDULERS,
+    SENSOR_PATHS,
+    Param,
+    ParamSpec,
+    param_arg,
+    param_split,
+    preset_values,
+)

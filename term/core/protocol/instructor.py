@@ -1,0 +1,36 @@
+"""The simulator's instructor channel's vocabulary (term --sim only): the truth fields and the situations.
+"""
+
+from __future__ import annotations
+
+# --- the simulator's instructor channel (term --sim only) -----------------------------------------------------
+# Beside the board's link, never on it: a real board has no truth and takes no situations. fcb_sim/instructor.py
+# serves it (`fcb-sim serve --instructor tcp-server:HOST:PORT`), term/lessons/instructor.py reads it; one JSON object
+# per
+# line each way. The simulator says {"kind": "hello", "version", "hz"}, then a {"kind": "truth", ...} line with the
+# fields below INSTRUCTOR_TRUTH_HZ times a second; term sends {"do": SITUATION, ARG: value, ...} lines and gets
+# {"kind": "error", "do", "why"} back for one it cannot carry out.
+
+INSTRUCTOR_VERSION = 1
+INSTRUCTOR_TRUTH_HZ = 50.0
+INSTRUCTOR_TRUTH: dict[str, str] = {  # field: unit and meaning (earth NED, body FRD: docs/architecture.md)
+    "t": "s: the board's clock",
+    "n": "m: north of the pad", "e": "m: east of the pad", "h": "m: above the floor",
+    "vn": "m/s north", "ve": "m/s east", "vd": "m/s down",
+    "phi": "rad: roll", "theta": "rad: pitch", "psi": "rad: heading, 0 north, positive clockwise",
+    "p": "rad/s: roll rate", "q": "rad/s: pitch rate", "r": "rad/s: yaw rate",
+    "on_ground": "bool: resting on its feet",
+    "volts": "V: the pack under load", "soc": "0..1: the pack's state of charge",
+    "landings": "touch-downs since the start", "touchdown": "m/s: the last touch-down's downward speed",
+    "crashes": "impacts too fast or too tilted since the start",
+    "cable": "bool: the cable carries bytes (false while the instructor cuts it)",
+    "wind_n": "m/s: the mean wind towards north", "wind_e": "m/s: towards east", "gust": "m/s: gusts' std",
+}
+INSTRUCTOR_SITUATIONS: dict[str, tuple[str, ...]] = {  # verb: its arguments (all optional)
+    "reset": ("soc",),  # on the pad, nose north, fresh pack at soc, still air, no fault (on the floor in SAFE)
+    "wind": ("n", "e", "gust"),  # mean wind north and east (m/s) and gusts' std (m/s)
+    "battery": ("soc", "drain"),  # set the state of charge; a failing cell drains this much more per second
+    "motor": ("motor", "level"),  # motor 1..4 can no longer exceed level (0..1000); level -1 frees it
+    "cable": ("cuts",),  # [[after s, for s], ...] from now: the cable carries nothing then; [] clears
+    "radio": ("cut",),  # out of range for this many seconds: the BLE connection drops
+}

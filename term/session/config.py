@@ -1,0 +1,323 @@
+"""The terminal's TOML config file, in the platform's config directory (platformdirs).
+
+Everything is optional; a missing file means the defaults. Every value is checked where it is read, against one
+schema (``CONFIG_SCHEMA``: section, key, type, range): a wrong type, nan or inf, a number out of range, an unknown
+section or key (with the nearest known one), bad UTF-8 or bad TOML is a ``ConfigError`` of one line naming the
+file, the key and what is allowed, e.g. ``config file term.toml: [connection] link_timeout: must be a number
+between 0.05 and 60 s, got nan``. The key map refuses unknown key names, and PANIC, SAFE and lift down always
+keep a key (term/input/keymap.py). An example::
+
+    [connection]
+    port = "/dev/ttyUSB0"      # used when neither --serial nor --sim is given
+    baud = 115200
+    link_timeout = 0.5         # seconds without a frame before the terminal shows LINK LOST
+    joystick = "stream"        # or "on-change", "fixed-rate" (see JOYSTICK_POLICIES below)
+
+    [keys]                     # rebind any action by name (see the help screen, F1)
+    preset = "lab"             # or "natural": ← banks left, → banks right (the lab's map banks right on ←)
+    mode_panic = ["1", "escape"]
+
+    [alarms]
+    bell = true                # the terminal's bell on LINK LOST, PANIC, low battery and a crash
+
+    [params]
+    file = "~/quadrupel/my-board.toml"   # a set saved with 'term params save' (or the parameter screen)
+    apply_on_connect = false   # true: sent to the board each time it says Hello (docs/parameters.md)
+
+    [joystick]
+    mapping = ""               # force a mapping by name; empty: pick by the stick's name
+    resolution = 64            # stick units below which a change is jitter
+
+    [joystick.mappings.my_stick]
+    match = ["Thrustmaster"]
+    roll = { axis = 0 }
+    lift = { axis = 2, invert = true, kind = "throttle" }
+    fire = [0]
+
+    [plots]
+    series = ["phi", "theta", "psi", "height"]
+    window = 10.0              # seconds shown
+
+    [log]
+    directory = "~/quadrupel-logs"
+"""
+
+from __future__ import annotations
+
+import tomllib
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from term.core.logfile import check_directory
+from term.core.schema import Flag, ListOf, Number, OneOf, SchemaError, Table, TableOf, Text, nearest, one_line, shown
+from term.input.keymap import KeyBinding, KeymapError, build_keymap
+from term.input.mapping import (
+    LAB,
+    MAPPING_TABLE,
+    PLAYSTATION,
+    PRESETS,
+    RESOLUTION_RANGE,
+    XBOX,
+    StickMapping,
+    mapping_from_dict,
+)
+
+APP_NAME = "quadrupel"
+FILE_NAME = "term.toml"
+CONFIG_MAX_BYTES = 1_000_000  # a config is a few hundred bytes; this keeps `--config /dev/zero` from eating memory
+
+# Telemetry series the plots can show: name -> (label, unit).
+PLOT_SERIES: dict[str, tuple[str, str]] = {
+    "phi": ("roll φ", "°"),
+    "theta": ("pitch θ", "°"),
+    "psi": ("yaw ψ", "°"),
+    "sp": ("roll rate p", "°/s"),
+    "sq": ("pitch rate q", "°/s"),
+    "sr": ("yaw rate r", "°/s"),
+    "ae1": ("motor 1", ""),
+    "ae2": ("motor 2", ""),
+    "ae3": ("motor 3", ""),
+    "ae4": ("motor 4", ""),
+    "height": ("height", "m"),
+    "setpoint": ("height set point", "m"),
+    "vz": ("vertical speed", "m/s"),
+    "pressure": ("pressure", "Pa"),
+    "battery": ("battery", "V"),
+    "rtt": ("link RTT", "ms"),
+}
+
+
+# How the joystick goes out over the cable (LinkSession options; bench/latency.py measures each):
+# - "stream" (default): a change goes out at once (at most one frame per ms), and the latest value is resent
+#   every 10 ms while nothing changes, so the board hears the stick at >= 100 Hz and a lost frame is repaired
+#   within 10 ms; the joystick poller makes at most 100 changes a second, so the cable carries <= 200 frames/s;
+# - "on-change": a change at once, otherwise a keep-alive every 0.1 s (less traffic, slower repair);
+# - "fixed-rate": the latest value in fixed 100 Hz slots (a change waits for the next slot: +5 ms on average).
+JOYSTICK_POLICIES: dict[str, dict[str, float | bool]] = {
+    "stream": {"change_only": True, "joystick_rate": 1000.0, "keepalive": 0.01},
+    "on-change": {"change_only": True, "joystick_rate": 1000.0, "keepalive": 0.1},
+    "fixed-rate": {"joystick_rate": 100.0},
+}
+
+
+# Ranges of the numbers a user may set (the config file and the same options on the command line).
+BAUD = Number(50, 4_000_000, integer=True, unit="baud")  # up to Linux's highest standard rate, B4000000
+LINK_TIMEOUT = Number(0.05, 60.0, unit="s")  # as fcb-sim serve --link-timeout: nan would never time out
+PLOT_WINDOW = Number(1.0, 60.0, unit="s")  # the model keeps 60 s of each series (term/session/model.py HISTORY)
+
+
+class ConfigError(ValueError):
+    """The config file cannot be used; the message is one line naming the file."""
+
+
+@dataclass
+class Config:
+    port: str | None = None
+    baud: int = 115200
+    link_timeout: float = 0.5  # as the board's: LINK LOST shows no later than the board's own PANIC
+    joystick_policy: str = "stream"
+    keymap: tuple[KeyBinding, ...] = field(default_factory=build_keymap)
+    key_preset: str = "lab"
+    bell: bool = True  # the terminal's bell on an alarm (term/session/alarms.py)
+    params_file: Path | None = None  # a parameter set (term/session/param_client.py) ...
+    params_apply: bool = False  # ... sent to the board when it says Hello
+    joystick_mapping: str = ""
+    joystick_resolution: int = 64
+    joystick_mappings: tuple[StickMapping, ...] = ()
+    plot_series: tuple[str, ...] = ("phi", "theta", "psi", "height")
+    plot_window: float = 10.0
+    log_directory: Path = field(default_factory=lambda: Path.home() / "quadrupel-logs")
+    source: Path | None = None  # the file these came from, if any
+
+
+def default_path() -> Path:
+    from platformdirs import user_config_path
+
+    return user_config_path(APP_NAME, appauthor=False) / FILE_NAME
+
+
+def load_config(path: Path | None = None, *, required: bool = False) -> Config:
+    """Read ``path`` (default: the platform's config file). A missing default file is fine; a missing file the
+    user named (``required``) is an error. Every problem is a ``ConfigError`` of one line naming the file."""
+    path = path or default_path()
+    try:
+        with path.open("rb") as f:
+            raw = f.read(CONFIG_MAX_BYTES + 1)
+    except FileNotFoundError:
+        if required:
+            raise ConfigError(f"config file {path} not found") from None
+        return Config()
+    except OSError as exc:
+        raise ConfigError(f"cannot read config file {path}: {exc.strerror or exc}") from None
+    if len(raw) > CONFIG_MAX_BYTES:
+        raise ConfigError(f"config file {path} is larger than {CONFIG_MAX_BYTES // 1000} kB: not a term.toml")
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise ConfigError(f"config file {path} is not UTF-8 text (byte {raw[exc.start]:#04x} at offset "
+                          f"{exc.start}); TOML files are UTF-8") from None
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(one_line(f"config file {path} is not valid TOML: {exc}")) from None
+    except RecursionError:
+        raise ConfigError(f"config file {path} is not usable TOML: its values nest too deeply") from None
+    try:
+        cfg = config_from_dict(data)
+    except (SchemaError, KeymapError) as exc:
+        raise ConfigError(one_line(f"config file {path}: {exc}")) from None
+    cfg.source = path
+    return cfg
+
+
+class _KeysSpec:
+    """[keys]: the key map checks its own rules (known actions and key names, clashes, safety keys)."""
+
+    section = True
+
+    def describe(self) -> str:
+        return "a table of action = key names"
+
+    def check(self, value: Any, where: str) -> tuple[tuple[KeyBinding, ...], str]:
+        if not isinstance(value, Mapping):
+            raise SchemaError(f"{where}: must be {self.describe()}, got {shown(value)}")
+        overrides = dict(value)
+        preset = overrides.pop("preset", "lab")
+        return build_keymap(overrides, preset), preset
+
+
+# The file's format in one place: section -> key -> type and range (the defaults are Config's).
+CONFIG_SCHEMA = Table({
+    "connection": Table({
+        "port": Text(nonempty=True, what="a port name"),
+        "baud": BAUD,
+        "link_timeout": LINK_TIMEOUT,
+        "joystick": OneOf(tuple(JOYSTICK_POLICIES)),
+    }, section=True),
+    "keys": _KeysSpec(),
+    "joystick": Table({
+        "mapping": Text(),
+        "resolution": Number(*RESOLUTION_RANGE, integer=True, unit="stick units"),
+        "mappings": TableOf(MAPPING_TABLE),
+    }, section=True),
+    "plots": Table({
+        "series": ListOf(OneOf(tuple(PLOT_SERIES)), min_len=1, max_len=len(PLOT_SERIES), unique=True),
+        "window": PLOT_WINDOW,
+    }, section=True),
+    "log": Table({"directory": Text(nonempty=True, what="a directory")}, section=True),
+    "alarms": Table({"bell": Flag()}, section=True),
+    "params": Table({"file": Text(nonempty=True, what="a parameter file"), "apply_on_connect": Flag()}, section=True),
+})
+
+
+def config_from_dict(data: Mapping[str, Any]) -> Config:
+    """A ``Config`` from parsed TOML, every value checked against ``CONFIG_SCHEMA`` (``SchemaError`` or
+    ``KeymapError``, one line naming the section and key)."""
+    v = CONFIG_SCHEMA.check(data, "")
+    cfg = Config()
+    conn = v.get("connection", {})
+    cfg.port = conn.get("port", cfg.port)
+    cfg.baud = conn.get("baud", cfg.baud)
+    cfg.link_timeout = conn.get("link_timeout", cfg.link_timeout)
+    cfg.joystick_policy = conn.get("joystick", cfg.joystick_policy)
+    if "keys" in v:
+        cfg.keymap, cfg.key_preset = v["keys"]
+    cfg.bell = v.get("alarms", {}).get("bell", cfg.bell)
+    params = v.get("params", {})
+    if "file" in params:
+        cfg.params_file = Path(params["file"]).expanduser()
+    cfg.params_apply = params.get("apply_on_connect", cfg.params_apply)
+    if cfg.params_apply and cfg.params_file is None:
+        raise SchemaError("[params] apply_on_connect: needs [params] file, the set to apply")
+
+    js = v.get("joystick", {})
+    cfg.joystick_resolution = js.get("resolution", cfg.joystick_resolution)
+    cfg.joystick_mappings = tuple(mapping_from_dict(name, m) for name, m in (js.get("mappings") or {}).items())
+    cfg.joystick_mapping = js.get("mapping", "")
+    if cfg.joystick_mapping and forced_mapping(cfg) is None:
+        names = [*SHORT_NAMES, *(m.name for m in cfg.joystick_mappings)]
+        raise SchemaError(f"[joystick] mapping: {shown(cfg.joystick_mapping)} is neither a preset nor in "
+                          f"[joystick.mappings]{nearest(cfg.joystick_mapping, names)}; known: {', '.join(names)}")
+
+    plots = v.get("plots", {})
+    cfg.plot_series = tuple(plots.get("series", cfg.plot_series))
+    cfg.plot_window = plots.get("window", cfg.plot_window)
+
+    directory = v.get("log", {}).get("directory")
+    if directory:
+        why = check_directory(Path(directory))
+        if why:
+            raise SchemaError(f"[log] directory: {why}")
+        cfg.log_directory = Path(directory).expanduser()
+    return cfg
+
+
+SHORT_NAMES = ("lab", "xbox", "playstation")
+
+
+def forced_mapping(cfg: Config) -> StickMapping | None:
+    """The mapping the config forces by name, if any."""
+    if not cfg.joystick_mapping:
+        return None
+    short = dict(zip(SHORT_NAMES, (LAB, XBOX, PLAYSTATION), strict=True))
+    if cfg.joystick_mapping in short:
+        return short[cfg.joystick_mapping]
+    for m in (*cfg.joystick_mappings, *PRESETS):
+        if m.name == cfg.joystick_mapping:
+            return m
+    return None
+
+
+def mapping_table_name(device: str) -> str:
+    """A TOML bare key for a device's own mapping ("Logitech Extreme 3D" -> "logitech_extreme_3d")."""
+    import re
+
+    return (re.sub(r"[^a-z0-9_-]+", "_", device.lower()).strip("_") or "my_stick")[:40]
+
+
+def mapping_toml(name: str, mapping: StickMapping, device: str) -> str:
+    """One ``[joystick.mappings.NAME]`` table for ``mapping``, matching ``device`` by its name."""
+    import json
+
+    def axis(a: Any) -> str:
+        return (f"{{ axis = {a.index}, invert = {'true' if a.invert else 'false'}, deadzone = {a.deadzone:.3f}, "
+                f"kind = {json.dumps(a.kind)} }}")
+
+    lines = [f"[joystick.mappings.{name}]", f"match = [{json.dumps(device, ensure_ascii=False)}]"]
+    lines += [f"{k} = {axis(getattr(mapping, k))}" for k in ("roll", "pitch", "yaw", "lift")]
+    lines.append(f"fire = [{', '.join(str(b) for b in mapping.fire)}]")
+    return "\n".join(lines) + "\n"
+
+
+def save_joystick_mapping(path: Path, mapping: StickMapping, device: str) -> str:
+    """Write ``mapping`` into the config file at ``path`` as the device's own mapping (replacing an earlier one of
+    the same name, keeping the rest of the file as it is) and return the table's name. The new file is checked as
+    the terminal will read it before it is written; trouble is a ``ConfigError`` of one line."""
+    import re
+
+    name = mapping_table_name(device)
+    try:
+        old = path.read_text(encoding="utf-8") if path.exists() else ""
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ConfigError(f"cannot read config file {path}: {exc}") from None
+    header = re.compile(rf"^\[\s*joystick\.mappings\.{re.escape(name)}\s*[\].]")
+    kept, skipping = [], False
+    for line in old.splitlines():
+        if line.lstrip().startswith("["):
+            skipping = bool(header.match(line.strip()))
+        if not skipping:
+            kept.append(line)
+    body = "\n".join(kept).rstrip()
+    text = (body + "\n\n" if body else "") + mapping_toml(name, mapping, device)
+    try:
+        config_from_dict(tomllib.loads(text))
+    except (tomllib.TOMLDecodeError, SchemaError, KeymapError) as exc:
+        raise ConfigError(one_line(f"config file {path}: not saved, it would not load: {exc}")) from None
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(text, encoding="utf-8")
+    except OSError as exc:
+        raise ConfigError(f"cannot write config file {path}: {exc.strerror or exc}") from None
+    return name

@@ -1,0 +1,193 @@
+"""The asyncio pump that runs a ``LinkSession`` over a ``Transport``.
+
+Two tasks share one session (single-threaded, so no locking of the session itself):
+
+- the read task awaits the transport, feeds ``session.receive`` and writes ``data_to_send`` in the same step,
+  so a heartbeat is answered the moment it arrives, never at the next UI tick;
+- the timer task sleeps until ``session.next_deadline()`` (or until woken by a new command or stick value),
+  then runs ``poll`` and writes what is due.
+
+Events go to the ``on_event`` callback, or, without one, into ``events`` (an asyncio.Queue). A transport that
+dies ends the connection with one ``TransportFailed`` event carrying the transport's one-line message; ``stop``
+is a clean stop that emits nothing.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+
+from term.core.link import LinkEvent, LinkSession, LinkStats
+from term.core.protocol import Joystick, Op
+from term.transports.base import Transport, TransportClosed, TransportError
+
+
+@dataclass(frozen=True, slots=True)
+class TransportFailed:
+    """The transport died; ``message`` is its one clear line. The connection has stopped."""
+
+    message: str
+
+
+ConnectionEvent = LinkEvent | TransportFailed
+
+
+class Connection:
+    """``Connection(transport, session)``; ``await start()`` (opens the transport), ``await stop()``."""
+
+    def __init__(
+        self,
+        transport: Transport,
+        session: LinkSession,
+        clock: Callable[[], float] = time.monotonic,
+        on_event: Callable[[ConnectionEvent], None] | None = None,
+    ) -> None:
+        self.transport = transport
+        self.session = session
+        self.clock = clock
+        self.on_event = on_event
+        self.events: asyncio.Queue[ConnectionEvent] = asyncio.Queue()
+        self.error: TransportError | None = None
+        self.crash: Exception | None = None
+        self._wake = asyncio.Event()
+        self._write_lock = asyncio.Lock()
+        self._tasks: list[asyncio.Task[None]] = []
+        self._done = asyncio.Event()
+        self._running = False
+
+    # --- life cycle -----------------------------------------------------------------------------------------
+
+    async def start(self) -> None:
+        """Open the transport, send our Hello, start the pump. Raises TransportError if the open fails."""
+        await self.transport.open()
+        self._running = True
+        self._done.clear()
+        try:
+            await self._write(self.session.hello())
+        except BaseException:
+            self._running = False
+            await self.transport.close()
+            raise
+        self._tasks = [
+            asyncio.create_task(self._read_loop(), name=f"link read {self.transport.name}"),
+            asyncio.create_task(self._timer_loop(), name=f"link timer {self.transport.name}"),
+        ]
+
+    async def stop(self) -> None:
+        """Stop the pump and close the transport. Idempotent; emits no event."""
+        self._running = False
+        current = asyncio.current_task()
+        tasks = [t for t in self._tasks if t is not current]
+        for t in tasks:
+            t.cancel()
+        for t in tasks:
+            with contextlib.suppress(asyncio.CancelledError, Exception):
+                await t
+        self._tasks = []
+        await self.transport.close()
+        self._done.set()
+
+    async def wait_closed(self) -> None:
+        """Wait until the connection stops; raises its TransportError if the transport died."""
+        await self._done.wait()
+        if self.crash is not None:
+            raise self.crash
+        if self.error is not None:
+            raise self.error
+
+    async def __aenter__(self) -> Connection:
+        await self.start()
+        return self
+
+    async def __aexit__(self, *exc: object) -> None:
+        await self.stop()
+
+    @property
+    def running(self) -> bool:
+        return self._running
+
+    # --- the app's side -------------------------------------------------------------------------------------
+
+    def send_command(self, op: Op, arg: int = 0) -> int:
+        """Queue a command (sent at once by the timer task); returns its cmd_id."""
+        cmd_id = self.session.send_command(op, arg, self.clock())
+        self._wake.set()
+        return cmd_id
+
+    def set_joystick(self, js: Joystick) -> None:
+        self.session.set_joystick(js)
+        self._wake.set()
+
+    @property
+    def stats(self) -> LinkStats:
+        return self.session.stats_at(self.clock())
+
+    # --- the pump -------------------------------------------------------------------------------------------
+
+    async def _read_loop(self) -> None:
+        session = self.session
+        try:
+            while True:
+                data = await self.transport.read()
+                events = session.receive(data, self.clock())
+                await self._flush()  # heartbeat ACKs leave now, in this step
+                self._deliver(events)
+                self._wake.set()  # deadlines may have moved (an Ack removed a retry)
+        except TransportClosed as exc:
+            if self._running:  # closed under us, not by stop(): the link is gone all the same
+                await self._fail(exc)
+        except TransportError as exc:
+            await self._fail(exc)
+        except Exception as exc:  # a bug (e.g. in on_event): stop, and let wait_closed raise it
+            self.crash = exc
+            await self.stop()
+
+    async def _timer_loop(self) -> None:
+        session = self.session
+        try:
+            while True:
+                events = session.poll(self.clock())
+                await self._flush()
+                self._deliver(events)
+                delay = session.next_deadline() - self.clock()
+                if delay > 0:
+                    self._wake.clear()
+                    # asyncio.timeout, not wait_for: 3.11's wait_for can swallow the cancel that stop() sends.
+                    with contextlib.suppress(TimeoutError):
+                        async with asyncio.timeout(min(delay, 3600.0)):
+                            await self._wake.wait()
+        except TransportClosed as exc:
+            if self._running:  # closed under us, not by stop(): the link is gone all the same
+                await self._fail(exc)
+        except TransportError as exc:
+            await self._fail(exc)
+        except Exception as exc:  # a bug (e.g. in on_event): stop, and let wait_closed raise it
+            self.crash = exc
+            await self.stop()
+
+    async def _flush(self) -> None:
+        async with self._write_lock:  # take the bytes and write them as one step, so order is kept
+            data = self.session.data_to_send(self.clock())
+            if data:
+                await self.transport.write(data)
+
+    async def _write(self, data: bytes) -> None:
+        async with self._write_lock:
+            await self.transport.write(data)
+
+    def _deliver(self, events: list[ConnectionEvent] | list[LinkEvent]) -> None:
+        for ev in events:
+            if self.on_event is not None:
+                self.on_event(ev)
+            else:
+                self.events.put_nowait(ev)
+
+    async def _fail(self, exc: TransportError) -> None:
+        if self.error is not None or not self._running:
+            return
+        self.error = exc
+        self._deliver([TransportFailed(str(exc))])
+        await self.stop()

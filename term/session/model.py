@@ -1,0 +1,790 @@
+"""What the screen shows, as plain data, rendered by the widgets at a steady rate. No Textual here, no clock
+reads: every update takes ``now`` (seconds, the app's monotonic clock).
+
+The model changes in one place: ``apply(event, now)``, which dispatches through a table of handlers
+(``_HANDLERS``), one per event type: a link session's events (``term.core.link``; the radio's wrapped in
+``term.core.events.FromLink``), the station's (links up and down, retries, commands sent or refused, the stick) and the
+front end's (notes, the joystick's name). ``Station.emit`` is its caller; tests may call the handlers' helpers
+(``apply_packet``, ``radio_event``, ``set_link_stats``) directly. The two-link rules (which silence is an
+alarm, STARTED left only for DISCONNECTED) live in the handlers and the derived properties.
+
+Every telemetry figure knows the time of the packet behind it: ``reading(name, now)`` (term.core.freshness) gives its
+value, age, staleness, whether the current link carries it and its bound at the field's limit.
+
+``version`` increases on every change so the renderer can skip frames when nothing happened.
+"""
+
+from __future__ import annotations
+
+import re
+from collections import deque
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+from term.core.events import (
+    RADIO,
+    EventsCleared,
+    FromLink,
+    JoystickNamed,
+    LinkConnecting,
+    LinkDown,
+    LinkFailed,
+    LinkUp,
+    LinkWaiting,
+    Note,
+    NotSent,
+    Requested,
+    StatsSample,
+    StickSet,
+)
+from term.core.freshness import Arrivals, Reading, read, spec_of
+from term.core.link import (
+    CommandAcked,
+    CommandFailed,
+    LinkLost,
+    LinkRestored,
+    LinkStats,
+    PacketReceived,
+    VersionMismatch,
+)
+from term.core.logfile import LogDownload
+from term.core.protocol import (
+    BATTERY_FULL,
+    BATTERY_LOW,
+    BATTERY_WARN,
+    EVENT_ARG_SCALE,
+    FLIGHT_MODES,
+    PARAMS,
+    Attitude,
+    Compact,
+    Compact2,
+    Event,
+    EventCode,
+    Flag,
+    Gains,
+    Height,
+    Hello,
+    Joystick,
+    LogChunk,
+    LogState,
+    LogStatus,
+    Mode,
+    Motion,
+    Nak,
+    Op,
+    ParamValue,
+    Profile,
+    Status,
+    WirelessState,
+    field_scale,
+    param_split,
+    scaled,
+)
+from term.input.keymap import ZERO_TRIM_STEPS
+
+_VOLTS = field_scale(Height, "battery")
+BATTERY_PANIC_V = BATTERY_LOW * _VOLTS  # the board's PANIC threshold while flying
+BATTERY_WARN_V = BATTERY_WARN * _VOLTS  # a 3S LiPo at its nominal voltage: time to land
+BATTERY_FULL_V = BATTERY_FULL * _VOLTS
+HISTORY = 3000  # samples kept per plotted series (60 s at 50 Hz)
+
+
+
+def battery_level(volts: float) -> str:
+    """"panic" under the board's PANIC threshold, "warn" under a 3S LiPo's nominal voltage (time to land), else
+    "ok"."""
+    if volts < BATTERY_PANIC_V:
+        return "panic"
+    if volts < BATTERY_WARN_V:
+        return "warn"
+    return "ok"
+
+
+def mode_name(mode: int | None) -> str:
+    if mode is None:
+        return "—"
+    try:
+        return Mode(mode).name
+    except ValueError:
+        return f"MODE {mode}"
+
+
+def op_text(op: int, arg: int) -> str:
+    """A command in words, for the events list."""
+    try:
+        o = Op(op)
+    except ValueError:
+        return f"op {op}"
+    if o is Op.MODE:
+        return f"mode {mode_name(arg)}"
+    if o is Op.WIRELESS:
+        return "wireless handover" if arg else "wireless hand-back"
+    if o is Op.SET_PARAM:
+        pid, raw = param_split(arg)
+        spec = PARAMS.get(pid)  # type: ignore[call-overload]
+        return f"set param {pid} = {raw}" if spec is None else f"set {spec.name} = {spec.text(spec.from_raw(raw))}"
+    if o is Op.PARAM_GET:
+        spec = PARAMS.get(arg)  # type: ignore[call-overload]
+        return f"get param {arg}" if spec is None else f"get {spec.name}"
+    if o is Op.PARAM_LIST:
+        return "list the parameters"
+    name = o.name.lower().replace("_", " ")
+    if o is Op.TRIM_LIFT and arg <= ZERO_TRIM_STEPS:
+        return "lift trim to zero"
+    if o.name.startswith(("TRIM_", "GAIN_")):
+        return f"{name} {'+' if arg > 0 else ''}{arg}"
+    return name
+
+
+def event_text(code: int, arg: int, flying: bool = True) -> tuple[str, str]:
+    """(severity, text) for a board Event; ``flying``: the board was in a flight mode when it sent it (a link
+    timeout PANICs only there)."""
+    try:
+        c = EventCode(code)
+    except ValueError:
+        return "warning", f"board event {code} ({arg})"
+    if c is EventCode.BOOT:
+        return "info", f"board booted (protocol v{arg})"
+    if c is EventCode.MODE_CHANGED:
+        return "info", f"mode {mode_name(arg >> 8)} → {mode_name(arg & 0xFF)}"
+    if c is EventCode.REFUSED:
+        try:
+            why = _nak_text(Nak(arg >> 8))
+        except ValueError:
+            why = f"reason {arg >> 8}"
+        return "error", f"board refused {mode_name(arg & 0xFF)}: {why}"
+    if c is EventCode.LOW_BATTERY:
+        return "error", f"LOW BATTERY {_event_arg(c, arg):.2f} V"
+    if c is EventCode.LINK_TIMEOUT:
+        silent = f"board saw link timeout ({_event_arg(c, arg) * 1000:.0f} ms silent)"
+        return ("error", f"{silent}: PANIC") if flying else ("warning", f"{silent}: not flying, no PANIC")
+    if c is EventCode.TILT_LIMIT:
+        return "error", f"tilt limit {_event_arg(c, arg):.1f}°: PANIC"
+    if c is EventCode.PANIC_DONE:
+        return "info", "panic done: motors off, SAFE"
+    if c is EventCode.CALIBRATION_DONE:
+        return "info", f"calibration done ({arg} samples)"
+    if c is EventCode.LOG_FULL:
+        return "warning", f"log flash full ({arg} bytes)"
+    if c is EventCode.LOG_DONE:
+        return "info", f"log download sent ({arg} chunks)"
+    if c is EventCode.WIRELESS_STATE:
+        try:
+            return "info", f"wireless {WirelessState(arg).name}"
+        except ValueError:
+            return "info", f"wireless state {arg}"
+    if c is EventCode.DEADLINE_MISS:
+        return "warning", f"deadline miss (period {arg} µs)"
+    if c is EventCode.SENSOR_FAULT:
+        return "error", f"sensor fault (sensor {arg})"
+    if c is EventCode.OVERFLOW:
+        return "warning", f"board receive queue overflow ({arg} bytes dropped)"
+    if c is EventCode.PARAM_CHANGED:
+        pid, raw = param_split(arg)
+        spec = PARAMS.get(pid)  # type: ignore[call-overload]
+        if spec is None:
+            return "info", f"param {pid}: {raw} (not in this terminal's table)"
+        value = spec.from_raw(raw)
+        default = "" if raw == spec.to_raw(spec.default) else f" (default {spec.text(spec.default)})"
+        return "info", f"param {spec.name}: {spec.text(value)}{(' ' + spec.unit) if spec.unit else ''}{default}"
+    return "info", f"{c.name.lower()} ({arg})"
+
+
+def _event_arg(code: EventCode, arg: int) -> float:
+    """An Event's argument in its unit (V, s, °; EVENT_ARG_SCALE)."""
+    return arg * EVENT_ARG_SCALE[code][0]
+
+
+def _nak_text(nak: Nak) -> str:
+    from term.core.protocol import NAK_TEXT
+
+    return NAK_TEXT.get(nak, nak.name)
+
+
+@dataclass(frozen=True, slots=True)
+class LogEntry:
+    t: float  # seconds since the terminal started
+    severity: str  # "info", "warning", "error"
+    source: str  # "board", "nak", "link", "term", "joystick"
+    text: str
+    count: int = 1  # the same line this many times (merged: ``Model.note``)
+    seq: int = 0  # the order lines were written in (a merged repeat is written again)
+
+
+MERGE_S = 60.0  # a line the same as one of the last MERGE_BACK lines within this is merged into it, with a count
+MERGE_BACK = 4
+REFUSAL_PAIR_S = 2.0  # the board's Ack NAK and its REFUSED event for one request: said once
+_BOARD_TIME = re.compile(r"^\[[0-9.]+\] ")
+_PARAM_LINE = re.compile(r"^param (\S+): ")
+
+
+def merge_key(text: str) -> str:
+    """What makes two lines the same: their text without the board's time stamp; a parameter's changes are one
+    line (its latest value, with the count)."""
+    text = _BOARD_TIME.sub("", text)
+    m = _PARAM_LINE.match(text)
+    return f"param {m.group(1)}" if m else text
+
+
+@dataclass
+class Model:
+    start: float = 0.0
+    version: int = 0
+    # board state
+    mode: int | None = None
+    attitude: Attitude | None = None
+    motion: Motion | None = None
+    height: Height | None = None
+    status: Status | None = None
+    gains: Gains | None = None
+    hello: Hello | None = None
+    board_ms: int | None = None
+    profiles: dict[int, Profile] = field(default_factory=dict)
+    log_status: LogStatus | None = None
+    # terminal state
+    stick: Joystick = field(default_factory=lambda: Joystick(0, 0, 0, 0, 0))
+    joystick_name: str | None = None
+    joystick_mapping: str = ""
+    link: LinkStats | None = None
+    link_lost: bool = False
+    link_name: str = ""
+    version_mismatch: VersionMismatch | None = None
+    download: LogDownload | None = None
+    download_note: str = ""
+    events: deque[LogEntry] = field(default_factory=lambda: deque(maxlen=500))
+    history: dict[str, deque[tuple[float, float]]] = field(default_factory=dict)
+    pending: int = 0  # commands sent and not yet answered
+    wireless: int = 0  # WirelessState, as the board last said
+    compact: Compact | None = None  # the phone's telemetry (over BLE): mode, attitude, battery
+    compact2: Compact2 | None = None  # the rest of the flight screen over BLE: motors, height, vz, flags, lift trim
+    flag_bits: int = 0  # the board's status bits from the latest of Status (cable) and Compact2 (BLE)
+    # The radio: a second link over BLE beside the cable (term --sim, term --serial P --ble A). Empty name: none.
+    # ``primary_ble``: the only link is BLE (term --ble), so it always carries control.
+    radio_name: str = ""
+    radio: LinkStats | None = None
+    radio_up: bool = False  # the BLE connection is open
+    radio_lost: bool = False  # STARTED, yet nothing from the board over BLE for the link timeout
+    radio_note: str = ""  # why the radio is down and when it is tried again
+    primary_ble: bool = False
+    heard: bool = False  # a valid frame arrived from the board (on any link)
+    arrivals: Arrivals = field(default_factory=Arrivals)  # when each telemetry packet came: term.core.freshness
+    refused: dict[int, tuple[str, float]] = field(default_factory=dict)  # Nak -> (the refusal's text, when)
+    params: dict[str, float | str | bool] = field(default_factory=dict)  # the board's parameters by name, as heard
+    param_raw: dict[int, int] = field(default_factory=dict)  # Param -> raw value, as heard
+    param_refused: dict[str, str] = field(default_factory=dict)  # name -> why the board refused the last set
+    event_times: dict[int, float] = field(default_factory=dict)  # EventCode -> when the board last said it
+    notes_written: int = 0  # lines written to the events list (merged repeats too): LogEntry.seq
+    _refusal_said: dict[tuple[int, int], float] = field(default_factory=dict)  # (mode, Nak) -> when said
+    _misses: tuple[int, int, float, int] = (0, 0, 0.0, 0)  # deadline misses: count, longest period, first, seq
+    _erasing: int | None = None  # records in the log when its erase was asked for
+    _bad_noted: int = 0
+    _link_noted: float = -1e9
+    _loss_noted: float = -1e9
+
+    # --- updates ------------------------------------------------------------------------------------------
+
+    def note(self, now: float, severity: str, source: str, text: str) -> None:
+        """A line in the events list. The same line (``merge_key``) as one of the last few, within ``MERGE_S``,
+        is merged into it: moved to the end with its count raised, not written again."""
+        t = now - self.start
+        events = self.events
+        key = merge_key(text)
+        for i in range(len(events) - 1, max(-1, len(events) - 1 - MERGE_BACK), -1):
+            e = events[i]
+            if e.source == source and e.severity == severity and t - e.t <= MERGE_S and merge_key(e.text) == key:
+                del events[i]
+                self._write(LogEntry(t, severity, source, text, e.count + 1))
+                return
+        self._write(LogEntry(t, severity, source, text))
+
+    def _write(self, entry: LogEntry) -> None:
+        self.notes_written += 1
+        self.events.append(LogEntry(entry.t, entry.severity, entry.source, entry.text, entry.count,
+                                    self.notes_written))
+        self.version += 1
+
+    def _refusal(self, mode: int, nak: int, text: str, now: float) -> bool:
+        """Note a refusal of ``mode`` for ``nak`` (its readiness item shows it); False if it was just said (the
+        board answers a refused mode twice: the Ack's NAK and a REFUSED event)."""
+        self.refused[nak] = (text, now)
+        said = self._refusal_said.get((mode, nak))
+        self._refusal_said[(mode, nak)] = now
+        return said is None or now - said > REFUSAL_PAIR_S
+
+    def _deadline_miss(self, now: float, period_us: int) -> None:
+        """Deadline misses as one line, kept up to date: how many, since when, the longest period."""
+        n, worst, first, seq = self._misses
+        if n == 0:
+            first = now - self.start
+        n, worst = n + 1, max(worst, period_us)
+        for i, e in enumerate(self.events):
+            if e.seq == seq:
+                del self.events[i]
+                break
+        text = (f"deadline miss (period {period_us} µs)" if n == 1 else
+                f"deadline misses: {n} since {first:.0f} s (longest period {worst} µs)")
+        self._write(LogEntry(now - self.start, "warning", "board", text))
+        self._misses = (n, worst, first, self.notes_written)
+
+    def apply(self, event: Any, now: float) -> None:
+        """The one way the model changes: one event, from a link's session (the board's link; the radio's come
+        wrapped in ``FromLink``), from the station (``term.core.events``) or from the front end."""
+        handler = _HANDLERS.get(type(event))
+        if handler is not None:
+            handler(self, event, now)
+
+    # --- the board's link's session events ------------------------------------------------------------------
+
+    def _on_packet(self, event: PacketReceived, now: float) -> None:
+        self.heard = True
+        self.apply_packet(event.packet, now)
+
+    def _on_acked(self, event: CommandAcked, now: float) -> None:
+        self.version += 1
+        self.pending = max(0, self.pending - 1)
+        self.arrivals.note_ack(event.op, event.value, now)  # a trim's Ack carries the new trim
+        said = _LOG_ACKS.get(event.op)
+        if said is not None:
+            self.note(now, "info", "term", said(self, event.value))
+        if event.op == Op.SET_PARAM:
+            self._param(param_split(event.arg)[0], event.value)
+        elif event.op == Op.PARAM_GET:
+            self._param(event.arg, event.value)
+
+    def _on_failed(self, event: CommandFailed, now: float) -> None:
+        self.version += 1
+        self.pending = max(0, self.pending - 1)
+        what = op_text(event.op, event.arg)
+        if event.nak is not None and event.op == Op.SET_PARAM:
+            spec = PARAMS.get(param_split(event.arg)[0])  # type: ignore[call-overload]
+            if spec is not None:
+                self.param_refused[spec.name] = event.reason
+        if event.op == Op.PARAM_LIST and event.nak in (Nak.NOT_IMPLEMENTED, Nak.UNKNOWN_COMMAND):
+            # the terminal asks every board it meets; one without parameters is no error
+            self.note(now, "info", "params", f"this board has no parameter list ({event.reason})")
+            return
+        if event.nak is not None:
+            text = f"NAK {what}: {event.reason}"
+            mode = event.arg if event.op == Op.MODE else -1
+            if self._refusal(mode, int(event.nak), text, now):
+                self.note(now, "error", "nak", text)
+        elif event.op in (Op.LOG_DOWNLOAD, Op.LOG_STATUS) and self.download is not None:
+            # The log download retries its own requests until its deadline (term.session.download): not the end of it.
+            self.note(now, "warning", "link", f"{what} failed: {event.reason}; the download tries again")
+        else:
+            self.note(now, "error", "link", f"{what} failed: {event.reason}")
+
+    def _on_lost(self, event: LinkLost, now: float) -> None:
+        self.version += 1
+        self.link_lost = True
+        if self.radio_name and self.over_ble:
+            self.note(now, "info", "link", f"cable silent for {event.silent_s:.1f} s: flying over BLE")
+        elif self.primary_ble and not self.heard:
+            self.note(now, "info", "link", "nothing over BLE yet: the board talks here after the handover "
+                      "(key 8 on the cable terminal, in SAFE)")
+        else:
+            self.note(now, "error", "link", f"LINK LOST: nothing from the board for {event.silent_s:.1f} s")
+
+    def _on_restored(self, event: LinkRestored, now: float) -> None:
+        self.version += 1
+        self.link_lost = False
+        self.note(now, "info", "link", f"link restored after {event.lost_for_s:.1f} s")
+
+    def _on_mismatch(self, event: VersionMismatch, now: float) -> None:
+        self.version += 1
+        self.version_mismatch = event
+        self.note(now, "error", "link", f"board speaks protocol v{event.board_version}, terminal "
+                  f"v{event.our_version}: update one of them")
+
+    # --- the station's events -------------------------------------------------------------------------------
+
+    def _on_from_link(self, event: FromLink, now: float) -> None:
+        if event.link == RADIO:
+            self.radio_event(event.event, now)
+        else:
+            self.apply(event.event, now)
+
+    def _on_link_up(self, event: LinkUp, now: float) -> None:
+        if event.link == RADIO:
+            self.radio_up = True
+            self.radio_note = ""
+            self.note(now, "info", "ble", f"radio connected: {event.name} (key 8 in SAFE hands control over to it)")
+        else:
+            self.note(now, "info", "link", f"{'re' if event.again else ''}connected to {event.name}")
+
+    def _on_link_down(self, event: LinkDown, now: float) -> None:
+        if event.link != RADIO:
+            self.link_lost = True
+            self.note(now, "error", "link", f"LINK LOST: {event.message}")
+            if self.primary_ble and self.flying:
+                self.note(now, "error", "link", "the board PANICs: it was flying over this BLE link")
+            return
+        was_flying_ble = self.over_ble
+        self.radio_up = False
+        self.radio_lost = False
+        self.note(now, "error", "ble", f"BLE LOST: {event.message}")
+        if self.wireless != WirelessState.DISCONNECTED:
+            # The board drops the handover with the connection (report Figure 12): control is the cable's.
+            self.wireless = int(WirelessState.DISCONNECTED)
+            self.note(now, "error", "ble", "control back on the cable: the board goes DISCONNECTED"
+                      + (" and PANICs (it was flying over BLE)" if was_flying_ble and self.flying else ""))
+
+    def _on_link_waiting(self, event: LinkWaiting, now: float) -> None:
+        if event.link == RADIO:
+            self.radio_note = f"down: {event.why or 'lost'}; next try in {event.pause:.0f} s"
+            self.version += 1
+
+    def _on_link_connecting(self, event: LinkConnecting, now: float) -> None:
+        if event.link == RADIO:
+            self.radio_note = "connecting…"
+            self.version += 1
+
+    def _on_link_failed(self, event: LinkFailed, now: float) -> None:
+        if event.repeated:
+            return
+        if event.link == RADIO:
+            self.note(now, "warning", "ble", f"radio not connected: {event.message}")
+        else:
+            self.note(now, "warning", "link", f"reconnecting: {event.message}")
+
+    def _on_stats(self, event: StatsSample, now: float) -> None:
+        if event.link == RADIO:
+            self.set_radio_stats(event.stats, now)
+        else:
+            self.set_link_stats(event.stats, now)
+
+    def _on_requested(self, event: Requested, now: float) -> None:
+        self.pending += 1
+        if event.op == Op.LOG_RESET:
+            self._erasing = self.log_status.records if self.log_status is not None else None
+        elif event.op == Op.SET_PARAM:  # a new try: an older refusal is not its answer
+            spec = PARAMS.get(param_split(event.arg)[0])  # type: ignore[call-overload]
+            if spec is not None:
+                self.param_refused.pop(spec.name, None)
+        if event.op == Op.MODE:
+            self.note(now, "info", "term", f"request {mode_name(event.arg)}"
+                      + (" over BLE" if event.link == RADIO else ""))
+        else:
+            self.version += 1
+
+    def _on_not_sent(self, event: NotSent, now: float) -> None:
+        self.note(now, "error", "term", f"not sent: {event.what}: {event.why}")
+
+    def _on_note(self, event: Note, now: float) -> None:
+        self.note(now, event.severity, event.source, event.text)
+
+    def _on_stick(self, event: StickSet, now: float) -> None:
+        self.set_stick(event.stick)
+
+    def _on_joystick(self, event: JoystickNamed, now: float) -> None:
+        self.joystick_name, self.joystick_mapping = event.name, event.mapping
+        self.version += 1
+
+    def _on_cleared(self, event: EventsCleared, now: float) -> None:
+        self.events.clear()
+        self.version += 1
+
+    def apply_packet(self, pkt: Any, now: float) -> None:
+        """One packet from the board, whatever link brought it: each kind has its applier (``_PACKETS``)."""
+        kind = type(pkt)
+        if kind in _TIMED:
+            self.arrivals.note(pkt, now)
+        applier = _PACKETS.get(kind)
+        if applier is None:
+            return  # heartbeats and acks change nothing on screen (the link panel shows their stats)
+        applier(self, pkt, now)
+        self.version += 1
+
+    def _param(self, pid: int, raw: int) -> None:
+        """A parameter's value as the board has it (a listing, a change, an Ack)."""
+        self.param_raw[pid] = raw
+        spec = PARAMS.get(pid)  # type: ignore[call-overload]
+        if spec is not None:
+            self.params[spec.name] = spec.from_raw(raw)
+            self.param_refused.pop(spec.name, None)
+        self.version += 1
+
+    def _set_wireless(self, state: int) -> None:
+        # STARTED is left only for DISCONNECTED (report Figure 12). A STARTING that arrives after STARTED was sent
+        # on the cable before the board went silent there, and the cable is slower than BLE: stale, not news.
+        if self.wireless == WirelessState.STARTED and state == WirelessState.STARTING:
+            return
+        self.wireless = state
+
+    def _set_mode(self, mode: int, now: float) -> None:
+        self.mode = mode
+
+    def _push_scaled(self, t: float, pkt: Any, names: tuple[str, ...]) -> None:
+        self._push(t, **{name: getattr(pkt, name) * spec_of(type(pkt), name).scale for name in names})
+
+    def _push(self, t: float, **values: float) -> None:
+        h = self.history
+        for name, v in values.items():
+            d = h.get(name)
+            if d is None:
+                d = h[name] = deque(maxlen=HISTORY)
+            d.append((t, v))
+
+    def set_link_stats(self, stats: LinkStats, now: float) -> None:
+        """Called every render tick: only a change of state counts as a model change (the link panel redraws on
+        its own, its figures age with time). Damaged frames and lost frames go to the events list too, summed
+        over at most a second, so no link error goes unseen and none floods the list."""
+        prev = self.link
+        self.link = stats
+        if prev is not None and now - self._link_noted >= 1.0:
+            bad = stats.frames_bad - self._bad_noted
+            if bad > 0:
+                self.note(now, "warning", "link", f"{bad} damaged frame{'s' if bad > 1 else ''} dropped (CRC or "
+                          "framing): noise on the line or a wrong baud rate?")
+                self._bad_noted = stats.frames_bad
+                self._link_noted = now
+            if stats.loss_pct is not None and stats.loss_pct >= 5.0 and now - self._loss_noted >= 5.0:
+                self.note(now, "warning", "link", f"{stats.loss_pct:.0f} % of the board's frames lost "
+                          "(last 2 s)")
+                self._loss_noted = now
+        if stats.lost != self.link_lost:
+            self.link_lost = stats.lost
+            self.version += 1
+        if stats.rtt_last_ms is not None and (prev is None or prev.commands_sent != stats.commands_sent
+                                              or prev.rtt_last_ms != stats.rtt_last_ms):
+            self._push(now - self.start, rtt=stats.rtt_last_ms)
+
+    def set_radio_stats(self, stats: LinkStats, now: float) -> None:
+        """The radio's statistics, every render tick. Its silence counts only while the board flies over BLE
+        (STARTED): before, the board sends nothing there (STARTING: only heartbeats, and the cable still works)."""
+        self.radio = stats
+        lost = stats.lost and self.wireless == WirelessState.STARTED
+        if lost != self.radio_lost:
+            self.radio_lost = lost
+            self.version += 1
+
+    def radio_event(self, event: Any, now: float) -> None:
+        """One LinkEvent from the radio's session: packets are the board's, whatever link brought them; the
+        radio's own loss and restoration are its own."""
+        kind = type(event)
+        if kind is LinkLost:
+            if self.wireless == WirelessState.STARTED:
+                self.radio_lost = True
+                self.note(now, "error", "ble", f"BLE LINK LOST: nothing from the board over BLE for "
+                          f"{event.silent_s:.1f} s")
+            return
+        if kind is LinkRestored:
+            if self.radio_lost:
+                self.note(now, "info", "ble", f"BLE link restored after {event.lost_for_s:.1f} s")
+            self.radio_lost = False
+            self.version += 1
+            return
+        self.apply(event, now)
+
+    def set_stick(self, stick: Joystick) -> None:
+        if stick != self.stick:
+            self.stick = stick
+            self.version += 1
+
+    # --- derived views ------------------------------------------------------------------------------------
+
+    def trim_steps(self) -> tuple[int | None, int | None]:
+        """Stick units per press of the lift and of the roll/pitch/yaw trim keys, as the board's parameters say
+        (None until they are known)."""
+        lift, trim = self.params.get("trim.lift_step"), self.params.get("trim.step")
+        return (None if lift is None else int(lift)), (None if trim is None else int(trim))
+
+    def reading(self, name: str, now: float) -> Reading:
+        """A displayed figure with its age, staleness and bound (term.core.freshness)."""
+        return read(self, name, now)
+
+    @property
+    def flags(self) -> Flag:
+        return Flag(self.flag_bits)
+
+    @property
+    def flying(self) -> bool:
+        return self.mode in FLIGHT_MODES
+
+    @property
+    def handed_over(self) -> bool:
+        """The board was handing over to BLE: its silence on this link may be the handover, not a fault."""
+        return self.wireless in (WirelessState.STARTING, WirelessState.STARTED)
+
+    @property
+    def over_ble(self) -> bool:
+        """BLE carries control: the only link is BLE, or the radio is up and the board said STARTED."""
+        return self.primary_ble or (self.radio_up and self.wireless == WirelessState.STARTED)
+
+    @property
+    def control_lost(self) -> bool:
+        """The link that carries control is silent: the alarm. The cable's silence while flying over BLE is
+        expected (the board writes only to BLE then), not an alarm."""
+        if self.radio_name and self.over_ble:
+            return self.radio_lost
+        if self.primary_ble and not self.heard:
+            return False  # over BLE alone, silence until the handover is the rule, not a fault
+        return self.link_lost
+
+    @property
+    def battery_v(self) -> float | None:
+        if self.over_ble and self.compact is not None:
+            return scaled(self.compact, "battery")
+        if self.height is not None:
+            return scaled(self.height, "battery")
+        return scaled(self.compact, "battery") if self.compact is not None else None
+
+    @property
+    def log_state(self) -> LogState | None:
+        if self.log_status is None:
+            return None
+        try:
+            return LogState(self.log_status.state)
+        except ValueError:
+            return None
+
+    def series(self, name: str, window: float, now: float) -> tuple[list[float], list[float]]:
+        """(t, values) of one plotted series over the last ``window`` seconds, t relative to now (<= 0)."""
+        d = self.history.get(name)
+        if not d:
+            return [], []
+        t_now = now - self.start
+        lo = t_now - window
+        xs, ys = [], []
+        for t, v in d:
+            if t >= lo:
+                xs.append(t - t_now)
+                ys.append(v)
+        return xs, ys
+
+
+def _log_started(m: Model, used: int) -> str:
+    return f"log recording started ({used / 1000:.1f} kB of flash used)"
+
+
+def _log_stopped(m: Model, used: int) -> str:
+    return f"log recording stopped ({used / 1000:.1f} kB of flash used; F5 downloads it)"
+
+
+def _log_erased(m: Model, value: int) -> str:
+    n, m._erasing = m._erasing, None
+    return "log erased" + (f": {n} records gone" if n is not None else "")
+
+
+# The log keys say what they did, when the board has done it.
+_LOG_ACKS: dict[int, Callable[[Model, int], str]] = {Op.LOG_START: _log_started, Op.LOG_STOP: _log_stopped,
+                                                     Op.LOG_RESET: _log_erased}
+
+_TIMED = frozenset((Attitude, Motion, Height, Status, Gains, Compact, Compact2))  # figures that can go stale
+
+
+# --- the packet appliers: one per kind of packet (Model.apply_packet counts the change) ----------------------
+
+
+def _on_attitude(m: Model, pkt: Attitude, now: float) -> None:
+    m.attitude = pkt
+    m._set_mode(pkt.mode, now)
+    m._push_scaled(now - m.start, pkt, ("phi", "theta", "psi", "sp", "sq", "sr"))
+
+
+def _on_motion(m: Model, pkt: Motion, now: float) -> None:
+    m.motion = pkt
+    m._push(now - m.start, ae1=pkt.ae1, ae2=pkt.ae2, ae3=pkt.ae3, ae4=pkt.ae4)
+
+
+def _on_height(m: Model, pkt: Height, now: float) -> None:
+    m.height = pkt
+    m._push_scaled(now - m.start, pkt, ("height", "setpoint", "vz", "pressure", "battery"))
+
+
+def _on_status(m: Model, pkt: Status, now: float) -> None:
+    m.status = pkt
+    m.flag_bits = pkt.flags
+    m._set_wireless(pkt.wireless)
+
+
+def _on_gains(m: Model, pkt: Gains, now: float) -> None:
+    m.gains = pkt
+
+
+def _on_compact(m: Model, pkt: Compact, now: float) -> None:
+    m.compact = pkt
+    m._set_mode(pkt.mode, now)
+    m._set_wireless(pkt.wireless)
+    m._push_scaled(now - m.start, pkt, ("phi", "theta", "psi", "battery"))
+
+
+def _on_compact2(m: Model, pkt: Compact2, now: float) -> None:
+    m.compact2 = pkt
+    m.flag_bits = pkt.flags
+    m._push_scaled(now - m.start, pkt, ("ae1", "ae2", "ae3", "ae4", "height", "setpoint", "vz"))
+
+
+def _on_event(m: Model, pkt: Event, now: float) -> None:
+    m.board_ms = pkt.board_ms
+    m.event_times[pkt.code] = now
+    severity, text = event_text(pkt.code, pkt.arg, m.flying)  # the mode it was sent in
+    if pkt.code == EventCode.PARAM_CHANGED:
+        m._param(*param_split(pkt.arg))
+    if pkt.code == EventCode.DEADLINE_MISS:
+        m._deadline_miss(now, pkt.arg)
+    elif pkt.code != EventCode.REFUSED or m._refusal(pkt.arg & 0xFF, pkt.arg >> 8, text, now):
+        m.note(now, severity, "board", f"[{scaled(pkt, 'board_ms'):.3f}] {text}")
+    if pkt.code == EventCode.MODE_CHANGED:
+        m._set_mode(pkt.arg & 0xFF, now)
+    elif pkt.code == EventCode.WIRELESS_STATE:
+        m._set_wireless(pkt.arg)
+
+
+def _on_profile(m: Model, pkt: Profile, now: float) -> None:
+    m.profiles[pkt.task] = pkt
+
+
+def _on_hello(m: Model, pkt: Hello, now: float) -> None:
+    m.hello = pkt
+
+
+def _on_param_value(m: Model, pkt: ParamValue, now: float) -> None:
+    m._param(pkt.param, pkt.value)
+
+
+def _on_log_packet(m: Model, pkt: LogStatus | LogChunk, now: float) -> None:
+    if type(pkt) is LogStatus:
+        m.log_status = pkt
+    if m.download is not None:
+        m.download.feed(pkt, now)
+
+
+_PACKETS: dict[type, Callable[[Model, Any, float], None]] = {
+    Attitude: _on_attitude,
+    Motion: _on_motion,
+    Height: _on_height,
+    Status: _on_status,
+    Gains: _on_gains,
+    Compact: _on_compact,
+    Compact2: _on_compact2,
+    Event: _on_event,
+    Profile: _on_profile,
+    Hello: _on_hello,
+    ParamValue: _on_param_value,
+    LogStatus: _on_log_packet,
+    LogChunk: _on_log_packet,
+}
+
+_HANDLERS: dict[type, Callable[[Model, Any, float], None]] = {
+    PacketReceived: Model._on_packet,
+    CommandAcked: Model._on_acked,
+    CommandFailed: Model._on_failed,
+    LinkLost: Model._on_lost,
+    LinkRestored: Model._on_restored,
+    VersionMismatch: Model._on_mismatch,
+    FromLink: Model._on_from_link,
+    LinkUp: Model._on_link_up,
+    LinkDown: Model._on_link_down,
+    LinkWaiting: Model._on_link_waiting,
+    LinkConnecting: Model._on_link_connecting,
+    LinkFailed: Model._on_link_failed,
+    StatsSample: Model._on_stats,
+    Requested: Model._on_requested,
+    NotSent: Model._on_not_sent,
+    Note: Model._on_note,
+    StickSet: Model._on_stick,
+    JoystickNamed: Model._on_joystick,
+    EventsCleared: Model._on_cleared,
+}

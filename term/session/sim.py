@@ -1,0 +1,167 @@
+"""The simulated board as a child process: ``SimBoard`` runs ``fcb-sim serve --pty`` (and, if asked, its BLE radio
+and its instructor channel) in a child, reads the pty path and the radio's and instructor's addresses from the
+child's first lines, and stops it in order.
+
+``start()`` returns the pty path or raises ``UsageError`` with the child's last words (one line); ``stop()`` ends
+the child (SIGTERM, then SIGKILL). On Linux the child also dies with term, even when term is killed
+(``PR_SET_PDEATHSIG``), and runs in its own session, so the terminal's Ctrl+C and SIGHUP go to term, which stops
+it. The child's stdout is drained once it has spoken; its stderr goes to ``fcb-sim.log`` in term's log directory
+(``log=True``) or to a temporary file. ``term --sim`` uses it (term/cli/main.py), and so do the tests and benches that
+need a real board behind a real pty.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import signal
+import subprocess
+import sys
+import tempfile
+import threading
+from collections.abc import Sequence
+from typing import IO
+
+from term.core.errors import UsageError
+
+__all__ = ["SIM_START_TIMEOUT", "SimBoard"]
+
+SIM_START_TIMEOUT = 15.0  # s for the child board to print its pty
+
+
+def _die_with_parent() -> None:
+    """In the child, before exec: ask Linux to SIGTERM it when term dies, even by SIGKILL."""
+    try:
+        import ctypes
+
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(1, signal.SIGTERM)  # PR_SET_PDEATHSIG
+    except Exception:
+        pass
+    os.setsid()  # its own session: the terminal's Ctrl+C or SIGHUP goes to term, which stops it in order
+
+
+class SimBoard:
+    """`fcb-sim serve --pty` in a child process; ``start()`` returns the pty path it printed first. With
+    ``radio`` the board's BLE radio is on the air too (``--ble-hci`` on a free local port): ``ble_address`` and
+    ``ble_hci`` (the ``--hci`` to reach it) come from the child's second line. With ``log`` the child's stderr
+    is appended to ``fcb-sim.log`` in term's log directory and kept (else a temporary file, gone at exit)."""
+
+    def __init__(self, *, seed: int = 1, scenario: str | None = None, link_timeout: float | None = None,
+                 extra: Sequence[str] = (), radio: bool = False, log: bool = False, instructor: bool = False) -> None:
+        # Through fcb_sim.cli.main (not "-m fcb_sim.cli", where its UsageError would be __main__'s, uncaught).
+        self.cmd = [sys.executable, "-c", "import sys; from fcb_sim.cli import main; sys.exit(main())",
+                    "serve", "--pty", "--seed", str(seed)]
+        if scenario:
+            self.cmd += ["--scenario", scenario]
+        if link_timeout is not None:
+            self.cmd += ["--link-timeout", str(link_timeout)]
+        if radio:
+            self.cmd += ["--ble-hci", "tcp-server:127.0.0.1:0"]
+        if instructor:  # the truth and the lessons' situations (fcb_sim/instructor.py, term/lessons/instructor.py)
+            self.cmd += ["--instructor", "tcp-server:127.0.0.1:0"]
+        self.instructor = instructor
+        self.instructor_address = ""
+        self.cmd += list(extra)
+        self.radio = radio
+        self.port = ""
+        self.ble_name = self.ble_address = self.ble_hci = ""
+        self.proc: subprocess.Popen[bytes] | None = None
+        self._stderr: IO[bytes] | None = None
+        self._stderr_start = 0  # where this run's stderr begins in the file
+        self.log = log
+
+    def start(self, timeout: float = SIM_START_TIMEOUT) -> str:
+        self._stderr, self._stderr_start = None, 0
+        if self.log:
+            from term.session.applog import child_log
+
+            self._stderr, self._stderr_start = child_log("fcb-sim.log")
+        if self._stderr is None:
+            self._stderr = tempfile.TemporaryFile()
+        env = dict(os.environ, PYTHONUNBUFFERED="1")
+        self.proc = subprocess.Popen(
+            self.cmd, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=self._stderr, env=env,
+            preexec_fn=_die_with_parent if sys.platform.startswith("linux") else None,
+        )
+        line = _readline_with_timeout(self.proc, timeout)
+        if not line.startswith("pty: "):
+            if not line:  # its stdout closed: let it exit, so its last words on stderr can be read
+                # (generous: only this error path waits, and a loaded machine can take seconds to tear down)
+                with contextlib.suppress(subprocess.TimeoutExpired):
+                    self.proc.wait(15.0)
+            why = self._child_error() or (line.strip() or "no output")
+            self.stop()
+            raise UsageError(f"the simulated board did not start: {why}")
+        if self.radio:  # "ble: Quadrupel 1 F0:5A:00:00:00:01 hci tcp-client:127.0.0.1:PORT"
+            words = _readline_with_timeout(self.proc, timeout).split()
+            if len(words) < 6 or words[0] != "ble:" or words[-2] != "hci":
+                why = self._child_error() or " ".join(words) or "no output"
+                self.stop()
+                raise UsageError(f"the simulated board's radio did not start: {why}")
+            self.ble_name, self.ble_address, self.ble_hci = " ".join(words[1:-3]), words[-3], words[-1]
+        if self.instructor:  # "instructor: tcp-client:127.0.0.1:PORT"
+            words = _readline_with_timeout(self.proc, timeout).split()
+            if len(words) != 2 or words[0] != "instructor:":
+                why = self._child_error() or " ".join(words) or "no output"
+                self.stop()
+                raise UsageError(f"the simulated board's instructor channel did not start: {why}")
+            self.instructor_address = words[1]
+        self.port = line[len("pty: "):].strip()
+        # Drain its stdout from now on, so a chatty child never blocks on a full pipe.
+        threading.Thread(target=_drain, args=(self.proc.stdout,), daemon=True).start()
+        return self.port
+
+    def _child_error(self) -> str:
+        if self._stderr is None:
+            return ""
+        with contextlib.suppress(Exception):
+            if self.proc is not None and self.proc.poll() is None:
+                return ""
+            self._stderr.seek(self._stderr_start)
+            lines = [ln for ln in self._stderr.read().decode(errors="replace").splitlines() if ln.strip()]
+            last = lines[-1].strip() if lines else ""
+            return last.removeprefix("fcb-sim: ")
+        return ""
+
+    def stop(self) -> None:
+        proc = self.proc
+        if proc is None:
+            return
+        if proc.poll() is None:
+            proc.terminate()
+            try:
+                proc.wait(3.0)
+            except subprocess.TimeoutExpired:
+                proc.kill()
+                proc.wait(3.0)
+        if proc.stdout is not None:
+            with contextlib.suppress(Exception):
+                proc.stdout.close()
+        if self._stderr is not None:
+            self._stderr.close()
+            self._stderr = None
+        self.proc = None
+
+
+def _readline_with_timeout(proc: subprocess.Popen[bytes], timeout: float) -> str:
+    result: list[bytes] = []
+
+    def read() -> None:
+        assert proc.stdout is not None
+        result.append(proc.stdout.readline())
+
+    t = threading.Thread(target=read, daemon=True)
+    t.start()
+    t.join(timeout)
+    if not result:
+        return ""
+    return result[0].decode(errors="replace")
+
+
+def _drain(stream: IO[bytes] | None) -> None:
+    if stream is None:
+        return
+    with contextlib.suppress(Exception):
+        while stream.read(4096):
+            pass

@@ -1,0 +1,540 @@
+"""The Textual app: composes the station (the links), the model (what the screen shows) and the screens.
+
+- The ``Station`` (``term.session.station``) keeps the cable and the radio up, routes commands and sticks, and guards
+  what
+  is sent; every event of it updates the ``Model`` in one place (``Model.apply``). The app only reacts to a few
+  (a toast for a refused command, exiting on ``Fatal``). Heartbeat ACKs are written by the connections
+  themselves, never waiting for the screen.
+- The screen is redrawn from the model at a steady rate (``render_hz``), never per byte; the same tick samples the
+  links' statistics into the model.
+- Pilot keys are priority bindings generated from the key map: they work on every screen (help and plots
+  included) except while a text input (the command palette) has focus. A key press goes out at once: the command
+  is queued in the session and the connection's timer task is woken to write it. A key map action is either a
+  board command (``Station.send``) or a local action, dispatched through a table of callables (``local``).
+- The wireless screen is a view of the headless ``Phone`` (``term.session.phone``); its controls post ``PhoneRequest``
+  messages up, which the app carries out as the keys would. The joystick poller is read at ``joystick_hz``.
+- The log download (``LogDownloads``, mixed in; its policy is ``term.session.download``) is driven from the render
+  tick and
+  from the link events that concern it.
+
+The routing rules, the reconnect policy and the model's two-link rules: docs/architecture.md and docs/wireless.md.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from collections.abc import Callable, Iterable
+from pathlib import Path
+
+from textual.app import App, SystemCommand
+from textual.screen import Screen
+from textual.widgets import Input
+
+from term.core.errors import EXIT_USAGE
+from term.core.events import EventsCleared, Fatal, FromLink, JoystickNamed, NotSent, StationEvent
+from term.core.protocol import FLIGHT_MODES, Joystick, Mode, Op
+from term.data.recording import SessionRecorder
+from term.data.replay import Replay
+from term.input.joystick import JoystickPoller
+from term.input.keymap import PRESET_TEXT, SAFETY_ACTIONS, Action, KeyBinding, action_by_name, pretty_key
+from term.lessons.instructor import InstructorClient
+from term.session.alarms import Alarms
+from term.session.config import Config
+from term.session.connection import Connection
+from term.session.model import Model, mode_name
+from term.session.phone import Phone, RunAction, SendCommand, SetAxes
+from term.session.station import Station
+from term.transports.base import Transport
+from term.ui.downloads import LogDownloads
+from term.ui.lesson_controller import LessonsMixin
+from term.ui.param_controller import ParamsMixin
+from term.ui.screens.confirm import ConfirmScreen
+from term.ui.screens.flight import FlightScreen
+from term.ui.screens.help import HelpScreen
+from term.ui.screens.joystick import JoystickScreen, SaveMapping
+from term.ui.screens.params import ParamsScreen
+from term.ui.screens.plots import PlotsScreen
+from term.ui.screens.profile import ProfileScreen
+from term.ui.screens.wireless import PhoneRequest, WirelessScreen
+from term.ui.widgets.base import ModelView
+from term.ui.widgets.plots import LivePlot
+
+# The footer: the mode keys with PANIC first, then the screens; each with a short label (the help has the long one).
+FOOTER_LABELS = {
+    "mode_panic": "PANIC", "mode_safe": "SAFE", "mode_calibration": "CALIB", "mode_manual": "MANUAL",
+    "mode_yaw": "YAW", "mode_full": "FULL", "mode_raw": "RAW", "mode_height": "HEIGHT", "help": "help",
+    "show_plots": "plots", "show_flight": "flight", "show_profile": "profile", "show_wireless": "wireless",
+    "log_download": "log",
+}
+FOOTER_ACTIONS = tuple(FOOTER_LABELS)
+class TermApp(ParamsMixin, LessonsMixin, LogDownloads, App[int]):
+    CSS_PATH = str(Path(__file__).with_name("app.tcss"))
+    TITLE = "quadrupel term"
+    ENABLE_COMMAND_PALETTE = True
+
+    def __init__(
+        self,
+        transport: Transport | None = None,
+        *,
+        config: Config | None = None,
+        joystick: bool = True,
+        clock: Callable[[], float] = time.monotonic,
+        render_hz: float = 12.0,
+        joystick_hz: float = 100.0,
+        session_options: dict[str, float | bool] | None = None,
+        log_directory: Path | None = None,
+        radio: Transport | None = None,
+        primary_ble: bool = False,
+        start_screen: str = "flight",
+        recorder: SessionRecorder | None = None,
+        replay: Replay | None = None,
+        instructor: InstructorClient | None = None,
+        lesson: int | None = None,
+        demo: bool = False,
+        lessons_dirs: tuple[Path, ...] = (),
+    ) -> None:
+        """``transport``: the board's link (the cable, or BLE with ``primary_ble``); ``radio``: a BLE transport
+        to the same board beside the cable, for the handover; ``start_screen``: "flight" or "wireless".
+        ``recorder``: the session recording (the transports already tapped, term.data.recording), kept up to date
+        with the station's events and the events list; ``replay``: play a recording instead of flying (no
+        transports: the panels show the recording, the pilot's keys play it). ``instructor``: the simulator's
+        instructor channel (term --sim): the room view, the lessons (``lesson``: start that one; ``demo``: the
+        autopilot's tour; ``lessons_dirs``: a teacher's lessons beside the built-in ones),
+        term/ui/lesson_controller.py."""
+        super().__init__()
+        self.config = config or Config()
+        self.keymap: tuple[KeyBinding, ...] = self.config.keymap
+        self.recorder = recorder
+        self.replay = replay
+        self._noted = 0  # the seq of the last events-list entry recorded
+        self._record_error_said = False
+        if replay is not None:
+            clock = replay.clock  # the panels, plots and events run on the recording's time
+            joystick = False
+        self.clock = clock
+        self.render_hz = render_hz
+        self.joystick_hz = joystick_hz
+        self._replay_wall: float | None = None
+        self.station = self._make_station(transport, radio, primary_ble, session_options)
+        self.phone = Phone()
+        self.start_screen = start_screen
+        self.poller: JoystickPoller | None = None
+        self._want_joystick = joystick
+        self.log_directory = log_directory or self.config.log_directory
+        self.exit_message: str | None = None
+        self.alarms = Alarms()
+        self.alarms_rung: list[str] = []  # every alarm the bell was rung for (or would have been, bell off)
+        self._init_lessons(instructor, lesson, demo, lessons_dirs)
+        self._bind_keys()
+
+    def _make_station(self, transport: Transport | None, radio: Transport | None, primary_ble: bool,
+                      session_options: dict[str, float | bool] | None) -> Station:
+        """The model and the station that feeds it, on ``self.clock`` (a replay: the recording's links)."""
+        from term.session.config import JOYSTICK_POLICIES
+
+        clock, replay = self.clock, self.replay
+        model = Model(start=clock(), link_name=transport.name if transport else "",
+                      radio_name=radio.name if radio is not None else "", primary_ble=primary_ble)
+        if replay is not None:  # the links the recording was made over
+            model.radio_name = replay.meta.get("radio", "")
+            model.primary_ble = replay.meta.get("primary_ble", "") == "1"
+        cable_session = {"link_timeout": self.config.link_timeout,
+                         **JOYSTICK_POLICIES[self.config.joystick_policy], **(session_options or {})}
+        return Station(model, cable=transport, radio=radio, cable_session=cable_session,
+                       radio_session={"link_timeout": self.config.link_timeout}, clock=clock,
+                       on_event=self._on_station_event)
+
+    def _bind_keys(self) -> None:
+        """The key map's actions as priority bindings; local actions through the table ``local``."""
+        self.local: dict[str, Callable[[], None]] = {
+            "help": self.toggle_help,
+            "show_flight": lambda: self.show_screen("flight"),
+            "show_plots": lambda: self.show_screen("plots"),
+            "show_profile": lambda: self.show_screen("profile"),
+            "show_wireless": lambda: self.show_screen("wireless"),
+            "profile": self.ask_profile,
+            "clear_events": self.clear_events,
+            "log_download": self.local_log_download,
+            "log_reset": self.ask_log_erase,
+            "show_joystick": lambda: self.show_screen("joystick"),
+            "show_params": lambda: self.show_screen("params"),
+        }
+        unknown = {b.action.local for b in self.keymap if b.action.local} - set(self.local)
+        if unknown:
+            raise ValueError(f"key map: no local action named {', '.join(sorted(unknown))}")
+        if self.replay is not None:
+            self.keymap = tuple(b for b in self.keymap if b.action.local is not None)  # no board to command
+            for keys, action, text in REPLAY_KEYS:
+                self._bindings.bind(keys, action, text, priority=True)
+        order = {name: i for i, name in enumerate(FOOTER_ACTIONS)}  # the footer shows them in binding order
+        for b in sorted(self.keymap, key=lambda b: order.get(b.action.name, len(order))):
+            name = b.action.name
+            self._bindings.bind(
+                ",".join(b.keys), f"pilot('{name}')", FOOTER_LABELS.get(name, b.action.description),
+                show=name in FOOTER_LABELS,
+                key_display=" ".join(pretty_key(k) for k in b.keys), priority=True,
+            )
+
+    # --- what the app is made of --------------------------------------------------------------------------
+
+    @property
+    def model(self) -> Model:
+        return self.station.model
+
+    @model.setter
+    def model(self, model: Model) -> None:  # a test may show a model it built
+        self.station.model = model
+
+    @property
+    def connection(self) -> Connection | None:
+        """The board's link while it is up."""
+        return self.station.cable_connection
+
+    @property
+    def radio_connection(self) -> Connection | None:
+        return self.station.radio_connection
+
+    @property
+    def transport(self) -> Transport | None:
+        return None if self.station.cable is None else self.station.cable.transport
+
+    @property
+    def radio(self) -> Transport | None:
+        return None if self.station.radio is None else self.station.radio.transport
+
+    def control_connection(self) -> Connection | None:
+        """The connection commands go over: the radio once the board flies over BLE, else the board's link."""
+        link = self.station.control()
+        return None if link is None else link.connection
+
+    # --- life cycle ---------------------------------------------------------------------------------------
+
+    def get_default_screen(self) -> Screen[None]:
+        return FlightScreen(id="flight")
+
+    async def on_mount(self) -> None:
+        # Plots are drawn on a worker thread and serial bytes arrive on one: hand the GIL back to the event loop
+        # within 1 ms (Python's default is 5 ms), so heartbeat answers and key presses never wait behind them.
+        sys.setswitchinterval(0.001)
+        self.install_screen(PlotsScreen(self.config.plot_series, self.config.plot_window), "plots")
+        self.install_screen(ProfileScreen(), "profile")
+        self.install_screen(WirelessScreen(self.phone), "wireless")
+        self.install_screen(JoystickScreen(lambda: self.poller), "joystick")
+        self.install_screen(ParamsScreen(lambda: self.model), "params")
+        self.set_interval(1.0 / self.render_hz, self.render_now)
+        await self.station.start()
+        if self.start_screen != "flight":
+            self.show_screen(self.start_screen)
+        if self._want_joystick:
+            self.call_after_refresh(self._start_joystick)
+        self._mount_lessons()
+        self.render_now()
+
+    def _on_station_event(self, ev: StationEvent) -> None:
+        """The app's reactions to the station's events (the model has them already)."""
+        if self.recorder is not None:
+            now = self.clock()
+            self.recorder.station_event(ev, now)
+            self._record_notes(now)
+        self._lesson_event(ev)
+        if type(ev) is FromLink:
+            self._download_event(ev.event)
+            self._params_event(ev)
+        elif type(ev) is Fatal:
+            self._fatal(ev.message, ev.code)
+        elif type(ev) is NotSent and ev.title is not None:
+            self.notify(ev.why, title=ev.title, severity=ev.severity)
+
+    def reconnect_now(self) -> None:
+        """The palette's "reconnect now": every dead link is tried at once (and then with the usual pauses)."""
+        self.station.reconnect_now()
+
+    def _start_joystick(self) -> None:
+        from term.session.config import forced_mapping
+
+        poller = JoystickPoller(self.config.joystick_mappings, resolution=self.config.joystick_resolution,
+                                forced=forced_mapping(self.config))
+        for msg in poller.start():
+            self.station.note("info", "joystick", msg)
+        self.poller = poller
+        if poller.name:
+            self.station.emit(JoystickNamed(poller.name, poller.mapping.name))
+        self.set_interval(1.0 / self.joystick_hz, self.poll_joystick)
+
+    async def on_unmount(self) -> None:
+        await self.shutdown()
+
+    async def shutdown(self) -> None:
+        await self.station.shutdown()
+        if self.poller is not None:
+            self.poller.close()
+            self.poller = None
+
+    def _fatal(self, message: str, code: int = EXIT_USAGE) -> None:
+        self.exit_message = message
+        self.exit(code, return_code=code)
+
+    # --- rendering ----------------------------------------------------------------------------------------
+
+    def render_now(self) -> None:
+        if self.replay is not None:
+            self._replay_step()
+        now = self.clock()
+        self.station.sample()
+        self._check_download(now)
+        if self.replay is None:
+            for alarm in self.alarms.update(self.model, now):
+                self.alarms_rung.append(alarm)
+                if self.config.bell:
+                    self.bell()
+        if self.recorder is not None:
+            self._record_notes(now)  # (notes written straight into the model, as the log download does)
+            self.recorder.poll(now)
+            if self.recorder.error and not self._record_error_said:  # said once; the flight goes on
+                self._record_error_said = True
+                self.station.note("error", "term", self.recorder.error)
+        if not self.screen_stack or not self.is_running:
+            return  # shutting down
+        model = self.model
+        screen = self.screen
+        for w in screen.query(ModelView):
+            w.show(model, now)
+        for p in screen.query(LivePlot):
+            p.show(model, now)
+
+    # --- input ---------------------------------------------------------------------------------------------
+
+    def check_action(self, action: str, parameters: tuple[object, ...]) -> bool | None:
+        if action == "pilot" and isinstance(self.focused, Input):
+            return False  # typing in the command palette
+        claimed = getattr(self.focused, "CLAIMED_KEYS", None)  # a list with focus moves on these (plots' chooser)
+        if action == "pilot" and claimed and parameters and parameters[0] not in SAFETY_ACTIONS:
+            if any(claimed & set(b.keys) for b in self.keymap if b.action.name == parameters[0]):
+                return False
+        return True
+
+    def action_pilot(self, name: str) -> None:
+        action = action_by_name(self.keymap, name)
+        if action is not None:
+            self.perform(action)
+
+    def perform(self, action: Action) -> None:
+        """Run one key-map action (from a key, the palette, the phone or a test)."""
+        self._lesson_action(action)  # a pilot's own board command takes over from the autopilot (lessonapp.py)
+        if action.local is not None:
+            self.local[action.local]()
+            return
+        assert action.op is not None
+        self.send(action.op, action.arg)
+
+    def send(self, op: Op, arg: int = 0) -> int | None:
+        """A command over the link that carries control, if the station's guards let it go; its cmd_id."""
+        return self.station.send(op, arg)
+
+    def set_stick(self, js: Joystick) -> None:
+        """A new stick value: to the model and the links at once; the fire button's press is PANIC."""
+        self.station.set_stick(js)
+
+    def poll_joystick(self) -> None:
+        if self.poller is None:
+            return
+        res = self.poller.poll()
+        for msg in res.messages:
+            self.station.note("warning" if res.disconnected else "info", "joystick", msg)
+        if res.messages:
+            self.station.emit(JoystickNamed(self.poller.name, self.poller.mapping.name if self.poller.name else ""))
+        if res.disconnected and self.model.flying:
+            self.station.note("error", "joystick", "joystick lost in flight: PANIC")
+            self.send(Op.MODE, Mode.PANIC)
+        if res.packet is not None:
+            self.set_stick(res.packet)
+
+    def on_save_mapping(self, message: SaveMapping) -> None:
+        """The joystick screen's "save": the mapping into the config file as the device's own (term.session.config)."""
+        from dataclasses import replace
+
+        from term.session.config import ConfigError, default_path, save_joystick_mapping
+
+        path = self.config.source or default_path()
+        try:
+            name = save_joystick_mapping(path, message.mapping, message.device)
+        except ConfigError as exc:
+            self.station.note("error", "joystick", str(exc))
+            return
+        mine = replace(message.mapping, name=name, match=(message.device,))
+        self.config.joystick_mappings = (*(m for m in self.config.joystick_mappings if m.name != name), mine)
+        if self.poller is not None:
+            self.poller.state.mapping = mine
+            self.station.emit(JoystickNamed(self.poller.name, name))
+        self.station.note("info", "joystick", f"joystick mapping saved to {path} as [joystick.mappings.{name}]")
+
+    def on_phone_request(self, message: PhoneRequest) -> None:
+        """The phone's controls (the wireless screen): carried out as the keys would."""
+        for r in message.requests:
+            if type(r) is SetAxes:
+                self.station.set_axes(roll=r.roll, pitch=r.pitch, yaw=r.yaw, lift=r.lift)
+            elif type(r) is RunAction:
+                self.action_pilot(r.name)
+            elif type(r) is SendCommand:
+                self.send(r.op, r.arg)
+
+    # --- local actions (named in the key map) -------------------------------------------------------------
+
+    def toggle_help(self) -> None:
+        if isinstance(self.screen, HelpScreen):
+            self.pop_screen()
+        else:
+            self.push_screen(HelpScreen(self.keymap, PRESET_TEXT.get(self.config.key_preset, "")))
+
+    def ask_log_erase(self) -> None:
+        """F4: erase the flash log, after a question that says how much would be gone (the board is asked for
+        its log status first, so the count is its latest)."""
+        if self.control_connection() is None:
+            self.station.note("error", "term", "not sent: log erase: not connected")
+            return
+        self.send(Op.LOG_STATUS)
+
+        def question() -> str:
+            ls = self.model.log_status
+            what = ("how much is in it: asking the board…" if ls is None else
+                    f"{ls.records} records ({ls.used / 1000:.1f} kB) will be gone")
+            return f"Erase the board's flash log? {what}.\nDownload it first with F5 if you want to keep it."
+
+        def answer(yes: bool | None) -> None:
+            if yes:
+                self.send(Op.LOG_RESET)
+            else:
+                self.station.note("info", "term", "log erase cancelled: nothing erased")
+
+        self.push_screen(ConfirmScreen(question, "erase the log", "keep it", title="erase the flash log"), answer)
+
+    async def action_quit(self) -> None:
+        """Ctrl+Q. While the motors run it asks first; quitting then sends PANIC before it goes (and says so), so
+        the board descends under control at once rather than after its link timeout."""
+        mode = self.model.mode
+        running = mode in FLIGHT_MODES or mode == Mode.PANIC
+        if not running or self.replay is not None or self.control_connection() is None:
+            self.exit()
+            return
+        if isinstance(self.screen, ConfirmScreen):
+            return  # already asking
+
+        def answer(yes: bool | None) -> None:
+            if not yes:
+                self.station.note("info", "term", "quit cancelled: still flying")
+                return
+            if self.model.mode in FLIGHT_MODES:
+                self.send(Op.MODE, Mode.PANIC)
+                self.exit_message = "PANIC sent before quitting: the board descends and lands by itself"
+                self.station.note("error", "term", self.exit_message)
+                self.set_timer(QUIT_PANIC_WAIT_S, self.exit)  # time for the PANIC to go out (and be retried)
+            else:
+                self.exit()
+
+        text = (f"The motors are running ({mode_name(mode)}).\nQuitting sends PANIC first: the board descends and "
+                "lands by itself." if mode in FLIGHT_MODES else
+                "PANIC is in progress: the board lands by itself.\nQuit the terminal anyway?")
+        self.push_screen(ConfirmScreen(text, "PANIC and quit" if mode in FLIGHT_MODES else "quit", "keep flying",
+                                       title="quit while the motors run?"), answer)
+
+    def show_screen(self, name: str) -> None:
+        while len(self.screen_stack) > 1:
+            self.pop_screen()
+        if name != "flight":
+            self.push_screen(name)
+        self.call_after_refresh(self.render_now)
+
+    def ask_profile(self) -> None:
+        self.send(Op.PROFILE)
+        self.show_screen("profile")
+
+    def clear_events(self) -> None:
+        self.station.emit(EventsCleared())
+
+    # --- command palette ----------------------------------------------------------------------------------
+
+    def get_system_commands(self, screen: Screen) -> Iterable[SystemCommand]:
+        yield from super().get_system_commands(screen)
+        yield SystemCommand("Log: download to a directory…", f"now {self.log_directory}", self.download_to)
+        yield SystemCommand("Link: reconnect now", "try every lost link at once (the cable, the BLE radio)",
+                            self.reconnect_now)
+        yield SystemCommand("Link: hand control back to the cable", "WIRELESS off: the board leaves BLE "
+                            "(DISCONNECTED, the connection stays)", lambda: self.send(Op.WIRELESS, 0))
+        yield from self.lesson_commands()
+        for b in self.keymap:
+            a = b.action
+            keys = ", ".join(pretty_key(k) for k in b.keys)
+            yield SystemCommand(f"{a.group}: {a.description}", f"key {keys}", _bound(self.perform, a))
+
+
+    # --- recording and replay (term/data/recording.py, term/data/replay.py) ---------------------------------------
+
+    def _record_notes(self, now: float) -> None:
+        """The events list's new lines to the recording (its /events channel: what the pilot read)."""
+        assert self.recorder is not None
+        new = []
+        for entry in reversed(self.model.events):
+            if entry.seq <= self._noted:
+                break
+            new.append(entry)
+        for entry in reversed(new):  # (a merged repeat is written again, with its count)
+            text = entry.text if entry.count == 1 else f"{entry.text} (×{entry.count})"
+            self.recorder.event(now, entry.severity, entry.source, text)
+        if new:
+            self._noted = new[0].seq
+
+    def _replay_step(self) -> None:
+        """Play the recording on by the wall time since the last step; the link panel says it is a replay."""
+        replay = self.replay
+        assert replay is not None
+        wall = time.monotonic()
+        dt, self._replay_wall = (0.0 if self._replay_wall is None else wall - self._replay_wall), wall
+        for ev in replay.advance(dt):
+            self.station.emit(ev)
+        self.model.link_name = f"{replay.status()}  {Path(replay.source).name}"
+        self.sub_title = replay.status()
+
+    def replay_seek(self, t: float) -> None:
+        """Jump to ``t`` s into the recording (back: a fresh model brought forward to it)."""
+        replay = self.replay
+        assert replay is not None
+        if replay.seek(t):
+            old = self.model
+            self.model = Model(start=0.0, radio_name=old.radio_name, primary_ble=old.primary_ble)
+        for ev in replay.catch_up():
+            self.station.emit(ev)
+        self.model.link_name = f"{replay.status()}  {Path(replay.source).name}"
+        self.render_now()
+
+    def action_replay(self, what: str) -> None:
+        replay = self.replay
+        if replay is None:
+            return
+        if what == "pause":
+            replay.paused = not replay.paused
+        elif what == "faster":
+            replay.faster()
+        elif what == "slower":
+            replay.slower()
+        elif what in ("back", "forward"):
+            self.replay_seek(replay.position + (REPLAY_SEEK_S if what == "forward" else -REPLAY_SEEK_S))
+        elif what == "start":
+            self.replay_seek(0.0)
+        self.notify(replay.status(), timeout=1.5)
+
+
+QUIT_PANIC_WAIT_S = 0.5  # quitting in flight: the PANIC command's time to reach the board before the link closes
+REPLAY_SEEK_S = 5.0
+REPLAY_KEYS = (  # term replay: the pilot's keys have no board to command; these play the recording
+    ("space", "replay('pause')", "pause / play"),
+    ("right", "replay('forward')", f"{REPLAY_SEEK_S:g} s on"),
+    ("left", "replay('back')", f"{REPLAY_SEEK_S:g} s back"),
+    ("plus,equals_sign", "replay('faster')", "faster"),
+    ("minus", "replay('slower')", "slower"),
+    ("home", "replay('start')", "from the start"),
+)
+
+
+def _bound(fn: Callable[[Action], None], action: Action) -> Callable[[], None]:
+    return lambda: fn(action)

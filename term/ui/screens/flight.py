@@ -1,0 +1,73 @@
+"""The flight screen: everything a pilot needs at a glance; in SAFE, the readiness checks beside the events."""
+
+from __future__ import annotations
+
+from textual import events
+from textual.app import ComposeResult
+from textual.containers import Horizontal, Vertical
+from textual.screen import Screen
+from textual.widgets import Footer, Static
+
+from term.ui.widgets.base import ModelView
+from term.ui.widgets.battery import BatteryGauge
+from term.ui.widgets.controls import ControlsPanel
+from term.ui.widgets.download import DownloadPanel
+from term.ui.widgets.events import EventsList
+from term.ui.widgets.horizon import HeadingTape, Horizon
+from term.ui.widgets.lesson import LessonBar
+from term.ui.widgets.link import LinkPanel
+from term.ui.widgets.mode import ModeBanner
+from term.ui.widgets.motors import MotorBars
+from term.ui.widgets.pressure import PressureIndicator
+from term.ui.widgets.rates import RateGauges
+from term.ui.widgets.readiness import ReadinessPanel
+from term.ui.widgets.room import RoomView
+
+MIN_SIZE = (110, 35)  # the flight screen's panels need this many columns and rows; smaller: a notice instead
+
+
+def panel(widget: ModelView, title: str, wid: str) -> ModelView:
+    widget.border_title = title
+    widget.id = wid
+    return widget
+
+
+class FlightScreen(Screen[None]):
+    """The main screen: everything a pilot needs at a glance; in SAFE, the readiness checks beside the events. In a
+    terminal too small for its panels, a notice says so instead of cut panels (the keys keep working)."""
+
+    def compose(self) -> ComposeResult:
+        yield Static("", id="too-small")
+        yield ModeBanner(id="mode")
+        yield LessonBar(id="lesson-bar")  # term --sim: what the lesson or the autopilot does now
+        with Horizontal(id="top"):
+            with Vertical(id="attitude") as v:
+                v.border_title = "attitude · heading"
+                yield Horizon(id="horizon")
+                yield HeadingTape(id="heading")
+            with Vertical(id="gauges"):
+                yield panel(RateGauges(), "rates", "rates")
+                yield panel(MotorBars(), "motors", "motors")
+            with Vertical(id="power"):
+                yield panel(BatteryGauge(), "battery", "battery")
+                yield panel(PressureIndicator(), "pressure · height", "pressure")
+        with Horizontal(id="middle"):
+            yield panel(ControlsPanel(), "sticks · trims · gains", "controls")
+            yield panel(LinkPanel(), "link", "link")
+            yield panel(RoomView(getattr(self.app, "room", None)), "room", "room")  # the truth: term --sim only
+        yield DownloadPanel(id="download")
+        with Horizontal(id="bottom"):
+            keymap = self.app.keymap  # type: ignore[attr-defined]
+            yield panel(ReadinessPanel(keymap), "ready to fly? (SAFE)", "readiness")
+            yield panel(EventsList(), "events · errors", "events")
+        yield Footer()
+
+    def on_resize(self, event: events.Resize) -> None:
+        w, h = event.size
+        small = w < MIN_SIZE[0] or h < MIN_SIZE[1]
+        self.set_class(small, "too-small")
+        if small:
+            self.query_one("#too-small", Static).update(
+                f"This terminal is {w}×{h}: the flight screen needs at least {MIN_SIZE[0]}×{MIN_SIZE[1]}.\n"
+                "Make the window larger (or the font smaller).\n\n"
+                "The keys still work: 1 or ESC is PANIC, 0 is SAFE, F1 the help.")

@@ -1,0 +1,76 @@
+"""The mode banner: the board's mode written out, large; PANIC unmistakable; SAFE-only states spelled out."""
+
+from __future__ import annotations
+
+from rich.console import RenderableType
+from rich.text import Text
+
+from term.core.protocol import Flag, Mode
+from term.session.model import Model, mode_name
+from term.ui.widgets.base import ModelView
+
+STYLE = {
+    Mode.SAFE: "bold black on green",
+    Mode.PANIC: "bold blink white on red",
+    Mode.MANUAL: "bold black on yellow",
+    Mode.CALIBRATION: "bold black on cyan",
+    Mode.YAW: "bold white on blue",
+    Mode.FULL: "bold white on blue",
+    Mode.RAW: "bold white on magenta",
+    Mode.HEIGHT: "bold white on dark_blue",
+    Mode.WIRELESS: "bold black on bright_cyan",
+}
+
+
+def spaced(word: str) -> str:
+    return " ".join(word)
+
+
+class ModeBanner(ModelView):
+    """Three rows: blank, the spaced-out mode name (with the link state when it matters), blank."""
+
+    TIME_DEPENDENT = False
+
+    def render_model(self, model: Model, now: float) -> RenderableType:
+        mode = model.mode
+        mode_r = self.read(model, "mode", now)
+        flags_r = self.read(model, "flags", now, figure=False)
+        flags = model.flags if flags_r.fresh else Flag(0)  # ARMED, LOW BATTERY: only while the board says so
+        if model.version_mismatch is not None:
+            text, style = "WRONG PROTOCOL VERSION", "bold white on red"
+        elif mode is None:
+            text, style = "NO BOARD", "bold white on grey37"
+        else:
+            name = mode_name(mode)
+            text = f"!!!  {spaced(name)}  !!!" if mode == Mode.PANIC else spaced(name)
+            style = STYLE.get(mode, "bold")  # type: ignore[call-overload]
+            extra = []
+            if mode != Mode.PANIC and flags & Flag.ARMED and mode == Mode.SAFE:
+                extra.append("ARMED")
+            if flags & Flag.LOW_BATTERY:
+                extra.append("LOW BATTERY")
+            if extra:
+                text += "   " + " · ".join(extra)
+        lost = model.control_lost
+        if lost and model.radio_name and model.over_ble:
+            text += "   ·   BLE LINK LOST"
+        elif lost:
+            text += "   ·   LINK LOST" + (" (handed over to BLE?)" if model.handed_over and not model.radio_name
+                                          else "")
+        elif model.radio_name and model.over_ble:
+            text += "   ·   over BLE"
+        if mode is not None and mode_r.stale:
+            text += f"   ·   mode {mode_r.mark}"
+        if lost:
+            style = "bold blink white on red" if mode is not None else style
+        self.set_class(mode == Mode.PANIC or lost, "alarm")
+        width = max(self.size.width, len(text) + 4)
+        blank = Text(" " * width, style=style)
+        line = Text(text.center(width), style=style)
+        out = Text()
+        out.append_text(blank)
+        out.append("\n")
+        out.append_text(line)
+        out.append("\n")
+        out.append_text(blank)
+        return out
