@@ -19,7 +19,7 @@ from fcb_sim.flash_log import encode_log
 from fcb_sim.physics import World
 from term.core.logfile import LogDownload, decode_to_rows
 from term.core.logformat import decode_log
-from term.core.protocol import SPEC_OF, LogChunk, LogState, LogStatus, Mode, Op, cobs_decode
+from term.core.protocol import SPEC_OF, LogChunk, LogState, LogStatus, Mode, cobs_decode
 from term.transports.loopback import Faults, loopback_pair
 from term.ui.app import TermApp
 
@@ -198,7 +198,7 @@ async def test_download_with_every_logstatus_lost_fails_with_its_reason_and_f5_r
     peer = RealTimeBoard(pair.b, board, speed=2.0)
     await peer.start()
     app = TermApp(pair.a, joystick=False, log_directory=tmp_path)
-    app.download_options = {"deadline_s": 3.0}
+    app.downloads.options = {"deadline_s": 3.0}
     try:
         async with app.run_test(size=(120, 44)) as pilot:
             m = app.model
@@ -246,4 +246,3 @@ def test_download_reassembly_with_gaps_and_a_bad_crc() -> None:
     assert header[1] == "t_us" and len(rows) == 100
     d.feed(LogChunk(0, b"\x00" * 12), 0.4)  # a damaged chunk that still framed correctly
     assert "CRC-32 mismatch" in (d.verify() or "")
-    assert Op.LOG_DOWNLOAD  # the op the app resumes with

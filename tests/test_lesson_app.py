@@ -77,13 +77,14 @@ async def test_the_room_view_draws_the_craft_where_the_simulator_has_it() -> Non
     the top view and the diamond in the side view sit in the cells of the simulator's own position, the arrow
     points east, the figures line gives the position, and the lesson's box turns green around it."""
     async with sim_app(seed=3) as (app, pilot, board):
-        await until(pilot, lambda: app.model.mode == Mode.SAFE and app.room is not None and app.room.truth)
+        room = app.lessons.room
+        await until(pilot, lambda: app.model.mode == Mode.SAFE and room is not None and room.truth)
         script = maneuvers([
             {"press": "mode_calibration"}, {"wait": "calibrations >= 1 and mode == 'SAFE'", "timeout": 10},
             {"press": "mode_full"}, {"wait": "mode == 'FULL'", "timeout": 5},
             {"hover": [1.0, -0.7, 1.1], "heading": 90, "speed": 1.0, "timeout": 60}, {"pause": 60}], "test")
-        app.driver.start_script("test", "to a place in the room", script, app.clock())
-        app.room.set_box(Box(north=1.0, east=-0.7, height=1.1, size=0.8, tall=0.6))
+        app.lessons.driver.start_script("test", "to a place in the room", script, app.clock())
+        app.lessons.room.set_box(Box(north=1.0, east=-0.7, height=1.1, size=0.8, tall=0.6))
         w = board.world
 
         def there() -> bool:
@@ -113,7 +114,7 @@ async def test_the_room_view_draws_the_craft_where_the_simulator_has_it() -> Non
         words = figures.split()
         assert figures.endswith("in box") and abs(int(words[words.index("hdg") + 1].rstrip("°")) - 90) < 10
         assert view.border_subtitle is not None and "6 m room" in str(view.border_subtitle)
-        app.driver.stop(app.model, app.clock())
+        app.lessons.driver.stop(app.model, app.clock())
 
 
 async def test_a_lesson_flown_with_the_keys_is_scored_saved_and_summed_up() -> None:
@@ -124,7 +125,7 @@ async def test_a_lesson_flown_with_the_keys_is_scored_saved_and_summed_up() -> N
     if path.exists():
         path.unlink()
     async with sim_app(seed=4, lesson=1) as (app, pilot, board):
-        await until(pilot, lambda: app.driver.run is not None and app.driver.run.state == "running")
+        await until(pilot, lambda: app.lessons.driver.run is not None and app.lessons.driver.run.state == "running")
         bar = app.screen.query_one(LessonBar)
         assert bar.text.startswith("lesson 1 · Arm the lab way: 1/3 Calibrate") and bar.has_class("running")
         app.simulate_key("3")
@@ -145,7 +146,7 @@ async def test_a_lesson_flown_with_the_keys_is_scored_saved_and_summed_up() -> N
         assert json.loads(path.read_text())["lessons"]["1"]["attempts"] == 1  # the autopilot's is not counted
         await pilot.press("x")
         await until(pilot, lambda: not isinstance(app.screen, SummaryScreen))
-        assert app.driver.lesson is not None and app.driver.lesson.number == 1
+        assert app.lessons.driver.lesson is not None and app.lessons.driver.lesson.number == 1
 
 
 async def test_the_demo_starts_through_the_app_and_a_key_of_the_pilot_takes_over() -> None:
@@ -155,7 +156,7 @@ async def test_the_demo_starts_through_the_app_and_a_key_of_the_pilot_takes_over
         await until(pilot, lambda: app.model.mode == Mode.CALIBRATION)  # the autopilot pressed 3, as a key does
         app.simulate_key("0")  # the pilot's own key
         await until(pilot, lambda: any("you have control" in e.text for e in app.model.events))
-        assert not app.driver.flying and bar.text == "autopilot stopped: the pilot took over"
+        assert not app.lessons.driver.flying and bar.text == "autopilot stopped: the pilot took over"
         await until(pilot, lambda: app.model.mode == Mode.SAFE)
         await pilot.pause(0.5)
         assert app.model.mode == Mode.SAFE  # nothing else is pressed for the pilot
@@ -168,8 +169,8 @@ async def test_without_the_simulator_there_is_no_room_and_the_panel_says_why() -
         app.render_now()
         view = app.screen.query_one(RoomView)
         assert view.has_class("absent") and view._shown.plain == NO_ROOM
-        assert list(app.lesson_commands()) == []
-        app.start_lesson(1)
+        assert list(app.lessons.commands()) == []
+        app.lessons.start_lesson(1)
         assert "lessons need the simulator's truth" in app.model.events[-1].text
 
 

@@ -46,18 +46,20 @@ from term.session.model import Model, mode_name
 from term.session.phone import Phone, RunAction, SendCommand, SetAxes
 from term.session.station import Station
 from term.transports.base import Transport
-from term.ui.downloads import LogDownloads
-from term.ui.lesson_controller import LessonsMixin
-from term.ui.param_controller import ParamsMixin
+from term.ui.controllers.downloads import DownloadController
+from term.ui.controllers.lessons import LessonController
+from term.ui.controllers.params import ParamsController
 from term.ui.screens.confirm import ConfirmScreen
+from term.ui.screens.dirprompt import DirectoryPrompt
 from term.ui.screens.flight import FlightScreen
 from term.ui.screens.help import HelpScreen
 from term.ui.screens.joystick import JoystickScreen, SaveMapping
-from term.ui.screens.params import ParamsScreen
+from term.ui.screens.params import ParamsScreen, ReloadParams, SetParam
 from term.ui.screens.plots import PlotsScreen
 from term.ui.screens.profile import ProfileScreen
 from term.ui.screens.wireless import PhoneRequest, WirelessScreen
 from term.ui.widgets.base import ModelView
+from term.ui.widgets.lesson import LessonBar
 from term.ui.widgets.plots import LivePlot
 
 # The footer: the mode keys with PANIC first, then the screens; each with a short label (the help has the long one).
@@ -68,7 +70,7 @@ FOOTER_LABELS = {
     "log_download": "log",
 }
 FOOTER_ACTIONS = tuple(FOOTER_LABELS)
-class TermApp(ParamsMixin, LessonsMixin, LogDownloads, App[int]):
+class TermApp(App[int]):
     CSS_PATH = str(Path(__file__).with_name("app.tcss"))
     TITLE = "quadrupel term"
     ENABLE_COMMAND_PALETTE = True
@@ -101,7 +103,7 @@ class TermApp(ParamsMixin, LessonsMixin, LogDownloads, App[int]):
         transports: the panels show the recording, the pilot's keys play it). ``instructor``: the simulator's
         instructor channel (term --sim): the room view, the lessons (``lesson``: start that one; ``demo``: the
         autopilot's tour; ``lessons_dirs``: a teacher's lessons beside the built-in ones),
-        term/ui/lesson_controller.py."""
+        term/ui/controllers/lessons.py."""
         super().__init__()
         self.config = config or Config()
         self.keymap: tuple[KeyBinding, ...] = self.config.keymap
@@ -121,11 +123,15 @@ class TermApp(ParamsMixin, LessonsMixin, LogDownloads, App[int]):
         self.start_screen = start_screen
         self.poller: JoystickPoller | None = None
         self._want_joystick = joystick
-        self.log_directory = log_directory or self.config.log_directory
+        self.downloads = DownloadController(self.station, clock, self.send, self.control_connection,
+                                            lambda work: self.run_worker(work, exclusive=False),
+                                            log_directory or self.config.log_directory)
+        self.params = ParamsController(self.config, self.station, self.send)
         self.exit_message: str | None = None
         self.alarms = Alarms()
         self.alarms_rung: list[str] = []  # every alarm the bell was rung for (or would have been, bell off)
-        self._init_lessons(instructor, lesson, demo, lessons_dirs)
+        self.lessons = LessonController(self.station, clock, self.keymap, self, instructor, lesson, demo,
+                                        lessons_dirs)
         self._bind_keys()
 
     def _make_station(self, transport: Transport | None, radio: Transport | None, primary_ble: bool,
@@ -155,7 +161,7 @@ class TermApp(ParamsMixin, LessonsMixin, LogDownloads, App[int]):
             "show_wireless": lambda: self.show_screen("wireless"),
             "profile": self.ask_profile,
             "clear_events": self.clear_events,
-            "log_download": self.local_log_download,
+            "log_download": self.downloads.start,
             "log_reset": self.ask_log_erase,
             "show_joystick": lambda: self.show_screen("joystick"),
             "show_params": lambda: self.show_screen("params"),
@@ -211,7 +217,7 @@ class TermApp(ParamsMixin, LessonsMixin, LogDownloads, App[int]):
     # --- life cycle ---------------------------------------------------------------------------------------
 
     def get_default_screen(self) -> Screen[None]:
-        return FlightScreen(id="flight")
+        return FlightScreen(self.keymap, self.lessons.room, id="flight")
 
     async def on_mount(self) -> None:
         # Plots are drawn on a worker thread and serial bytes arrive on one: hand the GIL back to the event loop
@@ -228,7 +234,7 @@ class TermApp(ParamsMixin, LessonsMixin, LogDownloads, App[int]):
             self.show_screen(self.start_screen)
         if self._want_joystick:
             self.call_after_refresh(self._start_joystick)
-        self._mount_lessons()
+        self.lessons.mount()
         self.render_now()
 
     def _on_station_event(self, ev: StationEvent) -> None:
@@ -237,14 +243,44 @@ class TermApp(ParamsMixin, LessonsMixin, LogDownloads, App[int]):
             now = self.clock()
             self.recorder.station_event(ev, now)
             self._record_notes(now)
-        self._lesson_event(ev)
+        self.lessons.on_station_event(ev)
         if type(ev) is FromLink:
-            self._download_event(ev.event)
-            self._params_event(ev)
+            self.downloads.on_link_event(ev.event)
+            self.params.on_station_event(ev)
         elif type(ev) is Fatal:
             self._fatal(ev.message, ev.code)
         elif type(ev) is NotSent and ev.title is not None:
             self.notify(ev.why, title=ev.title, severity=ev.severity)
+
+    @property
+    def log_directory(self) -> Path:
+        return self.downloads.log_directory
+
+    def download_to(self) -> None:
+        """Ask for a directory, then download there."""
+        def chosen(path: Path | None) -> None:
+            if path is not None:
+                self.downloads.log_directory = path
+                self.downloads.start()
+
+        self.push_screen(DirectoryPrompt(self.downloads.log_directory), chosen)
+
+    def on_set_param(self, message: SetParam) -> None:
+        self.params.set_param(message.param, message.value)
+
+    def on_reload_params(self, message: ReloadParams) -> None:
+        self.params.reload()
+
+    def show_caption(self, text: str) -> None:
+        """The lesson bar's line (the lessons' host): on the flight screen only."""
+        try:
+            bar = self.screen.query_one(LessonBar)
+        except Exception:
+            return  # another screen, or shutting down
+        bar.show_text(text)
+
+    def on_model_view_resized(self, message: ModelView.Resized) -> None:
+        self.call_later(self.render_now)
 
     def reconnect_now(self) -> None:
         """The palette's "reconnect now": every dead link is tried at once (and then with the usual pauses)."""
@@ -282,7 +318,7 @@ class TermApp(ParamsMixin, LessonsMixin, LogDownloads, App[int]):
             self._replay_step()
         now = self.clock()
         self.station.sample()
-        self._check_download(now)
+        self.downloads.tick(now)
         if self.replay is None:
             for alarm in self.alarms.update(self.model, now):
                 self.alarms_rung.append(alarm)
@@ -321,7 +357,7 @@ class TermApp(ParamsMixin, LessonsMixin, LogDownloads, App[int]):
 
     def perform(self, action: Action) -> None:
         """Run one key-map action (from a key, the palette, the phone or a test)."""
-        self._lesson_action(action)  # a pilot's own board command takes over from the autopilot (lessonapp.py)
+        self.lessons.on_action(action)  # a pilot's own board command takes over from the autopilot
         if action.local is not None:
             self.local[action.local]()
             return
@@ -456,12 +492,12 @@ class TermApp(ParamsMixin, LessonsMixin, LogDownloads, App[int]):
 
     def get_system_commands(self, screen: Screen) -> Iterable[SystemCommand]:
         yield from super().get_system_commands(screen)
-        yield SystemCommand("Log: download to a directory…", f"now {self.log_directory}", self.download_to)
+        yield SystemCommand("Log: download to a directory…", f"now {self.downloads.log_directory}", self.download_to)
         yield SystemCommand("Link: reconnect now", "try every lost link at once (the cable, the BLE radio)",
                             self.reconnect_now)
         yield SystemCommand("Link: hand control back to the cable", "WIRELESS off: the board leaves BLE "
                             "(DISCONNECTED, the connection stays)", lambda: self.send(Op.WIRELESS, 0))
-        yield from self.lesson_commands()
+        yield from self.lessons.commands()
         for b in self.keymap:
             a = b.action
             keys = ", ".join(pretty_key(k) for k in b.keys)

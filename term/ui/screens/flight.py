@@ -2,12 +2,16 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 from textual import events
 from textual.app import ComposeResult
 from textual.containers import Horizontal, Vertical
 from textual.screen import Screen
 from textual.widgets import Footer, Static
 
+from term.input.keymap import KeyBinding
+from term.lessons.room import Room
 from term.ui.widgets.base import ModelView
 from term.ui.widgets.battery import BatteryGauge
 from term.ui.widgets.controls import ControlsPanel
@@ -36,6 +40,13 @@ class FlightScreen(Screen[None]):
     """The main screen: everything a pilot needs at a glance; in SAFE, the readiness checks beside the events. In a
     terminal too small for its panels, a notice says so instead of cut panels (the keys keep working)."""
 
+    def __init__(self, keymap: Sequence[KeyBinding], room: Room | None = None, *, id: str | None = None) -> None:
+        """``keymap``: the pilot's keys (the readiness checks name them); ``room``: the simulator's truth for the
+        room view (term --sim), None with a real board."""
+        super().__init__(id=id)
+        self.keymap = keymap
+        self.room = room
+
     def compose(self) -> ComposeResult:
         yield Static("", id="too-small")
         yield ModeBanner(id="mode")
@@ -54,11 +65,10 @@ class FlightScreen(Screen[None]):
         with Horizontal(id="middle"):
             yield panel(ControlsPanel(), "sticks · trims · gains", "controls")
             yield panel(LinkPanel(), "link", "link")
-            yield panel(RoomView(getattr(self.app, "room", None)), "room", "room")  # the truth: term --sim only
+            yield panel(RoomView(self.room), "room", "room")  # the truth: term --sim only
         yield DownloadPanel(id="download")
         with Horizontal(id="bottom"):
-            keymap = self.app.keymap  # type: ignore[attr-defined]
-            yield panel(ReadinessPanel(keymap), "ready to fly? (SAFE)", "readiness")
+            yield panel(ReadinessPanel(self.keymap), "ready to fly? (SAFE)", "readiness")
             yield panel(EventsList(), "events · errors", "events")
         yield Footer()
 

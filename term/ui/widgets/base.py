@@ -11,6 +11,7 @@ import time
 
 from rich.console import RenderableType
 from rich.text import Text
+from textual.message import Message
 from textual.widget import Widget
 
 from term.core.freshness import Reading, next_age_change
@@ -24,6 +25,9 @@ class ModelView(Widget):
     was most of the terminal's CPU. Every panel has a fixed size in app.tcss, so a new frame only needs the panel
     itself repainted.
     """
+
+    class Resized(Message):
+        """A panel changed size: the app redraws the screen from the model at once."""
 
     DEFAULT_CSS = "ModelView { height: auto; }"
 
@@ -69,9 +73,7 @@ class ModelView(Widget):
     def on_resize(self) -> None:
         self._shown_version = -1  # panels lay themselves out to their size: redraw now, not at the next change
         self._painted = -1e9
-        render = getattr(self.app, "render_now", None)
-        if render is not None:
-            self.app.call_later(render)
+        self.post_message(self.Resized())  # the app redraws every panel now (messages up: no call into the app)
 
     def urgent(self, model: Model) -> object:
         return None

@@ -1,15 +1,15 @@
-"""The lessons, the room view and the demo in the app (term --sim): mixed into ``TermApp``.
+"""The lessons, the room view and the demo in the app (term --sim): the app's ``LessonController``.
 
 The sans-IO parts do the work: ``term.lessons.driver.LessonDriver`` (observer, attempt, autopilot),
-``term.lessons.room``
-(the truth for the room view) and ``term.lessons.progress``; this mixin wires them to the app:
+``term.lessons.room`` (the truth for the room view) and ``term.lessons.progress``; this controller wires them to
+the app, through ``LessonHost`` (what only the app can do):
 
 - the instructor channel (``term.lessons.instructor.InstructorClient``, opened by the cli beside the child board): each
   truth sample goes to the room and the driver; a situation the simulator refused is said in the events;
-- every station event goes to the driver (``_lesson_event``, from the app's station-event hook); a board command
-  of the pilot's (a key, the palette, the phone: ``_lesson_action``, from ``perform``) or a stick moved away from
+- every station event goes to the driver (``on_station_event``, from the app's station-event hook); a board
+  command of the pilot's (a key, the palette, the phone: ``on_action``, from ``perform``) or a stick moved away from
   the autopilot's while it flies hands control back to the pilot;
-- a timer at the truth's rate (``_lesson_tick``) runs the driver and carries out its tick: situations to the
+- a timer at the truth's rate (``tick``) runs the driver and carries out its tick: situations to the
   simulator, the autopilot's presses through ``perform`` (exactly a key's path) and its stick through
   ``set_stick``; the caption line shows what happens; an attempt's end records the progress (not for "show me")
   and opens the summary (again, show me, next lesson, close);
@@ -23,13 +23,14 @@ from __future__ import annotations
 import time
 from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
 from textual.app import SystemCommand
+from textual.screen import Screen
 
 from term.core.events import StationEvent, StickSet
-from term.core.protocol import INSTRUCTOR_TRUTH_HZ, STICK_NEUTRAL, Joystick
-from term.input.keymap import Action, action_by_name
+from term.core.protocol import INSTRUCTOR_TRUTH_HZ, STICK_NEUTRAL, Joystick, Op
+from term.input.keymap import Action, KeyBinding, action_by_name
 from term.lessons.autopilot import COMMANDS, Press, Stick
 from term.lessons.driver import LessonDriver
 from term.lessons.engine import Result
@@ -37,32 +38,42 @@ from term.lessons.instructor import InstructorClient, Refused, Truth
 from term.lessons.progress import Progress, load
 from term.lessons.room import Room
 from term.lessons.spec import DEMO, Lesson, LessonError, load_lessons, load_script
-from term.ui.widgets.lesson import LessonBar, SummaryScreen
-
-if TYPE_CHECKING:
-    from term.session.model import Model
-    from term.session.station import Station
+from term.session.model import Model
+from term.session.station import Station
+from term.ui.widgets.lesson import SummaryScreen
 
 
-class LessonsMixin:
-    """The lessons in the app (module docstring). ``TermApp`` calls ``_init_lessons`` in its ``__init__``,
-    ``_mount_lessons`` in ``on_mount`` and ``_lesson_event`` for each station event."""
+class LessonHost(Protocol):
+    """What the lessons need of the app: a key's path, the stick, the screens, a timer, the caption line."""
 
-    station: Station
-    model: Model
-    clock: Callable[[], float]
-    keymap: Any
+    def perform(self, action: Action) -> None: ...
+    def send(self, op: Op, arg: int = 0) -> int | None: ...
+    def set_stick(self, js: Joystick) -> None: ...
+    def show_screen(self, name: str) -> None: ...
+    def push_screen(self, screen: Screen[Any], callback: Callable[[Any], None]) -> Any: ...
+    def show_caption(self, text: str) -> None: ...
+    def set_interval(self, interval: float, callback: Callable[[], None]) -> Any: ...
 
-    def _init_lessons(self, instructor: InstructorClient | None, lesson: int | None = None, demo: bool = False,
-                      lessons_dirs: Sequence[Path] = (), progress: Progress | None = None) -> None:
+
+class LessonController:
+    """The lessons in the app (module docstring). The app builds it in its ``__init__``, calls ``mount`` in
+    ``on_mount``, ``on_station_event`` for each station event and ``on_action`` before it performs an action."""
+
+    def __init__(self, station: Station, clock: Callable[[], float], keymap: Sequence[KeyBinding],
+                 host: LessonHost, instructor: InstructorClient | None, lesson: int | None = None,
+                 demo: bool = False, lessons_dirs: Sequence[Path] = (), progress: Progress | None = None) -> None:
+        self.station = station
+        self.clock = clock
+        self.keymap = keymap
+        self.host = host
         self.instructor = instructor
         self.room: Room | None = Room() if instructor is not None else None
         self.driver = LessonDriver()
-        self.lessons: dict[int, Lesson] = {}
+        self.by_number: dict[int, Lesson] = {}
         self.lessons_skipped: list[str] = []
         if instructor is not None:
             actions = [b.action.name for b in self.keymap]
-            self.lessons, self.lessons_skipped = load_lessons(lessons_dirs, actions)
+            self.by_number, self.lessons_skipped = load_lessons(lessons_dirs, actions)
             instructor.on_truth = self._on_truth
             instructor.on_refused = self._on_refused
             instructor.on_lost = self._on_instructor_lost
@@ -74,14 +85,18 @@ class LessonsMixin:
         self._shown_attempt = False  # the attempt running is the autopilot's ("show me")
         self.lesson_results: list[Result] = []
 
-    def _mount_lessons(self) -> None:
+    @property
+    def model(self) -> Model:
+        return self.station.model
+
+    def mount(self) -> None:
         if self.instructor is None:
             return
         for line in self.lessons_skipped:
             self.station.note("warning", "lesson", f"lesson file skipped: {line}")
         if self.progress.problem:
             self.station.note("warning", "lesson", self.progress.problem)
-        self.set_interval(1.0 / INSTRUCTOR_TRUTH_HZ, self._lesson_tick)  # type: ignore[attr-defined]
+        self.host.set_interval(1.0 / INSTRUCTOR_TRUTH_HZ, self.tick)
         if self._start_demo:
             self.start_demo()
         elif self._start_lesson is not None:
@@ -104,7 +119,7 @@ class LessonsMixin:
     # --- what runs ----------------------------------------------------------------------------------------
 
     def start_lesson(self, number: int, show: bool = False) -> None:
-        lesson = self.lessons.get(number)
+        lesson = self.by_number.get(number)
         if lesson is None or self.instructor is None:
             self.station.note("error", "lesson", f"no lesson {number}" if self.instructor is not None
                               else "lessons need the simulator's truth: term --sim")
@@ -115,10 +130,10 @@ class LessonsMixin:
             self.room.set_box(lesson.box)
         self.driver.start_lesson(lesson, now, show=show)
         self._shown_attempt = show
-        self.show_screen("flight")  # type: ignore[attr-defined]
+        self.host.show_screen("flight")
         who = "the autopilot shows " if show else ""
         self.station.note("info", "lesson", f"{who}lesson {lesson.number}: {lesson.title}. {lesson.goal}")
-        self._lesson_tick()
+        self.tick()
 
     def start_demo(self) -> None:
         if self.instructor is None:
@@ -134,9 +149,9 @@ class LessonsMixin:
         if self.room is not None:
             self.room.set_box(None)
         self.driver.start_script(title, goal, script, now)
-        self.show_screen("flight")  # type: ignore[attr-defined]
+        self.host.show_screen("flight")
         self.station.note("info", "demo", f"{goal}; any key of yours takes control back")
-        self._lesson_tick()
+        self.tick()
 
     def stop_lesson(self) -> None:
         result = self.driver.stop(self.model, self.clock())
@@ -145,12 +160,12 @@ class LessonsMixin:
 
     # --- events and the tick ------------------------------------------------------------------------------
 
-    def _lesson_event(self, ev: StationEvent) -> None:
+    def on_station_event(self, ev: StationEvent) -> None:
         self.driver.event(ev, self.model, self.clock())
         if type(ev) is StickSet and not self._autopilot_acting and self._moved(ev.stick):
             self._take_over()
 
-    def _lesson_action(self, action: Action) -> None:
+    def on_action(self, action: Action) -> None:
         """A key map action is being performed: the pilot's own (a key, the palette, the phone) if the autopilot
         is not the one pressing; a board command of the pilot's takes control (looking at a screen does not)."""
         if action.op is not None and not self._autopilot_acting:
@@ -166,7 +181,7 @@ class LessonsMixin:
         mine = self._autopilot_stick
         return any(abs(a - b) > STICK_NEUTRAL for a, b in zip(stick[:4], mine[:4], strict=True))
 
-    def _lesson_tick(self) -> None:
+    def tick(self) -> None:
         now = self.clock()
         tick = self.driver.tick(self.model, now)
         if self.instructor is not None:
@@ -182,35 +197,31 @@ class LessonsMixin:
                 elif type(act) is Stick:
                     self._autopilot_stick = act.js
                     if act.js != self.model.stick:
-                        self.set_stick(act.js)  # type: ignore[attr-defined]
+                        self.host.set_stick(act.js)
         finally:
             self._autopilot_acting = False
         if tick.autopilot_ended is not None:
             text = "autopilot: done" if tick.autopilot_ended == "done" else f"autopilot off: {tick.autopilot_ended}"
             self.station.note("info" if tick.autopilot_ended == "done" else "warning", "lesson", text)
             if tick.autopilot_ended != "done":
-                self.set_stick(self.model.stick._replace(roll=0, pitch=0, yaw=0))  # type: ignore[attr-defined]
+                self.host.set_stick(self.model.stick._replace(roll=0, pitch=0, yaw=0))
         if tick.result is not None:
             self._attempt_ended(tick.result)
         self._show_caption()
 
     def _autopilot_press(self, name: str) -> None:
         if name in COMMANDS:
-            self.send(*COMMANDS[name])  # type: ignore[attr-defined]
+            self.host.send(*COMMANDS[name])
             return
         action = action_by_name(self.keymap, name)
         if action is not None:
-            self.perform(action)  # type: ignore[attr-defined]
+            self.host.perform(action)
 
     def _show_caption(self) -> None:
-        try:
-            bar = self.screen.query_one(LessonBar)  # type: ignore[attr-defined]
-        except Exception:
-            return  # another screen, or shutting down
-        bar.show_text(self.driver.caption)
+        self.host.show_caption(self.driver.caption)
 
     def _attempt_ended(self, result: Result) -> None:
-        lesson = self.lessons.get(result.lesson)
+        lesson = self.by_number.get(result.lesson)
         if lesson is None:
             return
         self.lesson_results.append(result)
@@ -226,7 +237,7 @@ class LessonsMixin:
         self.station.note("info" if result.passed else "warning", "lesson",
                           f"lesson {lesson.number} {verdict}: {result.score}/100"
                           + (" (the autopilot's)" if shown else f", best {entry.best}") + f". {result.advice}")
-        later = [n for n in self.lessons if n > lesson.number]
+        later = [n for n in self.by_number if n > lesson.number]
         screen = SummaryScreen(result, f"lesson {lesson.number} · {lesson.title}", entry, lesson.box, shown=shown,
                                has_next=bool(later))
 
@@ -238,16 +249,16 @@ class LessonsMixin:
             elif what == "next" and later:
                 self.start_lesson(later[0])
 
-        self.push_screen(screen, chosen)  # type: ignore[attr-defined]
+        self.host.push_screen(screen, chosen)
 
     # --- the palette --------------------------------------------------------------------------------------
 
-    def lesson_commands(self) -> Iterable[SystemCommand]:
+    def commands(self) -> Iterable[SystemCommand]:
         if self.instructor is None:
             return
         yield SystemCommand("Demo: the autopilot's tour", "calibrate, FULL, HEIGHT, a handover, PANIC, landing, "
                             "log download, with captions (any key of yours takes over)", self.start_demo)
-        for n, lesson in self.lessons.items():
+        for n, lesson in self.by_number.items():
             p = self.progress.get(n)
             mark = f"best {p.best}/100{' ✓' if p.passed else ''}" if p.attempts else "not flown yet"
             yield SystemCommand(f"Lesson {n}: {lesson.title}", f"{mark} · {lesson.goal}", _call(self.start_lesson, n))
