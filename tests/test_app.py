@@ -25,6 +25,7 @@ from term.core.protocol import (
     Motion,
     Nak,
     Op,
+    Param,
     Profile,
     Status,
     field_scale,
@@ -112,6 +113,25 @@ def sent(board) -> list[tuple[int, int]]:  # noqa: ANN001
     return [(c.op, c.arg) for c in board.executed if c.op != Op.PARAM_LIST]
 
 
+MARKER = (Op.PARAM_GET, int(Param.P1))  # a harmless request: the board answers with one parameter's value
+
+
+async def sent_before_marker(pilot, app, board) -> list[tuple[int, int]]:  # noqa: ANN001
+    """The commands the board had executed before a marker sent now. The link keeps order, so once the marker has
+    arrived, anything the app sent before it has too: a check that something was NOT sent waits on this, never on
+    a pause (which passes when the command is merely slow)."""
+    app.send(*MARKER)
+    await until(pilot, lambda: MARKER in sent(board))
+    out = sent(board)
+    return out[: len(out) - 1 - out[::-1].index(MARKER)]
+
+
+async def test_a_check_that_nothing_was_sent_can_fail(scripted_board) -> None:  # noqa: ANN001
+    async with flying(scripted_board) as (app, pilot, board, _):
+        app.send(Op.TRIM_YAW, 1)  # not awaited: the marker's wait covers it
+        assert (Op.TRIM_YAW, 1) in await sent_before_marker(pilot, app, board)
+
+
 async def test_every_board_key_sends_its_command_at_once(scripted_board) -> None:  # noqa: ANN001
     async with flying(scripted_board) as (app, pilot, board, _):
         expected = []
@@ -158,8 +178,7 @@ async def test_throttle_up_refuses_to_leave_safe_and_says_so(scripted_board) -> 
     async with flying(scripted_board) as (app, pilot, board, _):
         app.set_stick(Joystick(0, 0, 0, FULL // 2, 0))
         await pilot.press("2")
-        await pilot.pause(0.1)
-        assert (Op.MODE, Mode.MANUAL) not in sent(board)
+        assert (Op.MODE, Mode.MANUAL) not in await sent_before_marker(pilot, app, board)
         assert "throttle is up" in app.model.events[-1].text
         await until(pilot, lambda: board.joysticks and board.joysticks[-1].lift == FULL // 2)
         await pilot.press("1")  # PANIC always goes
@@ -221,8 +240,7 @@ async def test_palette_typing_does_not_fly(scripted_board) -> None:  # noqa: ANN
         await pilot.press("5", "1", "a", "backspace", "backspace", "backspace")
         for k in "full control":
             await pilot.press(k if k != " " else "space")
-        await pilot.pause(0.3)
-        assert not sent(board)  # the digits and letters went into the palette's input
+        assert not await sent_before_marker(pilot, app, board)  # the digits and letters went into the palette's input
         await pilot.press("down", "enter")  # runs the first match: "Modes: FULL control ..."
         await until(pilot, lambda: (Op.MODE, Mode.FULL) in sent(board))
 
@@ -314,8 +332,8 @@ async def test_download_to_a_chosen_directory(scripted_board, tmp_path) -> None:
         app.download_to()
         await pilot.pause(0.1)
         await pilot.press("escape")  # cancels the dialog, not PANIC
-        await pilot.pause(0.1)
-        assert isinstance(app.screen, FlightScreen) and (Op.MODE, Mode.PANIC) not in sent(board)
+        assert (Op.MODE, Mode.PANIC) not in await sent_before_marker(pilot, app, board)
+        assert isinstance(app.screen, FlightScreen)
 
 
 async def test_joystick_policy_from_the_config_and_ctrl_q_quits() -> None:

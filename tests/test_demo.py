@@ -6,9 +6,9 @@ own start of it is in tests/test_lesson_app.py."""
 
 from __future__ import annotations
 
-from bench.lessons import Rig
 from fcb_sim.modes import Mode
 from term.core.protocol import WirelessState
+from tests.support.lessons_rig import Rig
 
 
 def test_the_demo_flies_the_whole_tour() -> None:

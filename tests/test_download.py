@@ -8,11 +8,11 @@ import zlib
 
 import pytest
 
-from bench.download import Rig, is_type
 from term.core.link import CommandAcked, CommandFailed, PacketReceived
 from term.core.protocol import Event, EventCode, LogChunk, LogState, LogStatus, Mode, Nak, Op
 from term.session.download import DONE, EMPTY, FAILED, RUNNING, LogDownloader, Request
 from term.transports.loopback import Faults
+from tests.support.download_rig import Rig, is_type
 
 # --- against the real board ------------------------------------------------------------------------------------
 

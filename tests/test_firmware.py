@@ -19,7 +19,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from term.core import protocol as p
-from tests.firmware_support import (
+from tests.support.firmware import (
     FIRMWARE,
     NO_ARM,
     ROOT,

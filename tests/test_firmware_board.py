@@ -11,7 +11,7 @@ import subprocess
 import pytest
 
 from term.core import protocol as p
-from tests.firmware_support import HostBoard, PtyPeer, build
+from tests.support.firmware import HostBoard, PtyPeer, build
 
 BOARD_HELLO = p.Hello(p.PROTOCOL_VERSION, p.Role.BOARD, 0, 1, 4242)
 

@@ -9,7 +9,7 @@ import asyncio
 from term.core.protocol import NAK_TEXT, PROTOCOL_VERSION, Mode, Nak, Role
 from term.transports.serial import SerialTransport
 from term.ui.app import TermApp
-from tests.firmware_support import HostBoard
+from tests.support.firmware import HostBoard
 
 
 async def test_term_flies_the_c_reference_board() -> None:

@@ -8,7 +8,7 @@ the pilot reads: in climbing and sinking flight it is 0.15-0.4 m off the truth. 
 
 from __future__ import annotations
 
-from bench.keyboard import hold_deviation, keyboard_hover
+from tests.support.keyboard_rig import hold_deviation, keyboard_hover
 
 
 def test_a_keyboard_pilot_holds_its_height_within_half_a_metre_for_30_s() -> None:

@@ -14,12 +14,12 @@ from typing import Any
 
 import pytest
 
-from bench.lessons import Rig
 from term.core.events import NotSent
 from term.core.protocol import Mode, WirelessState
 from term.input.keymap import DEFAULT_KEYMAP
 from term.lessons.engine import Result
 from term.lessons.spec import Lesson, load_lessons, maneuvers
+from tests.support.lessons_rig import Rig
 
 LESSONS, SKIPPED = load_lessons(actions=[b.action.name for b in DEFAULT_KEYMAP])
 CAL: list[dict[str, Any]] = [{"press": "mode_calibration"}, {"wait": "calibrations >= 1 and mode == 'SAFE'"}]

@@ -23,6 +23,12 @@ The shared facts (one home each; a test fails on a copy elsewhere): ``Role``, th
 thresholds, the board's parameter table (``Param``, ``PARAMS``: name, type, unit, range, default, in flight or not;
 ``PRESETS``; ``param_arg``/``param_split``; docs/parameters.md is generated from it). The flash-log payload codec
 lives in ``term.core.logformat``.
+
+The package's modules, each importable alone: ``facts`` (the version, frame sizes, enumerations and shared facts),
+``params`` (the parameter table and the presets), ``packets`` (the packet table, the packet classes and their
+scales), ``framing`` (COBS, CRC, the encoder and the streaming decoder) and ``instructor`` (the simulator's
+instructor vocabulary). Every public name is also here, so ``from term.core.protocol import Mode`` reads as the
+one protocol it is. The tables' Markdown is written by docs/protocol_tables.py.
 """
 
 from __future__ import annotations
