@@ -38,7 +38,6 @@ from typing import Any
 from fcb_sim import telemetry as tm
 from fcb_sim.calibration import CALIBRATED_VARS, DMP_ANGLE_LSB
 from fcb_sim.commands import COMMAND_DEDUPE_US, CommandDesk
-from fcb_sim.estimation.height import make_height_estimator
 from fcb_sim.flash_log import FLASH_BYTES, FLASH_US_PER_BYTE, Download, FlashLog, LogVar
 from fcb_sim.flight import FlightCore
 from fcb_sim.modes import FLIGHT_MODES, ModeChange, ModeConfig, ModeMachine
@@ -166,7 +165,7 @@ def _parts(cfg: BoardConfig, world: World | None, core: FlightCore | None, wirel
         world = World(cfg.seed)
     if core is None:
         core = FlightCore(fixed_point=cfg.fixed_point, filter_name=_default(Param.ATTITUDE_FILTER),
-                          height_estimator=make_height_estimator(_default(Param.HEIGHT_ESTIMATOR)))
+                          height_name=_default(Param.HEIGHT_ESTIMATOR))
     if wireless is None:
         wireless = WirelessLink()
     mc = ModeConfig(link_timeout_s=cfg.link_timeout_s, panic_level=core.panic_ae)

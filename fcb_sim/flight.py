@@ -92,12 +92,16 @@ class FlightCore:
 
     def __init__(self, *, gains: P.Gains | None = None, filter_name: str | None = None,
                  fixed_point: bool = False,
-                 height_estimator: HeightEstimator | HeightKalman | None = None) -> None:
+                 height_estimator: HeightEstimator | HeightKalman | None = None,
+                 height_name: str = HEIGHT_BEST) -> None:
         self.gains = gains if gains is not None else P.Gains()
         self.filter_name = filter_name or BEST
         self.fixed_point = fixed_point
+        self.k_gyro = float(PARAMS[Param.K_GYRO].default)  # the complementary filter's, when it is the one named
         self.filter = make_filter(self.filter_name, fixed_point=fixed_point)
-        self.height_est = height_estimator if height_estimator is not None else default_height_estimator()
+        # the height estimator and its name in the parameter table (est.height)
+        self.height_est = height_estimator if height_estimator is not None else make_height_estimator(height_name)
+        self.height_name = height_name
         self.run_filter = True  # the RAW filter runs on every IMU sample (it must be converged on entering RAW)
         self.run_height = True  # so does the height estimator
         self.panic_ae = P.PANIC_AE

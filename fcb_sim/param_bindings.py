@@ -76,7 +76,7 @@ def _refilter(b: Board, name: str, k_gyro: float, fixed: bool) -> Nak:
 
 
 def _k_gyro(b: Board) -> float:
-    return float(getattr(b.core, "k_gyro", PARAMS[Param.K_GYRO].default))
+    return b.core.k_gyro
 
 
 def _set_filter(b: Board, v: Value) -> Nak:
@@ -92,7 +92,7 @@ def _set_fixed(b: Board, v: Value) -> Nak:
 
 
 def _height_name(b: Board) -> Value:
-    return getattr(b.core, "height_name", PARAMS[Param.HEIGHT_ESTIMATOR].default)
+    return b.core.height_name
 
 
 def _set_height(b: Board, v: Value) -> Nak:
@@ -203,10 +203,9 @@ def preset_core(name: str) -> FlightCore:
     gains = P.Gains(**{g: float(values[p]) for g, p in P._GAIN_PARAMS.items()})
     fixed = bool(values[Param.FIXED_POINT])
     core = FlightCore(gains=gains, filter_name=str(values[Param.ATTITUDE_FILTER]), fixed_point=fixed,
-                      height_estimator=make_height_estimator(str(values[Param.HEIGHT_ESTIMATOR])))
+                      height_name=str(values[Param.HEIGHT_ESTIMATOR]))
     core.filter = build_filter(str(values[Param.ATTITUDE_FILTER]), float(values[Param.K_GYRO]),  # type: ignore
                                fixed)
     core.k_gyro = float(values[Param.K_GYRO])
-    core.height_name = str(values[Param.HEIGHT_ESTIMATOR])
     core.height_i = float(values[Param.HEIGHT_I])
     return core
