@@ -86,6 +86,7 @@ def part_costs(filter_name: str, fixed_point: bool) -> dict:
 
     def core(n: int) -> None:
         fc.run_filter = fc.run_height = False
+        fc.enter_mode(Mode.RAW)
         for i in range(n):
             fc.imu_sample(*imu, 0.0025)
             fc.control(Mode.RAW, i & 1023, -(i & 511), 0, 16384)

@@ -413,8 +413,8 @@ class Board:
         compute them but without a time step (docs/board.md, "Sticks to motors"); returns the cost (µs)."""
         m, fc = self.modes, self.core
         mode = m.mode
-        if mode not in FLIGHT_MODES or int(mode) != fc.mode:
-            return 0  # motors off (SAFE, CALIBRATION) or forced (PANIC), or a mode the core has not entered
+        if mode not in FLIGHT_MODES:
+            return 0  # motors off (SAFE, CALIBRATION) or forced (PANIC)
         path = self._path
         if self.sched.priority and at + COSTS[f"control_{path}"].figure[3] > self.sched.next["sensor"]:
             return 0  # the slack rule: it might not end before the tick; the control step at the tick does it

@@ -13,8 +13,9 @@ API for the board::
     ae1, ae2, ae3, ae4 = fc.control(mode, roll, pitch, yaw, lift, dt)   # sticks + trims, int16 / 0..32767
     fc.panic_scale = s                                       # PANIC: the mode machine ramps 1 -> 0 over time
 
-``control`` notices a mode change by itself (``enter_mode(mode, lift)`` does it explicitly): HEIGHT captures its
-set point and the lift stick at entry, PANIC restarts at its full descent level. Gains: ``fc.gains``
+The core keeps no mode of its own: whoever keeps the mode (the board's mode machine, a scenario's ``Sim``)
+calls ``enter_mode(mode, lift)`` when it changes and passes it to every ``control``. HEIGHT captures its set point
+and the lift stick at entry, PANIC restarts at its full descent level. Gains: ``fc.gains``
 (params.Gains), ``adjust_gain(name, steps)``. Telemetry reads ``phi, theta, psi``, ``sp, sq, sr``, ``sax, say,
 saz``, ``height``, ``vz``, ``setpoint``, ``ae`` and ``attitude_centideg()``. What each mode does, the gains and the
 outputs in full: docs/board.md, "The flight core".
@@ -113,7 +114,6 @@ class FlightCore:
         self._land_s = 0.0
         self.calibration = Calibration()
         self.calibrated = False
-        self.mode = _SAFE
         # calibrated samples, body FRD: rates in gyro LSB, accelerations in accel LSB
         self.sp = self.sq = self.sr = 0.0
         self.sax = self.say = 0.0
@@ -136,7 +136,7 @@ class FlightCore:
         self._sp_offset = 0.0  # moved by the lift stick
         self.height_i = HEIGHT_I  # not a protocol gain (the Gains packet has P and D only); settable here
         self._lift_entry = 0
-        self._height_raw = False  # HEIGHT entered from RAW flies on the on-board filter
+        self._on_filter = False  # the law last entered flies on the on-board filter (RAW, HEIGHT entered from RAW)
         self.ae = (0, 0, 0, 0)
         self._g_off = (0.0, 0.0, 0.0)
         self._a_off = (0.0, 0.0, 0.0)
@@ -222,7 +222,6 @@ class FlightCore:
             self._lift_entry = lift
             self._z_base = C.lift_to_z(lift)
             self._z_int = 0.0
-            self._height_raw = self.mode == _RAW or (self.mode == _HEIGHT and self._height_raw)
         elif mode == _PANIC:
             # the descent starts from the level the motors ran at: PANIC never spins them up by itself
             self.panic_scale = 1.0
@@ -235,7 +234,9 @@ class FlightCore:
         if mode == _RAW:
             # the DMP is off in RAW mode: the height estimator follows the on-board filter
             self._have_dmp = False
-        self.mode = mode
+        # HEIGHT flies on the source of the mode it was entered from; RAW on the filter; the rest on the DMP
+        if mode != _HEIGHT:
+            self._on_filter = mode == _RAW
 
     def panic_motors(self, scale: float = 1.0, dt: float = 0.0) -> tuple[int, int, int, int]:
         """PANIC: the descent loop's level (module docstring) times ``scale`` (0..1; the board ramps it down once
@@ -252,10 +253,7 @@ class FlightCore:
         level = int(self.panic_level * max(0.0, min(1.0, scale)))
         if self.calibrated and level > 0:
             g = self.gains
-            if self.mode == _RAW or (self.mode == _HEIGHT and self._height_raw):
-                phi, theta = self.filter.roll, -self.filter.pitch
-            else:
-                phi, theta = self.dmp_phi, self.dmp_theta
+            phi, theta = self.dmp_phi, self.dmp_theta  # PANIC's sensor path is the DMP's
             a = C.ANGLE_LSB_PER_RAD
             lm = C.cascade(0.0, phi * a, self.sp, g.p1, g.p2)
             mm = C.cascade(0.0, theta * a, self.sq, g.p1, g.p2)
@@ -266,13 +264,12 @@ class FlightCore:
     def control(self, mode: int, roll: int, pitch: int, yaw: int, lift: int,
                 dt: float = 0.0025) -> tuple[int, int, int, int]:
         """The control law of ``mode`` for these sticks (trims included); returns ae1..ae4 and keeps them in
-        ``self.ae``. ``dt`` is the control period (s), used by HEIGHT's moving set point."""
+        ``self.ae``. ``dt`` is the control period (s), used by HEIGHT's moving set point. ``mode`` is entered already
+        (``enter_mode``)."""
         mode = int(mode)
-        if mode != self.mode:
-            self.enter_mode(mode, lift)
         g = self.gains
         if mode == _FULL or mode == _HEIGHT or mode == _RAW:
-            if mode == _RAW or (mode == _HEIGHT and self._height_raw):
+            if mode == _RAW or (mode == _HEIGHT and self._on_filter):
                 f = self.filter
                 phi = f.roll
                 theta = -f.pitch
@@ -280,12 +277,9 @@ class FlightCore:
             else:
                 phi, theta = self.dmp_phi, self.dmp_theta
                 self.phi, self.theta, self._psi_src = phi, theta, _FULL
-            p2 = g.p2
-            p1 = g.p1
-            # control.cascade and control.yaw_rate inlined: L = P2 (P1 (phi_sp - phi) - p), N = P (r_sp - r)
-            lm = p2 * (p1 * ((roll >> _SHIFT) - phi * _ANGLE) - self.sp)
-            mm = p2 * (p1 * ((pitch >> _SHIFT) - theta * _ANGLE) - self.sq)
-            nm = g.yaw_p * ((yaw >> _YSHIFT) - self.sr)
+            lm = C.cascade(roll >> _SHIFT, phi * _ANGLE, self.sp, g.p1, g.p2)
+            mm = C.cascade(pitch >> _SHIFT, theta * _ANGLE, self.sq, g.p1, g.p2)
+            nm = C.yaw_rate(yaw >> _YSHIFT, self.sr, g.yaw_p)
             if mode == _HEIGHT:
                 d = lift - self._lift_entry
                 if d > HEIGHT_STICK_DEADBAND or d < -HEIGHT_STICK_DEADBAND:

@@ -52,6 +52,7 @@ class Sim:
         self.k = 0
         self.t = 0.0
         self.mode = int(Mode.SAFE)
+        self._entered = self.mode  # the mode the flight core last entered (at the control step after set_mode)
         self.sticks = [0, 0, 0, 0]  # roll, pitch, yaw, lift
         self.pilot_target: float | None = None  # the pilot holds this true height with the lift stick
         self.cal = CalibrationSums()
@@ -104,6 +105,9 @@ class Sim:
             if self.pilot_target is not None and k % 8 == 0:
                 self._pilot()
             s = self.sticks
+            if mode != self._entered:
+                fc.enter_mode(mode, s[3])
+                self._entered = mode
             ae = fc.control(mode, s[0], s[1], s[2], s[3], dtc)
             world.set_motors(ae[0], ae[1], ae[2], ae[3])
             if self.on_tick is not None:

@@ -66,6 +66,7 @@ def test_panic_descends_from_the_level_it_found_senses_the_ground_and_ramps():
     fc = FlightCore()
     fc.ae = (400,) * 4  # hovering
     fc.vz, fc.height = 0.0, 5.0
+    fc.enter_mode(Mode.PANIC)
     out = fc.control(Mode.PANIC, 0, 0, 0, 0)
     assert len(set(out)) == 1 and 300 < out[0] < 400  # a little less than it ran at: the descent starts
     assert P.PANIC_AE < P.AE_HOVER_NOMINAL
@@ -80,7 +81,9 @@ def test_panic_descends_from_the_level_it_found_senses_the_ground_and_ramps():
     fc.panic_scale = 0.5  # the board's ramp
     assert fc.control(Mode.PANIC, 0, 0, 0, 0) == (level // 2,) * 4
     assert fc.panic_motors(0.0) == (0, 0, 0, 0)
+    fc.enter_mode(Mode.SAFE)
     fc.control(Mode.SAFE, 0, 0, 0, 0)
+    fc.enter_mode(Mode.PANIC)
     assert fc.control(Mode.PANIC, 0, 0, 0, 0) == (0, 0, 0, 0)  # motors were off: PANIC never spins them up
     assert fc.panic_scale == 1.0 and not fc.panic_landed  # entering PANIC restarts the descent
 
@@ -88,6 +91,7 @@ def test_panic_descends_from_the_level_it_found_senses_the_ground_and_ramps():
 def test_height_mode_captures_the_set_point_and_the_stick_moves_it():
     fc = _calibrated()
     fc.height = 1.2
+    fc.enter_mode(Mode.HEIGHT, 16384)
     fc.control(Mode.HEIGHT, 0, 0, 0, 16384)
     assert fc.setpoint == pytest.approx(1.2)
     for _ in range(400):
@@ -112,12 +116,17 @@ def test_height_entered_from_raw_flies_on_the_filter():
     for _ in range(400):  # tilted 10 deg to the right according to the accelerometer
         fc.imu_sample(40, -30, 10, 200, 2845 - 100, 16135 + 116, 0.0025)
     fc.dmp_phi = 0.0  # a stale DMP says level
-    fc.control(Mode.RAW, 0, 0, 0, 16384)
-    a = fc.control(Mode.HEIGHT, 0, 0, 0, 16384)
+
+    def fly(mode: Mode, lift: int) -> tuple[int, int, int, int]:
+        fc.enter_mode(mode, lift)
+        return fc.control(mode, 0, 0, 0, lift)
+
+    fly(Mode.RAW, 16384)
+    a = fly(Mode.HEIGHT, 16384)
     assert a[1] > a[3]  # corrects the filter's right roll (right motor up), not the stale DMP's level
-    fc.control(Mode.SAFE, 0, 0, 0, 0)
-    fc.control(Mode.FULL, 0, 0, 0, 16384)
-    b = fc.control(Mode.HEIGHT, 0, 0, 0, 16384)
+    fly(Mode.SAFE, 0)
+    fly(Mode.FULL, 16384)
+    b = fly(Mode.HEIGHT, 16384)
     assert b[1] == b[3]  # from FULL: the DMP path
 
 
@@ -126,6 +135,6 @@ def test_entering_calibration_clears_the_dmp_offsets():
     fc.set_calibration(Calibration(dmp_phi=0.02, dmp_theta=-0.01))
     fc.dmp_sample(1.0, 0.0, 0.0, 0.0)
     assert fc.dmp_phi == pytest.approx(-0.02)
-    fc.control(Mode.CALIBRATION, 0, 0, 0, 0)
+    fc.enter_mode(Mode.CALIBRATION)
     fc.dmp_sample(1.0, 0.0, 0.0, 0.0)
     assert (fc.dmp_phi, fc.dmp_theta) == (0.0, 0.0)

@@ -29,15 +29,17 @@ def test_flight_core_integral_is_reset_on_entering_height() -> None:
     fc = FlightCore()
     fc.set_calibration(Calibration())
     fc.height = 1.0
-    fc.control(Mode.FULL, 0, 0, 0, 16384)
-    fc.control(Mode.HEIGHT, 0, 0, 0, 16384)
+    for mode in (Mode.FULL, Mode.HEIGHT):
+        fc.enter_mode(mode, 16384)
+        fc.control(mode, 0, 0, 0, 16384)
     fc.height = 0.9  # 10 cm low for 2 s: the integral adds lift
     first = fc.control(Mode.HEIGHT, 0, 0, 0, 16384)
     for _ in range(800):
         later = fc.control(Mode.HEIGHT, 0, 0, 0, 16384)
     assert min(later) > min(first)
-    fc.control(Mode.FULL, 0, 0, 0, 16384)
-    fc.control(Mode.HEIGHT, 0, 0, 0, 16384)
+    for mode in (Mode.FULL, Mode.HEIGHT):
+        fc.enter_mode(mode, 16384)
+        fc.control(mode, 0, 0, 0, 16384)
     assert fc._z_int == 0.0
 
 
