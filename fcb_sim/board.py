@@ -32,16 +32,16 @@ from __future__ import annotations
 
 import random
 from collections.abc import Callable
-from dataclasses import dataclass
 from typing import Any
 
 from fcb_sim import telemetry as tm
 from fcb_sim.calibration import CALIBRATED_VARS, DMP_ANGLE_LSB
 from fcb_sim.commands import COMMAND_DEDUPE_US, CommandDesk
-from fcb_sim.flash_log import FLASH_BYTES, FLASH_US_PER_BYTE, Download, FlashLog, LogVar
+from fcb_sim.flash_log import FLASH_US_PER_BYTE, Download, FlashLog, LogVar
 from fcb_sim.flight import FlightCore
 from fcb_sim.modes import FLIGHT_MODES, ModeChange, ModeConfig, ModeMachine
 from fcb_sim.param_bindings import apply_values
+from fcb_sim.parts import BoardConfig, BoardParts
 from fcb_sim.physics import World
 from fcb_sim.scheduler import (
     BARO_PERIOD_US,
@@ -83,14 +83,9 @@ from term.core.protocol import (
     PARAMS,
     PRESETS,
     PROTOCOL_VERSION,
-    QUEUE_DISCARD_FRAMES,
-    QUEUE_RULES,
-    SCHEDULERS,
-    SENSOR_PATHS,
     Button,
     Command,
     Decoder,
-    Event,
     EventCode,
     Heartbeat,
     HeartbeatAck,
@@ -119,42 +114,6 @@ BOARD_VERSION = (0, 1)
 
 def _default(param: Param) -> Any:
     return PARAMS[param].default
-
-
-@dataclass
-class BoardConfig:
-    """The board's start-up settings; those that are parameters default to the protocol's table (PARAMS), and
-    ``preset`` (term.core.protocol.PRESETS: "default", "report") sets the ones it names after the rest."""
-
-    seed: int = 1
-    scheduler: str = _default(Param.SCHEDULER)  # or "priority"
-    sensor_path: str = _default(Param.SENSOR_PATH)  # "auto": RAW path in RAW mode (and HEIGHT from RAW), else DMP
-    link_timeout_s: float = _default(Param.LINK_TIMEOUT_MS) / 1000
-    telemetry_hz: float = _default(Param.TELEMETRY_HZ)
-    log_scheme: str = _default(Param.LOG_SCHEME)
-    fixed_point: bool = _default(Param.FIXED_POINT)  # RAW filter in Q16.16 (and the fixed-point read cost)
-    queue_rule: str = _default(Param.QUEUE_RULE)  # "discard-20": the report's parser, the whole queue at 20 frames
-    preset: str = "default"
-    board_id: int = 1
-    boot_hello: bool = True
-    log_bytes: int = FLASH_BYTES  # the flash log's size (128 KB on the board)
-    softdevice: bool = True  # the BLE stack advertises (and takes the CPU for it) whether a phone is there or not
-    # A changed stick moves the motors in the parse task that decodes it, not at the next control step
-    # (docs/board.md, "Sticks to motors"); False is the report's firmware, where only the control step does.
-    stick_reaction: bool = _default(Param.STICK_REACTION)
-    # A diagnostic, not part of the model: an extra exponential delay of this mean (µs) on every start out of an
-    # idle wait, standing for interference the model does not know (bench/profile.py: "residual").
-    residual_jitter_us: float = 0.0
-
-    def __post_init__(self) -> None:
-        if self.scheduler not in SCHEDULERS:
-            raise ValueError(f"unknown scheduler {self.scheduler!r}")
-        if self.sensor_path not in SENSOR_PATHS:
-            raise ValueError(f"unknown sensor path {self.sensor_path!r}")
-        if self.queue_rule not in QUEUE_RULES:
-            raise ValueError(f"unknown queue rule {self.queue_rule!r}")
-        if self.preset not in PRESETS:
-            raise ValueError(f"unknown preset {self.preset!r}; known: {', '.join(PRESETS)}")
 
 
 def _parts(cfg: BoardConfig, world: World | None, core: FlightCore | None, wireless: WirelessLink | None,
@@ -192,7 +151,7 @@ class Board:
                  core: FlightCore | None = None, wireless: WirelessLink | None = None,
                  log_vars: tuple[LogVar, ...] | None = None) -> None:
         self.config = cfg = config or BoardConfig()
-        self.world, self.core, self.wireless, self.modes, self.log = _parts(cfg, world, core, wireless, log_vars)
+        self.world, self.core, self.wireless, self.modes, log = _parts(cfg, world, core, wireless, log_vars)
         self.modes.listeners.append(self._on_mode_change)
         self.download = Download()
         self.desk = CommandDesk()
@@ -231,16 +190,19 @@ class Board:
         self.ae = (0, 0, 0, 0)
         self.motors_at_us = 0  # board time at which ``ae`` took effect
         self._sticks_used: tuple[int, int, int, int] | None = None  # what the motors were last computed from
-        self.log_full_reported = False
         self._overflow_reported = 0
         self._overflow_report_at = 0
         self._crashes_seen = len(self.world.crashes)
         self.on_task: Any = None  # optional callback(name, start_us, duration_us) after every task run
-        self.apply_queue_rule()
-        apply_values(self, PRESETS[cfg.preset])  # the preset's parameters over the defaults (fcb_sim/param_bindings.py)
+        # what the handlers act on (fcb_sim/parts.py): commands, parameters, telemetry
+        self.parts = BoardParts(cfg, self.core, self.modes, log, self.download, self.tx, self.wireless, self.prof,
+                                self.sched, self.uart, lambda: self.now)
+        self.event = self.parts.event
+        self.parts.apply_queue_rule()
+        apply_values(self.parts, PRESETS[cfg.preset])  # the preset over the defaults (fcb_sim/param_bindings.py)
         if cfg.boot_hello:
             self._hello()
-            self._event(EventCode.BOOT, PROTOCOL_VERSION)
+            self.event(EventCode.BOOT, PROTOCOL_VERSION)
 
     # --- the outside world's calls ------------------------------------------------------------------------
 
@@ -318,15 +280,10 @@ class Board:
     def path(self) -> str:
         return self._path
 
-    def apply_queue_rule(self) -> None:
-        """The receive queue's rule (Param.QUEUE_RULE): bounded, or the report's discard at 20 frames."""
-        self.uart.discard_at_frames = QUEUE_DISCARD_FRAMES if self.config.queue_rule == "discard-20" else None
-
-    def set_scheduler(self, name: str) -> None:
-        if name not in SCHEDULERS:
-            raise ValueError(f"unknown scheduler {name!r}")
-        self.config.scheduler = name
-        self.sched.priority = name == "priority"
+    @property
+    def log(self) -> FlashLog:
+        """The flash log (a parameter change may replace it: the parts hold the one in force)."""
+        return self.parts.log
 
     def reset_profile(self) -> None:
         self.prof.reset(self.now)
@@ -382,7 +339,7 @@ class Board:
         """A control period at least WCET99: reported while flying, at most every 10 s."""
         if self.now - self.misses_reported_at >= 10_000_000 and self.modes.flying:
             self.misses_reported_at = self.now
-            self._event(EventCode.DEADLINE_MISS, period)
+            self.event(EventCode.DEADLINE_MISS, period)
 
     # --- tasks: each returns its duration in µs -----------------------------------------------------------
 
@@ -397,7 +354,7 @@ class Board:
             del self._ble_rx[: len(chunk)]
         if self.rx_overflow > self._overflow_reported and self.now >= self._overflow_report_at:
             # what was dropped since the last report, at most once per heartbeat period (a flood is one event)
-            self._event(EventCode.OVERFLOW, self.rx_overflow - self._overflow_reported)
+            self.event(EventCode.OVERFLOW, self.rx_overflow - self._overflow_reported)
             self._overflow_reported = self.rx_overflow
             self._overflow_report_at = self.now + HEARTBEAT_PERIOD_US
         cost = PARSE_US_BASE + PARSE_US_PER_BYTE * len(chunk)
@@ -497,9 +454,9 @@ class Board:
                round(fc.sax), round(fc.say), round(fc.saz), *self.ae, round(fc.height / tm.HEIGHT_UNIT_M),
                self.pressure, self.battery)
         written = self.log.append(row)
-        if self.log.state == LogState.FULL and not self.log_full_reported:
-            self.log_full_reported = True
-            self._event(EventCode.LOG_FULL, self.log.used)
+        if self.log.state == LogState.FULL and not self.parts.log_full_reported:
+            self.parts.log_full_reported = True
+            self.event(EventCode.LOG_FULL, self.log.used)
         base = self._cost["logging"]() - FLASH_US_PER_BYTE * REPORT_RECORD_BYTES
         if self.log.scheme == SCHEME_RICE:
             base += RICE_ENCODE_EXTRA_US
@@ -538,11 +495,11 @@ class Board:
             return self._download_step()
         if self.wireless.state is WirelessState.STARTED:
             if self.wireless.compact_due():  # as many as fill the notifications between two heartbeats
-                self.send(tm.compact(self))
+                self.send(tm.compact(self.parts, self.readings()))
             if self.wireless.compact2_due():  # the rest of the flight screen, once per heartbeat period
-                self.send(tm.compact2(self))
+                self.send(tm.compact2(self.parts, self.readings()))
         else:
-            for pkt in self.telemetry.packets(self):
+            for pkt in self.telemetry.packets(self.parts, self.readings()):
                 self.tx.telemetry(pkt, self.now)
         return self._cost["telemetry"]()
 
@@ -558,31 +515,31 @@ class Board:
 
     def _end_download(self) -> None:
         self.download.end(self.log, self.send)
-        self._event(EventCode.LOG_DONE, self.download.sent)
+        self.event(EventCode.LOG_DONE, self.download.sent)
 
     # --- telemetry and packets ----------------------------------------------------------------------------
 
+    def readings(self) -> tm.Readings:
+        """What the tasks last measured and commanded, for the telemetry builders."""
+        return tm.Readings(self.ae, self.pressure, self.temperature, self.battery, self._path)
+
     def status(self) -> Status:
-        return tm.status(self)
+        return tm.status(self.parts, self.readings())
 
     def send(self, pkt: Any) -> None:
         """A packet to the PC, through the transmit side (fcb_sim/transmit.py)."""
         self.tx.send(pkt, self.now)
-
-    def _event(self, code: EventCode, arg: int) -> None:
-        self.send(Event(int(code), int(arg), (self.now // 1000) & 0xFFFFFFFF))
 
     def _hello(self) -> None:
         self.send(Hello(PROTOCOL_VERSION, Role.BOARD, BOARD_VERSION[0], BOARD_VERSION[1], self.config.board_id))
 
     def _drain_mode_events(self) -> None:
         for code, arg, _t in self.modes.drain_events():
-            self._event(code, arg)
+            self.event(code, arg)
 
     def wireless_events(self) -> None:
         """Report the handover's state changes (Event WIRELESS_STATE)."""
-        for _old, new in self.wireless.take_transitions():
-            self._event(EventCode.WIRELESS_STATE, int(new))
+        self.parts.wireless_events()
 
     def _on_mode_change(self, change: ModeChange) -> None:
         if change.old == Mode.CALIBRATION and self.modes.calibrated:
@@ -601,7 +558,7 @@ class Board:
                 self.modes.panic(self.now / 1e6, "fire")
                 self._drain_mode_events()
         elif kind is Command:
-            answer = self.desk.answer(self, pkt)
+            answer = self.desk.answer(self.parts, pkt)
             if answer is None:
                 return  # shed: no room for its Ack; the terminal retries
             ack, after, retry = answer

@@ -1,6 +1,7 @@
 """The board's keyboard commands: one handler per ``Op`` in a table (``COMMANDS``), like ``modes.TRANSITIONS``.
 
-A handler takes the board and the command's ``arg`` and returns ``(status, value, after)``: the ``Nak`` (OK when
+A handler takes the board's parts (``fcb_sim.parts.BoardParts``: what it acts on, the clock, the event emitter)
+and the command's ``arg`` and returns ``(status, value, after)``: the ``Nak`` (OK when
 accepted), the value the ``Ack`` carries (the new mode, trim, gain in milli-units, bytes of log, ...) and an
 optional action run after the Ack is queued (packets that must follow it: a log status, the profile, a handover
 stopped after its Ack went over the cable). A handler refuses with a reason, never silently.
@@ -19,9 +20,10 @@ its Ack as ``EventCode.PARAM_CHANGED`` (the terminal's parameter screen and file
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 from fcb_sim import param_bindings
+from fcb_sim.parts import BoardParts
 from fcb_sim.scheduler import TASKS
 from term.core.protocol import (
     PARAMS,
@@ -37,16 +39,13 @@ from term.core.protocol import (
     param_split,
 )
 
-if TYPE_CHECKING:
-    from fcb_sim.board import Board
-
 COMMAND_DEDUPE_US = 2_000_000  # a Command repeated (same id, op, arg) within this is a retry: answered, not redone
 
 Result = tuple[Nak, int, Callable[[], None] | None]
-Handler = Callable[["Board", int], Result]
+Handler = Callable[[BoardParts, int], Result]
 
 
-def _mode(b: Board, arg: int) -> Result:
+def _mode(b: BoardParts, arg: int) -> Result:
     if arg == Mode.WIRELESS:
         return _wireless_start(b)
     now_s = b.now / 1e6
@@ -55,24 +54,24 @@ def _mode(b: Board, arg: int) -> Result:
 
 
 def _trim(axis: str) -> Handler:
-    def handler(b: Board, arg: int) -> Result:
+    def handler(b: BoardParts, arg: int) -> Result:
         return Nak.OK, b.modes.adjust_trim(axis, arg), None
 
     return handler
 
 
 def _gain(name: str, param: Param) -> Handler:
-    def handler(b: Board, arg: int) -> Result:
+    def handler(b: BoardParts, arg: int) -> Result:
         return Nak.OK, round(b.core.adjust_gain(name, arg) * 1000), lambda: _changed(b, param)
 
     return handler
 
 
-def _changed(b: Board, param: Param) -> None:
-    b._event(EventCode.PARAM_CHANGED, param_arg(param, param_bindings.get_raw(b, param)))
+def _changed(b: BoardParts, param: Param) -> None:
+    b.event(EventCode.PARAM_CHANGED, param_arg(param, param_bindings.get_raw(b, param)))
 
 
-def _log_start(b: Board, arg: int) -> Result:
+def _log_start(b: BoardParts, arg: int) -> Result:
     if b.download.active:
         return Nak.LOG_BUSY, 0, None
     reason, _ = b.log.start()
@@ -81,22 +80,22 @@ def _log_start(b: Board, arg: int) -> Result:
     return reason, b.log.used, None
 
 
-def _log_stop(b: Board, arg: int) -> Result:
+def _log_stop(b: BoardParts, arg: int) -> Result:
     reason, _ = b.log.stop()
     return reason, b.log.used, None
 
 
-def _log_reset(b: Board, arg: int) -> Result:
+def _log_reset(b: BoardParts, arg: int) -> Result:
     if b.download.active:
         return Nak.LOG_BUSY, 0, None
     return b.log.reset(b.modes.mode == Mode.SAFE), 0, None
 
 
-def _log_status(b: Board, arg: int) -> Result:
+def _log_status(b: BoardParts, arg: int) -> Result:
     return Nak.OK, b.log.used, lambda: b.tx.send_set("log_status", [b.log.status()], b.now)
 
 
-def _log_download(b: Board, first: int) -> Result:
+def _log_download(b: BoardParts, first: int) -> Result:
     if b.modes.mode != Mode.SAFE:
         return Nak.NOT_IN_SAFE, 0, None
     reason = b.download.refusal(b.log, first)
@@ -105,11 +104,11 @@ def _log_download(b: Board, first: int) -> Result:
     return Nak.OK, b.log.n_chunks, lambda: b.download.begin(first, b.log, b.send)
 
 
-def _profile(b: Board, arg: int) -> Result:
+def _profile(b: BoardParts, arg: int) -> Result:
     return Nak.OK, len(TASKS), lambda: b.tx.send_set("profile", b.prof.packets(b.now), b.now)
 
 
-def _wireless(b: Board, arg: int) -> Result:
+def _wireless(b: BoardParts, arg: int) -> Result:
     if arg == 1:
         return _wireless_start(b)
     if arg == 0:
@@ -117,12 +116,12 @@ def _wireless(b: Board, arg: int) -> Result:
     return Nak.BAD_ARGUMENT, 0, None
 
 
-def _wireless_stop(b: Board) -> None:
+def _wireless_stop(b: BoardParts) -> None:
     b.wireless.request_stop()  # after the Ack: it still goes where the command came from
     b.wireless_events()
 
 
-def _wireless_start(b: Board) -> Result:
+def _wireless_start(b: BoardParts) -> Result:
     if b.modes.mode != Mode.SAFE:
         return Nak.NOT_IN_SAFE, int(b.wireless.state), None
     reason = b.wireless.request_start()
@@ -130,11 +129,11 @@ def _wireless_start(b: Board) -> Result:
     return reason, int(b.wireless.state), None
 
 
-def _ack_crash(b: Board, arg: int) -> Result:
+def _ack_crash(b: BoardParts, arg: int) -> Result:
     return b.modes.acknowledge_crash(), 0, None
 
 
-def _set_param(b: Board, arg: int) -> Result:
+def _set_param(b: BoardParts, arg: int) -> Result:
     pid, raw = param_split(arg)
     nak, param = param_bindings.set_raw(b, pid, raw)
     if nak != Nak.OK or param is None:
@@ -142,7 +141,7 @@ def _set_param(b: Board, arg: int) -> Result:
     return Nak.OK, param_bindings.get_raw(b, param), lambda: _changed(b, param)
 
 
-def _param_get(b: Board, arg: int) -> Result:
+def _param_get(b: BoardParts, arg: int) -> Result:
     try:
         param = Param(arg)
     except ValueError:
@@ -150,7 +149,7 @@ def _param_get(b: Board, arg: int) -> Result:
     return Nak.OK, param_bindings.get_raw(b, param), None
 
 
-def _param_list(b: Board, arg: int) -> Result:
+def _param_list(b: BoardParts, arg: int) -> Result:
     """Every parameter as a ParamValue packet after the Ack (whose value is how many)."""
     params = sorted(PARAMS)
     n = len(params)
@@ -183,12 +182,12 @@ COMMANDS: dict[Op, Handler] = {
 }
 
 
-def execute(board: Board, cmd: Command) -> Result:
+def execute(parts: BoardParts, cmd: Command) -> Result:
     """Run one command's handler; an unknown op is refused."""
     handler = COMMANDS.get(cmd.op)  # type: ignore[call-overload]
     if handler is None:
         return Nak.UNKNOWN_COMMAND, 0, None
-    return handler(board, cmd.arg)
+    return handler(parts, cmd.arg)
 
 
 class CommandDesk:
@@ -205,19 +204,19 @@ class CommandDesk:
         """A terminal (re)connected: its cmd_ids start afresh, so an equal first command is not a retry."""
         self._last = self._ack = None
 
-    def answer(self, board: Board, cmd: Command) -> tuple[Ack, Callable[[], Any] | None, bool] | None:
+    def answer(self, parts: BoardParts, cmd: Command) -> tuple[Ack, Callable[[], Any] | None, bool] | None:
         """(Ack, action after it, whether it was a retry), or None when the command is shed."""
-        if not board.tx.answer_room(board.now):
+        if not parts.tx.answer_room(parts.now):
             self.shed += 1
             return None
         key = (cmd.cmd_id, cmd.op, cmd.arg)
-        if key == self._last and board.now - self._at < COMMAND_DEDUPE_US and self._ack:
+        if key == self._last and parts.now - self._at < COMMAND_DEDUPE_US and self._ack:
             return self._ack, None, True  # a retry: the first answer was lost; do not do it twice
         after = None
         try:
-            status, value, after = execute(board, cmd)
+            status, value, after = execute(parts, cmd)
         except Exception:  # a bug must not take the board down: refuse, and keep flying
             status, value = Nak.BAD_ARGUMENT, 0
         ack = Ack(cmd.cmd_id, cmd.op, int(status), int(value))
-        self._last, self._ack, self._at = key, ack, board.now
+        self._last, self._ack, self._at = key, ack, parts.now
         return ack, after, False

@@ -29,8 +29,8 @@ from __future__ import annotations
 
 from dataclasses import replace
 
-from fcb_sim import control as C
 from fcb_sim import constants as P
+from fcb_sim import control as C
 from fcb_sim.calibration import Calibration
 from fcb_sim.estimation import BEST, HeightEstimator, make_filter, quaternion_to_euler
 from fcb_sim.estimation.height import HEIGHT_BEST, HeightKalman, make_height_estimator

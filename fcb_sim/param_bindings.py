@@ -1,15 +1,15 @@
 """The board's parameters: each row of the protocol's table (``term.core.protocol.PARAMS``) bound to where the board
-keeps
-it, read and written in the table's units. The table is the one source of truth: its defaults are the board's
-(``BoardConfig``, ``params.Gains``, ``ModeConfig``'s trim steps come from it; a test checks a fresh board reads
-them back), its ranges are what ``set_value`` accepts, its ``in_flight`` says what may change outside SAFE.
+keeps it (its parts, ``fcb_sim.parts.BoardParts``), read and written in the table's units. The table is the one source
+of truth: its defaults are the board's (``BoardConfig``, ``params.Gains``, ``ModeConfig``'s trim steps come from it; a
+test checks a fresh board reads them back), its ranges are what ``set_value`` accepts, its ``in_flight`` says what
+may change outside SAFE.
 
-- ``get_raw(board, param)`` / ``get_value``: the value in force;
-- ``set_raw(board, param, raw)``: the guards in order (unknown id: ``Nak.UNKNOWN_PARAM``; out of the table's range:
+- ``get_raw(parts, param)`` / ``get_value``: the value in force;
+- ``set_raw(parts, param, raw)``: the guards in order (unknown id: ``Nak.UNKNOWN_PARAM``; out of the table's range:
   ``Nak.OUT_OF_RANGE``; a SAFE-only parameter in another mode: ``Nak.NOT_IN_SAFE``; the parameter's own rule: the
   log scheme needs an empty log, ``Nak.LOG_BUSY``; a filter without a fixed-point twin in fixed point,
   ``Nak.BAD_ARGUMENT``), then the change; the caller reports it (``EventCode.PARAM_CHANGED``);
-- ``apply_values(board, values)``: a preset or a file at boot (SAFE: every guard but the mode's applies).
+- ``apply_values(parts, values)``: a preset or a file at boot (SAFE: every guard but the mode's applies).
 
 An attitude filter or height estimator changed by name is built afresh (the filter converges on the ground in
 SAFE; the height estimator is re-anchored at the calibration's pressure).
@@ -18,7 +18,6 @@ SAFE; the height estimator is re-anchored at the calibration's pressure).
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
-from typing import TYPE_CHECKING
 
 from fcb_sim import constants as P
 from fcb_sim.estimation import has_fixed_point, make_filter
@@ -26,21 +25,19 @@ from fcb_sim.estimation.complementary import ComplementaryFilter, ComplementaryF
 from fcb_sim.estimation.height import make_height_estimator
 from fcb_sim.flash_log import FlashLog
 from fcb_sim.flight import FlightCore
+from fcb_sim.parts import BoardParts
 from term.core.protocol import PARAMS, Mode, Nak, Param, preset_values
 
-if TYPE_CHECKING:
-    from fcb_sim.board import Board
-
 Value = float | str | bool
-Getter = Callable[["Board"], Value]
-Setter = Callable[["Board", Value], Nak]
+Getter = Callable[[BoardParts], Value]
+Setter = Callable[[BoardParts, Value], Nak]
 
 
 def _gain(name: str) -> tuple[Getter, Setter]:
-    def get(b: Board) -> Value:
+    def get(b: BoardParts) -> Value:
         return float(getattr(b.core.gains, name))
 
-    def put(b: Board, v: Value) -> Nak:
+    def put(b: BoardParts, v: Value) -> Nak:
         setattr(b.core.gains, name, float(v))
         return Nak.OK
 
@@ -48,10 +45,10 @@ def _gain(name: str) -> tuple[Getter, Setter]:
 
 
 def _config(name: str, convert: Callable[[Value], Value] = lambda v: v) -> tuple[Getter, Setter]:
-    def get(b: Board) -> Value:
+    def get(b: BoardParts) -> Value:
         return getattr(b.config, name)
 
-    def put(b: Board, v: Value) -> Nak:
+    def put(b: BoardParts, v: Value) -> Nak:
         setattr(b.config, name, convert(v))
         return Nak.OK
 
@@ -65,7 +62,7 @@ def build_filter(name: str, k_gyro: float, fixed_point: bool) -> object:
     return make_filter(name, fixed_point=fixed_point)
 
 
-def _refilter(b: Board, name: str, k_gyro: float, fixed: bool) -> Nak:
+def _refilter(b: BoardParts, name: str, k_gyro: float, fixed: bool) -> Nak:
     if fixed and name != "complementary" and not has_fixed_point(name):
         return Nak.BAD_ARGUMENT  # no fixed-point twin of this filter
     core = b.core
@@ -75,27 +72,27 @@ def _refilter(b: Board, name: str, k_gyro: float, fixed: bool) -> Nak:
     return Nak.OK
 
 
-def _k_gyro(b: Board) -> float:
+def _k_gyro(b: BoardParts) -> float:
     return b.core.k_gyro
 
 
-def _set_filter(b: Board, v: Value) -> Nak:
+def _set_filter(b: BoardParts, v: Value) -> Nak:
     return _refilter(b, str(v), _k_gyro(b), b.config.fixed_point)
 
 
-def _set_k_gyro(b: Board, v: Value) -> Nak:
+def _set_k_gyro(b: BoardParts, v: Value) -> Nak:
     return _refilter(b, b.core.filter_name, float(v), b.config.fixed_point)
 
 
-def _set_fixed(b: Board, v: Value) -> Nak:
+def _set_fixed(b: BoardParts, v: Value) -> Nak:
     return _refilter(b, b.core.filter_name, _k_gyro(b), bool(v))
 
 
-def _height_name(b: Board) -> Value:
+def _height_name(b: BoardParts) -> Value:
     return b.core.height_name
 
 
-def _set_height(b: Board, v: Value) -> Nak:
+def _set_height(b: BoardParts, v: Value) -> Nak:
     core = b.core
     core.height_est = make_height_estimator(str(v))
     core.height_name = str(v)
@@ -105,23 +102,23 @@ def _set_height(b: Board, v: Value) -> Nak:
     return Nak.OK
 
 
-def _set_scheduler(b: Board, v: Value) -> Nak:
+def _set_scheduler(b: BoardParts, v: Value) -> Nak:
     b.set_scheduler(str(v))
     return Nak.OK
 
 
-def _set_timeout(b: Board, v: Value) -> Nak:
+def _set_timeout(b: BoardParts, v: Value) -> Nak:
     b.config.link_timeout_s = b.modes.config.link_timeout_s = float(v) / 1000
     return Nak.OK
 
 
-def _set_queue_rule(b: Board, v: Value) -> Nak:
+def _set_queue_rule(b: BoardParts, v: Value) -> Nak:
     b.config.queue_rule = str(v)
     b.apply_queue_rule()
     return Nak.OK
 
 
-def _set_log_scheme(b: Board, v: Value) -> Nak:
+def _set_log_scheme(b: BoardParts, v: Value) -> Nak:
     if b.log.used:
         return Nak.LOG_BUSY
     b.log = FlashLog(size=b.log.flash.size, scheme=str(v), variables=b.log.variables)
@@ -130,10 +127,10 @@ def _set_log_scheme(b: Board, v: Value) -> Nak:
 
 
 def _mode_config(name: str) -> tuple[Getter, Setter]:
-    def get(b: Board) -> Value:
+    def get(b: BoardParts) -> Value:
         return getattr(b.modes.config, name)
 
-    def put(b: Board, v: Value) -> Nak:
+    def put(b: BoardParts, v: Value) -> Nak:
         setattr(b.modes.config, name, int(v))
         return Nak.OK
 
@@ -164,15 +161,15 @@ BINDINGS: dict[Param, tuple[Getter, Setter]] = {
 }
 
 
-def get_value(board: Board, param: Param) -> Value:
-    return BINDINGS[param][0](board)
+def get_value(parts: BoardParts, param: Param) -> Value:
+    return BINDINGS[param][0](parts)
 
 
-def get_raw(board: Board, param: Param) -> int:
-    return PARAMS[param].to_raw(get_value(board, param))
+def get_raw(parts: BoardParts, param: Param) -> int:
+    return PARAMS[param].to_raw(get_value(parts, param))
 
 
-def set_raw(board: Board, pid: int, raw: int, *, mode_guard: bool = True) -> tuple[Nak, Param | None]:
+def set_raw(parts: BoardParts, pid: int, raw: int, *, mode_guard: bool = True) -> tuple[Nak, Param | None]:
     """Set parameter ``pid`` to ``raw`` if every guard passes; (Nak.OK or the reason, the Param if known)."""
     try:
         param = Param(pid)
@@ -181,16 +178,16 @@ def set_raw(board: Board, pid: int, raw: int, *, mode_guard: bool = True) -> tup
     spec = PARAMS[param]
     if not spec.accepts(raw):
         return Nak.OUT_OF_RANGE, param
-    if mode_guard and not spec.in_flight and board.modes.mode != Mode.SAFE:
+    if mode_guard and not spec.in_flight and parts.modes.mode != Mode.SAFE:
         return Nak.NOT_IN_SAFE, param
-    return BINDINGS[param][1](board, spec.from_raw(raw)), param
+    return BINDINGS[param][1](parts, spec.from_raw(raw)), param
 
 
-def apply_values(board: Board, values: Mapping[Param, Value]) -> list[tuple[Param, Nak]]:
+def apply_values(parts: BoardParts, values: Mapping[Param, Value]) -> list[tuple[Param, Nak]]:
     """Set each parameter (a preset, a file); returns the ones refused, with why."""
     refused = []
     for param, value in values.items():
-        nak, _ = set_raw(board, param, PARAMS[param].to_raw(value), mode_guard=False)
+        nak, _ = set_raw(parts, param, PARAMS[param].to_raw(value), mode_guard=False)
         if nak != Nak.OK:
             refused.append((param, nak))
     return refused

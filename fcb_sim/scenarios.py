@@ -22,8 +22,8 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
-from fcb_sim import control as C
 from fcb_sim import constants as P
+from fcb_sim import control as C
 from fcb_sim.calibration import CalibrationSums
 from fcb_sim.errors import UsageError
 from fcb_sim.estimation import BEST, FILTERS, has_fixed_point

@@ -199,7 +199,6 @@ def test_the_board_sends_compact2_over_ble_with_its_own_figures() -> None:
     40 Hz of Compact, its figures the board's own, every notification at most 20 bytes, the mean fill at least
     90 % (the issue's goal)."""
     from fcb_sim.board import Board, BoardConfig
-    from fcb_sim.telemetry import flags
     from term.core.link import LinkSession, PacketReceived
     from term.session.station import RADIO_SESSION
 
@@ -232,7 +231,7 @@ def test_the_board_sends_compact2_over_ble_with_its_own_figures() -> None:
     assert st.fill_pct >= 90.0 and 3.8 <= st.compacts / st.compact2s <= 4.2
     last = got[-1][1]
     assert all(a > 0 for a in board.ae) and all(abs(4 * c - a) <= 2 for c, a in zip(last[:4], board.ae, strict=True))
-    assert last.flags == flags(board) and last.flags & Flag.WIRELESS_ACTIVE and last.trim_lift == 0
+    assert last.flags == board.status().flags and last.flags & Flag.WIRELESS_ACTIVE and last.trim_lift == 0
     assert abs(last.height * field_scale(Compact2, "height") - board.core.height) < 0.05
 
 
