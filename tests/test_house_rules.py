@@ -258,8 +258,7 @@ def _import_graph(tree: str) -> dict[str, set[str]]:
     return graph
 
 
-@pytest.mark.parametrize("tree", ("term", pytest.param("fcb_sim", marks=pytest.mark.xfail(
-    strict=True, reason="board <-> commands, param_bindings, telemetry through TYPE_CHECKING: being untangled"))))
+@pytest.mark.parametrize("tree", ("term", "fcb_sim"))
 def test_no_import_cycles(tree: str) -> None:
     cycles = _cycles(_import_graph(tree))
     assert not cycles, "import cycles:\n" + "\n".join(" <-> ".join(c) for c in cycles)
