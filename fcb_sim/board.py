@@ -20,7 +20,8 @@ world's physics advances with it. Commands are a table (``fcb_sim.commands``); t
 what it does not: docs/board.md.
 
 Sans-IO contract: ``uart_receive(data)`` (bytes arrive now), ``advance(until_us)``, ``uart_transmit() -> bytes``
-(what has left the UART at 115200 baud by now); ``next_event_us()`` tells a real-time driver when to call again.
+(what has left the UART at the protocol's BAUD_RATE by now); ``next_event_us()`` tells a real-time driver when to
+call again.
 BLE goes through ``board.wireless`` (a ``fcb_sim.wireless.WirelessLink``): every packet the board sends is offered
 to it. Without a radio, ``ble_connected()``, ``ble_disconnected()`` and ``ble_receive(data)`` drive the link; with
 ``wireless.BoardRadio`` its ``on_data`` is ``board.ble_data`` and its ``on_disconnect`` is ``board.ble_lost``
@@ -35,8 +36,8 @@ from collections.abc import Callable
 from typing import Any
 
 from fcb_sim import telemetry as tm
-from fcb_sim.calibration import CALIBRATED_VARS, DMP_ANGLE_LSB
-from fcb_sim.commands import COMMAND_DEDUPE_US, CommandDesk
+from fcb_sim.calibration import CALIBRATED_VARS
+from fcb_sim.commands import CommandDesk
 from fcb_sim.flash_log import FLASH_US_PER_BYTE, Download, FlashLog, LogVar
 from fcb_sim.flight import FlightCore
 from fcb_sim.modes import FLIGHT_MODES, ModeChange, ModeConfig, ModeMachine
@@ -44,12 +45,8 @@ from fcb_sim.param_bindings import apply_values
 from fcb_sim.parts import BoardConfig, BoardParts
 from fcb_sim.physics import World
 from fcb_sim.scheduler import (
-    BARO_PERIOD_US,
-    CHAIN,
     HEARTBEAT_PERIOD_US,
     PARSE_MAX_BYTES,
-    PRIORITY_ORDER,
-    ROUND_ROBIN_ORDER,
     TASKS,
     Scheduler,
     timer_period,
@@ -61,22 +58,14 @@ from fcb_sim.timing import (
     PARSE_US_BASE,
     PARSE_US_PER_BYTE,
     RAW_FILTER_EXTRA_US,
-    REPORT_MISS_RATE,
-    REPORT_MISS_RATE_999,
     REPORT_RECORD_BYTES,
     RICE_ENCODE_EXTRA_US,
     SENSOR_PERIOD_US,
-    UART_US_PER_BYTE,
-    WCET99_US,
-    WCET999_US,
     Interference,
     Profiler,
-    TaskStats,
-    report_figures,
-    report_rows,
 )
 from fcb_sim.transmit import Transmitter
-from fcb_sim.uart import RX_QUEUE_BYTES, TX_BUFFER_BYTES, UART_BAUD, Uart
+from fcb_sim.uart import RX_QUEUE_BYTES, Uart
 from fcb_sim.wireless import WirelessLink
 from term.core.logformat import SCHEME_RICE
 from term.core.protocol import (
@@ -98,16 +87,6 @@ from term.core.protocol import (
     Status,
     WirelessState,
 )
-
-# Names that moved to the modules that own them, still importable from here.
-__all__ = [
-    "BARO_PERIOD_US", "BOARD_VERSION", "CALIBRATED_VARS", "CHAIN", "COMMAND_DEDUPE_US", "DMP_ANGLE_LSB",
-    "DOWNLOAD_US_PER_CHUNK", "HEARTBEAT_PERIOD_US",
-    "PARSE_MAX_BYTES", "PARSE_US_BASE", "PARSE_US_PER_BYTE", "PRIORITY_ORDER", "REPORT_MISS_RATE",
-    "REPORT_MISS_RATE_999", "ROUND_ROBIN_ORDER", "RX_QUEUE_BYTES", "SENSOR_PERIOD_US", "TASKS", "TX_BUFFER_BYTES",
-    "UART_BAUD", "UART_US_PER_BYTE", "WCET99_US", "WCET999_US", "Board", "BoardConfig", "TaskStats",
-    "report_figures", "report_rows",
-]
 
 BOARD_VERSION = (0, 1)
 
@@ -216,7 +195,7 @@ class Board:
             self.irq.rx(at, taken)
 
     def uart_transmit(self) -> bytes:
-        """What has left the UART by now: 115200 baud, 8N1."""
+        """What has left the UART by now: BAUD_RATE, 8N1."""
         return self.tx.transmit(self.now)
 
     @property

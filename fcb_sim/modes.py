@@ -45,7 +45,6 @@ from term.core.protocol import (
 # FLIGHT_MODES (the motors may turn under the flight core), LIFT_ZERO and STICK_NEUTRAL (the guards for leaving
 # SAFE) and the battery threshold are protocol facts: the terminal checks the same numbers.
 MOTORS_OFF_MODES = frozenset({Mode.SAFE, Mode.CALIBRATION})
-LOW_BATTERY = BATTERY_LOW  # 10 mV units: 10.5 V (the older name)
 TRIM_LIMIT = 8192  # roll/pitch/yaw trims stay within a quarter of full deflection
 
 
@@ -60,7 +59,7 @@ class ModeConfig:
     calibration_s: float = 1.0  # CALIBRATION averages this long, then returns to SAFE by itself
     calibration_min_samples: int = 50
     tilt_limit_cdeg: int = 5000  # 50°
-    low_battery: int = LOW_BATTERY
+    low_battery: int = BATTERY_LOW  # 10 mV units: 10.5 V
     trim_step: int = int(PARAMS[Param.TRIM_STEP].default)  # roll, pitch, yaw trim per key press (stick units)
     lift_step: int = int(PARAMS[Param.LIFT_STEP].default)  # lift trim per key press (1 %)
 

@@ -29,7 +29,7 @@ from dataclasses import dataclass
 from statistics import NormalDist
 from typing import Any
 
-from term.core.protocol import Profile
+from term.core.protocol import BAUD_RATE, Profile
 
 # --- timers ----------------------------------------------------------------------------------------------------
 
@@ -224,7 +224,7 @@ COSTS: dict[str, Cost] = {
 
 # --- interrupts that find the loop idle ------------------------------------------------------------------------
 
-UART_US_PER_BYTE = 10_000_000 / 115_200  # 8N1
+UART_US_PER_BYTE = 10_000_000 / BAUD_RATE  # 8N1: ten bits a byte
 UART_ISR_US = 8  # RXDRDY/TXDRDY handler and queue, through the SoftDevice's interrupt forwarding [ASSUMED]
 APP_TIMER_ISR_US = 20  # RTC1 compare, the app_timer list walk, one handler that sets a flag [ASSUMED]
 APP_TIMER_EXTRA_US = 6  # each further timer expiring on the same RTC tick [ASSUMED]

@@ -1,4 +1,5 @@
-"""The board's UART as a wire model: 115200 baud, 8N1, ten bits a byte, both directions paced on the board clock.
+"""The board's UART as a wire model: the protocol's BAUD_RATE, 8N1, ten bits a byte, both directions paced on the
+board clock.
 
 Sans-IO, no clock of its own: the board passes its time in.
 
@@ -22,7 +23,6 @@ from collections import deque
 
 from fcb_sim.timing import UART_US_PER_BYTE
 
-UART_BAUD = 115_200
 RX_QUEUE_BYTES = 1024  # bounded: a flood is dropped and counted, it never stalls the loop
 TX_BUFFER_BYTES = 1024  # what the transmit side may have queued at once
 
@@ -53,7 +53,7 @@ class Uart:
         if not data:
             return 0
         self.rx += data
-        # The bytes take the wire at 115200 baud, after any still arriving.
+        # The bytes take the wire at the baud rate, after any still arriving.
         start = max(float(at), self._wire_free)
         self._wire_free = end = start + len(data) * UART_US_PER_BYTE
         self._wire.append((end, len(data)))
@@ -100,7 +100,7 @@ class Uart:
         self.tx += frame
 
     def transmit(self, now: int) -> bytes:
-        """What has left the UART by ``now``: 115200 baud, 8N1."""
+        """What has left the UART by ``now``: BAUD_RATE, 8N1."""
         if not self.tx:
             self.tx_clock = max(self.tx_clock, float(now))
             return b""

@@ -84,7 +84,7 @@ def test_the_seeded_flight_is_what_the_screen_claims(flight: tuple[Model, float]
 
 
 def test_profile_task_names_match_the_board() -> None:
-    from fcb_sim.board import TASKS
+    from fcb_sim.scheduler import TASKS
     from term.ui.widgets.profile import TASK_NAMES
 
     assert tuple(TASK_NAMES[i] for i in range(len(TASK_NAMES))) == TASKS

@@ -11,20 +11,17 @@ from hypothesis import strategies as st
 from hypothesis.stateful import RuleBasedStateMachine, invariant, rule
 
 from fcb_sim import control as C
-from fcb_sim.board import (
-    PARSE_US_BASE,
-    PARSE_US_PER_BYTE,
-    SENSOR_PERIOD_US,
-    TASKS,
-    UART_US_PER_BYTE,
-    Board,
-    BoardConfig,
-)
+from fcb_sim.board import Board, BoardConfig
 from fcb_sim.modes import FLIGHT_MODES, LIFT_ZERO, STICK_NEUTRAL, ModeChange
+from fcb_sim.scheduler import TASKS
 from fcb_sim.timing import (
     COSTS,
+    PARSE_US_BASE,
+    PARSE_US_PER_BYTE,
     SD_ADV_CHUNKS,
+    SENSOR_PERIOD_US,
     UART_ISR_US,
+    UART_US_PER_BYTE,
     Interference,
     rtc_ticks,
     rtc_us,
@@ -571,7 +568,7 @@ def test_a_flat_battery_sags_under_load_and_panics() -> None:
 
 # --- sticks to motors: a changed stick moves the motors in the parse task that decodes it -------------------------
 
-FRAME_WIRE_US = 15 * UART_US_PER_BYTE  # a Joystick frame on the UART at 115200 baud
+FRAME_WIRE_US = 15 * UART_US_PER_BYTE  # a Joystick frame on the UART at BAUD_RATE
 
 
 class Runs:

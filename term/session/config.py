@@ -51,6 +51,7 @@ from pathlib import Path
 from typing import Any
 
 from term.core.logfile import check_directory
+from term.core.protocol import BAUD_RATE
 from term.core.schema import Flag, ListOf, Number, OneOf, SchemaError, Table, TableOf, Text, nearest, one_line, shown
 from term.input.keymap import KeyBinding, KeymapError, build_keymap
 from term.input.mapping import (
@@ -115,7 +116,7 @@ class ConfigError(ValueError):
 @dataclass
 class Config:
     port: str | None = None
-    baud: int = 115200
+    baud: int = BAUD_RATE
     link_timeout: float = 0.5  # as the board's: LINK LOST shows no later than the board's own PANIC
     joystick_policy: str = "stream"
     keymap: tuple[KeyBinding, ...] = field(default_factory=build_keymap)

@@ -197,9 +197,9 @@ def _event_arg(code: EventCode, arg: int) -> float:
 
 
 def _nak_text(nak: Nak) -> str:
-    from term.core.protocol import NAK_TEXT
+    from term.core.protocol import nak_text
 
-    return NAK_TEXT.get(nak, nak.name)
+    return nak_text(nak)
 
 
 @dataclass(frozen=True, slots=True)

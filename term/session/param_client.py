@@ -24,7 +24,7 @@ from pathlib import Path
 from typing import Any
 
 from term.core.link import CommandAcked, CommandFailed, PacketReceived, VersionMismatch
-from term.core.protocol import NAK_TEXT, PARAM_BY_NAME, PARAMS, Nak, Op, Param, ParamSpec, ParamValue, param_arg
+from term.core.protocol import PARAM_BY_NAME, PARAMS, Nak, Op, Param, ParamSpec, ParamValue, nak_text, param_arg
 from term.core.schema import nearest, shown
 from term.session.connection import Connection, TransportFailed
 
@@ -243,7 +243,7 @@ class ParamClient:
 
 
 def nak_reason(nak: Nak) -> str:
-    return NAK_TEXT.get(nak, nak.name)
+    return nak_text(nak)
 
 
 # --- term params ------------------------------------------------------------------------------------------------

@@ -36,6 +36,7 @@ import threading
 
 import serial
 
+from term.core.protocol import BAUD_RATE
 from term.transports.base import Transport, TransportClosed, TransportError
 
 _CHUNK = 4096
@@ -63,7 +64,7 @@ class SerialTransport(Transport):
     """``SerialTransport("/dev/ttyUSB0")``: 8N1 at ``baud``, exclusive access, no flow control. ``frame_end`` and
     ``hold``: reads end at a frame end where they can (module docstring)."""
 
-    def __init__(self, port: str, baud: int = 115200, *, write_timeout: float = 1.0,
+    def __init__(self, port: str, baud: int = BAUD_RATE, *, write_timeout: float = 1.0,
                  frame_end: bytes | None = b"\x00", hold: float = 0.01) -> None:
         self.port = port
         self.baud = baud

@@ -38,6 +38,7 @@ from term.core.protocol.facts import (  # noqa: F401
     BATTERY_FULL,
     BATTERY_LOW,
     BATTERY_WARN,
+    BAUD_RATE,
     BOARD_NAME_PREFIX,
     BOARD_TO_PC,
     BOTH,
@@ -71,6 +72,7 @@ from term.core.protocol.facts import (  # noqa: F401
     Op,
     Role,
     WirelessState,
+    nak_text,
 )
 from term.core.protocol.framing import (  # noqa: F401
     Decoder,

@@ -124,6 +124,14 @@ NAK_TEXT = {
 }
 
 
+def nak_text(nak: int) -> str:
+    """What a refusal means, for the pilot (a reason newer than this table: its number)."""
+    try:
+        return NAK_TEXT[Nak(nak)]
+    except (ValueError, KeyError):
+        return getattr(nak, "name", f"NAK {int(nak)}")
+
+
 @unique
 class EventCode(IntEnum):
     """Board events (``Event.code``), each with an ``arg`` whose meaning is given here."""
@@ -208,9 +216,12 @@ FLIGHT_MODES = frozenset({Mode.MANUAL, Mode.YAW, Mode.FULL, Mode.RAW, Mode.HEIGH
 
 # Stick guards for leaving SAFE, in stick units (Joystick and Status trims): the board refuses with a Nak and
 # the terminal, which checks first to name the fix at once, uses the same numbers.
-STICK_MAX = 32767
+STICK_MAX = 32767  # full deflection (lift: full throttle)
 LIFT_ZERO = 500  # joystick lift plus lift trim at most this (1.5 %) counts as zero lift
 STICK_NEUTRAL = 1000  # |joystick + trim| at most this on roll, pitch and yaw (3 %) counts as neutral
+
+# The UART's speed (8N1): the board's wire and the terminal's default.
+BAUD_RATE = 115_200
 
 # Battery thresholds in the Height/Compact ``battery`` unit (10 mV), for a 3S LiPo.
 BATTERY_LOW = 1050  # 10.5 V: under this while flying (for LOW_BATTERY_HOLD_S) the board PANICs
