@@ -23,9 +23,11 @@ from collections.abc import Callable
 from typing import Any
 
 from fcb_sim import param_bindings
+from fcb_sim.constants import GAIN_PARAMS
 from fcb_sim.parts import BoardParts
 from fcb_sim.scheduler import TASKS
 from term.core.protocol import (
+    GAIN_OPS,
     PARAMS,
     Ack,
     Command,
@@ -39,6 +41,7 @@ from term.core.protocol import (
     param_split,
 )
 
+GAIN_NAMES = {param: name for name, param in GAIN_PARAMS.items()}
 COMMAND_DEDUPE_US = 2_000_000  # a Command repeated (same id, op, arg) within this is a retry: answered, not redone
 
 Result = tuple[Nak, int, Callable[[], None] | None]
@@ -60,7 +63,9 @@ def _trim(axis: str) -> Handler:
     return handler
 
 
-def _gain(name: str, param: Param) -> Handler:
+def _gain(param: Param) -> Handler:
+    name = GAIN_NAMES[param]
+
     def handler(b: BoardParts, arg: int) -> Result:
         return Nak.OK, round(b.core.adjust_gain(name, arg) * 1000), lambda: _changed(b, param)
 
@@ -163,11 +168,7 @@ COMMANDS: dict[Op, Handler] = {
     Op.TRIM_ROLL: _trim("roll"),
     Op.TRIM_PITCH: _trim("pitch"),
     Op.TRIM_YAW: _trim("yaw"),
-    Op.GAIN_YAW_P: _gain("yaw_p", Param.YAW_P),
-    Op.GAIN_P1: _gain("p1", Param.P1),
-    Op.GAIN_P2: _gain("p2", Param.P2),
-    Op.GAIN_HEIGHT_P: _gain("height_p", Param.HEIGHT_P),
-    Op.GAIN_HEIGHT_D: _gain("height_d", Param.HEIGHT_D),
+    **{Op(op): _gain(param) for op, param in GAIN_OPS.items()},  # the protocol's gain keys
     Op.LOG_START: _log_start,
     Op.LOG_STOP: _log_stop,
     Op.LOG_RESET: _log_reset,

@@ -149,12 +149,14 @@ BARO_TEMP_C = 25.0
 ANGLE_LSB_PER_RAD = 10430.0
 
 
-_GAIN_PARAMS = {"yaw_p": _protocol.Param.YAW_P, "p1": _protocol.Param.P1, "p2": _protocol.Param.P2,
-                "height_p": _protocol.Param.HEIGHT_P, "height_d": _protocol.Param.HEIGHT_D}
+# The gains the pilot's keys step (the protocol's GAIN_OPS), by their parameter's name without its "ctrl." group:
+# "ctrl.yaw_p" is Gains.yaw_p (a test checks the two name the same gains).
+GAIN_PARAMS: dict[str, _protocol.Param] = {_protocol.PARAMS[p].name.removeprefix("ctrl."): p
+                                           for p in _protocol.GAIN_OPS.values()}
 
 
 def _gain_default(name: str) -> float:
-    return float(_protocol.PARAMS[_GAIN_PARAMS[name]].default)
+    return float(_protocol.PARAMS[GAIN_PARAMS[name]].default)
 
 
 @dataclass
@@ -171,7 +173,7 @@ class Gains:
 
 
 # Per-step changes for the pilot's gain keys (u/j, i/k, o/l, t/g, y/h): the table's steps.
-GAIN_STEPS = {name: float(_protocol.PARAMS[p].step) for name, p in _GAIN_PARAMS.items()}
+GAIN_STEPS = {name: float(_protocol.PARAMS[p].step) for name, p in GAIN_PARAMS.items()}
 
 # Motor limits used by the mixing.
 AE_IDLE = 150  # minimum while armed: the rotors keep turning (thrust 14% of weight, stays on the floor)

@@ -33,6 +33,7 @@ positive L/M/N spin the quadrotor positively about x/y/z (tests/test_control.py 
 from __future__ import annotations
 
 from fcb_sim import constants as P
+from term.core.protocol import STICK_MAX
 
 ANGLE_LSB_PER_RAD = P.ANGLE_LSB_PER_RAD
 RATE_LSB_PER_RAD_S = P.RATE_LSB_PER_RAD_S
@@ -109,10 +110,10 @@ def mix(z: float, l: float, m: float, n: float, *, armed: bool = True,
 
 
 def lift_to_z(lift: int) -> int:
-    """Lift stick (0..32767) to Z (ae² units, negative up): every motor at ``lift * LIFT_AE_MAX / 32767``."""
+    """Lift stick (0..STICK_MAX) to Z (ae² units, negative up): every motor at ``lift * LIFT_AE_MAX / STICK_MAX``."""
     if lift <= 0:
         return 0
-    ae = lift * LIFT_AE_MAX // 32767
+    ae = lift * LIFT_AE_MAX // STICK_MAX
     return -4 * ae * ae
 
 
@@ -121,7 +122,7 @@ def z_to_lift(z: float) -> int:
     if z >= 0:
         return 0
     ae = isqrt_nr(int(-z) // 4)
-    return min(32767, -(-ae * 32767 // LIFT_AE_MAX))
+    return min(STICK_MAX, -(-ae * STICK_MAX // LIFT_AE_MAX))
 
 
 def yaw_rate(r_sp: float, r: float, yaw_p: float) -> float:

@@ -34,7 +34,7 @@ from fcb_sim import control as C
 from fcb_sim.calibration import Calibration
 from fcb_sim.estimation import BEST, HeightEstimator, make_filter, quaternion_to_euler
 from fcb_sim.estimation.height import HEIGHT_BEST, HeightKalman, make_height_estimator
-from term.core.protocol import PARAMS, Mode, Param
+from term.core.protocol import PARAMS, STICK_MAX, Mode, Param
 
 HEIGHT_STICK_RATE = 0.5  # m/s of set-point change at full lift deflection away from the entry position
 HEIGHT_STICK_DEADBAND = 1500  # stick units around the entry position that leave the set point alone
@@ -283,7 +283,7 @@ class FlightCore:
             if mode == _HEIGHT:
                 d = lift - self._lift_entry
                 if d > HEIGHT_STICK_DEADBAND or d < -HEIGHT_STICK_DEADBAND:
-                    self._sp_offset += d / 32767.0 * HEIGHT_STICK_RATE * dt
+                    self._sp_offset += d / STICK_MAX * HEIGHT_STICK_RATE * dt
                 sp = self._sp_base + self._sp_offset
                 if self._sp_from_est:
                     sp += self.height_est.captured_height - self._sp_cap0

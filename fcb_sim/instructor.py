@@ -32,8 +32,8 @@ from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 from fcb_sim import constants as P
-from fcb_sim.errors import UsageError
-from term.core.protocol import INSTRUCTOR_SITUATIONS, INSTRUCTOR_TRUTH_HZ, INSTRUCTOR_VERSION, Mode
+from fcb_sim.errors import UsageError, parse_tcp_server
+from term.core.protocol import INSTRUCTOR_SITUATIONS, INSTRUCTOR_TRUTH, INSTRUCTOR_TRUTH_HZ, INSTRUCTOR_VERSION, Mode
 
 if TYPE_CHECKING:
     from fcb_sim.board import Board
@@ -42,6 +42,8 @@ log = logging.getLogger(__name__)
 
 SOC_FLOOR = 0.03  # a failing cell's drain stops here (the pack is not drawn to nothing)
 MAX_CUT_S = 60.0  # the longest a cable or radio may be cut for
+# Decimals a truth field is sent with (the rest: 4): angles finer, the pack and the touch-down coarser, the wind 2.
+TRUTH_DECIMALS = {"phi": 5, "theta": 5, "psi": 5, "volts": 3, "touchdown": 3, "wind_n": 2, "wind_e": 2, "gust": 2}
 
 
 class Instructor:
@@ -162,21 +164,18 @@ class Instructor:
     # --- the truth ----------------------------------------------------------------------------------------
 
     def truth(self, now: float) -> dict[str, Any]:
-        """What only the simulator knows, in SI units (INSTRUCTOR_TRUTH in term/core/protocol/)."""
+        """What only the simulator knows, in SI units: the fields of the protocol's INSTRUCTOR_TRUTH, in its order
+        (the world's true state by the same names, and the few the instructor keeps itself)."""
         w = self.board.world
         tr = w.truth
-        landing = w.landings[-1][1] if w.landings else 0.0
-        return {
-            "kind": "truth", "t": round(now, 4),
-            "n": round(tr.n, 4), "e": round(tr.e, 4), "h": round(tr.h, 4),
-            "vn": round(tr.vn, 4), "ve": round(tr.ve, 4), "vd": round(tr.vd, 4),
-            "phi": round(tr.phi, 5), "theta": round(tr.theta, 5), "psi": round(tr.psi, 5),
-            "p": round(tr.p, 4), "q": round(tr.q, 4), "r": round(tr.r, 4),
-            "on_ground": tr.on_ground, "volts": round(tr.volts, 3), "soc": round(tr.soc, 4),
-            "landings": len(w.landings), "touchdown": round(landing, 3), "crashes": len(w.crashes),
-            "cable": self.cable_open(now),
-            "wind_n": round(w.wind_mean[0], 2), "wind_e": round(w.wind_mean[1], 2), "gust": round(w.gust_std, 2),
-        }
+        own = {"t": now, "landings": len(w.landings), "touchdown": w.landings[-1][1] if w.landings else 0.0,
+               "crashes": len(w.crashes), "cable": self.cable_open(now),
+               "wind_n": w.wind_mean[0], "wind_e": w.wind_mean[1], "gust": w.gust_std}
+        out: dict[str, Any] = {"kind": "truth"}
+        for name in INSTRUCTOR_TRUTH:
+            v = own[name] if name in own else getattr(tr, name)
+            out[name] = round(v, TRUTH_DECIMALS.get(name, 4)) if isinstance(v, float) else v
+        return out
 
     def truth_line(self, now: float) -> bytes:
         return (json.dumps(self.truth(now), separators=(",", ":")) + "\n").encode()
@@ -193,16 +192,6 @@ def _number(cmd: dict[str, Any], name: str, default: float, lo: float, hi: float
     if not lo <= v <= hi:
         raise ValueError(f"{name} must be between {lo:g} and {hi:g}, got {v:g}")
     return float(v)
-
-
-def parse_tcp_server(spec: str) -> tuple[str, int]:
-    """``tcp-server:HOST:PORT`` (PORT 0: any free port) -> (host, port); UsageError otherwise."""
-    kind, _, rest = spec.partition(":")
-    host, _, port = rest.rpartition(":")
-    if kind != "tcp-server" or not host or not port.isdigit() or int(port) > 65535:
-        raise UsageError(f"--instructor {spec!r}: expected tcp-server:HOST:PORT (PORT 0 for any free port), e.g. "
-                         "tcp-server:127.0.0.1:0")
-    return host, int(port)
 
 
 # --- the asyncio edge -------------------------------------------------------------------------------------------
@@ -232,7 +221,7 @@ class InstructorServer:
 
     async def start(self, spec: str) -> str:
         """Listen on ``spec``; returns the address a client connects to (``tcp-client:HOST:PORT``)."""
-        host, port = parse_tcp_server(spec)
+        host, port = parse_tcp_server(spec, "--instructor")
         try:
             self._server = await asyncio.start_server(self._client, host, port, limit=MAX_LINE)
         except OSError as exc:

@@ -138,11 +138,7 @@ def _mode_config(name: str) -> tuple[Getter, Setter]:
 
 
 BINDINGS: dict[Param, tuple[Getter, Setter]] = {
-    Param.YAW_P: _gain("yaw_p"),
-    Param.P1: _gain("p1"),
-    Param.P2: _gain("p2"),
-    Param.HEIGHT_P: _gain("height_p"),
-    Param.HEIGHT_D: _gain("height_d"),
+    **{param: _gain(name) for name, param in P.GAIN_PARAMS.items()},
     Param.HEIGHT_I: (lambda b: float(b.core.height_i), lambda b, v: setattr(b.core, "height_i", float(v)) or Nak.OK),
     Param.ATTITUDE_FILTER: (lambda b: b.core.filter_name, _set_filter),
     Param.K_GYRO: (_k_gyro, _set_k_gyro),
@@ -197,7 +193,7 @@ def preset_core(name: str) -> FlightCore:
     """A flight core with preset ``name``'s gains, filter and height estimator (term.core.protocol.PRESETS): the
     scenarios and bench.flight fly the report's board on it without a whole Board."""
     values = preset_values(name)
-    gains = P.Gains(**{g: float(values[p]) for g, p in P._GAIN_PARAMS.items()})
+    gains = P.Gains(**{g: float(values[p]) for g, p in P.GAIN_PARAMS.items()})
     fixed = bool(values[Param.FIXED_POINT])
     core = FlightCore(gains=gains, filter_name=str(values[Param.ATTITUDE_FILTER]), fixed_point=fixed,
                       height_name=str(values[Param.HEIGHT_ESTIMATOR]))

@@ -23,6 +23,7 @@ from fcb_sim.physics import World
 from fcb_sim.timing import REPORT_RAW_FILTER
 from term.core.protocol import (
     FLIGHT_MODES,
+    STICK_MAX,
     Ack,
     Command,
     Decoder,
@@ -63,8 +64,8 @@ class BytePilot:
             # the PC's clock is not the board's: its frames arrive at an unrelated phase, with some jitter
             b.advance(b.now + self.rng.randrange(0, step // 2))
             if self.random_sticks:
-                r = self.rng.randint
-                self.sticks = Joystick(r(-32767, 32767), r(-32767, 32767), r(-32767, 32767), r(0, 32767), 0)
+                r, full = self.rng.randint, STICK_MAX
+                self.sticks = Joystick(r(-full, full), r(-full, full), r(-full, full), r(0, full), 0)
             b.uart_receive(self.encoder.encode(self.sticks))
             b.advance(b.now + step // 2)
             self._read()

@@ -29,7 +29,7 @@ from fcb_sim.errors import UsageError
 from fcb_sim.estimation import BEST, FILTERS, has_fixed_point
 from fcb_sim.flight import FlightCore
 from fcb_sim.physics import World
-from term.core.protocol import Mode
+from term.core.protocol import STICK_MAX, Mode
 
 CONTROL_HZ = 400.0
 BARO_EVERY = 20  # control ticks per barometer read (20 Hz)
@@ -64,7 +64,7 @@ class Sim:
         a = 2.0 * (self.pilot_target - h) - 2.5 * vz  # m/s² the pilot asks for
         a = max(-4.0, min(4.0, a))
         ae = P.AE_HOVER_NOMINAL * P.V_REF / max(tr.volts, 1.0) * math.sqrt(max(0.0, 1.0 + a / P.G))
-        self.sticks[3] = max(0, min(32767, round(ae * 32767 / C.LIFT_AE_MAX)))
+        self.sticks[3] = max(0, min(STICK_MAX, round(ae * STICK_MAX / C.LIFT_AE_MAX)))
 
     def set_mode(self, mode: int) -> None:
         mode = int(mode)

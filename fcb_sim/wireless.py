@@ -32,6 +32,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
+from fcb_sim.errors import parse_tcp_server
 from term.core.protocol import (
     BOARD_NAME_PREFIX,
     NUS_RX,
@@ -542,7 +543,7 @@ class BoardRadio:
         uses to reach it (``tcp-client:HOST:PORT``)."""
         if self.local_link is None:
             raise RuntimeError("start the radio first (with a virtual controller)")
-        host, port = _parse_tcp_server(spec)
+        host, port = parse_tcp_server(spec, "--ble-hci", "tcp-server:127.0.0.1:9000")
         self.hci = HciTcpServer(self.local_link, name=f"phone-side of {self.name}")
         await self.hci.start(host, port)
         return self.hci.client_spec
@@ -716,17 +717,6 @@ def drop_host_state(controller: Any) -> None:
     controller.pending_le_connection = None
 
 
-def _parse_tcp_server(spec: str) -> tuple[str, int]:
-    from fcb_sim.errors import UsageError
-
-    kind, _, rest = spec.partition(":")
-    host, _, port = rest.rpartition(":")
-    if kind != "tcp-server" or not host or not port.isdigit() or int(port) > 65535:
-        raise UsageError(f"--ble-hci {spec!r}: expected tcp-server:HOST:PORT (PORT 0 to 65535), e.g. "
-                         "tcp-server:127.0.0.1:9000")
-    return host, int(port)
-
-
 async def start_radio(
     link: WirelessLink,
     *,
@@ -756,7 +746,7 @@ async def start_radio(
     """
     radio = BoardRadio(link, board_id=board_id, board=board, on_data=on_data, on_disconnect=on_disconnect)
     if hci is not None and hci.startswith("tcp-server:"):
-        _parse_tcp_server(hci)  # a bad spec fails before anything starts
+        parse_tcp_server(hci, "--ble-hci", "tcp-server:127.0.0.1:9000")  # a bad spec fails before anything starts
         await radio.start()
         try:
             await radio.expose_hci(hci)

@@ -159,14 +159,14 @@ def test_the_list_line_marks_what_changed() -> None:
 def test_a_fresh_board_reads_the_tables_defaults() -> None:
     board = Board(BoardConfig())
     for p, spec in PARAMS.items():
-        assert get_value(board, p) == spec.default, spec.name
+        assert get_value(board.parts, p) == spec.default, spec.name
     assert board.modes.config.lift_step == PARAMS[Param.LIFT_STEP].default
 
 
 def test_the_report_preset_boots_the_reports_board() -> None:
     board = Board(BoardConfig(preset="report"))
     for p, v in preset_values("report").items():
-        assert get_value(board, p) == v, PARAMS[p].name
+        assert get_value(board.parts, p) == v, PARAMS[p].name
     assert type(board.core.height_est).__name__ == "HeightEstimator"  # the Figure 10 complementary estimator
     assert board.core.filter.k_gyro == 0.999 and not board.config.stick_reaction and board.uart.discard_at_frames
 
@@ -180,7 +180,7 @@ def test_every_filter_and_estimator_the_table_names_exists() -> None:
 
 
 def cmd(board: Board, op: Op, arg: int = 0) -> tuple[Nak, int]:
-    status, value, after = execute(board, Command(1, op, arg))
+    status, value, after = execute(board.parts, Command(1, op, arg))
     if after is not None:
         after()
     return status, value
@@ -278,3 +278,23 @@ def test_the_terminal_model_follows_the_boards_parameters() -> None:
     m.apply_packet(ParamValue(Param.LIFT_STEP, 164, 1, 19), 4.0)
     assert m.trim_steps()[0] == 164
     assert not math.isnan(m.params["trim.lift_step"])
+
+
+def test_the_gain_map_is_the_protocols() -> None:
+    """One home for gain op <-> parameter <-> name: GAIN_OPS; the board's Gains fields, its key handlers and its
+    parameter bindings all follow it (issue 20)."""
+    from dataclasses import fields
+
+    from fcb_sim.commands import COMMANDS, GAIN_NAMES
+    from fcb_sim.constants import GAIN_PARAMS, Gains
+    from term.core.protocol import GAIN_OPS, STEP_OPS
+
+    assert set(GAIN_PARAMS) == {f.name for f in fields(Gains)}
+    assert set(GAIN_PARAMS.values()) == set(GAIN_OPS.values()) and set(GAIN_OPS) <= STEP_OPS
+    assert all(op in COMMANDS for op in GAIN_OPS) and all(p in BINDINGS for p in GAIN_OPS.values())
+    board = Board(BoardConfig(boot_hello=False))
+    for op, param in GAIN_OPS.items():
+        before = get_value(board.parts, param)
+        status, value, _after = execute(board.parts, Command(1, op, 1))
+        assert status == Nak.OK and get_value(board.parts, param) == before + PARAMS[param].step
+        assert value == round(getattr(board.core.gains, GAIN_NAMES[param]) * 1000)
