@@ -1,4 +1,4 @@
-"""The board's controllers and motor mixing, in the firmware's units (params.py explains them).
+"""The board's controllers and motor mixing, in the firmware's units (constants.py explains them).
 
 - Yaw rate: ``N = yaw_p * (r_sp - r)``.
 - Roll and pitch, cascaded: P1 turns the angle error into a rate set point, P2 the rate error into a moment:

@@ -16,7 +16,7 @@ API for the board::
 The core keeps no mode of its own: whoever keeps the mode (the board's mode machine, a scenario's ``Sim``)
 calls ``enter_mode(mode, lift)`` when it changes and passes it to every ``control``. HEIGHT captures its set point
 and the lift stick at entry, PANIC restarts at its full descent level. Gains: ``fc.gains``
-(params.Gains), ``adjust_gain(name, steps)``. Telemetry reads ``phi, theta, psi``, ``sp, sq, sr``, ``sax, say,
+(constants.Gains), ``adjust_gain(name, steps)``. Telemetry reads ``phi, theta, psi``, ``sp, sq, sr``, ``sax, say,
 saz``, ``height``, ``vz``, ``setpoint``, ``ae`` and ``attitude_centideg()``. What each mode does, the gains and the
 outputs in full: docs/board.md, "The flight core".
 
@@ -38,7 +38,7 @@ from term.core.protocol import PARAMS, STICK_MAX, Mode, Param
 
 HEIGHT_STICK_RATE = 0.5  # m/s of set-point change at full lift deflection away from the entry position
 HEIGHT_STICK_DEADBAND = 1500  # stick units around the entry position that leave the set point alone
-# Height integral gain, ae² per (mm s): 1.0 N per m s, an integral time of 4 s beside P 400 (params.Gains). It
+# Height integral gain, ae² per (mm s): 1.0 N per m s, an integral time of 4 s beside P 400 (constants.Gains). It
 # takes out the battery's sag (the hover thrust of the lift captured at entry falls as the pack discharges), which
 # grows with the flight: over 120 s of HEIGHT on the true height P 400 / D 400 alone hold 4.4 cm rms, with this
 # integral 0.3 cm; on the estimator, seeds 1-6, 0.097 -> 0.087 m rms (worst 0.17 -> 0.13). Over 30 s, where the
@@ -154,7 +154,7 @@ class FlightCore:
         self.height = self.vz = 0.0
 
     def adjust_gain(self, name: str, steps: int) -> float:
-        """Change a gain by ``steps`` key presses (params.GAIN_STEPS), not below 0; returns the new value."""
+        """Change a gain by ``steps`` key presses (constants.GAIN_STEPS), not below 0; returns the new value."""
         step = P.GAIN_STEPS[name]
         value = max(0.0, getattr(self.gains, name) + steps * step)
         setattr(self.gains, name, value)

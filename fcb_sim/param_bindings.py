@@ -1,7 +1,7 @@
 """The board's parameters: each row of the protocol's table (``term.core.protocol.PARAMS``) bound to where the board
 keeps it (its parts, ``fcb_sim.parts.BoardParts``), read and written in the table's units. The table is the one source
-of truth: its defaults are the board's (``BoardConfig``, ``params.Gains``, ``ModeConfig``'s trim steps come from it; a
-test checks a fresh board reads them back), its ranges are what ``set_value`` accepts, its ``in_flight`` says what
+of truth: its defaults are the board's (``BoardConfig``, ``constants.Gains``, ``ModeConfig``'s trim steps come from
+it; a test checks a fresh board reads them back), its ranges are what ``set_value`` accepts, its ``in_flight`` says what
 may change outside SAFE.
 
 - ``get_raw(parts, param)`` / ``get_value``: the value in force;

@@ -1,7 +1,7 @@
 """The world the simulated board flies in: a 6-DOF quadrotor, its motors, battery, sensors and disturbances.
 
 Frames and signs follow docs/architecture.md: earth NED, body FRD, plus frame (ae1 front, ae2 right, ae3 back,
-ae4 left; motors 1 and 3 turn clockwise seen from above). Constants and their sources: params.py.
+ae4 left; motors 1 and 3 turn clockwise seen from above). Constants and their sources: constants.py.
 
 Model, integrated at a fixed step (default 1 kHz, ``physics_hz`` may be raised):
 

@@ -13,7 +13,7 @@ Each model turns the true state (passed in as plain floats by ``physics.World``)
 
 All randomness comes from the one ``random.Random`` of the World, directly or through ``NoiseTable`` (a table of
 standard normals drawn from that generator once; reading it is ~20x cheaper than ``random.gauss``), so a seed
-fixes every sample. Constants and their sources: params.py.
+fixes every sample. Constants and their sources: constants.py.
 """
 
 from __future__ import annotations
