@@ -106,7 +106,7 @@ def _parts(cfg: BoardConfig, world: World | None, core: FlightCore | None, wirel
                           height_name=_default(Param.HEIGHT_ESTIMATOR))
     if wireless is None:
         wireless = WirelessLink()
-    mc = ModeConfig(link_timeout_s=cfg.link_timeout_s, panic_level=core.panic_ae)
+    mc = ModeConfig(link_timeout_s=cfg.link_timeout_s, link_failsafe_s=cfg.link_failsafe_s, panic_level=core.panic_ae)
     modes = ModeMachine(mc, calibration_names=CALIBRATED_VARS)
     log = FlashLog(size=cfg.log_bytes, scheme=cfg.log_scheme, **({} if log_vars is None else {"variables": log_vars}))
     return world, core, wireless, modes, log
@@ -339,6 +339,9 @@ class Board:
         cost = PARSE_US_BASE + PARSE_US_PER_BYTE * len(chunk)
         for pkt in decoder.feed(chunk):
             self.last_frame_us = self.now
+            if self.modes.link_hold:
+                self.modes.link_back(self.now / 1e6)  # the failsafe's stage 1 ends with the first frame back
+                self._drain_mode_events()
             self._handle(pkt)
         if self.config.stick_reaction and self._sticks_used is not None and self.modes.sticks() != self._sticks_used:
             cost += self._react(self.now + cost)

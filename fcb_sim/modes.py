@@ -52,7 +52,8 @@ TRIM_LIMIT = 8192  # roll/pitch/yaw trims stay within a quarter of full deflecti
 class ModeConfig:
     """Tunables of the machine; the defaults are the team's safety decisions."""
 
-    link_timeout_s: float = 0.5
+    link_timeout_s: float = PARAMS[Param.LINK_TIMEOUT_MS].default / 1000  # silence before stage 1 (or PANIC)
+    link_failsafe_s: float = PARAMS[Param.LINK_FAILSAFE_MS].default / 1000  # stage 1's guard; 0: PANIC at once
     panic_level: int = 350  # PANIC's reference level: just under hover (about 400); the descent loop trims it
     panic_ramp_s: float = 1.5  # motors to zero over this once the ground is sensed
     panic_timeout_s: float = 300.0  # the ground not sensed by then (CEILING_M at 1-3 m/s): ramp to zero anyway
@@ -260,6 +261,7 @@ class ModeMachine:
     events: list[tuple[EventCode, int, float]] = field(default_factory=list)
     changes: list[ModeChange] = field(default_factory=list)  # every change, for the board's listeners and tests
     link_timed_out: bool = False
+    link_hold: bool = False  # the failsafe's stage 1: level, the lift it had, until the link is back or stage 2
     battery_low_latched: bool = False  # set by a low-battery PANIC; only a new battery (a reboot) clears it
     crashed: bool = False  # an impact the pilot has not acknowledged (Op.ACK_CRASH): no leaving SAFE
 
@@ -273,6 +275,8 @@ class ModeMachine:
         self._low_battery_since: float | None = None
         self.listeners: list[Callable[[ModeChange], None]] = []
         self._now = 0.0
+        self._hold_lift = 0  # the lift stage 1 holds
+        self._hold_since = 0.0
 
     # --- inputs -------------------------------------------------------------------------------------------
 
@@ -282,7 +286,10 @@ class ModeMachine:
         return max(0, min(STICK_MAX, self.joystick.lift + self.trims.lift))
 
     def sticks(self) -> tuple[int, int, int, int]:
-        """Effective (roll, pitch, yaw, lift): joystick plus trims, clipped to the stick range."""
+        """Effective (roll, pitch, yaw, lift): joystick plus trims, clipped to the stick range; in the failsafe's
+        stage 1, level with the lift it had."""
+        if self.link_hold:
+            return 0, 0, 0, self._hold_lift
         js, t = self.joystick, self.trims
 
         def clip(v: int) -> int:
@@ -377,6 +384,7 @@ class ModeMachine:
 
     def _change(self, target: Mode, now: float, reason: str) -> None:
         old = self.mode
+        self.link_hold = False  # a new mode (PANIC, a crash's SAFE) ends stage 1
         LEAVE[old](self, now)
         self.previous = old
         self.mode = target
@@ -438,18 +446,38 @@ class ModeMachine:
         if self.mode == Mode.CALIBRATION:
             self.calibration.add(values)
 
+    def link_back(self, now: float) -> None:
+        """A valid frame from the PC: stage 1 of the failsafe ends, control is the pilot's again."""
+        if self.link_hold:
+            self.link_hold = False
+            self.emit(EventCode.LINK_REGAINED, round((now - self._hold_since) * 1000), now)
+
+    def _link(self, now: float, silent: float) -> bool:
+        """The two-stage link failsafe (docs/modes.md); returns whether it is time for the PANIC."""
+        cfg = self.config
+        timed_out = silent > cfg.link_timeout_s
+        flying = self.mode in FLIGHT_MODES
+        if not timed_out:
+            self.link_back(now)
+        elif flying and silent <= cfg.link_timeout_s + cfg.link_failsafe_s:
+            if not self.link_hold:  # stage 1: level, the lift it had
+                self._hold_lift, self._hold_since, self.link_hold = self.lift, now, True
+                self.emit(EventCode.LINK_LOST, int(silent * 1000), now)
+            timed_out = False  # the guard runs: the timeout proper (PANIC) is stage 2's
+        elif not self.link_timed_out or self.link_hold:  # the timeout proper: said once (stage 2, or not flying)
+            self.emit(EventCode.LINK_TIMEOUT, int(silent * 1000), now)
+        self.link_timed_out = timed_out or self.link_hold
+        return timed_out and flying
+
     def supervise(self, now: float, *, link_silent_s: float, battery: int | None = None,
                   phi_cdeg: int = 0, theta_cdeg: int = 0) -> EventCode | None:
-        """The safety monitor: PANIC on link silence, a low battery while flying, or excessive tilt.
-        Returns the cause if it triggered PANIC."""
+        """The safety monitor: the link failsafe's two stages, PANIC on a low battery while flying or excessive
+        tilt. Returns the cause if it triggered PANIC."""
         self._now = now
         cfg = self.config
         if battery is not None:
             self.battery = battery
-        timed_out = link_silent_s > cfg.link_timeout_s
-        if timed_out and not self.link_timed_out:
-            self.emit(EventCode.LINK_TIMEOUT, int(link_silent_s * 1000), now)
-        self.link_timed_out = timed_out
+        timed_out = self._link(now, link_silent_s)
         if self.battery is not None and self.battery < cfg.low_battery:
             if self._low_battery_since is None:
                 self._low_battery_since = now
@@ -537,9 +565,19 @@ enter action of the new one run. The motors are zero in SAFE and CALIBRATION; th
 - A crash (an impact faster than {crash_speed:g} m/s, or a touch-down tilted past {crash_tilt:g}°) turns the
   motors off from any mode (SAFE), is reported (event CRASH with the speed, Status flag CRASHED), and SAFE is
   kept until the pilot acknowledges it (`Op.ACK_CRASH`, SAFE only).
-- The safety monitor (checked at the heartbeat rate, 10 Hz) enters PANIC from a flight mode on link silence
-  longer than the link timeout (default {timeout} s), a battery under {battery} V for {bat_hold} s, or a tilt past
-  {tilt}°.
+- The safety monitor (checked at the heartbeat rate, 10 Hz) enters PANIC from a flight mode on a battery under
+  {battery} V for {bat_hold} s, or a tilt past {tilt}°; link silence fails safe in two stages. Stage 1: silence
+  longer than `link.timeout_ms` (default {timeout} s) in a flight mode holds level (roll, pitch and yaw sticks
+  neutral) with the lift it had, in the same mode, says so (event LINK_LOST, Status flag LINK_TIMEOUT), and the
+  first valid frame back within `link.failsafe_ms` (default {failsafe} s) gives control back without a PANIC
+  (event LINK_REGAINED). Stage 2: silence past both is the PANIC descent (event LINK_TIMEOUT). Outside SAFE both
+  times can only be made shorter (`Nak.ONLY_SHORTER_IN_FLIGHT`), never longer or off.
+- Why two stages where the report has one: the report's board PANICs as soon as the link times out (the `report`
+  preset keeps that: `link.failsafe_ms` 0). A pilot's laptop is never idle, and a terminal stalled for half a
+  second by its own machine (issue 21: 506-534 ms of silence ended eight flights in one sitting, in FULL, HEIGHT
+  and MANUAL) is not a lost link; Betaflight (stage 1 holds for a guard time, stage 2 lands) and ArduPilot's GCS
+  failsafe (waits seconds) do the same. A link that stays away still ends in the PANIC descent, {failsafe} s
+  later.
 - CALIBRATION sums the sensor samples in unbounded integers for {cal} s with the board still, then returns to
   SAFE by itself; leaving it (by itself or on request) takes the means, which are subtracted from every later
   sample. Leaving with fewer than {cal_min} samples keeps the previous calibration.
@@ -578,6 +616,7 @@ def modes_doc() -> str:
         neutral=STICK_NEUTRAL, lift=LIFT_ZERO, battery=cfg.low_battery / 100, panic=cfg.panic_level,
         ramp=cfg.panic_ramp_s, panic_timeout=cfg.panic_timeout_s, ceiling=P.CEILING_M,
         crash_speed=P.CRASH_SPEED_M_S, crash_tilt=P.CRASH_TILT_DEG, timeout=cfg.link_timeout_s,
+        failsafe=cfg.link_failsafe_s,
         bat_hold=LOW_BATTERY_HOLD_S,
         tilt=cfg.tilt_limit_cdeg / 100, cal=cfg.calibration_s, cal_min=cfg.calibration_min_samples,
         diagram=mermaid(), table=transition_table_markdown(), actions="\n".join(actions),

@@ -112,6 +112,11 @@ def _set_timeout(b: BoardParts, v: Value) -> Nak:
     return Nak.OK
 
 
+def _set_failsafe(b: BoardParts, v: Value) -> Nak:
+    b.config.link_failsafe_s = b.modes.config.link_failsafe_s = float(v) / 1000
+    return Nak.OK
+
+
 def _set_queue_rule(b: BoardParts, v: Value) -> Nak:
     b.config.queue_rule = str(v)
     b.apply_queue_rule()
@@ -148,6 +153,7 @@ BINDINGS: dict[Param, tuple[Getter, Setter]] = {
     Param.SCHEDULER: (lambda b: b.config.scheduler, _set_scheduler),
     Param.STICK_REACTION: _config("stick_reaction", bool),
     Param.LINK_TIMEOUT_MS: (lambda b: round(b.config.link_timeout_s * 1000), _set_timeout),
+    Param.LINK_FAILSAFE_MS: (lambda b: round(b.config.link_failsafe_s * 1000), _set_failsafe),
     Param.TELEMETRY_HZ: (lambda b: round(b.config.telemetry_hz), lambda b, v: setattr(b.config, "telemetry_hz",
                                                                                       float(v)) or Nak.OK),
     Param.QUEUE_RULE: (lambda b: b.config.queue_rule, _set_queue_rule),
@@ -174,8 +180,11 @@ def set_raw(parts: BoardParts, pid: int, raw: int, *, mode_guard: bool = True) -
     spec = PARAMS[param]
     if not spec.accepts(raw):
         return Nak.OUT_OF_RANGE, param
-    if mode_guard and not spec.in_flight and parts.modes.mode != Mode.SAFE:
-        return Nak.NOT_IN_SAFE, param
+    if mode_guard and parts.modes.mode != Mode.SAFE:
+        if not spec.in_flight:
+            return Nak.NOT_IN_SAFE, param
+        if spec.shorter_in_flight and raw > get_raw(parts, param):
+            return Nak.ONLY_SHORTER_IN_FLIGHT, param  # a link timeout may not grow (or go off) in flight
     return BINDINGS[param][1](parts, spec.from_raw(raw)), param
 
 

@@ -53,6 +53,7 @@ class BoardConfig:
     scheduler: str = _default(Param.SCHEDULER)  # or "priority"
     sensor_path: str = _default(Param.SENSOR_PATH)  # "auto": RAW path in RAW mode (and HEIGHT from RAW), else DMP
     link_timeout_s: float = _default(Param.LINK_TIMEOUT_MS) / 1000
+    link_failsafe_s: float = _default(Param.LINK_FAILSAFE_MS) / 1000  # the failsafe's stage 1 (0: PANIC at once)
     telemetry_hz: float = _default(Param.TELEMETRY_HZ)
     log_scheme: str = _default(Param.LOG_SCHEME)
     fixed_point: bool = _default(Param.FIXED_POINT)  # RAW filter in Q16.16 (and the fixed-point read cost)

@@ -116,6 +116,7 @@ enum qp_nak {
     QP_NAK_CRASHED = 16,
     QP_NAK_OUT_OF_RANGE = 17,
     QP_NAK_UNKNOWN_PARAM = 18,
+    QP_NAK_ONLY_SHORTER_IN_FLIGHT = 19,
 };
 
 /* Board events (``Event.code``), each with an ``arg`` whose meaning is given here. */
@@ -136,6 +137,9 @@ enum qp_event_code {
     QP_EVENT_CODE_OVERFLOW = 14,
     QP_EVENT_CODE_CRASH = 15,
     QP_EVENT_CODE_PARAM_CHANGED = 16,
+    QP_EVENT_CODE_LINK_LOST = 17,
+    QP_EVENT_CODE_LINK_REGAINED = 18,
+    QP_EVENT_CODE_SIM_LAG = 19,
 };
 
 enum qp_wireless_state {
@@ -195,6 +199,7 @@ enum qp_param {
     QP_PARAM_QUEUE_RULE = 17,
     QP_PARAM_TRIM_STEP = 18,
     QP_PARAM_LIFT_STEP = 19,
+    QP_PARAM_LINK_FAILSAFE_MS = 20,
 };
 
 /* --- packets: type ids, sizes and structs ----------------------------------------------------------------- */

@@ -176,7 +176,7 @@ def test_calibration_left_early_keeps_the_previous_offsets() -> None:
 
 @pytest.mark.parametrize("mode", sorted(FLIGHT_MODES - {Mode.HEIGHT}))
 def test_link_silence_battery_and_tilt_panic_only_when_flying(mode: Mode) -> None:
-    m = machine(link_timeout_s=0.5)
+    m = machine(link_timeout_s=0.5, link_failsafe_s=0.0)  # the report's one stage (tests/test_failsafe.py)
     assert m.supervise(0.0, link_silent_s=5.0) is None and m.mode == Mode.SAFE and m.link_timed_out
     t = calibrate(m, 1.0)
     assert m.request(mode, t) == Nak.OK

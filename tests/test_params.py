@@ -117,8 +117,8 @@ def test_files_round_trip_and_diff(tmp_path: Path) -> None:
     assert text.startswith("# the report's board") and "[ctrl]\n" in text and 'attitude = "complementary"' in text
     assert load_file(path) == values
     assert [PARAMS[p].name for p in diff(values, preset_values("default"))] == [
-        "ctrl.height_d", "ctrl.height_i", "ctrl.height_p", "est.attitude", "est.height", "link.queue_rule",
-        "sched.stick_reaction"]
+        "ctrl.height_d", "ctrl.height_i", "ctrl.height_p", "est.attitude", "est.height", "link.failsafe_ms",
+        "link.queue_rule", "sched.stick_reaction"]
 
 
 @pytest.mark.parametrize("text, words", [

@@ -159,6 +159,12 @@ def event_text(code: int, arg: int, flying: bool = True) -> tuple[str, str]:
     if c is EventCode.LINK_TIMEOUT:
         silent = f"board saw link timeout ({_event_arg(c, arg) * 1000:.0f} ms silent)"
         return ("error", f"{silent}: PANIC") if flying else ("warning", f"{silent}: not flying, no PANIC")
+    if c is EventCode.LINK_LOST:
+        return "error", f"LINK LOST: board holds level ({_event_arg(c, arg) * 1000:.0f} ms silent); PANIC if it stays"
+    if c is EventCode.LINK_REGAINED:
+        return "warning", f"board has the link back after {_event_arg(c, arg) * 1000:.0f} ms: no PANIC, fly on"
+    if c is EventCode.SIM_LAG:
+        return "warning", f"simulator {_event_arg(c, arg) * 1000:.0f} ms behind real time (its process was starved)"
     if c is EventCode.TILT_LIMIT:
         return "error", f"tilt limit {_event_arg(c, arg):.1f}°: PANIC"
     if c is EventCode.PANIC_DONE:

@@ -99,6 +99,7 @@ class Nak(IntEnum):
     CRASHED = 16
     OUT_OF_RANGE = 17
     UNKNOWN_PARAM = 18
+    ONLY_SHORTER_IN_FLIGHT = 19  # a link timeout made longer outside SAFE (it may only shrink in flight)
 
 
 NAK_TEXT = {
@@ -121,6 +122,7 @@ NAK_TEXT = {
     Nak.CRASHED: "crashed: check the craft, then acknowledge the crash",
     Nak.OUT_OF_RANGE: "value out of range",
     Nak.UNKNOWN_PARAM: "no such parameter on this board",
+    Nak.ONLY_SHORTER_IN_FLIGHT: "in flight a link timeout can only be made shorter: land (SAFE) to lengthen it",
 }
 
 
@@ -152,6 +154,12 @@ class EventCode(IntEnum):
     OVERFLOW = 14  # arg: bytes dropped from a full receive queue
     CRASH = 15  # arg: impact speed in mm/s (the craft hit the ground or the ceiling); the motors are off
     PARAM_CHANGED = 16  # arg: param_arg(Param, raw value now in force): by SET_PARAM, a gain key or a trim step
+    # The two-stage link failsafe (docs/modes.md): stage 1 after link.timeout_ms of silence in a flight mode holds
+    # level with the lift it had; the link back within link.failsafe_ms gives control back; else stage 2, PANIC
+    # (LINK_TIMEOUT). With link.failsafe_ms 0 (the report's board) LINK_TIMEOUT and PANIC come at once.
+    LINK_LOST = 17  # arg: ms since the last frame (stage 1 begins: holding level, PANIC after link.failsafe_ms)
+    LINK_REGAINED = 18  # arg: ms stage 1 lasted (a frame came back in time: control is the pilot's again)
+    SIM_LAG = 19  # arg: ms the simulated board runs behind real time (fcb-sim only: its process was starved)
 
 
 @unique

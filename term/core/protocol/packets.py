@@ -306,6 +306,9 @@ EVENT_ARG_SCALE: dict[EventCode, tuple[float, str]] = {
     EventCode.TILT_LIMIT: (0.01, "°"),
     EventCode.DEADLINE_MISS: (1.0, "µs"),
     EventCode.CRASH: (1e-3, "m/s"),
+    EventCode.LINK_LOST: (1e-3, "s"),
+    EventCode.LINK_REGAINED: (1e-3, "s"),
+    EventCode.SIM_LAG: (1e-3, "s"),
 }
 
 

@@ -34,6 +34,7 @@ class Param(IntEnum):
     QUEUE_RULE = 17
     TRIM_STEP = 18
     LIFT_STEP = 19
+    LINK_FAILSAFE_MS = 20
 
 
 SCHEDULERS = ("round-robin", "priority")  # Param.SCHEDULER value -> the board's scheduler
@@ -52,7 +53,8 @@ class ParamSpec:
     """One board parameter. ``value`` is what a pilot reads and types (a number in ``unit``, a name for an enum, a
     bool); ``raw`` the int32 the wire carries: ``round(value / scale)`` for numbers, the choice's number for an enum
     (``choices[raw - base]``), 0 or 1 for a bool. ``lo``..``hi`` (inclusive, in ``unit``) is what the board accepts;
-    ``in_flight`` False: refused (Nak.NOT_IN_SAFE) outside SAFE. ``step``: one press of its key (gains, trims)."""
+    ``in_flight`` False: refused (Nak.NOT_IN_SAFE) outside SAFE; ``shorter_in_flight``: outside SAFE it may only
+    decrease (Nak.ONLY_SHORTER_IN_FLIGHT: the link timeouts). ``step``: one press of its key (gains, trims)."""
 
     param: Param
     name: str  # "group.name": ctrl (gains), est (estimators), sched, link, log, trim
@@ -66,6 +68,7 @@ class ParamSpec:
     choices: tuple[str, ...] = ()
     base: int = 0  # the raw number of the first choice
     in_flight: bool = True
+    shorter_in_flight: bool = False
     step: float = 0.0
 
     @property
@@ -171,7 +174,10 @@ PARAMS: dict[Param, ParamSpec] = {p.param: p for p in (
     _p(Param.STICK_REACTION, "sched.stick_reaction", "bool", "", True, "a changed stick moves the motors in the "
        "parse task (false: only the control step, as the report's firmware)", in_flight=False),
     _p(Param.LINK_TIMEOUT_MS, "link.timeout_ms", "int", "ms", 500, "link silence longer than this in a flight "
-       "mode means PANIC", lo=50, hi=60000),
+       "mode: stage 1 of the failsafe (hold level; only shorter in flight)", lo=50, hi=60000, shorter_in_flight=True),
+    _p(Param.LINK_FAILSAFE_MS, "link.failsafe_ms", "int", "ms", 1000, "stage 1's guard time: the link back within "
+       "it gives control back, else PANIC (0: PANIC at once, the report's; only shorter in flight)", lo=0,
+       hi=10000, shorter_in_flight=True),
     _p(Param.TELEMETRY_HZ, "link.telemetry_hz", "int", "Hz", 50, "Attitude and Motion rate over the UART",
        lo=1, hi=100),
     _p(Param.QUEUE_RULE, "link.queue_rule", "enum", "", "bounded", "the receive queue: bounded (what does not "
@@ -211,11 +217,13 @@ PRESETS: dict[str, dict[Param, float | str | bool]] = {
     "default": {},  # the team's best: every parameter at its default
     "report": {  # the board of the lab report: Table 1's gains, the complementary filter flown (K_gyro 0.999), the
         # Figure 10 height estimator on the gains it was tuned for (PD, no integral), round robin, the report's
-        # queue rule, and no stick reaction (only the control step moves the motors)
+        # queue rule, no stick reaction (only the control step moves the motors), and the link timeout's PANIC at
+        # once (no failsafe stage 1)
         Param.YAW_P: 800.0, Param.P1: 0.4, Param.P2: 111.0,
         Param.ATTITUDE_FILTER: "complementary", Param.K_GYRO: 0.999, Param.FIXED_POINT: False,
         Param.HEIGHT_ESTIMATOR: "complementary", Param.HEIGHT_P: 120.0, Param.HEIGHT_D: 320.0, Param.HEIGHT_I: 0.0,
         Param.SCHEDULER: "round-robin", Param.STICK_REACTION: False, Param.QUEUE_RULE: "discard-20",
+        Param.LINK_FAILSAFE_MS: 0,
     },
 }
 
