@@ -24,7 +24,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from term.core.protocol import Op
+from term.core.protocol import STICK_MAX, Op
 from term.lessons.expr import Expr, ExprError
 from term.lessons.instructor import check_situation
 from term.lessons.observe import NAMES, Box
@@ -314,7 +314,7 @@ def maneuvers(tables: list[Any], where: str, actions: Iterable[str] | None = Non
             arg = r.number("land", 0.3, 0.05, 2.0)
         elif verb == "sticks":
             s = _Reader(r.get("sticks"), f"{where}[{i}].sticks")
-            arg = {k: int(s.number(k, 0, -32767 if k != "lift" else 0, 32767))
+            arg = {k: int(s.number(k, 0, -STICK_MAX if k != "lift" else 0, STICK_MAX))
                    for k in ("roll", "pitch", "yaw", "lift")}
             s.done()
         elif verb == "pause":
