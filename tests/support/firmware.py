@@ -27,7 +27,7 @@ import pytest
 
 from term.core import protocol as p
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 FIRMWARE = ROOT / "firmware"
 NO_CC = "no C compiler (cc) or make: the firmware tests are skipped"
 NO_ARM = "arm-none-eabi-gcc not installed: the Cortex-M0 build is skipped (apt-get install gcc-arm-none-eabi)"
