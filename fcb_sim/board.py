@@ -89,6 +89,8 @@ from term.core.protocol import (
 )
 
 BOARD_VERSION = (0, 1)
+SIM_LAG_REPORT_US = 100_000  # a simulator this far behind real time says so (event SIM_LAG) ...
+SIM_LAG_EVERY_US = 1_000_000  # ... at most this often
 
 
 def _default(param: Param) -> Any:
@@ -146,6 +148,9 @@ class Board:
         self._ble_overflow = 0  # bytes dropped from a full BLE receive queue
         self.rx_ignored = 0  # UART bytes while the parser reads BLE
         self.last_frame_us: int | None = None  # the last valid frame from the PC (the link timer)
+        self._deaf: list[tuple[int, int]] = []  # board times the driver could not run (``starved``): not silence
+        self._lag_max = 0  # the largest lag behind real time not yet reported (µs)
+        self._lag_report_at = 0
         self.rtt_us: int | None = None  # the last heartbeat round trip (Heartbeat → HeartbeatAck)
         self._hb_sent: tuple[int, int] | None = None  # (counter, time) of the last heartbeat sent
         self._hb_rtt_fresh = False  # whether rtt_us answers the last heartbeat (it is reported in the next)
@@ -236,6 +241,33 @@ class Board:
         if was_started and self.modes.flying:
             self.modes.panic(self.now / 1e6, "ble")
         self.wireless_events()
+
+    def starved(self, until_us: int, *, slip: bool = False) -> None:
+        """The real-time driver could not run the board from now until ``until_us`` (its process was starved):
+        the PC's frames of that time wait in its input, so the link timer does not count it as silence; the lag is
+        said (event SIM_LAG: the largest since the last, at most once a second). ``slip``: the driver skips that
+        time instead of catching up (the board's clock will not pass through it)."""
+        lag = until_us - self.now
+        if lag <= 0:
+            return
+        if not slip:
+            self._deaf.append((self.now, until_us))
+        self._lag_max = max(self._lag_max, lag)
+        if self._lag_max >= SIM_LAG_REPORT_US and self.now >= self._lag_report_at:
+            self.event(EventCode.SIM_LAG, self._lag_max // 1000)
+            self._lag_max, self._lag_report_at = 0, self.now + SIM_LAG_EVERY_US
+
+    def link_silent_us(self) -> int:
+        """How long the PC has been silent: board time since its last valid frame, less the time the board could
+        not listen (``starved``); 0 before its first frame."""
+        last = self.last_frame_us
+        if last is None:
+            return 0
+        silent = self.now - last
+        self._deaf = [(a, b) for a, b in self._deaf if b > last]
+        for a, b in self._deaf:
+            silent -= max(0, min(b, self.now) - max(a, last))
+        return silent
 
     def next_tick_us(self) -> int:
         """The board time of the next timer interrupt, or of the last byte of a burst on the receive line."""
@@ -463,7 +495,7 @@ class Board:
         counter = self.heartbeats & 0xFFFF
         self.send(Heartbeat(counter, (self.now // 1000) & 0xFFFFFFFF, rtt))
         self._hb_sent, self._hb_rtt_fresh = (counter, self.now), False
-        silent = (self.now - self.last_frame_us) / 1e6 if self.last_frame_us is not None else 0.0
+        silent = self.link_silent_us() / 1e6
         phi, theta, _ = self.core.attitude_centideg()
         self.modes.supervise(self.now / 1e6, link_silent_s=silent, battery=self.battery,
                              phi_cdeg=phi, theta_cdeg=theta)

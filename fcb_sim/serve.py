@@ -6,6 +6,12 @@ advances the board to the present, so every task runs at its board time as soon 
 A pseudo-terminal from ``os.openpty`` (both sides raw at once) is a real serial device: ``term --serial PATH``
 or any pyserial program talks to it. The first line on stdout is ``pty: /dev/pts/N`` (flushed).
 
+A starved process (a busy laptop: no CPU for a while) keeps the link's time honest: at each wake-up the board is
+told how long it could not run (``Board.starved``), so its link timer does not count the simulator's own stall as
+the PC's silence (the PC's frames waited in the pty meanwhile), and it says how far it ran behind real time (event
+SIM_LAG, at most once a second); the frames that waited are parsed as soon as the board has caught up. Behind by
+more than MAX_LAG_S it slips instead of replaying the stall (the world pauses; ``PacingStats.slips``).
+
 Robustness: reads are bounded per wake-up and the board's receive queue is bounded (a flood is dropped and
 counted, never queued without end); garbage and half frames only cost the decoder a resync; a client that stops
 reading cannot block the board (writes are non-blocking, and what does not fit waits in a bounded buffer).
@@ -37,6 +43,7 @@ READ_BYTES = 4096  # per wake-up
 PENDING_TX_LIMIT = 16384  # bytes kept for a client that does not read; older ones are dropped
 MAX_LAG_S = 0.5  # further behind the wall clock than this (a suspended process): slip instead of catching up
 MAX_SLEEP_S = 0.01
+STARVED_S = 0.05  # a wake-up this late: the process was starved (a tenth of the link timeout), not merely woken late
 
 
 @dataclass(frozen=True)
@@ -113,7 +120,7 @@ class PtyServer:
         self._waiter: asyncio.Future[None] | None = None
         self._batch: list[int] = []  # control steps run by the current advance
         self._stop: asyncio.Event | None = None
-        self._t0 = 0.0
+        self._t0 = clock() - board.now / 1e6
         self.closed = False
         self.cable_open: Callable[[], bool] | None = None  # the instructor's cable cuts (fcb_sim/instructor.py)
 
@@ -167,15 +174,23 @@ class PtyServer:
     def _wall_us(self) -> float:
         return (self.clock() - self._t0) * 1e6
 
-    def _step(self) -> None:
+    def _catch_up(self) -> None:
+        """Bring the board to the wall clock's present; a starved wake-up is not link silence (module docstring)."""
         board = self.board
-        self.pacing.wakeups += 1
         wall = self._wall_us()
         if wall - board.now > MAX_LAG_S * 1e6:
             self.pacing.slips += 1  # we were not scheduled for a long time: do not replay it in a burst
+            board.starved(int(wall), slip=True)  # said as SIM_LAG; the stall's board time never passes
             self._t0 = self.clock() - board.now / 1e6
             wall = float(board.now)
+        elif wall - board.now > STARVED_S * 1e6:
+            board.starved(int(wall))
         board.advance(int(wall))
+
+    def _step(self) -> None:
+        board = self.board
+        self.pacing.wakeups += 1
+        self._catch_up()
         done = self._wall_us()
         for start in self._batch:
             self.pacing.control_ran(start, done)
@@ -197,7 +212,7 @@ class PtyServer:
                 return  # the instructor cut the cable: the bytes are lost
             self.bytes_in += len(data)
             # bytes arrive at the present: bring the board up to now first, so they are not dated in the past
-            self.board.advance(int(self._wall_us()))
+            self._catch_up()
             self.board.uart_receive(data)
             self._wake_up()
 

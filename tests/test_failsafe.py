@@ -110,3 +110,53 @@ def test_the_terminal_says_what_the_board_does() -> None:
                                                               "PANIC if it stays")
     assert event_text(EventCode.LINK_REGAINED, 300)[1].startswith("board has the link back after 300 ms")
     assert "250 ms behind real time" in event_text(EventCode.SIM_LAG, 250)[1]
+
+
+# --- a starved simulator keeps the link's time honest (fcb_sim/serve.py) -------------------------------------------
+
+
+def test_a_starved_simulator_does_not_count_its_own_stall_as_link_silence() -> None:
+    """The server's process gets no CPU for 0.4 s while the PC keeps sending: the frames wait in the pty. When it
+    runs again the board must not call that link silence (no LINK_LOST, no PANIC on the report's board), and it
+    says how far it ran behind real time (SIM_LAG). The wall clock is injected: no sleeps."""
+    import os
+    import select
+
+    from fcb_sim.serve import PtyServer
+    from term.core.protocol import Decoder, Encoder
+
+    b, pc = flying(preset="report", link_timeout_s=0.2)  # the report's board: 0.2 s of silence is PANIC at once
+    now = [1000.0]
+    server = PtyServer(b, clock=lambda: now[0])
+    os.set_blocking(server.slave, False)
+    enc, dec, got = Encoder(), Decoder(), []
+
+    def wall_step(seconds: float, *, runs: bool = True) -> None:
+        end = now[0] + seconds
+        while now[0] < end - 1e-9:
+            now[0] += 0.01
+            os.write(server.slave, enc.encode(pc.js))  # the PC streams its sticks at 100 Hz
+            if runs:
+                select.select([server.master], [], [], 5.0)  # the pty hands the bytes over (an event, not a pause)
+                server._on_readable()
+                server._step()
+                try:
+                    got.extend(dec.feed(os.read(server.slave, 65536)))
+                except BlockingIOError:
+                    pass
+
+    wall_step(0.2)
+    wall_step(0.4, runs=False)  # starved: nothing runs, the bytes wait
+    select.select([server.master], [], [], 5.0)
+    wall_step(0.3)
+    try:
+        got.extend(dec.feed(os.read(server.slave, 65536)))
+    except BlockingIOError:
+        pass
+    server.close()
+    assert b.mode == Mode.FULL and not b.modes.link_hold
+    codes = [e.code for e in got if type(e) is Event]
+    assert EventCode.LINK_LOST not in codes and EventCode.LINK_TIMEOUT not in codes
+    (lag,) = [e for e in got if type(e) is Event and e.code == EventCode.SIM_LAG]
+    assert 380 <= lag.arg <= 420  # ms behind real time when it ran again
+    assert b.now >= server._wall_us() - 20_000 and server.pacing.slips == 0  # caught up, not slipped
