@@ -40,6 +40,7 @@ from fcb_sim.calibration import CALIBRATED_VARS
 from fcb_sim.commands import CommandDesk
 from fcb_sim.flash_log import FLASH_US_PER_BYTE, Download, FlashLog, LogVar
 from fcb_sim.flight import FlightCore
+from fcb_sim.linktimer import LinkTimer
 from fcb_sim.modes import FLIGHT_MODES, ModeChange, ModeConfig, ModeMachine
 from fcb_sim.param_bindings import apply_values
 from fcb_sim.parts import BoardConfig, BoardParts
@@ -89,8 +90,6 @@ from term.core.protocol import (
 )
 
 BOARD_VERSION = (0, 1)
-SIM_LAG_REPORT_US = 100_000  # a simulator this far behind real time says so (event SIM_LAG) ...
-SIM_LAG_EVERY_US = 1_000_000  # ... at most this often
 
 
 def _default(param: Param) -> Any:
@@ -147,10 +146,7 @@ class Board:
         self._ble_rx = bytearray()
         self._ble_overflow = 0  # bytes dropped from a full BLE receive queue
         self.rx_ignored = 0  # UART bytes while the parser reads BLE
-        self.last_frame_us: int | None = None  # the last valid frame from the PC (the link timer)
-        self._deaf: list[tuple[int, int]] = []  # board times the driver could not run (``starved``): not silence
-        self._lag_max = 0  # the largest lag behind real time not yet reported (µs)
-        self._lag_report_at = 0
+        self.link = LinkTimer()  # the PC's silence, honest about a starved simulator
         self.rtt_us: int | None = None  # the last heartbeat round trip (Heartbeat → HeartbeatAck)
         self._hb_sent: tuple[int, int] | None = None  # (counter, time) of the last heartbeat sent
         self._hb_rtt_fresh = False  # whether rtt_us answers the last heartbeat (it is reported in the next)
@@ -243,31 +239,16 @@ class Board:
         self.wireless_events()
 
     def starved(self, until_us: int, *, slip: bool = False) -> None:
-        """The real-time driver could not run the board from now until ``until_us`` (its process was starved):
-        the PC's frames of that time wait in its input, so the link timer does not count it as silence; the lag is
-        said (event SIM_LAG: the largest since the last, at most once a second). ``slip``: the driver skips that
-        time instead of catching up (the board's clock will not pass through it)."""
-        lag = until_us - self.now
-        if lag <= 0:
-            return
-        if not slip:
-            self._deaf.append((self.now, until_us))
-        self._lag_max = max(self._lag_max, lag)
-        if self._lag_max >= SIM_LAG_REPORT_US and self.now >= self._lag_report_at:
-            self.event(EventCode.SIM_LAG, self._lag_max // 1000)
-            self._lag_max, self._lag_report_at = 0, self.now + SIM_LAG_EVERY_US
+        """The real-time driver could not run the board from now until ``until_us``: not the PC's silence, and
+        said as SIM_LAG (fcb_sim/linktimer.py)."""
+        lag_ms = self.link.starved(self.now, until_us, slip=slip)
+        if lag_ms is not None:
+            self.event(EventCode.SIM_LAG, lag_ms)
 
-    def link_silent_us(self) -> int:
-        """How long the PC has been silent: board time since its last valid frame, less the time the board could
-        not listen (``starved``); 0 before its first frame."""
-        last = self.last_frame_us
-        if last is None:
-            return 0
-        silent = self.now - last
-        self._deaf = [(a, b) for a, b in self._deaf if b > last]
-        for a, b in self._deaf:
-            silent -= max(0, min(b, self.now) - max(a, last))
-        return silent
+    @property
+    def last_frame_us(self) -> int | None:
+        """The last valid frame from the PC (board time)."""
+        return self.link.last_frame_us
 
     def next_tick_us(self) -> int:
         """The board time of the next timer interrupt, or of the last byte of a burst on the receive line."""
@@ -370,7 +351,7 @@ class Board:
             self._overflow_report_at = self.now + HEARTBEAT_PERIOD_US
         cost = PARSE_US_BASE + PARSE_US_PER_BYTE * len(chunk)
         for pkt in decoder.feed(chunk):
-            self.last_frame_us = self.now
+            self.link.heard(self.now)
             if self.modes.link_hold:
                 self.modes.link_back(self.now / 1e6)  # the failsafe's stage 1 ends with the first frame back
                 self._drain_mode_events()
@@ -495,7 +476,7 @@ class Board:
         counter = self.heartbeats & 0xFFFF
         self.send(Heartbeat(counter, (self.now // 1000) & 0xFFFFFFFF, rtt))
         self._hb_sent, self._hb_rtt_fresh = (counter, self.now), False
-        silent = self.link_silent_us() / 1e6
+        silent = self.link.silent_us(self.now) / 1e6
         phi, theta, _ = self.core.attitude_centideg()
         self.modes.supervise(self.now / 1e6, link_silent_s=silent, battery=self.battery,
                              phi_cdeg=phi, theta_cdeg=theta)
