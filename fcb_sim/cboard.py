@@ -15,11 +15,14 @@ What the C board has and has not yet: firmware/board/qb_board.h and docs/firmwar
 from __future__ import annotations
 
 import ctypes
+import json
+import math
 import os
 import random
 import shutil
 import subprocess
 import threading
+import time
 from pathlib import Path
 from typing import Any
 
@@ -207,3 +210,78 @@ class CBoard:
 
     def param_raw(self, param: int) -> int:
         return int(self._lib.qbh_param(self._h, int(param)))
+
+
+# --- whole boards flown by a scripted pilot over their UART (`fcb-sim run --board`, bench/firmware.py) ---------
+
+BOARD_SCENARIOS = ("hover", "height-hold")
+_PILOT_US = 20_000  # the pilot's joystick at 50 Hz (also keeps the link alive)
+_CALIBRATE_AT_US, _ARM_AT_US, _HEIGHT_AT_US, _MEASURE_FROM_US = 200_000, 1_500_000, 5_000_000, 6_000_000
+
+
+def _pilot_lift(world: World, target_m: float) -> int:
+    """The scenarios' pilot (fcb_sim/scenarios.py): a lift stick that flies the true height to ``target_m``."""
+    from fcb_sim import control as C
+    from fcb_sim import params as P
+
+    tr = world.truth
+    a = max(-4.0, min(4.0, 2.0 * (target_m - tr.h) + 2.5 * tr.vd))
+    ae = P.AE_HOVER_NOMINAL * P.V_REF / max(tr.volts, 1.0) * math.sqrt(max(0.0, 1.0 + a / P.G))
+    return max(0, min(32767, round(ae * 32767 / C.LIFT_AE_MAX)))
+
+
+def fly_board(kind: str, scenario: str = "hover", seed: int = 1, duration: float = 15.0) -> dict[str, Any]:
+    """Fly a whole board (``kind`` "python" or "c") in its world: calibrate, FULL, take off to 1 m by the lift
+    stick; "height-hold" enters HEIGHT at 5 s and lets go of the stick. Metrics from 6 s on, on the truth:
+    ``attitude_rms_deg`` (tilt), ``height_rms_m`` (against 1 m, or the height HEIGHT was entered at), the final
+    mode, and the wall time."""
+    from fcb_sim.board import Board
+    from term.protocol import Command, Decoder, Joystick, Op, encode
+
+    if scenario not in BOARD_SCENARIOS:
+        raise UsageError(f"unknown board scenario {scenario!r}; choose one of: {', '.join(BOARD_SCENARIOS)}")
+    world = World(seed)
+    cfg = BoardConfig(seed=seed)
+    board: Any = CBoard(cfg, world=world) if kind == "c" else Board(cfg, world=world)
+    dec = Decoder()
+    lift, h_ref, target = 0, 1.0, None
+    tilt2 = h2 = 0.0
+    n = 0
+    naks: list[Any] = []
+    t0 = time.perf_counter()
+    end_us = int(duration * 1e6)
+    for t in range(_PILOT_US, end_us + 1, _PILOT_US):
+        board.advance(t)
+        for pkt in dec.feed(board.uart_transmit()):
+            if type(pkt).__name__ == "Ack" and pkt.status:
+                naks.append(pkt)
+        if t == _CALIBRATE_AT_US:
+            board.uart_receive(encode(Command(1, Op.MODE, int(Mode.CALIBRATION))))
+        elif t == _ARM_AT_US:
+            board.uart_receive(encode(Command(2, Op.MODE, int(Mode.FULL))))
+            target = 1.0
+        elif t == _HEIGHT_AT_US and scenario == "height-hold":
+            board.uart_receive(encode(Command(3, Op.MODE, int(Mode.HEIGHT))))
+            target, h_ref = None, world.truth.h
+        if target is not None:
+            lift = _pilot_lift(world, target)
+        board.uart_receive(encode(Joystick(0, 0, 0, lift, 0)))
+        if t >= _MEASURE_FROM_US:
+            tr = world.truth
+            tilt2 += tr.phi * tr.phi + tr.theta * tr.theta
+            h2 += (tr.h - h_ref) ** 2
+            n += 1
+    n = max(1, n)
+    return {"board": kind, "scenario": scenario, "seed": seed, "attitude_rms_deg": math.degrees(math.sqrt(tilt2 / n)),
+            "height_rms_m": math.sqrt(h2 / n), "mode": board.mode.name, "naks": len(naks),
+            "wall_s": time.perf_counter() - t0}
+
+
+def cmd_run_board(args: Any) -> int:
+    """``fcb-sim run --board python|c --scenario hover|height-hold``: a whole board over its UART."""
+    m = fly_board(args.board, args.scenario, args.seed, args.duration)
+    for key, value in m.items():
+        print(f"{key}: {value:.4g}" if isinstance(value, float) else f"{key}: {value}")
+    if args.json:
+        print(json.dumps(m))
+    return 0
