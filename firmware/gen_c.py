@@ -360,7 +360,8 @@ def params_header() -> str:
     where it keeps the value (firmware/board/qb_params.c)."""
     rows = sorted(p.PARAMS.values(), key=lambda s: int(s.param))
     out = ["/* qb_params.h: the board's parameter table, term.protocol.PARAMS as C data.", " *", f" * {NOTE}",
-           " */", "#ifndef QB_PARAMS_H", "#define QB_PARAMS_H", "", "#include <stdint.h>", "",
+           " */", "#ifndef QB_PARAMS_H", "#define QB_PARAMS_H", "", "#include <stdint.h>", "", "#ifdef QB_FLOAT", "#define QB_REAL float /* a board without an FPU */", "#else",
+           "#define QB_REAL double", "#endif", "",
            "enum qb_param_kind { QB_KIND_INT, QB_KIND_FLOAT, QB_KIND_BOOL, QB_KIND_ENUM };", "",
            "typedef struct {",
            "    uint8_t id;            /* enum qp_param */",
@@ -368,8 +369,8 @@ def params_header() -> str:
            "    uint8_t in_flight;     /* 0: refused outside SAFE (Nak NOT_IN_SAFE) */",
            "    int32_t lo, hi;        /* raw range the board accepts (Nak OUT_OF_RANGE outside) */",
            "    int32_t def;           /* the default's raw value */",
-           "    double scale;          /* value = raw * scale (int, float) */",
-           "    double step;           /* one press of its key (the gains), in the value's unit */",
+           "    QB_REAL scale;         /* value = raw * scale (int, float) */",
+           "    QB_REAL step;          /* one press of its key (the gains), in the value's unit */",
            "    const char *name;",
            "} qb_param_spec_t;", "",
            f"#define QB_PARAM_COUNT {len(rows)}", f"#define QB_PARAM_MAX_ID {max(int(s.param) for s in rows)}", ""]
@@ -378,12 +379,14 @@ def params_header() -> str:
             stem = upper(spec.name.split(".")[-1])
             for i, choice in enumerate(spec.choices):
                 out.append(f"#define QB_{stem}_{upper(re.sub(r'[^0-9A-Za-z]+', '_', choice))} {spec.base + i}")
-    out += ["", "/* In id order. */", "static const qb_param_spec_t QB_PARAMS[QB_PARAM_COUNT] = {"]
+    out += ["", "/* In id order; defined once, in the file that defines QB_PARAMS_TABLE first (qb_params.c). */",
+            "extern const qb_param_spec_t QB_PARAMS[QB_PARAM_COUNT];", "", "#ifdef QB_PARAMS_TABLE",
+            "const qb_param_spec_t QB_PARAMS[QB_PARAM_COUNT] = {"]
     for spec in rows:
         lo, hi = spec.raw_range
         out.append(f"    {{{int(spec.param)}, {_KIND_C[spec.kind]}, {int(spec.in_flight)}, {lo}, {hi}, "
                    f"{spec.to_raw(spec.default)}, {spec.scale!r}, {float(spec.step)!r}, \"{spec.name}\"}},")
-    out += ["};", "", "#endif /* QB_PARAMS_H */", ""]
+    out += ["};", "#endif", "", "#endif /* QB_PARAMS_H */", ""]
     return "\n".join(out)
 
 

@@ -14,9 +14,9 @@ static const uint8_t RR_ORDER[] = {QB_T_PARSE, QB_T_BARO, QB_T_TELEMETRY, QB_T_H
 #define STATUS_PERIOD_US 200000u
 #define DMP_ANGLE_LSB 10430.0
 
-static double now_s(const qb_board_t *b)
+static qb_real now_s(const qb_board_t *b)
 {
-    return (double)b->now / 1e6;
+    return (qb_real)b->now / 1e6;
 }
 
 /* --- timers on the 32768 Hz RTC (fcb_sim/timing.py: rtc_ticks, rtc_us, us_to_ticks) ----------------------- */
@@ -111,9 +111,9 @@ static void drain_mode_events(qb_board_t *b)
         send_event(b, ev.code, ev.arg);
 }
 
-static int16_t i16(double v)
+static int16_t i16(qb_real v)
 {
-    double r = floor(v + 0.5);
+    qb_real r = QM(floor)(v + 0.5);
     return (int16_t)(r < -32768.0 ? -32768 : r > 32767.0 ? 32767 : r);
 }
 
@@ -132,7 +132,7 @@ static void on_mode_change(void *ctx, uint8_t old_mode, uint8_t new_mode)
     qb_board_t *b = ctx;
     qb_modes_t *m = &b->modes;
     if (old_mode == QP_MODE_CALIBRATION && m->calibrated && m->counts[QB_CAL_GX] > 0) {
-        double gyro[3], accel[3], phi = 0.0, theta = 0.0, pressure = b->pressure;
+        qb_real gyro[3], accel[3], phi = 0.0, theta = 0.0, pressure = b->pressure;
         int i;
         for (i = 0; i < 3; i++) {
             gyro[i] = qb_modes_cal_mean(m, QB_CAL_GX + i);
@@ -155,10 +155,10 @@ static void task_sensor(qb_board_t *b)
 {
     int16_t raw[6];
     float q[4];
-    double t = now_s(b), dt;
+    qb_real t = now_s(b), dt;
     int cal = b->modes.mode == QP_MODE_CALIBRATION, i;
     hal_imu_read(raw);
-    dt = b->sample_set ? t - (double)b->sample_t / 1e6 : timer_period(b, QB_TM_SENSOR) / 1e6;
+    dt = b->sample_set ? t - (qb_real)b->sample_t / 1e6 : timer_period(b, QB_TM_SENSOR) / 1e6;
     b->sample_t = b->now;
     b->sample_set = 1;
     qb_flight_imu(&b->core, raw, dt);
@@ -169,10 +169,10 @@ static void task_sensor(qb_board_t *b)
     if (hal_dmp_read(q)) {
         qb_flight_dmp(&b->core, q);
         if (cal) {
-            double e[3];
+            qb_real e[3];
             qb_quaternion_to_euler(q[0], q[1], q[2], q[3], e);
-            qb_modes_cal_add(&b->modes, QB_CAL_DMP_PHI, (int32_t)lround(e[0] * DMP_ANGLE_LSB));
-            qb_modes_cal_add(&b->modes, QB_CAL_DMP_THETA, (int32_t)lround(-e[1] * DMP_ANGLE_LSB));
+            qb_modes_cal_add(&b->modes, QB_CAL_DMP_PHI, (int32_t)QM(lround)(e[0] * DMP_ANGLE_LSB));
+            qb_modes_cal_add(&b->modes, QB_CAL_DMP_THETA, (int32_t)QM(lround)(-e[1] * DMP_ANGLE_LSB));
         }
     }
     b->flags[QB_T_CONTROL] = 1; /* data ready: control follows */
@@ -181,7 +181,7 @@ static void task_sensor(qb_board_t *b)
 static void task_control(qb_board_t *b)
 {
     qb_modes_t *m = &b->modes;
-    double t = now_s(b);
+    qb_real t = now_s(b);
     int32_t impact = hal_impact_mm_s(), sticks[4];
     uint16_t ae[4];
     if (impact > 0)
@@ -203,7 +203,7 @@ static void task_control(qb_board_t *b)
 
 static void task_baro(qb_board_t *b)
 {
-    double dt = b->baro_set ? (double)(b->now - b->baro_t) / 1e6 : 0.05;
+    qb_real dt = b->baro_set ? (qb_real)(b->now - b->baro_t) / 1e6 : 0.05;
     hal_baro_read(&b->pressure, &b->temperature);
     b->battery = hal_battery_read();
     b->baro_t = b->now;
@@ -219,7 +219,7 @@ static void task_heartbeat(qb_board_t *b)
     qp_packet_t p;
     int32_t att[3];
     uint32_t rtt = b->rtt_us / 100u;
-    double silent = b->last_frame_set ? (double)(b->now - b->last_frame_us) / 1e6 : 0.0;
+    qb_real silent = b->last_frame_set ? (qb_real)(b->now - b->last_frame_us) / 1e6 : 0.0;
     b->heartbeats++;
     p.type = QP_TYPE_HEARTBEAT;
     p.u.heartbeat.counter = (uint16_t)b->heartbeats;
@@ -327,7 +327,7 @@ typedef struct {
     int after_param;
 } result_t;
 
-static double *gain_of(qb_board_t *b, int param)
+static qb_real *gain_of(qb_board_t *b, int param)
 {
     qb_gains_t *g = &b->core.g;
     switch (param) {
@@ -342,7 +342,7 @@ static double *gain_of(qb_board_t *b, int param)
 static result_t execute(qb_board_t *b, const qp_command_t *c)
 {
     result_t r = {QP_NAK_OK, 0, 0, 0};
-    double t = now_s(b);
+    qb_real t = now_s(b);
     switch (c->op) {
     case QP_OP_MODE:
         if (c->arg == QP_MODE_WIRELESS) {
@@ -371,9 +371,9 @@ static result_t execute(qb_board_t *b, const qp_command_t *c)
     case QP_OP_GAIN_HEIGHT_P:
     case QP_OP_GAIN_HEIGHT_D: {
         int param = QP_PARAM_YAW_P + (c->op - QP_OP_GAIN_YAW_P);
-        double *g = gain_of(b, param), v = *g + (double)c->arg * QB_PARAMS[param - 1].step;
+        qb_real *g = gain_of(b, param), v = *g + (qb_real)c->arg * QB_PARAMS[param - 1].step;
         *g = v > 0.0 ? v : 0.0;
-        r.value = (int32_t)lround(*g * 1000.0);
+        r.value = (int32_t)QM(lround)(*g * 1000.0);
         r.after = 1;
         r.after_param = param;
         return r;

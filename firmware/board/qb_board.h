@@ -17,7 +17,7 @@
  * path's on-board filter (RAW and HEIGHT from RAW answer NOT_IMPLEMENTED), the report preset's complementary
  * height estimator. docs/firmware.md keeps this list.
  *
- * Floating point: the flight core uses double, as the Python board does (the differential test compares them);
+ * Floating point: the flight core uses qb_real, as the Python board does (the differential test compares them);
  * an M0 build may define QB_REAL=float to halve the soft-float cost.
  */
 #ifndef QB_BOARD_H
@@ -28,10 +28,12 @@
 #include "qb_params.h"
 #include "qp_protocol.h"
 
-#ifndef QB_REAL
-#define QB_REAL double
+#ifdef QB_FLOAT
+#define QM(fn) fn##f /* the float version of a libm function: expf, atan2f, ... */
+#else
+#define QM(fn) fn
 #endif
-typedef QB_REAL qb_real;
+typedef QB_REAL qb_real; /* qb_params.h: float with QB_FLOAT, else double */
 
 #define QB_VERSION_MAJOR 0
 #define QB_VERSION_MINOR 2
@@ -62,7 +64,7 @@ typedef struct {
 
 typedef struct {
     /* config (fcb_sim.modes.ModeConfig) */
-    double link_timeout_s;
+    qb_real link_timeout_s;
     int32_t panic_level;
     int32_t trim_step, lift_step;
     /* state */
@@ -72,7 +74,7 @@ typedef struct {
     int32_t trim_roll, trim_pitch, trim_yaw, trim_lift;
     int32_t battery;        /* 10 mV; -1 before the first reading */
     int32_t motor_level;    /* mean motor command, from the control task */
-    double now, calibration_started, panic_started, panic_landed_at, low_battery_since;
+    qb_real now, calibration_started, panic_started, panic_landed_at, low_battery_since;
     uint8_t panic_landed_set, low_battery_set;
     int32_t panic_start_level;
     int64_t sums[QB_CAL_VARS];
@@ -84,18 +86,18 @@ typedef struct {
     void *ctx;
 } qb_modes_t;
 
-void qb_modes_init(qb_modes_t *m, double link_timeout_s, int32_t panic_level);
+void qb_modes_init(qb_modes_t *m, qb_real link_timeout_s, int32_t panic_level);
 int32_t qb_modes_lift(const qb_modes_t *m);
 void qb_modes_sticks(const qb_modes_t *m, int32_t out[4]);
 int32_t qb_modes_adjust_trim(qb_modes_t *m, int axis, int32_t steps); /* axis: 0 lift, 1 roll, 2 pitch, 3 yaw */
-uint8_t qb_modes_request(qb_modes_t *m, int32_t target, double now);
-int qb_modes_panic(qb_modes_t *m, double now);
-void qb_modes_crash(qb_modes_t *m, double now, int32_t speed_mm_s);
+uint8_t qb_modes_request(qb_modes_t *m, int32_t target, qb_real now);
+int qb_modes_panic(qb_modes_t *m, qb_real now);
+void qb_modes_crash(qb_modes_t *m, qb_real now, int32_t speed_mm_s);
 uint8_t qb_modes_ack_crash(qb_modes_t *m);
-void qb_modes_tick(qb_modes_t *m, double now);
-double qb_modes_panic_scale(qb_modes_t *m, double now);
-void qb_modes_panic_ground(qb_modes_t *m, double now);
-void qb_modes_supervise(qb_modes_t *m, double now, double link_silent_s, int32_t battery, int32_t phi_cdeg,
+void qb_modes_tick(qb_modes_t *m, qb_real now);
+qb_real qb_modes_panic_scale(qb_modes_t *m, qb_real now);
+void qb_modes_panic_ground(qb_modes_t *m, qb_real now);
+void qb_modes_supervise(qb_modes_t *m, qb_real now, qb_real link_silent_s, int32_t battery, int32_t phi_cdeg,
                         int32_t theta_cdeg);
 void qb_modes_cal_add(qb_modes_t *m, int var, int32_t v);
 int32_t qb_modes_cal_mean(const qb_modes_t *m, int var);
@@ -110,75 +112,75 @@ int32_t qb_tilt_cdeg(int32_t phi_cdeg, int32_t theta_cdeg);
 #define QB_ANCHOR_MAX 64
 
 typedef struct {
-    double q_acc, q_bias, r;
-    double p_ref, k_pa_per_m;
-    double height, vz, bias, spike, az_earth, baro_raw, innovation;
-    double p[10];
-    double t_pred;
+    qb_real q_acc, q_bias, r;
+    qb_real p_ref, k_pa_per_m;
+    qb_real height, vz, bias, spike, az_earth, baro_raw, innovation;
+    qb_real p[10];
+    qb_real t_pred;
     int jump_sign, rejumps;
-    double t_jump;
+    qb_real t_jump;
     uint32_t baro_rejected, level_changes, trend_resets;
-    double trend;
+    qb_real trend;
     uint8_t on_ground, anchored, motors_off;
-    double rest_s;
-    double ground_baro[QB_ANCHOR_MAX];
+    qb_real rest_s;
+    qb_real ground_baro[QB_ANCHOR_MAX];
     uint8_t n_ground_baro;
-    double ground_baro_s;
-    double captured_height;
-    double c[4];
-    double c00;
+    qb_real ground_baro_s;
+    qb_real captured_height;
+    qb_real c[4];
+    qb_real c00;
 } qb_height_t;
 
 void qb_height_init(qb_height_t *h);
-void qb_height_reset(qb_height_t *h, double pressure_pa);
-double qb_height_capture(qb_height_t *h);
-void qb_height_update_imu(qb_height_t *h, double ax, double ay, double az, double qw, double qx, double qy,
-                          double qz, double dt);
-void qb_height_update_baro(qb_height_t *h, double pressure_pa, double dt);
+void qb_height_reset(qb_height_t *h, qb_real pressure_pa);
+qb_real qb_height_capture(qb_height_t *h);
+void qb_height_update_imu(qb_height_t *h, qb_real ax, qb_real ay, qb_real az, qb_real qw, qb_real qx, qb_real qy,
+                          qb_real qz, qb_real dt);
+void qb_height_update_baro(qb_height_t *h, qb_real pressure_pa, qb_real dt);
 
 /* --- the flight core (qb_flight.c) ------------------------------------------------------------------------ */
 
 typedef struct {
-    double yaw_p, p1, p2, height_p, height_d, height_i;
+    qb_real yaw_p, p1, p2, height_p, height_d, height_i;
 } qb_gains_t;
 
 typedef struct {
     qb_gains_t g;
     qb_height_t hest;
     uint8_t mode, calibrated, have_dmp, height_raw, sp_from_est, panic_landed;
-    double g_off[3], a_off[3];
-    double cal_dmp_phi, cal_dmp_theta, cal_pressure;
-    double sp, sq, sr, sax, say, saz;
-    double dmp_phi, dmp_theta, dmp_psi;
-    double phi, theta;
+    qb_real g_off[3], a_off[3];
+    qb_real cal_dmp_phi, cal_dmp_theta, cal_pressure;
+    qb_real sp, sq, sr, sax, say, saz;
+    qb_real dmp_phi, dmp_theta, dmp_psi;
+    qb_real phi, theta;
     uint8_t psi_raw;
-    double q[4];
-    double height, vz, setpoint;
-    double z_base, z_int, sp_cap0, sp_base, sp_offset;
+    qb_real q[4];
+    qb_real height, vz, setpoint;
+    qb_real z_base, z_int, sp_cap0, sp_base, sp_offset;
     int32_t lift_entry;
-    double panic_scale, panic_i, panic_level, panic_start, land_s;
+    qb_real panic_scale, panic_i, panic_level, panic_start, land_s;
     int32_t panic_ae;
     uint16_t ae[4];
 } qb_flight_t;
 
 void qb_flight_init(qb_flight_t *fc);
-void qb_flight_set_calibration(qb_flight_t *fc, const double gyro[3], const double accel[3], double dmp_phi,
-                               double dmp_theta, double pressure);
-void qb_flight_imu(qb_flight_t *fc, const int16_t raw[6], double dt);
+void qb_flight_set_calibration(qb_flight_t *fc, const qb_real gyro[3], const qb_real accel[3], qb_real dmp_phi,
+                               qb_real dmp_theta, qb_real pressure);
+void qb_flight_imu(qb_flight_t *fc, const int16_t raw[6], qb_real dt);
 void qb_flight_dmp(qb_flight_t *fc, const float q[4]);
-void qb_flight_baro(qb_flight_t *fc, double pressure_pa, double dt);
+void qb_flight_baro(qb_flight_t *fc, qb_real pressure_pa, qb_real dt);
 void qb_flight_enter_mode(qb_flight_t *fc, uint8_t mode, int32_t lift);
-void qb_flight_control(qb_flight_t *fc, uint8_t mode, const int32_t sticks[4], double dt, uint16_t out[4]);
+void qb_flight_control(qb_flight_t *fc, uint8_t mode, const int32_t sticks[4], qb_real dt, uint16_t out[4]);
 void qb_flight_attitude_cdeg(const qb_flight_t *fc, int32_t out[3]);
-void qb_quaternion_to_euler(double w, double x, double y, double z, double out[3]);
+void qb_quaternion_to_euler(qb_real w, qb_real x, qb_real y, qb_real z, qb_real out[3]);
 uint32_t qb_isqrt(uint32_t square);
-void qb_mix(int32_t z, double l, double m, double n, int armed, uint16_t out[4]);
+void qb_mix(int32_t z, qb_real l, qb_real m, qb_real n, int armed, uint16_t out[4]);
 
 /* --- the board (qb_board.c) ------------------------------------------------------------------------------- */
 
 typedef struct {
     uint16_t board_id;
-    double link_timeout_s;
+    qb_real link_timeout_s;
     uint32_t phase_tk[QB_TIMERS]; /* the timers' first expiry, RTC ticks (fcb_sim's scheduler draws them) */
     uint8_t boot_hello;
 } qb_config_t;

@@ -33,7 +33,7 @@
 #define PANIC_LAND_S 0.5
 #define ASIN_FALLBACK 0.99
 
-static double gain_default(int id)
+static qb_real gain_default(int id)
 {
     const qb_param_spec_t *s = &QB_PARAMS[id - 1];
     return s->def * s->scale;
@@ -84,9 +84,17 @@ uint32_t qb_isqrt(uint32_t square)
     return xn;
 }
 
-void qb_mix(int32_t z, double l, double m, double n, int armed, uint16_t out[4])
+static int32_t clamp_moment(qb_real v)
 {
-    int64_t s = -(int64_t)z, li = 2 * (int64_t)l, mi = 2 * (int64_t)m, ni = (int64_t)n;
+    return v > 1e9 ? 1000000000 : v < -1e9 ? -1000000000 : (int32_t)v;
+}
+
+void qb_mix(int32_t z, qb_real l, qb_real m, qb_real n, int armed, uint16_t out[4])
+{
+    /* moments past 1e9 ae^2 saturate every motor either way: clamped, they convert as int32 (no 64-bit float
+     * conversion, which costs the M0 the soft double routines) */
+    int64_t s = -(int64_t)z, li = 2 * (int64_t)clamp_moment(l), mi = 2 * (int64_t)clamp_moment(m);
+    int64_t ni = clamp_moment(n);
     int64_t a[4];
     int32_t lo = armed ? AE_IDLE : 0;
     int j;
@@ -112,31 +120,32 @@ static int32_t lift_to_z(int32_t lift)
 
 /* --- samples --------------------------------------------------------------------------------------------- */
 
-void qb_quaternion_to_euler(double w, double x, double y, double z, double out[3])
+void qb_quaternion_to_euler(qb_real w, qb_real x, qb_real y, qb_real z, qb_real out[3])
 {
-    double n2 = w * w + x * x + y * y + z * z, sp;
+    qb_real n2 = w * w + x * x + y * y + z * z, sp;
     if (n2 <= 0.0) {
         out[0] = out[1] = out[2] = 0.0;
         return;
     }
-    if (fabs(n2 - 1.0) > 1e-9) {
-        double s = 1.0 / sqrt(n2);
+    if (QM(fabs)(n2 - 1.0) > 1e-9) {
+        qb_real s = 1.0 / QM(sqrt)(n2);
         w *= s;
         x *= s;
         y *= s;
         z *= s;
     }
-    out[0] = atan2(2.0 * (w * x + y * z), 1.0 - 2.0 * (x * x + y * y));
+    out[0] = QM(atan2)(2.0 * (w * x + y * z), 1.0 - 2.0 * (x * x + y * y));
     sp = 2.0 * (w * y - x * z);
     if (-ASIN_FALLBACK < sp && sp < ASIN_FALLBACK)
-        out[1] = atan2(sp, sqrt(1.0 - sp * sp)); /* the report's eq. 5 */
+        out[1] = QM(atan2)(sp, QM(sqrt)(1.0 - sp * sp)); /* the report's eq. 5 */
     else
-        out[1] = asin(sp > 1.0 ? 1.0 : sp < -1.0 ? -1.0 : sp);
-    out[2] = atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z));
+        out[1] = sp >= 1.0 ? 1.5707963267948966 : sp <= -1.0 ? -1.5707963267948966 /* asin, clamped */
+                 : QM(atan2)(sp, QM(sqrt)((1.0 - sp) * (1.0 + sp)));
+    out[2] = QM(atan2)(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z));
 }
 
-void qb_flight_set_calibration(qb_flight_t *fc, const double gyro[3], const double accel[3], double dmp_phi,
-                               double dmp_theta, double pressure)
+void qb_flight_set_calibration(qb_flight_t *fc, const qb_real gyro[3], const qb_real accel[3], qb_real dmp_phi,
+                               qb_real dmp_theta, qb_real pressure)
 {
     memcpy(fc->g_off, gyro, sizeof fc->g_off);
     fc->a_off[0] = accel[0];
@@ -150,11 +159,11 @@ void qb_flight_set_calibration(qb_flight_t *fc, const double gyro[3], const doub
     fc->height = fc->vz = 0.0;
 }
 
-void qb_flight_imu(qb_flight_t *fc, const int16_t raw[6], double dt)
+void qb_flight_imu(qb_flight_t *fc, const int16_t raw[6], qb_real dt)
 {
-    double cgx = raw[0] - fc->g_off[0], cgy = raw[1] - fc->g_off[1], cgz = raw[2] - fc->g_off[2];
-    double cax = raw[3] - fc->a_off[0], cay = raw[4] - fc->a_off[1], caz = raw[5] - fc->a_off[2];
-    const double s = 1.0 / ACC_LSB_PER_MS2;
+    qb_real cgx = raw[0] - fc->g_off[0], cgy = raw[1] - fc->g_off[1], cgz = raw[2] - fc->g_off[2];
+    qb_real cax = raw[3] - fc->a_off[0], cay = raw[4] - fc->a_off[1], caz = raw[5] - fc->a_off[2];
+    const qb_real s = 1.0 / ACC_LSB_PER_MS2;
     fc->sp = cgx;
     fc->sq = -cgy;
     fc->sr = -cgz;
@@ -171,7 +180,7 @@ void qb_flight_imu(qb_flight_t *fc, const int16_t raw[6], double dt)
 
 void qb_flight_dmp(qb_flight_t *fc, const float q[4])
 {
-    double e[3];
+    qb_real e[3];
     qb_quaternion_to_euler(q[0], q[1], q[2], q[3], e);
     fc->dmp_phi = e[0] - fc->cal_dmp_phi;
     fc->dmp_theta = -e[1] - fc->cal_dmp_theta;
@@ -183,7 +192,7 @@ void qb_flight_dmp(qb_flight_t *fc, const float q[4])
     fc->have_dmp = 1;
 }
 
-void qb_flight_baro(qb_flight_t *fc, double pressure_pa, double dt)
+void qb_flight_baro(qb_flight_t *fc, qb_real pressure_pa, qb_real dt)
 {
     qb_height_update_baro(&fc->hest, pressure_pa, dt);
 }
@@ -216,19 +225,19 @@ void qb_flight_enter_mode(qb_flight_t *fc, uint8_t mode, int32_t lift)
     fc->mode = mode;
 }
 
-static double panic_descent_rate(double height_m)
+static qb_real panic_descent_rate(qb_real height_m)
 {
-    double f = (height_m - PANIC_SLOW_BELOW_M) / (PANIC_FAST_ABOVE_M - PANIC_SLOW_BELOW_M);
+    qb_real f = (height_m - PANIC_SLOW_BELOW_M) / (PANIC_FAST_ABOVE_M - PANIC_SLOW_BELOW_M);
     f = f < 0.0 ? 0.0 : f > 1.0 ? 1.0 : f;
     return PANIC_SLOW_M_S + (PANIC_FAST_M_S - PANIC_SLOW_M_S) * f;
 }
 
-static void panic_motors(qb_flight_t *fc, double scale, double dt, uint16_t out[4])
+static void panic_motors(qb_flight_t *fc, qb_real scale, qb_real dt, uint16_t out[4])
 {
     int32_t level;
     if (!fc->panic_landed && dt > 0.0) {
-        double err = -panic_descent_rate(fc->height) - fc->vz, floor_, lvl;
-        double i = fc->panic_i + PANIC_KI * err * dt;
+        qb_real err = -panic_descent_rate(fc->height) - fc->vz, floor_, lvl;
+        qb_real i = fc->panic_i + PANIC_KI * err * dt;
         int still;
         fc->panic_i = i < -fc->panic_ae ? -fc->panic_ae : i > PANIC_MAX_AE ? PANIC_MAX_AE : i;
         floor_ = PANIC_MIN_FRAC * fc->panic_ae;
@@ -237,7 +246,7 @@ static void panic_motors(qb_flight_t *fc, double scale, double dt, uint16_t out[
         lvl = fc->panic_ae + PANIC_KP * err + fc->panic_i;
         lvl = lvl > PANIC_MAX_AE ? PANIC_MAX_AE : lvl;
         lvl = lvl < floor_ ? floor_ : lvl;
-        still = lvl < PANIC_LAND_FRAC * fc->panic_ae && fabs(fc->vz) < PANIC_LAND_VZ;
+        still = lvl < PANIC_LAND_FRAC * fc->panic_ae && QM(fabs)(fc->vz) < PANIC_LAND_VZ;
         fc->land_s = still ? fc->land_s + dt : 0.0;
         fc->panic_landed = fc->land_s >= PANIC_LAND_S;
         fc->panic_level = lvl;
@@ -246,20 +255,20 @@ static void panic_motors(qb_flight_t *fc, double scale, double dt, uint16_t out[
     level = (int32_t)(fc->panic_level * scale);
     if (fc->calibrated && level > 0) {
         const qb_gains_t *g = &fc->g;
-        double lm = g->p2 * (g->p1 * (0.0 - fc->dmp_phi * ANGLE_LSB_PER_RAD) - fc->sp);
-        double mm = g->p2 * (g->p1 * (0.0 - fc->dmp_theta * ANGLE_LSB_PER_RAD) - fc->sq);
-        double nm = g->yaw_p * (0.0 - fc->sr);
+        qb_real lm = g->p2 * (g->p1 * (0.0 - fc->dmp_phi * ANGLE_LSB_PER_RAD) - fc->sp);
+        qb_real mm = g->p2 * (g->p1 * (0.0 - fc->dmp_theta * ANGLE_LSB_PER_RAD) - fc->sq);
+        qb_real nm = g->yaw_p * (0.0 - fc->sr);
         qb_mix(-4 * level * level, lm, mm, nm, 0, out);
         return;
     }
     out[0] = out[1] = out[2] = out[3] = (uint16_t)level;
 }
 
-static double height_z(qb_flight_t *fc, int32_t lift, double dt)
+static qb_real height_z(qb_flight_t *fc, int32_t lift, qb_real dt)
 {
     const qb_gains_t *g = &fc->g;
     int32_t d = lift - fc->lift_entry;
-    double sp, sp_mm, h_mm, z;
+    qb_real sp, sp_mm, h_mm, z;
     int sat;
     if (d > HEIGHT_STICK_DEADBAND || d < -HEIGHT_STICK_DEADBAND)
         fc->sp_offset += d / 32767.0 * HEIGHT_STICK_RATE * dt;
@@ -275,7 +284,7 @@ static double height_z(qb_flight_t *fc, int32_t lift, double dt)
         z = 0.0;
     if (g->height_i > 0.0) {
         /* saturated: only unwinding steps count (anti-windup), and the integral is clamped */
-        double step = g->height_i * (sp_mm - h_mm) * dt, i;
+        qb_real step = g->height_i * (sp_mm - h_mm) * dt, i;
         if (!(sat && step * fc->z_int > 0.0)) {
             i = fc->z_int + step;
             fc->z_int = i > HEIGHT_I_LIMIT ? HEIGHT_I_LIMIT : i < -HEIGHT_I_LIMIT ? -HEIGHT_I_LIMIT : i;
@@ -284,7 +293,7 @@ static double height_z(qb_flight_t *fc, int32_t lift, double dt)
     return z;
 }
 
-void qb_flight_control(qb_flight_t *fc, uint8_t mode, const int32_t sticks[4], double dt, uint16_t out[4])
+void qb_flight_control(qb_flight_t *fc, uint8_t mode, const int32_t sticks[4], qb_real dt, uint16_t out[4])
 {
     const qb_gains_t *g = &fc->g;
     int32_t roll = sticks[0], pitch = sticks[1], yaw = sticks[2], lift = sticks[3];
@@ -292,7 +301,7 @@ void qb_flight_control(qb_flight_t *fc, uint8_t mode, const int32_t sticks[4], d
         qb_flight_enter_mode(fc, mode, lift);
     if (mode == QP_MODE_FULL || mode == QP_MODE_HEIGHT) {
         /* HEIGHT from RAW would fly on the on-board filter: not in the C board (its guard refuses RAW) */
-        double phi = fc->dmp_phi, theta = fc->dmp_theta, lm, mm, nm, z;
+        qb_real phi = fc->dmp_phi, theta = fc->dmp_theta, lm, mm, nm, z;
         fc->phi = phi;
         fc->theta = theta;
         fc->psi_raw = 0;
@@ -302,12 +311,12 @@ void qb_flight_control(qb_flight_t *fc, uint8_t mode, const int32_t sticks[4], d
         z = mode == QP_MODE_HEIGHT ? height_z(fc, lift, dt) : lift_to_z(lift);
         qb_mix((int32_t)z, lm, mm, nm, 1, out);
     } else if (mode == QP_MODE_MANUAL || mode == QP_MODE_YAW) {
-        double nm;
+        qb_real nm;
         fc->phi = fc->dmp_phi;
         fc->theta = fc->dmp_theta;
         fc->psi_raw = 0;
-        nm = mode == QP_MODE_YAW ? g->yaw_p * ((yaw >> STICK_YAW_SHIFT) - fc->sr) : (double)yaw * MANUAL_N_GAIN;
-        qb_mix(lift_to_z(lift), (double)roll * MANUAL_LM_GAIN, (double)pitch * MANUAL_LM_GAIN, nm, 1, out);
+        nm = mode == QP_MODE_YAW ? g->yaw_p * ((yaw >> STICK_YAW_SHIFT) - fc->sr) : (qb_real)yaw * MANUAL_N_GAIN;
+        qb_mix(lift_to_z(lift), (qb_real)roll * MANUAL_LM_GAIN, (qb_real)pitch * MANUAL_LM_GAIN, nm, 1, out);
     } else if (mode == QP_MODE_PANIC) {
         panic_motors(fc, fc->panic_scale, dt, out);
     } else {
@@ -319,8 +328,8 @@ void qb_flight_control(qb_flight_t *fc, uint8_t mode, const int32_t sticks[4], d
 
 void qb_flight_attitude_cdeg(const qb_flight_t *fc, int32_t out[3])
 {
-    const double k = 18000.0 / 3.141592653589793;
-    out[0] = (int32_t)lround(fc->phi * k);
-    out[1] = (int32_t)lround(fc->theta * k);
-    out[2] = (int32_t)lround(fc->dmp_psi * k);
+    const qb_real k = 18000.0 / 3.141592653589793;
+    out[0] = (int32_t)QM(lround)(fc->phi * k);
+    out[1] = (int32_t)QM(lround)(fc->theta * k);
+    out[2] = (int32_t)QM(lround)(fc->dmp_psi * k);
 }

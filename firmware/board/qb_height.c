@@ -28,7 +28,7 @@
 #define GROUND_REST_S 0.5
 #define REST_ACC 0.5
 #define ANCHOR_S 1.0
-static const double INITIAL_SIGMA[3] = {0.03, 0.05, 0.1};
+static const qb_real INITIAL_SIGMA[3] = {0.03, 0.05, 0.1};
 
 void qb_height_init(qb_height_t *h)
 {
@@ -39,9 +39,9 @@ void qb_height_init(qb_height_t *h)
     qb_height_reset(h, SEA_LEVEL_PA);
 }
 
-void qb_height_reset(qb_height_t *h, double pressure_pa)
+void qb_height_reset(qb_height_t *h, qb_real pressure_pa)
 {
-    double sh = INITIAL_SIGMA[0], sv = INITIAL_SIGMA[1], sb = INITIAL_SIGMA[2];
+    qb_real sh = INITIAL_SIGMA[0], sv = INITIAL_SIGMA[1], sb = INITIAL_SIGMA[2];
     uint8_t motors_off = h->motors_off;
     if (!(pressure_pa > 0.0))
         pressure_pa = SEA_LEVEL_PA; /* Python raises; the board keeps a sane reference */
@@ -69,18 +69,18 @@ void qb_height_reset(qb_height_t *h, double pressure_pa)
     h->motors_off = motors_off;
 }
 
-static void propagate(qb_height_t *h, double t)
+static void propagate(qb_height_t *h, qb_real t)
 {
-    double *p = h->p;
-    double hh = p[0], hv = p[1], hb = p[2], hs = p[3], vv = p[4], vb = p[5], vs = p[6], bb = p[7], bs = p[8];
-    double ss = p[9];
-    double phi = exp(-t / SPIKE_TAU_S), c = 0.5 * t * t;
-    double ah = hh + t * hv - c * hb, av = hv + t * vv - c * vb, ab = hb + t * vb - c * bb;
-    double as_ = hs + t * vs - c * bs;
-    double bv = vv - t * vb, bb_ = vb - t * bb, bs_ = vs - t * bs;
-    double qa = h->q_acc, qb = h->q_bias, t3 = t * t * t;
-    double ch = h->c[0], cv = h->c[1], cb = h->c[2], cs = h->c[3];
-    double s, ds;
+    qb_real *p = h->p;
+    qb_real hh = p[0], hv = p[1], hb = p[2], hs = p[3], vv = p[4], vb = p[5], vs = p[6], bb = p[7], bs = p[8];
+    qb_real ss = p[9];
+    qb_real phi = QM(exp)(-t / SPIKE_TAU_S), c = 0.5 * t * t;
+    qb_real ah = hh + t * hv - c * hb, av = hv + t * vv - c * vb, ab = hb + t * vb - c * bb;
+    qb_real as_ = hs + t * vs - c * bs;
+    qb_real bv = vv - t * vb, bb_ = vb - t * bb, bs_ = vs - t * bs;
+    qb_real qa = h->q_acc, qb = h->q_bias, t3 = t * t * t;
+    qb_real ch = h->c[0], cv = h->c[1], cb = h->c[2], cs = h->c[3];
+    qb_real s, ds;
     h->c[0] = ch + t * cv - c * cb;
     h->c[1] = cv - t * cb;
     h->c[2] = cb;
@@ -100,7 +100,7 @@ static void propagate(qb_height_t *h, double t)
     p[9] = phi * phi * ss + ds * ds + SS_FLOOR * (1.0 - phi * phi);
 }
 
-double qb_height_capture(qb_height_t *h)
+qb_real qb_height_capture(qb_height_t *h)
 {
     if (h->t_pred > 0.0) {
         propagate(h, h->t_pred);
@@ -115,8 +115,8 @@ double qb_height_capture(qb_height_t *h)
 static void set_ground(qb_height_t *h, int on)
 {
     if (!on) {
-        double var_h = INITIAL_SIGMA[0] * INITIAL_SIGMA[0];
-        double bb = h->p[7];
+        qb_real var_h = INITIAL_SIGMA[0] * INITIAL_SIGMA[0];
+        qb_real bb = h->p[7];
         if (!h->anchored)
             var_h = h->p[0] > 1.0 ? h->p[0] : 1.0;
         memset(h->p, 0, sizeof h->p);
@@ -134,16 +134,16 @@ static void set_ground(qb_height_t *h, int on)
     h->t_pred = 0.0;
 }
 
-void qb_height_update_imu(qb_height_t *h, double ax, double ay, double az, double qw, double qx, double qy,
-                          double qz, double dt)
+void qb_height_update_imu(qb_height_t *h, qb_real ax, qb_real ay, qb_real az, qb_real qw, qb_real qx, qb_real qy,
+                          qb_real qz, qb_real dt)
 {
-    double a, v;
+    qb_real a, v;
     int rest;
     if (dt <= 0.0)
         return;
     a = 2.0 * (qx * qz - qw * qy) * ax + 2.0 * (qy * qz + qw * qx) * ay + (qw * qw - qx * qx - qy * qy + qz * qz) * az -
         G - h->bias;
-    rest = h->motors_off && fabs(sqrt(ax * ax + ay * ay + az * az) - G) < REST_ACC;
+    rest = h->motors_off && QM(fabs)(QM(sqrt)(ax * ax + ay * ay + az * az) - G) < REST_ACC;
     h->rest_s = rest ? h->rest_s + dt : 0.0;
     if (h->on_ground != (h->rest_s >= GROUND_REST_S))
         set_ground(h, !h->on_ground);
@@ -162,24 +162,24 @@ void qb_height_update_imu(qb_height_t *h, double ax, double ay, double az, doubl
 
 static int cmp_double(const void *a, const void *b)
 {
-    double x = *(const double *)a, y = *(const double *)b;
+    qb_real x = *(const qb_real *)a, y = *(const qb_real *)b;
     return (x > y) - (x < y);
 }
 
-static void sort_doubles(double *v, size_t n)
+static void sort_doubles(qb_real *v, size_t n)
 {
     size_t i, j; /* insertion sort: at most QB_ANCHOR_MAX values, once per landing */
     for (i = 1; i < n; i++) {
-        double x = v[i];
+        qb_real x = v[i];
         for (j = i; j > 0 && cmp_double(&v[j - 1], &x) > 0; j--)
             v[j] = v[j - 1];
         v[j] = x;
     }
 }
 
-static void ground_baro_update(qb_height_t *h, double z, double dt)
+static void ground_baro_update(qb_height_t *h, qb_real z, qb_real dt)
 {
-    double sorted[QB_ANCHOR_MAX], sum = 0.0;
+    qb_real sorted[QB_ANCHOR_MAX], sum = 0.0;
     size_t n, cut, i;
     if (h->anchored)
         return;
@@ -194,20 +194,20 @@ static void ground_baro_update(qb_height_t *h, double z, double dt)
     cut = n / 4;
     for (i = cut; i < n - cut; i++)
         sum += sorted[i];
-    h->height = sum / (double)(n - 2 * cut);
+    h->height = sum / (qb_real)(n - 2 * cut);
     h->anchored = 1;
     h->spike = 0.0;
 }
 
-static void baro_correct(qb_height_t *h, const double p[10], double nu, double r)
+static void baro_correct(qb_height_t *h, const qb_real p[10], qb_real nu, qb_real r)
 {
-    double hh = p[0], hv = p[1], hb = p[2], hs = p[3], vv = p[4], vb = p[5], vs = p[6], bb = p[7], bs = p[8];
-    double ss = p[9];
-    double gh = hh + hs, gv = hv + vs, gb = hb + bs, gs = hs + ss;
-    double s = gh + gs + r;
-    double kh = gh / s, kv = gv / s, kb = gb / s, ks = gs / s;
-    double ch = h->c[0], cv = h->c[1], cb = h->c[2], cs = h->c[3];
-    double g0 = ch + cs, k0 = g0 / s;
+    qb_real hh = p[0], hv = p[1], hb = p[2], hs = p[3], vv = p[4], vb = p[5], vs = p[6], bb = p[7], bs = p[8];
+    qb_real ss = p[9];
+    qb_real gh = hh + hs, gv = hv + vs, gb = hb + bs, gs = hs + ss;
+    qb_real s = gh + gs + r;
+    qb_real kh = gh / s, kv = gv / s, kb = gb / s, ks = gs / s;
+    qb_real ch = h->c[0], cv = h->c[1], cb = h->c[2], cs = h->c[3];
+    qb_real g0 = ch + cs, k0 = g0 / s;
     h->height += kh * nu;
     h->vz += kv * nu;
     h->bias += kb * nu;
@@ -231,12 +231,12 @@ static void baro_correct(qb_height_t *h, const double p[10], double nu, double r
 }
 
 /* A reading far outside the prediction: the onset of a spike, or (repeated with one sign) a real level change. */
-static double spike_onset(qb_height_t *h, double p[10], double nu, double z)
+static qb_real spike_onset(qb_height_t *h, qb_real p[10], qb_real nu, qb_real z)
 {
     int sign = nu > 0.0 ? 1 : -1;
     int same = sign == h->jump_sign && h->t_jump < REJUMP_WINDOW_S;
-    double hh = p[0], hv = p[1], hb = p[2], hs = p[3], vv = p[4], vb = p[5], vs = p[6], bb = p[7], bs = p[8];
-    double ss = p[9];
+    qb_real hh = p[0], hv = p[1], hb = p[2], hs = p[3], vv = p[4], vb = p[5], vs = p[6], bb = p[7], bs = p[8];
+    qb_real ss = p[9];
     h->baro_rejected++;
     h->rejumps = same ? h->rejumps + 1 : 0;
     h->jump_sign = sign;
@@ -265,11 +265,11 @@ static double spike_onset(qb_height_t *h, double p[10], double nu, double z)
     return nu;
 }
 
-void qb_height_update_baro(qb_height_t *h, double pressure_pa, double dt)
+void qb_height_update_baro(qb_height_t *h, qb_real pressure_pa, qb_real dt)
 {
-    double z, t, nu, r, s, r_sigma, p[10];
+    qb_real z, t, nu, r, s, r_sigma, p[10];
     if (pressure_pa > 0.0)
-        z = h->p_ref / h->k_pa_per_m * log(h->p_ref / pressure_pa);
+        z = h->p_ref / h->k_pa_per_m * QM(log)(h->p_ref / pressure_pa);
     else
         z = (pressure_pa - h->p_ref) / -h->k_pa_per_m;
     h->baro_raw = z;
@@ -288,9 +288,9 @@ void qb_height_update_baro(qb_height_t *h, double pressure_pa, double dt)
     h->innovation = nu;
     r = h->r;
     s = p[0] + 2.0 * p[3] + p[9] + r;
-    r_sigma = fabs(nu) / sqrt(s);
-    h->trend += TREND_GAIN * (copysign(r_sigma, nu) - h->trend);
-    if (fabs(h->trend) > TREND_SIGMA) {
+    r_sigma = QM(fabs)(nu) / QM(sqrt)(s);
+    h->trend += TREND_GAIN * (QM(copysign)(r_sigma, nu) - h->trend);
+    if (QM(fabs)(h->trend) > TREND_SIGMA) {
         p[4] += TREND_VZ_VAR;
         h->trend_resets++;
     }

@@ -69,7 +69,7 @@ int qb_modes_take_event(qb_modes_t *m, qb_event_t *ev)
     return 1;
 }
 
-void qb_modes_init(qb_modes_t *m, double link_timeout_s, int32_t panic_level)
+void qb_modes_init(qb_modes_t *m, qb_real link_timeout_s, int32_t panic_level)
 {
     memset(m, 0, sizeof *m);
     m->link_timeout_s = link_timeout_s;
@@ -147,9 +147,9 @@ int32_t qb_modes_cal_mean(const qb_modes_t *m, int var)
 
 /* --- the panic timer ---------------------------------------------------------------------------------------- */
 
-static int ramp_from(const qb_modes_t *m, double *t0)
+static int ramp_from(const qb_modes_t *m, qb_real *t0)
 {
-    double timeout;
+    qb_real timeout;
     if (m->panic_landed_set) {
         *t0 = m->panic_landed_at;
         return 1;
@@ -164,15 +164,15 @@ static int ramp_from(const qb_modes_t *m, double *t0)
 
 static int panic_finished(const qb_modes_t *m)
 {
-    double t0;
+    qb_real t0;
     if (m->panic_start_level == 0)
         return 1;
     return ramp_from(m, &t0) && m->now >= t0 + PANIC_RAMP_S;
 }
 
-double qb_modes_panic_scale(qb_modes_t *m, double now)
+qb_real qb_modes_panic_scale(qb_modes_t *m, qb_real now)
 {
-    double t0, s;
+    qb_real t0, s;
     if (m->mode != QP_MODE_PANIC)
         return 0.0;
     if (now > m->now)
@@ -183,7 +183,7 @@ double qb_modes_panic_scale(qb_modes_t *m, double now)
     return s > 0.0 ? s : 0.0;
 }
 
-void qb_modes_panic_ground(qb_modes_t *m, double now)
+void qb_modes_panic_ground(qb_modes_t *m, qb_real now)
 {
     if (m->mode == QP_MODE_PANIC && !m->panic_landed_set) {
         m->panic_landed_at = now;
@@ -264,7 +264,7 @@ static void leave(qb_modes_t *m, uint8_t mode)
     }
 }
 
-static void enter(qb_modes_t *m, uint8_t mode, double now)
+static void enter(qb_modes_t *m, uint8_t mode, qb_real now)
 {
     int32_t level;
     switch (mode) {
@@ -290,7 +290,7 @@ static void enter(qb_modes_t *m, uint8_t mode, double now)
     }
 }
 
-static void change(qb_modes_t *m, uint8_t target, double now)
+static void change(qb_modes_t *m, uint8_t target, qb_real now)
 {
     uint8_t old = m->mode;
     leave(m, old);
@@ -302,7 +302,7 @@ static void change(qb_modes_t *m, uint8_t target, double now)
         m->on_change(m->ctx, old, target);
 }
 
-uint8_t qb_modes_request(qb_modes_t *m, int32_t target, double now)
+uint8_t qb_modes_request(qb_modes_t *m, int32_t target, qb_real now)
 {
     uint8_t reason;
     if (target < QP_MODE_SAFE || target > QP_MODE_WIRELESS || target == QP_MODE_WIRELESS)
@@ -323,14 +323,14 @@ uint8_t qb_modes_request(qb_modes_t *m, int32_t target, double now)
     return QP_NAK_OK;
 }
 
-int qb_modes_panic(qb_modes_t *m, double now)
+int qb_modes_panic(qb_modes_t *m, qb_real now)
 {
     if (qb_modes_flying(m) || m->mode == QP_MODE_CALIBRATION)
         change(m, QP_MODE_PANIC, now);
     return m->mode == QP_MODE_PANIC;
 }
 
-void qb_modes_crash(qb_modes_t *m, double now, int32_t speed_mm_s)
+void qb_modes_crash(qb_modes_t *m, qb_real now, int32_t speed_mm_s)
 {
     m->crashed = 1;
     emit(m, QP_EVENT_CODE_CRASH, speed_mm_s);
@@ -346,7 +346,7 @@ uint8_t qb_modes_ack_crash(qb_modes_t *m)
     return QP_NAK_OK;
 }
 
-void qb_modes_tick(qb_modes_t *m, double now)
+void qb_modes_tick(qb_modes_t *m, qb_real now)
 {
     m->now = now;
     if ((m->mode == QP_MODE_CALIBRATION || m->mode == QP_MODE_PANIC) &&
@@ -354,16 +354,32 @@ void qb_modes_tick(qb_modes_t *m, double now)
         change(m, QP_MODE_SAFE, now);
 }
 
+/* cos by its series after reducing to [-pi, pi] (error < 1e-13): the M0 build then links no cos/acos and
+ * their argument reduction (about 5 KB); acos(c) is QM(atan2)(QM(sqrt)(1 - c^2), c). */
+static qb_real cos_series(qb_real x)
+{
+    const qb_real pi = 3.14159265358979323846;
+    qb_real x2, term = 1.0, sum = 1.0;
+    int n;
+    x -= 2.0 * pi * QM(floor)(x / (2.0 * pi) + 0.5); /* to [-pi, pi] */
+    x2 = x * x;
+    for (n = 2; n <= 28; n += 2) {
+        term *= -x2 / (qb_real)(n * (n - 1));
+        sum += term;
+    }
+    return sum;
+}
+
 int32_t qb_tilt_cdeg(int32_t phi_cdeg, int32_t theta_cdeg)
 {
-    const double k = 3.14159265358979323846 / 18000.0;
-    double c = cos(phi_cdeg * k) * cos(theta_cdeg * k);
+    const qb_real k = 3.14159265358979323846 / 18000.0;
+    qb_real c = cos_series(phi_cdeg * k) * cos_series(theta_cdeg * k);
     c = c > 1.0 ? 1.0 : c < -1.0 ? -1.0 : c;
-    return (int32_t)lround(acos(c) / k);
+    return (int32_t)QM(lround)(QM(atan2)(QM(sqrt)(1.0 - c * c), c) / k);
 }
 
 /* The link-loss failsafe, alone so that it can follow the Python board's (one stage today: PANIC at once). */
-static int link_failsafe(qb_modes_t *m, double now, int timed_out)
+static int link_failsafe(qb_modes_t *m, qb_real now, int timed_out)
 {
     if (!timed_out)
         return 0;
@@ -371,7 +387,7 @@ static int link_failsafe(qb_modes_t *m, double now, int timed_out)
     return 1;
 }
 
-void qb_modes_supervise(qb_modes_t *m, double now, double link_silent_s, int32_t battery, int32_t phi_cdeg,
+void qb_modes_supervise(qb_modes_t *m, qb_real now, qb_real link_silent_s, int32_t battery, int32_t phi_cdeg,
                         int32_t theta_cdeg)
 {
     int timed_out;

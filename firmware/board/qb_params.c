@@ -2,6 +2,7 @@
  * keeps each value: fcb_sim/paramtable.py in C. The guards in order: unknown id (UNKNOWN_PARAM), outside the
  * table's raw range (OUT_OF_RANGE), a SAFE-only parameter outside SAFE (NOT_IN_SAFE), the parameter's own rule;
  * values this board cannot run yet are refused with NOT_IMPLEMENTED (qb_board.h lists them). */
+#define QB_PARAMS_TABLE /* the table's one definition */
 #include <math.h>
 
 #include "qb_board.h"
@@ -12,20 +13,20 @@ const qb_param_spec_t *qb_param_spec(int id)
 }
 
 /* The table's value for a raw number, rounded to the scale's decimals (as ParamSpec.from_raw does). */
-static double value_of(const qb_param_spec_t *s, int32_t raw)
+static qb_real value_of(const qb_param_spec_t *s, int32_t raw)
 {
-    double p = 1.0, v = raw * s->scale;
+    qb_real p = 1.0, v = raw * s->scale;
     int d = 0;
-    while (d < 9 && fabs(floor(s->scale * p + 0.5) - s->scale * p) > 1e-9) {
+    while (d < 9 && QM(fabs)(QM(floor)(s->scale * p + 0.5) - s->scale * p) > 1e-9) {
         p *= 10.0;
         d++;
     }
-    return floor(v * p + 0.5) / p;
+    return QM(floor)(v * p + 0.5) / p;
 }
 
-static int32_t raw_of(const qb_param_spec_t *s, double v)
+static int32_t raw_of(const qb_param_spec_t *s, qb_real v)
 {
-    return (int32_t)floor(v / s->scale + 0.5);
+    return (int32_t)QM(floor)(v / s->scale + 0.5);
 }
 
 int32_t qb_param_get(const qb_board_t *b, int id)
@@ -39,7 +40,7 @@ int32_t qb_param_get(const qb_board_t *b, int id)
     case QP_PARAM_HEIGHT_P: return raw_of(s, g->height_p);
     case QP_PARAM_HEIGHT_D: return raw_of(s, g->height_d);
     case QP_PARAM_HEIGHT_I: return raw_of(s, g->height_i);
-    case QP_PARAM_LINK_TIMEOUT_MS: return (int32_t)floor(b->modes.link_timeout_s * 1000.0 + 0.5);
+    case QP_PARAM_LINK_TIMEOUT_MS: return (int32_t)QM(floor)(b->modes.link_timeout_s * 1000.0 + 0.5);
     case QP_PARAM_SCHEDULER: return b->scheduler;
     case QP_PARAM_TELEMETRY_HZ: return b->telemetry_hz;
     case QP_PARAM_SENSOR_PATH: return b->sensor_path;
@@ -65,7 +66,7 @@ static uint8_t set_filter(qb_board_t *b, int32_t filter, int32_t fixed)
     return QP_NAK_OK;
 }
 
-static uint8_t set_bound(qb_board_t *b, int id, int32_t raw, double v)
+static uint8_t set_bound(qb_board_t *b, int id, int32_t raw, qb_real v)
 {
     qb_gains_t *g = &b->core.g;
     switch (id) {

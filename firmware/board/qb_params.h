@@ -8,6 +8,12 @@
 
 #include <stdint.h>
 
+#ifdef QB_FLOAT
+#define QB_REAL float /* a board without an FPU */
+#else
+#define QB_REAL double
+#endif
+
 enum qb_param_kind { QB_KIND_INT, QB_KIND_FLOAT, QB_KIND_BOOL, QB_KIND_ENUM };
 
 typedef struct {
@@ -16,8 +22,8 @@ typedef struct {
     uint8_t in_flight;     /* 0: refused outside SAFE (Nak NOT_IN_SAFE) */
     int32_t lo, hi;        /* raw range the board accepts (Nak OUT_OF_RANGE outside) */
     int32_t def;           /* the default's raw value */
-    double scale;          /* value = raw * scale (int, float) */
-    double step;           /* one press of its key (the gains), in the value's unit */
+    QB_REAL scale;         /* value = raw * scale (int, float) */
+    QB_REAL step;          /* one press of its key (the gains), in the value's unit */
     const char *name;
 } qb_param_spec_t;
 
@@ -41,8 +47,11 @@ typedef struct {
 #define QB_QUEUE_RULE_BOUNDED 0
 #define QB_QUEUE_RULE_DISCARD_20 1
 
-/* In id order. */
-static const qb_param_spec_t QB_PARAMS[QB_PARAM_COUNT] = {
+/* In id order; defined once, in the file that defines QB_PARAMS_TABLE first (qb_params.c). */
+extern const qb_param_spec_t QB_PARAMS[QB_PARAM_COUNT];
+
+#ifdef QB_PARAMS_TABLE
+const qb_param_spec_t QB_PARAMS[QB_PARAM_COUNT] = {
     {1, QB_KIND_INT, 1, 50, 60000, 500, 1.0, 0.0, "link.timeout_ms"},
     {2, QB_KIND_ENUM, 1, 0, 1, 0, 1.0, 0.0, "sched.scheduler"},
     {3, QB_KIND_INT, 1, 1, 100, 50, 1.0, 0.0, "link.telemetry_hz"},
@@ -63,5 +72,6 @@ static const qb_param_spec_t QB_PARAMS[QB_PARAM_COUNT] = {
     {18, QB_KIND_INT, 1, 1, 4096, 256, 1.0, 0.0, "trim.step"},
     {19, QB_KIND_INT, 1, 1, 4096, 328, 1.0, 0.0, "trim.lift_step"},
 };
+#endif
 
 #endif /* QB_PARAMS_H */
