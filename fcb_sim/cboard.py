@@ -31,7 +31,7 @@ from fcb_sim.errors import UsageError
 from fcb_sim.physics import World
 from fcb_sim.timing import rtc_ticks
 from fcb_sim.wireless import WirelessLink
-from term.protocol import Mode
+from term.core.protocol import Mode
 
 FIRMWARE = Path(__file__).resolve().parent.parent / "firmware"
 LIBRARY = "libqb_host.so"
@@ -221,8 +221,8 @@ _CALIBRATE_AT_US, _ARM_AT_US, _HEIGHT_AT_US, _MEASURE_FROM_US = 200_000, 1_500_0
 
 def _pilot_lift(world: World, target_m: float) -> int:
     """The scenarios' pilot (fcb_sim/scenarios.py): a lift stick that flies the true height to ``target_m``."""
+    from fcb_sim import constants as P
     from fcb_sim import control as C
-    from fcb_sim import params as P
 
     tr = world.truth
     a = max(-4.0, min(4.0, 2.0 * (target_m - tr.h) + 2.5 * tr.vd))
@@ -236,7 +236,7 @@ def fly_board(kind: str, scenario: str = "hover", seed: int = 1, duration: float
     ``attitude_rms_deg`` (tilt), ``height_rms_m`` (against 1 m, or the height HEIGHT was entered at), the final
     mode, and the wall time."""
     from fcb_sim.board import Board
-    from term.protocol import Command, Decoder, Joystick, Op, encode
+    from term.core.protocol import Command, Decoder, Joystick, Op, encode
 
     if scenario not in BOARD_SCENARIOS:
         raise UsageError(f"unknown board scenario {scenario!r}; choose one of: {', '.join(BOARD_SCENARIOS)}")

@@ -360,7 +360,8 @@ def params_header() -> str:
     where it keeps the value (firmware/board/qb_params.c)."""
     rows = sorted(p.PARAMS.values(), key=lambda s: int(s.param))
     out = ["/* qb_params.h: the board's parameter table, term.protocol.PARAMS as C data.", " *", f" * {NOTE}",
-           " */", "#ifndef QB_PARAMS_H", "#define QB_PARAMS_H", "", "#include <stdint.h>", "", "#ifdef QB_FLOAT", "#define QB_REAL float /* a board without an FPU */", "#else",
+           " */", "#ifndef QB_PARAMS_H", "#define QB_PARAMS_H", "", "#include <stdint.h>", "",
+           "#ifdef QB_FLOAT", "#define QB_REAL float /* a board without an FPU */", "#else",
            "#define QB_REAL double", "#endif", "",
            "enum qb_param_kind { QB_KIND_INT, QB_KIND_FLOAT, QB_KIND_BOOL, QB_KIND_ENUM };", "",
            "typedef struct {",

@@ -27,7 +27,7 @@ from hypothesis import strategies as st
 
 from fcb_sim.board import Board, BoardConfig
 from fcb_sim.timing import UART_US_PER_BYTE, rtc_us
-from term.protocol import Ack, Command, Decoder, Event, EventCode, Joystick, Mode, Op, encode
+from term.core.protocol import Ack, Command, Decoder, Event, EventCode, Joystick, Mode, Op, encode
 
 pytestmark = pytest.mark.skipif(shutil.which("cc") is None or shutil.which("make") is None,
                                 reason="no C compiler (cc) or make: the C board's tests are skipped")

@@ -10,9 +10,9 @@ import shutil
 import pytest
 
 from fcb_sim.serve import ThreadedServer, make_board
-from term.app import TermApp
-from term.protocol import NAK_TEXT, PROTOCOL_VERSION, Mode, Nak, Role
+from term.core.protocol import NAK_TEXT, PROTOCOL_VERSION, Mode, Nak, Role
 from term.transports.serial import SerialTransport
+from term.ui.app import TermApp
 
 pytestmark = pytest.mark.skipif(shutil.which("cc") is None or shutil.which("make") is None,
                                 reason="no C compiler (cc) or make: the C board's tests are skipped")
