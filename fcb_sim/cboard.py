@@ -58,16 +58,18 @@ def _sources() -> list[Path]:
             FIRMWARE / "Makefile"]
 
 
-def library_path(build_dir: Path | None = None) -> Path:
-    """The host library, built (``make -C firmware board``) when missing or older than a source; cached."""
+def library_path(build_dir: Path | None = None, *, real: str = "double") -> Path:
+    """The host library, built (``make -C firmware board``) when missing or older than a source; cached.
+    ``real`` "float": the board in float, as the Cortex-M0 build computes (``board-float``)."""
     out = Path(build_dir) if build_dir is not None else FIRMWARE / "build"
-    lib = out / LIBRARY
+    target, name = ("board-float", "libqb_host_float.so") if real == "float" else ("board", LIBRARY)
+    lib = out / name
     with _BUILD_LOCK:
         if lib.exists() and lib.stat().st_mtime >= max(p.stat().st_mtime for p in _sources()):
             return lib
         if shutil.which(os.environ.get("CC", "cc")) is None or shutil.which("make") is None:
             raise CBoardUnavailable(NO_CC)
-        proc = subprocess.run(["make", "-s", "-C", str(FIRMWARE), f"BUILD={out}", "board"], capture_output=True,
+        proc = subprocess.run(["make", "-s", "-C", str(FIRMWARE), f"BUILD={out}", target], capture_output=True,
                               text=True)
         if proc.returncode != 0:
             raise CBoardUnavailable(f"the C board does not build: {(proc.stderr or proc.stdout).strip()[-400:]}")
@@ -107,17 +109,19 @@ def default_phases(seed: int) -> tuple[int, int, int, int]:
 
 class CBoard:
     """The C board in its world (module docstring). ``phases`` sets the timers' first expiries (RTC ticks:
-    sensor, baro, telemetry, heartbeat), e.g. a Python board's, so both run their tasks on the same ticks."""
+    sensor, baro, telemetry, heartbeat), e.g. a Python board's, so both run their tasks on the same ticks;
+    ``real`` "float" flies the float build (the Cortex-M0's arithmetic)."""
 
     def __init__(self, config: BoardConfig | None = None, *, world: World | None = None,
-                 phases: tuple[int, int, int, int] | None = None, build_dir: Path | None = None) -> None:
+                 phases: tuple[int, int, int, int] | None = None, build_dir: Path | None = None,
+                 real: str = "double") -> None:
         self.config = cfg = config or BoardConfig()
         if cfg.preset != "default":
             raise UsageError(f"the C board has the default preset only (asked: {cfg.preset!r})")
         self.world = world if world is not None else World(cfg.seed)
         self.wireless = WirelessLink()  # no radio on the C board: the handover is refused (NO_BLE_CONNECTION)
         self.on_task: Any = None  # the serve loop's hook; the C board's tasks take no board time
-        self._lib = lib = _load(library_path(build_dir))
+        self._lib = lib = _load(library_path(build_dir, real=real))
         self._buf = ctypes.create_string_buffer(lib.qbh_size())
         self._h = ctypes.cast(self._buf, ctypes.c_void_p)
         self._crashes_seen = len(self.world.crashes)
@@ -231,8 +235,8 @@ def _pilot_lift(world: World, target_m: float) -> int:
 
 
 def fly_board(kind: str, scenario: str = "hover", seed: int = 1, duration: float = 15.0) -> dict[str, Any]:
-    """Fly a whole board (``kind`` "python" or "c") in its world: calibrate, FULL, take off to 1 m by the lift
-    stick; "height-hold" enters HEIGHT at 5 s and lets go of the stick. Metrics from 6 s on, on the truth:
+    """Fly a whole board (``kind`` "python", "c" or "c-float") in its world: calibrate, FULL, take off to 1 m by
+    the lift stick; "height-hold" enters HEIGHT at 5 s and lets go of the stick. Metrics from 6 s on, on the truth:
     ``attitude_rms_deg`` (tilt), ``height_rms_m`` (against 1 m, or the height HEIGHT was entered at), the final
     mode, and the wall time."""
     from fcb_sim.board import Board
@@ -242,7 +246,10 @@ def fly_board(kind: str, scenario: str = "hover", seed: int = 1, duration: float
         raise UsageError(f"unknown board scenario {scenario!r}; choose one of: {', '.join(BOARD_SCENARIOS)}")
     world = World(seed)
     cfg = BoardConfig(seed=seed)
-    board: Any = CBoard(cfg, world=world) if kind == "c" else Board(cfg, world=world)
+    if kind == "python":
+        board: Any = Board(cfg, world=world)
+    else:
+        board = CBoard(cfg, world=world, real="float" if kind == "c-float" else "double")
     dec = Decoder()
     lift, h_ref, target = 0, 1.0, None
     tilt2 = h2 = 0.0

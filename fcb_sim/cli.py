@@ -61,7 +61,7 @@ def _add_run(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     run.add_argument("--filter", default=None,
                      help="on-board attitude filter for the RAW-mode scenarios (default: the best one)")
     run.add_argument("--fixed-point", action="store_true", help="RAW-mode scenarios: the Q16.16 filter variant")
-    run.add_argument("--board", choices=["core", "python", "c"], default="core",
+    run.add_argument("--board", choices=["core", "python", "c", "c-float"], default="core",
                      help="core: the flight core alone (default); python or c: the whole board over its UART, "
                      "scenarios hover and height-hold (fcb_sim/cboard.py)")
     run.set_defaults(handler=_cmd_run)
