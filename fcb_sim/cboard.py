@@ -31,7 +31,7 @@ from fcb_sim.errors import UsageError
 from fcb_sim.physics import World
 from fcb_sim.timing import rtc_ticks
 from fcb_sim.wireless import WirelessLink
-from term.core.protocol import Mode
+from term.core.protocol import PARAMS, Mode, Param
 
 FIRMWARE = Path(__file__).resolve().parent.parent / "firmware"
 LIBRARY = "libqb_host.so"
@@ -96,6 +96,7 @@ def _load(path: Path) -> ctypes.CDLL:
     lib.qbh_rx_dropped.restype = ctypes.c_uint32
     lib.qbh_param.argtypes = [vp, ctypes.c_int]
     lib.qbh_param.restype = ctypes.c_int32
+    lib.qbh_set_param.argtypes = [vp, ctypes.c_int, ctypes.c_int32]
     return lib
 
 
@@ -105,6 +106,15 @@ def default_phases(seed: int) -> tuple[int, int, int, int]:
     rng = random.Random(seed ^ 0x5EED)
     return (0, rng.randrange(1, rtc_ticks(50_000)), rng.randrange(1, rtc_ticks(20_000)),
             rng.randrange(1, rtc_ticks(100_000)))
+
+
+def _config_params(cfg: BoardConfig) -> dict[Param, Any]:
+    """The BoardConfig fields that are parameters, where they differ from the table's defaults."""
+    values = {Param.SCHEDULER: cfg.scheduler, Param.SENSOR_PATH: cfg.sensor_path,
+              Param.TELEMETRY_HZ: round(cfg.telemetry_hz), Param.LOG_SCHEME: cfg.log_scheme,
+              Param.FIXED_POINT: bool(cfg.fixed_point), Param.QUEUE_RULE: cfg.queue_rule,
+              Param.STICK_REACTION: bool(cfg.stick_reaction)}
+    return {p: v for p, v in values.items() if v != PARAMS[p].default}
 
 
 class CBoard:
@@ -130,6 +140,9 @@ class CBoard:
         lib.qbh_set_callbacks(self._h, *self._callbacks)
         ph = (ctypes.c_uint32 * 4)(*(phases if phases is not None else default_phases(cfg.seed)))
         lib.qbh_init(self._h, cfg.board_id, cfg.link_timeout_s, ph, int(cfg.boot_hello), 0)
+        for param, value in _config_params(cfg).items():  # the config's parameters, as the Python board takes them
+            if lib.qbh_set_param(self._h, int(param), PARAMS[param].to_raw(value)):
+                raise UsageError(f"the C board cannot run {PARAMS[param].name} = {value!r} (docs/firmware.md)")
 
     # --- the hardware layer's callbacks (board time in µs) ---------------------------------------------------
 

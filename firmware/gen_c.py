@@ -372,7 +372,6 @@ def params_header() -> str:
            "    int32_t def;           /* the default's raw value */",
            "    QB_REAL scale;         /* value = raw * scale (int, float) */",
            "    QB_REAL step;          /* one press of its key (the gains), in the value's unit */",
-           "    const char *name;",
            "} qb_param_spec_t;", "",
            f"#define QB_PARAM_COUNT {len(rows)}", f"#define QB_PARAM_MAX_ID {max(int(s.param) for s in rows)}", ""]
     for spec in rows:
@@ -386,7 +385,7 @@ def params_header() -> str:
     for spec in rows:
         lo, hi = spec.raw_range
         out.append(f"    {{{int(spec.param)}, {_KIND_C[spec.kind]}, {int(spec.in_flight)}, {lo}, {hi}, "
-                   f"{spec.to_raw(spec.default)}, {spec.scale!r}, {float(spec.step)!r}, \"{spec.name}\"}},")
+                   f"{spec.to_raw(spec.default)}, {spec.scale!r}, {float(spec.step)!r}}}, /* {spec.name} */")
     out += ["};", "#endif", "", "#endif /* QB_PARAMS_H */", ""]
     return "\n".join(out)
 

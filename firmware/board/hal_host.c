@@ -54,6 +54,7 @@ void qbh_motors(const qbh_t *h, uint16_t out[4]);
 void qbh_state(const qbh_t *h, double out[16]);
 uint32_t qbh_rx_dropped(const qbh_t *h);
 int32_t qbh_param(const qbh_t *h, int id);
+int qbh_set_param(qbh_t *h, int id, int32_t raw);
 
 static qbh_t *cur; /* the board being run: the HAL functions below act on it */
 
@@ -250,4 +251,11 @@ uint32_t qbh_rx_dropped(const qbh_t *h)
 int32_t qbh_param(const qbh_t *h, int id)
 {
     return qb_param_get(&h->board, id);
+}
+
+/* A parameter set at boot, as a preset or file would (SAFE: every guard but the mode's); returns the Nak. */
+int qbh_set_param(qbh_t *h, int id, int32_t raw)
+{
+    cur = h;
+    return qb_param_set(&h->board, id, raw, 0);
 }

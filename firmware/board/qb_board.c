@@ -14,9 +14,20 @@ static const uint8_t RR_ORDER[] = {QB_T_PARSE, QB_T_BARO, QB_T_TELEMETRY, QB_T_H
 #define STATUS_PERIOD_US 200000u
 #define DMP_ANGLE_LSB 10430.0
 
+/* Microseconds to seconds. In float (the M0) by whole seconds and the rest: a 64-bit integer to float conversion
+ * would link the soft double routines, and a float of the whole count would lose the microseconds. */
+static qb_real us_to_s(uint64_t us)
+{
+#ifdef QB_FLOAT
+    return (qb_real)(uint32_t)(us / 1000000u) + (qb_real)(uint32_t)(us % 1000000u) * 1e-6;
+#else
+    return (qb_real)us / 1e6;
+#endif
+}
+
 static qb_real now_s(const qb_board_t *b)
 {
-    return (qb_real)b->now / 1e6;
+    return us_to_s(b->now);
 }
 
 /* --- timers on the 32768 Hz RTC (fcb_sim/timing.py: rtc_ticks, rtc_us, us_to_ticks) ----------------------- */
@@ -151,6 +162,22 @@ static void on_mode_change(void *ctx, uint8_t old_mode, uint8_t new_mode)
 
 /* --- tasks ---------------------------------------------------------------------------------------------------- */
 
+/* The sensor path to run (est.sensor_path): "auto" is RAW in RAW mode (and HEIGHT entered from RAW), else DMP.
+ * A change restarts the sensor timer at the new rate. */
+static void follow_sensor_path(qb_board_t *b)
+{
+    const qb_modes_t *m = &b->modes;
+    uint8_t want = b->sensor_path == QB_SENSOR_PATH_RAW ||
+                   (b->sensor_path == QB_SENSOR_PATH_AUTO &&
+                    (m->mode == QP_MODE_RAW || (m->mode == QP_MODE_HEIGHT && m->height_base == QP_MODE_RAW)));
+    if (want != b->raw_path) {
+        b->raw_path = want;
+        b->next_tk[QB_TM_SENSOR] = b->now * QB_RTC_HZ / 1000000u + rtc_ticks(timer_period(b, QB_TM_SENSOR));
+        b->next_us[QB_TM_SENSOR] = rtc_us(b->next_tk[QB_TM_SENSOR]);
+        b->sample_set = 0;
+    }
+}
+
 static void task_sensor(qb_board_t *b)
 {
     int16_t raw[6];
@@ -158,7 +185,7 @@ static void task_sensor(qb_board_t *b)
     qb_real t = now_s(b), dt;
     int cal = b->modes.mode == QP_MODE_CALIBRATION, i;
     hal_imu_read(raw);
-    dt = b->sample_set ? t - (qb_real)b->sample_t / 1e6 : timer_period(b, QB_TM_SENSOR) / 1e6;
+    dt = b->sample_set ? t - us_to_s(b->sample_t) : timer_period(b, QB_TM_SENSOR) / 1e6;
     b->sample_t = b->now;
     b->sample_set = 1;
     qb_flight_imu(&b->core, raw, dt);
@@ -166,7 +193,7 @@ static void task_sensor(qb_board_t *b)
         for (i = 0; i < 6; i++)
             qb_modes_cal_add(&b->modes, QB_CAL_GX + i, raw[i]);
     }
-    if (hal_dmp_read(q)) {
+    if (!b->raw_path && hal_dmp_read(q)) { /* the DMP is read on the DMP path only */
         qb_flight_dmp(&b->core, q);
         if (cal) {
             qb_real e[3];
@@ -199,11 +226,12 @@ static void task_control(qb_board_t *b)
     memcpy(b->sticks_used, sticks, sizeof b->sticks_used);
     b->sticks_set = 1;
     set_motors(b, ae);
+    follow_sensor_path(b);
 }
 
 static void task_baro(qb_board_t *b)
 {
-    qb_real dt = b->baro_set ? (qb_real)(b->now - b->baro_t) / 1e6 : 0.05;
+    qb_real dt = b->baro_set ? us_to_s(b->now - b->baro_t) : 0.05;
     hal_baro_read(&b->pressure, &b->temperature);
     b->battery = hal_battery_read();
     b->baro_t = b->now;
@@ -219,7 +247,7 @@ static void task_heartbeat(qb_board_t *b)
     qp_packet_t p;
     int32_t att[3];
     uint32_t rtt = b->rtt_us / 100u;
-    qb_real silent = b->last_frame_set ? (qb_real)(b->now - b->last_frame_us) / 1e6 : 0.0;
+    qb_real silent = b->last_frame_set ? us_to_s(b->now - b->last_frame_us) : 0.0;
     b->heartbeats++;
     p.type = QP_TYPE_HEARTBEAT;
     p.u.heartbeat.counter = (uint16_t)b->heartbeats;
@@ -348,11 +376,6 @@ static result_t execute(qb_board_t *b, const qp_command_t *c)
         if (c->arg == QP_MODE_WIRELESS) {
             /* the handover: no radio on this board, so no phone is ever connected */
             r.status = b->modes.mode != QP_MODE_SAFE ? QP_NAK_NOT_IN_SAFE : QP_NAK_NO_BLE_CONNECTION;
-            return r;
-        }
-        if (c->arg == QP_MODE_RAW) {
-            r.status = QP_NAK_NOT_IMPLEMENTED; /* the RAW path's on-board filter is not in C yet */
-            r.value = b->modes.mode;
             return r;
         }
         qb_modes_tick(&b->modes, t);

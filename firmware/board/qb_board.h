@@ -138,6 +138,26 @@ void qb_height_update_imu(qb_height_t *h, qb_real ax, qb_real ay, qb_real az, qb
                           qb_real qz, qb_real dt);
 void qb_height_update_baro(qb_height_t *h, qb_real pressure_pa, qb_real dt);
 
+/* --- the RAW path's attitude filter (qb_ikf.c): ikf's fixed-point twin, fcb_sim/estimation/ikf_fixed.py ----- */
+
+typedef struct {
+    int32_t qw, qx, qy, qz;  /* Q2.30 */
+    int32_t vx, vy, dx, dy;  /* Q8.24, Q4.28 */
+    int32_t pvv, pvg, pvd, pgg, pgd, pdd;  /* Q2.30 */
+    int32_t bx, by, bz, rx, ry, rz;  /* Q8.24 */
+    int32_t gl[3], al[3];
+    qb_real rest_t, dt_cached;
+    int32_t dtq, dt2q, dthq, krq, kbq;
+    uint8_t at_rest, started, dt_set;
+} qb_ikf_t;
+
+void qb_ikf_reset(qb_ikf_t *f);
+/* Gyro (rad/s) and specific force (m/s^2), chip frame z up, and the time step (s). */
+void qb_ikf_update(qb_ikf_t *f, qb_real gx, qb_real gy, qb_real gz, qb_real ax, qb_real ay, qb_real az, qb_real dt);
+/* The attitude predicted over the latency (w x y z), and its ZYX angles (roll, pitch, yaw; rad, z up). */
+void qb_ikf_quaternion(const qb_ikf_t *f, qb_real q[4]);
+void qb_ikf_angles(const qb_ikf_t *f, qb_real out[3]);
+
 /* --- the flight core (qb_flight.c) ------------------------------------------------------------------------ */
 
 typedef struct {
@@ -147,6 +167,8 @@ typedef struct {
 typedef struct {
     qb_gains_t g;
     qb_height_t hest;
+    qb_ikf_t ikf;     /* the RAW path's filter: runs on every IMU sample, so it is converged on entering RAW */
+    uint32_t n_imu;
     uint8_t mode, calibrated, have_dmp, height_raw, sp_from_est, panic_landed;
     qb_real g_off[3], a_off[3];
     qb_real cal_dmp_phi, cal_dmp_theta, cal_pressure;

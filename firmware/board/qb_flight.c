@@ -32,6 +32,7 @@
 #define PANIC_LAND_VZ 0.3
 #define PANIC_LAND_S 0.5
 #define ASIN_FALLBACK 0.99
+#define RAD_S_PER_LSB (1.0 / (16.4 * 180.0 / 3.141592653589793)) /* 1 / (GYRO_LSB_PER_DPS * 180 / pi) */
 
 static qb_real gain_default(int id)
 {
@@ -49,6 +50,7 @@ void qb_flight_init(qb_flight_t *fc)
     fc->g.height_d = gain_default(QP_PARAM_HEIGHT_D);
     fc->g.height_i = gain_default(QP_PARAM_HEIGHT_I);
     qb_height_init(&fc->hest);
+    qb_ikf_reset(&fc->ikf);
     fc->panic_ae = PANIC_AE;
     fc->panic_scale = 1.0;
     fc->mode = QP_MODE_SAFE;
@@ -155,6 +157,7 @@ void qb_flight_set_calibration(qb_flight_t *fc, const qb_real gyro[3], const qb_
     fc->cal_dmp_theta = dmp_theta;
     fc->cal_pressure = pressure;
     fc->calibrated = 1;
+    qb_ikf_reset(&fc->ikf);
     qb_height_reset(&fc->hest, pressure);
     fc->height = fc->vz = 0.0;
 }
@@ -172,7 +175,12 @@ void qb_flight_imu(qb_flight_t *fc, const int16_t raw[6], qb_real dt)
     fc->saz = -caz;
     if (dt <= 0.0)
         return;
-    /* the RAW path's on-board filter is not in the C board yet: the height estimator takes the DMP's attitude */
+    qb_ikf_update(&fc->ikf, cgx * RAD_S_PER_LSB, cgy * RAD_S_PER_LSB, cgz * RAD_S_PER_LSB, cax * s, cay * s,
+                  caz * s, dt);
+    /* no DMP (RAW mode): the height estimator takes the filter's attitude at 100 Hz, as fast as the DMP's */
+    fc->n_imu++;
+    if (!fc->have_dmp && !(fc->n_imu & 3))
+        qb_ikf_quaternion(&fc->ikf, fc->q);
     qb_height_update_imu(&fc->hest, cax * s, cay * s, caz * s, fc->q[0], fc->q[1], fc->q[2], fc->q[3], dt);
     fc->height = fc->hest.height;
     fc->vz = fc->hest.vz;
@@ -225,6 +233,25 @@ void qb_flight_enter_mode(qb_flight_t *fc, uint8_t mode, int32_t lift)
     fc->mode = mode;
 }
 
+/* The angles the loops fly on: the on-board filter's in RAW (and HEIGHT entered from RAW), else the DMP's. */
+static int on_filter(const qb_flight_t *fc, uint8_t mode)
+{
+    return mode == QP_MODE_RAW || (mode == QP_MODE_HEIGHT && fc->height_raw);
+}
+
+static void attitude(const qb_flight_t *fc, uint8_t mode, qb_real *phi, qb_real *theta)
+{
+    if (on_filter(fc, mode)) {
+        qb_real e[3];
+        qb_ikf_angles(&fc->ikf, e);
+        *phi = e[0];
+        *theta = -e[1];
+    } else {
+        *phi = fc->dmp_phi;
+        *theta = fc->dmp_theta;
+    }
+}
+
 static qb_real panic_descent_rate(qb_real height_m)
 {
     qb_real f = (height_m - PANIC_SLOW_BELOW_M) / (PANIC_FAST_ABOVE_M - PANIC_SLOW_BELOW_M);
@@ -255,8 +282,10 @@ static void panic_motors(qb_flight_t *fc, qb_real scale, qb_real dt, uint16_t ou
     level = (int32_t)(fc->panic_level * scale);
     if (fc->calibrated && level > 0) {
         const qb_gains_t *g = &fc->g;
-        qb_real lm = g->p2 * (g->p1 * (0.0 - fc->dmp_phi * ANGLE_LSB_PER_RAD) - fc->sp);
-        qb_real mm = g->p2 * (g->p1 * (0.0 - fc->dmp_theta * ANGLE_LSB_PER_RAD) - fc->sq);
+        qb_real phi, theta, lm, mm;
+        attitude(fc, fc->mode, &phi, &theta);
+        lm = g->p2 * (g->p1 * (0.0 - phi * ANGLE_LSB_PER_RAD) - fc->sp);
+        mm = g->p2 * (g->p1 * (0.0 - theta * ANGLE_LSB_PER_RAD) - fc->sq);
         qb_real nm = g->yaw_p * (0.0 - fc->sr);
         qb_mix(-4 * level * level, lm, mm, nm, 0, out);
         return;
@@ -299,12 +328,12 @@ void qb_flight_control(qb_flight_t *fc, uint8_t mode, const int32_t sticks[4], q
     int32_t roll = sticks[0], pitch = sticks[1], yaw = sticks[2], lift = sticks[3];
     if (mode != fc->mode)
         qb_flight_enter_mode(fc, mode, lift);
-    if (mode == QP_MODE_FULL || mode == QP_MODE_HEIGHT) {
-        /* HEIGHT from RAW would fly on the on-board filter: not in the C board (its guard refuses RAW) */
-        qb_real phi = fc->dmp_phi, theta = fc->dmp_theta, lm, mm, nm, z;
+    if (mode == QP_MODE_FULL || mode == QP_MODE_HEIGHT || mode == QP_MODE_RAW) {
+        qb_real phi, theta, lm, mm, nm, z;
+        attitude(fc, mode, &phi, &theta);
         fc->phi = phi;
         fc->theta = theta;
-        fc->psi_raw = 0;
+        fc->psi_raw = (uint8_t)on_filter(fc, mode);
         lm = g->p2 * (g->p1 * ((roll >> STICK_ANGLE_SHIFT) - phi * ANGLE_LSB_PER_RAD) - fc->sp);
         mm = g->p2 * (g->p1 * ((pitch >> STICK_ANGLE_SHIFT) - theta * ANGLE_LSB_PER_RAD) - fc->sq);
         nm = g->yaw_p * ((yaw >> STICK_YAW_SHIFT) - fc->sr);
@@ -331,5 +360,11 @@ void qb_flight_attitude_cdeg(const qb_flight_t *fc, int32_t out[3])
     const qb_real k = 18000.0 / 3.141592653589793;
     out[0] = (int32_t)QM(lround)(fc->phi * k);
     out[1] = (int32_t)QM(lround)(fc->theta * k);
-    out[2] = (int32_t)QM(lround)(fc->dmp_psi * k);
+    qb_real psi = fc->dmp_psi;
+    if (fc->psi_raw) {
+        qb_real e[3];
+        qb_ikf_angles(&fc->ikf, e);
+        psi = -e[2];
+    }
+    out[2] = (int32_t)QM(lround)(psi * k);
 }

@@ -137,11 +137,10 @@ int32_t qb_modes_cal_mean(const qb_modes_t *m, int var)
     int64_t n = m->counts[var], s = m->sums[var], num, den, q;
     if (n == 0)
         return 0;
-    num = 2 * s + n; /* (2s + n) // (2n): Python's floor division */
+    num = 2 * s + n; /* (2s + n) // (2n): Python's floor division, in unsigned (the M0 links one 64-bit divide) */
     den = 2 * n;
-    q = num / den;
-    if ((num % den != 0) && (num < 0))
-        q--;
+    q = num >= 0 ? (int64_t)((uint64_t)num / (uint64_t)den)
+                 : -(int64_t)(((uint64_t)(-num) + (uint64_t)den - 1u) / (uint64_t)den);
     return (int32_t)q;
 }
 

@@ -57,12 +57,17 @@ int32_t qb_param_get(const qb_board_t *b, int id)
     }
 }
 
+/* The RAW filter: the C board has ikf's fixed-point twin only (est.fixed_point is kept and reported; the filter
+ * is fixed point either way). A change starts the filter afresh, as the Python board builds a new one. */
 static uint8_t set_filter(qb_board_t *b, int32_t filter, int32_t fixed)
 {
     if (fixed && filter == QB_ATTITUDE_QGATE)
         return QP_NAK_BAD_ARGUMENT; /* no fixed-point twin of this filter */
+    if (filter != QB_ATTITUDE_IKF)
+        return QP_NAK_NOT_IMPLEMENTED;
     b->attitude_filter = filter;
     b->fixed_point = fixed;
+    qb_ikf_reset(&b->core.ikf);
     return QP_NAK_OK;
 }
 
@@ -79,14 +84,13 @@ static uint8_t set_bound(qb_board_t *b, int id, int32_t raw, qb_real v)
     case QP_PARAM_LINK_TIMEOUT_MS: b->modes.link_timeout_s = b->cfg.link_timeout_s = raw / 1000.0; break;
     case QP_PARAM_SCHEDULER: b->scheduler = raw; break; /* kept and reported; the loop is round robin (no slack rule) */
     case QP_PARAM_TELEMETRY_HZ: b->telemetry_hz = raw; break;
-    case QP_PARAM_SENSOR_PATH:
-        if (raw == QB_SENSOR_PATH_RAW)
-            return QP_NAK_NOT_IMPLEMENTED; /* no on-board filter yet */
-        b->sensor_path = raw;
-        break;
+    case QP_PARAM_SENSOR_PATH: b->sensor_path = raw; break;
     case QP_PARAM_LOG_SCHEME: b->log_scheme = raw; break; /* no log yet: always empty */
     case QP_PARAM_ATTITUDE_FILTER: return set_filter(b, raw, b->fixed_point);
-    case QP_PARAM_K_GYRO: b->k_gyro_raw = raw; break;
+    case QP_PARAM_K_GYRO: /* the complementary filter's: kept; the filter starts afresh */
+        b->k_gyro_raw = raw;
+        qb_ikf_reset(&b->core.ikf);
+        break;
     case QP_PARAM_FIXED_POINT: return set_filter(b, b->attitude_filter, raw);
     case QP_PARAM_HEIGHT_ESTIMATOR:
         if (raw != QB_HEIGHT_KALMAN)
