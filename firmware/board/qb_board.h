@@ -11,11 +11,12 @@
  *   - the flight core: cascaded P roll/pitch, yaw P, HEIGHT's PID on the height estimate, PANIC's descent,
  *     mixing with the integer square root (qb_flight.c, fcb_sim/flight.py, control.py);
  *   - the height estimator, HeightKalman (qb_height.c, fcb_sim/estimation/height.py);
+ *   - the RAW path's attitude filter, ikf's fixed-point twin (qb_ikf.c, fcb_sim/estimation/ikf_fixed.py);
  *   - commands, telemetry, heartbeats, the link-loss failsafe, the parameter table generated from term's
  *     (qb_board.c, qb_params.c, qb_params.h; fcb_sim/commands.py, telemetry.py, paramtable.py).
- * Not yet: the flash log (LOG_* commands answer NOT_IMPLEMENTED), the BLE handover, the task profile, the RAW
- * path's on-board filter (RAW and HEIGHT from RAW answer NOT_IMPLEMENTED), the report preset's complementary
- * height estimator. docs/firmware.md keeps this list.
+ * Not yet: the flash log (LOG_* commands answer NOT_IMPLEMENTED), the BLE handover, the task profile, RAW filters
+ * other than ikf (and ikf in float: the C board's is always the fixed-point twin), the report preset's
+ * complementary height estimator. docs/firmware.md keeps this list.
  *
  * Floating point: the flight core uses qb_real, as the Python board does (the differential test compares them);
  * an M0 build may define QB_REAL=float to halve the soft-float cost.
