@@ -191,6 +191,23 @@ static void test_mix(void)
     CHECK(out[0] <= 1000 && out[1] <= 1000);
 }
 
+static void test_ikf_finds_a_tilt_at_rest(void)
+{
+    qb_ikf_t f;
+    qb_real e[3];
+    const qb_real g = 9.81, phi = 10.0 * 3.14159265358979 / 180.0;
+    int i;
+    qb_ikf_reset(&f);
+    for (i = 0; i < 2000; i++) /* 5 s at 400 Hz, rolled 10 degrees, a small gyro bias */
+        qb_ikf_update(&f, 0.002, -0.001, 0.0005, 0.0, g * sin(phi), g * cos(phi), 0.0025);
+    qb_ikf_angles(&f, e);
+    CHECK(fabs(e[0] - phi) < 0.01 && fabs(e[1]) < 0.01);
+    qb_ikf_update(&f, 1e9, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0025); /* absurd samples saturate, never overflow */
+    qb_ikf_update(&f, 0.0, 0.0, 0.0, 0.0, 0.0, 9.81, -1.0);
+    qb_ikf_angles(&f, e);
+    CHECK(e[0] == e[0]);
+}
+
 static void test_guards(void)
 {
     boot();
@@ -214,6 +231,13 @@ static void test_guards(void)
     CHECK(command(QP_OP_MODE, QP_MODE_HEIGHT) == QP_NAK_OK);
     CHECK(command(QP_OP_MODE, QP_MODE_PANIC) == QP_NAK_OK);
     CHECK(command(QP_OP_MODE, QP_MODE_MANUAL) == QP_NAK_PANIC_ACTIVE);
+    run_until(t_us + 400000000);
+    joystick(0, 0);
+    CHECK(board.modes.mode == QP_MODE_SAFE && command(QP_OP_MODE, QP_MODE_RAW) == QP_NAK_OK && board.raw_path == 0);
+    run_until(t_us + 20000); /* the control step switches to the 400 Hz path */
+    CHECK(board.raw_path == 1 && command(QP_OP_MODE, QP_MODE_HEIGHT) == QP_NAK_OK);
+    CHECK(command(QP_OP_MODE, QP_MODE_FULL) == QP_NAK_INVALID_TRANSITION);
+    CHECK(command(QP_OP_SET_PARAM, (QP_PARAM_ATTITUDE_FILTER << 24) | 0) == QP_NAK_NOT_IN_SAFE);
 }
 
 static void test_link_loss_and_panic_end_in_safe(void)
@@ -286,6 +310,7 @@ int main(void)
 {
     test_isqrt();
     test_mix();
+    test_ikf_finds_a_tilt_at_rest();
     test_guards();
     test_link_loss_and_panic_end_in_safe();
     test_low_battery();
