@@ -26,8 +26,8 @@ import time
 from pathlib import Path
 from typing import Any
 
-from fcb_sim.board import BoardConfig
 from fcb_sim.errors import UsageError
+from fcb_sim.parts import BoardConfig
 from fcb_sim.physics import World
 from fcb_sim.timing import rtc_ticks
 from fcb_sim.wireless import WirelessLink
@@ -113,7 +113,8 @@ def _config_params(cfg: BoardConfig) -> dict[Param, Any]:
     values = {Param.SCHEDULER: cfg.scheduler, Param.SENSOR_PATH: cfg.sensor_path,
               Param.TELEMETRY_HZ: round(cfg.telemetry_hz), Param.LOG_SCHEME: cfg.log_scheme,
               Param.FIXED_POINT: bool(cfg.fixed_point), Param.QUEUE_RULE: cfg.queue_rule,
-              Param.STICK_REACTION: bool(cfg.stick_reaction)}
+              Param.STICK_REACTION: bool(cfg.stick_reaction),
+              Param.LINK_FAILSAFE_MS: round(cfg.link_failsafe_s * 1000)}
     return {p: v for p, v in values.items() if v != PARAMS[p].default}
 
 

@@ -368,6 +368,7 @@ def params_header() -> str:
            "    uint8_t id;            /* enum qp_param */",
            "    uint8_t kind;          /* enum qb_param_kind */",
            "    uint8_t in_flight;     /* 0: refused outside SAFE (Nak NOT_IN_SAFE) */",
+           "    uint8_t shorter_in_flight; /* 1: outside SAFE it may only decrease (Nak ONLY_SHORTER_IN_FLIGHT) */",
            "    int32_t lo, hi;        /* raw range the board accepts (Nak OUT_OF_RANGE outside) */",
            "    int32_t def;           /* the default's raw value */",
            "    QB_REAL scale;         /* value = raw * scale (int, float) */",
@@ -384,7 +385,8 @@ def params_header() -> str:
             "const qb_param_spec_t QB_PARAMS[QB_PARAM_COUNT] = {"]
     for spec in rows:
         lo, hi = spec.raw_range
-        out.append(f"    {{{int(spec.param)}, {_KIND_C[spec.kind]}, {int(spec.in_flight)}, {lo}, {hi}, "
+        out.append(f"    {{{int(spec.param)}, {_KIND_C[spec.kind]}, {int(spec.in_flight)}, "
+                   f"{int(spec.shorter_in_flight)}, {lo}, {hi}, "
                    f"{spec.to_raw(spec.default)}, {spec.scale!r}, {float(spec.step)!r}}}, /* {spec.name} */")
     out += ["};", "#endif", "", "#endif /* QB_PARAMS_H */", ""]
     return "\n".join(out)

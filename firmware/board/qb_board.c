@@ -494,6 +494,10 @@ static void on_packet(void *ctx, const qp_packet_t *pkt)
     qb_board_t *b = ctx;
     b->last_frame_us = b->now;
     b->last_frame_set = 1;
+    if (b->modes.link_hold) {
+        qb_modes_link_back(&b->modes, now_s(b)); /* the failsafe's stage 1 ends with the first frame back */
+        drain_mode_events(b);
+    }
     switch (pkt->type) {
     case QP_TYPE_JOYSTICK:
         b->modes.js = pkt->u.joystick;
@@ -561,6 +565,7 @@ void qb_config_default(qb_config_t *cfg)
     memset(cfg, 0, sizeof *cfg);
     cfg->board_id = 1;
     cfg->link_timeout_s = QB_PARAMS[QP_PARAM_LINK_TIMEOUT_MS - 1].def / 1000.0;
+    cfg->link_failsafe_s = QB_PARAMS[QP_PARAM_LINK_FAILSAFE_MS - 1].def / 1000.0;
     cfg->phase_tk[QB_TM_SENSOR] = 0;
     cfg->phase_tk[QB_TM_BARO] = 547; /* unrelated phases, as independent hardware timers have */
     cfg->phase_tk[QB_TM_TELEMETRY] = 211;
@@ -575,12 +580,13 @@ void qb_init(qb_board_t *b, const qb_config_t *cfg)
     b->cfg = *cfg;
     qb_flight_init(&b->core);
     qb_modes_init(&b->modes, cfg->link_timeout_s, b->core.panic_ae);
+    b->modes.link_failsafe_s = cfg->link_failsafe_s;
     b->modes.on_change = on_mode_change;
     b->modes.ctx = b;
     qp_decoder_init(&b->dec);
     for (i = 0; i < QB_PARAM_COUNT; i++) {
         int id = QB_PARAMS[i].id;
-        if (id != QP_PARAM_LINK_TIMEOUT_MS)
+        if (id != QP_PARAM_LINK_TIMEOUT_MS && id != QP_PARAM_LINK_FAILSAFE_MS)
             qb_param_set(b, id, QB_PARAMS[i].def, 0);
     }
     for (i = 0; i < QB_TIMERS; i++) {

@@ -66,11 +66,15 @@ typedef struct {
 typedef struct {
     /* config (fcb_sim.modes.ModeConfig) */
     qb_real link_timeout_s;
+    qb_real link_failsafe_s; /* stage 1's guard time; 0: PANIC at once (the report's) */
     int32_t panic_level;
     int32_t trim_step, lift_step;
     /* state */
     uint8_t mode, previous, height_base, pending_target;
     uint8_t calibrated, link_timed_out, battery_low_latched, crashed;
+    uint8_t link_hold;      /* the failsafe's stage 1: level, the lift it had, until the link is back or stage 2 */
+    int32_t hold_lift;
+    qb_real hold_since;
     qp_joystick_t js;
     int32_t trim_roll, trim_pitch, trim_yaw, trim_lift;
     int32_t battery;        /* 10 mV; -1 before the first reading */
@@ -98,6 +102,8 @@ uint8_t qb_modes_ack_crash(qb_modes_t *m);
 void qb_modes_tick(qb_modes_t *m, qb_real now);
 qb_real qb_modes_panic_scale(qb_modes_t *m, qb_real now);
 void qb_modes_panic_ground(qb_modes_t *m, qb_real now);
+/* A valid frame from the PC: stage 1 of the failsafe ends (event LINK_REGAINED). */
+void qb_modes_link_back(qb_modes_t *m, qb_real now);
 void qb_modes_supervise(qb_modes_t *m, qb_real now, qb_real link_silent_s, int32_t battery, int32_t phi_cdeg,
                         int32_t theta_cdeg);
 void qb_modes_cal_add(qb_modes_t *m, int var, int32_t v);
@@ -204,6 +210,7 @@ void qb_mix(int32_t z, qb_real l, qb_real m, qb_real n, int armed, uint16_t out[
 typedef struct {
     uint16_t board_id;
     qb_real link_timeout_s;
+    qb_real link_failsafe_s;
     uint32_t phase_tk[QB_TIMERS]; /* the timers' first expiry, RTC ticks (fcb_sim's scheduler draws them) */
     uint8_t boot_hello;
 } qb_config_t;

@@ -73,6 +73,7 @@ void qb_modes_init(qb_modes_t *m, qb_real link_timeout_s, int32_t panic_level)
 {
     memset(m, 0, sizeof *m);
     m->link_timeout_s = link_timeout_s;
+    m->link_failsafe_s = QB_PARAMS[QP_PARAM_LINK_FAILSAFE_MS - 1].def / 1000.0;
     m->panic_level = panic_level;
     m->trim_step = QB_PARAMS[QP_PARAM_TRIM_STEP - 1].def;
     m->lift_step = QB_PARAMS[QP_PARAM_LIFT_STEP - 1].def;
@@ -93,6 +94,11 @@ int32_t qb_modes_lift(const qb_modes_t *m)
 
 void qb_modes_sticks(const qb_modes_t *m, int32_t out[4])
 {
+    if (m->link_hold) { /* the failsafe's stage 1: level, with the lift it had */
+        out[0] = out[1] = out[2] = 0;
+        out[3] = m->hold_lift;
+        return;
+    }
     out[0] = clip((int32_t)m->js.roll + m->trim_roll, -QP_STICK_MAX, QP_STICK_MAX);
     out[1] = clip((int32_t)m->js.pitch + m->trim_pitch, -QP_STICK_MAX, QP_STICK_MAX);
     out[2] = clip((int32_t)m->js.yaw + m->trim_yaw, -QP_STICK_MAX, QP_STICK_MAX);
@@ -292,6 +298,7 @@ static void enter(qb_modes_t *m, uint8_t mode, qb_real now)
 static void change(qb_modes_t *m, uint8_t target, qb_real now)
 {
     uint8_t old = m->mode;
+    m->link_hold = 0; /* a new mode (PANIC, a crash's SAFE) ends stage 1 */
     leave(m, old);
     m->previous = old;
     m->mode = target;
@@ -377,27 +384,46 @@ int32_t qb_tilt_cdeg(int32_t phi_cdeg, int32_t theta_cdeg)
     return (int32_t)QM(lround)(QM(atan2)(QM(sqrt)(1.0 - c * c), c) / k);
 }
 
-/* The link-loss failsafe, alone so that it can follow the Python board's (one stage today: PANIC at once). */
-static int link_failsafe(qb_modes_t *m, qb_real now, int timed_out)
+void qb_modes_link_back(qb_modes_t *m, qb_real now)
 {
-    if (!timed_out)
-        return 0;
-    qb_modes_panic(m, now);
-    return 1;
+    if (m->link_hold) {
+        m->link_hold = 0;
+        emit(m, QP_EVENT_CODE_LINK_REGAINED, (int32_t)QM(lround)((now - m->hold_since) * 1000.0));
+    }
+}
+
+/* The two-stage link failsafe (docs/modes.md; fcb_sim.modes.ModeMachine._link): stage 1 after link.timeout_ms of
+ * silence in a flight mode holds level with the lift it had (LINK_LOST); a frame back within link.failsafe_ms
+ * gives control back (qb_modes_link_back); else stage 2, the PANIC (LINK_TIMEOUT). Returns whether to PANIC. */
+static int link_failsafe(qb_modes_t *m, qb_real now, qb_real silent)
+{
+    int timed_out = silent > m->link_timeout_s, flying = qb_modes_flying(m);
+    if (!timed_out) {
+        qb_modes_link_back(m, now);
+    } else if (flying && silent <= m->link_timeout_s + m->link_failsafe_s) {
+        if (!m->link_hold) {
+            m->hold_lift = qb_modes_lift(m);
+            m->hold_since = now;
+            m->link_hold = 1;
+            emit(m, QP_EVENT_CODE_LINK_LOST, (int32_t)(silent * 1000.0));
+        }
+        timed_out = 0; /* the guard runs: the timeout proper is stage 2's */
+    } else if (!m->link_timed_out || m->link_hold) {
+        emit(m, QP_EVENT_CODE_LINK_TIMEOUT, (int32_t)(silent * 1000.0));
+    }
+    m->link_timed_out = (uint8_t)(timed_out || m->link_hold);
+    return timed_out && flying;
 }
 
 void qb_modes_supervise(qb_modes_t *m, qb_real now, qb_real link_silent_s, int32_t battery, int32_t phi_cdeg,
                         int32_t theta_cdeg)
 {
-    int timed_out;
+    int panic_now;
     int32_t tilt;
     m->now = now;
     if (battery >= 0)
         m->battery = battery;
-    timed_out = link_silent_s > m->link_timeout_s;
-    if (timed_out && !m->link_timed_out)
-        emit(m, QP_EVENT_CODE_LINK_TIMEOUT, (int32_t)(link_silent_s * 1000.0));
-    m->link_timed_out = (uint8_t)timed_out;
+    panic_now = link_failsafe(m, now, link_silent_s);
     if (m->battery >= 0 && m->battery < QP_BATTERY_LOW) {
         if (!m->low_battery_set) {
             m->low_battery_since = now;
@@ -408,8 +434,10 @@ void qb_modes_supervise(qb_modes_t *m, qb_real now, qb_real link_silent_s, int32
     }
     if (!qb_modes_flying(m))
         return;
-    if (link_failsafe(m, now, timed_out))
+    if (panic_now) {
+        qb_modes_panic(m, now);
         return;
+    }
     if (m->low_battery_set && now - m->low_battery_since >= LOW_BATTERY_HOLD_S) {
         emit(m, QP_EVENT_CODE_LOW_BATTERY, m->battery);
         m->battery_low_latched = 1;

@@ -41,6 +41,7 @@ int32_t qb_param_get(const qb_board_t *b, int id)
     case QP_PARAM_HEIGHT_D: return raw_of(s, g->height_d);
     case QP_PARAM_HEIGHT_I: return raw_of(s, g->height_i);
     case QP_PARAM_LINK_TIMEOUT_MS: return (int32_t)QM(floor)(b->modes.link_timeout_s * 1000.0 + 0.5);
+    case QP_PARAM_LINK_FAILSAFE_MS: return (int32_t)QM(floor)(b->modes.link_failsafe_s * 1000.0 + 0.5);
     case QP_PARAM_SCHEDULER: return b->scheduler;
     case QP_PARAM_TELEMETRY_HZ: return b->telemetry_hz;
     case QP_PARAM_SENSOR_PATH: return b->sensor_path;
@@ -82,6 +83,7 @@ static uint8_t set_bound(qb_board_t *b, int id, int32_t raw, qb_real v)
     case QP_PARAM_HEIGHT_D: g->height_d = v; break;
     case QP_PARAM_HEIGHT_I: g->height_i = v; break;
     case QP_PARAM_LINK_TIMEOUT_MS: b->modes.link_timeout_s = b->cfg.link_timeout_s = raw / 1000.0; break;
+    case QP_PARAM_LINK_FAILSAFE_MS: b->modes.link_failsafe_s = b->cfg.link_failsafe_s = raw / 1000.0; break;
     case QP_PARAM_SCHEDULER: b->scheduler = raw; break; /* kept and reported; the loop is round robin (no slack rule) */
     case QP_PARAM_TELEMETRY_HZ: b->telemetry_hz = raw; break;
     case QP_PARAM_SENSOR_PATH: b->sensor_path = raw; break;
@@ -115,7 +117,11 @@ uint8_t qb_param_set(qb_board_t *b, int id, int32_t raw, int mode_guard)
         return QP_NAK_UNKNOWN_PARAM;
     if (raw < s->lo || raw > s->hi)
         return QP_NAK_OUT_OF_RANGE;
-    if (mode_guard && !s->in_flight && b->modes.mode != QP_MODE_SAFE)
-        return QP_NAK_NOT_IN_SAFE;
+    if (mode_guard && b->modes.mode != QP_MODE_SAFE) {
+        if (!s->in_flight)
+            return QP_NAK_NOT_IN_SAFE;
+        if (s->shorter_in_flight && raw > qb_param_get(b, id))
+            return QP_NAK_ONLY_SHORTER_IN_FLIGHT; /* a link timeout may not grow (or go off) in flight */
+    }
     return set_bound(b, id, raw, value_of(s, raw));
 }

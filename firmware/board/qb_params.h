@@ -20,14 +20,15 @@ typedef struct {
     uint8_t id;            /* enum qp_param */
     uint8_t kind;          /* enum qb_param_kind */
     uint8_t in_flight;     /* 0: refused outside SAFE (Nak NOT_IN_SAFE) */
+    uint8_t shorter_in_flight; /* 1: outside SAFE it may only decrease (Nak ONLY_SHORTER_IN_FLIGHT) */
     int32_t lo, hi;        /* raw range the board accepts (Nak OUT_OF_RANGE outside) */
     int32_t def;           /* the default's raw value */
     QB_REAL scale;         /* value = raw * scale (int, float) */
     QB_REAL step;          /* one press of its key (the gains), in the value's unit */
 } qb_param_spec_t;
 
-#define QB_PARAM_COUNT 19
-#define QB_PARAM_MAX_ID 19
+#define QB_PARAM_COUNT 20
+#define QB_PARAM_MAX_ID 20
 
 #define QB_SCHEDULER_ROUND_ROBIN 0
 #define QB_SCHEDULER_PRIORITY 1
@@ -51,25 +52,26 @@ extern const qb_param_spec_t QB_PARAMS[QB_PARAM_COUNT];
 
 #ifdef QB_PARAMS_TABLE
 const qb_param_spec_t QB_PARAMS[QB_PARAM_COUNT] = {
-    {1, QB_KIND_INT, 1, 50, 60000, 500, 1.0, 0.0}, /* link.timeout_ms */
-    {2, QB_KIND_ENUM, 1, 0, 1, 0, 1.0, 0.0}, /* sched.scheduler */
-    {3, QB_KIND_INT, 1, 1, 100, 50, 1.0, 0.0}, /* link.telemetry_hz */
-    {4, QB_KIND_ENUM, 1, 0, 2, 0, 1.0, 0.0}, /* est.sensor_path */
-    {5, QB_KIND_ENUM, 0, 1, 2, 2, 1.0, 0.0}, /* log.scheme */
-    {6, QB_KIND_FLOAT, 1, 0, 500000, 80000, 0.01, 50.0}, /* ctrl.yaw_p */
-    {7, QB_KIND_FLOAT, 1, 0, 100000, 4000, 0.0001, 0.05}, /* ctrl.p1 */
-    {8, QB_KIND_FLOAT, 1, 0, 100000, 11100, 0.01, 5.0}, /* ctrl.p2 */
-    {9, QB_KIND_FLOAT, 1, 0, 50000, 4000, 0.1, 10.0}, /* ctrl.height_p */
-    {10, QB_KIND_FLOAT, 1, 0, 50000, 4000, 0.1, 10.0}, /* ctrl.height_d */
-    {11, QB_KIND_FLOAT, 1, 0, 10000, 1000, 0.1, 0.0}, /* ctrl.height_i */
-    {12, QB_KIND_ENUM, 0, 0, 4, 4, 1.0, 0.0}, /* est.attitude */
-    {13, QB_KIND_FLOAT, 0, 50000, 99999, 99900, 1e-05, 0.0}, /* est.k_gyro */
-    {14, QB_KIND_BOOL, 0, 0, 1, 0, 1.0, 0.0}, /* est.fixed_point */
-    {15, QB_KIND_ENUM, 0, 0, 1, 1, 1.0, 0.0}, /* est.height */
-    {16, QB_KIND_BOOL, 0, 0, 1, 1, 1.0, 0.0}, /* sched.stick_reaction */
-    {17, QB_KIND_ENUM, 0, 0, 1, 0, 1.0, 0.0}, /* link.queue_rule */
-    {18, QB_KIND_INT, 1, 1, 4096, 256, 1.0, 0.0}, /* trim.step */
-    {19, QB_KIND_INT, 1, 1, 4096, 328, 1.0, 0.0}, /* trim.lift_step */
+    {1, QB_KIND_INT, 1, 1, 50, 60000, 500, 1.0, 0.0}, /* link.timeout_ms */
+    {2, QB_KIND_ENUM, 1, 0, 0, 1, 0, 1.0, 0.0}, /* sched.scheduler */
+    {3, QB_KIND_INT, 1, 0, 1, 100, 50, 1.0, 0.0}, /* link.telemetry_hz */
+    {4, QB_KIND_ENUM, 1, 0, 0, 2, 0, 1.0, 0.0}, /* est.sensor_path */
+    {5, QB_KIND_ENUM, 0, 0, 1, 2, 2, 1.0, 0.0}, /* log.scheme */
+    {6, QB_KIND_FLOAT, 1, 0, 0, 500000, 80000, 0.01, 50.0}, /* ctrl.yaw_p */
+    {7, QB_KIND_FLOAT, 1, 0, 0, 100000, 4000, 0.0001, 0.05}, /* ctrl.p1 */
+    {8, QB_KIND_FLOAT, 1, 0, 0, 100000, 11100, 0.01, 5.0}, /* ctrl.p2 */
+    {9, QB_KIND_FLOAT, 1, 0, 0, 50000, 4000, 0.1, 10.0}, /* ctrl.height_p */
+    {10, QB_KIND_FLOAT, 1, 0, 0, 50000, 4000, 0.1, 10.0}, /* ctrl.height_d */
+    {11, QB_KIND_FLOAT, 1, 0, 0, 10000, 1000, 0.1, 0.0}, /* ctrl.height_i */
+    {12, QB_KIND_ENUM, 0, 0, 0, 4, 4, 1.0, 0.0}, /* est.attitude */
+    {13, QB_KIND_FLOAT, 0, 0, 50000, 99999, 99900, 1e-05, 0.0}, /* est.k_gyro */
+    {14, QB_KIND_BOOL, 0, 0, 0, 1, 0, 1.0, 0.0}, /* est.fixed_point */
+    {15, QB_KIND_ENUM, 0, 0, 0, 1, 1, 1.0, 0.0}, /* est.height */
+    {16, QB_KIND_BOOL, 0, 0, 0, 1, 1, 1.0, 0.0}, /* sched.stick_reaction */
+    {17, QB_KIND_ENUM, 0, 0, 0, 1, 0, 1.0, 0.0}, /* link.queue_rule */
+    {18, QB_KIND_INT, 1, 0, 1, 4096, 256, 1.0, 0.0}, /* trim.step */
+    {19, QB_KIND_INT, 1, 0, 1, 4096, 328, 1.0, 0.0}, /* trim.lift_step */
+    {20, QB_KIND_INT, 1, 1, 0, 10000, 1000, 1.0, 0.0}, /* link.failsafe_ms */
 };
 #endif
 

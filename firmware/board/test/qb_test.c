@@ -251,7 +251,13 @@ static void test_link_loss_and_panic_end_in_safe(void)
         run_until(t);
     }
     CHECK(board.modes.mode == QP_MODE_MANUAL && motors[0] > 150);
-    run_until(1700000); /* silence */
+    run_until(1700000); /* silence: stage 1 holds level with the lift it had */
+    CHECK(board.modes.mode == QP_MODE_MANUAL && board.modes.link_hold && board.modes.hold_lift == 8000);
+    joystick(8000, 0); /* a frame back within link.failsafe_ms: control again */
+    CHECK(!board.modes.link_hold && board.modes.mode == QP_MODE_MANUAL);
+    CHECK(command(QP_OP_SET_PARAM, (QP_PARAM_LINK_FAILSAFE_MS << 24) | 2000) == QP_NAK_ONLY_SHORTER_IN_FLIGHT);
+    CHECK(command(QP_OP_SET_PARAM, (QP_PARAM_LINK_FAILSAFE_MS << 24) | 500) == QP_NAK_OK);
+    run_until(3000000); /* silence past both stages: PANIC */
     CHECK(board.modes.mode == QP_MODE_PANIC);
     run_until(400000000); /* the descent times out, the ramp ends, SAFE by itself */
     CHECK(board.modes.mode == QP_MODE_SAFE && motors[0] == 0);
