@@ -232,7 +232,7 @@ class CBoard:
 
 # --- whole boards flown by a scripted pilot over their UART (`fcb-sim run --board`, bench/firmware.py) ---------
 
-BOARD_SCENARIOS = ("hover", "height-hold")
+BOARD_SCENARIOS = ("hover", "height-hold", "raw-hover")
 _PILOT_US = 20_000  # the pilot's joystick at 50 Hz (also keeps the link alive)
 _CALIBRATE_AT_US, _ARM_AT_US, _HEIGHT_AT_US, _MEASURE_FROM_US = 200_000, 1_500_000, 5_000_000, 6_000_000
 
@@ -250,7 +250,8 @@ def _pilot_lift(world: World, target_m: float) -> int:
 
 def fly_board(kind: str, scenario: str = "hover", seed: int = 1, duration: float = 15.0) -> dict[str, Any]:
     """Fly a whole board (``kind`` "python", "c" or "c-float") in its world: calibrate, FULL, take off to 1 m by
-    the lift stick; "height-hold" enters HEIGHT at 5 s and lets go of the stick. Metrics from 6 s on, on the truth:
+    the lift stick; "height-hold" enters HEIGHT at 5 s and lets go of the stick; "raw-hover" flies RAW (the
+    on-board filter) instead of FULL. Metrics from 6 s on, on the truth:
     ``attitude_rms_deg`` (tilt), ``height_rms_m`` (against 1 m, or the height HEIGHT was entered at), the final
     mode, and the wall time."""
     from fcb_sim.board import Board
@@ -279,7 +280,8 @@ def fly_board(kind: str, scenario: str = "hover", seed: int = 1, duration: float
         if t == _CALIBRATE_AT_US:
             board.uart_receive(encode(Command(1, Op.MODE, int(Mode.CALIBRATION))))
         elif t == _ARM_AT_US:
-            board.uart_receive(encode(Command(2, Op.MODE, int(Mode.FULL))))
+            arm = Mode.RAW if scenario == "raw-hover" else Mode.FULL
+            board.uart_receive(encode(Command(2, Op.MODE, int(arm))))
             target = 1.0
         elif t == _HEIGHT_AT_US and scenario == "height-hold":
             board.uart_receive(encode(Command(3, Op.MODE, int(Mode.HEIGHT))))
