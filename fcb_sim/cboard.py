@@ -15,6 +15,7 @@ What the C board has and has not yet: firmware/board/qb_board.h and docs/firmwar
 from __future__ import annotations
 
 import ctypes
+import fcntl
 import json
 import math
 import os
@@ -61,6 +62,9 @@ def _sources() -> list[Path]:
 def library_path(build_dir: Path | None = None, *, real: str = "double") -> Path:
     """The host library, built (``make -C firmware board``) when missing or older than a source; cached.
     ``real`` "float": the board in float, as the Cortex-M0 build computes (``board-float``)."""
+    if not (FIRMWARE / "board" / "qb_board.c").is_file():
+        raise CBoardUnavailable("the C board's sources (firmware/board/) are not in this installation: "
+                                "run fcb-sim from a clone of the project")
     out = Path(build_dir) if build_dir is not None else FIRMWARE / "build"
     target, name = ("board-float", "libqb_host_float.so") if real == "float" else ("board", LIBRARY)
     lib = out / name
@@ -69,8 +73,11 @@ def library_path(build_dir: Path | None = None, *, real: str = "double") -> Path
             return lib
         if shutil.which(os.environ.get("CC", "cc")) is None or shutil.which("make") is None:
             raise CBoardUnavailable(NO_CC)
-        proc = subprocess.run(["make", "-s", "-C", str(FIRMWARE), f"BUILD={out}", target], capture_output=True,
-                              text=True)
+        out.mkdir(parents=True, exist_ok=True)
+        with open(out / ".build.lock", "w") as lock:  # another process (term, a test) may be building it too
+            fcntl.flock(lock, fcntl.LOCK_EX)
+            proc = subprocess.run(["make", "-s", "-C", str(FIRMWARE), f"BUILD={out}", target],
+                                  capture_output=True, text=True)
         if proc.returncode != 0:
             raise CBoardUnavailable(f"the C board does not build: {(proc.stderr or proc.stdout).strip()[-400:]}")
     return lib
