@@ -82,7 +82,12 @@ def test_without_a_compiler_one_line_says_what_to_install(tmp_path: Path, monkey
     assert str(err.value) == cboard.NO_CC and "\n" not in str(err.value)
 
 
-def test_term_board_c_needs_sim() -> None:
-    out = subprocess.run([sys.executable, "-m", "term", "--board", "c", "--serial", "/dev/null"],
-                         capture_output=True, text=True, timeout=60)
-    assert out.returncode == 2 and out.stderr.strip().endswith("--board needs --sim"), out.stderr
+@pytest.mark.parametrize(("argv", "says"), [
+    (["term", "--board", "c", "--serial", "/dev/null"], "--board needs --sim"),
+    (["term", "--sim", "--board", "c", "--preset", "report"], "--board c has the default preset only"),
+    (["fcb_sim", "serve", "--pty", "--board", "c", "--preset", "report"], "the C board has the default preset only"),
+    (["fcb_sim", "serve", "--pty", "--board", "c", "--ble-hci", "tcp-server:127.0.0.1:0"], "has no BLE radio yet"),
+])
+def test_what_the_c_board_cannot_do_is_one_line(argv: list[str], says: str) -> None:
+    out = subprocess.run([sys.executable, "-m", *argv], capture_output=True, text=True, timeout=60)
+    assert out.returncode == 2 and says in out.stderr and len(out.stderr.strip().splitlines()) == 1, out.stderr
