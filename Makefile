@@ -94,9 +94,10 @@ lock:
 		| grep -v -i '^pip==\|^quadrupel' | sort -f; } > $(LOCK).new && mv $(LOCK).new $(LOCK)
 	rm -rf .venv-lock
 
-# The C protocol library and the reference board (firmware/): firmware/build/host_board, built with cc.
+# The C protocol library, the reference board and the C board (firmware/): firmware/build/host_board and
+# firmware/build/libqb_host.so (fcb-sim serve --board c, term --sim --board c), built with cc.
 firmware:
-	$(MAKE) -C firmware host_board
+	$(MAKE) -C firmware host_board board
 
 clean:
 	rm -rf $(VENV) $(LOWEST) .pytest_cache .hypothesis

@@ -11,7 +11,17 @@ line (the last); a missing compiler is one line before it, and its figures are n
 - Host: bench.codec's realistic traffic (one simulated minute, both directions), cut into 32-byte reads, decoded by
   the C decoder (timed inside the C process: firmware/test/qp_runner.c, built -O2) and by term.core.protocol.Decoder.
 
-Run: `python -m bench.firmware [--seconds S]`.
+- The C board (firmware/board/, issue 26): ``cboard_m0_*``: the whole board built for the Cortex-M0 (`make -C
+  firmware board-m0`: -Os, float, --gc-sections; no vector table or startup code, which add about 200 B), flash
+  (text + data) and RAM (data + bss; the stack comes on top) beside the report's firmware; goal < 32 KB flash,
+  < 8 KB RAM. ``flight_*``: the C board (double, and float as the M0 computes) and the Python board flown in the
+  same run, each a whole board over its UART by the scenarios' pilot (fcb_sim.cboard.fly_board): hover in FULL,
+  HEIGHT hold, seeds 1-8, 15 s, figures from 6 s on against the truth: mean attitude rms (deg) and height rms
+  (m), and the C board's over the Python board's (goal: within 10 %). Also hover in RAW, for information: the C
+  board's fixed-point ikf beside the Python board's float one, which pays the cost model's read and filter time
+  before each control step (the C host build's tasks take none), so RAW is not like for like.
+
+Run: `python -m bench.firmware [--seconds S] [--seeds N]`.
 """
 
 from __future__ import annotations
@@ -128,17 +138,53 @@ def host_rates(seconds: int, repeats: int = 5) -> dict[str, Any]:
     }
 
 
-def measure(seconds: int = 60) -> dict[str, Any]:
+def cboard_m0_sizes() -> dict[str, Any]:
+    """The whole C board for the Cortex-M0, linked, and its size."""
+    with tempfile.TemporaryDirectory(prefix="qb-m0-") as tmp:
+        build = Path(tmp)
+        _make(build, "board-m0")
+        text, data, bss = _size(build / "m0" / "board.elf")
+    return {"cboard_m0_flash_bytes": text + data, "cboard_m0_ram_bytes": data + bss,
+            "cboard_m0_share_of_report_firmware_text_pct": round(100 * (text + data) / REPORT_FIRMWARE_TEXT, 1),
+            "report_firmware_text_bytes": REPORT_FIRMWARE_TEXT}
+
+
+def flights(seeds: int = 8, duration: float = 15.0) -> dict[str, Any]:
+    """The boards flown side by side (module docstring): mean figures per board and scenario, and the ratios."""
+    from fcb_sim.cboard import fly_board
+
+    out: dict[str, Any] = {"flight_seeds": seeds, "flight_duration_s": duration}
+    for scenario, key in (("hover", "full"), ("height-hold", "height"), ("raw-hover", "raw")):
+        for kind in ("python", "c", "c-float"):
+            runs = [fly_board(kind, scenario, seed, duration) for seed in range(1, seeds + 1)]
+            name = kind.replace("-", "_")
+            out[f"flight_{key}_{name}_attitude_rms_deg"] = round(sum(r["attitude_rms_deg"] for r in runs) / seeds, 4)
+            out[f"flight_{key}_{name}_height_rms_m"] = round(sum(r["height_rms_m"] for r in runs) / seeds, 4)
+            out[f"flight_{key}_{name}_wall_s"] = round(sum(r["wall_s"] for r in runs), 2)
+            bad = [r for r in runs if r["naks"] or r["mode"] != key.upper()]
+            if bad:
+                out[f"flight_{key}_{name}_faults"] = bad
+        for fig in ("attitude_rms_deg", "height_rms_m"):
+            for name in ("c", "c_float"):
+                ratio = out[f"flight_{key}_{name}_{fig}"] / max(1e-9, out[f"flight_{key}_python_{fig}"])
+                out[f"flight_{key}_{name}_over_python_{fig.split('_')[0]}"] = round(ratio, 3)
+    return out
+
+
+def measure(seconds: int = 60, seeds: int = 8) -> dict[str, Any]:
     out: dict[str, Any] = {"benchmark": "firmware"}
     if shutil.which("make") is None or shutil.which("cc") is None:
         print("bench.firmware: no C compiler (cc) or make: nothing to measure")
         return {**out, "skipped": "no C compiler"}
     if shutil.which("arm-none-eabi-gcc") is None:
         print("bench.firmware: arm-none-eabi-gcc not installed: no Cortex-M0 sizes (apt-get install gcc-arm-none-eabi)")
-        out.update(dict.fromkeys(("library_flash_bytes", "board_flash_bytes", "board_ram_bytes")))
+        out.update(dict.fromkeys(("library_flash_bytes", "board_flash_bytes", "board_ram_bytes",
+                                  "cboard_m0_flash_bytes", "cboard_m0_ram_bytes")))
     else:
         out.update(m0_sizes())
+        out.update(cboard_m0_sizes())
     out.update(host_rates(seconds))
+    out.update(flights(seeds))
     out["machine"] = platform.machine()
     return out
 
@@ -146,10 +192,11 @@ def measure(seconds: int = 60) -> dict[str, Any]:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seconds", type=int, default=60, help="simulated seconds of traffic (default 60)")
+    parser.add_argument("--seeds", type=int, default=8, help="seeds of each flight (default 8)")
     args = parser.parse_args()
-    if args.seconds < 1:
-        raise SystemExit("bench.firmware: --seconds must be at least 1")
-    print(json.dumps(measure(args.seconds)))
+    if args.seconds < 1 or args.seeds < 1:
+        raise SystemExit("bench.firmware: --seconds and --seeds must be at least 1")
+    print(json.dumps(measure(args.seconds, args.seeds)))
 
 
 if __name__ == "__main__":

@@ -61,7 +61,10 @@ def _add_run(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     run.add_argument("--filter", default=None,
                      help="on-board attitude filter for the RAW-mode scenarios (default: the best one)")
     run.add_argument("--fixed-point", action="store_true", help="RAW-mode scenarios: the Q16.16 filter variant")
-    run.set_defaults(handler=cmd_run)
+    run.add_argument("--board", choices=["core", "python", "c", "c-float"], default="core",
+                     help="core: the flight core alone (default); python or c: the whole board over its UART, "
+                     "scenarios hover and height-hold (fcb_sim/cboard.py)")
+    run.set_defaults(handler=_cmd_run)
 
 
 def _add_replay_imu(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -101,12 +104,23 @@ def _add_serve(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
     serve.add_argument("--preset", default="default", choices=sorted(PRESETS),
                        help="the board's parameters: default (the team's best) or report (the lab report's board: "
                        "Table 1, the complementary filter, the Figure 10 height estimator); docs/parameters.md")
+    serve.add_argument("--board", choices=["python", "c"], default="python",
+                       help="the board in the loop: python (fcb_sim) or c (firmware/board/, built with cc on demand)")
     serve.add_argument("--ble-hci", default=None, metavar="TRANSPORT",
                        help="also expose the board's BLE radio, e.g. tcp-server:127.0.0.1:PORT")
     serve.add_argument("--instructor", default=None, metavar="TRANSPORT",
                        help="the truth and the lessons' situations for term --sim (fcb_sim/instructor.py), e.g. "
                        "tcp-server:127.0.0.1:0")
     serve.set_defaults(handler=_cmd_serve)
+
+
+def _cmd_run(args: argparse.Namespace) -> int:
+    """run: the flight core's scenarios, or a whole board (python or c) over its UART (fcb_sim/cboard.py)."""
+    if getattr(args, "board", "core") == "core" or args.list:
+        return cmd_run(args)
+    from fcb_sim.cboard import cmd_run_board
+
+    return cmd_run_board(args)
 
 
 def _version() -> str:

@@ -65,8 +65,10 @@ SCENARIOS: dict[str, ServeScenario] = {
 }
 
 
-def make_board(seed: int = 1, scenario: str = "bench", link_timeout: float = 0.5, **config: Any) -> Board:
-    """A board in its world for a serve scenario; UsageError for an unknown scenario or a bad timeout."""
+def make_board(seed: int = 1, scenario: str = "bench", link_timeout: float = 0.5, board: str = "python",
+               **config: Any) -> Board:
+    """A board in its world for a serve scenario; UsageError for an unknown scenario or a bad timeout. ``board``
+    "c" is the C board (firmware/board/, fcb_sim/cboard.py) in the same world."""
     sc = SCENARIOS.get(scenario)
     if sc is None:
         raise UsageError(f"unknown scenario {scenario!r}; choose one of: {', '.join(SCENARIOS)}")
@@ -75,6 +77,10 @@ def make_board(seed: int = 1, scenario: str = "bench", link_timeout: float = 0.5
     world = World(seed, **sc.world)
     if sc.wind != (0.0, 0.0, 0.0) or sc.gust_std:
         world.set_wind(*sc.wind, gust_std=sc.gust_std)
+    if board == "c":
+        from fcb_sim.cboard import CBoard
+
+        return CBoard(BoardConfig(seed=seed, link_timeout_s=link_timeout, **config), world=world)  # type: ignore
     return Board(BoardConfig(seed=seed, link_timeout_s=link_timeout, **config), world=world)
 
 
@@ -294,7 +300,11 @@ class ThreadedServer:
 
 
 async def _serve_main(args: Any) -> int:
-    board = make_board(args.seed, args.scenario, args.link_timeout, preset=getattr(args, "preset", "default"))
+    kind = getattr(args, "board", "python")
+    if kind == "c" and getattr(args, "ble_hci", None):
+        raise UsageError("the C board has no BLE radio yet: serve it without --ble-hci")
+    board = make_board(args.seed, args.scenario, args.link_timeout, board=kind,
+                       preset=getattr(args, "preset", "default"))
     server = PtyServer(board)
     stop = asyncio.Event()
     loop = asyncio.get_running_loop()

@@ -76,6 +76,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--ble-timeout", type=float, default=10.0, metavar="S",
                    help="seconds to look for the BLE board (default 10)")
     p.add_argument("--no-radio", action="store_true", help="--sim: the cable only, no simulated BLE radio")
+    p.add_argument("--board", choices=["python", "c"], default="python", help="--sim: the board in the "
+                   "simulator, python (fcb_sim) or c (firmware/board/, built with cc; no radio); docs/firmware.md")
     p.add_argument("--seed", type=int, default=1, help="--sim: noise seed (same seed, same flight)")
     p.add_argument("--scenario", default=None, help="--sim: initial conditions and disturbances")
     p.add_argument("--preset", default=None, help="--sim: the board's parameters, 'default' or 'report' (the lab "
@@ -439,9 +441,25 @@ def _check_fly_args(args: argparse.Namespace) -> None:
     _check_preset(args)
     if args.ble and args.sim:
         raise UsageError("--ble and --sim: the simulator brings its own radio (term --sim connects it)")
+    if args.board == "c":
+        _check_c_board(args)
     if args.hci and not args.ble:
         raise UsageError("--hci needs --ble ADDR")
     _check_lessons(args)
+
+
+def _check_c_board(args: argparse.Namespace) -> None:
+    """--board c: only with --sim, and built before the simulator starts (one line if it cannot be)."""
+    if not args.sim:
+        raise UsageError("--board needs --sim")
+    if args.preset not in (None, "default"):
+        raise UsageError(f"--board c has the default preset only (docs/firmware.md), not {args.preset!r}")
+    from fcb_sim.cboard import CBoardUnavailable, library_path
+
+    try:
+        library_path()
+    except CBoardUnavailable as exc:
+        raise UsageError(str(exc)) from None
 
 
 def _fly(args: argparse.Namespace) -> int:
@@ -459,10 +477,13 @@ def _fly(args: argparse.Namespace) -> int:
     with _terminate_on_signals():
         try:
             if args.sim:
-                sim = SimBoard(seed=args.seed, scenario=args.scenario, link_timeout=None, radio=not args.no_radio,
-                               log=True, instructor=True)
+                c_board = args.board == "c"
+                sim = SimBoard(seed=args.seed, scenario=args.scenario, link_timeout=None,
+                               radio=not args.no_radio and not c_board, log=True, instructor=True)
                 if args.preset:
                     sim.cmd += ["--preset", args.preset]
+                if c_board:
+                    sim.cmd += ["--board", "c"]
                 port = sim.start()
                 transport = _serial(port, baud)
                 if sim.ble_address:

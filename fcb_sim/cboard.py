@@ -1,0 +1,317 @@
+"""The C board (firmware/board/) flying fcb_sim's physics: software in the loop, in lockstep.
+
+``CBoard`` offers the surface the Python ``Board`` offers the world and the serve loop (sans-IO, the board's
+microsecond clock): ``uart_receive(data)``, ``advance(until_us)``, ``uart_transmit() -> bytes``,
+``next_event_us()``, ``now``, ``mode``, ``world``, ``config``. Behind it the C board, built as a shared library
+(``make -C firmware board``: firmware/build/libqb_host.so, rebuilt when a source is newer) and loaded with
+ctypes; its hardware layer's host backend (firmware/board/hal_host.c) calls back here for the sensors and the
+motors, at the board time of the task, so the World advances to that instant first: the same seed flies the
+same flight, as fast as the CPU allows or paced by ``fcb-sim serve``.
+
+What the C board has and has not yet: firmware/board/qb_board.h and docs/firmware.md. Without a C compiler,
+``CBoardUnavailable`` says in one line what to install.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import fcntl
+import json
+import math
+import os
+import random
+import shutil
+import subprocess
+import threading
+import time
+from pathlib import Path
+from typing import Any
+
+from fcb_sim.errors import UsageError
+from fcb_sim.parts import BoardConfig
+from fcb_sim.physics import World
+from fcb_sim.timing import rtc_ticks
+from fcb_sim.wireless import WirelessLink
+from term.core.protocol import PARAMS, Mode, Param
+
+FIRMWARE = Path(__file__).resolve().parent.parent / "firmware"
+LIBRARY = "libqb_host.so"
+NO_CC = "the C board needs a C compiler and make: install them (Debian/Ubuntu: apt-get install gcc make)"
+_BUILD_LOCK = threading.Lock()
+
+_IMU = ctypes.CFUNCTYPE(None, ctypes.c_uint64, ctypes.POINTER(ctypes.c_int16))
+_DMP = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_uint64, ctypes.POINTER(ctypes.c_float))
+_BARO = ctypes.CFUNCTYPE(None, ctypes.c_uint64, ctypes.POINTER(ctypes.c_int32))
+_BATTERY = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_uint64)
+_MOTORS = ctypes.CFUNCTYPE(None, ctypes.c_uint64, ctypes.POINTER(ctypes.c_uint16))
+_IMPACT = ctypes.CFUNCTYPE(ctypes.c_int32, ctypes.c_uint64)
+
+STATE_FIELDS = ("phi", "theta", "psi", "height", "vz", "setpoint", "sp", "sq", "sr", "calibrated",
+                "link_timed_out", "crashed", "trim_lift", "motor_level", "battery", "pressure")
+
+
+class CBoardUnavailable(UsageError):
+    """The C board cannot be built here (one line: what to install)."""
+
+
+def _sources() -> list[Path]:
+    return [*(FIRMWARE / "board").glob("*.[ch]"), FIRMWARE / "qp_protocol.c", FIRMWARE / "qp_protocol.h",
+            FIRMWARE / "Makefile"]
+
+
+def library_path(build_dir: Path | None = None, *, real: str = "double") -> Path:
+    """The host library, built (``make -C firmware board``) when missing or older than a source; cached.
+    ``real`` "float": the board in float, as the Cortex-M0 build computes (``board-float``)."""
+    if not (FIRMWARE / "board" / "qb_board.c").is_file():
+        raise CBoardUnavailable("the C board's sources (firmware/board/) are not in this installation: "
+                                "run fcb-sim from a clone of the project")
+    out = Path(build_dir) if build_dir is not None else FIRMWARE / "build"
+    target, name = ("board-float", "libqb_host_float.so") if real == "float" else ("board", LIBRARY)
+    lib = out / name
+    with _BUILD_LOCK:
+        if lib.exists() and lib.stat().st_mtime >= max(p.stat().st_mtime for p in _sources()):
+            return lib
+        if shutil.which(os.environ.get("CC", "cc")) is None or shutil.which("make") is None:
+            raise CBoardUnavailable(NO_CC)
+        out.mkdir(parents=True, exist_ok=True)
+        with open(out / ".build.lock", "w") as lock:  # another process (term, a test) may be building it too
+            fcntl.flock(lock, fcntl.LOCK_EX)
+            proc = subprocess.run(["make", "-s", "-C", str(FIRMWARE), f"BUILD={out}", target],
+                                  capture_output=True, text=True)
+        if proc.returncode != 0:
+            raise CBoardUnavailable(f"the C board does not build: {(proc.stderr or proc.stdout).strip()[-400:]}")
+    return lib
+
+
+def _load(path: Path) -> ctypes.CDLL:
+    lib = ctypes.CDLL(str(path))
+    u64, vp = ctypes.c_uint64, ctypes.c_void_p
+    lib.qbh_size.restype = ctypes.c_size_t
+    lib.qbh_set_callbacks.argtypes = [vp, _IMU, _DMP, _BARO, _BATTERY, _MOTORS, _IMPACT]
+    lib.qbh_init.argtypes = [vp, ctypes.c_uint16, ctypes.c_double, ctypes.POINTER(ctypes.c_uint32), ctypes.c_int,
+                             u64]
+    lib.qbh_advance.argtypes = [vp, u64]
+    lib.qbh_receive.argtypes = [vp, ctypes.c_char_p, ctypes.c_size_t]
+    lib.qbh_transmit.argtypes = [vp, ctypes.c_char_p, ctypes.c_size_t]
+    lib.qbh_transmit.restype = ctypes.c_size_t
+    lib.qbh_now.argtypes = lib.qbh_next_event_us.argtypes = [vp]
+    lib.qbh_now.restype = lib.qbh_next_event_us.restype = u64
+    lib.qbh_mode.argtypes = [vp]
+    lib.qbh_motors.argtypes = [vp, ctypes.POINTER(ctypes.c_uint16)]
+    lib.qbh_state.argtypes = [vp, ctypes.POINTER(ctypes.c_double)]
+    lib.qbh_rx_dropped.argtypes = [vp]
+    lib.qbh_rx_dropped.restype = ctypes.c_uint32
+    lib.qbh_param.argtypes = [vp, ctypes.c_int]
+    lib.qbh_param.restype = ctypes.c_int32
+    lib.qbh_set_param.argtypes = [vp, ctypes.c_int, ctypes.c_int32]
+    return lib
+
+
+def default_phases(seed: int) -> tuple[int, int, int, int]:
+    """The timers' first expiries (RTC ticks: sensor, baro, telemetry, heartbeat): unrelated phases, as the
+    Python board's scheduler draws them."""
+    rng = random.Random(seed ^ 0x5EED)
+    return (0, rng.randrange(1, rtc_ticks(50_000)), rng.randrange(1, rtc_ticks(20_000)),
+            rng.randrange(1, rtc_ticks(100_000)))
+
+
+def _config_params(cfg: BoardConfig) -> dict[Param, Any]:
+    """The BoardConfig fields that are parameters, where they differ from the table's defaults."""
+    values = {Param.SCHEDULER: cfg.scheduler, Param.SENSOR_PATH: cfg.sensor_path,
+              Param.TELEMETRY_HZ: round(cfg.telemetry_hz), Param.LOG_SCHEME: cfg.log_scheme,
+              Param.FIXED_POINT: bool(cfg.fixed_point), Param.QUEUE_RULE: cfg.queue_rule,
+              Param.STICK_REACTION: bool(cfg.stick_reaction),
+              Param.LINK_FAILSAFE_MS: round(cfg.link_failsafe_s * 1000)}
+    return {p: v for p, v in values.items() if v != PARAMS[p].default}
+
+
+class CBoard:
+    """The C board in its world (module docstring). ``phases`` sets the timers' first expiries (RTC ticks:
+    sensor, baro, telemetry, heartbeat), e.g. a Python board's, so both run their tasks on the same ticks;
+    ``real`` "float" flies the float build (the Cortex-M0's arithmetic)."""
+
+    def __init__(self, config: BoardConfig | None = None, *, world: World | None = None,
+                 phases: tuple[int, int, int, int] | None = None, build_dir: Path | None = None,
+                 real: str = "double") -> None:
+        self.config = cfg = config or BoardConfig()
+        if cfg.preset != "default":
+            raise UsageError(f"the C board has the default preset only (asked: {cfg.preset!r})")
+        self.world = world if world is not None else World(cfg.seed)
+        self.wireless = WirelessLink()  # no radio on the C board: the handover is refused (NO_BLE_CONNECTION)
+        self.on_task: Any = None  # the serve loop's hook; the C board's tasks take no board time
+        self._lib = lib = _load(library_path(build_dir, real=real))
+        self._buf = ctypes.create_string_buffer(lib.qbh_size())
+        self._h = ctypes.cast(self._buf, ctypes.c_void_p)
+        self._crashes_seen = len(self.world.crashes)
+        self._callbacks = (_IMU(self._imu), _DMP(self._dmp), _BARO(self._baro), _BATTERY(self._battery),
+                           _MOTORS(self._motors), _IMPACT(self._impact))  # kept: C holds only their addresses
+        lib.qbh_set_callbacks(self._h, *self._callbacks)
+        ph = (ctypes.c_uint32 * 4)(*(phases if phases is not None else default_phases(cfg.seed)))
+        lib.qbh_init(self._h, cfg.board_id, cfg.link_timeout_s, ph, int(cfg.boot_hello), 0)
+        for param, value in _config_params(cfg).items():  # the config's parameters, as the Python board takes them
+            if lib.qbh_set_param(self._h, int(param), PARAMS[param].to_raw(value)):
+                raise UsageError(f"the C board cannot run {PARAMS[param].name} = {value!r} (docs/firmware.md)")
+
+    # --- the hardware layer's callbacks (board time in µs) ---------------------------------------------------
+
+    def _imu(self, t: int, out: Any) -> None:
+        self.world.advance_to(t / 1e6)
+        for i, v in enumerate(self.world.imu()):
+            out[i] = v
+
+    def _dmp(self, t: int, q: Any) -> int:
+        self.world.advance_to(t / 1e6)
+        got = self.world.dmp()
+        if got is None:
+            return 0
+        for i, v in enumerate(got):
+            q[i] = v
+        return 1
+
+    def _baro(self, t: int, out: Any) -> None:
+        self.world.advance_to(t / 1e6)
+        out[0], out[1] = self.world.baro()
+
+    def _battery(self, t: int) -> int:
+        self.world.advance_to(t / 1e6)
+        return int(self.world.battery())
+
+    def _motors(self, t: int, ae: Any) -> None:
+        self.world.advance_to(t / 1e6)
+        self.world.set_motors(ae[0], ae[1], ae[2], ae[3])
+
+    def _impact(self, t: int) -> int:
+        crashes = self.world.crashes
+        if self._crashes_seen < len(crashes):  # the impact the accelerometer would feel
+            self._crashes_seen += 1
+            return max(1, round(crashes[self._crashes_seen - 1].speed * 1000))
+        return 0
+
+    # --- the outside world's calls (fcb_sim.board.Board's) ----------------------------------------------------
+
+    @property
+    def now(self) -> int:
+        return int(self._lib.qbh_now(self._h))
+
+    def advance(self, until_us: int) -> None:
+        """Run every task due before board time ``until_us``."""
+        self._lib.qbh_advance(self._h, int(until_us))
+
+    def uart_receive(self, data: bytes) -> None:
+        """Bytes from the PC, now: the parser runs at once."""
+        if data:
+            self._lib.qbh_receive(self._h, bytes(data), len(data))
+
+    def uart_transmit(self) -> bytes:
+        """Everything the board has sent since the last call."""
+        out = bytearray()
+        buf = ctypes.create_string_buffer(4096)
+        while n := self._lib.qbh_transmit(self._h, buf, len(buf)):
+            out += buf.raw[:n]
+        return bytes(out)
+
+    def next_event_us(self) -> int:
+        return int(self._lib.qbh_next_event_us(self._h))
+
+    @property
+    def mode(self) -> Mode:
+        return Mode(self._lib.qbh_mode(self._h))
+
+    @property
+    def ae(self) -> tuple[int, int, int, int]:
+        out = (ctypes.c_uint16 * 4)()
+        self._lib.qbh_motors(self._h, out)
+        return out[0], out[1], out[2], out[3]
+
+    @property
+    def rx_overflow(self) -> int:
+        return int(self._lib.qbh_rx_dropped(self._h))
+
+    def state(self) -> dict[str, float]:
+        """The figures tests and benches read (``STATE_FIELDS``)."""
+        out = (ctypes.c_double * len(STATE_FIELDS))()
+        self._lib.qbh_state(self._h, out)
+        return dict(zip(STATE_FIELDS, out, strict=True))
+
+    def param_raw(self, param: int) -> int:
+        return int(self._lib.qbh_param(self._h, int(param)))
+
+
+# --- whole boards flown by a scripted pilot over their UART (`fcb-sim run --board`, bench/firmware.py) ---------
+
+BOARD_SCENARIOS = ("hover", "height-hold", "raw-hover")
+_PILOT_US = 20_000  # the pilot's joystick at 50 Hz (also keeps the link alive)
+_CALIBRATE_AT_US, _ARM_AT_US, _HEIGHT_AT_US, _MEASURE_FROM_US = 200_000, 1_500_000, 5_000_000, 6_000_000
+
+
+def _pilot_lift(world: World, target_m: float) -> int:
+    """The scenarios' pilot (fcb_sim/scenarios.py): a lift stick that flies the true height to ``target_m``."""
+    from fcb_sim import constants as P
+    from fcb_sim import control as C
+
+    tr = world.truth
+    a = max(-4.0, min(4.0, 2.0 * (target_m - tr.h) + 2.5 * tr.vd))
+    ae = P.AE_HOVER_NOMINAL * P.V_REF / max(tr.volts, 1.0) * math.sqrt(max(0.0, 1.0 + a / P.G))
+    return max(0, min(32767, round(ae * 32767 / C.LIFT_AE_MAX)))
+
+
+def fly_board(kind: str, scenario: str = "hover", seed: int = 1, duration: float = 15.0) -> dict[str, Any]:
+    """Fly a whole board (``kind`` "python", "c" or "c-float") in its world: calibrate, FULL, take off to 1 m by
+    the lift stick; "height-hold" enters HEIGHT at 5 s and lets go of the stick; "raw-hover" flies RAW (the
+    on-board filter) instead of FULL. Metrics from 6 s on, on the truth:
+    ``attitude_rms_deg`` (tilt), ``height_rms_m`` (against 1 m, or the height HEIGHT was entered at), the final
+    mode, and the wall time."""
+    from fcb_sim.board import Board
+    from term.core.protocol import Command, Decoder, Joystick, Op, encode
+
+    if scenario not in BOARD_SCENARIOS:
+        raise UsageError(f"unknown board scenario {scenario!r}; choose one of: {', '.join(BOARD_SCENARIOS)}")
+    world = World(seed)
+    cfg = BoardConfig(seed=seed)
+    if kind == "python":
+        board: Any = Board(cfg, world=world)
+    else:
+        board = CBoard(cfg, world=world, real="float" if kind == "c-float" else "double")
+    dec = Decoder()
+    lift, h_ref, target = 0, 1.0, None
+    tilt2 = h2 = 0.0
+    n = 0
+    naks: list[Any] = []
+    t0 = time.perf_counter()
+    end_us = int(duration * 1e6)
+    for t in range(_PILOT_US, end_us + 1, _PILOT_US):
+        board.advance(t)
+        for pkt in dec.feed(board.uart_transmit()):
+            if type(pkt).__name__ == "Ack" and pkt.status:
+                naks.append(pkt)
+        if t == _CALIBRATE_AT_US:
+            board.uart_receive(encode(Command(1, Op.MODE, int(Mode.CALIBRATION))))
+        elif t == _ARM_AT_US:
+            arm = Mode.RAW if scenario == "raw-hover" else Mode.FULL
+            board.uart_receive(encode(Command(2, Op.MODE, int(arm))))
+            target = 1.0
+        elif t == _HEIGHT_AT_US and scenario == "height-hold":
+            board.uart_receive(encode(Command(3, Op.MODE, int(Mode.HEIGHT))))
+            target, h_ref = None, world.truth.h
+        if target is not None:
+            lift = _pilot_lift(world, target)
+        board.uart_receive(encode(Joystick(0, 0, 0, lift, 0)))
+        if t >= _MEASURE_FROM_US:
+            tr = world.truth
+            tilt2 += tr.phi * tr.phi + tr.theta * tr.theta
+            h2 += (tr.h - h_ref) ** 2
+            n += 1
+    n = max(1, n)
+    return {"board": kind, "scenario": scenario, "seed": seed, "attitude_rms_deg": math.degrees(math.sqrt(tilt2 / n)),
+            "height_rms_m": math.sqrt(h2 / n), "mode": board.mode.name, "naks": len(naks),
+            "wall_s": time.perf_counter() - t0}
+
+
+def cmd_run_board(args: Any) -> int:
+    """``fcb-sim run --board python|c --scenario hover|height-hold``: a whole board over its UART."""
+    m = fly_board(args.board, args.scenario, args.seed, args.duration)
+    for key, value in m.items():
+        print(f"{key}: {value:.4g}" if isinstance(value, float) else f"{key}: {value}")
+    if args.json:
+        print(json.dumps(m))
+    return 0

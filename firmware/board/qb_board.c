@@ -1,0 +1,634 @@
+/* qb_board.c: the main loop, its tasks, commands and telemetry: fcb_sim/board.py, scheduler.py, commands.py
+ * and telemetry.py in C (qb_board.h says what is in and what is not yet). Tasks take no board time here: the
+ * host backend runs them at the instant their timer expires (lockstep with the physics). */
+#include <math.h>
+#include <string.h>
+
+#include "hal.h"
+#include "qb_board.h"
+
+static const uint8_t RR_ORDER[] = {QB_T_PARSE, QB_T_BARO, QB_T_TELEMETRY, QB_T_HEARTBEAT, QB_T_SENSOR,
+                                   QB_T_CONTROL, QB_T_LOGGING};
+#define RR_N (sizeof RR_ORDER / sizeof RR_ORDER[0])
+#define HEIGHT_PERIOD_US 50000u
+#define STATUS_PERIOD_US 200000u
+#define DMP_ANGLE_LSB 10430.0
+
+/* Microseconds to seconds. In float (the M0) by whole seconds and the rest: a 64-bit integer to float conversion
+ * would link the soft double routines, and a float of the whole count would lose the microseconds. */
+static qb_real us_to_s(uint64_t us)
+{
+#ifdef QB_FLOAT
+    return (qb_real)(uint32_t)(us / 1000000u) + (qb_real)(uint32_t)(us % 1000000u) * 1e-6;
+#else
+    return (qb_real)us / 1e6;
+#endif
+}
+
+static qb_real now_s(const qb_board_t *b)
+{
+    return us_to_s(b->now);
+}
+
+/* --- timers on the 32768 Hz RTC (fcb_sim/timing.py: rtc_ticks, rtc_us, us_to_ticks) ----------------------- */
+
+static uint64_t rtc_ticks(uint32_t period_us)
+{
+    uint64_t t = ((uint64_t)period_us * QB_RTC_HZ + 500000u) / 1000000u;
+    return t ? t : 1;
+}
+
+static uint64_t rtc_us(uint64_t ticks)
+{
+    return (ticks * 1000000u + QB_RTC_HZ - 1) / QB_RTC_HZ;
+}
+
+static uint32_t timer_period(const qb_board_t *b, int timer)
+{
+    uint32_t hz;
+    switch (timer) {
+    case QB_TM_SENSOR:
+        return b->raw_path ? QB_SENSOR_RAW_US : QB_SENSOR_DMP_US;
+    case QB_TM_BARO:
+        return QB_BARO_PERIOD_US;
+    case QB_TM_HEARTBEAT:
+        return QB_HEARTBEAT_PERIOD_US;
+    default:
+        hz = b->telemetry_hz > 0 ? (uint32_t)b->telemetry_hz : 1u;
+        return 1000000u / hz < 10000u ? 10000u : 1000000u / hz;
+    }
+}
+
+static void fire_timers(qb_board_t *b)
+{
+    static const uint8_t TASK_OF[QB_TIMERS] = {QB_T_SENSOR, QB_T_BARO, QB_T_TELEMETRY, QB_T_HEARTBEAT};
+    int i;
+    for (i = 0; i < QB_TIMERS; i++) {
+        if (b->now >= b->next_us[i]) {
+            uint64_t period = rtc_ticks(timer_period(b, i)), now_tk = b->now * QB_RTC_HZ / 1000000u;
+            uint64_t missed = now_tk >= b->next_tk[i] ? (now_tk - b->next_tk[i]) / period : 0;
+            b->flags[TASK_OF[i]] = 1;
+            b->next_tk[i] += (missed + 1) * period;
+            b->next_us[i] = rtc_us(b->next_tk[i]);
+        }
+    }
+}
+
+uint64_t qb_next_event_us(const qb_board_t *b)
+{
+    uint64_t t = b->next_us[0];
+    int i;
+    for (i = 1; i < QB_TIMERS; i++)
+        t = b->next_us[i] < t ? b->next_us[i] : t;
+    return t;
+}
+
+/* --- sending ------------------------------------------------------------------------------------------------ */
+
+static void send(qb_board_t *b, const qp_packet_t *pkt)
+{
+    uint8_t frame[QP_MAX_FRAME];
+    size_t n = qp_encode(&b->enc, pkt, frame);
+    if (n && hal_uart_write(frame, n) != n)
+        b->tx_dropped++;
+}
+
+static void send_event(qb_board_t *b, uint8_t code, int32_t arg)
+{
+    qp_packet_t p;
+    p.type = QP_TYPE_EVENT;
+    p.u.event.code = code;
+    p.u.event.arg = arg;
+    p.u.event.board_ms = (uint32_t)(b->now / 1000u);
+    send(b, &p);
+}
+
+static void send_hello(qb_board_t *b)
+{
+    qp_packet_t p;
+    p.type = QP_TYPE_HELLO;
+    p.u.hello.protocol = QP_PROTOCOL_VERSION;
+    p.u.hello.role = QP_ROLE_BOARD;
+    p.u.hello.major = QB_VERSION_MAJOR;
+    p.u.hello.minor = QB_VERSION_MINOR;
+    p.u.hello.board_id = b->cfg.board_id;
+    send(b, &p);
+}
+
+static void drain_mode_events(qb_board_t *b)
+{
+    qb_event_t ev;
+    while (qb_modes_take_event(&b->modes, &ev))
+        send_event(b, ev.code, ev.arg);
+}
+
+static int16_t i16(qb_real v)
+{
+    qb_real r = QM(floor)(v + 0.5);
+    return (int16_t)(r < -32768.0 ? -32768 : r > 32767.0 ? 32767 : r);
+}
+
+/* --- motors and the mode listener ---------------------------------------------------------------------------- */
+
+static void set_motors(qb_board_t *b, const uint16_t ae[4])
+{
+    memcpy(b->ae, ae, sizeof b->ae);
+    b->modes.motor_level = (ae[0] + ae[1] + ae[2] + ae[3]) / 4;
+    hal_motors_set(ae);
+}
+
+/* The board's listener on the mode machine (fcb_sim.board.Board._on_mode_change). */
+static void on_mode_change(void *ctx, uint8_t old_mode, uint8_t new_mode)
+{
+    qb_board_t *b = ctx;
+    qb_modes_t *m = &b->modes;
+    if (old_mode == QP_MODE_CALIBRATION && m->calibrated && m->counts[QB_CAL_GX] > 0) {
+        qb_real gyro[3], accel[3], phi = 0.0, theta = 0.0, pressure = b->pressure;
+        int i;
+        for (i = 0; i < 3; i++) {
+            gyro[i] = qb_modes_cal_mean(m, QB_CAL_GX + i);
+            accel[i] = qb_modes_cal_mean(m, QB_CAL_AX + i);
+        }
+        if (m->counts[QB_CAL_DMP_PHI])
+            phi = qb_modes_cal_mean(m, QB_CAL_DMP_PHI) / DMP_ANGLE_LSB;
+        if (m->counts[QB_CAL_DMP_THETA])
+            theta = qb_modes_cal_mean(m, QB_CAL_DMP_THETA) / DMP_ANGLE_LSB;
+        if (m->counts[QB_CAL_PRESSURE])
+            pressure = qb_modes_cal_mean(m, QB_CAL_PRESSURE);
+        qb_flight_set_calibration(&b->core, gyro, accel, phi, theta, pressure);
+    }
+    qb_flight_enter_mode(&b->core, new_mode, qb_modes_lift(m));
+}
+
+/* --- tasks ---------------------------------------------------------------------------------------------------- */
+
+/* The sensor path to run (est.sensor_path): "auto" is RAW in RAW mode (and HEIGHT entered from RAW), else DMP.
+ * A change restarts the sensor timer at the new rate. */
+static void follow_sensor_path(qb_board_t *b)
+{
+    const qb_modes_t *m = &b->modes;
+    uint8_t want = b->sensor_path == QB_SENSOR_PATH_RAW ||
+                   (b->sensor_path == QB_SENSOR_PATH_AUTO &&
+                    (m->mode == QP_MODE_RAW || (m->mode == QP_MODE_HEIGHT && m->height_base == QP_MODE_RAW)));
+    if (want != b->raw_path) {
+        b->raw_path = want;
+        b->next_tk[QB_TM_SENSOR] = b->now * QB_RTC_HZ / 1000000u + rtc_ticks(timer_period(b, QB_TM_SENSOR));
+        b->next_us[QB_TM_SENSOR] = rtc_us(b->next_tk[QB_TM_SENSOR]);
+        b->sample_set = 0;
+    }
+}
+
+static void task_sensor(qb_board_t *b)
+{
+    int16_t raw[6];
+    float q[4];
+    qb_real t = now_s(b), dt;
+    int cal = b->modes.mode == QP_MODE_CALIBRATION, i;
+    hal_imu_read(raw);
+    dt = b->sample_set ? t - us_to_s(b->sample_t) : timer_period(b, QB_TM_SENSOR) / 1e6;
+    b->sample_t = b->now;
+    b->sample_set = 1;
+    qb_flight_imu(&b->core, raw, dt);
+    if (cal) {
+        for (i = 0; i < 6; i++)
+            qb_modes_cal_add(&b->modes, QB_CAL_GX + i, raw[i]);
+    }
+    if (!b->raw_path && hal_dmp_read(q)) { /* the DMP is read on the DMP path only */
+        qb_flight_dmp(&b->core, q);
+        if (cal) {
+            qb_real e[3];
+            qb_quaternion_to_euler(q[0], q[1], q[2], q[3], e);
+            qb_modes_cal_add(&b->modes, QB_CAL_DMP_PHI, (int32_t)QM(lround)(e[0] * DMP_ANGLE_LSB));
+            qb_modes_cal_add(&b->modes, QB_CAL_DMP_THETA, (int32_t)QM(lround)(-e[1] * DMP_ANGLE_LSB));
+        }
+    }
+    b->flags[QB_T_CONTROL] = 1; /* data ready: control follows */
+}
+
+static void task_control(qb_board_t *b)
+{
+    qb_modes_t *m = &b->modes;
+    qb_real t = now_s(b);
+    int32_t impact = hal_impact_mm_s(), sticks[4];
+    uint16_t ae[4];
+    if (impact > 0)
+        qb_modes_crash(m, t, impact);
+    qb_modes_tick(m, t);
+    if (m->mode == QP_MODE_PANIC) {
+        if (b->core.panic_landed)
+            qb_modes_panic_ground(m, t);
+        b->core.panic_scale = qb_modes_panic_scale(m, t);
+    }
+    qb_modes_sticks(m, sticks);
+    qb_flight_control(&b->core, m->mode, sticks, timer_period(b, QB_TM_SENSOR) / 1e6, ae);
+    if (!qb_modes_motors_enabled(m))
+        memset(ae, 0, sizeof ae);
+    memcpy(b->sticks_used, sticks, sizeof b->sticks_used);
+    b->sticks_set = 1;
+    set_motors(b, ae);
+    follow_sensor_path(b);
+}
+
+static void task_baro(qb_board_t *b)
+{
+    qb_real dt = b->baro_set ? us_to_s(b->now - b->baro_t) : 0.05;
+    hal_baro_read(&b->pressure, &b->temperature);
+    b->battery = hal_battery_read();
+    b->baro_t = b->now;
+    b->baro_set = 1;
+    qb_flight_baro(&b->core, b->pressure, dt);
+    b->modes.battery = b->battery;
+    if (b->modes.mode == QP_MODE_CALIBRATION)
+        qb_modes_cal_add(&b->modes, QB_CAL_PRESSURE, b->pressure);
+}
+
+static void task_heartbeat(qb_board_t *b)
+{
+    qp_packet_t p;
+    int32_t att[3];
+    uint32_t rtt = b->rtt_us / 100u;
+    qb_real silent = b->last_frame_set ? us_to_s(b->now - b->last_frame_us) : 0.0;
+    b->heartbeats++;
+    p.type = QP_TYPE_HEARTBEAT;
+    p.u.heartbeat.counter = (uint16_t)b->heartbeats;
+    p.u.heartbeat.board_ms = (uint32_t)(b->now / 1000u);
+    p.u.heartbeat.rtt = (uint16_t)(b->hb_rtt_fresh ? (rtt > 0xFFFFu ? 0xFFFFu : rtt < 1u ? 1u : rtt) : 0u);
+    send(b, &p);
+    b->hb_sent_counter = p.u.heartbeat.counter;
+    b->hb_sent_us = b->now;
+    b->hb_sent_set = 1;
+    b->hb_rtt_fresh = 0;
+    qb_flight_attitude_cdeg(&b->core, att);
+    qb_modes_supervise(&b->modes, now_s(b), silent, b->modes.battery, att[0], att[1]);
+    drain_mode_events(b);
+}
+
+static int due(uint64_t *due_at, uint32_t period_us, uint64_t now)
+{
+    uint64_t next = *due_at + period_us, half = now > period_us / 2 ? now - period_us / 2 : 0;
+    if (now < *due_at)
+        return 0;
+    *due_at = next > half ? next : half;
+    return 1;
+}
+
+static uint16_t status_flags(const qb_board_t *b)
+{
+    const qb_modes_t *m = &b->modes;
+    uint16_t f = 0;
+    f |= m->calibrated ? QP_FLAG_CALIBRATED : 0u;
+    f |= qb_modes_motors_enabled(m) ? QP_FLAG_ARMED : 0u;
+    f |= (b->battery < QP_BATTERY_LOW || m->battery_low_latched) ? QP_FLAG_LOW_BATTERY : 0u;
+    f |= m->link_timed_out ? QP_FLAG_LINK_TIMEOUT : 0u;
+    f |= b->raw_path ? QP_FLAG_RAW_SENSORS : 0u;
+    f |= b->fixed_point ? QP_FLAG_FIXED_POINT : 0u;
+    f |= b->scheduler == QB_SCHEDULER_PRIORITY ? QP_FLAG_PRIORITY_SCHEDULER : 0u;
+    f |= m->mode == QP_MODE_HEIGHT ? QP_FLAG_HEIGHT_HOLD : 0u;
+    f |= m->crashed ? QP_FLAG_CRASHED : 0u;
+    return f;
+}
+
+static void task_telemetry(qb_board_t *b)
+{
+    const qb_flight_t *fc = &b->core;
+    qp_packet_t p;
+    int32_t att[3];
+    b->telemetry_runs++;
+    drain_mode_events(b);
+    qb_flight_attitude_cdeg(fc, att);
+    p.type = QP_TYPE_ATTITUDE;
+    p.u.attitude.mode = b->modes.mode;
+    p.u.attitude.phi = i16(att[0]);
+    p.u.attitude.theta = i16(att[1]);
+    p.u.attitude.psi = i16(att[2]);
+    p.u.attitude.sp = i16(fc->sp);
+    p.u.attitude.sq = i16(fc->sq);
+    p.u.attitude.sr = i16(fc->sr);
+    send(b, &p);
+    p.type = QP_TYPE_MOTION;
+    p.u.motion.sax = i16(fc->sax);
+    p.u.motion.say = i16(fc->say);
+    p.u.motion.saz = i16(fc->saz);
+    p.u.motion.ae1 = b->ae[0];
+    p.u.motion.ae2 = b->ae[1];
+    p.u.motion.ae3 = b->ae[2];
+    p.u.motion.ae4 = b->ae[3];
+    send(b, &p);
+    if (due(&b->height_due, HEIGHT_PERIOD_US, b->now)) {
+        p.type = QP_TYPE_HEIGHT;
+        p.u.height.pressure = (uint32_t)(b->pressure > 0 ? b->pressure : 0);
+        p.u.height.height = i16(fc->height / 0.01);
+        p.u.height.setpoint = i16(fc->setpoint / 0.01);
+        p.u.height.vz = i16(fc->vz / 0.01);
+        p.u.height.battery = b->battery;
+        p.u.height.temperature = i16(b->temperature);
+        send(b, &p);
+    }
+    if (due(&b->status_due, STATUS_PERIOD_US, b->now)) {
+        const qb_modes_t *m = &b->modes;
+        p.type = QP_TYPE_STATUS;
+        p.u.status.flags = status_flags(b);
+        p.u.status.trim_roll = (int16_t)m->trim_roll;
+        p.u.status.trim_pitch = (int16_t)m->trim_pitch;
+        p.u.status.trim_yaw = (int16_t)m->trim_yaw;
+        p.u.status.trim_lift = (int16_t)m->trim_lift;
+        p.u.status.cpu_load = 0; /* no profiler on the C board yet */
+        p.u.status.log_fill = 0;
+        p.u.status.wireless = QP_WIRELESS_STATE_DISCONNECTED;
+        send(b, &p);
+        p.type = QP_TYPE_GAINS;
+        p.u.gains.yaw_p = qp_half_from_float((float)fc->g.yaw_p);
+        p.u.gains.p1 = qp_half_from_float((float)fc->g.p1);
+        p.u.gains.p2 = qp_half_from_float((float)fc->g.p2);
+        p.u.gains.height_p = qp_half_from_float((float)fc->g.height_p);
+        p.u.gains.height_d = qp_half_from_float((float)fc->g.height_d);
+        send(b, &p);
+    }
+}
+
+/* --- commands (fcb_sim/commands.py) ------------------------------------------------------------------------- */
+
+typedef struct {
+    uint8_t status;
+    int32_t value;
+    int after;      /* what follows the Ack: 0 nothing, 1 PARAM_CHANGED for after_param, 2 the parameter list */
+    int after_param;
+} result_t;
+
+static qb_real *gain_of(qb_board_t *b, int param)
+{
+    qb_gains_t *g = &b->core.g;
+    switch (param) {
+    case QP_PARAM_YAW_P: return &g->yaw_p;
+    case QP_PARAM_P1: return &g->p1;
+    case QP_PARAM_P2: return &g->p2;
+    case QP_PARAM_HEIGHT_P: return &g->height_p;
+    default: return &g->height_d;
+    }
+}
+
+static result_t execute(qb_board_t *b, const qp_command_t *c)
+{
+    result_t r = {QP_NAK_OK, 0, 0, 0};
+    qb_real t = now_s(b);
+    switch (c->op) {
+    case QP_OP_MODE:
+        if (c->arg == QP_MODE_WIRELESS) {
+            /* the handover: no radio on this board, so no phone is ever connected */
+            r.status = b->modes.mode != QP_MODE_SAFE ? QP_NAK_NOT_IN_SAFE : QP_NAK_NO_BLE_CONNECTION;
+            return r;
+        }
+        qb_modes_tick(&b->modes, t);
+        r.status = qb_modes_request(&b->modes, c->arg, t);
+        r.value = b->modes.mode;
+        return r;
+    case QP_OP_TRIM_LIFT:
+    case QP_OP_TRIM_ROLL:
+    case QP_OP_TRIM_PITCH:
+    case QP_OP_TRIM_YAW:
+        r.value = qb_modes_adjust_trim(&b->modes, c->op - QP_OP_TRIM_LIFT, c->arg);
+        return r;
+    case QP_OP_GAIN_YAW_P:
+    case QP_OP_GAIN_P1:
+    case QP_OP_GAIN_P2:
+    case QP_OP_GAIN_HEIGHT_P:
+    case QP_OP_GAIN_HEIGHT_D: {
+        int param = QP_PARAM_YAW_P + (c->op - QP_OP_GAIN_YAW_P);
+        qb_real *g = gain_of(b, param), v = *g + (qb_real)c->arg * QB_PARAMS[param - 1].step;
+        *g = v > 0.0 ? v : 0.0;
+        r.value = (int32_t)QM(lround)(*g * 1000.0);
+        r.after = 1;
+        r.after_param = param;
+        return r;
+    }
+    case QP_OP_WIRELESS:
+        if (c->arg == 1)
+            r.status = b->modes.mode != QP_MODE_SAFE ? QP_NAK_NOT_IN_SAFE : QP_NAK_NO_BLE_CONNECTION;
+        else if (c->arg != 0)
+            r.status = QP_NAK_BAD_ARGUMENT;
+        return r;
+    case QP_OP_SET_PARAM: {
+        int pid = (int)(((uint32_t)c->arg >> 24) & 0xFFu);
+        int32_t raw = (int32_t)((uint32_t)c->arg & 0xFFFFFFu);
+        if (raw > 0x7FFFFF)
+            raw -= 0x1000000;
+        r.status = qb_param_set(b, pid, raw, 1);
+        r.value = qb_param_spec(pid) ? qb_param_get(b, pid) : 0;
+        r.after = r.status == QP_NAK_OK;
+        r.after_param = pid;
+        return r;
+    }
+    case QP_OP_PARAM_GET:
+        if (!qb_param_spec(c->arg))
+            r.status = QP_NAK_UNKNOWN_PARAM;
+        else
+            r.value = qb_param_get(b, c->arg);
+        return r;
+    case QP_OP_PARAM_LIST:
+        r.value = QB_PARAM_COUNT;
+        r.after = 2;
+        return r;
+    case QP_OP_ACK_CRASH:
+        r.status = qb_modes_ack_crash(&b->modes);
+        return r;
+    case QP_OP_LOG_START:
+    case QP_OP_LOG_STOP:
+    case QP_OP_LOG_RESET:
+    case QP_OP_LOG_STATUS:
+    case QP_OP_LOG_DOWNLOAD:
+    case QP_OP_PROFILE:
+        r.status = QP_NAK_NOT_IMPLEMENTED; /* the flash log and the profiler come later */
+        return r;
+    default:
+        r.status = QP_NAK_UNKNOWN_COMMAND;
+        return r;
+    }
+}
+
+static void param_changed(qb_board_t *b, int param)
+{
+    int32_t raw = qb_param_get(b, param);
+    send_event(b, QP_EVENT_CODE_PARAM_CHANGED, (int32_t)(((uint32_t)param << 24) | ((uint32_t)raw & 0xFFFFFFu)));
+}
+
+static void handle_command(qb_board_t *b, const qp_command_t *c)
+{
+    qp_packet_t p;
+    result_t r;
+    int i;
+    if (b->have_last && b->last_cmd.cmd_id == c->cmd_id && b->last_cmd.op == c->op && b->last_cmd.arg == c->arg &&
+        b->now - b->last_cmd_us < QB_DEDUPE_US) {
+        p.type = QP_TYPE_ACK; /* a retry: its first answer was lost; answered again, not done again */
+        p.u.ack = b->last_ack;
+        send(b, &p);
+        return;
+    }
+    r = execute(b, c);
+    p.type = QP_TYPE_ACK;
+    p.u.ack.cmd_id = c->cmd_id;
+    p.u.ack.op = c->op;
+    p.u.ack.status = r.status;
+    p.u.ack.value = r.value;
+    b->last_cmd = *c;
+    b->last_ack = p.u.ack;
+    b->last_cmd_us = b->now;
+    b->have_last = 1;
+    send(b, &p);
+    drain_mode_events(b);
+    if (r.after == 1) {
+        param_changed(b, r.after_param);
+    } else if (r.after == 2) {
+        for (i = 0; i < QB_PARAM_COUNT; i++) {
+            p.type = QP_TYPE_PARAM_VALUE;
+            p.u.param_value.param = QB_PARAMS[i].id;
+            p.u.param_value.value = qb_param_get(b, QB_PARAMS[i].id);
+            p.u.param_value.index = (uint8_t)i;
+            p.u.param_value.count = QB_PARAM_COUNT;
+            send(b, &p);
+        }
+    }
+}
+
+static void on_packet(void *ctx, const qp_packet_t *pkt)
+{
+    qb_board_t *b = ctx;
+    b->last_frame_us = b->now;
+    b->last_frame_set = 1;
+    if (b->modes.link_hold) {
+        qb_modes_link_back(&b->modes, now_s(b)); /* the failsafe's stage 1 ends with the first frame back */
+        drain_mode_events(b);
+    }
+    switch (pkt->type) {
+    case QP_TYPE_JOYSTICK:
+        b->modes.js = pkt->u.joystick;
+        if (pkt->u.joystick.buttons & QP_BUTTON_FIRE) {
+            qb_modes_panic(&b->modes, now_s(b));
+            drain_mode_events(b);
+        }
+        break;
+    case QP_TYPE_COMMAND:
+        handle_command(b, &pkt->u.command);
+        break;
+    case QP_TYPE_HEARTBEAT_ACK:
+        if (b->hb_sent_set && pkt->u.heartbeat_ack.counter == b->hb_sent_counter) {
+            b->rtt_us = (uint32_t)(b->now - b->hb_sent_us);
+            b->hb_rtt_fresh = 1;
+        }
+        break;
+    case QP_TYPE_HELLO:
+        b->have_last = 0; /* a terminal (re)connected: its cmd_ids start afresh */
+        qp_decoder_reset_sequence(&b->dec);
+        send_hello(b);
+        break;
+    default:
+        break;
+    }
+}
+
+/* A changed stick moves the motors at once in the flight modes (docs/board.md, "Sticks to motors"). */
+static void react(qb_board_t *b)
+{
+    int32_t sticks[4];
+    uint16_t ae[4];
+    uint8_t mode = b->modes.mode;
+    if (!b->stick_reaction || !b->sticks_set)
+        return;
+    qb_modes_sticks(&b->modes, sticks);
+    if (memcmp(sticks, b->sticks_used, sizeof sticks) == 0)
+        return;
+    if (!QP_IS_FLIGHT_MODE(mode) || mode != b->core.mode)
+        return;
+    qb_flight_control(&b->core, mode, sticks, 0.0, ae);
+    set_motors(b, ae);
+    memcpy(b->sticks_used, sticks, sizeof sticks);
+}
+
+void qb_receive(qb_board_t *b, const uint8_t *data, size_t len)
+{
+    qp_decode(&b->dec, data, len, on_packet, b);
+    react(b);
+}
+
+static void task_parse(qb_board_t *b)
+{
+    uint8_t buf[QB_PARSE_MAX_BYTES];
+    size_t n = hal_uart_read(buf, sizeof buf);
+    qb_receive(b, buf, n);
+    if (n == sizeof buf)
+        b->flags[QB_T_PARSE] = 1; /* more may be waiting */
+}
+
+/* --- the loop ------------------------------------------------------------------------------------------------ */
+
+void qb_config_default(qb_config_t *cfg)
+{
+    memset(cfg, 0, sizeof *cfg);
+    cfg->board_id = 1;
+    cfg->link_timeout_s = QB_PARAMS[QP_PARAM_LINK_TIMEOUT_MS - 1].def / 1000.0;
+    cfg->link_failsafe_s = QB_PARAMS[QP_PARAM_LINK_FAILSAFE_MS - 1].def / 1000.0;
+    cfg->phase_tk[QB_TM_SENSOR] = 0;
+    cfg->phase_tk[QB_TM_BARO] = 547; /* unrelated phases, as independent hardware timers have */
+    cfg->phase_tk[QB_TM_TELEMETRY] = 211;
+    cfg->phase_tk[QB_TM_HEARTBEAT] = 1093;
+    cfg->boot_hello = 1;
+}
+
+void qb_init(qb_board_t *b, const qb_config_t *cfg)
+{
+    int i;
+    memset(b, 0, sizeof *b);
+    b->cfg = *cfg;
+    qb_flight_init(&b->core);
+    qb_modes_init(&b->modes, cfg->link_timeout_s, b->core.panic_ae);
+    b->modes.link_failsafe_s = cfg->link_failsafe_s;
+    b->modes.on_change = on_mode_change;
+    b->modes.ctx = b;
+    qp_decoder_init(&b->dec);
+    for (i = 0; i < QB_PARAM_COUNT; i++) {
+        int id = QB_PARAMS[i].id;
+        if (id != QP_PARAM_LINK_TIMEOUT_MS && id != QP_PARAM_LINK_FAILSAFE_MS)
+            qb_param_set(b, id, QB_PARAMS[i].def, 0);
+    }
+    for (i = 0; i < QB_TIMERS; i++) {
+        b->next_tk[i] = cfg->phase_tk[i];
+        b->next_us[i] = rtc_us(b->next_tk[i]);
+    }
+    b->now = hal_time_us();
+    b->battery = hal_battery_read();
+    hal_baro_read(&b->pressure, &b->temperature);
+    if (cfg->boot_hello) {
+        send_hello(b);
+        send_event(b, QP_EVENT_CODE_BOOT, QP_PROTOCOL_VERSION);
+    }
+}
+
+typedef void (*task_fn)(qb_board_t *b);
+
+static void task_logging(qb_board_t *b)
+{
+    (void)b; /* the flash log comes later */
+}
+
+void qb_poll(qb_board_t *b)
+{
+    static const task_fn TASK[QB_TASKS] = {task_parse, task_sensor, task_control, task_baro, task_telemetry,
+                                           task_heartbeat, task_logging};
+    unsigned i;
+    b->now = hal_time_us();
+    fire_timers(b);
+    b->flags[QB_T_PARSE] = 1; /* the UART queue is read at every pass (an empty read costs nothing) */
+    for (;;) {
+        int ran = 0;
+        for (i = 0; i < RR_N && !ran; i++) {
+            uint8_t task = RR_ORDER[(b->rr + i) % RR_N];
+            if (b->flags[task]) {
+                b->rr = (uint8_t)((b->rr + i + 1) % RR_N);
+                b->flags[task] = 0;
+                TASK[task](b);
+                ran = 1;
+            }
+        }
+        if (!ran)
+            break;
+    }
+}

@@ -1,0 +1,262 @@
+/* qb_board.h: the Quadrupel board's core in C99, the twin of fcb_sim's Python board (fcb_sim/board.py).
+ *
+ * No dynamic memory: all state is one qb_board_t the caller owns (a static on the M0). No hardware: every read
+ * and write goes through hal.h. The parts, each mirroring its Python module:
+ *   - the loop (qb_board.c, fcb_sim/board.py, scheduler.py): timers on the 32768 Hz RTC set flags; one pass of
+ *     qb_poll() runs the flagged tasks in the report's round-robin order (parse, baro, telemetry, heartbeat,
+ *     sensor, control); the sensor at 200 Hz (DMP path) or 400 Hz (RAW path), barometer and battery at 20 Hz,
+ *     telemetry at link.telemetry_hz, heartbeat and the safety monitor at 10 Hz;
+ *   - the mode machine with its guards and NAK reasons (qb_modes.c, fcb_sim/modes.py);
+ *   - calibration sums and means (qb_modes.c, fcb_sim/calibration.py);
+ *   - the flight core: cascaded P roll/pitch, yaw P, HEIGHT's PID on the height estimate, PANIC's descent,
+ *     mixing with the integer square root (qb_flight.c, fcb_sim/flight.py, control.py);
+ *   - the height estimator, HeightKalman (qb_height.c, fcb_sim/estimation/height.py);
+ *   - the RAW path's attitude filter, ikf's fixed-point twin (qb_ikf.c, fcb_sim/estimation/ikf_fixed.py);
+ *   - commands, telemetry, heartbeats, the link-loss failsafe, the parameter table generated from term's
+ *     (qb_board.c, qb_params.c, qb_params.h; fcb_sim/commands.py, telemetry.py, paramtable.py).
+ * Not yet: the flash log (LOG_* commands answer NOT_IMPLEMENTED), the BLE handover, the task profile, RAW filters
+ * other than ikf (and ikf in float: the C board's is always the fixed-point twin), the report preset's
+ * complementary height estimator. docs/firmware.md keeps this list.
+ *
+ * Floating point: the flight core uses qb_real, as the Python board does (the differential test compares them);
+ * an M0 build may define QB_REAL=float to halve the soft-float cost.
+ */
+#ifndef QB_BOARD_H
+#define QB_BOARD_H
+
+#include <stdint.h>
+
+#include "qb_params.h"
+#include "qp_protocol.h"
+
+#ifdef QB_FLOAT
+#define QM(fn) fn##f /* the float version of a libm function: expf, atan2f, ... */
+#else
+#define QM(fn) fn
+#endif
+typedef QB_REAL qb_real; /* qb_params.h: float with QB_FLOAT, else double */
+
+#define QB_VERSION_MAJOR 0
+#define QB_VERSION_MINOR 2
+
+/* Tasks, in the Profile packet's order (fcb_sim.scheduler.TASKS). */
+enum qb_task { QB_T_PARSE, QB_T_SENSOR, QB_T_CONTROL, QB_T_BARO, QB_T_TELEMETRY, QB_T_HEARTBEAT, QB_T_LOGGING,
+               QB_TASKS };
+enum qb_timer { QB_TM_SENSOR, QB_TM_BARO, QB_TM_TELEMETRY, QB_TM_HEARTBEAT, QB_TIMERS };
+
+#define QB_RTC_HZ 32768u
+#define QB_BARO_PERIOD_US 50000u
+#define QB_HEARTBEAT_PERIOD_US 100000u
+#define QB_SENSOR_DMP_US 5000u
+#define QB_SENSOR_RAW_US 2500u
+#define QB_PARSE_MAX_BYTES 64u
+#define QB_DEDUPE_US 2000000u
+#define QB_EVENTS 16
+
+/* --- the mode machine (qb_modes.c) ------------------------------------------------------------------------ */
+
+enum qb_cal_var { QB_CAL_GX, QB_CAL_GY, QB_CAL_GZ, QB_CAL_AX, QB_CAL_AY, QB_CAL_AZ, QB_CAL_DMP_PHI,
+                  QB_CAL_DMP_THETA, QB_CAL_PRESSURE, QB_CAL_VARS };
+
+typedef struct {
+    uint8_t code;
+    int32_t arg;
+} qb_event_t;
+
+typedef struct {
+    /* config (fcb_sim.modes.ModeConfig) */
+    qb_real link_timeout_s;
+    qb_real link_failsafe_s; /* stage 1's guard time; 0: PANIC at once (the report's) */
+    int32_t panic_level;
+    int32_t trim_step, lift_step;
+    /* state */
+    uint8_t mode, previous, height_base, pending_target;
+    uint8_t calibrated, link_timed_out, battery_low_latched, crashed;
+    uint8_t link_hold;      /* the failsafe's stage 1: level, the lift it had, until the link is back or stage 2 */
+    int32_t hold_lift;
+    qb_real hold_since;
+    qp_joystick_t js;
+    int32_t trim_roll, trim_pitch, trim_yaw, trim_lift;
+    int32_t battery;        /* 10 mV; -1 before the first reading */
+    int32_t motor_level;    /* mean motor command, from the control task */
+    qb_real now, calibration_started, panic_started, panic_landed_at, low_battery_since;
+    uint8_t panic_landed_set, low_battery_set;
+    int32_t panic_start_level;
+    int64_t sums[QB_CAL_VARS];
+    uint32_t counts[QB_CAL_VARS];
+    qb_event_t events[QB_EVENTS];
+    uint8_t n_events;
+    /* the board's listener: called after every change (fcb_sim's ModeMachine.listeners) */
+    void (*on_change)(void *ctx, uint8_t old_mode, uint8_t new_mode);
+    void *ctx;
+} qb_modes_t;
+
+void qb_modes_init(qb_modes_t *m, qb_real link_timeout_s, int32_t panic_level);
+int32_t qb_modes_lift(const qb_modes_t *m);
+void qb_modes_sticks(const qb_modes_t *m, int32_t out[4]);
+int32_t qb_modes_adjust_trim(qb_modes_t *m, int axis, int32_t steps); /* axis: 0 lift, 1 roll, 2 pitch, 3 yaw */
+uint8_t qb_modes_request(qb_modes_t *m, int32_t target, qb_real now);
+int qb_modes_panic(qb_modes_t *m, qb_real now);
+void qb_modes_crash(qb_modes_t *m, qb_real now, int32_t speed_mm_s);
+uint8_t qb_modes_ack_crash(qb_modes_t *m);
+void qb_modes_tick(qb_modes_t *m, qb_real now);
+qb_real qb_modes_panic_scale(qb_modes_t *m, qb_real now);
+void qb_modes_panic_ground(qb_modes_t *m, qb_real now);
+/* A valid frame from the PC: stage 1 of the failsafe ends (event LINK_REGAINED). */
+void qb_modes_link_back(qb_modes_t *m, qb_real now);
+void qb_modes_supervise(qb_modes_t *m, qb_real now, qb_real link_silent_s, int32_t battery, int32_t phi_cdeg,
+                        int32_t theta_cdeg);
+void qb_modes_cal_add(qb_modes_t *m, int var, int32_t v);
+int32_t qb_modes_cal_mean(const qb_modes_t *m, int var);
+int qb_modes_flying(const qb_modes_t *m);
+int qb_modes_motors_enabled(const qb_modes_t *m);
+/* Take the oldest queued event (code, arg); 0 when none. */
+int qb_modes_take_event(qb_modes_t *m, qb_event_t *ev);
+int32_t qb_tilt_cdeg(int32_t phi_cdeg, int32_t theta_cdeg);
+
+/* --- the height estimator (qb_height.c) ------------------------------------------------------------------- */
+
+#define QB_ANCHOR_MAX 64
+
+typedef struct {
+    qb_real q_acc, q_bias, r;
+    qb_real p_ref, k_pa_per_m;
+    qb_real height, vz, bias, spike, az_earth, baro_raw, innovation;
+    qb_real p[10];
+    qb_real t_pred;
+    int jump_sign, rejumps;
+    qb_real t_jump;
+    uint32_t baro_rejected, level_changes, trend_resets;
+    qb_real trend;
+    uint8_t on_ground, anchored, motors_off;
+    qb_real rest_s;
+    qb_real ground_baro[QB_ANCHOR_MAX];
+    uint8_t n_ground_baro;
+    qb_real ground_baro_s;
+    qb_real captured_height;
+    qb_real c[4];
+    qb_real c00;
+} qb_height_t;
+
+void qb_height_init(qb_height_t *h);
+void qb_height_reset(qb_height_t *h, qb_real pressure_pa);
+qb_real qb_height_capture(qb_height_t *h);
+void qb_height_update_imu(qb_height_t *h, qb_real ax, qb_real ay, qb_real az, qb_real qw, qb_real qx, qb_real qy,
+                          qb_real qz, qb_real dt);
+void qb_height_update_baro(qb_height_t *h, qb_real pressure_pa, qb_real dt);
+
+/* --- the RAW path's attitude filter (qb_ikf.c): ikf's fixed-point twin, fcb_sim/estimation/ikf_fixed.py ----- */
+
+typedef struct {
+    int32_t qw, qx, qy, qz;  /* Q2.30 */
+    int32_t vx, vy, dx, dy;  /* Q8.24, Q4.28 */
+    int32_t pvv, pvg, pvd, pgg, pgd, pdd;  /* Q2.30 */
+    int32_t bx, by, bz, rx, ry, rz;  /* Q8.24 */
+    int32_t gl[3], al[3];
+    qb_real rest_t, dt_cached;
+    int32_t dtq, dt2q, dthq, krq, kbq;
+    uint8_t at_rest, started, dt_set;
+} qb_ikf_t;
+
+void qb_ikf_reset(qb_ikf_t *f);
+/* Gyro (rad/s) and specific force (m/s^2), chip frame z up, and the time step (s). */
+void qb_ikf_update(qb_ikf_t *f, qb_real gx, qb_real gy, qb_real gz, qb_real ax, qb_real ay, qb_real az, qb_real dt);
+/* The attitude predicted over the latency (w x y z), and its ZYX angles (roll, pitch, yaw; rad, z up). */
+void qb_ikf_quaternion(const qb_ikf_t *f, qb_real q[4]);
+void qb_ikf_angles(const qb_ikf_t *f, qb_real out[3]);
+
+/* --- the flight core (qb_flight.c) ------------------------------------------------------------------------ */
+
+typedef struct {
+    qb_real yaw_p, p1, p2, height_p, height_d, height_i;
+} qb_gains_t;
+
+typedef struct {
+    qb_gains_t g;
+    qb_height_t hest;
+    qb_ikf_t ikf;     /* the RAW path's filter: runs on every IMU sample, so it is converged on entering RAW */
+    uint32_t n_imu;
+    uint8_t mode, calibrated, have_dmp, height_raw, sp_from_est, panic_landed;
+    qb_real g_off[3], a_off[3];
+    qb_real cal_dmp_phi, cal_dmp_theta, cal_pressure;
+    qb_real sp, sq, sr, sax, say, saz;
+    qb_real dmp_phi, dmp_theta, dmp_psi;
+    qb_real phi, theta;
+    uint8_t psi_raw;
+    qb_real q[4];
+    qb_real height, vz, setpoint;
+    qb_real z_base, z_int, sp_cap0, sp_base, sp_offset;
+    int32_t lift_entry;
+    qb_real panic_scale, panic_i, panic_level, panic_start, land_s;
+    int32_t panic_ae;
+    uint16_t ae[4];
+} qb_flight_t;
+
+void qb_flight_init(qb_flight_t *fc);
+void qb_flight_set_calibration(qb_flight_t *fc, const qb_real gyro[3], const qb_real accel[3], qb_real dmp_phi,
+                               qb_real dmp_theta, qb_real pressure);
+void qb_flight_imu(qb_flight_t *fc, const int16_t raw[6], qb_real dt);
+void qb_flight_dmp(qb_flight_t *fc, const float q[4]);
+void qb_flight_baro(qb_flight_t *fc, qb_real pressure_pa, qb_real dt);
+void qb_flight_enter_mode(qb_flight_t *fc, uint8_t mode, int32_t lift);
+void qb_flight_control(qb_flight_t *fc, uint8_t mode, const int32_t sticks[4], qb_real dt, uint16_t out[4]);
+void qb_flight_attitude_cdeg(const qb_flight_t *fc, int32_t out[3]);
+void qb_quaternion_to_euler(qb_real w, qb_real x, qb_real y, qb_real z, qb_real out[3]);
+uint32_t qb_isqrt(uint32_t square);
+void qb_mix(int32_t z, qb_real l, qb_real m, qb_real n, int armed, uint16_t out[4]);
+
+/* --- the board (qb_board.c) ------------------------------------------------------------------------------- */
+
+typedef struct {
+    uint16_t board_id;
+    qb_real link_timeout_s;
+    qb_real link_failsafe_s;
+    uint32_t phase_tk[QB_TIMERS]; /* the timers' first expiry, RTC ticks (fcb_sim's scheduler draws them) */
+    uint8_t boot_hello;
+} qb_config_t;
+
+typedef struct qb_board {
+    qb_config_t cfg;
+    qb_modes_t modes;
+    qb_flight_t core;
+    qp_encoder_t enc;
+    qp_decoder_t dec;
+    uint64_t now;
+    uint8_t flags[QB_TASKS];
+    uint64_t next_tk[QB_TIMERS];
+    uint64_t next_us[QB_TIMERS];
+    uint8_t rr;
+    uint8_t raw_path;               /* the sensor path: 1 RAW (400 Hz), 0 DMP (200 Hz) */
+    uint8_t sample_set, baro_set, sticks_set, last_frame_set, hb_sent_set, hb_rtt_fresh, have_last;
+    uint64_t sample_t, baro_t, last_frame_us, hb_sent_us, last_cmd_us;
+    uint16_t hb_sent_counter;
+    uint32_t rtt_us;
+    uint32_t heartbeats, telemetry_runs;
+    uint64_t height_due, status_due;
+    int32_t sticks_used[4];
+    uint16_t ae[4];
+    int32_t pressure, temperature;
+    uint16_t battery;
+    qp_command_t last_cmd;
+    qp_ack_t last_ack;
+    /* parameters the core does not hold itself */
+    int32_t telemetry_hz, sensor_path, scheduler, stick_reaction, queue_rule, log_scheme, attitude_filter;
+    int32_t k_gyro_raw, fixed_point, height_estimator;
+    uint32_t tx_dropped;
+} qb_board_t;
+
+void qb_config_default(qb_config_t *cfg);
+void qb_init(qb_board_t *b, const qb_config_t *cfg);
+/* Run every task due at hal_time_us() (the timers that expired, bytes that arrived). */
+void qb_poll(qb_board_t *b);
+/* The board time at which a timer next expires (a driver sleeps until then, or until bytes arrive). */
+uint64_t qb_next_event_us(const qb_board_t *b);
+/* Feed received bytes to the parser at once (the host backend's UART interrupt; qb_poll reads the HAL too). */
+void qb_receive(qb_board_t *b, const uint8_t *data, size_t len);
+
+/* Parameters (qb_params.c): the raw value in force, and a change with the guards of fcb_sim/paramtable.py. */
+int32_t qb_param_get(const qb_board_t *b, int id);
+uint8_t qb_param_set(qb_board_t *b, int id, int32_t raw, int mode_guard);
+const qb_param_spec_t *qb_param_spec(int id);
+
+#endif /* QB_BOARD_H */

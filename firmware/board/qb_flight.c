@@ -1,0 +1,370 @@
+/* qb_flight.c: the flight core, fcb_sim/flight.py and control.py in C. Calibrated samples and sticks in, motor
+ * commands out; the chip's axes are mapped to the body's once, where samples enter (p = gx, q = -gy, r = -gz).
+ * Units: angles 10430 LSB per rad, rates in raw gyro LSB, lift and moments in ae^2 (control.py explains them). */
+#include <math.h>
+#include <string.h>
+
+#include "qb_board.h"
+
+#define ANGLE_LSB_PER_RAD 10430.0
+#define ACC_LSB_PER_G 16384.0
+#define ACC_LSB_PER_MS2 (ACC_LSB_PER_G / 9.80665)
+#define STICK_ANGLE_SHIFT 3
+#define STICK_YAW_SHIFT 4
+#define LIFT_AE_MAX 800
+#define MANUAL_LM_GAIN 2
+#define MANUAL_N_GAIN 4
+#define AE_MAX 1000
+#define AE_IDLE 150
+#define PANIC_AE 370
+#define HEIGHT_STICK_RATE 0.5
+#define HEIGHT_STICK_DEADBAND 1500
+#define HEIGHT_I_LIMIT 100000.0
+#define PANIC_SLOW_M_S 1.0
+#define PANIC_FAST_M_S 3.0
+#define PANIC_SLOW_BELOW_M 10.0
+#define PANIC_FAST_ABOVE_M 40.0
+#define PANIC_KP 60.0
+#define PANIC_KI 60.0
+#define PANIC_MAX_AE 700.0
+#define PANIC_MIN_FRAC 0.4
+#define PANIC_LAND_FRAC 0.6
+#define PANIC_LAND_VZ 0.3
+#define PANIC_LAND_S 0.5
+#define ASIN_FALLBACK 0.99
+#define RAD_S_PER_LSB (1.0 / (16.4 * 180.0 / 3.141592653589793)) /* 1 / (GYRO_LSB_PER_DPS * 180 / pi) */
+
+static qb_real gain_default(int id)
+{
+    const qb_param_spec_t *s = &QB_PARAMS[id - 1];
+    return s->def * s->scale;
+}
+
+void qb_flight_init(qb_flight_t *fc)
+{
+    memset(fc, 0, sizeof *fc);
+    fc->g.yaw_p = gain_default(QP_PARAM_YAW_P);
+    fc->g.p1 = gain_default(QP_PARAM_P1);
+    fc->g.p2 = gain_default(QP_PARAM_P2);
+    fc->g.height_p = gain_default(QP_PARAM_HEIGHT_P);
+    fc->g.height_d = gain_default(QP_PARAM_HEIGHT_D);
+    fc->g.height_i = gain_default(QP_PARAM_HEIGHT_I);
+    qb_height_init(&fc->hest);
+    qb_ikf_reset(&fc->ikf);
+    fc->panic_ae = PANIC_AE;
+    fc->panic_scale = 1.0;
+    fc->mode = QP_MODE_SAFE;
+    fc->saz = -ACC_LSB_PER_G;
+    fc->q[0] = 1.0;
+    fc->a_off[2] = 0.0;
+    fc->cal_pressure = 101325.0;
+}
+
+/* --- integer square root and mixing (control.py) ----------------------------------------------------------- */
+
+static unsigned bit_length(uint32_t v)
+{
+    unsigned n = 0;
+    while (v) {
+        n++;
+        v >>= 1;
+    }
+    return n;
+}
+
+/* The report's appendix C (clz first guess, two Newton-Raphson steps) plus the correction step: error <= 1. */
+uint32_t qb_isqrt(uint32_t square)
+{
+    uint32_t xn;
+    if (square == 0)
+        return 0;
+    xn = (uint32_t)1 << (bit_length(square) >> 1);
+    xn = (xn + square / xn) >> 1;
+    xn = (xn + square / xn) >> 1;
+    if ((uint64_t)xn * xn > square)
+        xn--;
+    return xn;
+}
+
+static int32_t clamp_moment(qb_real v)
+{
+    return v > 1e9 ? 1000000000 : v < -1e9 ? -1000000000 : (int32_t)v;
+}
+
+void qb_mix(int32_t z, qb_real l, qb_real m, qb_real n, int armed, uint16_t out[4])
+{
+    /* moments past 1e9 ae^2 saturate every motor either way: clamped, they convert as int32 (no 64-bit float
+     * conversion, which costs the M0 the soft double routines) */
+    int64_t s = -(int64_t)z, li = 2 * (int64_t)clamp_moment(l), mi = 2 * (int64_t)clamp_moment(m);
+    int64_t ni = clamp_moment(n);
+    int64_t a[4];
+    int32_t lo = armed ? AE_IDLE : 0;
+    int j;
+    a[0] = (s - ni + mi) >> 2;
+    a[1] = (s + ni - li) >> 2;
+    a[2] = (s - ni - mi) >> 2;
+    a[3] = (s + ni + li) >> 2;
+    for (j = 0; j < 4; j++) {
+        /* beyond 4e6 the root is past AE_MAX whatever the last step's error: no 64-bit root needed */
+        int32_t v = a[j] <= 0 ? 0 : a[j] > 4000000 ? AE_MAX + 1 : (int32_t)qb_isqrt((uint32_t)a[j]);
+        out[j] = (uint16_t)(v < lo ? lo : v > AE_MAX ? AE_MAX : v);
+    }
+}
+
+static int32_t lift_to_z(int32_t lift)
+{
+    int32_t ae;
+    if (lift <= 0)
+        return 0;
+    ae = lift * LIFT_AE_MAX / 32767;
+    return -4 * ae * ae;
+}
+
+/* --- samples --------------------------------------------------------------------------------------------- */
+
+void qb_quaternion_to_euler(qb_real w, qb_real x, qb_real y, qb_real z, qb_real out[3])
+{
+    qb_real n2 = w * w + x * x + y * y + z * z, sp;
+    if (n2 <= 0.0) {
+        out[0] = out[1] = out[2] = 0.0;
+        return;
+    }
+    if (QM(fabs)(n2 - 1.0) > 1e-9) {
+        qb_real s = 1.0 / QM(sqrt)(n2);
+        w *= s;
+        x *= s;
+        y *= s;
+        z *= s;
+    }
+    out[0] = QM(atan2)(2.0 * (w * x + y * z), 1.0 - 2.0 * (x * x + y * y));
+    sp = 2.0 * (w * y - x * z);
+    if (-ASIN_FALLBACK < sp && sp < ASIN_FALLBACK)
+        out[1] = QM(atan2)(sp, QM(sqrt)(1.0 - sp * sp)); /* the report's eq. 5 */
+    else
+        out[1] = sp >= 1.0 ? 1.5707963267948966 : sp <= -1.0 ? -1.5707963267948966 /* asin, clamped */
+                 : QM(atan2)(sp, QM(sqrt)((1.0 - sp) * (1.0 + sp)));
+    out[2] = QM(atan2)(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z));
+}
+
+void qb_flight_set_calibration(qb_flight_t *fc, const qb_real gyro[3], const qb_real accel[3], qb_real dmp_phi,
+                               qb_real dmp_theta, qb_real pressure)
+{
+    memcpy(fc->g_off, gyro, sizeof fc->g_off);
+    fc->a_off[0] = accel[0];
+    fc->a_off[1] = accel[1];
+    fc->a_off[2] = accel[2] - ACC_LSB_PER_G; /* gravity stays on z */
+    fc->cal_dmp_phi = dmp_phi;
+    fc->cal_dmp_theta = dmp_theta;
+    fc->cal_pressure = pressure;
+    fc->calibrated = 1;
+    qb_ikf_reset(&fc->ikf);
+    qb_height_reset(&fc->hest, pressure);
+    fc->height = fc->vz = 0.0;
+}
+
+void qb_flight_imu(qb_flight_t *fc, const int16_t raw[6], qb_real dt)
+{
+    qb_real cgx = raw[0] - fc->g_off[0], cgy = raw[1] - fc->g_off[1], cgz = raw[2] - fc->g_off[2];
+    qb_real cax = raw[3] - fc->a_off[0], cay = raw[4] - fc->a_off[1], caz = raw[5] - fc->a_off[2];
+    const qb_real s = 1.0 / ACC_LSB_PER_MS2;
+    fc->sp = cgx;
+    fc->sq = -cgy;
+    fc->sr = -cgz;
+    fc->sax = cax;
+    fc->say = -cay;
+    fc->saz = -caz;
+    if (dt <= 0.0)
+        return;
+    qb_ikf_update(&fc->ikf, cgx * RAD_S_PER_LSB, cgy * RAD_S_PER_LSB, cgz * RAD_S_PER_LSB, cax * s, cay * s,
+                  caz * s, dt);
+    /* no DMP (RAW mode): the height estimator takes the filter's attitude at 100 Hz, as fast as the DMP's */
+    fc->n_imu++;
+    if (!fc->have_dmp && !(fc->n_imu & 3))
+        qb_ikf_quaternion(&fc->ikf, fc->q);
+    qb_height_update_imu(&fc->hest, cax * s, cay * s, caz * s, fc->q[0], fc->q[1], fc->q[2], fc->q[3], dt);
+    fc->height = fc->hest.height;
+    fc->vz = fc->hest.vz;
+}
+
+void qb_flight_dmp(qb_flight_t *fc, const float q[4])
+{
+    qb_real e[3];
+    qb_quaternion_to_euler(q[0], q[1], q[2], q[3], e);
+    fc->dmp_phi = e[0] - fc->cal_dmp_phi;
+    fc->dmp_theta = -e[1] - fc->cal_dmp_theta;
+    fc->dmp_psi = -e[2];
+    fc->q[0] = q[0];
+    fc->q[1] = q[1];
+    fc->q[2] = q[2];
+    fc->q[3] = q[3];
+    fc->have_dmp = 1;
+}
+
+void qb_flight_baro(qb_flight_t *fc, qb_real pressure_pa, qb_real dt)
+{
+    qb_height_update_baro(&fc->hest, pressure_pa, dt);
+}
+
+/* --- modes and control ------------------------------------------------------------------------------------ */
+
+void qb_flight_enter_mode(qb_flight_t *fc, uint8_t mode, int32_t lift)
+{
+    if (mode == QP_MODE_HEIGHT) {
+        fc->sp_from_est = 1;
+        fc->sp_cap0 = qb_height_capture(&fc->hest);
+        fc->sp_base = fc->height;
+        fc->sp_offset = 0.0;
+        fc->setpoint = fc->sp_base;
+        fc->lift_entry = lift;
+        fc->z_base = lift_to_z(lift);
+        fc->z_int = 0.0;
+        fc->height_raw = fc->mode == QP_MODE_RAW || (fc->mode == QP_MODE_HEIGHT && fc->height_raw);
+    } else if (mode == QP_MODE_PANIC) {
+        fc->panic_scale = 1.0;
+        fc->panic_landed = 0;
+        fc->land_s = 0.0;
+        fc->panic_start = fc->panic_level = (fc->ae[0] + fc->ae[1] + fc->ae[2] + fc->ae[3]) / 4.0;
+        fc->panic_i = fc->panic_start - fc->panic_ae;
+    } else if (mode == QP_MODE_CALIBRATION) {
+        fc->cal_dmp_phi = fc->cal_dmp_theta = 0.0;
+    }
+    if (mode == QP_MODE_RAW)
+        fc->have_dmp = 0;
+    fc->mode = mode;
+}
+
+/* The angles the loops fly on: the on-board filter's in RAW (and HEIGHT entered from RAW), else the DMP's. */
+static int on_filter(const qb_flight_t *fc, uint8_t mode)
+{
+    return mode == QP_MODE_RAW || (mode == QP_MODE_HEIGHT && fc->height_raw);
+}
+
+static void attitude(const qb_flight_t *fc, uint8_t mode, qb_real *phi, qb_real *theta)
+{
+    if (on_filter(fc, mode)) {
+        qb_real e[3];
+        qb_ikf_angles(&fc->ikf, e);
+        *phi = e[0];
+        *theta = -e[1];
+    } else {
+        *phi = fc->dmp_phi;
+        *theta = fc->dmp_theta;
+    }
+}
+
+static qb_real panic_descent_rate(qb_real height_m)
+{
+    qb_real f = (height_m - PANIC_SLOW_BELOW_M) / (PANIC_FAST_ABOVE_M - PANIC_SLOW_BELOW_M);
+    f = f < 0.0 ? 0.0 : f > 1.0 ? 1.0 : f;
+    return PANIC_SLOW_M_S + (PANIC_FAST_M_S - PANIC_SLOW_M_S) * f;
+}
+
+static void panic_motors(qb_flight_t *fc, qb_real scale, qb_real dt, uint16_t out[4])
+{
+    int32_t level;
+    if (!fc->panic_landed && dt > 0.0) {
+        qb_real err = -panic_descent_rate(fc->height) - fc->vz, floor_, lvl;
+        qb_real i = fc->panic_i + PANIC_KI * err * dt;
+        int still;
+        fc->panic_i = i < -fc->panic_ae ? -fc->panic_ae : i > PANIC_MAX_AE ? PANIC_MAX_AE : i;
+        floor_ = PANIC_MIN_FRAC * fc->panic_ae;
+        if (fc->panic_start < floor_)
+            floor_ = fc->panic_start;
+        lvl = fc->panic_ae + PANIC_KP * err + fc->panic_i;
+        lvl = lvl > PANIC_MAX_AE ? PANIC_MAX_AE : lvl;
+        lvl = lvl < floor_ ? floor_ : lvl;
+        still = lvl < PANIC_LAND_FRAC * fc->panic_ae && QM(fabs)(fc->vz) < PANIC_LAND_VZ;
+        fc->land_s = still ? fc->land_s + dt : 0.0;
+        fc->panic_landed = fc->land_s >= PANIC_LAND_S;
+        fc->panic_level = lvl;
+    }
+    scale = scale < 0.0 ? 0.0 : scale > 1.0 ? 1.0 : scale;
+    level = (int32_t)(fc->panic_level * scale);
+    if (fc->calibrated && level > 0) {
+        const qb_gains_t *g = &fc->g;
+        qb_real phi, theta, lm, mm;
+        attitude(fc, fc->mode, &phi, &theta);
+        lm = g->p2 * (g->p1 * (0.0 - phi * ANGLE_LSB_PER_RAD) - fc->sp);
+        mm = g->p2 * (g->p1 * (0.0 - theta * ANGLE_LSB_PER_RAD) - fc->sq);
+        qb_real nm = g->yaw_p * (0.0 - fc->sr);
+        qb_mix(-4 * level * level, lm, mm, nm, 0, out);
+        return;
+    }
+    out[0] = out[1] = out[2] = out[3] = (uint16_t)level;
+}
+
+static qb_real height_z(qb_flight_t *fc, int32_t lift, qb_real dt)
+{
+    const qb_gains_t *g = &fc->g;
+    int32_t d = lift - fc->lift_entry;
+    qb_real sp, sp_mm, h_mm, z;
+    int sat;
+    if (d > HEIGHT_STICK_DEADBAND || d < -HEIGHT_STICK_DEADBAND)
+        fc->sp_offset += d / 32767.0 * HEIGHT_STICK_RATE * dt;
+    sp = fc->sp_base + fc->sp_offset;
+    if (fc->sp_from_est)
+        sp += fc->hest.captured_height - fc->sp_cap0;
+    fc->setpoint = sp;
+    sp_mm = fc->setpoint * 1000.0;
+    h_mm = fc->height * 1000.0;
+    z = fc->z_base - g->height_p * (sp_mm - h_mm) + g->height_d * (fc->vz * 1000.0) - fc->z_int;
+    sat = z > 0.0;
+    if (sat)
+        z = 0.0;
+    if (g->height_i > 0.0) {
+        /* saturated: only unwinding steps count (anti-windup), and the integral is clamped */
+        qb_real step = g->height_i * (sp_mm - h_mm) * dt, i;
+        if (!(sat && step * fc->z_int > 0.0)) {
+            i = fc->z_int + step;
+            fc->z_int = i > HEIGHT_I_LIMIT ? HEIGHT_I_LIMIT : i < -HEIGHT_I_LIMIT ? -HEIGHT_I_LIMIT : i;
+        }
+    }
+    return z;
+}
+
+void qb_flight_control(qb_flight_t *fc, uint8_t mode, const int32_t sticks[4], qb_real dt, uint16_t out[4])
+{
+    const qb_gains_t *g = &fc->g;
+    int32_t roll = sticks[0], pitch = sticks[1], yaw = sticks[2], lift = sticks[3];
+    if (mode != fc->mode)
+        qb_flight_enter_mode(fc, mode, lift);
+    if (mode == QP_MODE_FULL || mode == QP_MODE_HEIGHT || mode == QP_MODE_RAW) {
+        qb_real phi, theta, lm, mm, nm, z;
+        attitude(fc, mode, &phi, &theta);
+        fc->phi = phi;
+        fc->theta = theta;
+        fc->psi_raw = (uint8_t)on_filter(fc, mode);
+        lm = g->p2 * (g->p1 * ((roll >> STICK_ANGLE_SHIFT) - phi * ANGLE_LSB_PER_RAD) - fc->sp);
+        mm = g->p2 * (g->p1 * ((pitch >> STICK_ANGLE_SHIFT) - theta * ANGLE_LSB_PER_RAD) - fc->sq);
+        nm = g->yaw_p * ((yaw >> STICK_YAW_SHIFT) - fc->sr);
+        z = mode == QP_MODE_HEIGHT ? height_z(fc, lift, dt) : lift_to_z(lift);
+        qb_mix((int32_t)z, lm, mm, nm, 1, out);
+    } else if (mode == QP_MODE_MANUAL || mode == QP_MODE_YAW) {
+        qb_real nm;
+        fc->phi = fc->dmp_phi;
+        fc->theta = fc->dmp_theta;
+        fc->psi_raw = 0;
+        nm = mode == QP_MODE_YAW ? g->yaw_p * ((yaw >> STICK_YAW_SHIFT) - fc->sr) : (qb_real)yaw * MANUAL_N_GAIN;
+        qb_mix(lift_to_z(lift), (qb_real)roll * MANUAL_LM_GAIN, (qb_real)pitch * MANUAL_LM_GAIN, nm, 1, out);
+    } else if (mode == QP_MODE_PANIC) {
+        panic_motors(fc, fc->panic_scale, dt, out);
+    } else {
+        out[0] = out[1] = out[2] = out[3] = 0;
+    }
+    memcpy(fc->ae, out, sizeof fc->ae);
+    fc->hest.motors_off = !(out[0] || out[1] || out[2] || out[3]);
+}
+
+void qb_flight_attitude_cdeg(const qb_flight_t *fc, int32_t out[3])
+{
+    const qb_real k = 18000.0 / 3.141592653589793;
+    out[0] = (int32_t)QM(lround)(fc->phi * k);
+    out[1] = (int32_t)QM(lround)(fc->theta * k);
+    qb_real psi = fc->dmp_psi;
+    if (fc->psi_raw) {
+        qb_real e[3];
+        qb_ikf_angles(&fc->ikf, e);
+        psi = -e[2];
+    }
+    out[2] = (int32_t)QM(lround)(psi * k);
+}

@@ -1,0 +1,327 @@
+/* qb_test.c: the C board's own unit tests, built with ASan and UBSan (make -C firmware board-test). A stub HAL
+ * (a level craft on the floor, or hovering, with seeded noise) stands in for the hardware. Exit status 0 when
+ * every check passes; each failure prints one line. The tests a team reuses for its own board (docs/firmware.md).
+ */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "hal.h"
+#include "qb_board.h"
+
+static int failures;
+#define CHECK(cond)                                                                                                \
+    do {                                                                                                           \
+        if (!(cond)) {                                                                                             \
+            failures++;                                                                                            \
+            printf("FAIL %s:%d: %s\n", __FILE__, __LINE__, #cond);                                                 \
+        }                                                                                                          \
+    } while (0)
+
+/* --- the stub HAL ----------------------------------------------------------------------------------------- */
+
+static uint64_t t_us;
+static uint32_t rng = 12345u;
+static uint8_t rx[4096];
+static size_t rx_len;
+static uint8_t tx[1 << 16];
+static size_t tx_len;
+static uint16_t motors[4];
+static uint16_t battery = 1180;
+
+static int noise(int amp)
+{
+    rng = rng * 1103515245u + 12345u;
+    return (int)((rng >> 16) % (uint32_t)(2 * amp + 1)) - amp;
+}
+
+uint64_t hal_time_us(void) { return t_us; }
+
+size_t hal_uart_read(uint8_t *buf, size_t cap)
+{
+    size_t n = rx_len < cap ? rx_len : cap;
+    memcpy(buf, rx, n);
+    memmove(rx, rx + n, rx_len - n);
+    rx_len -= n;
+    return n;
+}
+
+size_t hal_uart_write(const uint8_t *data, size_t len)
+{
+    if (tx_len + len > sizeof tx)
+        tx_len = 0; /* the tests read what they need; older bytes go */
+    memcpy(tx + tx_len, data, len);
+    tx_len += len;
+    return len;
+}
+
+void hal_imu_read(int16_t out[6])
+{
+    int i;
+    for (i = 0; i < 3; i++)
+        out[i] = (int16_t)(20 + noise(15));
+    out[3] = (int16_t)noise(40);
+    out[4] = (int16_t)noise(40);
+    out[5] = (int16_t)(16384 + noise(60));
+}
+
+int hal_dmp_read(float q[4])
+{
+    q[0] = 1.0f;
+    q[1] = 0.001f * (float)noise(5);
+    q[2] = 0.001f * (float)noise(5);
+    q[3] = 0.0f;
+    return (t_us / 5000u) % 2 == 0;
+}
+
+void hal_baro_read(int32_t *p, int32_t *temp)
+{
+    *p = 101325 + noise(2);
+    *temp = 2500;
+}
+
+uint16_t hal_battery_read(void) { return battery; }
+void hal_motors_set(const uint16_t ae[4]) { memcpy(motors, ae, sizeof motors); }
+int32_t hal_impact_mm_s(void) { return 0; }
+
+int hal_flash_write(uint32_t addr, const uint8_t *data, size_t len)
+{
+    (void)addr;
+    (void)data;
+    (void)len;
+    return -1;
+}
+
+int hal_flash_read(uint32_t addr, uint8_t *data, size_t len)
+{
+    (void)addr;
+    (void)data;
+    (void)len;
+    return -1;
+}
+
+/* --- helpers ---------------------------------------------------------------------------------------------- */
+
+static qb_board_t board;
+static qp_encoder_t pc;
+static uint8_t cmd_id;
+
+static void run_until(uint64_t until)
+{
+    while (qb_next_event_us(&board) < until) {
+        t_us = qb_next_event_us(&board);
+        qb_poll(&board);
+    }
+    t_us = until;
+}
+
+static void put(const uint8_t *frame, size_t n)
+{
+    memcpy(rx + rx_len, frame, n);
+    rx_len += n;
+    qb_poll(&board);
+}
+
+static void joystick(int16_t lift, int16_t roll)
+{
+    qp_joystick_t js = {roll, 0, 0, lift, 0};
+    uint8_t f[QP_MAX_FRAME];
+    put(f, qp_encode_joystick(&pc, &js, f));
+}
+
+/* The status of the Ack to a command (the last Ack the board sent). */
+static int command(uint8_t op, int32_t arg)
+{
+    qp_command_t c;
+    qp_decoder_t dec;
+    qp_packet_t pkt;
+    uint8_t f[QP_MAX_FRAME];
+    size_t i;
+    int status = -1;
+    c.cmd_id = ++cmd_id;
+    c.op = op;
+    c.arg = arg;
+    tx_len = 0;
+    put(f, qp_encode_command(&pc, &c, f));
+    qp_decoder_init(&dec);
+    for (i = 0; i < tx_len; i++) {
+        if (qp_decode_byte(&dec, tx[i], &pkt) && pkt.type == QP_TYPE_ACK && pkt.u.ack.cmd_id == cmd_id)
+            status = pkt.u.ack.status;
+    }
+    return status;
+}
+
+static void boot(void)
+{
+    qb_config_t cfg;
+    t_us = 0;
+    rx_len = tx_len = 0;
+    battery = 1180;
+    memset(&pc, 0, sizeof pc);
+    qb_config_default(&cfg);
+    qb_init(&board, &cfg);
+}
+
+/* --- tests ------------------------------------------------------------------------------------------------ */
+
+static void test_isqrt(void)
+{
+    uint32_t x;
+    for (x = 0; x <= 1000000u; x++) {
+        uint32_t r = qb_isqrt(x), f = (uint32_t)floor(sqrt((double)x));
+        CHECK(r + 1 >= f && r <= f + 1);
+        if (!(r + 1 >= f && r <= f + 1))
+            break;
+    }
+}
+
+static void test_mix(void)
+{
+    uint16_t out[4];
+    qb_mix(-4 * 400 * 400, 0.0, 0.0, 0.0, 1, out);
+    CHECK(out[0] == 400 && out[1] == 400 && out[2] == 400 && out[3] == 400);
+    qb_mix(-4 * 400 * 400, 20000.0, 0.0, 0.0, 1, out); /* positive roll moment: left motor up, right down */
+    CHECK(out[3] > 400 && out[1] < 400 && out[0] == out[2]);
+    qb_mix(0, 0.0, 0.0, 0.0, 1, out); /* armed: idle */
+    CHECK(out[0] == 150);
+    qb_mix(-2000000000, 0.0, 0.0, 0.0, 0, out);
+    CHECK(out[0] == 1000);
+    qb_mix(2000000000, -1e12, 1e12, 1e12, 0, out); /* absurd inputs saturate, never overflow */
+    CHECK(out[0] <= 1000 && out[1] <= 1000);
+}
+
+static void test_ikf_finds_a_tilt_at_rest(void)
+{
+    qb_ikf_t f;
+    qb_real e[3];
+    const qb_real g = 9.81, phi = 10.0 * 3.14159265358979 / 180.0;
+    int i;
+    qb_ikf_reset(&f);
+    for (i = 0; i < 2000; i++) /* 5 s at 400 Hz, rolled 10 degrees, a small gyro bias */
+        qb_ikf_update(&f, 0.002, -0.001, 0.0005, 0.0, g * sin(phi), g * cos(phi), 0.0025);
+    qb_ikf_angles(&f, e);
+    CHECK(fabs(e[0] - phi) < 0.01 && fabs(e[1]) < 0.01);
+    qb_ikf_update(&f, 1e9, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0025); /* absurd samples saturate, never overflow */
+    qb_ikf_update(&f, 0.0, 0.0, 0.0, 0.0, 0.0, 9.81, -1.0);
+    qb_ikf_angles(&f, e);
+    CHECK(e[0] == e[0]);
+}
+
+static void test_guards(void)
+{
+    boot();
+    run_until(200000);
+    CHECK(command(QP_OP_MODE, QP_MODE_FULL) == QP_NAK_NOT_CALIBRATED);
+    joystick(5000, 0);
+    CHECK(command(QP_OP_MODE, QP_MODE_MANUAL) == QP_NAK_LIFT_NOT_ZERO);
+    joystick(0, 5000);
+    CHECK(command(QP_OP_MODE, QP_MODE_CALIBRATION) == QP_NAK_STICKS_NOT_NEUTRAL);
+    joystick(0, 0);
+    CHECK(command(QP_OP_MODE, 9) == QP_NAK_BAD_ARGUMENT);
+    CHECK(command(QP_OP_MODE, -1) == QP_NAK_BAD_ARGUMENT);
+    CHECK(command(99, 0) == QP_NAK_UNKNOWN_COMMAND);
+    CHECK(command(QP_OP_MODE, QP_MODE_CALIBRATION) == QP_NAK_OK);
+    run_until(1400000);
+    CHECK(board.modes.mode == QP_MODE_SAFE && board.modes.calibrated);
+    CHECK(command(QP_OP_MODE, QP_MODE_FULL) == QP_NAK_OK);
+    CHECK(command(QP_OP_MODE, QP_MODE_MANUAL) == QP_NAK_INVALID_TRANSITION);
+    joystick(9000, 0);
+    CHECK(command(QP_OP_MODE, QP_MODE_SAFE) == QP_NAK_LIFT_NOT_ZERO);
+    CHECK(command(QP_OP_MODE, QP_MODE_HEIGHT) == QP_NAK_OK);
+    CHECK(command(QP_OP_MODE, QP_MODE_PANIC) == QP_NAK_OK);
+    CHECK(command(QP_OP_MODE, QP_MODE_MANUAL) == QP_NAK_PANIC_ACTIVE);
+    run_until(t_us + 400000000);
+    joystick(0, 0);
+    CHECK(board.modes.mode == QP_MODE_SAFE && command(QP_OP_MODE, QP_MODE_RAW) == QP_NAK_OK && board.raw_path == 0);
+    run_until(t_us + 20000); /* the control step switches to the 400 Hz path */
+    CHECK(board.raw_path == 1 && command(QP_OP_MODE, QP_MODE_HEIGHT) == QP_NAK_OK);
+    CHECK(command(QP_OP_MODE, QP_MODE_FULL) == QP_NAK_INVALID_TRANSITION);
+    CHECK(command(QP_OP_SET_PARAM, (QP_PARAM_ATTITUDE_FILTER << 24) | 0) == QP_NAK_NOT_IN_SAFE);
+}
+
+static void test_link_loss_and_panic_end_in_safe(void)
+{
+    uint64_t t;
+    boot();
+    joystick(0, 0);
+    CHECK(command(QP_OP_MODE, QP_MODE_MANUAL) == QP_NAK_OK);
+    for (t = 100000; t < 1000000; t += 100000) {
+        joystick(8000, 0);
+        run_until(t);
+    }
+    CHECK(board.modes.mode == QP_MODE_MANUAL && motors[0] > 150);
+    run_until(1700000); /* silence: stage 1 holds level with the lift it had */
+    CHECK(board.modes.mode == QP_MODE_MANUAL && board.modes.link_hold && board.modes.hold_lift == 8000);
+    joystick(8000, 0); /* a frame back within link.failsafe_ms: control again */
+    CHECK(!board.modes.link_hold && board.modes.mode == QP_MODE_MANUAL);
+    CHECK(command(QP_OP_SET_PARAM, (QP_PARAM_LINK_FAILSAFE_MS << 24) | 2000) == QP_NAK_ONLY_SHORTER_IN_FLIGHT);
+    CHECK(command(QP_OP_SET_PARAM, (QP_PARAM_LINK_FAILSAFE_MS << 24) | 500) == QP_NAK_OK);
+    run_until(3000000); /* silence past both stages: PANIC */
+    CHECK(board.modes.mode == QP_MODE_PANIC);
+    run_until(400000000); /* the descent times out, the ramp ends, SAFE by itself */
+    CHECK(board.modes.mode == QP_MODE_SAFE && motors[0] == 0);
+}
+
+static void test_low_battery(void)
+{
+    boot();
+    joystick(0, 0);
+    CHECK(command(QP_OP_MODE, QP_MODE_MANUAL) == QP_NAK_OK);
+    battery = 1000;
+    joystick(1000, 0);
+    run_until(450000);
+    CHECK(board.modes.mode == QP_MODE_PANIC && board.modes.battery_low_latched);
+}
+
+static void test_params(void)
+{
+    int i;
+    boot();
+    for (i = 0; i < QB_PARAM_COUNT; i++) {
+        const qb_param_spec_t *s = &QB_PARAMS[i];
+        CHECK(qb_param_get(&board, s->id) == s->def);
+        CHECK(qb_param_set(&board, s->id, s->hi + 1, 1) == QP_NAK_OUT_OF_RANGE);
+        CHECK(qb_param_set(&board, s->id, s->lo - 1, 1) == QP_NAK_OUT_OF_RANGE);
+    }
+    CHECK(qb_param_set(&board, 0, 0, 1) == QP_NAK_UNKNOWN_PARAM);
+    CHECK(qb_param_set(&board, QB_PARAM_MAX_ID + 1, 0, 1) == QP_NAK_UNKNOWN_PARAM);
+    CHECK(qb_param_set(&board, QP_PARAM_P1, 5000, 1) == QP_NAK_OK && qb_param_get(&board, QP_PARAM_P1) == 5000);
+    CHECK(command(QP_OP_GAIN_P1, 2) == QP_NAK_OK && qb_param_get(&board, QP_PARAM_P1) == 6000);
+    CHECK(command(QP_OP_GAIN_P1, -1000) == QP_NAK_OK && qb_param_get(&board, QP_PARAM_P1) == 0);
+    CHECK(command(QP_OP_SET_PARAM, (QP_PARAM_TRIM_STEP << 24) | 100) == QP_NAK_OK);
+    CHECK(command(QP_OP_PARAM_LIST, 0) == QP_NAK_OK);
+    CHECK(command(QP_OP_LOG_START, 0) == QP_NAK_NOT_IMPLEMENTED);
+}
+
+static void test_garbage_never_hurts(void)
+{
+    int i, j;
+    boot();
+    for (i = 0; i < 2000; i++) {
+        uint8_t junk[97];
+        for (j = 0; j < (int)sizeof junk; j++)
+            junk[j] = (uint8_t)noise(200);
+        put(junk, sizeof junk);
+        run_until(t_us + 1000);
+    }
+    for (i = 0; i < 300; i++) { /* commands with any op and arg */
+        command((uint8_t)noise(30), noise(1 << 20) * 1024);
+        run_until(t_us + 2500);
+    }
+    CHECK(board.modes.mode == QP_MODE_SAFE || board.modes.mode == QP_MODE_PANIC);
+}
+
+int main(void)
+{
+    test_isqrt();
+    test_mix();
+    test_ikf_finds_a_tilt_at_rest();
+    test_guards();
+    test_link_loss_and_panic_end_in_safe();
+    test_low_battery();
+    test_params();
+    test_garbage_never_hurts();
+    printf("qb_test: %s (%d failure%s)\n", failures ? "FAILED" : "ok", failures, failures == 1 ? "" : "s");
+    return failures ? 1 : 0;
+}

@@ -1,0 +1,93 @@
+"""The C board's own checks: its unit tests under ASan and UBSan, the whole board linked for the Cortex-M0 within
+the size goal, lockstep (the same seed flies the same flight), `fcb-sim serve --pty --board c` and `fcb-sim run
+--board c` from the outside, and one line where no C compiler exists."""
+
+from __future__ import annotations
+
+import os
+import re
+import shutil
+import signal
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from fcb_sim import cboard
+from tests.support.firmware import NO_ARM, SAN_ENV
+
+FIRMWARE = Path(cboard.__file__).resolve().parent.parent / "firmware"
+HAVE_CC = shutil.which("cc") is not None and shutil.which("make") is not None
+needs_cc = pytest.mark.skipif(not HAVE_CC, reason="no C compiler (cc) or make: the C board's tests are skipped")
+M0_FLASH_GOAL, M0_RAM_GOAL = 32 * 1024, 8 * 1024
+
+
+def _make(tmp_path: Path, *targets: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(["make", "-s", "-C", str(FIRMWARE), f"BUILD={tmp_path}", *targets], capture_output=True,
+                          text=True, env=SAN_ENV)
+
+
+@needs_cc
+def test_the_c_boards_unit_tests_pass_under_asan_and_ubsan(tmp_path: Path) -> None:
+    proc = _make(tmp_path, "board-test")
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    assert "qb_test: ok (0 failures)" in proc.stdout
+
+
+@pytest.mark.skipif(shutil.which("arm-none-eabi-gcc") is None, reason=NO_ARM)
+def test_the_whole_board_links_for_the_cortex_m0_within_the_goal(tmp_path: Path) -> None:
+    proc = _make(tmp_path, "board-m0")
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    text, data, bss = (int(v) for v in re.search(r"^\s*(\d+)\s+(\d+)\s+(\d+)\s", proc.stdout, re.M).groups())
+    assert text + data < M0_FLASH_GOAL and data + bss < M0_RAM_GOAL, proc.stdout
+
+
+@needs_cc
+def test_lockstep_the_same_seed_flies_the_same_flight() -> None:
+    a, b = (cboard.fly_board("c", "height-hold", seed=4, duration=8.0) for _ in range(2))
+    for m in (a, b):
+        m.pop("wall_s")
+    assert a == b and a["mode"] == "HEIGHT" and a["naks"] == 0
+    assert a["height_rms_m"] < 0.3 and a["attitude_rms_deg"] < 2.0
+
+
+@needs_cc
+def test_fcb_sim_run_board_c_prints_its_figures() -> None:
+    out = subprocess.run([sys.executable, "-m", "fcb_sim", "run", "--board", "c", "--scenario", "hover",
+                          "--duration", "8", "--json"], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert '"board": "c"' in out.stdout.splitlines()[-1] and "mode: FULL" in out.stdout
+
+
+@needs_cc
+def test_fcb_sim_serve_board_c_prints_its_pty_and_ends_cleanly() -> None:
+    proc = subprocess.Popen([sys.executable, "-m", "fcb_sim", "serve", "--pty", "--board", "c"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        assert proc.stdout is not None
+        line = proc.stdout.readline()
+        assert line.startswith("pty: /dev/") and os.path.exists(line.split()[1])
+    finally:
+        proc.send_signal(signal.SIGTERM)
+        out, err = proc.communicate(timeout=20)
+    assert proc.returncode == 0, err
+    assert "mode SAFE" in out
+
+
+def test_without_a_compiler_one_line_says_what_to_install(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(cboard.shutil, "which", lambda name: None)
+    with pytest.raises(cboard.CBoardUnavailable) as err:
+        cboard.library_path(tmp_path)
+    assert str(err.value) == cboard.NO_CC and "\n" not in str(err.value)
+
+
+@pytest.mark.parametrize(("argv", "says"), [
+    (["term", "--board", "c", "--serial", "/dev/null"], "--board needs --sim"),
+    (["term", "--sim", "--board", "c", "--preset", "report"], "--board c has the default preset only"),
+    (["fcb_sim", "serve", "--pty", "--board", "c", "--preset", "report"], "the C board has the default preset only"),
+    (["fcb_sim", "serve", "--pty", "--board", "c", "--ble-hci", "tcp-server:127.0.0.1:0"], "has no BLE radio yet"),
+])
+def test_what_the_c_board_cannot_do_is_one_line(argv: list[str], says: str) -> None:
+    out = subprocess.run([sys.executable, "-m", *argv], capture_output=True, text=True, timeout=60)
+    assert out.returncode == 2 and says in out.stderr and len(out.stderr.strip().splitlines()) == 1, out.stderr
