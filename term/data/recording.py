@@ -690,8 +690,12 @@ class RecordingTransport(Transport):
     """A transport that records what passes through it: ``read`` and ``write`` go to ``inner`` and their bytes to
     ``recorder`` as ``link``'s, timed by ``clock``. Everything else is ``inner``'s."""
 
-    def __init__(self, inner: Transport, recorder: SessionRecorder, link: str, clock: Callable[[], float]) -> None:
-        self.inner, self.recorder, self.link, self.clock = inner, recorder, link, clock
+    def __init__(self, inner: Transport, recorder: Any, link: str, clock: Callable[[], float]) -> None:
+        """``recorder``: a SessionRecorder, or anything with its ``received`` and ``sent`` (the live Foxglove
+        server), or a tuple of them: each gets the same bytes with the same time (one clock reading)."""
+        self.inner, self.link, self.clock = inner, link, clock
+        self.sinks: tuple[Any, ...] = recorder if isinstance(recorder, tuple) else (recorder,)
+        self.recorder = self.sinks[0]
 
     @property  # type: ignore[override]
     def name(self) -> str:
@@ -708,10 +712,13 @@ class RecordingTransport(Transport):
 
     async def read(self) -> bytes:
         data = await self.inner.read()
-        self.recorder.received(self.link, data, self.clock())
+        now = self.clock()
+        for sink in self.sinks:
+            sink.received(self.link, data, now)
         return data
 
     async def write(self, data: bytes) -> None:
-        self.recorder.sent(self.link, data, self.clock())
+        now = self.clock()
+        for sink in self.sinks:
+            sink.sent(self.link, data, now)
         await self.inner.write(data)
-
