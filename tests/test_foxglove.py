@@ -83,10 +83,10 @@ def test_the_attitude_is_a_frame_transform_in_the_rooms_z_up_frame() -> None:
 
 
 def test_decoded_packets_are_in_si_units() -> None:
-    ch, cols = packet_channel("cable", "rx", SPEC_OF[Attitude])
+    ch, _ = packet_channel("cable", "rx", SPEC_OF[Attitude])
     msgs = Channels().frame(WALL, "cable", "rx", Attitude(int(Mode.FULL), 9000, -4500, 18000, 164, 0, 0))
     assert [m[0].topic for m in msgs] == ["/cable/rx/Attitude", "/cable/pose"]
-    att = msgs[0][2]
+    att = json.loads(msgs[0][2])
     assert att["phi_rad"] == pytest.approx(math.pi / 2, abs=1e-6) and att["psi_rad"] == pytest.approx(math.pi, 1e-6)
     assert att["sp_radps"] == pytest.approx(math.radians(10.0), abs=1e-6) and att["mode_name"] == "FULL"
     props = json.loads(ch.schema)["properties"]

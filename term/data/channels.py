@@ -27,13 +27,13 @@ from __future__ import annotations
 
 import json
 import math
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass
 from functools import cache
 from typing import Any
 
 from term.core.protocol import SPEC_OF, Attitude, Compact, Compact2, Decoder, Height, PacketSpec
-from term.data.columns import Column, json_schema, packet_columns, packet_record
+from term.data.columns import json_schema, packet_columns, packet_json
 from term.data.recording import LEVEL_OF, LOG_SCHEMA, RAW_ENCODING, LinkBytes, LoggedEvent, StationRecord
 
 ROOM, CRAFT, TRUTH = "room", "craft", "truth"  # the 3D panel's frames
@@ -50,7 +50,7 @@ class ChannelSpec:
     message_encoding: str = "json"
 
 
-Message = tuple[ChannelSpec, int, Any]  # the channel, log_time (Unix ns), the message (a dict, or bytes if raw)
+Message = tuple[ChannelSpec, int, Any]  # the channel, log_time (Unix ns), the message: a dict, or bytes (encoded)
 
 _TIME = {"type": "object", "title": "time", "properties": {"sec": {"type": "integer", "minimum": 0},
                                                            "nsec": {"type": "integer", "minimum": 0}}}
@@ -103,10 +103,12 @@ STATION = ChannelSpec("/station", "quadrupel.StationRecord", _schema(
 
 
 @cache
-def packet_channel(link: str, direction: str, spec: PacketSpec) -> tuple[ChannelSpec, list[Column]]:
-    """The channel of ``spec``'s packets over ``link`` in ``direction``, and its columns (SI)."""
+def packet_channel(link: str, direction: str, spec: PacketSpec) -> tuple[ChannelSpec, Callable[[Any], bytes]]:
+    """The channel of ``spec``'s packets over ``link`` in ``direction``, and the function that writes a packet as
+    its message (JSON, SI: ``packet_record`` of its SI columns)."""
+    enc = packet_json(tuple(packet_columns(spec, si=True)), tuple(f.fmt for f in spec.fields))
     return (ChannelSpec(f"/{link}/{direction}/{spec.cls.__name__}", f"quadrupel.{spec.cls.__name__}",
-                        _schema(json_schema(spec, si=True))), packet_columns(spec, si=True))
+                        _schema(json_schema(spec, si=True))), enc)
 
 
 @cache
@@ -164,8 +166,8 @@ class Channels:
     def frame(self, t_ns: int, link: str, direction: str, pkt: Any) -> list[Message]:
         """A packet decoded from ``link``'s bytes in ``direction`` at ``t_ns``: its channel, and the pose."""
         spec = SPEC_OF[type(pkt)]
-        ch, cols = packet_channel(link, direction, spec)
-        out: list[Message] = [(ch, t_ns, packet_record(pkt, cols))]
+        ch, enc = packet_channel(link, direction, spec)
+        out: list[Message] = [(ch, t_ns, enc(pkt))]
         kind = type(pkt)
         if direction != "rx":
             return out

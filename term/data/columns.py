@@ -9,7 +9,9 @@ table's ``scale`` (``field_column``); with ``si=True`` the unit is SI instead (`
 
 from __future__ import annotations
 
+import json
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from enum import IntEnum, IntFlag
 from typing import Any
@@ -114,3 +116,38 @@ def json_schema(spec: PacketSpec, si: bool = False) -> dict[str, Any]:
             "type": "object", "properties": props}
 
 
+
+
+def _json_float(x: float) -> str:
+    return repr(x) if math.isfinite(x) else "null"
+
+
+def packet_json(columns: tuple[Column, ...], fmts: tuple[str, ...]) -> Callable[[Any], bytes]:
+    """A function giving ``json.dumps(packet_record(pkt, columns))`` as bytes, numerically the same, some five
+    times faster (one format string per packet type: the live server and the export write every frame with it).
+    ``fmts``: each field's struct format (``e`` a float, ``…s`` bytes)."""
+    parts, args = [], []
+    env: dict[str, Any] = {"_f": _json_float}
+    for i, (col, fmt) in enumerate(zip(columns, fmts, strict=True)):
+        key = json.dumps(col.name)
+        if fmt.endswith("s"):
+            parts.append(f'{key}: "%s"')
+            args.append(f"p[{i}].hex()")
+        elif fmt == "e":  # a float on the wire: nan and inf are null, as packet_record has them
+            parts.append(f"{key}: %s")
+            args.append(f"_f(p[{i}] * {col.scale!r})" if col.scale != 1.0 else f"_f(p[{i}])")
+        elif col.scale == 1.0:
+            parts.append(f"{key}: %d")
+            args.append(f"p[{i}]")
+        else:
+            parts.append(f"{key}: %r")
+            args.append(f"round(p[{i}] * {col.scale!r}, {DIGITS})")
+        if col.enum is not None:
+            names = {int(m): m.name for m in col.enum}
+            env[f"_n{i}"] = names
+            parts.append(f'{json.dumps(col.name + "_name")}: "%s"')
+            args.append(f"(_n{i}.get(p[{i}]) or str(p[{i}]))")
+    body = "{" + ", ".join(parts) + "}"
+    src = f"def enc(p):\n    return ({body!r} % ({', '.join(args)},)).encode()\n"
+    exec(src, env)  # noqa: S102  # the source is built from the packet table above, never from input
+    return env["enc"]  # type: ignore[no-any-return]

@@ -175,8 +175,9 @@ class LiveServer:
         import json
 
         for spec, t_ns, msg in messages:
-            if spec.schema_name == "quadrupel.ParamValue" and type(msg) is dict:
-                self._param(msg["param"], msg["value"])  # (whether or not a client subscribed to the channel)
+            if spec.schema_name == "quadrupel.ParamValue":
+                d = json.loads(msg)
+                self._param(d["param"], d["value"])  # (whether or not a client subscribed to the channel)
             ch = self._channels.get(spec.topic) or self._channel(spec)
             if not ch.has_sinks():
                 continue
