@@ -162,13 +162,17 @@ class Channels:
         self.raw = raw  # the link bytes and the station's records too (an export that replays)
         self._height: dict[str, float] = {}
         self._decoders: dict[tuple[str, str], Decoder] = {}
+        self._packet_channels: dict[tuple[str, str, type], tuple[ChannelSpec, Callable[[Any], bytes]]] = {}
 
     def frame(self, t_ns: int, link: str, direction: str, pkt: Any) -> list[Message]:
         """A packet decoded from ``link``'s bytes in ``direction`` at ``t_ns``: its channel, and the pose."""
-        spec = SPEC_OF[type(pkt)]
-        ch, enc = packet_channel(link, direction, spec)
-        out: list[Message] = [(ch, t_ns, enc(pkt))]
         kind = type(pkt)
+        key = (link, direction, kind)
+        found = self._packet_channels.get(key)  # (a PacketSpec's own hash is slow: it hashes every field's spec)
+        if found is None:
+            found = self._packet_channels[key] = packet_channel(link, direction, SPEC_OF[kind])
+        ch, enc = found
+        out: list[Message] = [(ch, t_ns, enc(pkt))]
         if direction != "rx":
             return out
         if kind is Attitude or kind is Compact:

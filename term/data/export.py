@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import csv
 import datetime as dt
+import importlib.util
 import json
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass
@@ -296,35 +297,87 @@ def _session_csv(src: Path, items: Iterator[Any], f: Any, board_units: bool, inf
     return n
 
 
-def _session_mcap(src: Path, items: Iterator[Any], f: Any, info: list[Recording], raw: bool) -> int:
+class _McapLibWriter:
+    """MCAP through the mcap package (always installed)."""
+
+    def __init__(self, f: Any) -> None:
+        self.w = Writer(f, compression=CompressionType.ZSTD)
+        self.w.start("", "quadrupel term export")
+        self.schemas: dict[str, int] = {}
+        self.seq: dict[int, int] = {}
+
+    def metadata(self, name: str, data: dict[str, str]) -> None:
+        self.w.add_metadata(name, data)
+
+    def channel(self, spec: ChannelSpec) -> Callable[[int, bytes], None]:
+        sid = self.schemas.get(spec.schema_name)
+        if sid is None:
+            sid = self.schemas[spec.schema_name] = self.w.register_schema(spec.schema_name, spec.schema_encoding,
+                                                                          spec.schema)
+        ch = self.w.register_channel(spec.topic, spec.message_encoding, sid)
+        seq, add = [0], self.w.add_message
+
+        def log(t_ns: int, data: bytes) -> None:
+            seq[0] += 1
+            add(ch, log_time=t_ns, data=data, publish_time=t_ns, sequence=seq[0])
+
+        return log
+
+    def finish(self) -> None:
+        self.w.finish()
+
+
+class _SdkWriter:
+    """MCAP through Foxglove's SDK (the 'foxglove' extra; the live server's library): some seven times quicker a
+    message than the mcap package, which is what makes a long export quick."""
+
+    def __init__(self, f: Any) -> None:
+        import foxglove
+        from foxglove.mcap import MCAPWriteOptions
+
+        self.fg = foxglove
+        self.context = foxglove.Context()
+        # one compression thread: this machine's other core is the pilot's
+        self.w = foxglove.open_mcap(f, context=self.context, writer_options=MCAPWriteOptions(compression_threads=0))
+
+    def metadata(self, name: str, data: dict[str, str]) -> None:
+        self.w.write_metadata(name, data)
+
+    def channel(self, spec: ChannelSpec) -> Callable[[int, bytes], None]:
+        schema = self.fg.Schema(name=spec.schema_name, encoding=spec.schema_encoding, data=spec.schema)
+        ch = self.fg.Channel(spec.topic, schema=schema, message_encoding=spec.message_encoding,
+                             context=self.context).base
+        return lambda t_ns, data: ch.log(data, t_ns)
+
+    def finish(self) -> None:
+        self.w.close()
+
+
+def mcap_writer(f: Any, library: str = "auto") -> _McapLibWriter | _SdkWriter:
+    """The SDK's writer if it is installed (or asked for), else the mcap package's."""
+    if library == "sdk" or (library == "auto" and importlib.util.find_spec("foxglove") is not None):
+        return _SdkWriter(f)
+    return _McapLibWriter(f)
+
+
+def _session_mcap(src: Path, items: Iterator[Any], f: Any, info: list[Recording], raw: bool,
+                  library: str = "auto") -> int:
     """The session's channels (term.data.channels: the ones the live server serves) into an MCAP file."""
-    w = Writer(f, compression=CompressionType.ZSTD)
-    w.start("", "quadrupel term export")
-    schemas: dict[str, int] = {}
-    channels: dict[str, int] = {}  # by topic (a spec's hash would hash its schema's bytes each time)
-    seq: dict[int, int] = {}
+    w = mcap_writer(f, library)
+    channels: dict[str, Callable[[int, bytes], None]] = {}  # by topic (a spec's hash would hash its schema)
     n = 0
     meta_written = False
     dumps = json.dumps
-
-    def channel(spec: ChannelSpec) -> int:
-        sid = schemas.get(spec.schema_name)
-        if sid is None:
-            sid = schemas[spec.schema_name] = w.register_schema(spec.schema_name, spec.schema_encoding, spec.schema)
-        ch = channels[spec.topic] = w.register_channel(spec.topic, spec.message_encoding, sid)
-        seq[ch] = 0
-        return ch
-
     maker = Channels(raw=raw)
     for item in items:
         if not meta_written and info[0].meta:
-            w.add_metadata("session", dict(info[0].meta, exported_from=src.name))
+            w.metadata("session", dict(info[0].meta, exported_from=src.name))
             meta_written = True
         for spec, t_ns, msg in maker.item(item):
-            ch = channels.get(spec.topic) or channel(spec)
-            seq[ch] += 1
-            data = msg if type(msg) is bytes else dumps(msg, ensure_ascii=False).encode()
-            w.add_message(ch, log_time=t_ns, data=data, publish_time=t_ns, sequence=seq[ch])
+            log = channels.get(spec.topic)
+            if log is None:
+                log = channels[spec.topic] = w.channel(spec)
+            log(t_ns, msg if type(msg) is bytes else dumps(msg, ensure_ascii=False).encode())
             n += spec is EVENTS or spec.topic.count("/") == 3  # frames and events, as the CSV counts its rows
     w.finish()
     return n
