@@ -259,3 +259,16 @@ def test_live_parameters_are_the_boards_read_only() -> None:
         assert [(p.name, p.get_value()) for p in got] == [(spec.name, spec.default)]  # unchanged: read-only
     finally:
         live.close()
+
+
+def test_the_layout_in_docs_names_only_channels_and_fields_we_serve() -> None:
+    layout = json.loads((Path(__file__).parents[1] / "docs" / "foxglove-layout.json").read_text(encoding="utf-8"))
+    schemas = {c.topic: json.loads(c.schema) for c in all_channels()}
+    paths = [p["value"] for cfg in layout["configById"].values() for p in cfg.get("paths", [])]
+    assert len(paths) > 10
+    for path in paths:
+        topic, field = path.split(".", 1)
+        assert topic in schemas, path
+        assert field in schemas[topic]["properties"], path
+    assert {cfg.get("topicToRender") for cfg in layout["configById"].values()} >= {"/events"}
+    assert "craft" in json.dumps(layout["configById"]["3D!craft"])
