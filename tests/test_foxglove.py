@@ -272,3 +272,16 @@ def test_the_layout_in_docs_names_only_channels_and_fields_we_serve() -> None:
         assert field in schemas[topic]["properties"], path
     assert {cfg.get("topicToRender") for cfg in layout["configById"].values()} >= {"/events"}
     assert "craft" in json.dumps(layout["configById"]["3D!craft"])
+
+
+def test_the_sdks_writer_and_the_mcap_packages_write_the_same_messages(tmp_path: Path) -> None:
+    rec, _ = record(tmp_path / "rec")
+    assert rec.path is not None
+    got = {}
+    for library in ("sdk", "mcap"):
+        export(rec.path, tmp_path / f"{library}.mcap", raw=True, library=library)
+        got[library] = read_mcap(tmp_path / f"{library}.mcap")
+    assert got["sdk"] == got["mcap"]
+    with (tmp_path / "sdk.mcap").open("rb") as f:
+        meta = {m.name: m.metadata for m in make_reader(f).iter_metadata()}
+    assert meta["session"]["exported_from"] == rec.path.name

@@ -181,9 +181,10 @@ PROGRESS_EVERY = 20_000  # items of the recording between two calls of ``progres
 
 
 def export(src: Path, out: Path, fmt: str | None = None, board_units: bool = False, raw: bool = False,
-           progress: Progress | None = None) -> ExportResult:
+           progress: Progress | None = None, library: str = "auto") -> ExportResult:
     """Convert ``src`` (a session recording or a flash-log CSV) to ``out`` in ``fmt`` (from the suffix if None).
-    ``raw``: MCAP keeps the link bytes and the station's records too (it replays); ``progress`` is told how far."""
+    ``raw``: MCAP keeps the link bytes and the station's records too (it replays); ``progress`` is told how far;
+    ``library``: the MCAP writer, "sdk", "mcap" or "auto" (the SDK's if installed)."""
     fmt = fmt or out.suffix.lstrip(".").lower()
     if fmt not in FORMATS:
         raise ExportError(f"unknown format {fmt!r}: use -f mcap or -f csv (or an -o ending in .mcap or .csv)")
@@ -210,7 +211,7 @@ def export(src: Path, out: Path, fmt: str | None = None, board_units: bool = Fal
                 if fmt == "csv":
                     n = _session_csv(src, items, f, board_units, info)
                 else:
-                    n = _session_mcap(src, items, f, info, raw)
+                    n = _session_mcap(src, items, f, info, raw, library)
                 return ExportResult(kind, n, all(r.complete for r in info))
             header, rows = read_flash_csv(src)
             n = _flash_csv(header, rows, f, board_units) if fmt == "csv" else _flash_mcap(src, header, rows, f)
