@@ -359,7 +359,8 @@ def main(argv: Sequence[str] | None = None) -> int:
                 raise UsageError("give one recording or flight log, or --latest")
             try:
                 src = latest(a.dir) if a.latest else a.log
-                written = plot_log(src, a.output, a.signals.split(",") if a.signals else None, a.start, a.end)
+                written = plot_log(src, a.output, a.signals.split(",") if a.signals else None, a.start, a.end,
+                                   progress=_progress_bar("reading"))
             except (PlotError, RecordingError) as exc:
                 raise UsageError(str(exc)) from None
             print(f"wrote {written}")

@@ -177,7 +177,7 @@ class ExportResult:
 
 
 Progress = Callable[[int, int | None], None]  # (items read, items in the recording or None if not known)
-PROGRESS_EVERY = 20_000  # items of the recording between two calls of ``progress``
+PROGRESS_EVERY = 5_000  # items of the recording between two calls of ``progress`` (a second of a session is ~200)
 
 
 def export(src: Path, out: Path, fmt: str | None = None, board_units: bool = False, raw: bool = False,
