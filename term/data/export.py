@@ -35,7 +35,7 @@ from typing import Any
 from mcap.writer import CompressionType, Writer
 
 from term.core.logformat import LOG_TIME_COLUMN
-from term.core.protocol import PACKETS, SPEC_OF, Decoder, PacketSpec, column_scale
+from term.core.protocol import MAX_FRAME, PACKETS, SPEC_OF, Decoder, PacketSpec, column_scale
 from term.data.channels import EVENTS, Channels, ChannelSpec
 from term.data.columns import (  # noqa: F401  (column_name, field_column: the export's names, used beside it)
     Column,
@@ -252,17 +252,64 @@ def _counted(items: Iterator[Any], src: Path, progress: Progress | None) -> Iter
     progress(n, n)
 
 
+_UTC_SECOND: dict[int, str] = {}
+
+
 def utc_text(t_ns: int) -> str:
     """``t_ns`` (Unix ns) as ISO 8601 UTC to the µs: ``2026-11-25T14:45:39.123456Z``."""
-    return dt.datetime.fromtimestamp(t_ns // 1000 / 1e6, dt.UTC).strftime("%Y-%m-%dT%H:%M:%S.%fZ")
+    us = t_ns // 1000
+    sec, frac = divmod(us, 1_000_000)
+    head = _UTC_SECOND.get(sec)
+    if head is None:  # one strftime a second of the session, not one a row
+        if len(_UTC_SECOND) > 4096:
+            _UTC_SECOND.clear()
+        head = _UTC_SECOND[sec] = dt.datetime.fromtimestamp(sec, dt.UTC).strftime("%Y-%m-%dT%H:%M:%S")
+    return f"{head}.{frac:06d}Z"
+
+
+def _types_present(items: Iterator[Any]) -> dict[int, PacketSpec]:
+    """The packet types in the recording's frames, from each frame's type byte without decoding it (a frame is
+    COBS-encoded and its first data byte, the type, is never zero, so it stands as sent): a damaged frame can at
+    worst add a column that stays empty."""
+    present: dict[int, PacketSpec] = {}
+    pending: dict[tuple[str, str], bytes] = {}
+    for item in items:
+        if type(item) is not LinkBytes:
+            continue
+        key = (item.link, item.direction)
+        pieces = (pending.get(key, b"") + item.data).split(b"\x00")
+        pending[key] = pieces.pop()[-MAX_FRAME:]
+        for piece in pieces:
+            if len(piece) > 4 and piece[1] not in present:
+                spec = PACKETS.get(piece[1])
+                if spec is not None and len(piece) == spec.struct.size + 5:
+                    present[spec.type_id] = spec
+    return present
+
+
+def _row_writer(spec: PacketSpec, columns: list[Column], index: dict[str, int], width: int,
+                board_units: bool) -> Callable[[Any], list[Any]]:
+    """A function giving a packet's CSV cells (``width`` of them, its columns in their places: ``index``),
+    numerically as ``packet_record`` has them, from one list display per packet type (the export's hot path)."""
+    cells = ['""'] * width
+    env: dict[str, Any] = {"_v": _value, "_n": _enum_name}
+    for i, (col, fs) in enumerate(zip(columns, spec.fields, strict=True)):
+        env[f"c{i}"] = col
+        if fs.fmt.endswith("s") or fs.fmt == "e" or col.scale != 1.0:
+            value = f"_v(p[{i}], c{i}.scale)"
+        else:
+            value = f"p[{i}]"
+        cells[index[col.name]] = value
+        if col.enum is not None:
+            cells[index[f"{col.name}_name"]] = f"_n(c{i}.enum, p[{i}])"
+    cells[4] = repr(spec.cls.__name__)
+    src = f"def cells(p):\n    return [{', '.join(cells)}]\n"
+    exec(src, env)  # noqa: S102  # built from the packet table above, never from input
+    return env["cells"]  # type: ignore[no-any-return]
 
 
 def _session_csv(src: Path, items: Iterator[Any], f: Any, board_units: bool, info: list[Recording]) -> int:
-    present: dict[int, PacketSpec] = {}
-    for item in decode(_session_items(src, [])):  # first pass: which packet types are there
-        if type(item) is DecodedFrame:
-            spec = SPEC_OF[type(item.packet)]
-            present.setdefault(spec.type_id, spec)
+    present = _types_present(_session_items(src, []))  # first pass: which packet types are there
     columns: dict[int, list[Column]] = {}
     names: list[str] = []
     for type_id in sorted(present):
@@ -273,6 +320,8 @@ def _session_csv(src: Path, items: Iterator[Any], f: Any, board_units: bool, inf
                     names.append(name)
     header = ["t_s", "utc", "link", "dir", "packet", *names, "level", "source", "message"]
     index = {name: i for i, name in enumerate(header)}
+    width = len(header)
+    writers: dict[type, Callable[[Any], list[Any]]] = {}
     w = csv.writer(f)
     w.writerow(header)
     start: int | None = None
@@ -280,19 +329,25 @@ def _session_csv(src: Path, items: Iterator[Any], f: Any, board_units: bool, inf
     for item in decode(items):
         if start is None:
             start = info[0].start_ns if info[0].meta else item.t_ns
-        row: list[Any] = [""] * len(header)
-        row[0] = f"{(item.t_ns - start) / 1e9:.6f}"
-        row[1] = utc_text(item.t_ns)
-        if type(item) is DecodedFrame:
-            spec = SPEC_OF[type(item.packet)]
-            row[2], row[3], row[4] = item.link, item.direction, spec.cls.__name__
-            for k, v in packet_record(item.packet, columns[spec.type_id]).items():
-                row[index[k]] = "" if v is None else v
-        elif type(item) is not LoggedEvent:
-            continue  # the station's own records are for a replay, not a table
-        else:
+        kind = type(item)
+        if kind is DecodedFrame:
+            pkt = item.packet
+            cells = writers.get(type(pkt))
+            if cells is None:
+                spec = SPEC_OF[type(pkt)]
+                if spec.type_id not in columns:  # (a type the first pass did not see: there is no column for it)
+                    continue
+                cells = writers[type(pkt)] = _row_writer(spec, columns[spec.type_id], index, width, board_units)
+            row = cells(pkt)
+            row[2], row[3] = item.link, item.direction
+        elif kind is LoggedEvent:
+            row = [""] * width
             row[4] = "log"
             row[-3:] = [item.severity, item.source, item.text]
+        else:
+            continue  # the station's own records are for a replay, not a table
+        row[0] = f"{(item.t_ns - start) / 1e9:.6f}"
+        row[1] = utc_text(item.t_ns)
         w.writerow(row)
         n += 1
     return n
