@@ -285,3 +285,18 @@ def test_the_sdks_writer_and_the_mcap_packages_write_the_same_messages(tmp_path:
     with (tmp_path / "sdk.mcap").open("rb") as f:
         meta = {m.name: m.metadata for m in make_reader(f).iter_metadata()}
     assert meta["session"]["exported_from"] == rec.path.name
+
+
+def test_without_the_sdk_foxglove_says_how_to_add_it_in_one_line(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                                  capsys: pytest.CaptureFixture[str]) -> None:
+    import sys
+
+    from term.cli.main import main
+
+    rec, _ = record(tmp_path / "rec")
+    monkeypatch.setitem(sys.modules, "foxglove", None)  # as if the extra were not installed
+    assert main(["replay", str(rec.path), "--foxglove", "8765"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "pip install 'quadrupel[foxglove]'" in err, err
+    assert main(["replay", str(rec.path), "--foxglove", "nope"]) == 2
+    assert "--foxglove takes [HOST:]PORT" in capsys.readouterr().err
