@@ -3,7 +3,7 @@
 The board is served in real time by `fcb-sim serve --pty` in a child (as `term --sim` does) and asked for telemetry
 at 100 Hz (its most); the terminal is the real TermApp over the SerialTransport, headless, with the recording and
 the live server (term/data/foxglove_server.py) tapped at the transport as `term --foxglove` wires them. A client of
-Foxglove's WebSocket protocol (tests/foxglove_client.py) runs in another process, as Foxglove itself would, and
+Foxglove's WebSocket protocol (tests/support/foxglove_client.py) runs in another process, as Foxglove itself would, and
 subscribes to every channel. Over ``--seconds``:
 
 - ``serve_cpu_pct``: the CPU of the threads the live server started (its own converter thread and the SDK's
@@ -133,7 +133,7 @@ async def run(seconds: float, seed: int) -> dict[str, Any]:
 async def client(url: str, seconds: float) -> dict[str, Any]:
     """The other process: subscribe to everything for ``seconds``; the ages of what arrived in the last part."""
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-    from tests.foxglove_client import Client
+    from tests.support.foxglove_client import Client
 
     c = Client(url)
     stop = asyncio.Event()

@@ -1,7 +1,7 @@
 """Flight data in the field's tools: the channels (term/data/channels.py) read back by readers the project does not
 write. The MCAP export through the mcap package's reader and the Foxglove SDK's own message types; the live server
 (term/data/foxglove_server.py) through a client of Foxglove's WebSocket protocol written from its spec
-(tests/foxglove_client.py) during a real ``--sim`` flight, its times checked against the recording's."""
+(tests/support/foxglove_client.py) during a real ``--sim`` flight, its times checked against the recording's."""
 
 from __future__ import annotations
 
@@ -165,7 +165,7 @@ async def test_a_client_subscribed_during_a_sim_flight_gets_the_attitude_as_the_
     from term.session.sim import SimBoard
     from term.transports.serial import SerialTransport
     from term.ui.app import TermApp
-    from tests.foxglove_client import Client
+    from tests.support.foxglove_client import Client
 
     sim = SimBoard(seed=3, radio=False, instructor=True)
     port = sim.start()
