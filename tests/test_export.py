@@ -104,7 +104,7 @@ def test_a_session_to_mcap_has_every_frame_on_its_channel_in_order(tmp_path: Pat
     rec, sent = record(tmp_path / "rec")
     assert rec.path is not None
     out = tmp_path / "flight.mcap"
-    res = export(rec.path, out)
+    res = export(rec.path, out, raw=True)
     assert res.kind == "session" and res.complete and res.rows == len(sent) + 1
     got: list[tuple[str, str, dict]] = []
     events = []
@@ -126,11 +126,12 @@ def test_a_session_to_mcap_has_every_frame_on_its_channel_in_order(tmp_path: Pat
                 assert schema is not None and schema.encoding == "jsonschema" and channel.message_encoding == "json"
                 assert schema.name == f"quadrupel.{parts[2]}"
                 got.append((parts[0], parts[1], json.loads(message.data)))
-    want = [(link, d, packet_record(p, packet_columns(SPEC_OF[type(p)]))) for link, d, p in sent]
+    want = [(link, d, packet_record(p, packet_columns(SPEC_OF[type(p)], si=True))) for link, d, p in sent]
     assert got == want
     assert events == [{"timestamp": {"sec": WALL // 10**9 + 1, "nsec": 501_000_000}, "level": 4,
                        "message": "LINK LOST: nothing from the board for 0.5 s", "name": "link", "file": "", "line": 0}]
-    # The exported file carries the raw bytes and the station's records too: it replays as the session did.
+    # With --raw the exported file carries the raw bytes and the station's records too: it replays as the session
+    # did (tests/test_foxglove.py: without it, decoded channels only).
     kept = (LinkBytes, StationRecord)
     assert [i for i in iter_file(out) if isinstance(i, kept)] == [i for i in iter_file(rec.path) if isinstance(i, kept)]
     assert any(isinstance(i, StationRecord) for i in iter_file(out))
@@ -353,16 +354,16 @@ async def test_a_flight_with_a_handover_is_recorded_whole_and_agrees_with_the_fl
             streams[link] += decoders[link].feed(message.data)
     assert streams == decoded
 
-    # 2. The export: plausible values in the table's units on both links.
+    # 2. The export: plausible values in SI units on both links.
     export(rec.path, tmp_path / "flight.mcap")
     values: dict[str, list[dict]] = {}
     with (tmp_path / "flight.mcap").open("rb") as f:
         for _, channel, message in make_reader(f).iter_messages(log_time_order=False):
             if channel.topic.count("/") == 3:
                 values.setdefault(channel.topic, []).append(json.loads(message.data))
-    assert all(abs(a["phi_deg"]) < 45 and abs(a["theta_deg"]) < 45 for a in values["/cable/rx/Attitude"])
+    assert all(abs(a["phi_rad"]) < 0.8 and abs(a["theta_rad"]) < 0.8 for a in values["/cable/rx/Attitude"])
     assert all(10.5 < h["battery_v"] < 13 and abs(h["height_m"]) < 5 for h in values["/cable/rx/Height"])
-    assert all(-1.2 < mo["saz_g"] < -0.5 for mo in values["/cable/rx/Motion"])  # about -1 g: it flies level
+    assert all(-11.8 < mo["saz_mps2"] < -4.9 for mo in values["/cable/rx/Motion"])  # about -1 g: it flies level
     assert {c["mode_name"] for c in values["/radio/rx/Compact"]} >= {"SAFE", "MANUAL"}
     assert any(j["lift"] == 9000 for j in values["/radio/tx/Joystick"])
 

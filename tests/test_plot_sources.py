@@ -85,8 +85,8 @@ def test_the_command_line_on_a_recording_a_flash_log_and_the_latest(tmp_path: Pa
     code, out, _ = run(capsys, "plot", "--latest", "--dir", str(tmp_path / "rec"), "-o", str(tmp_path / "l.svg"),
                        "--signals", "theta,mode")
     assert code == 0 and b"<svg" in (tmp_path / "l.svg").read_bytes()[:400]
-    exported = tmp_path / "flight.mcap"  # a term export MCAP is a recording too
-    export(rec.path, exported)
+    exported = tmp_path / "flight.mcap"  # a term export --raw MCAP is a recording too
+    export(rec.path, exported, raw=True)
     code, _, err = run(capsys, "plot", str(exported), "-o", str(tmp_path / "e.png"), "--from", "2")
     assert code == 0, err
 

@@ -99,6 +99,7 @@ def build_parser() -> argparse.ArgumentParser:
                    "captions (any key of yours takes control)")
     p.add_argument("--lessons", type=Path, default=None, metavar="DIR", help="--sim: a directory of lesson files "
                    "(*.toml) beside the built-in ones (a teacher's)")
+    _add_foxglove(p)
     _add_common(p)
     return p
 
@@ -196,6 +197,8 @@ def build_export_parser() -> argparse.ArgumentParser:
     p.add_argument("-o", "--output", type=Path, required=True, help="file to write (.mcap or .csv)")
     p.add_argument("-f", "--format", choices=("mcap", "csv"), default=None, help="default: from the output's suffix")
     p.add_argument("--board-units", action="store_true", help="CSV in the board's units (raw field values)")
+    p.add_argument("--raw", action="store_true", help="MCAP: the link's raw bytes and the station's records too "
+                   "(channels in the quadrupel-frames encoding other readers skip; 'term replay' plays the file)")
     p.add_argument("--dir", type=Path, default=None, help="where recordings are kept (default: 'term recordings')")
     return p
 
@@ -216,13 +219,31 @@ def _export(a: argparse.Namespace) -> int:
         raise UsageError("give one recording or flash log, or --latest")
     try:
         src = latest(a.dir) if a.latest else a.source
-        res = export(src, a.output, a.format, a.board_units)
+        res = export(src, a.output, a.format, a.board_units, raw=a.raw, progress=_progress_bar("exporting"))
     except (ExportError, RecordingError) as exc:
         raise UsageError(str(exc)) from None
     what = "frames and events" if res.kind == "session" else "records"
     cut = "" if res.complete else " (the recording was cut short: all of it that was on disk)"
     print(f"wrote {a.output}: {res.rows} {what} from {src}{cut}")
     return 0
+
+
+def _progress_bar(what: str) -> Any:
+    """A progress callback drawing one line on stderr (only on a terminal: a pipe gets none)."""
+    if not sys.stderr.isatty():
+        return None
+
+    def show(done: int, total: int | None) -> None:
+        if total:
+            frac = min(1.0, done / total)
+            bar = "█" * round(frac * 30)
+            text = f"\r{what} {bar:<30} {frac:4.0%} {done:,} of {total:,}"
+        else:
+            text = f"\r{what} {done:,} messages"
+        end = "\n" if total is not None and done >= total else ""
+        print(text, end=end, file=sys.stderr, flush=True)
+
+    return show
 
 
 def build_replay_parser() -> argparse.ArgumentParser:
@@ -232,6 +253,7 @@ def build_replay_parser() -> argparse.ArgumentParser:
     p.add_argument("source", nargs="?", type=Path, help="a session recording (.mcap, or a 'term export' MCAP)")
     p.add_argument("--latest", action="store_true", help="the newest session recording (instead of a file)")
     p.add_argument("--speed", type=float, default=1.0, help="playback speed, 0.25 to 16 (default 1)")
+    _add_foxglove(p)
     p.add_argument("--dir", type=Path, default=None, help="where recordings are kept (default: 'term recordings')")
     return p
 
@@ -255,16 +277,20 @@ def _replay(a: argparse.Namespace) -> int:
     except ConfigError as exc:
         raise UsageError(str(exc)) from None
 
+    live = _live_server(a.foxglove, 0.0, int(replay.meta.get("start_ns", 0) or 0))
+
     async def run() -> int:
         from term.ui.app import TermApp
 
-        app = TermApp(None, config=cfg, replay=replay)
+        app = TermApp(None, config=cfg, replay=replay, live=live)
         _running[:] = [(app, asyncio.get_running_loop())]
         try:
             await app.run_async()
         finally:
             _running.clear()
             await app.shutdown()
+            if live is not None:
+                live.close()
         return 0
 
     with _terminate_on_signals():
@@ -286,6 +312,27 @@ def _recorder(args: argparse.Namespace, transport: Any, radio: Any, ble_only: bo
         print(f"term: {rec.error} (flying without a recording)", file=sys.stderr)
         return None
     return rec
+
+
+def _add_foxglove(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--foxglove", metavar="[HOST:]PORT", default=None, help="serve the session live to Foxglove "
+                   "(ws://HOST:PORT, loopback unless a host is given; needs the 'foxglove' extra); docs/recording.md")
+
+
+def _live_server(address: str | None, t0: float, start_ns: int) -> Any:
+    """The live Foxglove server (term/data/foxglove_server.py) if asked for; its trouble is one line, before the
+    screen is taken over."""
+    if address is None:
+        return None
+    from term.data.foxglove_server import FoxgloveError, LiveServer, parse_address
+
+    try:
+        host, port = parse_address(address)
+        live = LiveServer(host, port, t0=t0, start_ns=start_ns)
+    except FoxgloveError as exc:
+        raise UsageError(str(exc)) from None
+    print(f"Foxglove: open connection {live.url}", file=sys.stderr)
+    return live
 
 
 def _recordings(a: argparse.Namespace) -> int:
@@ -314,7 +361,8 @@ def main(argv: Sequence[str] | None = None) -> int:
                 raise UsageError("give one recording or flight log, or --latest")
             try:
                 src = latest(a.dir) if a.latest else a.log
-                written = plot_log(src, a.output, a.signals.split(",") if a.signals else None, a.start, a.end)
+                written = plot_log(src, a.output, a.signals.split(",") if a.signals else None, a.start, a.end,
+                                   progress=_progress_bar("reading"))
             except (PlotError, RecordingError) as exc:
                 raise UsageError(str(exc)) from None
             print(f"wrote {written}")
@@ -568,19 +616,22 @@ async def _run_app(transport: Any, cfg: Any, args: argparse.Namespace, radio: An
     # Over BLE the joystick goes out on change (plus a keep-alive), as the protocol asks: the radio is slow.
     session = dict(RADIO_SESSION) if ble_only else {}
     recorder = _recorder(args, transport, radio, ble_only)
-    if recorder is not None:  # every byte both ways on both links, tapped at the transports (term/data/recording.py)
-        import time
+    live = _live_foxglove(args, recorder)
+    sinks = tuple(s for s in (recorder, live) if s is not None)
+    if sinks:  # every byte both ways on both links, tapped at the transports (term/data/recording.py); the live
+        import time  # server gets the same bytes with the same times as the recording
 
         from term.core.events import CABLE, RADIO
         from term.data.recording import RecordingTransport
 
-        transport = RecordingTransport(transport, recorder, CABLE, time.monotonic)
+        transport = RecordingTransport(transport, sinks, CABLE, time.monotonic)
         if radio is not None:
-            radio = RecordingTransport(radio, recorder, RADIO, time.monotonic)
+            radio = RecordingTransport(radio, sinks, RADIO, time.monotonic)
     app = TermApp(transport, config=cfg, joystick=not args.no_joystick, log_directory=args.log_dir,
                   session_options=session, radio=radio, primary_ble=ble_only,
                   start_screen="wireless" if ble_only else "flight", recorder=recorder, instructor=instructor,
-                  lesson=args.lesson, demo=args.demo, lessons_dirs=(args.lessons,) if args.lessons else ())
+                  lesson=args.lesson, demo=args.demo, lessons_dirs=(args.lessons,) if args.lessons else (),
+                  live=live)
     _running[:] = [(app, asyncio.get_running_loop())]
     hangup = asyncio.create_task(_exit_on_hangup(sys.stdin))
     try:
@@ -597,6 +648,8 @@ async def _run_app(transport: Any, cfg: Any, args: argparse.Namespace, radio: An
             await instructor.close()
         if recorder is not None:
             recorder.close()
+        if live is not None:
+            live.close()
     with contextlib.suppress(OSError, ValueError):  # (the terminal may be gone: term ended with it)
         if recorder is not None and recorder.error:
             print(f"term: {recorder.error}", file=sys.stderr)
@@ -606,6 +659,15 @@ async def _run_app(transport: Any, cfg: Any, args: argparse.Namespace, radio: An
         print(f"term: {app.exit_message}", file=sys.stderr)
     code = app.return_code
     return int(code if code is not None else (result or 0))
+
+
+def _live_foxglove(args: argparse.Namespace, recorder: Any) -> Any:
+    """--foxglove's server on the recording's clock (a live message and the recorded one carry the same time)."""
+    import time
+
+    if recorder is not None:
+        return _live_server(args.foxglove, recorder.t0, recorder.start_ns)
+    return _live_server(args.foxglove, time.monotonic(), time.time_ns())
 
 
 def _check_lessons(args: argparse.Namespace) -> None:

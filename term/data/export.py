@@ -24,126 +24,44 @@ Bad input ends in ``ExportError`` with one line.
 from __future__ import annotations
 
 import csv
+import datetime as dt
+import importlib.util
 import json
-import math
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass
-from enum import IntEnum, IntFlag
 from pathlib import Path
 from typing import Any
 
 from mcap.writer import CompressionType, Writer
 
-from term.core import protocol
 from term.core.logformat import LOG_TIME_COLUMN
-from term.core.protocol import PACKETS, SPEC_OF, Decoder, FieldSpec, PacketSpec, column_scale
+from term.core.protocol import MAX_FRAME, PACKETS, SPEC_OF, Decoder, PacketSpec, column_scale
+from term.data.channels import EVENTS, Channels, ChannelSpec
+from term.data.columns import (  # noqa: F401  (column_name, field_column: the export's names, used beside it)
+    Column,
+    _enum_name,
+    _enum_of,
+    _value,
+    column_name,
+    field_column,
+    json_schema,
+    packet_columns,
+    packet_record,
+)
 from term.data.recording import (
-    LEVEL_OF,
-    LOG_SCHEMA,
     MAGIC,
-    RAW_ENCODING,
     LinkBytes,
     LoggedEvent,
     Recording,
     RecordingError,
-    StationRecord,
     iter_file,
     session_parts,
 )
 
 FORMATS = ("mcap", "csv")
-DIGITS = 6  # decimals kept after scaling: below every field's resolution, no float noise in the files
-
-# How a unit is spelled at the end of a column name (ASCII, lower case). Units not named here are no physical
-# unit (sticks, 0..1000 motor commands, bits, enumerations): those columns keep the bare field name.
-UNIT_SUFFIX = {
-    "°": "deg", "°/s": "dps", "g": "g", "m": "m", "m/s": "mps", "V": "v", "°C": "degc", "s": "s", "ms": "ms",
-    "µs": "us", "Pa": "pa", "%": "pct", "bytes": "bytes",
-}
-
 
 class ExportError(ValueError):
     """The input cannot be exported; the message is one line."""
-
-
-# --- columns from the packet table ------------------------------------------------------------------------------
-
-
-@dataclass(frozen=True, slots=True)
-class Column:
-    """One output column: where it comes from (``field``), its name, the factor to its unit, and that unit."""
-
-    name: str
-    field: str
-    scale: float
-    unit: str
-    doc: str = ""
-    enum: type[IntEnum] | None = None
-
-
-def column_name(field: str, unit: str) -> str:
-    suffix = UNIT_SUFFIX.get(unit)
-    return f"{field}_{suffix}" if suffix else field
-
-
-def _enum_of(unit: str) -> type[IntEnum] | None:
-    cls = getattr(protocol, unit, None) if unit.isidentifier() else None
-    if isinstance(cls, type) and issubclass(cls, IntEnum) and not issubclass(cls, IntFlag):
-        return cls
-    return None
-
-
-def field_column(fs: FieldSpec, board_units: bool = False) -> Column:
-    if board_units:
-        return Column(fs.name, fs.name, 1.0, fs.unit, fs.doc, _enum_of(fs.unit))
-    unit = fs.scaled_unit or fs.unit
-    return Column(column_name(fs.name, unit), fs.name, fs.scale, unit, fs.doc, _enum_of(fs.unit))
-
-
-def packet_columns(spec: PacketSpec, board_units: bool = False) -> list[Column]:
-    return [field_column(fs, board_units) for fs in spec.fields]
-
-
-def _value(raw: Any, scale: float) -> Any:
-    if isinstance(raw, bytes):
-        return raw.hex()
-    if scale == 1.0:
-        return raw if not isinstance(raw, float) or math.isfinite(raw) else None
-    v = round(raw * scale, DIGITS)
-    return v if math.isfinite(v) else None
-
-
-def _enum_name(enum: type[IntEnum], raw: int) -> str:
-    try:
-        return enum(raw).name
-    except ValueError:
-        return str(raw)
-
-
-def packet_record(pkt: Any, columns: list[Column]) -> dict[str, Any]:
-    """``pkt`` as a dict of column name to value (scaled), enumerations named beside their number."""
-    out: dict[str, Any] = {}
-    for col in columns:
-        raw = getattr(pkt, col.field)
-        out[col.name] = _value(raw, col.scale)
-        if col.enum is not None:
-            out[f"{col.name}_name"] = _enum_name(col.enum, raw)
-    return out
-
-
-def json_schema(spec: PacketSpec) -> dict[str, Any]:
-    """The JSON schema of a packet's exported messages, generated from its table entry."""
-    props: dict[str, Any] = {}
-    for fs, col in zip(spec.fields, packet_columns(spec), strict=True):
-        kind = "string" if fs.fmt.endswith("s") else "integer" if col.scale == 1.0 and fs.fmt != "e" else "number"
-        desc = f"{fs.doc} ({col.unit})" if fs.doc and col.unit else fs.doc or col.unit
-        props[col.name] = {"type": kind, "description": desc}
-        if col.enum is not None:
-            props[f"{col.name}_name"] = {"type": "string", "enum": [m.name for m in col.enum],
-                                         "description": f"{col.enum.__name__} of {col.name}"}
-    return {"$schema": "http://json-schema.org/draft-07/schema#", "title": f"quadrupel.{spec.cls.__name__}",
-            "description": f"{spec.doc} Direction: {spec.direction}. Rate: {spec.rate}.",
-            "type": "object", "properties": props}
 
 
 # --- reading the sources ----------------------------------------------------------------------------------------
@@ -258,13 +176,22 @@ class ExportResult:
     complete: bool = True  # False: the recording was cut short (a crash); everything readable was written
 
 
-def export(src: Path, out: Path, fmt: str | None = None, board_units: bool = False) -> ExportResult:
-    """Convert ``src`` (a session recording or a flash-log CSV) to ``out`` in ``fmt`` (from the suffix if None)."""
+Progress = Callable[[int, int | None], None]  # (items read, items in the recording or None if not known)
+PROGRESS_EVERY = 5_000  # items of the recording between two calls of ``progress`` (a second of a session is ~200)
+
+
+def export(src: Path, out: Path, fmt: str | None = None, board_units: bool = False, raw: bool = False,
+           progress: Progress | None = None, library: str = "auto") -> ExportResult:
+    """Convert ``src`` (a session recording or a flash-log CSV) to ``out`` in ``fmt`` (from the suffix if None).
+    ``raw``: MCAP keeps the link bytes and the station's records too (it replays); ``progress`` is told how far;
+    ``library``: the MCAP writer, "sdk", "mcap" or "auto" (the SDK's if installed)."""
     fmt = fmt or out.suffix.lstrip(".").lower()
     if fmt not in FORMATS:
         raise ExportError(f"unknown format {fmt!r}: use -f mcap or -f csv (or an -o ending in .mcap or .csv)")
     if board_units and fmt != "csv":
-        raise ExportError("--board-units is for CSV; MCAP carries the raw bytes beside the converted values")
+        raise ExportError("--board-units is for CSV; MCAP carries SI units (and the raw bytes with --raw)")
+    if raw and fmt != "mcap":
+        raise ExportError("--raw is for MCAP: a CSV holds decoded values only")
     kind = kind_of(src)
     if out.exists() and out.resolve() == src.resolve():
         raise ExportError(f"{out} is the input: choose another output")
@@ -280,7 +207,11 @@ def export(src: Path, out: Path, fmt: str | None = None, board_units: bool = Fal
         with f:
             if kind == "session":
                 info: list[Recording] = []
-                n = _session_csv(src, f, board_units, info) if fmt == "csv" else _session_mcap(src, f, info)
+                items = _counted(_session_items(src, info), src, progress)
+                if fmt == "csv":
+                    n = _session_csv(src, items, f, board_units, info)
+                else:
+                    n = _session_mcap(src, items, f, info, raw, library)
                 return ExportResult(kind, n, all(r.complete for r in info))
             header, rows = read_flash_csv(src)
             n = _flash_csv(header, rows, f, board_units) if fmt == "csv" else _flash_mcap(src, header, rows, f)
@@ -289,12 +220,96 @@ def export(src: Path, out: Path, fmt: str | None = None, board_units: bool = Fal
         raise ExportError(f"cannot write {out}: {exc.strerror or exc}") from None
 
 
-def _session_csv(src: Path, f: Any, board_units: bool, info: list[Recording]) -> int:
+def message_count(src: Path) -> int | None:
+    """The messages in ``src``'s session (every part) from the files' summaries; None if one has none (cut short)."""
+    from mcap.reader import make_reader
+
+    total = 0
+    for part in session_parts(src) if src.parent.exists() else [src]:
+        try:
+            with part.open("rb") as f:
+                summary = make_reader(f).get_summary()
+        except Exception:  # a file cut short has no summary: the mcap package's reader gives up on it
+            return None
+        if summary is None or summary.statistics is None:
+            return None
+        total += summary.statistics.message_count
+    return total
+
+
+def _counted(items: Iterator[Any], src: Path, progress: Progress | None) -> Iterator[Any]:
+    if progress is None:
+        yield from items
+        return
+    total = message_count(src)
+    n = 0
+    progress(0, total)
+    for item in items:
+        n += 1
+        if n % PROGRESS_EVERY == 0:
+            progress(n, total)
+        yield item
+    progress(n, n)
+
+
+_UTC_SECOND: dict[int, str] = {}
+
+
+def utc_text(t_ns: int) -> str:
+    """``t_ns`` (Unix ns) as ISO 8601 UTC to the µs: ``2026-11-25T14:45:39.123456Z``."""
+    us = t_ns // 1000
+    sec, frac = divmod(us, 1_000_000)
+    head = _UTC_SECOND.get(sec)
+    if head is None:  # one strftime a second of the session, not one a row
+        if len(_UTC_SECOND) > 4096:
+            _UTC_SECOND.clear()
+        head = _UTC_SECOND[sec] = dt.datetime.fromtimestamp(sec, dt.UTC).strftime("%Y-%m-%dT%H:%M:%S")
+    return f"{head}.{frac:06d}Z"
+
+
+def _types_present(items: Iterator[Any]) -> dict[int, PacketSpec]:
+    """The packet types in the recording's frames, from each frame's type byte without decoding it (a frame is
+    COBS-encoded and its first data byte, the type, is never zero, so it stands as sent): a damaged frame can at
+    worst add a column that stays empty."""
     present: dict[int, PacketSpec] = {}
-    for item in decode(_session_items(src, [])):  # first pass: which packet types are there
-        if type(item) is DecodedFrame:
-            spec = SPEC_OF[type(item.packet)]
-            present.setdefault(spec.type_id, spec)
+    pending: dict[tuple[str, str], bytes] = {}
+    for item in items:
+        if type(item) is not LinkBytes:
+            continue
+        key = (item.link, item.direction)
+        pieces = (pending.get(key, b"") + item.data).split(b"\x00")
+        pending[key] = pieces.pop()[-MAX_FRAME:]
+        for piece in pieces:
+            if len(piece) > 4 and piece[1] not in present:
+                spec = PACKETS.get(piece[1])
+                if spec is not None and len(piece) == spec.struct.size + 5:
+                    present[spec.type_id] = spec
+    return present
+
+
+def _row_writer(spec: PacketSpec, columns: list[Column], index: dict[str, int], width: int,
+                board_units: bool) -> Callable[[Any], list[Any]]:
+    """A function giving a packet's CSV cells (``width`` of them, its columns in their places: ``index``),
+    numerically as ``packet_record`` has them, from one list display per packet type (the export's hot path)."""
+    cells = ['""'] * width
+    env: dict[str, Any] = {"_v": _value, "_n": _enum_name}
+    for i, (col, fs) in enumerate(zip(columns, spec.fields, strict=True)):
+        env[f"c{i}"] = col
+        if fs.fmt.endswith("s") or fs.fmt == "e" or col.scale != 1.0:
+            value = f"_v(p[{i}], c{i}.scale)"
+        else:
+            value = f"p[{i}]"
+        cells[index[col.name]] = value
+        if col.enum is not None:
+            cells[index[f"{col.name}_name"]] = f"_n(c{i}.enum, p[{i}])"
+    cells[4] = repr(spec.cls.__name__)
+    src = f"def cells(p):\n    return [{', '.join(cells)}]\n"
+    exec(src, env)  # noqa: S102  # built from the packet table above, never from input
+    return env["cells"]  # type: ignore[no-any-return]
+
+
+def _session_csv(src: Path, items: Iterator[Any], f: Any, board_units: bool, info: list[Recording]) -> int:
+    present = _types_present(_session_items(src, []))  # first pass: which packet types are there
     columns: dict[int, list[Column]] = {}
     names: list[str] = []
     for type_id in sorted(present):
@@ -303,82 +318,123 @@ def _session_csv(src: Path, f: Any, board_units: bool, info: list[Recording]) ->
             for name in (c.name, f"{c.name}_name") if c.enum is not None else (c.name,):
                 if name not in names:
                     names.append(name)
-    header = ["t_s", "link", "dir", "packet", *names, "level", "source", "message"]
+    header = ["t_s", "utc", "link", "dir", "packet", *names, "level", "source", "message"]
     index = {name: i for i, name in enumerate(header)}
+    width = len(header)
+    writers: dict[type, Callable[[Any], list[Any]]] = {}
     w = csv.writer(f)
     w.writerow(header)
     start: int | None = None
     n = 0
-    for item in decode(_session_items(src, info)):
+    for item in decode(items):
         if start is None:
             start = info[0].start_ns if info[0].meta else item.t_ns
-        row: list[Any] = [""] * len(header)
-        row[0] = f"{(item.t_ns - start) / 1e9:.6f}"
-        if type(item) is DecodedFrame:
-            spec = SPEC_OF[type(item.packet)]
-            row[1], row[2], row[3] = item.link, item.direction, spec.cls.__name__
-            for k, v in packet_record(item.packet, columns[spec.type_id]).items():
-                row[index[k]] = "" if v is None else v
-        elif type(item) is not LoggedEvent:
-            continue  # the station's own records are for a replay, not a table
-        else:
-            row[3] = "log"
+        kind = type(item)
+        if kind is DecodedFrame:
+            pkt = item.packet
+            cells = writers.get(type(pkt))
+            if cells is None:
+                spec = SPEC_OF[type(pkt)]
+                if spec.type_id not in columns:  # (a type the first pass did not see: there is no column for it)
+                    continue
+                cells = writers[type(pkt)] = _row_writer(spec, columns[spec.type_id], index, width, board_units)
+            row = cells(pkt)
+            row[2], row[3] = item.link, item.direction
+        elif kind is LoggedEvent:
+            row = [""] * width
+            row[4] = "log"
             row[-3:] = [item.severity, item.source, item.text]
+        else:
+            continue  # the station's own records are for a replay, not a table
+        row[0] = f"{(item.t_ns - start) / 1e9:.6f}"
+        row[1] = utc_text(item.t_ns)
         w.writerow(row)
         n += 1
     return n
 
 
-def _session_mcap(src: Path, f: Any, info: list[Recording]) -> int:
-    w = Writer(f, compression=CompressionType.ZSTD)
-    w.start("", "quadrupel term export")
-    schemas: dict[int, int] = {}
-    channels: dict[str, int] = {}
-    columns: dict[int, list[Column]] = {}
-    seq: dict[int, int] = {}
+class _McapLibWriter:
+    """MCAP through the mcap package (always installed)."""
+
+    def __init__(self, f: Any) -> None:
+        self.w = Writer(f, compression=CompressionType.ZSTD)
+        self.w.start("", "quadrupel term export")
+        self.schemas: dict[str, int] = {}
+        self.seq: dict[int, int] = {}
+
+    def metadata(self, name: str, data: dict[str, str]) -> None:
+        self.w.add_metadata(name, data)
+
+    def channel(self, spec: ChannelSpec) -> Callable[[int, bytes], None]:
+        sid = self.schemas.get(spec.schema_name)
+        if sid is None:
+            sid = self.schemas[spec.schema_name] = self.w.register_schema(spec.schema_name, spec.schema_encoding,
+                                                                          spec.schema)
+        ch = self.w.register_channel(spec.topic, spec.message_encoding, sid)
+        seq, add = [0], self.w.add_message
+
+        def log(t_ns: int, data: bytes) -> None:
+            seq[0] += 1
+            add(ch, log_time=t_ns, data=data, publish_time=t_ns, sequence=seq[0])
+
+        return log
+
+    def finish(self) -> None:
+        self.w.finish()
+
+
+class _SdkWriter:
+    """MCAP through Foxglove's SDK (the 'foxglove' extra; the live server's library): some seven times quicker a
+    message than the mcap package, which is what makes a long export quick."""
+
+    def __init__(self, f: Any) -> None:
+        import foxglove
+        from foxglove.mcap import MCAPWriteOptions
+
+        self.fg = foxglove
+        self.context = foxglove.Context()
+        # one compression thread: this machine's other core is the pilot's
+        self.w = foxglove.open_mcap(f, context=self.context, writer_options=MCAPWriteOptions(compression_threads=0))
+
+    def metadata(self, name: str, data: dict[str, str]) -> None:
+        self.w.write_metadata(name, data)
+
+    def channel(self, spec: ChannelSpec) -> Callable[[int, bytes], None]:
+        schema = self.fg.Schema(name=spec.schema_name, encoding=spec.schema_encoding, data=spec.schema)
+        ch = self.fg.Channel(spec.topic, schema=schema, message_encoding=spec.message_encoding,
+                             context=self.context).base
+        return lambda t_ns, data: ch.log(data, t_ns)
+
+    def finish(self) -> None:
+        self.w.close()
+
+
+def mcap_writer(f: Any, library: str = "auto") -> _McapLibWriter | _SdkWriter:
+    """The SDK's writer if it is installed (or asked for), else the mcap package's."""
+    if library == "sdk" or (library == "auto" and importlib.util.find_spec("foxglove") is not None):
+        return _SdkWriter(f)
+    return _McapLibWriter(f)
+
+
+def _session_mcap(src: Path, items: Iterator[Any], f: Any, info: list[Recording], raw: bool,
+                  library: str = "auto") -> int:
+    """The session's channels (term.data.channels: the ones the live server serves) into an MCAP file."""
+    w = mcap_writer(f, library)
+    channels: dict[str, Callable[[int, bytes], None]] = {}  # by topic (a spec's hash would hash its schema)
     n = 0
     meta_written = False
-
-    def channel(topic: str, encoding: str, schema: int) -> int:
-        ch = channels.get(topic)
-        if ch is None:
-            ch = channels[topic] = w.register_channel(topic, encoding, schema)
-            seq[ch] = 0
-        return ch
-
-    def add(ch: int, t_ns: int, data: bytes) -> None:
-        seq[ch] += 1
-        w.add_message(ch, log_time=t_ns, data=data, publish_time=t_ns, sequence=seq[ch])
-
-    log_schema = 0
-    for item in decode(_session_items(src, info), keep_raw=True):
+    dumps = json.dumps
+    maker = Channels(raw=raw)
+    for item in items:
         if not meta_written and info[0].meta:
-            w.add_metadata("session", dict(info[0].meta, exported_from=src.name))
+            w.metadata("session", dict(info[0].meta, exported_from=src.name))
             meta_written = True
-        kind = type(item)
-        if kind is DecodedFrame:
-            spec = SPEC_OF[type(item.packet)]
-            sid = schemas.get(spec.type_id)
-            if sid is None:
-                sid = schemas[spec.type_id] = w.register_schema(
-                    f"quadrupel.{spec.cls.__name__}", "jsonschema", json.dumps(json_schema(spec)).encode())
-                columns[spec.type_id] = packet_columns(spec)
-            ch = channel(f"/{item.link}/{item.direction}/{spec.cls.__name__}", "json", sid)
-            add(ch, item.t_ns, json.dumps(packet_record(item.packet, columns[spec.type_id])).encode())
-        elif kind is LinkBytes:
-            add(channel(f"/{item.link}/{item.direction}", RAW_ENCODING, 0), item.t_ns, item.data)
-        elif kind is StationRecord:  # kept as recorded, so the exported file replays as the session did
-            add(channel("/station", "json", 0), item.t_ns, json.dumps(item.data, ensure_ascii=False).encode())
-            continue
-        else:
-            if not log_schema:
-                log_schema = w.register_schema("foxglove.Log", "jsonschema", json.dumps(LOG_SCHEMA).encode())
-            t = item.t_ns
-            msg = {"timestamp": {"sec": t // 1_000_000_000, "nsec": t % 1_000_000_000},
-                   "level": LEVEL_OF.get(item.severity, 2), "message": item.text, "name": item.source,
-                   "file": "", "line": 0}
-            add(channel("/events", "json", log_schema), t, json.dumps(msg, ensure_ascii=False).encode())
-        n += kind is not LinkBytes  # frames and events, as the CSV counts its rows
+        for spec, t_ns, msg in maker.item(item):
+            log = channels.get(spec.topic)
+            if log is None:
+                log = channels[spec.topic] = w.channel(spec)
+            log(t_ns, msg if type(msg) is bytes else dumps(msg, ensure_ascii=False).encode())
+            n += spec is EVENTS or spec.topic.count("/") == 3  # frames and events, as the CSV counts its rows
     w.finish()
     return n
 

@@ -207,10 +207,11 @@ def read_flash_log(path: Path) -> Source:
     return Source("flashlog", "board time (s)", traces, len(t))
 
 
-def read_session(path: Path) -> Source:
-    """The telemetry the board sent in the session ``path`` belongs to (every part), in SI units."""
+def read_session(path: Path, progress: Any = None) -> Source:
+    """The telemetry the board sent in the session ``path`` belongs to (every part), in SI units. ``progress``:
+    told how far the reading is, as ``term export`` tells it (items read, items in the recording or None)."""
     from term.core.protocol import SPEC_OF
-    from term.data.export import DecodedFrame, decode
+    from term.data.export import DecodedFrame, _counted, decode
     from term.data.recording import Recording, RecordingError, iter_file, session_parts
 
     per_link: dict[tuple[str, str], Trace] = {}
@@ -228,7 +229,7 @@ def read_session(path: Path) -> Source:
                 yield item
 
     try:
-        for item in decode(items()):
+        for item in decode(_counted(items(), path, progress)):
             if type(item) is not DecodedFrame or item.direction != "rx":
                 continue
             kind = type(item.packet)
@@ -260,7 +261,7 @@ def read_session(path: Path) -> Source:
     return Source("session", "time since the session started (s)", traces, n)
 
 
-def read_source(path: Path) -> Source:
+def read_source(path: Path, progress: Any = None) -> Source:
     """A session recording (MCAP) or a flash-log CSV, told apart by the MCAP header (or a .mcap name)."""
     try:
         with path.open("rb") as f:
@@ -269,7 +270,9 @@ def read_source(path: Path) -> Source:
         raise PlotError(f"{path} not found") from None
     except OSError as exc:
         raise PlotError(f"cannot read {path}: {exc.strerror or exc}") from None
-    return read_session(path) if head == MCAP_MAGIC or path.suffix.lower() == ".mcap" else read_flash_log(path)
+    if head == MCAP_MAGIC or path.suffix.lower() == ".mcap":
+        return read_session(path, progress)
+    return read_flash_log(path)
 
 
 def _export_names() -> dict[str, str]:
@@ -337,13 +340,13 @@ def panels_of(src: Source, path: Path, signals: Sequence[str] | None = None, sta
 
 
 def plot_log(path: Path, output: Path, signals: Sequence[str] | None = None, start: float | None = None,
-             end: float | None = None) -> Path:
+             end: float | None = None, progress: Any = None) -> Path:
     """Draw the recording or flash log at ``path`` to ``output`` (the very file named); returns it. ``signals``:
     the series to draw (field or export column names; default: every panel present); ``start``, ``end``: the
-    window on the x axis (s)."""
+    window on the x axis (s); ``progress``: told how far the reading of a recording is."""
     check_output(output)
     window(start, end)  # before reading a file that may be large
-    src = read_source(path)
+    src = read_source(path, progress)
     drawn = panels_of(src, path, signals, start, end)
 
     import matplotlib

@@ -14,11 +14,16 @@ the wall time that passed, ``seek``, ``speed``, ``paused``) and applies the even
   paused); while the caller applies them one by one, ``clock()`` is each event's own recorded time, so plots and
   the events list carry the recorded times. ``seek(t)`` moves anywhere: going back returns ``True``, and the
   caller starts again from a fresh model; then ``catch_up()`` yields the events up to the new position.
-- The whole timeline is held in memory (about 250 bytes a frame: some 200 MB for an hour at full telemetry).
+- Indexed: a session whose files were closed (their MCAP summary says how long it is and whether the station's
+  events are there) is read as the playback goes, ``LOAD_AHEAD_S`` past the position (a seek reads on to where
+  it goes), so the first frame of an hour's recording shows at once; one cut short is read whole first. What was
+  read stays in memory (about 250 bytes a frame: some 200 MB for an hour at full telemetry), so going back is
+  quick.
 """
 
 from __future__ import annotations
 
+import heapq
 from collections.abc import Iterable, Iterator
 from pathlib import Path
 from typing import Any
@@ -38,16 +43,13 @@ from term.data.recording import (
 )
 
 SPEEDS = (0.25, 0.5, 1.0, 2.0, 4.0, 8.0, 16.0)
+SORT_WINDOW_S = 1.0  # the most a record may be stamped before one written ahead of it
+LOAD_AHEAD_S = 5.0  # an indexed replay decodes this far past the position (and on to where a seek goes)
 
 
-def build_timeline(items: Iterable[Any], start_ns: int | None = None) -> list[tuple[float, Any]]:
-    """The station events a recording's items stand for, each with its time (s since ``start_ns``)."""
-    items = list(items)
-    has_station = any(type(i) is StationRecord for i in items)
-    if start_ns is None:
-        start_ns = items[0].t_ns if items else 0
+def _events(items: Iterable[Any], start_ns: int, has_station: bool) -> Iterator[tuple[float, Any]]:
+    """The station events a recording's items stand for, each with its time (s since ``start_ns``), in file order."""
     decoders: dict[tuple[str, str], Decoder] = {}
-    out: list[tuple[float, Any]] = []
     for item in items:
         t = (item.t_ns - start_ns) / 1e9
         kind = type(item)
@@ -58,30 +60,81 @@ def build_timeline(items: Iterable[Any], start_ns: int | None = None) -> list[tu
             dec = decoders.get(key) or decoders.setdefault(key, Decoder())
             for pkt in dec.feed(item.data):
                 if item.direction == "rx":
-                    out.append((t, FromLink(item.link, PacketReceived(pkt))))
+                    yield (t, FromLink(item.link, PacketReceived(pkt)))
                 elif type(pkt) is Joystick:
-                    out.append((t, StickSet(pkt)))
+                    yield (t, StickSet(pkt))
         elif kind is StationRecord:
             ev = decode_event(item.data)
             if ev is None or type(ev) is Fatal:
                 continue
             if type(ev) is LinkUp:
                 ev = LinkUp(ev.link, f"replay of {ev.name}", ev.again)
-            out.append((t, ev))
+            yield (t, ev)
         elif kind is LoggedEvent and not has_station:
-            out.append((t, Note(item.severity, item.source, item.text)))
+            yield (t, Note(item.severity, item.source, item.text))
+
+
+def build_timeline(items: Iterable[Any], start_ns: int | None = None) -> list[tuple[float, Any]]:
+    """The station events a recording's items stand for, each with its time (s since ``start_ns``), in time order."""
+    items = list(items)
+    has_station = any(type(i) is StationRecord for i in items)
+    if start_ns is None:
+        start_ns = items[0].t_ns if items else 0
+    out = list(_events(items, start_ns, has_station))
     out.sort(key=lambda e: e[0])  # stable: the recorded order within one instant is kept
     return out
+
+
+def _in_order(events: Iterator[tuple[float, Any]]) -> Iterator[tuple[float, Any]]:
+    """``events`` in time order, given that none comes more than ``SORT_WINDOW_S`` after a later one (the link's
+    thread and the event loop stamp their records apart by far less); the recorded order within an instant kept."""
+    heap: list[tuple[float, int, Any]] = []
+    for n, (t, ev) in enumerate(events):
+        heapq.heappush(heap, (t, n, ev))
+        while heap[0][0] < t - SORT_WINDOW_S:
+            t0, _, e0 = heapq.heappop(heap)
+            yield (t0, e0)
+    while heap:
+        t0, _, e0 = heapq.heappop(heap)
+        yield (t0, e0)
+
+
+def _summaries(parts: list[Path]) -> tuple[bool, int, dict[str, str]] | None:
+    """From the parts' MCAP summaries (no message read): whether the station's events were recorded, the end
+    time (ns) and the session metadata; None if a part has no summary (cut short: then it is read whole)."""
+    from mcap.reader import make_reader
+
+    has_station, end_ns, meta = False, 0, {}
+    for i, part in enumerate(parts):
+        try:
+            with part.open("rb") as f:
+                reader = make_reader(f)
+                summary = reader.get_summary()
+                if summary is None or summary.statistics is None:
+                    return None
+                has_station |= any(c.topic == "/station" for c in summary.channels.values())
+                end_ns = max(end_ns, summary.statistics.message_end_time)
+                if i == 0:
+                    meta = next((dict(m.metadata) for m in reader.iter_metadata() if m.name == "session"), {})
+        except Exception:  # a file without its summary: the mcap package's reader gives up on it
+            return None
+    return has_station, end_ns, meta
 
 
 class Replay:
     """A recorded session's timeline and the playback position (see the module docstring)."""
 
-    def __init__(self, timeline: list[tuple[float, Any]], source: str = "", meta: dict[str, str] | None = None) -> None:
+    def __init__(self, timeline: list[tuple[float, Any]], source: str = "", meta: dict[str, str] | None = None,
+                 more: Iterator[tuple[float, Any]] | None = None, duration: float | None = None) -> None:
+        """``more``: the rest of the timeline, read as the playback needs it (``load``); ``duration`` then says
+        how long the session is (its summary's), until the last event is read."""
         self.timeline = timeline
         self.source = source
         self.meta = meta or {}  # the session's facts as recorded (links' names, start, protocol version)
+        self._more = more
         self.duration = timeline[-1][0] if timeline else 0.0
+        if more is not None and duration is not None:
+            self.duration = max(self.duration, duration)
         self.position = 0.0  # s since the session's start: how far the playback is
         self.speed = 1.0
         self.paused = False
@@ -90,10 +143,25 @@ class Replay:
 
     @classmethod
     def load(cls, path: Path) -> Replay:
-        """Every part of the session ``path`` belongs to; RecordingError if it cannot be read."""
-        items: list[Any] = []
+        """Every part of the session ``path`` belongs to; RecordingError if it cannot be read. A session whose files
+        have their summary (closed) is read as the playback goes (the first frame of an hour's recording at once),
+        one cut short is read whole first."""
+        parts = session_parts(Path(path))
+        found = _summaries(parts)
+        if found is not None:
+            has_station, end_ns, meta = found
+            start_ns = int(meta.get("start_ns", 0) or 0) if meta else 0
+            if start_ns:
+                items = (item for part in parts for item in iter_file(part))
+                replay = cls([], str(path), meta, _in_order(_events(items, start_ns, has_station)),
+                             (end_ns - start_ns) / 1e9)
+                replay._load_to(LOAD_AHEAD_S)
+                if not replay.timeline and replay._more is None:
+                    raise RecordingError(f"{path}: nothing recorded")
+                return replay
+        items = []
         first: Recording | None = None
-        for part in session_parts(Path(path)):
+        for part in parts:
             rec = Recording(part)
             items.extend(iter_file(part, rec))
             first = first or rec
@@ -107,11 +175,24 @@ class Replay:
 
     @property
     def finished(self) -> bool:
-        return self._index >= len(self.timeline)
+        return self._index >= len(self.timeline) and self._more is None
 
+    def _load_to(self, t: float) -> None:
+        """Read the timeline on to ``t`` s (and a little past it: an instant's events all together)."""
+        more, timeline = self._more, self.timeline
+        if more is None or (timeline and timeline[-1][0] > t):
+            return
+        for ev in more:
+            timeline.append(ev)
+            if ev[0] > t:
+                return
+        self._more = None  # read to its end: the duration is the last event's
+        self.duration = timeline[-1][0] if timeline else 0.0
+        self.position = min(self.position, self.duration)
     def advance(self, dt: float) -> Iterator[Any]:
         """Move the position by ``dt`` wall seconds times the speed (not while paused); the events passed."""
         if not self.paused:
+            self._load_to(self.position + max(0.0, dt) * self.speed + LOAD_AHEAD_S)
             self.position = min(self.duration, self.position + max(0.0, dt) * self.speed)
         return self.catch_up()
 
@@ -119,6 +200,7 @@ class Replay:
         """The events from where the last call stopped up to the position, lazily: apply each before taking the
         next, as ``clock()`` is the time of the one just taken."""
         timeline, end = self.timeline, self.position
+        self._load_to(end + LOAD_AHEAD_S)
         while self._index < len(timeline) and timeline[self._index][0] <= end:
             self._now, ev = timeline[self._index]
             self._index += 1
@@ -128,6 +210,7 @@ class Replay:
     def seek(self, t: float) -> bool:
         """Move the position to ``t`` (clamped to the session); True if it went back: apply ``catch_up()`` to a
         fresh model then."""
+        self._load_to(t + LOAD_AHEAD_S)
         t = min(max(0.0, t), self.duration)
         back = t < self.position or (t < self._now)
         if back:

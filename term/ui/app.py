@@ -26,6 +26,7 @@ import sys
 import time
 from collections.abc import Callable, Iterable
 from pathlib import Path
+from typing import Any
 
 from textual.app import App, SystemCommand
 from textual.screen import Screen
@@ -33,6 +34,7 @@ from textual.widgets import Input
 
 from term.core.errors import EXIT_USAGE
 from term.core.events import EventsCleared, Fatal, FromLink, JoystickNamed, NotSent, StationEvent
+from term.core.link import PacketReceived
 from term.core.protocol import FLIGHT_MODES, Joystick, Mode, Op
 from term.data.recording import SessionRecorder
 from term.data.replay import Replay
@@ -95,6 +97,7 @@ class TermApp(App[int]):
         lesson: int | None = None,
         demo: bool = False,
         lessons_dirs: tuple[Path, ...] = (),
+        live: Any = None,
     ) -> None:
         """``transport``: the board's link (the cable, or BLE with ``primary_ble``); ``radio``: a BLE transport
         to the same board beside the cable, for the handover; ``start_screen``: "flight" or "wireless".
@@ -103,12 +106,14 @@ class TermApp(App[int]):
         transports: the panels show the recording, the pilot's keys play it). ``instructor``: the simulator's
         instructor channel (term --sim): the room view, the lessons (``lesson``: start that one; ``demo``: the
         autopilot's tour; ``lessons_dirs``: a teacher's lessons beside the built-in ones),
-        term/ui/controllers/lessons.py."""
+        term/ui/controllers/lessons.py. ``live``: the live Foxglove server (term/data/foxglove_server.py), fed the
+        events, the link statistics, the truth and, in a replay, the packets (its link bytes come from the taps)."""
         super().__init__()
         self.config = config or Config()
         self.keymap: tuple[KeyBinding, ...] = self.config.keymap
         self.recorder = recorder
         self.replay = replay
+        self.live = live
         self._noted = 0  # the seq of the last events-list entry recorded
         self._record_error_said = False
         if replay is not None:
@@ -132,6 +137,9 @@ class TermApp(App[int]):
         self.alarms_rung: list[str] = []  # every alarm the bell was rung for (or would have been, bell off)
         self.lessons = LessonController(self.station, clock, self.keymap, self, instructor, lesson, demo,
                                         lessons_dirs)
+        if live is not None and instructor is not None:  # the simulator's true pose beside the estimate
+            on_truth = instructor.on_truth
+            instructor.on_truth = lambda truth: (live.truth(truth, self.clock()), on_truth(truth))
         self._bind_keys()
 
     def _make_station(self, transport: Transport | None, radio: Transport | None, primary_ble: bool,
@@ -243,6 +251,8 @@ class TermApp(App[int]):
             now = self.clock()
             self.recorder.station_event(ev, now)
             self._record_notes(now)
+        if self.live is not None:
+            self._serve_live(ev)
         self.lessons.on_station_event(ev)
         if type(ev) is FromLink:
             self.downloads.on_link_event(ev.event)
@@ -324,8 +334,9 @@ class TermApp(App[int]):
                 self.alarms_rung.append(alarm)
                 if self.config.bell:
                     self.bell()
-        if self.recorder is not None:
+        if self.recorder is not None or self.live is not None:
             self._record_notes(now)  # (notes written straight into the model, as the log download does)
+        if self.recorder is not None:
             self.recorder.poll(now)
             if self.recorder.error and not self._record_error_said:  # said once; the flight goes on
                 self._record_error_said = True
@@ -506,9 +517,16 @@ class TermApp(App[int]):
 
     # --- recording and replay (term/data/recording.py, term/data/replay.py) ---------------------------------------
 
+    def _serve_live(self, ev: StationEvent) -> None:
+        """A station event to the live server: the link statistics; in a replay, the packets (no taps there)."""
+        now = self.clock()
+        self.live.station_event(ev, now)
+        if self.replay is not None and type(ev) is FromLink and type(ev.event) is PacketReceived:
+            self.live.packet(ev.link, "rx", ev.event.packet, now)
+        self._record_notes(now)
+
     def _record_notes(self, now: float) -> None:
-        """The events list's new lines to the recording (its /events channel: what the pilot read)."""
-        assert self.recorder is not None
+        """The events list's new lines to the recording and the live server (/events: what the pilot read)."""
         new = []
         for entry in reversed(self.model.events):
             if entry.seq <= self._noted:
@@ -516,7 +534,9 @@ class TermApp(App[int]):
             new.append(entry)
         for entry in reversed(new):  # (a merged repeat is written again, with its count)
             text = entry.text if entry.count == 1 else f"{entry.text} (×{entry.count})"
-            self.recorder.event(now, entry.severity, entry.source, text)
+            for sink in (self.recorder, self.live):
+                if sink is not None:
+                    sink.event(now, entry.severity, entry.source, text)
         if new:
             self._noted = new[0].seq
 

@@ -1,0 +1,194 @@
+"""`term --foxglove [HOST:]PORT`: the session served live over Foxglove's WebSocket protocol (the `foxglove-sdk`
+package, the optional extra ``foxglove``), on the channels ``term export`` writes (term/data/channels.py).
+
+Contract:
+
+- ``LiveServer(host, port, t0=, start_ns=)`` starts the SDK's server (loopback unless a host is given) in a context
+  of its own. It is fed like the recording, from any thread and at once: ``received``/``sent`` (a link's bytes
+  and the caller's monotonic ``now``; ``RecordingTransport`` taps them at the transports), ``packet`` (a replay's
+  decoded packets), ``event`` (an events-panel line), ``station_event`` (the link statistics), ``truth`` (the
+  simulator's). Each call only queues; one thread of the server's own decodes, converts (``Channels``) and hands
+  the message to the SDK, which sends it from its own threads. So serving never blocks the link or the screen,
+  and a slow client loses its oldest messages (the SDK's backlog), never the flight's.
+- Times: ``log_time`` is the time the bytes crossed the link, on the recording's clock (``start_ns`` plus the
+  monotonic time since ``t0``, µs resolution, as ``SessionRecorder`` stamps them): a live message and the same
+  message in the recording carry the same time.
+- Nothing is converted for a channel no client subscribes to. The board's parameters (from its ParamValue
+  answers, F11's list) are the server's parameters, read-only: a client's set is answered with the values as they
+  are (a change goes through F11 and its guards).
+- ``close()`` stops the thread and the server. ``port`` is the port bound (``0`` asks for any free one).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import queue
+import threading
+from typing import Any
+
+from term.core.protocol.params import PARAMS, Param
+from term.data.channels import Channels, ChannelSpec
+from term.data.export import DecodedFrame
+from term.data.recording import LinkBytes, LoggedEvent
+
+DEFAULT_HOST = "127.0.0.1"  # loopback: a flight's data leaves the machine only when the pilot names a host
+INSTALL_HINT = "live Foxglove needs the SDK: pip install 'quadrupel[foxglove]' (or: pip install foxglove-sdk)"
+
+
+class FoxgloveError(ValueError):
+    """The server cannot start; the message is one line."""
+
+
+def parse_address(text: str) -> tuple[str, int]:
+    """``[HOST:]PORT`` to (host, port); host defaults to loopback. FoxgloveError with one line if malformed."""
+    host, sep, port_text = text.rpartition(":")
+    host = host.strip("[]") if sep else DEFAULT_HOST
+    try:
+        port = int(port_text)
+    except ValueError:
+        raise FoxgloveError(f"--foxglove takes [HOST:]PORT, e.g. 8765 or 0.0.0.0:8765; got {text!r}") from None
+    if not 0 <= port <= 65535 or not host:
+        raise FoxgloveError(f"--foxglove: port 0..65535 and a host, e.g. 127.0.0.1:8765; got {text!r}")
+    return host, port
+
+
+class _Params:
+    """The board's parameters as the server's, read-only (the SDK calls these from its own threads). The SDK's
+    ServerListener's other callbacks are given by ``_listener``."""
+
+    def __init__(self) -> None:
+        self.values: dict[str, float | str | bool] = {}
+
+    def parameters(self, names: list[str] | None = None) -> list[Any]:
+        import foxglove
+
+        values = dict(self.values)
+        return [foxglove.Parameter(k, value=v) for k, v in sorted(values.items()) if not names or k in names]
+
+    def on_get_parameters(self, client: Any, param_names: list[str], request_id: str | None = None) -> list[Any]:
+        return self.parameters(param_names)
+
+    def on_set_parameters(self, client: Any, parameters: list[Any], request_id: str | None = None) -> list[Any]:
+        return self.parameters([p.name for p in parameters])  # unchanged: writes go through F11's guards
+
+
+def _listener(params: type, base: type) -> type:
+    """``params`` with the SDK's ServerListener's do-nothing callbacks for the rest (subscribe, unsubscribe, ...)."""
+    return type("ParamsListener", (params, base), {})
+
+
+class LiveServer:
+    """The session's channels served live (see the module docstring)."""
+
+    def __init__(self, host: str, port: int, *, t0: float, start_ns: int, name: str = "quadrupel term") -> None:
+        try:
+            import foxglove
+            from foxglove.websocket import Capability
+        except ImportError:
+            raise FoxgloveError(INSTALL_HINT) from None
+        self.t0, self.start_ns = t0, start_ns
+        self._foxglove = foxglove
+        self._context = foxglove.Context()
+        self._params = _listener(_Params, foxglove.websocket.ServerListener)()
+        try:
+            self._server = foxglove.start_server(name=name, host=host, port=port, context=self._context,
+                                                 capabilities=[Capability.Parameters],
+                                                 server_listener=self._params)
+        except Exception as exc:  # the SDK's own error (an address in use, a host not here): one line
+            raise FoxgloveError(f"cannot serve Foxglove on {host}:{port}: {exc}") from None
+        self.host = host
+        self.port = self._server.port
+        self._channels: dict[str, Any] = {}
+        self._maker = Channels()
+        self._queue: queue.SimpleQueue[Any] = queue.SimpleQueue()
+        self.published = 0  # messages handed to the SDK (a client subscribed to their channel)
+        self._thread = threading.Thread(target=self._run, name="foxglove", daemon=True)
+        self._thread.start()
+
+    @property
+    def url(self) -> str:
+        return f"ws://{self.host}:{self.port}"
+
+    # --- fed from any thread ------------------------------------------------------------------------------------
+
+    def t_ns(self, now: float) -> int:
+        return self.start_ns + round((now - self.t0) * 1e6) * 1000  # µs resolution, as the recording stamps
+
+    def received(self, link: str, data: bytes, now: float) -> None:
+        if data:
+            self._queue.put(LinkBytes(self.t_ns(now), link, "rx", bytes(data)))
+
+    def sent(self, link: str, data: bytes, now: float) -> None:
+        if data:
+            self._queue.put(LinkBytes(self.t_ns(now), link, "tx", bytes(data)))
+
+    def packet(self, link: str, direction: str, pkt: Any, now: float) -> None:
+        self._queue.put(DecodedFrame(self.t_ns(now), link, direction, pkt))
+
+    def event(self, now: float, severity: str, source: str, text: str) -> None:
+        self._queue.put(LoggedEvent(self.t_ns(now), severity, source, text))
+
+    def station_event(self, ev: Any, now: float) -> None:
+        """The station's events the channels carry: the link statistics."""
+        if type(ev).__name__ == "StatsSample":
+            self._queue.put(("stats", self.t_ns(now), ev.link, dataclasses.asdict(ev.stats)))
+
+    def truth(self, truth: Any, now: float) -> None:
+        self._queue.put(("truth", self.t_ns(now), truth))
+
+    def close(self) -> None:
+        if self._thread.is_alive():
+            self._queue.put(None)
+            self._thread.join(2.0)
+        self._server.stop()
+
+    # --- the server's thread ------------------------------------------------------------------------------------
+
+    def _run(self) -> None:
+        get = self._queue.get
+        while True:
+            item = get()
+            if item is None:
+                return
+            try:
+                self._publish(self._messages(item))
+            except Exception:  # noqa: S112  # one bad item costs that item, never the serving
+                continue
+
+    def _messages(self, item: Any) -> Any:
+        maker = self._maker
+        kind = type(item)
+        if kind is DecodedFrame:
+            return maker.frame(item.t_ns, item.link, item.direction, item.packet)
+        if kind is tuple:
+            if item[0] == "stats":
+                return [maker.stats(item[1], item[2], item[3])]
+            return maker.truth(item[1], item[2])
+        return maker.item(item)
+
+    def _param(self, param: int, raw: int) -> None:
+        spec = PARAMS.get(Param(param)) if param in Param._value2member_map_ else None
+        if spec is not None:
+            self._params.values[spec.name] = spec.from_raw(raw)
+
+    def _publish(self, messages: Any) -> None:
+        import json
+
+        for spec, t_ns, msg in messages:
+            if spec.schema_name == "quadrupel.ParamValue":
+                d = json.loads(msg)
+                self._param(d["param"], d["value"])  # (whether or not a client subscribed to the channel)
+            ch = self._channels.get(spec.topic) or self._channel(spec)
+            if not ch.has_sinks():
+                continue
+            data = msg if type(msg) is bytes else json.dumps(msg, ensure_ascii=False).encode()
+            ch.log(data, t_ns)
+            self.published += 1
+
+    def _channel(self, spec: ChannelSpec) -> Any:
+        fg = self._foxglove
+        schema = fg.Schema(name=spec.schema_name, encoding=spec.schema_encoding, data=spec.schema)
+        ch = self._channels[spec.topic] = fg.Channel(spec.topic, schema=schema,
+                                                      message_encoding=spec.message_encoding,
+                                                      context=self._context).base
+        return ch

@@ -1,0 +1,54 @@
+"""Long work starts fast and shows progress (issue 22): a replay reads a closed session as the playback goes and
+plays the same events as one read whole; export and plot say how far they are. (The timings: bench.long_work.)"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from bench.long_work import write_session
+from term.data.export import export
+from term.data.plot import plot_log
+from term.data.recording import iter_file
+from term.data.replay import LOAD_AHEAD_S, Replay, build_timeline
+
+
+@pytest.fixture(scope="module")
+def session(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    return write_session(tmp_path_factory.mktemp("long"), 1.0)  # a minute at full telemetry, 6000 ticks
+
+
+def test_an_indexed_replay_reads_only_ahead_and_plays_what_a_whole_read_plays(session: Path) -> None:
+    replay = Replay.load(session)
+    assert replay._more is not None  # read as the playback goes
+    assert replay.timeline[-1][0] <= LOAD_AHEAD_S + 1.0 and replay.duration == pytest.approx(60.0, abs=0.05)
+    rec_meta_start = int(replay.meta["start_ns"])
+    whole = build_timeline(iter_file(session), rec_meta_start)
+    played = [(t, ev) for t, ev in _play(replay)]
+    assert played == whole
+    assert replay.finished and replay.duration == whole[-1][0]
+    # Back to the start and forward past the end: the same events again, then nothing more.
+    assert replay.seek(0.0) is True
+    assert sum(1 for _ in replay.catch_up()) == sum(1 for t, _ in whole if t <= 0.0)
+    assert replay.seek(1e9) is False and replay.position == replay.duration
+
+
+def _play(replay: Replay) -> list[tuple[float, object]]:
+    out = []
+    while not replay.finished:
+        for ev in replay.advance(7.0):
+            out.append((replay.clock(), ev))
+    return out
+
+
+def test_export_and_plot_say_how_far_they_are(session: Path, tmp_path: Path) -> None:
+    calls: list[tuple[int, int | None]] = []
+    res = export(session, tmp_path / "f.mcap", progress=lambda done, total: calls.append((done, total)))
+    total = calls[0][1]
+    assert total is not None and calls[0] == (0, total) and calls[-1] == (total, total)
+    assert len(calls) >= 3 and [c[0] for c in calls] == sorted(c[0] for c in calls)
+    assert res.rows > 6000
+    calls.clear()
+    plot_log(session, tmp_path / "p.png", ["phi"], progress=lambda done, total: calls.append((done, total)))
+    assert calls[0] == (0, total) and calls[-1] == (total, total)
