@@ -190,6 +190,8 @@ async def measure(path: str, board: BoardChild, events: int, policy: str, seed: 
             conn.send_command(Op.SET_PARAM, raw_path)
             await until(lambda: acked(Op.SET_PARAM, raw_path))
         conn.send_command(Op.MODE, Mode.CALIBRATION)
+        await asyncio.sleep(1.2)  # ours returns to SAFE by itself after 1 s; the report's averages until 0 is pressed
+        conn.send_command(Op.MODE, Mode.SAFE)
         await until(lambda: board_event(EventCode.CALIBRATION_DONE))
         await asyncio.sleep(0.1)
         conn.send_command(Op.MODE, Mode.MANUAL)

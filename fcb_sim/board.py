@@ -325,7 +325,7 @@ class Board:
         return self.sched.pick(self.now, lambda name: int(COSTS[name].figure[3]))
 
     def _period(self, name: str) -> int:
-        return timer_period(name, self._path, self.config.telemetry_hz)
+        return timer_period(name, self._path, self.config.telemetry_hz, self.config.heartbeat_ms * 1000)
 
     def _deadline_missed(self, period: int) -> None:
         """A control period at least WCET99: reported while flying, at most every 10 s."""

@@ -108,6 +108,7 @@ class FlightCore:
         self.panic_ae = P.PANIC_AE
         self.panic_scale = 1.0
         self.panic_landed = False  # PANIC sensed the ground (the board then ramps panic_scale to 0)
+        self.panic_hold = False  # the report's PANIC: hold the level it found (at most panic_ae), no descent loop
         self._panic_i = 0.0
         self.panic_level = 0.0
         self._panic_start = 0.0
@@ -241,7 +242,9 @@ class FlightCore:
     def panic_motors(self, scale: float = 1.0, dt: float = 0.0) -> tuple[int, int, int, int]:
         """PANIC: the descent loop's level (module docstring) times ``scale`` (0..1; the board ramps it down once
         ``panic_landed``); ``dt`` 0 (a recompute between control steps) moves no state."""
-        if not self.panic_landed and dt > 0.0:
+        if self.panic_hold:
+            self.panic_level = min(float(self.panic_ae), self._panic_start)
+        elif not self.panic_landed and dt > 0.0:
             err = -panic_descent_rate(self.height) - self.vz
             self._panic_i = max(-self.panic_ae, min(float(PANIC_MAX_AE), self._panic_i + PANIC_KI * err * dt))
             floor = min(PANIC_MIN_FRAC * self.panic_ae, self._panic_start)

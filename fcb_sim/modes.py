@@ -57,7 +57,10 @@ class ModeConfig:
     panic_level: int = 350  # PANIC's reference level: just under hover (about 400); the descent loop trims it
     panic_ramp_s: float = 1.5  # motors to zero over this once the ground is sensed
     panic_timeout_s: float = 300.0  # the ground not sensed by then (CEILING_M at 1-3 m/s): ramp to zero anyway
-    calibration_s: float = 1.0  # CALIBRATION averages this long, then returns to SAFE by itself
+    # CALIBRATION averages this long, then returns to SAFE by itself; 0: for as long as the pilot holds it (report)
+    calibration_s: float = PARAMS[Param.CALIBRATION_MS].default / 1000
+    # PANIC: 0 descends at a bounded rate until the ground; else the report's countdown: a level this long, then off
+    panic_countdown_s: float = PARAMS[Param.PANIC_COUNTDOWN_MS].default / 1000
     calibration_min_samples: int = 50
     tilt_limit_cdeg: int = 5000  # 50°
     low_battery: int = BATTERY_LOW  # 10 mV units: 10.5 V
@@ -138,7 +141,8 @@ def _panic_done(m: ModeMachine) -> Nak:
 
 
 def _calibration_time_up(m: ModeMachine) -> Nak:
-    return Nak.OK if m.calibration_elapsed() >= m.config.calibration_s else Nak.BUSY
+    limit = m.config.calibration_s  # 0: no timer, the pilot ends it (the report's)
+    return Nak.OK if limit > 0 and m.calibration_elapsed() >= limit else Nak.BUSY
 
 
 ZERO_LIFT = Guard("lift + trim zero", _zero_lift)
@@ -409,16 +413,22 @@ class ModeMachine:
             self.panic_landed_at = now
 
     def _ramp_from(self) -> float | None:
+        countdown = self.config.panic_countdown_s
+        if countdown > 0:  # the report's: when the countdown ends the motors stop (a ramp of no length)
+            return self.panic_started + countdown if self._now >= self.panic_started + countdown else None
         if self.panic_landed_at is not None:
             return self.panic_landed_at
         timeout = self.panic_started + self.config.panic_timeout_s
         return timeout if self._now >= timeout else None
 
+    def _ramp_s(self) -> float:
+        return 0.0 if self.config.panic_countdown_s > 0 else self.config.panic_ramp_s
+
     def panic_finished(self) -> bool:
         if self.panic_start_level == 0:
             return True
         t0 = self._ramp_from()
-        return t0 is not None and self._now >= t0 + self.config.panic_ramp_s
+        return t0 is not None and self._now >= t0 + self._ramp_s()
 
     def panic_scale(self, now: float) -> float:
         """What PANIC's descent is multiplied by at ``now``: 1 until the ground is sensed (or the timeout), then
@@ -429,7 +439,8 @@ class ModeMachine:
         t0 = self._ramp_from()
         if t0 is None:
             return 1.0
-        return max(0.0, 1.0 - (now - t0) / self.config.panic_ramp_s)
+        ramp = self._ramp_s()
+        return 0.0 if ramp <= 0 else max(0.0, 1.0 - (now - t0) / ramp)
 
     def panic_motor_level(self, now: float) -> int:
         """PANIC's reference level scaled as ``panic_scale`` says (the descent loop works around it)."""
@@ -562,6 +573,9 @@ enter action of the new one run. The motors are zero in SAFE and CALIBRATION; th
   calibrated) until the flight core senses the ground (little thrust, no vertical speed for 0.5 s), then ramps
   the motors to zero over {ramp} s and returns to SAFE by itself; safe from any height the simulator allows
   (its sky ends at {ceiling:g} m). If the ground is not sensed within {panic_timeout:g} s the ramp starts anyway.
+  With `mode.panic_countdown_ms` set (the `report` preset: the report's countdown, section 3.2) PANIC instead holds
+  the level it found (at most the panic level, levelled when calibrated) for that long, then the motors stop and
+  the board is in SAFE: from high up that is a fall, which is why ours descends until it senses the ground.
 - A crash (an impact faster than {crash_speed:g} m/s, or a touch-down tilted past {crash_tilt:g}°) turns the
   motors off from any mode (SAFE), is reported (event CRASH with the speed, Status flag CRASHED), and SAFE is
   kept until the pilot acknowledges it (`Op.ACK_CRASH`, SAFE only).
@@ -578,8 +592,9 @@ enter action of the new one run. The motors are zero in SAFE and CALIBRATION; th
   and MANUAL) is not a lost link; Betaflight (stage 1 holds for a guard time, stage 2 lands) and ArduPilot's GCS
   failsafe (waits seconds) do the same. A link that stays away still ends in the PANIC descent, {failsafe} s
   later.
-- CALIBRATION sums the sensor samples in unbounded integers for {cal} s with the board still, then returns to
-  SAFE by itself; leaving it (by itself or on request) takes the means, which are subtracted from every later
+- CALIBRATION sums the sensor samples in unbounded integers for {cal} s (`mode.calibration_ms`) with the board
+  still, then returns to SAFE by itself (with 0, the report's, section 3.6: for as long as the pilot holds it,
+  until 0); leaving it (by itself or on request) takes the means, which are subtracted from every later
   sample. Leaving with fewer than {cal_min} samples keeps the previous calibration.
 - Key 8 (`Op.WIRELESS`, arg 1) is a BLE handover, not a mode: accepted only in SAFE, the board stays in SAFE and
   `Status.wireless` moves DISCONNECTED -> STARTING -> STARTED (see docs/wireless.md).

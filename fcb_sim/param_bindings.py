@@ -112,6 +112,17 @@ def _set_timeout(b: BoardParts, v: Value) -> Nak:
     return Nak.OK
 
 
+def _set_calibration(b: BoardParts, v: Value) -> Nak:
+    b.modes.config.calibration_s = float(v) / 1000  # 0: for as long as the pilot holds CALIBRATION
+    return Nak.OK
+
+
+def _set_countdown(b: BoardParts, v: Value) -> Nak:
+    b.modes.config.panic_countdown_s = float(v) / 1000
+    b.core.panic_hold = v != 0  # the report's PANIC: a fixed level, no descent loop
+    return Nak.OK
+
+
 def _set_failsafe(b: BoardParts, v: Value) -> Nak:
     b.config.link_failsafe_s = b.modes.config.link_failsafe_s = float(v) / 1000
     return Nak.OK
@@ -154,8 +165,10 @@ BINDINGS: dict[Param, tuple[Getter, Setter]] = {
     Param.STICK_REACTION: _config("stick_reaction", bool),
     Param.LINK_TIMEOUT_MS: (lambda b: round(b.config.link_timeout_s * 1000), _set_timeout),
     Param.LINK_FAILSAFE_MS: (lambda b: round(b.config.link_failsafe_s * 1000), _set_failsafe),
-    Param.TELEMETRY_HZ: (lambda b: round(b.config.telemetry_hz), lambda b, v: setattr(b.config, "telemetry_hz",
-                                                                                      float(v)) or Nak.OK),
+    Param.TELEMETRY_HZ: _config("telemetry_hz", float),
+    Param.HEARTBEAT_MS: _config("heartbeat_ms", int),
+    Param.CALIBRATION_MS: (lambda b: round(b.modes.config.calibration_s * 1000), _set_calibration),
+    Param.PANIC_COUNTDOWN_MS: (lambda b: round(b.modes.config.panic_countdown_s * 1000), _set_countdown),
     Param.QUEUE_RULE: (lambda b: b.config.queue_rule, _set_queue_rule),
     Param.LOG_SCHEME: (lambda b: b.config.log_scheme, _set_log_scheme),
     Param.TRIM_STEP: _mode_config("trim_step"),

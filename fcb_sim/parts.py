@@ -55,6 +55,7 @@ class BoardConfig:
     link_timeout_s: float = _default(Param.LINK_TIMEOUT_MS) / 1000
     link_failsafe_s: float = _default(Param.LINK_FAILSAFE_MS) / 1000  # the failsafe's stage 1 (0: PANIC at once)
     telemetry_hz: float = _default(Param.TELEMETRY_HZ)
+    heartbeat_ms: int = _default(Param.HEARTBEAT_MS)  # the Heartbeat's period, and the safety monitor's
     log_scheme: str = _default(Param.LOG_SCHEME)
     fixed_point: bool = _default(Param.FIXED_POINT)  # RAW filter in Q16.16 (and the fixed-point read cost)
     queue_rule: str = _default(Param.QUEUE_RULE)  # "discard-20": the report's parser, the whole queue at 20 frames

@@ -38,15 +38,16 @@ BARO_PERIOD_US = 50_000
 HEARTBEAT_PERIOD_US = 100_000
 
 
-def timer_period(name: str, path: str, telemetry_hz: float) -> int:
-    """A timer's period (µs): the sensor's follows the path (RAW 400 Hz, DMP 200 Hz), telemetry its rate."""
+def timer_period(name: str, path: str, telemetry_hz: float, heartbeat_us: int = HEARTBEAT_PERIOD_US) -> int:
+    """A timer's period (µs): the sensor's follows the path (RAW 400 Hz, DMP 200 Hz), telemetry its rate, the
+    heartbeat ``heartbeat_us`` (Param.HEARTBEAT_MS)."""
     if name == "sensor":
         return SENSOR_PERIOD_US[path]
     if name == "baro":
         return BARO_PERIOD_US
     if name == "heartbeat":
-        return HEARTBEAT_PERIOD_US
-    return max(10_000, int(1e6 / max(0.2, telemetry_hz)))
+        return heartbeat_us
+    return max(10_000, int(1e6 / max(0.1, telemetry_hz)))
 
 
 class Scheduler:

@@ -200,6 +200,9 @@ enum qp_param {
     QP_PARAM_TRIM_STEP = 18,
     QP_PARAM_LIFT_STEP = 19,
     QP_PARAM_LINK_FAILSAFE_MS = 20,
+    QP_PARAM_HEARTBEAT_MS = 21,
+    QP_PARAM_CALIBRATION_MS = 22,
+    QP_PARAM_PANIC_COUNTDOWN_MS = 23,
 };
 
 /* --- packets: type ids, sizes and structs ----------------------------------------------------------------- */

@@ -10,7 +10,7 @@ from collections.abc import AsyncIterator, Callable
 from contextlib import asynccontextmanager
 from pathlib import Path
 
-from term.core.protocol import Op
+from term.core.protocol import PARAMS, Op
 from term.session.config import Config
 from term.session.sim import SimBoard
 from term.transports.serial import SerialTransport
@@ -32,7 +32,7 @@ async def served(config: Config | None = None, preset: str | None = None) -> Asy
                     while not cond():
                         await pilot.pause(0.02)
 
-            await until(lambda: len(app.model.params) == 19)  # listed when the board said Hello
+            await until(lambda: len(app.model.params) == len(PARAMS))  # listed when the board said Hello
             yield app, pilot, until
     finally:
         sim.stop()
@@ -53,7 +53,7 @@ async def test_the_parameter_screen_searches_edits_and_shows_refusals() -> None:
         app.simulate_key("f11")
         await until(lambda: isinstance(app.screen, ParamsScreen))
         table = app.screen.query_one(ParamTable)
-        assert table.row_count == 19 and cell(app, "ctrl.p1", "value") == "0.4"
+        assert table.row_count == len(PARAMS) and cell(app, "ctrl.p1", "value") == "0.4"
         assert cell(app, "ctrl.p1", "parameter") == "  ctrl.p1"  # not changed: no mark
         # the arrows move in the list (they trim pitch elsewhere)
         before = table.cursor_row
@@ -80,7 +80,7 @@ async def test_the_parameter_screen_searches_edits_and_shows_refusals() -> None:
         # a value the table refuses: said at once, nothing sent
         search = app.screen.query_one("#param-search")
         search.value = ""  # type: ignore[attr-defined]
-        await until(lambda: table.row_count == 19)
+        await until(lambda: table.row_count == len(PARAMS))
         table.focus()
         table.move_cursor(row=table.get_row_index("ctrl.p1"))
         app.simulate_key("enter")

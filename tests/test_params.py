@@ -46,7 +46,7 @@ def test_every_parameter_is_whole() -> None:
     assert len(set(names)) == len(names) and set(PARAMS) == set(Param) and set(BINDINGS) == set(Param)
     for spec in PARAMS.values():
         group, _, key = spec.name.partition(".")
-        assert group in ("ctrl", "est", "sched", "link", "log", "trim") and key, spec.name
+        assert group in ("ctrl", "est", "sched", "link", "log", "trim", "mode") and key, spec.name
         assert spec.kind in ("int", "float", "bool", "enum") and spec.doc
         assert spec.accepts(spec.to_raw(spec.default)), spec.name  # the default is a value the board accepts
         lo, hi = spec.raw_range
@@ -118,7 +118,8 @@ def test_files_round_trip_and_diff(tmp_path: Path) -> None:
     assert load_file(path) == values
     assert [PARAMS[p].name for p in diff(values, preset_values("default"))] == [
         "ctrl.height_d", "ctrl.height_i", "ctrl.height_p", "est.attitude", "est.height", "link.failsafe_ms",
-        "link.queue_rule", "sched.stick_reaction"]
+        "link.heartbeat_ms", "link.queue_rule", "link.telemetry_hz", "log.scheme", "mode.calibration_ms",
+        "mode.panic_countdown_ms", "sched.stick_reaction"]
 
 
 @pytest.mark.parametrize("text, words", [

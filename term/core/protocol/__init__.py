@@ -139,6 +139,7 @@ from term.core.protocol.params import (  # noqa: F401
     PRESETS,
     QUEUE_DISCARD_FRAMES,
     QUEUE_RULES,
+    REPORT_PANIC_COUNTDOWN_MS,
     SCHEDULERS,
     SENSOR_PATHS,
     Param,

@@ -35,6 +35,9 @@ class Param(IntEnum):
     TRIM_STEP = 18
     LIFT_STEP = 19
     LINK_FAILSAFE_MS = 20
+    HEARTBEAT_MS = 21
+    CALIBRATION_MS = 22
+    PANIC_COUNTDOWN_MS = 23
 
 
 SCHEDULERS = ("round-robin", "priority")  # Param.SCHEDULER value -> the board's scheduler
@@ -178,8 +181,10 @@ PARAMS: dict[Param, ParamSpec] = {p.param: p for p in (
     _p(Param.LINK_FAILSAFE_MS, "link.failsafe_ms", "int", "ms", 1000, "stage 1's guard time: the link back within "
        "it gives control back, else PANIC (0: PANIC at once, the report's; only shorter in flight)", lo=0,
        hi=10000, shorter_in_flight=True),
-    _p(Param.TELEMETRY_HZ, "link.telemetry_hz", "int", "Hz", 50, "Attitude and Motion rate over the UART",
-       lo=1, hi=100),
+    _p(Param.TELEMETRY_HZ, "link.telemetry_hz", "float", "Hz", 50.0, "Attitude and Motion rate over the UART "
+       "(the report's: 0.52, a run every 1.9 s, Figure 14)", lo=0.1, hi=100, scale=0.01),
+    _p(Param.HEARTBEAT_MS, "link.heartbeat_ms", "int", "ms", 100, "the board's Heartbeat period, and its safety "
+       "monitor's (the report's: 325, Figure 14)", lo=20, hi=1000, in_flight=False),
     _p(Param.QUEUE_RULE, "link.queue_rule", "enum", "", "bounded", "the receive queue: bounded (what does not "
        "fit is dropped) or discard-20 (the report's: the whole queue goes at 20 frames)", choices=QUEUE_RULES,
        in_flight=False),
@@ -189,6 +194,12 @@ PARAMS: dict[Param, ParamSpec] = {p.param: p for p in (
     _p(Param.TRIM_STEP, "trim.step", "int", "stick", 256, "roll, pitch and yaw trim per key press (0.8 %)",
        lo=1, hi=4096),
     _p(Param.LIFT_STEP, "trim.lift_step", "int", "stick", 328, "lift trim per key press (1 %)", lo=1, hi=4096),
+    _p(Param.CALIBRATION_MS, "mode.calibration_ms", "int", "ms", 1000, "CALIBRATION averages this long, then "
+       "returns to SAFE by itself (0: for as long as the pilot holds it, the report's, section 3.6)", lo=0,
+       hi=60000),
+    _p(Param.PANIC_COUNTDOWN_MS, "mode.panic_countdown_ms", "int", "ms", 0, "PANIC: 0 descends at a bounded rate "
+       "until the ground is sensed (ours); else holds a level just under hover for this long, then motors off (the "
+       "report's countdown, section 3.2)", lo=0, hi=60000, in_flight=False),
 )}
 PARAM_BY_NAME: dict[str, ParamSpec] = {p.name: p for p in PARAMS.values()}
 # The gain keys (u/j, i/k, o/l, t/g, y/h) step these parameters by their ``step``.
@@ -212,6 +223,10 @@ def param_split(arg: int) -> tuple[int, int]:
     return (arg >> PARAM_RAW_BITS) & 0xFF, raw
 
 
+# The report starts a countdown on entering PANIC (section 3.2) but gives no length; 3.5 s is the fixed-level time
+# this project's board held before the rate-bounded descent (fcb_sim/flight.py, issue 10.4; DESIGN: "a few seconds").
+REPORT_PANIC_COUNTDOWN_MS = 3500
+
 # Presets: whole sets of values by name (a value per parameter it changes; the rest keep their defaults).
 PRESETS: dict[str, dict[Param, float | str | bool]] = {
     "default": {},  # the team's best: every parameter at its default
@@ -224,6 +239,10 @@ PRESETS: dict[str, dict[Param, float | str | bool]] = {
         Param.HEIGHT_ESTIMATOR: "complementary", Param.HEIGHT_P: 120.0, Param.HEIGHT_D: 320.0, Param.HEIGHT_I: 0.0,
         Param.SCHEDULER: "round-robin", Param.STICK_REACTION: False, Param.QUEUE_RULE: "discard-20",
         Param.LINK_FAILSAFE_MS: 0,
+        # the report's telemetry period (1.9 s) and heartbeat period (324-327 ms) of Figure 14, its delta log
+        # (section 3.5), calibration for as long as it is held (3.6), PANIC's countdown (3.2; docs/deviations.md)
+        Param.TELEMETRY_HZ: 0.52, Param.HEARTBEAT_MS: 325, Param.LOG_SCHEME: "delta8", Param.CALIBRATION_MS: 0,
+        Param.PANIC_COUNTDOWN_MS: REPORT_PANIC_COUNTDOWN_MS,
     },
 }
 
