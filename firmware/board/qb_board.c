@@ -53,9 +53,9 @@ static uint32_t timer_period(const qb_board_t *b, int timer)
         return QB_BARO_PERIOD_US;
     case QB_TM_HEARTBEAT:
         return QB_HEARTBEAT_PERIOD_US;
-    default:
+    default: /* link.telemetry_hz in its raw unit, 0.01 Hz */
         hz = b->telemetry_hz > 0 ? (uint32_t)b->telemetry_hz : 1u;
-        return 1000000u / hz < 10000u ? 10000u : 1000000u / hz;
+        return 100000000u / hz < 10000u ? 10000u : 100000000u / hz;
     }
 }
 

@@ -54,7 +54,7 @@ int32_t qb_param_get(const qb_board_t *b, int id)
     case QP_PARAM_QUEUE_RULE: return b->queue_rule;
     case QP_PARAM_TRIM_STEP: return b->modes.trim_step;
     case QP_PARAM_LIFT_STEP: return b->modes.lift_step;
-    default: return 0;
+    default: return s ? s->def : 0; /* the report preset's timings (heartbeat, calibration, countdown): defaults */
     }
 }
 
@@ -105,6 +105,10 @@ static uint8_t set_bound(qb_board_t *b, int id, int32_t raw, qb_real v)
     case QP_PARAM_QUEUE_RULE: b->queue_rule = raw; break;
     case QP_PARAM_TRIM_STEP: b->modes.trim_step = raw; break;
     case QP_PARAM_LIFT_STEP: b->modes.lift_step = raw; break;
+    case QP_PARAM_HEARTBEAT_MS:
+    case QP_PARAM_CALIBRATION_MS:
+    case QP_PARAM_PANIC_COUNTDOWN_MS: /* the report preset's timings are not in C yet: its defaults only */
+        return raw == qb_param_spec(id)->def ? QP_NAK_OK : QP_NAK_NOT_IMPLEMENTED;
     default: return QP_NAK_UNKNOWN_PARAM;
     }
     return QP_NAK_OK;

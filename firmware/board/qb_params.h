@@ -27,8 +27,8 @@ typedef struct {
     QB_REAL step;          /* one press of its key (the gains), in the value's unit */
 } qb_param_spec_t;
 
-#define QB_PARAM_COUNT 20
-#define QB_PARAM_MAX_ID 20
+#define QB_PARAM_COUNT 23
+#define QB_PARAM_MAX_ID 23
 
 #define QB_SCHEDULER_ROUND_ROBIN 0
 #define QB_SCHEDULER_PRIORITY 1
@@ -54,7 +54,7 @@ extern const qb_param_spec_t QB_PARAMS[QB_PARAM_COUNT];
 const qb_param_spec_t QB_PARAMS[QB_PARAM_COUNT] = {
     {1, QB_KIND_INT, 1, 1, 50, 60000, 500, 1.0, 0.0}, /* link.timeout_ms */
     {2, QB_KIND_ENUM, 1, 0, 0, 1, 0, 1.0, 0.0}, /* sched.scheduler */
-    {3, QB_KIND_INT, 1, 0, 1, 100, 50, 1.0, 0.0}, /* link.telemetry_hz */
+    {3, QB_KIND_FLOAT, 1, 0, 10, 10000, 5000, 0.01, 0.0}, /* link.telemetry_hz */
     {4, QB_KIND_ENUM, 1, 0, 0, 2, 0, 1.0, 0.0}, /* est.sensor_path */
     {5, QB_KIND_ENUM, 0, 0, 1, 2, 2, 1.0, 0.0}, /* log.scheme */
     {6, QB_KIND_FLOAT, 1, 0, 0, 500000, 80000, 0.01, 50.0}, /* ctrl.yaw_p */
@@ -72,6 +72,9 @@ const qb_param_spec_t QB_PARAMS[QB_PARAM_COUNT] = {
     {18, QB_KIND_INT, 1, 0, 1, 4096, 256, 1.0, 0.0}, /* trim.step */
     {19, QB_KIND_INT, 1, 0, 1, 4096, 328, 1.0, 0.0}, /* trim.lift_step */
     {20, QB_KIND_INT, 1, 1, 0, 10000, 1000, 1.0, 0.0}, /* link.failsafe_ms */
+    {21, QB_KIND_INT, 0, 0, 20, 1000, 100, 1.0, 0.0}, /* link.heartbeat_ms */
+    {22, QB_KIND_INT, 1, 0, 0, 60000, 1000, 1.0, 0.0}, /* mode.calibration_ms */
+    {23, QB_KIND_INT, 0, 0, 0, 60000, 0, 1.0, 0.0}, /* mode.panic_countdown_ms */
 };
 #endif
 
