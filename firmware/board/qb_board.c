@@ -259,7 +259,7 @@ static void task_heartbeat(qb_board_t *b)
     b->hb_sent_set = 1;
     b->hb_rtt_fresh = 0;
     qb_flight_attitude_cdeg(&b->core, att);
-    qb_modes_supervise(&b->modes, now_s(b), silent, b->modes.battery, att[0], att[1]);
+    qb_modes_supervise(&b->modes, now_s(b), silent, b->battery, att[0], att[1]); /* the last ADC reading */
     drain_mode_events(b);
 }
 
