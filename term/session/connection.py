@@ -8,14 +8,17 @@ Two tasks share one session (single-threaded, so no locking of the session itsel
   then runs ``poll`` and writes what is due.
 
 Events go to the ``on_event`` callback, or, without one, into ``events`` (an asyncio.Queue). A transport that
-dies ends the connection with one ``TransportFailed`` event carrying the transport's one-line message; ``stop``
-is a clean stop that emits nothing.
+dies ends the connection with one ``TransportFailed`` event carrying the transport's one-line message; so does
+any exception in the pump (a bug, or a front end's reaction that raised): it is logged with its traceback and
+named in the event ("link error: OverflowError: ..."), never a silent end. ``stop`` is a clean stop that emits
+nothing.
 """
 
 from __future__ import annotations
 
 import asyncio
 import contextlib
+import logging
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -23,6 +26,8 @@ from dataclasses import dataclass
 from term.core.link import LinkEvent, LinkSession, LinkStats
 from term.core.protocol import Joystick, Op
 from term.transports.base import Transport, TransportClosed, TransportError
+
+log = logging.getLogger("term.link")
 
 
 @dataclass(frozen=True, slots=True)
@@ -141,9 +146,8 @@ class Connection:
                 await self._fail(exc)
         except TransportError as exc:
             await self._fail(exc)
-        except Exception as exc:  # a bug (e.g. in on_event): stop, and let wait_closed raise it
-            self.crash = exc
-            await self.stop()
+        except Exception as exc:  # a bug (e.g. in on_event): the link is lost all the same, and says why
+            await self._crashed(exc)
 
     async def _timer_loop(self) -> None:
         session = self.session
@@ -164,9 +168,8 @@ class Connection:
                 await self._fail(exc)
         except TransportError as exc:
             await self._fail(exc)
-        except Exception as exc:  # a bug (e.g. in on_event): stop, and let wait_closed raise it
-            self.crash = exc
-            await self.stop()
+        except Exception as exc:  # a bug (e.g. in on_event): the link is lost all the same, and says why
+            await self._crashed(exc)
 
     async def _flush(self) -> None:
         async with self._write_lock:  # take the bytes and write them as one step, so order is kept
@@ -185,9 +188,27 @@ class Connection:
             else:
                 self.events.put_nowait(ev)
 
+    async def _crashed(self, exc: Exception) -> None:
+        """An exception in the pump: logged with its traceback, and the end of the link like a dead transport
+        (``TransportFailed`` naming it, so the front end says LINK LOST and reconnects); ``wait_closed`` raises it."""
+        if self.crash is not None or not self._running:
+            return
+        self.crash = exc
+        log.error("link %s: %s", self.transport.name, crash_text(exc), exc_info=exc)
+        await self._fail(TransportError(crash_text(exc)))
+
     async def _fail(self, exc: TransportError) -> None:
         if self.error is not None or not self._running:
             return
         self.error = exc
-        self._deliver([TransportFailed(str(exc))])
+        try:
+            self._deliver([TransportFailed(str(exc))])
+        except Exception as again:  # the front end failed on this too: it is in the log, the link still stops
+            log.error("link %s: the front end failed on the link's end", self.transport.name, exc_info=again)
         await self.stop()
+
+
+def crash_text(exc: BaseException) -> str:
+    """One line for a bug in the link path: what it was, for the pilot's LINK LOST and the log."""
+    text = " ".join(str(exc).split())[:160]
+    return f"link error: {type(exc).__name__}" + (f": {text}" if text else "")
