@@ -19,6 +19,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import logging
+import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -49,7 +50,10 @@ class Connection:
         session: LinkSession,
         clock: Callable[[], float] = time.monotonic,
         on_event: Callable[[ConnectionEvent], None] | None = None,
+        gate: Callable[[], bool] | None = None,
     ) -> None:
+        """``gate``: asked before every write; False drops what is due (the display's watchdog,
+        term/session/link_thread.py: a frozen display stops the heartbeat answers on purpose)."""
         self.transport = transport
         self.session = session
         self.clock = clock
@@ -57,7 +61,10 @@ class Connection:
         self.events: asyncio.Queue[ConnectionEvent] = asyncio.Queue()
         self.error: TransportError | None = None
         self.crash: Exception | None = None
+        self.gate = gate
         self._wake = asyncio.Event()
+        self._lock = threading.Lock()  # the session: the pump's thread and the display's both call it
+        self._loop: asyncio.AbstractEventLoop | None = None
         self._write_lock = asyncio.Lock()
         self._tasks: list[asyncio.Task[None]] = []
         self._done = asyncio.Event()
@@ -68,10 +75,13 @@ class Connection:
     async def start(self) -> None:
         """Open the transport, send our Hello, start the pump. Raises TransportError if the open fails."""
         await self.transport.open()
+        self._loop = asyncio.get_running_loop()
         self._running = True
         self._done.clear()
         try:
-            await self._write(self.session.hello())
+            with self._lock:
+                hello = self.session.hello()
+            await self._write(hello)
         except BaseException:
             self._running = False
             await self.transport.close()
@@ -117,18 +127,36 @@ class Connection:
     # --- the app's side -------------------------------------------------------------------------------------
 
     def send_command(self, op: Op, arg: int = 0) -> int:
-        """Queue a command (sent at once by the timer task); returns its cmd_id."""
-        cmd_id = self.session.send_command(op, arg, self.clock())
-        self._wake.set()
+        """Queue a command (sent at once by the timer task); returns its cmd_id. Any thread may call it."""
+        with self._lock:
+            cmd_id = self.session.send_command(op, arg, self.clock())
+        self._poke()
         return cmd_id
 
     def set_joystick(self, js: Joystick) -> None:
-        self.session.set_joystick(js)
-        self._wake.set()
+        """A new stick value (latest wins). Any thread may call it."""
+        with self._lock:
+            self.session.set_joystick(js)
+        self._poke()
 
     @property
     def stats(self) -> LinkStats:
-        return self.session.stats_at(self.clock())
+        with self._lock:
+            return self.session.stats_at(self.clock())
+
+    def _poke(self) -> None:
+        """Wake the timer task, from its own loop or from another thread."""
+        loop = self._loop
+        if loop is None or loop.is_closed():
+            return
+        try:
+            running = asyncio.get_running_loop()
+        except RuntimeError:
+            running = None
+        if running is loop:
+            self._wake.set()
+        else:
+            loop.call_soon_threadsafe(self._wake.set)
 
     # --- the pump -------------------------------------------------------------------------------------------
 
@@ -137,7 +165,8 @@ class Connection:
         try:
             while True:
                 data = await self.transport.read()
-                events = session.receive(data, self.clock())
+                with self._lock:
+                    events = session.receive(data, self.clock())
                 await self._flush()  # heartbeat ACKs leave now, in this step
                 self._deliver(events)
                 self._wake.set()  # deadlines may have moved (an Ack removed a retry)
@@ -153,10 +182,12 @@ class Connection:
         session = self.session
         try:
             while True:
-                events = session.poll(self.clock())
+                with self._lock:
+                    events = session.poll(self.clock())
                 await self._flush()
                 self._deliver(events)
-                delay = session.next_deadline() - self.clock()
+                with self._lock:
+                    delay = session.next_deadline() - self.clock()
                 if delay > 0:
                     self._wake.clear()
                     # asyncio.timeout, not wait_for: 3.11's wait_for can swallow the cancel that stop() sends.
@@ -173,8 +204,9 @@ class Connection:
 
     async def _flush(self) -> None:
         async with self._write_lock:  # take the bytes and write them as one step, so order is kept
-            data = self.session.data_to_send(self.clock())
-            if data:
+            with self._lock:
+                data = self.session.data_to_send(self.clock())
+            if data and (self.gate is None or self.gate()):
                 await self.transport.write(data)
 
     async def _write(self, data: bytes) -> None:
