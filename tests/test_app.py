@@ -85,21 +85,25 @@ class LoopBoard:
                 await t
 
 
-async def until(pilot, cond: Callable[[], bool], timeout: float = 5.0) -> None:  # noqa: ANN001
+async def until(pilot, cond: Callable[[], bool], timeout: float = 20.0) -> None:  # noqa: ANN001
+    """Wait for ``cond``; the bound only ends a test that would hang (a busy machine is slow, not wrong)."""
     async with asyncio.timeout(timeout):
         while not cond():
             await pilot.pause(0.01)
 
 
 @contextlib.asynccontextmanager
-async def flying(scripted_board, size=(120, 44), **board_kw):  # noqa: ANN001, ANN201
+async def flying(scripted_board, size=(120, 44), link_timeout: float = 3.0, **board_kw):  # noqa: ANN001, ANN201
+    """The app and the scripted board on one loopback pair, on the test's one loop. A stall of that loop (a busy
+    machine, Textual's first layout) stalls the board too, so a short link timeout would see a silence that never
+    was: the tests of silence ask for the report's 0.5 s themselves."""
     import time
 
     pair = loopback_pair()
     board = scripted_board(start=time.monotonic(), **board_kw)
     peer = LoopBoard(pair.b, board, time.monotonic)
     await peer.start()
-    app = TermApp(pair.a, joystick=False, session_options={"link_timeout": 0.5})
+    app = TermApp(pair.a, joystick=False, session_options={"link_timeout": link_timeout})
     try:
         async with app.run_test(size=size) as pilot:
             await until(pilot, lambda: board.hellos)
@@ -212,7 +216,7 @@ async def test_a_nak_is_shown_with_its_reason(scripted_board) -> None:  # noqa: 
 
 
 async def test_link_lost_is_unmissable_and_restored(scripted_board) -> None:  # noqa: ANN001
-    async with flying(scripted_board) as (app, pilot, board, _):
+    async with flying(scripted_board, link_timeout=0.5) as (app, pilot, board, _):
         await until(pilot, lambda: app.model.link is not None and app.model.link.heartbeats > 0)
         board.silent = True
         await until(pilot, lambda: app.model.link_lost)
@@ -377,7 +381,7 @@ async def test_a_dead_transport_is_reopened(scripted_board) -> None:  # noqa: AN
 async def test_silence_after_a_wireless_handover_says_so(scripted_board) -> None:  # noqa: ANN001
     from term.core.protocol import WirelessState
 
-    async with flying(scripted_board) as (app, pilot, board, peer):
+    async with flying(scripted_board, link_timeout=0.5) as (app, pilot, board, peer):
         await until(pilot, lambda: app.model.link is not None and app.model.link.frames_ok > 0)
         await peer.send(Event(EventCode.WIRELESS_STATE, int(WirelessState.STARTING), 1000))
         await until(pilot, lambda: app.model.handed_over)

@@ -310,7 +310,7 @@ async def test_a_flight_with_a_handover_is_recorded_whole_and_agrees_with_the_fl
         async with app.run_test(size=(120, 44)) as pilot:
             m = app.model
 
-            async def until(cond: Callable[[], bool], timeout: float = 15.0) -> None:
+            async def until(cond: Callable[[], bool], timeout: float = 30.0) -> None:
                 async with asyncio.timeout(timeout):
                     while not cond():
                         await pilot.pause(0.02)

@@ -93,16 +93,28 @@ async def test_a_frozen_display_stops_the_answers_on_purpose_and_says_why(pty_pa
     runner = LinkThread(freeze_s=1.5, clock=lambda: wall[0])
     async with linked(pty_pair, scripted_board, runner) as (st, board):
         wall[0] = 1.0
-        await until(lambda: len(board.hb_acks) >= 4)  # 1 s without a tick: within the bound, still fed
-        wall[0] = 2.0  # 2 s since the display's last tick: the pilot is blind
-        await asyncio.sleep(0.05)  # (one answer may already be on its way)
         n = len(board.hb_acks)
-        sent = board._counter
-        await until(lambda: board._counter >= sent + 5)  # five more heartbeats from the board...
-        assert len(board.hb_acks) <= n + 1  # ...and none answered
-        st.sample()  # the display draws again
-        await until(lambda: len(board.hb_acks) > n + 2)
-        await until(lambda: any("display was frozen for 2.0 s" in e.text for e in st.model.events))
+        await until(lambda: len(board.hb_acks) >= n + 3)  # the display's loop beats: still fed
+        seen: dict[str, int] = {}
+        released = threading.Event()
+
+        def meanwhile() -> None:  # on another thread, while the display's loop is frozen below
+            wall[0] = 3.0  # 2 s since the display's last beat: the pilot is blind
+            time.sleep(0.05)  # (one answer may already be on its way)
+            acks, sent = len(board.hb_acks), board._counter
+            while board._counter < sent + 5:  # five more heartbeats from the board...
+                time.sleep(0.01)
+            seen["answered"] = len(board.hb_acks) - acks
+            released.set()
+
+        helper = threading.Thread(target=meanwhile)
+        helper.start()
+        released.wait(30.0)  # the display's loop is frozen until the helper has seen enough
+        helper.join()
+        assert seen["answered"] <= 1  # ...and none answered
+        n = len(board.hb_acks)
+        await until(lambda: len(board.hb_acks) > n + 2)  # the display beats again: the board is fed again
+        await until(lambda: any("display was frozen for" in e.text for e in st.model.events))
 
 
 async def test_an_exception_on_the_link_thread_is_link_lost_and_the_link_comes_back(

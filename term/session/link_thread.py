@@ -8,7 +8,8 @@ expression or a big export never delay reading, heartbeat answers, command retri
 - ``FrontDoor`` carries things the other way: the link thread's events are queued and handed to the display's
   loop in batches (one wake-up for however many arrived), in the order they happened. The model is only ever
   changed on the display's thread.
-- The watchdog (``may_send``): the display calls ``alive()`` on every render tick. While it does, the link keeps
+- The watchdog (``may_send``): the display's loop calls ``alive()`` ten times a second (``watch``) and on
+  every render tick. While it does, the link keeps
   the board fed; once the display has been frozen past ``freeze_s`` (about 1.5 s: the pilot is blind) the link
   stops writing on purpose, so the board's link-loss failsafe takes over instead of flying a craft nobody sees.
   When the display is back the link writes again, and ``on_thaw(frozen_s)`` says why it was quiet (the log and
@@ -23,8 +24,10 @@ from __future__ import annotations
 
 import asyncio
 import logging
+import sys
 import threading
 import time
+import traceback
 from collections import deque
 from collections.abc import Callable, Coroutine
 from typing import Any, TypeVar
@@ -47,6 +50,7 @@ class LinkThread:
         self._thread: threading.Thread | None = None
         self._alive = clock()
         self._frozen_since: float | None = None  # when the watchdog stopped the writes
+        self._display: int | None = None  # the display's thread (the last to call alive)
 
     # --- life cycle -----------------------------------------------------------------------------------------
 
@@ -111,6 +115,19 @@ class LinkThread:
     def alive(self) -> None:
         """The display is drawing: the link may keep the board fed."""
         self._alive = self.clock()
+        self._display = threading.get_ident()
+
+    def watch(self, display: asyncio.AbstractEventLoop, period: float = 0.1) -> None:
+        """Call ``alive()`` from the display's loop every ``period`` s: a loop that runs its callbacks is one
+        the pilot sees (a render tick may be skipped by a busy loop that is not frozen)."""
+
+        def beat() -> None:
+            if self._thread is None:
+                return
+            self.alive()
+            display.call_later(period, beat)
+
+        display.call_soon_threadsafe(beat)
 
     def frozen_for(self) -> float:
         return self.clock() - self._alive
@@ -121,7 +138,8 @@ class LinkThread:
         if frozen > self.freeze_s:
             if self._frozen_since is None:
                 self._frozen_since = self._alive
-                log.warning("display frozen for %.1f s: the link stops answering the board on purpose", frozen)
+                log.warning("display frozen for %.1f s: the link stops answering the board on purpose; the display "
+                            "is at:\n%s", frozen, self._where_display_is())
             return False
         if self._frozen_since is not None:
             lasted = self.clock() - self._frozen_since
@@ -130,6 +148,14 @@ class LinkThread:
             if self.on_thaw is not None:
                 self.on_thaw(lasted)
         return True
+
+
+    def _where_display_is(self) -> str:
+        """The display thread's innermost frames: what froze it, for the log."""
+        frame = sys._current_frames().get(self._display) if self._display is not None else None
+        if frame is None:
+            return "  (not known)"
+        return "".join(traceback.format_stack(frame, limit=8))
 
 
 class FrontDoor:
@@ -172,22 +198,42 @@ class FrontDoor:
 
 
 class PostedTap:
-    """A recorder's byte tap (``received``/``sent``) called on the link thread, written on the display's thread:
-    the recording is not thread-safe, and its writes must not delay the link. The time is taken when the bytes
-    passed, so the recording's timing is the link's."""
+    """A recorder's byte tap (``received``/``sent``) called on the link thread, written on the display's thread
+    (``post``, e.g. ``Station.post``): the recording is not thread-safe, and its writes must not delay the link.
+    The time is taken when the bytes passed, so the recording's timing is the link's."""
 
-    def __init__(self, recorder: Any, door: FrontDoor) -> None:
+    def __init__(self, recorder: Any, post: Callable[..., None]) -> None:
         self.recorder = recorder
-        self.door = door
+        self.post = post
 
     def received(self, link: str, data: bytes, now: float) -> None:
-        self.door.post(self.recorder.received, link, data, now)
+        self.post(self.recorder.received, link, data, now)
 
     def sent(self, link: str, data: bytes, now: float) -> None:
-        self.door.post(self.recorder.sent, link, data, now)
+        self.post(self.recorder.sent, link, data, now)
 
     def __getattr__(self, name: str) -> Any:
         return getattr(self.recorder, name)
+
+
+def _chain(transport: object | None) -> list[object]:
+    """``transport`` and what it wraps (taps and fault injectors keep theirs in ``inner``)."""
+    out = []
+    t = transport
+    while t is not None:
+        out.append(t)
+        t = getattr(t, "__dict__", {}).get("inner")
+    return out
+
+
+def post_taps(transport: object | None, post: Callable[..., None]) -> None:
+    """Every recording tap in ``transport``'s chain (its ``sinks``: the recording, the live server) writes through
+    ``post`` (the display's thread) from now on."""
+    for t in _chain(transport):
+        sinks = t.__dict__.get("sinks")
+        if isinstance(sinks, tuple):
+            posted = tuple(s if isinstance(s, PostedTap) else PostedTap(s, post) for s in sinks)
+            t.sinks = posted  # type: ignore[attr-defined]
 
 
 _MOVABLE = ("SerialTransport", "BleTransport")  # opened and used on whichever loop calls them
@@ -196,7 +242,5 @@ _MOVABLE = ("SerialTransport", "BleTransport")  # opened and used on whichever l
 def movable(transport: object | None) -> bool:
     """True if ``transport`` (through its taps and fault injectors) may live on the link's thread: the real ones
     (serial, BLE) may; a loopback pair shares asyncio queues with a peer on the caller's loop and may not."""
-    t = transport
-    while t is not None and "inner" in getattr(t, "__dict__", {}):
-        t = t.__dict__["inner"]
-    return t is not None and type(t).__name__ in _MOVABLE
+    chain = _chain(transport)
+    return bool(chain) and type(chain[-1]).__name__ in _MOVABLE

@@ -223,6 +223,14 @@ class Station:
         if self.on_event is not None:
             self.on_event(ev)
 
+    def post(self, fn: Callable[..., Any], *args: Any) -> None:
+        """``fn(*args)`` on the front end's loop (at once when called there, or without a link thread)."""
+        door = self._door
+        if door is None or door.here():
+            fn(*args)
+        else:
+            door.post(fn, *args)
+
     def note(self, severity: str, source: str, text: str) -> None:
         self.emit(Note(severity, source, text))
 
@@ -237,6 +245,7 @@ class Station:
             if self.runner.on_thaw is None:
                 self.runner.on_thaw = self._thawed
             self.runner.start()
+            self.runner.watch(asyncio.get_running_loop())
         if self.cable is not None and not await self._on_link(self.cable.connect()):
             self.emit(Fatal(self.cable.last_error, EXIT_USAGE))
             return
