@@ -67,7 +67,8 @@ test: $(STAMP)
 	@command -v arm-none-eabi-gcc >/dev/null || echo "no arm-none-eabi-gcc: the Cortex-M0 size test is skipped"
 	$(BIN)/python -m pytest
 
-BENCHES := codec realtime flight filters profile log_compression pacing latency ui plots ble firmware download soak lessons keyboard foxglove long_work
+BENCHES := codec realtime flight filters profile log_compression pacing latency ui plots ble firmware download soak lessons keyboard foxglove long_work \
+	contention
 
 # Every benchmark runs (its last line, the JSON, is printed); make bench fails if any of them failed.
 bench: $(BENCH_STAMP)
