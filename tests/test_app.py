@@ -390,3 +390,26 @@ async def test_silence_after_a_wireless_handover_says_so(scripted_board) -> None
         await pilot.pause(0.1)
         assert "handed over to BLE" in str(app.screen.query_one("#mode").render())
         assert "handing over to BLE" in str(app.screen.query_one("#link").render())
+
+
+async def test_the_mode_banner_says_how_far_the_simulator_lags_while_it_does() -> None:
+    """Issue 21: a starved simulator says it runs behind real time (SIM_LAG, at most once a second); the flight
+    screen shows it under the mode, and drops it a few seconds after the simulator stops saying it."""
+    from term.ui.widgets.mode import SIM_LAG_SHOWN_S
+
+    now = [100.0]
+    app = TermApp(joystick=False, clock=lambda: now[0])
+    async with app.run_test(size=(120, 44)) as pilot:
+        app.model.apply_packet(Attitude(Mode.FULL, 0, 0, 0, 0, 0, 0), now[0])
+        app.render_now()
+        await pilot.pause(0.05)
+        assert "behind real time" not in str(app.screen.query_one("#mode").render())
+        app.model.apply_packet(Event(EventCode.SIM_LAG, 240, 5000), now[0])
+        app.render_now()
+        await pilot.pause(0.05)
+        assert "simulator 240 ms behind real time" in str(app.screen.query_one("#mode").render())
+        now[0] += SIM_LAG_SHOWN_S + 0.1
+        app.model.apply_packet(Attitude(Mode.FULL, 0, 0, 0, 0, 0, 0), now[0])
+        app.render_now()
+        await pilot.pause(0.05)
+        assert "behind real time" not in str(app.screen.query_one("#mode").render())
