@@ -12,8 +12,9 @@ Per flight it prints:
 - ``false_link_losses``: LINK LOST said by the terminal (its link's silence or a dead transport) with no freeze;
 - ``stage1`` / ``stage2``: the board's link failsafe: stage 1 holds level (EventCode.LINK_LOST, once the board
   has the two-stage failsafe), stage 2 is the PANIC descent (EventCode.LINK_TIMEOUT);
-- ``hb_gap_p99_ms`` / ``hb_gap_max_ms``: the gaps between valid frames from the terminal, as the board saw them
-  (its own clock, at its parse task; heartbeat answers, sticks and commands all count, as for its link timer);
+- ``hb_gap_p99_ms`` / ``hb_gap_max_ms``: the gaps between valid frames from the terminal, as the board's link
+  timer counts them (its own clock, at its parse task, less the time its own process was starved: fcb_sim/
+  linktimer.py; heartbeat answers, sticks and commands all count);
 - ``stick_p99_ms``: from the app's ``set_stick`` to the board's parse task decoding that lift (it recomputes the
   motors in the same task: docs/board.md, "Sticks to motors"), p99 over the flight;
 - ``panic_named``: after a freeze that ended in the PANIC descent, whether the terminal's screen says so.
@@ -65,13 +66,15 @@ def board_main(seed: int, radio: bool) -> int:
     def reporting_board(*a: Any, **k: Any) -> Board:
         board = make_board(*a, **k)
         board_of.append(board)
-        handle, emit = board._handle, board.modes.emit
-        last = {"frame": None, "lift": None}
+        handle, emit, heard = board._handle, board.modes.emit, board.link.heard
+        last = {"lift": None}
+
+        def _heard(now: int) -> None:  # the silence the board's link timer counts (less its own starved time)
+            if board.link.last_frame_us is not None:
+                gaps.append(board.link.silent_us(now) / 1e3)
+            heard(now)
 
         def _handle(pkt: Any) -> None:
-            if last["frame"] is not None:
-                gaps.append((board.now - last["frame"]) / 1e3)
-            last["frame"] = board.now
             if type(pkt) is Joystick and pkt.lift != last["lift"]:
                 last["lift"] = pkt.lift
                 print(f"js {time.monotonic():.6f} {pkt.lift}", flush=True)
@@ -82,6 +85,7 @@ def board_main(seed: int, radio: bool) -> int:
             emit(code, arg, now)
 
         board._handle = _handle  # type: ignore[method-assign]
+        board.link.heard = _heard  # type: ignore[method-assign]
         board.modes.emit = _emit  # type: ignore[method-assign]
         return board
 
@@ -182,12 +186,8 @@ async def term_main(port: str, ble: str, seconds: float, seed: int) -> int:
             t = time.monotonic()
             app.set_stick(Joystick(0, 0, 0, LIFTS[level], 0))
             print(f"stick {t:.6f} {LIFTS[level]}", flush=True)
-        app.set_stick(Joystick(0, 0, 0, 0, 0))
+        print(f"done {time.monotonic():.6f}", flush=True)  # the board's silence after we quit is no failsafe
         screen = " ".join(str(w.render()) for w in app.screen.query("#mode, #events"))
-        if m.mode == Mode.FULL:
-            app.send(Op.MODE, Mode.SAFE)  # landed by the pilot: the board's silence after we quit is no failsafe
-            await until(lambda: m.mode == Mode.SAFE, "SAFE refused", 10.0)
-        print(f"done {time.monotonic():.6f}", flush=True)
         losses = [e.text for e in m.events if e.text.startswith(("LINK LOST", "BLE LINK LOST"))]
         print("result " + json.dumps({"losses": losses, "mode": mode_name(m.mode),
                                       "panic_named": "board saw link timeout" in screen or "PANIC" in screen}),
@@ -321,6 +321,7 @@ def main(argv: list[str] | None = None) -> int:
         return board_main(args.seed, args.radio)
     if args.term:
         return asyncio.run(term_main(args.term, args.ble_spec, args.seconds, args.seed))
+    signal.signal(signal.SIGTERM, lambda *_: sys.exit(1))  # the busy processes and children stop with us
     links = [x for x in args.links.split(",") if x]
     freezes = tuple(float(x) for x in args.freezes.split(",") if x)
     flights = []

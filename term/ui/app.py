@@ -22,6 +22,7 @@ The routing rules, the reconnect policy and the model's two-link rules: docs/arc
 
 from __future__ import annotations
 
+import gc
 import sys
 import time
 from collections.abc import Callable, Iterable
@@ -239,8 +240,9 @@ class TermApp(App[int]):
         return FlightScreen(self.keymap, self.lessons.room, id="flight")
 
     async def on_mount(self) -> None:
-        # Plots are drawn on a worker thread and serial bytes arrive on one: hand the GIL back to the event loop
-        # within 1 ms (Python's default is 5 ms), so heartbeat answers and key presses never wait behind them.
+        # The link has its own thread, plots are drawn on a worker thread and serial bytes arrive on one: hand the
+        # GIL over within 1 ms (Python's default is 5 ms), so heartbeat answers and key presses never wait behind
+        # a frame being drawn.
         sys.setswitchinterval(0.001)
         self.install_screen(PlotsScreen(self.config.plot_series, self.config.plot_window), "plots")
         self.install_screen(ProfileScreen(), "profile")
@@ -255,6 +257,10 @@ class TermApp(App[int]):
             self.call_after_refresh(self._start_joystick)
         self.lessons.mount()
         self.render_now()
+        # The widget tree and the libraries are built: a full collection need not walk them again (it holds the
+        # GIL, and the link's thread with it, for as long as it walks). Undone at shutdown.
+        gc.collect()
+        gc.freeze()
 
     def _on_station_event(self, ev: StationEvent) -> None:
         """The app's reactions to the station's events (the model has them already)."""
@@ -327,6 +333,7 @@ class TermApp(App[int]):
         if self.poller is not None:
             self.poller.close()
             self.poller = None
+        gc.unfreeze()  # (another app in this process, a test's, starts from a clean slate)
 
     def _fatal(self, message: str, code: int = EXIT_USAGE) -> None:
         self.exit_message = message
