@@ -144,7 +144,7 @@ class BoardChild:
 
 async def term_main(port: str, ble: str, seconds: float, seed: int) -> int:
     """The app flies: calibrate, FULL (over BLE after the handover if ``ble``), the lift between two levels."""
-    from term.core.protocol import Joystick, Mode, Op
+    from term.core.protocol import EventCode, Joystick, Mode, Op
     from term.session.model import mode_name
     from term.transports.ble import BleTransport
     from term.transports.serial import SerialTransport
@@ -173,8 +173,7 @@ async def term_main(port: str, ble: str, seconds: float, seed: int) -> int:
             app.send(Op.WIRELESS, 1)
             await until(lambda: m.over_ble, "no handover")
         app.send(Op.MODE, Mode.CALIBRATION)
-        await until(lambda: m.mode == Mode.CALIBRATION, "no calibration")
-        await until(lambda: m.mode == Mode.SAFE, "calibration never ended")
+        await until(lambda: EventCode.CALIBRATION_DONE in m.event_times and m.mode == Mode.SAFE, "no calibration")
         app.send(Op.MODE, Mode.FULL)
         await until(lambda: m.mode == Mode.FULL, "FULL refused")
         print(f"ready {time.monotonic():.6f}", flush=True)
@@ -190,7 +189,7 @@ async def term_main(port: str, ble: str, seconds: float, seed: int) -> int:
         screen = " ".join(str(w.render()) for w in app.screen.query("#mode, #events"))
         losses = [e.text for e in m.events if e.text.startswith(("LINK LOST", "BLE LINK LOST"))]
         print("result " + json.dumps({"losses": losses, "mode": mode_name(m.mode),
-                                      "panic_named": "board saw link timeout" in screen or "PANIC" in screen}),
+                                      "panic_named": "board saw link timeout" in screen}),
               flush=True)
         app.exit()
     return 0
