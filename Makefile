@@ -11,7 +11,7 @@ STAMP := $(VENV)/.installed
 BENCH_STAMP := $(VENV)/.installed-bench
 LOWEST := .venv-lowest
 
-.PHONY: run test test-lowest lock lint bench clean
+.PHONY: run test test-busy test-lowest lock lint bench clean
 .PHONY: firmware
 
 $(BIN)/python:
@@ -67,7 +67,22 @@ test: $(STAMP)
 	@command -v arm-none-eabi-gcc >/dev/null || echo "no arm-none-eabi-gcc: the Cortex-M0 size test is skipped"
 	$(BIN)/python -m pytest
 
-BENCHES := codec realtime flight filters profile log_compression pacing latency ui plots ble firmware download soak lessons keyboard foxglove long_work
+# The suite on a busy machine, as a pilot's laptop is (issue 21): BUSY_PER_CORE processes per core beside it doing
+# bursts of 5-50 ms of work with short sleeps. ../shared/tools/busy when it is there (CI has a copy of shared/ beside
+# the clone), else the same loop here.
+BUSY_PER_CORE ?= 2
+BUSY_TOOL := $(wildcard ../shared/tools/busy)
+BUSY_LOOP := import random, time; exec("while 1:\n e = time.perf_counter() + random.uniform(0.005, 0.05)\n while \
+time.perf_counter() < e: pass\n time.sleep(random.uniform(0.0005, 0.003))")
+test-busy: $(STAMP)
+	@if [ -n "$(BUSY_TOOL)" ]; then $(BUSY_TOOL) -n $(BUSY_PER_CORE) -- $(BIN)/python -m pytest; else \
+		n=$$(( $(BUSY_PER_CORE) * $$(nproc) )); pids=; \
+		for i in $$(seq 1 $$n); do $(BIN)/python -c '$(BUSY_LOOP)' & pids="$$pids $$!"; done; \
+		echo "test-busy: $$n busy processes beside the suite" >&2; \
+		$(BIN)/python -m pytest; rc=$$?; kill $$pids; exit $$rc; fi
+
+BENCHES := codec realtime flight filters profile log_compression pacing latency ui plots ble firmware download soak lessons keyboard foxglove long_work \
+	contention
 
 # Every benchmark runs (its last line, the JSON, is printed); make bench fails if any of them failed.
 bench: $(BENCH_STAMP)

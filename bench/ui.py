@@ -6,7 +6,7 @@ rates); the terminal is the real TermApp over the SerialTransport, run headless 
 out and rendered at the app's render rate; only the bytes to a real terminal are not written). For each screen
 (flight, plots) the bench measures, over ``--seconds``:
 
-- ``cpu_pct``: CPU time of this process (all threads: Textual, the link, the serial reader) over wall time,
+- ``cpu_pct``: CPU time of this process (all threads: Textual, the link's thread, the serial reader) over wall time,
   in % of one core;
 - ``lag_p99_ms``: the event loop's lag, from a probe that asks to wake every 10 ms and records how late it is;
 - ``record_cpu_pct``: the session recording's share (term/data/recording.py, on as in ``term``): time spent inside the
@@ -16,7 +16,7 @@ out and rendered at the app's render rate; only the bytes to a real terminal are
   braille widget: ``python -m bench.plots`` compares it with textual-plotext), with ``plot_redraws_per_s`` and
   their share of a core, ``plot_cpu_pct``.
 
-    python -m bench.ui [--seconds 6] [--render-hz 20] [--no-record]
+    python -m bench.ui [--seconds 6] [--render-hz 20] [--no-record] [--no-link-thread]
 
 Prints one JSON line; goals: cpu under 25 % of a core, lag p99 under 16 ms, recording under 2 % of a core.
 """
@@ -83,7 +83,7 @@ def _timed_plots(drawn: list[float]) -> Any:
 
 
 async def run(seconds: float, render_hz: float | None, seed: int, policy: str = "stream",
-              record: bool = True) -> dict[str, Any]:
+              record: bool = True, link_thread: bool = True) -> dict[str, Any]:
     from term.core.protocol import Op, Param, param_arg
     from term.session.sim import SimBoard
     from term.transports.serial import SerialTransport
@@ -111,7 +111,7 @@ async def run(seconds: float, render_hz: float | None, seed: int, policy: str = 
             _timed(recorder, spent)
             transport = RecordingTransport(transport, recorder, CABLE, time.monotonic)
         app = TermApp(transport, joystick=False, config=Config(joystick_policy=policy), recorder=recorder,
-                      **({"render_hz": render_hz} if render_hz else {}))
+                      link_thread=link_thread, **({"render_hz": render_hz} if render_hz else {}))
         render_hz_used = app.render_hz
         async with app.run_test(size=(120, 44), headless=True) as pilot:
             async def until(cond: Any, timeout: float = 10.0) -> None:
@@ -181,13 +181,17 @@ def main(argv: list[str] | None = None) -> int:
                     help="the joystick send policy (default stream, the app's)")
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--no-record", action="store_true", help="without the session recording")
+    ap.add_argument("--no-link-thread", action="store_true",
+                    help="the link on the display's loop, as before issue 21 (term/session/link_thread.py)")
     args = ap.parse_args(argv)
-    res = asyncio.run(run(args.seconds, args.render_hz, args.seed, args.policy, record=not args.no_record))
+    res = asyncio.run(run(args.seconds, args.render_hz, args.seed, args.policy, record=not args.no_record,
+                          link_thread=not args.no_link_thread))
     hz = res.pop("render_hz")
     worst_cpu = max(r["cpu_pct"] for r in res.values())
     worst_lag = max(r["lag_p99_ms"] for r in res.values())
     print(json.dumps({
-        "cpu_pct": worst_cpu, "lag_p99_ms": worst_lag, "render_hz": hz, "policy": args.policy, **res,
+        "cpu_pct": worst_cpu, "lag_p99_ms": worst_lag, "render_hz": hz, "policy": args.policy,
+        "link_thread": not args.no_link_thread, **res,
         "goal_cpu_pct": 25, "goal_lag_p99_ms": 16,
         **({"record_cpu_pct": max(r["record_cpu_pct"] for r in res.values()), "goal_record_cpu_pct": 2}
            if not args.no_record else {}),

@@ -85,21 +85,25 @@ class LoopBoard:
                 await t
 
 
-async def until(pilot, cond: Callable[[], bool], timeout: float = 5.0) -> None:  # noqa: ANN001
+async def until(pilot, cond: Callable[[], bool], timeout: float = 20.0) -> None:  # noqa: ANN001
+    """Wait for ``cond``; the bound only ends a test that would hang (a busy machine is slow, not wrong)."""
     async with asyncio.timeout(timeout):
         while not cond():
             await pilot.pause(0.01)
 
 
 @contextlib.asynccontextmanager
-async def flying(scripted_board, size=(120, 44), **board_kw):  # noqa: ANN001, ANN201
+async def flying(scripted_board, size=(120, 44), link_timeout: float = 3.0, **board_kw):  # noqa: ANN001, ANN201
+    """The app and the scripted board on one loopback pair, on the test's one loop. A stall of that loop (a busy
+    machine, Textual's first layout) stalls the board too, so a short link timeout would see a silence that never
+    was: the tests of silence ask for the report's 0.5 s themselves."""
     import time
 
     pair = loopback_pair()
     board = scripted_board(start=time.monotonic(), **board_kw)
     peer = LoopBoard(pair.b, board, time.monotonic)
     await peer.start()
-    app = TermApp(pair.a, joystick=False, session_options={"link_timeout": 0.5})
+    app = TermApp(pair.a, joystick=False, session_options={"link_timeout": link_timeout})
     try:
         async with app.run_test(size=size) as pilot:
             await until(pilot, lambda: board.hellos)
@@ -212,7 +216,7 @@ async def test_a_nak_is_shown_with_its_reason(scripted_board) -> None:  # noqa: 
 
 
 async def test_link_lost_is_unmissable_and_restored(scripted_board) -> None:  # noqa: ANN001
-    async with flying(scripted_board) as (app, pilot, board, _):
+    async with flying(scripted_board, link_timeout=0.5) as (app, pilot, board, _):
         await until(pilot, lambda: app.model.link is not None and app.model.link.heartbeats > 0)
         board.silent = True
         await until(pilot, lambda: app.model.link_lost)
@@ -377,7 +381,7 @@ async def test_a_dead_transport_is_reopened(scripted_board) -> None:  # noqa: AN
 async def test_silence_after_a_wireless_handover_says_so(scripted_board) -> None:  # noqa: ANN001
     from term.core.protocol import WirelessState
 
-    async with flying(scripted_board) as (app, pilot, board, peer):
+    async with flying(scripted_board, link_timeout=0.5) as (app, pilot, board, peer):
         await until(pilot, lambda: app.model.link is not None and app.model.link.frames_ok > 0)
         await peer.send(Event(EventCode.WIRELESS_STATE, int(WirelessState.STARTING), 1000))
         await until(pilot, lambda: app.model.handed_over)
@@ -386,3 +390,26 @@ async def test_silence_after_a_wireless_handover_says_so(scripted_board) -> None
         await pilot.pause(0.1)
         assert "handed over to BLE" in str(app.screen.query_one("#mode").render())
         assert "handing over to BLE" in str(app.screen.query_one("#link").render())
+
+
+async def test_the_mode_banner_says_how_far_the_simulator_lags_while_it_does() -> None:
+    """Issue 21: a starved simulator says it runs behind real time (SIM_LAG, at most once a second); the flight
+    screen shows it under the mode, and drops it a few seconds after the simulator stops saying it."""
+    from term.ui.widgets.mode import SIM_LAG_SHOWN_S
+
+    now = [100.0]
+    app = TermApp(joystick=False, clock=lambda: now[0])
+    async with app.run_test(size=(120, 44)) as pilot:
+        app.model.apply_packet(Attitude(Mode.FULL, 0, 0, 0, 0, 0, 0), now[0])
+        app.render_now()
+        await pilot.pause(0.05)
+        assert "behind real time" not in str(app.screen.query_one("#mode").render())
+        app.model.apply_packet(Event(EventCode.SIM_LAG, 240, 5000), now[0])
+        app.render_now()
+        await pilot.pause(0.05)
+        assert "simulator 240 ms behind real time" in str(app.screen.query_one("#mode").render())
+        now[0] += SIM_LAG_SHOWN_S + 0.1
+        app.model.apply_packet(Attitude(Mode.FULL, 0, 0, 0, 0, 0, 0), now[0])
+        app.render_now()
+        await pilot.pause(0.05)
+        assert "behind real time" not in str(app.screen.query_one("#mode").render())

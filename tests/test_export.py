@@ -310,7 +310,7 @@ async def test_a_flight_with_a_handover_is_recorded_whole_and_agrees_with_the_fl
         async with app.run_test(size=(120, 44)) as pilot:
             m = app.model
 
-            async def until(cond: Callable[[], bool], timeout: float = 15.0) -> None:
+            async def until(cond: Callable[[], bool], timeout: float = 30.0) -> None:
                 async with asyncio.timeout(timeout):
                     while not cond():
                         await pilot.pause(0.02)
@@ -383,7 +383,7 @@ async def test_a_flight_with_a_handover_is_recorded_whole_and_agrees_with_the_fl
     matched = 0
     for r in flying:
         board_t = float(r["t_s"]) - offset  # when the board sent it, at the latest
-        lo = bisect.bisect_left(log_t, board_t - 0.08)
+        lo = bisect.bisect_left(log_t, board_t - 0.5)  # a busy machine delivers late, never early
         hi = bisect.bisect_right(log_t, board_t + 0.005)
         if any(all(abs(float(log[i][k]) - float(r[k])) <= 0.011 for k in ("phi_deg", "theta_deg", "psi_deg"))
                and log[i]["mode_name"] == "MANUAL" for i in range(lo, hi)):

@@ -299,3 +299,14 @@ def test_the_gain_map_is_the_protocols() -> None:
         status, value, _after = execute(board.parts, Command(1, op, 1))
         assert status == Nak.OK and get_value(board.parts, param) == before + PARAMS[param].step
         assert value == round(getattr(board.core.gains, GAIN_NAMES[param]) * 1000)
+
+
+def test_a_value_that_overflows_when_scaled_is_a_param_error_not_an_overflow(tmp_path) -> None:  # noqa: ANN001
+    """Issue 21: ``p1 = 1e308`` in a parameter file raised OverflowError (its raw value is infinite) at the
+    board's Hello, inside the link's read path."""
+    from term.session.param_client import ParamError, load_file
+
+    f = tmp_path / "huge.toml"
+    f.write_text("[ctrl]\np1 = 1e308\n", encoding="utf-8")
+    with pytest.raises(ParamError, match="ctrl.p1 must be"):
+        load_file(f)

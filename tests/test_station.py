@@ -240,3 +240,36 @@ def test_every_station_event_changes_the_model_in_one_place(kind: str) -> None:
 
     assert getattr(events, kind) in _HANDLERS
     assert events.Fatal not in _HANDLERS
+
+
+async def test_an_exception_in_the_link_path_is_link_lost_with_its_cause_and_the_link_comes_back(
+        scripted_board) -> None:  # noqa: ANN001
+    """Issue 21: a parameter file value that overflowed raised inside the reaction to the board's Hello, and the
+    cable's read loop ended in silence (nothing received, no LINK LOST, no reconnect)."""
+    pair = loopback_pair()
+    board = scripted_board(start=time.monotonic())
+    peer = LoopBoard(pair.b, board, time.monotonic)
+    await peer.start()
+    rec = Recorder()
+    blown = []
+
+    def front_end(ev: StationEvent) -> None:
+        rec(ev)
+        if not blown and type(ev).__name__ == "FromLink" and type(ev.event.packet).__name__ == "Hello":
+            blown.append(ev)
+            raise OverflowError("cannot convert float infinity to integer")
+
+    st = Station(Model(start=time.monotonic()), cable=pair.a, cable_session={"link_timeout": 0.5},
+                 on_event=front_end, sleep=rec.sleep)
+    try:
+        await st.start()
+        await until(lambda: rec.of(LinkDown))
+        down = rec.of(LinkDown)[0]
+        assert "OverflowError" in down.message and "cannot convert float infinity" in down.message
+        assert any(e.text.startswith("LINK LOST: ") and "OverflowError" in e.text for e in st.model.events)
+        await until(lambda: any(e.again for e in rec.of(LinkUp)))  # reconnected by itself
+        n = len(board.hb_acks)
+        await until(lambda: len(board.hb_acks) > n + 2)  # and the board is fed again
+    finally:
+        await st.shutdown()
+        await peer.stop()

@@ -8,14 +8,18 @@ Two tasks share one session (single-threaded, so no locking of the session itsel
   then runs ``poll`` and writes what is due.
 
 Events go to the ``on_event`` callback, or, without one, into ``events`` (an asyncio.Queue). A transport that
-dies ends the connection with one ``TransportFailed`` event carrying the transport's one-line message; ``stop``
-is a clean stop that emits nothing.
+dies ends the connection with one ``TransportFailed`` event carrying the transport's one-line message; so does
+any exception in the pump (a bug, or a front end's reaction that raised): it is logged with its traceback and
+named in the event ("link error: OverflowError: ..."), never a silent end. ``stop`` is a clean stop that emits
+nothing.
 """
 
 from __future__ import annotations
 
 import asyncio
 import contextlib
+import logging
+import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -23,6 +27,8 @@ from dataclasses import dataclass
 from term.core.link import LinkEvent, LinkSession, LinkStats
 from term.core.protocol import Joystick, Op
 from term.transports.base import Transport, TransportClosed, TransportError
+
+log = logging.getLogger("term.link")
 
 
 @dataclass(frozen=True, slots=True)
@@ -44,7 +50,10 @@ class Connection:
         session: LinkSession,
         clock: Callable[[], float] = time.monotonic,
         on_event: Callable[[ConnectionEvent], None] | None = None,
+        gate: Callable[[], bool] | None = None,
     ) -> None:
+        """``gate``: asked before every write; False drops what is due (the display's watchdog,
+        term/session/link_thread.py: a frozen display stops the heartbeat answers on purpose)."""
         self.transport = transport
         self.session = session
         self.clock = clock
@@ -52,7 +61,10 @@ class Connection:
         self.events: asyncio.Queue[ConnectionEvent] = asyncio.Queue()
         self.error: TransportError | None = None
         self.crash: Exception | None = None
+        self.gate = gate
         self._wake = asyncio.Event()
+        self._lock = threading.Lock()  # the session: the pump's thread and the display's both call it
+        self._loop: asyncio.AbstractEventLoop | None = None
         self._write_lock = asyncio.Lock()
         self._tasks: list[asyncio.Task[None]] = []
         self._done = asyncio.Event()
@@ -63,10 +75,13 @@ class Connection:
     async def start(self) -> None:
         """Open the transport, send our Hello, start the pump. Raises TransportError if the open fails."""
         await self.transport.open()
+        self._loop = asyncio.get_running_loop()
         self._running = True
         self._done.clear()
         try:
-            await self._write(self.session.hello())
+            with self._lock:
+                hello = self.session.hello()
+            await self._write(hello)
         except BaseException:
             self._running = False
             await self.transport.close()
@@ -112,18 +127,36 @@ class Connection:
     # --- the app's side -------------------------------------------------------------------------------------
 
     def send_command(self, op: Op, arg: int = 0) -> int:
-        """Queue a command (sent at once by the timer task); returns its cmd_id."""
-        cmd_id = self.session.send_command(op, arg, self.clock())
-        self._wake.set()
+        """Queue a command (sent at once by the timer task); returns its cmd_id. Any thread may call it."""
+        with self._lock:
+            cmd_id = self.session.send_command(op, arg, self.clock())
+        self._poke()
         return cmd_id
 
     def set_joystick(self, js: Joystick) -> None:
-        self.session.set_joystick(js)
-        self._wake.set()
+        """A new stick value (latest wins). Any thread may call it."""
+        with self._lock:
+            self.session.set_joystick(js)
+        self._poke()
 
     @property
     def stats(self) -> LinkStats:
-        return self.session.stats_at(self.clock())
+        with self._lock:
+            return self.session.stats_at(self.clock())
+
+    def _poke(self) -> None:
+        """Wake the timer task, from its own loop or from another thread."""
+        loop = self._loop
+        if loop is None or loop.is_closed():
+            return
+        try:
+            running = asyncio.get_running_loop()
+        except RuntimeError:
+            running = None
+        if running is loop:
+            self._wake.set()
+        else:
+            loop.call_soon_threadsafe(self._wake.set)
 
     # --- the pump -------------------------------------------------------------------------------------------
 
@@ -132,7 +165,8 @@ class Connection:
         try:
             while True:
                 data = await self.transport.read()
-                events = session.receive(data, self.clock())
+                with self._lock:
+                    events = session.receive(data, self.clock())
                 await self._flush()  # heartbeat ACKs leave now, in this step
                 self._deliver(events)
                 self._wake.set()  # deadlines may have moved (an Ack removed a retry)
@@ -141,18 +175,19 @@ class Connection:
                 await self._fail(exc)
         except TransportError as exc:
             await self._fail(exc)
-        except Exception as exc:  # a bug (e.g. in on_event): stop, and let wait_closed raise it
-            self.crash = exc
-            await self.stop()
+        except Exception as exc:  # a bug (e.g. in on_event): the link is lost all the same, and says why
+            await self._crashed(exc)
 
     async def _timer_loop(self) -> None:
         session = self.session
         try:
             while True:
-                events = session.poll(self.clock())
+                with self._lock:
+                    events = session.poll(self.clock())
                 await self._flush()
                 self._deliver(events)
-                delay = session.next_deadline() - self.clock()
+                with self._lock:
+                    delay = session.next_deadline() - self.clock()
                 if delay > 0:
                     self._wake.clear()
                     # asyncio.timeout, not wait_for: 3.11's wait_for can swallow the cancel that stop() sends.
@@ -164,14 +199,14 @@ class Connection:
                 await self._fail(exc)
         except TransportError as exc:
             await self._fail(exc)
-        except Exception as exc:  # a bug (e.g. in on_event): stop, and let wait_closed raise it
-            self.crash = exc
-            await self.stop()
+        except Exception as exc:  # a bug (e.g. in on_event): the link is lost all the same, and says why
+            await self._crashed(exc)
 
     async def _flush(self) -> None:
         async with self._write_lock:  # take the bytes and write them as one step, so order is kept
-            data = self.session.data_to_send(self.clock())
-            if data:
+            with self._lock:
+                data = self.session.data_to_send(self.clock())
+            if data and (self.gate is None or self.gate()):
                 await self.transport.write(data)
 
     async def _write(self, data: bytes) -> None:
@@ -185,9 +220,27 @@ class Connection:
             else:
                 self.events.put_nowait(ev)
 
+    async def _crashed(self, exc: Exception) -> None:
+        """An exception in the pump: logged with its traceback, and the end of the link like a dead transport
+        (``TransportFailed`` naming it, so the front end says LINK LOST and reconnects); ``wait_closed`` raises it."""
+        if self.crash is not None or not self._running:
+            return
+        self.crash = exc
+        log.error("link %s: %s", self.transport.name, crash_text(exc), exc_info=exc)
+        await self._fail(TransportError(crash_text(exc)))
+
     async def _fail(self, exc: TransportError) -> None:
         if self.error is not None or not self._running:
             return
         self.error = exc
-        self._deliver([TransportFailed(str(exc))])
+        try:
+            self._deliver([TransportFailed(str(exc))])
+        except Exception as again:  # the front end failed on this too: it is in the log, the link still stops
+            log.error("link %s: the front end failed on the link's end", self.transport.name, exc_info=again)
         await self.stop()
+
+
+def crash_text(exc: BaseException) -> str:
+    """One line for a bug in the link path: what it was, for the pilot's LINK LOST and the log."""
+    text = " ".join(str(exc).split())[:160]
+    return f"link error: {type(exc).__name__}" + (f": {text}" if text else "")

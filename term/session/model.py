@@ -280,6 +280,7 @@ class Model:
     param_raw: dict[int, int] = field(default_factory=dict)  # Param -> raw value, as heard
     param_refused: dict[str, str] = field(default_factory=dict)  # name -> why the board refused the last set
     event_times: dict[int, float] = field(default_factory=dict)  # EventCode -> when the board last said it
+    event_args: dict[int, int] = field(default_factory=dict)  # EventCode -> its arg the last time
     notes_written: int = 0  # lines written to the events list (merged repeats too): LogEntry.seq
     _refusal_said: dict[tuple[int, int], float] = field(default_factory=dict)  # (mode, Nak) -> when said
     _misses: tuple[int, int, float, int] = (0, 0, 0.0, 0)  # deadline misses: count, longest period, first, seq
@@ -725,6 +726,7 @@ def _on_compact2(m: Model, pkt: Compact2, now: float) -> None:
 def _on_event(m: Model, pkt: Event, now: float) -> None:
     m.board_ms = pkt.board_ms
     m.event_times[pkt.code] = now
+    m.event_args[pkt.code] = pkt.arg
     severity, text = event_text(pkt.code, pkt.arg, m.flying)  # the mode it was sent in
     if pkt.code == EventCode.PARAM_CHANGED:
         m._param(*param_split(pkt.arg))

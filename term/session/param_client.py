@@ -60,7 +60,11 @@ def check_value(spec: ParamSpec, value: Any, given: str | None = None) -> Value:
         raise ParamError(what)
     if spec.kind == "int" and value != int(value):
         raise ParamError(what)
-    if not spec.accepts(spec.to_raw(value)):
+    try:
+        raw = spec.to_raw(value)
+    except (OverflowError, ValueError):  # 1e308 is finite, but not once scaled to the wire's units
+        raise ParamError(what) from None
+    if not spec.accepts(raw):
         raise ParamError(what)
     return int(value) if spec.kind == "int" else float(value)
 

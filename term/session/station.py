@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import functools
 import time
 from collections.abc import Awaitable, Callable
 from dataclasses import dataclass
@@ -52,6 +53,7 @@ from term.core.protocol import Button, Joystick, Mode, Op
 from term.input.keymap import ZERO_TRIM_STEPS
 from term.input.mapping import leave_safe_refusal
 from term.session.connection import Connection, ConnectionEvent, TransportFailed
+from term.session.link_thread import FrontDoor, LinkThread
 from term.session.model import Model, mode_name, op_text
 from term.transports.base import Transport, TransportError
 
@@ -103,7 +105,8 @@ class StationLink:
             await self.transport.open()
             session = LinkSession(st.clock(), **self.policy.session)
             session.set_joystick(st.model.stick)  # the board hears the current stick at once
-            conn = Connection(self.transport, session, st.clock, on_event=self._on_event)
+            gate = None if st.runner is None else st.runner.may_send
+            conn = Connection(self.transport, session, st.clock, on_event=self._on_event, gate=gate)
             await conn.start()
         except TransportError as exc:
             message = str(exc)
@@ -118,7 +121,11 @@ class StationLink:
         return True
 
     def keep_up(self, *, immediate: bool) -> None:
-        """Start (or restart: one loop per link) the loop that reconnects this link."""
+        """Start (or restart: one loop per link) the loop that reconnects this link (on the link's thread)."""
+        runner = self.station.runner
+        if runner is not None and not runner.in_thread():
+            runner.call(functools.partial(self.keep_up, immediate=immediate))
+            return
         if self._task is not None and not self._task.done():
             self._task.cancel()
         self._task = asyncio.get_running_loop().create_task(self._loop(immediate), name=f"keep up {self.role}")
@@ -180,10 +187,16 @@ class Station:
         clock: Callable[[], float] = time.monotonic,
         sleep: Callable[[float], Awaitable[None]] = asyncio.sleep,
         on_event: Callable[[StationEvent], None] | None = None,
+        runner: LinkThread | None = None,
     ) -> None:
         """``model`` is kept up to date and read for the guards; ``cable``: the board's link (BLE alone when
-        ``model.primary_ble``); ``radio``: BLE beside it, for the handover."""
+        ``model.primary_ble``); ``radio``: BLE beside it, for the handover. ``runner``: the link's own thread
+        (term/session/link_thread.py): the links are opened and pumped there, their events come back to the
+        caller's loop (the model changes only there), and the display's watchdog gates their writes; without
+        it everything runs on the caller's loop."""
         self.model = model
+        self.runner = runner
+        self._door: FrontDoor | None = None
         self.clock = clock
         self.sleep = sleep
         self.on_event = on_event
@@ -200,10 +213,23 @@ class Station:
 
     def emit(self, ev: StationEvent) -> None:
         """Apply one event to the model, then hand it to the front end. The front end's own events (notes,
-        the joystick's name) come this way too."""
+        the joystick's name) come this way too. From the link's thread the event is posted to the front end's
+        loop, in order, and applied there."""
+        door = self._door
+        if door is not None and not door.here():
+            door.post(self.emit, ev)
+            return
         self.model.apply(ev, self.clock())
         if self.on_event is not None:
             self.on_event(ev)
+
+    def post(self, fn: Callable[..., Any], *args: Any) -> None:
+        """``fn(*args)`` on the front end's loop (at once when called there, or without a link thread)."""
+        door = self._door
+        if door is None or door.here():
+            fn(*args)
+        else:
+            door.post(fn, *args)
 
     def note(self, severity: str, source: str, text: str) -> None:
         self.emit(Note(severity, source, text))
@@ -214,7 +240,13 @@ class Station:
         """Connect the cable (its failure is fatal: it was named on the command line and opened there), and
         start the radio's loop (its failures are said in the events, and retried)."""
         self.running = True
-        if self.cable is not None and not await self.cable.connect():
+        if self.runner is not None:
+            self._door = FrontDoor(asyncio.get_running_loop())
+            if self.runner.on_thaw is None:
+                self.runner.on_thaw = self._thawed
+            self.runner.start()
+            self.runner.watch(asyncio.get_running_loop())
+        if self.cable is not None and not await self._on_link(self.cable.connect()):
             self.emit(Fatal(self.cable.last_error, EXIT_USAGE))
             return
         if self.radio is not None:
@@ -222,8 +254,28 @@ class Station:
 
     async def shutdown(self) -> None:
         self.running = False
-        for link in self.links:
-            await link.stop()
+
+        async def stop_links() -> None:
+            for link in self.links:
+                await link.stop()
+
+        runner = self.runner
+        if runner is None:
+            await stop_links()
+        elif runner.running:
+            await runner.run(stop_links())
+            runner.stop()
+
+    async def _on_link(self, coro: Awaitable[bool]) -> bool:
+        """``coro`` on the link's thread (or here without one)."""
+        if self.runner is None:
+            return await coro
+        return await self.runner.run(coro)  # type: ignore[arg-type]
+
+    def _thawed(self, frozen_s: float) -> None:
+        """The watchdog's account, afterwards: why the board heard nothing (term's log has it too)."""
+        self.note("warning", "link", f"the display was frozen for {frozen_s:.1f} s: the link stopped answering the "
+                  "board on purpose (the pilot could not see), so the board's failsafe took over")
 
     @property
     def links(self) -> list[StationLink]:
@@ -239,7 +291,10 @@ class Station:
         self.note("info", "term", f"reconnecting now: {', '.join(tried)}" if tried else "every link is connected")
 
     def sample(self) -> None:
-        """Each live link's statistics into the model (the app's render tick calls this)."""
+        """Each live link's statistics into the model (the app's render tick calls this; it is also the display's
+        sign of life for the link's watchdog)."""
+        if self.runner is not None:
+            self.runner.alive()
         for link in self.links:
             if link.connection is not None:
                 self.emit(StatsSample(link.role, link.connection.stats))

@@ -22,6 +22,7 @@ The routing rules, the reconnect policy and the model's two-link rules: docs/arc
 
 from __future__ import annotations
 
+import gc
 import sys
 import time
 from collections.abc import Callable, Iterable
@@ -44,6 +45,7 @@ from term.lessons.instructor import InstructorClient
 from term.session.alarms import Alarms
 from term.session.config import Config
 from term.session.connection import Connection
+from term.session.link_thread import LinkThread, movable, post_taps
 from term.session.model import Model, mode_name
 from term.session.phone import Phone, RunAction, SendCommand, SetAxes
 from term.session.station import Station
@@ -98,6 +100,7 @@ class TermApp(App[int]):
         demo: bool = False,
         lessons_dirs: tuple[Path, ...] = (),
         live: Any = None,
+        link_thread: bool | None = None,
     ) -> None:
         """``transport``: the board's link (the cable, or BLE with ``primary_ble``); ``radio``: a BLE transport
         to the same board beside the cable, for the handover; ``start_screen``: "flight" or "wireless".
@@ -107,7 +110,9 @@ class TermApp(App[int]):
         instructor channel (term --sim): the room view, the lessons (``lesson``: start that one; ``demo``: the
         autopilot's tour; ``lessons_dirs``: a teacher's lessons beside the built-in ones),
         term/ui/controllers/lessons.py. ``live``: the live Foxglove server (term/data/foxglove_server.py), fed the
-        events, the link statistics, the truth and, in a replay, the packets (its link bytes come from the taps)."""
+        events, the link statistics, the truth and, in a replay, the packets (its link bytes come from the taps).
+        ``link_thread``: run the links on their own thread (term/session/link_thread.py); by default they do
+        whenever the transports are real ones (serial, BLE)."""
         super().__init__()
         self.config = config or Config()
         self.keymap: tuple[KeyBinding, ...] = self.config.keymap
@@ -123,7 +128,7 @@ class TermApp(App[int]):
         self.render_hz = render_hz
         self.joystick_hz = joystick_hz
         self._replay_wall: float | None = None
-        self.station = self._make_station(transport, radio, primary_ble, session_options)
+        self.station = self._make_station(transport, radio, primary_ble, session_options, link_thread)
         self.phone = Phone()
         self.start_screen = start_screen
         self.poller: JoystickPoller | None = None
@@ -143,8 +148,9 @@ class TermApp(App[int]):
         self._bind_keys()
 
     def _make_station(self, transport: Transport | None, radio: Transport | None, primary_ble: bool,
-                      session_options: dict[str, float | bool] | None) -> Station:
-        """The model and the station that feeds it, on ``self.clock`` (a replay: the recording's links)."""
+                      session_options: dict[str, float | bool] | None, link_thread: bool | None) -> Station:
+        """The model and the station that feeds it, on ``self.clock`` (a replay: the recording's links). The links
+        run on their own thread when ``link_thread`` (None: when every transport is a real one)."""
         from term.session.config import JOYSTICK_POLICIES
 
         clock, replay = self.clock, self.replay
@@ -155,9 +161,15 @@ class TermApp(App[int]):
             model.primary_ble = replay.meta.get("primary_ble", "") == "1"
         cable_session = {"link_timeout": self.config.link_timeout,
                          **JOYSTICK_POLICIES[self.config.joystick_policy], **(session_options or {})}
-        return Station(model, cable=transport, radio=radio, cable_session=cable_session,
-                       radio_session={"link_timeout": self.config.link_timeout}, clock=clock,
-                       on_event=self._on_station_event)
+        links = [t for t in (transport, radio) if t is not None]
+        if link_thread is None:
+            link_thread = bool(links) and all(movable(t) for t in links)
+        station = Station(model, cable=transport, radio=radio, cable_session=cable_session,
+                          radio_session={"link_timeout": self.config.link_timeout}, clock=clock,
+                          on_event=self._on_station_event, runner=LinkThread() if link_thread else None)
+        for t in links:  # the recording's taps write on this thread, never on the link's
+            post_taps(t, station.post)
+        return station
 
     def _bind_keys(self) -> None:
         """The key map's actions as priority bindings; local actions through the table ``local``."""
@@ -228,8 +240,9 @@ class TermApp(App[int]):
         return FlightScreen(self.keymap, self.lessons.room, id="flight")
 
     async def on_mount(self) -> None:
-        # Plots are drawn on a worker thread and serial bytes arrive on one: hand the GIL back to the event loop
-        # within 1 ms (Python's default is 5 ms), so heartbeat answers and key presses never wait behind them.
+        # The link has its own thread, plots are drawn on a worker thread and serial bytes arrive on one: hand the
+        # GIL over within 1 ms (Python's default is 5 ms), so heartbeat answers and key presses never wait behind
+        # a frame being drawn.
         sys.setswitchinterval(0.001)
         self.install_screen(PlotsScreen(self.config.plot_series, self.config.plot_window), "plots")
         self.install_screen(ProfileScreen(), "profile")
@@ -244,6 +257,10 @@ class TermApp(App[int]):
             self.call_after_refresh(self._start_joystick)
         self.lessons.mount()
         self.render_now()
+        # The widget tree and the libraries are built: a full collection need not walk them again (it holds the
+        # GIL, and the link's thread with it, for as long as it walks). Undone at shutdown.
+        gc.collect()
+        gc.freeze()
 
     def _on_station_event(self, ev: StationEvent) -> None:
         """The app's reactions to the station's events (the model has them already)."""
@@ -316,6 +333,7 @@ class TermApp(App[int]):
         if self.poller is not None:
             self.poller.close()
             self.poller = None
+        gc.unfreeze()  # (another app in this process, a test's, starts from a clean slate)
 
     def _fatal(self, message: str, code: int = EXIT_USAGE) -> None:
         self.exit_message = message

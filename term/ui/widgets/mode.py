@@ -5,7 +5,7 @@ from __future__ import annotations
 from rich.console import RenderableType
 from rich.text import Text
 
-from term.core.protocol import Flag, Mode
+from term.core.protocol import EventCode, Flag, Mode
 from term.session.model import Model, mode_name
 from term.ui.widgets.base import ModelView
 
@@ -20,6 +20,17 @@ STYLE = {
     Mode.HEIGHT: "bold white on dark_blue",
     Mode.WIRELESS: "bold black on bright_cyan",
 }
+
+
+SIM_LAG_SHOWN_S = 3.0  # the simulator says it is behind at most once a second while it is: shown this long
+
+
+def sim_lag_text(model: Model, now: float) -> str:
+    """How far the simulated board runs behind real time, while it says so ("" when it keeps up, or a real board)."""
+    said = model.event_times.get(EventCode.SIM_LAG)
+    if said is None or now - said > SIM_LAG_SHOWN_S:
+        return ""
+    return f"simulator {model.event_args.get(EventCode.SIM_LAG, 0)} ms behind real time (its process is starved)"
 
 
 def spaced(word: str) -> str:
@@ -64,7 +75,10 @@ class ModeBanner(ModelView):
         if lost:
             style = "bold blink white on red" if mode is not None else style
         self.set_class(mode == Mode.PANIC or lost, "alarm")
-        width = max(self.size.width, len(text) + 4)
+        lag = sim_lag_text(model, now)
+        if lag:  # gone again SIM_LAG_SHOWN_S after the simulator last said it
+            self._expires = min(self._expires, model.event_times[EventCode.SIM_LAG] + SIM_LAG_SHOWN_S + 0.01)
+        width = max(self.size.width, len(text) + 4, len(lag) + 4)
         blank = Text(" " * width, style=style)
         line = Text(text.center(width), style=style)
         out = Text()
@@ -72,5 +86,5 @@ class ModeBanner(ModelView):
         out.append("\n")
         out.append_text(line)
         out.append("\n")
-        out.append_text(blank)
+        out.append_text(Text(lag.center(width), style=style) if lag else blank)
         return out
