@@ -42,8 +42,17 @@ def shown_text(value: Any) -> str:
     return text if len(text) <= SHOWN_MAX else text[: SHOWN_MAX - 1] + "…"
 
 
+def finite(value: Any) -> bool:
+    """A real number (an int of any size, a float), not a bool, not nan or inf; never raises."""
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        return False
+    return isinstance(value, int) or math.isfinite(value)
+
+
 def _fmt(x: float) -> str:
-    return f"{x:g}" if x != int(x) or abs(x) < 1e6 else str(int(x))
+    if not math.isfinite(x) or abs(x) < 1e6 or x != int(x):
+        return f"{x:g}"
+    return str(int(x))
 
 
 def allowed(lo: float, hi: float, integer: bool = False, unit: str = "") -> str:
@@ -57,9 +66,7 @@ def check_number(value: Any, name: str, lo: float, hi: float, *, integer: bool =
     ``integer``: a float with a fraction is refused (3.0 is 3). ``what``: how the refusal shows what was given."""
     given = what if what is not None else shown_text(value)
     refusal = NumberError(f"{name} must be {allowed(lo, hi, integer, unit)}, got {given}")
-    if isinstance(value, bool) or not isinstance(value, int | float):
-        raise refusal
-    if isinstance(value, float) and not math.isfinite(value):
+    if not finite(value):
         raise refusal
     if not lo <= value <= hi:  # exact for ints of any size: no float conversion before the range
         raise refusal
