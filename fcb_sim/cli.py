@@ -110,7 +110,9 @@ def _add_serve(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
                        help="also expose the board's BLE radio, e.g. tcp-server:127.0.0.1:PORT")
     serve.add_argument("--instructor", default=None, metavar="TRANSPORT",
                        help="the truth and the lessons' situations for term --sim (fcb_sim/instructor.py), e.g. "
-                       "tcp-server:127.0.0.1:0")
+                       "tcp-server:127.0.0.1:0 (loopback only; the address printed carries the token)")
+    serve.add_argument("--instructor-public", action="store_true",
+                       help="let --instructor listen beyond loopback (warned about: it can cut cables and motors)")
     serve.set_defaults(handler=_cmd_serve)
 
 

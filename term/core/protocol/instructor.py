@@ -10,8 +10,17 @@ from __future__ import annotations
 # line each way. The simulator says {"kind": "hello", "version", "hz"}, then a {"kind": "truth", ...} line with the
 # fields below INSTRUCTOR_TRUTH_HZ times a second; term sends {"do": SITUATION, ARG: value, ...} lines and gets
 # {"kind": "error", "do", "why"} back for one it cannot carry out.
+# The channel is the simulator's and its terminal's alone: the simulator makes a random token and prints it in the
+# address (tcp-client:HOST:PORT#TOKEN, to term, its parent, on a pipe); the client's first line must be
+# {"kind": "auth", "token": TOKEN}, else it gets an error line and is dropped, before any hello or truth. One client
+# at a time: a second is refused. Cable and radio cuts add up to at most INSTRUCTOR_MAX_OUTAGE_S per attempt (a
+# reset starts the next one).
 
-INSTRUCTOR_VERSION = 1
+INSTRUCTOR_VERSION = 2
+INSTRUCTOR_AUTH = "auth"  # the first line's kind
+INSTRUCTOR_TOKEN_SEP = "#"  # the address's token follows this
+INSTRUCTOR_MAX_CUT_S = 60.0  # the longest one cable or radio cut may be
+INSTRUCTOR_MAX_OUTAGE_S = 120.0  # cuts added up, per attempt (between resets)
 INSTRUCTOR_TRUTH_HZ = 50.0
 INSTRUCTOR_TRUTH: dict[str, str] = {  # field: unit and meaning (earth NED, body FRD: docs/architecture.md)
     "t": "s: the board's clock",
