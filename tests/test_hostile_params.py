@@ -12,7 +12,10 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from term.core.protocol import PARAM_BY_NAME, PARAMS, Param
+from fcb_sim.board import Board, BoardConfig
+from fcb_sim.commands import execute
+from fcb_sim.param_bindings import get_value
+from term.core.protocol import GAIN_OPS, PARAM_BY_NAME, PARAMS, Command, Nak, Op, Param, param_arg
 from term.session.param_client import ParamError, load_file, parse_text
 
 
@@ -125,3 +128,22 @@ def test_any_file_value_is_a_value_or_one_line(tmp_path_factory: pytest.TempPath
         return
     for p, v in values.items():
         assert PARAMS[p].accepts(PARAMS[p].to_raw(v))
+
+
+# --- the gain keys: one writer with SET_PARAM ------------------------------------------------------------------
+
+@pytest.mark.parametrize("param", sorted(GAIN_OPS.values()))
+def test_gain_keys_stop_at_the_tables_range(param: Param) -> None:
+    """Enough presses of a gain key passed the limit SET_PARAM enforces (P2 0..1000): now both go through the table's
+    range and the same setter, so the keys stop at hi and at lo, and say the value the board holds."""
+    board = Board(BoardConfig(boot_hello=False))
+    op = next(op for op, p in GAIN_OPS.items() if p == param)
+    spec = PARAMS[param]
+    for _ in range(3):
+        execute(board, Command(1, op, 1_000_000))  # a stepping arg merges many presses into one command
+    assert get_value(board, param) == spec.hi
+    status, _, _ = execute(board, Command(1, Op.SET_PARAM, param_arg(param, spec.to_raw(spec.hi))))
+    assert status == Nak.OK
+    for _ in range(3):
+        execute(board, Command(1, op, -1_000_000))
+    assert get_value(board, param) == spec.lo
