@@ -71,3 +71,47 @@ def test_any_bytes_are_a_table_or_one_line(tmp_path_factory: pytest.TempPathFact
         assert isinstance(read_user_toml(f, 1000, "config file"), dict)
     except UserFileError as exc:
         assert "\n" not in str(exc) and "config file" in str(exc)
+
+
+def _every_reader() -> list:
+    from term.data.export import kind_of, read_flash_csv
+    from term.data.plot import read_log, read_source
+    from term.data.recording import scan
+    from term.lessons.progress import load
+
+    def progress(path: Path) -> None:
+        problem = load(path).problem
+        raise ValueError(problem)  # the progress file says its problem instead of raising
+
+    return [read_source, read_log, kind_of, read_flash_csv, scan, progress]
+
+
+@pytest.mark.parametrize("kind", ["fifo", "device", "directory"])
+@pytest.mark.parametrize("reader", range(6))
+def test_recordings_logs_and_progress_go_through_the_reader(tmp_path: Path, kind: str, reader: int) -> None:
+    """A FIFO named like a recording hung `term plot`, `term export`, `term replay`; a device or a directory was
+    read or failed with a library's message. Each is refused in one line (a daemon thread guards against a hang:
+    the join is a watchdog, not a measurement)."""
+    import threading
+
+    path = tmp_path / "session.mcap"
+    if kind == "fifo":
+        os.mkfifo(path)
+    elif kind == "device":
+        path.symlink_to("/dev/zero")
+    else:
+        path.mkdir()
+    fn = _every_reader()[reader]
+    said: list[str] = []
+
+    def run() -> None:
+        try:
+            fn(path)
+        except ValueError as exc:
+            said.append(str(exc))
+
+    t = threading.Thread(target=run, daemon=True)
+    t.start()
+    t.join(30)
+    assert not t.is_alive(), f"{fn.__name__} hangs on a {kind}"
+    assert said and "\n" not in said[0] and str(path) in said[0], said

@@ -24,6 +24,8 @@ from pathlib import Path
 from typing import Any, BinaryIO
 
 MAX_DEPTH = 64  # nested [ or { in a TOML file: our files nest 3 deep; Python's parser fails near 1000
+RECORDING_MAX_BYTES = 8_000_000_000  # a session recording (MCAP): hours of telemetry; a cap all the same
+LOG_MAX_BYTES = 256_000_000  # a flash-log CSV (the board's flash is 128 kB: a few MB of text)
 
 
 class UserFileError(ValueError):
