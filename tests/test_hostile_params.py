@@ -147,3 +147,29 @@ def test_gain_keys_stop_at_the_tables_range(param: Param) -> None:
     for _ in range(3):
         execute(board, Command(1, op, -1_000_000))
     assert get_value(board, param) == spec.lo
+
+
+# --- the command lines: ASCII digits, no separators ------------------------------------------------------------
+
+@pytest.mark.parametrize("argv", [["--baud", "1_200", "--serial", "/dev/null"], ["--baud", "１２００", "--sim"],
+                                  ["--link-timeout", "0.５", "--sim"], ["--seed", "1_0", "--sim"],
+                                  ["scan", "--timeout", "３"], ["--lesson", "٣", "--sim"]])
+def test_term_options_take_ascii_numbers_only(capsys: pytest.CaptureFixture[str], argv: list[str]) -> None:
+    from term.cli.main import main
+
+    code = main(argv)
+    err = capsys.readouterr().err
+    assert code == 2 and argv[-2 if argv[0] == "scan" else 0] in err and err.count("\n") == 1, err
+
+
+@pytest.mark.parametrize("argv", [["run", "--duration", "1_0"], ["run", "--seed", "１"],
+                                  ["serve", "--pty", "--link-timeout", "0.５"]])
+def test_fcb_sim_options_take_ascii_numbers_only(capsys: pytest.CaptureFixture[str], argv: list[str]) -> None:
+    from fcb_sim.cli import main
+
+    try:
+        code = main(argv)
+    except SystemExit as exc:
+        code = int(exc.code or 0)
+    err = capsys.readouterr().err
+    assert code == 2 and "invalid" in err and err.count("\n") == 1, err

@@ -14,6 +14,7 @@ Standard library only (``fcb_sim`` uses it for the instructor's numbers).
 
 from __future__ import annotations
 
+import argparse
 import math
 import re
 from typing import Any
@@ -88,3 +89,30 @@ def parse_number(text: str, name: str, lo: float, hi: float, *, integer: bool = 
         raise NumberError(f"{name} must be {allowed(lo, hi, integer, unit)}, got {given}")
     value: int | float = int(t) if _INTEGER.fullmatch(t) else float(t)
     return check_number(value, name, lo, hi, integer=integer, unit=unit, what=given)
+
+
+# --- command-line options ----------------------------------------------------------------------------------------
+# argparse types: the syntax only (the range is the option's own check, with its own message); "nan" and "inf"
+# pass as words so that check names them.
+_WORD = re.compile(r"[+-]?(nan|inf|infinity)", re.ASCII | re.IGNORECASE)
+
+
+def cli_float(text: str) -> float:
+    """``type=`` for a number option: ASCII digits, no ``_``, no full-width or other scripts' digits."""
+    t = text.strip(" ")
+    if len(t) > TEXT_MAX or not (_NUMBER.fullmatch(t) or _WORD.fullmatch(t)):
+        raise argparse.ArgumentTypeError(f"invalid float value: {_cli_shown(text)} (ASCII digits, like 0.5 or 2e-3)")
+    return float(t)
+
+
+def cli_int(text: str) -> int:
+    """``type=`` for a whole-number option: ASCII digits only (``1_0`` and ``１`` are not 10 and 1)."""
+    t = text.strip(" ")
+    if len(t) > TEXT_MAX or not _INTEGER.fullmatch(t):
+        raise argparse.ArgumentTypeError(f"invalid int value: {_cli_shown(text)} (ASCII digits only)")
+    return int(t)
+
+
+def _cli_shown(text: str) -> str:
+    """As argparse quotes a value (``'abc'``), short and on one line."""
+    return repr(text if len(text) <= SHOWN_MAX else text[: SHOWN_MAX - 1] + "…")
