@@ -48,7 +48,8 @@ def test_the_size_cap(tmp_path: Path) -> None:
 
 
 @pytest.mark.parametrize("text", ["a = " + "[" * 3000 + "]" * 3000, "a = " + "{b=" * 2000 + "1" + "}" * 2000,
-                                  "[" * 5000], ids=["arrays", "inline-tables", "headers"])
+                                  "[" * 5000, "a = " + "9" * 5000, "a = -" + "9" * 5000],
+                         ids=["arrays", "inline-tables", "headers", "digits", "negative-digits"])
 def test_deep_nesting_is_one_line(tmp_path: Path, text: str) -> None:
     f = tmp_path / "deep.toml"
     f.write_text(text)

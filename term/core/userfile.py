@@ -145,6 +145,8 @@ def parse_toml(text: str, where: str, max_depth: int = MAX_DEPTH) -> dict[str, A
         raise UserFileError(" ".join(f"{where} is not valid TOML: {exc}".split())) from None
     except (RecursionError, MemoryError):
         raise UserFileError(f"{where} is not usable TOML: its values nest too deeply") from None
+    except ValueError:  # an integer of more than 4300 digits: Python refuses to convert it
+        raise UserFileError(f"{where} is not usable TOML: a number with thousands of digits") from None
 
 
 def read_user_toml(path: Path | str, limit: int, kind: str, max_depth: int = MAX_DEPTH) -> dict[str, Any]:
