@@ -116,3 +116,15 @@ def test_recordings_logs_and_progress_go_through_the_reader(tmp_path: Path, kind
     t.join(30)
     assert not t.is_alive(), f"{fn.__name__} hangs on a {kind}"
     assert said and "\n" not in said[0] and str(path) in said[0], said
+
+
+@pytest.mark.parametrize("body", [b"[" * 3000 + b"]" * 3000, b'{"format": 1, "lessons": ' + b"[" * 3000 + b"}",
+                                  b'{"format": 1, "lessons": {"1": ' + b"9" * 5000 + b"}}"],
+                         ids=["deep", "deep2", "big"])
+def test_a_hostile_progress_file_is_kept_aside_in_one_line(tmp_path: Path, body: bytes) -> None:
+    from term.lessons.progress import load
+
+    f = tmp_path / "lessons.json"
+    f.write_bytes(body)
+    prog = load(f)
+    assert prog.problem and "\n" not in prog.problem and not prog.lessons

@@ -122,7 +122,9 @@ def load(path: Path | None = None) -> Progress:
             if not key.isdigit() or entry is None:
                 raise ValueError(f"lesson {key!r}: not a progress entry")
             prog.lessons[int(key)] = entry
-    except (ValueError, UnicodeDecodeError) as exc:
+    except (ValueError, UnicodeDecodeError, RecursionError) as exc:  # 3000 nested [ is a bad file, not a crash
+        if isinstance(exc, RecursionError):
+            exc = ValueError("nests too deeply")
         bad = path.with_name(path.name + ".bad")
         with contextlib.suppress(OSError):
             os.replace(path, bad)
