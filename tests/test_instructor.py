@@ -125,7 +125,8 @@ def test_bad_situations_are_one_line_never_an_exception(cmd: dict, why: str) -> 
 
 @pytest.mark.parametrize("line", [
     b"", b"\xff\xfe", b"[]", b"null", b'{"kind": "truth"}', b'{"kind": "truth", "t": "now"}',
-    b'{"kind": "truth", "t": NaN}', b"x" * 100000, b'{"kind": "hello"}', b'{"kind": "gossip"}',
+    b'{"kind": "truth", "t": NaN}', b"x" * 100000, b'{"kind": "hello"}', b'{"kind": "gossip"}', b"[" * 3000,
+    b'{"kind": "truth", "t": ' + b"9" * 5000 + b"}",
 ])
 def test_garbage_from_the_simulator_is_skipped(line: bytes) -> None:
     assert parse_line(line) is None

@@ -547,7 +547,7 @@ def iter_file(path: Path, recording: Recording | None = None) -> Iterator[Item]:
                 if where[1] == "station":
                     try:
                         yield StationRecord(t, json.loads(record[3]))
-                    except ValueError:
+                    except (ValueError, RecursionError):  # a hostile recording's record is skipped, never a crash
                         pass
                 elif where[1] != "events":
                     yield LinkBytes(t, where[0], where[1], record[3])
@@ -573,7 +573,7 @@ def _logged(t: int, data: bytes) -> LoggedEvent | None:
         d = json.loads(data)
         return LoggedEvent(t, SEVERITY_OF.get(int(d.get("level", 2)), "info"), str(d.get("name", "")),
                            str(d.get("message", "")))
-    except (ValueError, TypeError, AttributeError):
+    except (ValueError, TypeError, AttributeError, RecursionError):
         return None
 
 

@@ -133,7 +133,7 @@ def truth_from(obj: dict[str, Any]) -> Truth | None:
 def parse_line(line: bytes) -> Truth | Refused | Hello | None:
     try:
         obj = json.loads(line)
-    except (ValueError, UnicodeDecodeError):
+    except (ValueError, UnicodeDecodeError, RecursionError):  # skipped, like any bad line
         return None
     if not isinstance(obj, dict):
         return None
