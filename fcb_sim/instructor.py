@@ -47,12 +47,12 @@ from term.core.protocol import (
     INSTRUCTOR_AUTH,
     INSTRUCTOR_MAX_CUT_S,
     INSTRUCTOR_MAX_OUTAGE_S,
-    INSTRUCTOR_SITUATIONS,
     INSTRUCTOR_TOKEN_SEP,
     INSTRUCTOR_TRUTH,
     INSTRUCTOR_TRUTH_HZ,
     INSTRUCTOR_VERSION,
     Mode,
+    situation_problem,
 )
 from term.core.protocol.numbers import check_number, finite, shown_text
 
@@ -87,13 +87,10 @@ class Instructor:
 
     def apply(self, cmd: dict[str, Any], now: float) -> str | None:
         """Carry out one command; None, or why not (one line)."""
-        verb = cmd.get("do")
-        allowed = INSTRUCTOR_SITUATIONS.get(verb) if isinstance(verb, str) else None
-        if allowed is None:
-            return f"unknown situation {verb!r}; known: {', '.join(INSTRUCTOR_SITUATIONS)}"
-        extra = set(cmd) - {"do"} - set(allowed)
-        if extra:
-            return f"{verb}: unknown argument {', '.join(sorted(extra))}; known: {', '.join(allowed) or 'none'}"
+        why = situation_problem(cmd)  # the protocol's check, the one term runs on a lesson file at load
+        if why is not None:
+            return why
+        verb = cmd["do"]
         try:
             why = getattr(self, f"_do_{verb}")(cmd, now)
         except (TypeError, ValueError, ArithmeticError) as exc:

@@ -147,3 +147,15 @@ def test_any_lesson_bytes_load_or_are_skipped_in_one_line(tmp_path_factory: pyte
     (d / "70.toml").write_bytes(b"number = 70\ntitle = \"t\"\ngoal = \"g\"\n" + data)
     lessons, skipped = load_lessons([d])
     assert all("\n" not in s for s in skipped)
+
+
+@pytest.mark.parametrize("situation", ['{ do = "wind", n = 1e999 }', '{ do = "wind", n = ' + "9" * 400 + " }",
+                                       '{ do = "motor", motor = 1.5 }', '{ do = "cable", cuts = [[0, 60], [60, 60], '
+                                       "[120, 60]] }", '{ do = "radio", cut = nan }'])
+def test_a_situation_the_simulator_would_refuse_is_refused_at_load(tmp_path: Path, situation: str) -> None:
+    f = tmp_path / "70.toml"
+    f.write_text(LESSON.format(done='"h > 1"', say='"ok"').replace('points = 100\n',
+                                                                    f"points = 100\nsituation = [{situation}]\n"))
+    with pytest.raises(LessonError) as info:
+        load_lesson(f)
+    assert "situation" in str(info.value) and "\n" not in str(info.value)

@@ -27,10 +27,10 @@ from typing import Any
 
 from term.core.protocol import (
     INSTRUCTOR_AUTH,
-    INSTRUCTOR_SITUATIONS,
     INSTRUCTOR_TOKEN_SEP,
     INSTRUCTOR_TRUTH,
     INSTRUCTOR_VERSION,
+    situation_problem,
 )
 
 MAX_LINE = 65536
@@ -149,15 +149,9 @@ def parse_line(line: bytes) -> Truth | Refused | Hello | None:
 
 
 def check_situation(cmd: dict[str, Any]) -> str | None:
-    """Why ``cmd`` is not a situation the simulator knows (its verb, its argument names), or None."""
-    verb = cmd.get("do")
-    allowed = INSTRUCTOR_SITUATIONS.get(verb) if isinstance(verb, str) else None
-    if allowed is None:
-        return f"unknown situation {verb!r}; known: {', '.join(INSTRUCTOR_SITUATIONS)}"
-    extra = sorted(set(cmd) - {"do"} - set(allowed))
-    if extra:
-        return f"{verb}: unknown argument {', '.join(extra)}; known: {', '.join(allowed) or 'none'}"
-    return None
+    """Why ``cmd`` is not a situation the simulator accepts (its verb, its argument names, each value's range: the
+    protocol's ``situation_problem``, which the simulator runs too), or None. A lesson file is checked so at load."""
+    return situation_problem(cmd)
 
 
 def parse_address(address: str) -> tuple[str, int, str]:
