@@ -101,6 +101,9 @@ def generated_markdown() -> str:
 def render_doc(current: str) -> str:
     head, _, rest = current.partition(BEGIN)
     _, _, tail = rest.partition(END)
+    title, nl, body = head.partition("\n")
+    if title.startswith("# "):  # the heading names the version the table speaks, never a stale one
+        head = f"# The Quadrupel link protocol (version {p.PROTOCOL_VERSION}){nl}{body}"
     return f"{head}{BEGIN}\n{generated_markdown()}{END}{tail}"
 
 

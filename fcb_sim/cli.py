@@ -20,6 +20,7 @@ from fcb_sim.errors import EXIT_INTERRUPTED, EXIT_USAGE, UsageError
 from fcb_sim.estimation.replay import cmd_replay
 from fcb_sim.profile import cmd_profile
 from fcb_sim.scenarios import cmd_run
+from term.core.protocol.numbers import cli_float, cli_int
 
 
 class _Parser(argparse.ArgumentParser):
@@ -54,8 +55,8 @@ def _add_run(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     """run: headless scenarios (owner: fcb_sim/scenarios.py)."""
     run = sub.add_parser("run", help="fly a scripted scenario as fast as possible and print metrics")
     run.add_argument("--scenario", default="hover", help="scenario name (see --list)")
-    run.add_argument("--duration", type=float, default=10.0, help="simulated seconds (default 10)")
-    run.add_argument("--seed", type=int, default=1, help="noise seed: the same seed flies the same flight")
+    run.add_argument("--duration", type=cli_float, default=10.0, help="simulated seconds (default 10)")
+    run.add_argument("--seed", type=cli_int, default=1, help="noise seed: the same seed flies the same flight")
     run.add_argument("--json", action="store_true", help="print one JSON object as the last line")
     run.add_argument("--list", action="store_true", help="list the scenarios and exit")
     run.add_argument("--filter", default=None,
@@ -84,8 +85,8 @@ def _add_profile(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> No
     prof = sub.add_parser("profile", help="profile the firmware loop with the Cortex-M0 cycle-cost model")
     prof.add_argument("--mode", choices=["raw", "dmp"], default="raw", help="sensor path (default raw)")
     prof.add_argument("--scheduler", choices=["round-robin", "priority"], default="round-robin")
-    prof.add_argument("--seconds", type=float, default=30.0, help="simulated seconds (default 30)")
-    prof.add_argument("--seed", type=int, default=1)
+    prof.add_argument("--seconds", type=cli_float, default=30.0, help="simulated seconds (default 30)")
+    prof.add_argument("--seed", type=cli_int, default=1)
     prof.add_argument("--json", action="store_true", help="print one JSON object as the last line")
     prof.add_argument("--log-scheme", choices=["delta8", "rice"], default="delta8",
                       help="flash log codec while profiling (default delta8, the report's)")
@@ -98,9 +99,9 @@ def _add_serve(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
 
     serve = sub.add_parser("serve", help="run the board in real time behind a pseudo-terminal")
     serve.add_argument("--pty", action="store_true", help="expose the UART on a fresh pseudo-terminal")
-    serve.add_argument("--seed", type=int, default=1)
+    serve.add_argument("--seed", type=cli_int, default=1)
     serve.add_argument("--scenario", default="bench", help="initial conditions and disturbances")
-    serve.add_argument("--link-timeout", type=float, default=0.5, help="seconds of silence before PANIC")
+    serve.add_argument("--link-timeout", type=cli_float, default=0.5, help="seconds of silence before PANIC")
     serve.add_argument("--preset", default="default", choices=sorted(PRESETS),
                        help="the board's parameters: default (the team's best) or report (the lab report's board: "
                        "Table 1, the complementary filter, the Figure 10 height estimator); docs/parameters.md")
@@ -110,7 +111,9 @@ def _add_serve(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
                        help="also expose the board's BLE radio, e.g. tcp-server:127.0.0.1:PORT")
     serve.add_argument("--instructor", default=None, metavar="TRANSPORT",
                        help="the truth and the lessons' situations for term --sim (fcb_sim/instructor.py), e.g. "
-                       "tcp-server:127.0.0.1:0")
+                       "tcp-server:127.0.0.1:0 (loopback only; the address printed carries the token)")
+    serve.add_argument("--instructor-public", action="store_true",
+                       help="let --instructor listen beyond loopback (warned about: it can cut cables and motors)")
     serve.set_defaults(handler=_cmd_serve)
 
 

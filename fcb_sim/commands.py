@@ -64,10 +64,15 @@ def _trim(axis: str) -> Handler:
 
 
 def _gain(param: Param) -> Handler:
-    name = GAIN_NAMES[param]
-
+    """A gain key: ``arg`` presses of the table's step, kept inside the table's range, written by the same setter
+    and guards as SET_PARAM (one writer for gains); the Ack carries the gain x 1000."""
     def handler(b: BoardParts, arg: int) -> Result:
-        return Nak.OK, round(b.core.adjust_gain(name, arg) * 1000), lambda: _changed(b, param)
+        spec = PARAMS[param]
+        value = min(spec.hi, max(spec.lo, float(param_bindings.get_value(b, param)) + arg * spec.step))
+        nak, _ = param_bindings.set_raw(b, param, spec.to_raw(value))
+        if nak != Nak.OK:
+            return nak, 0, None
+        return Nak.OK, round(float(param_bindings.get_value(b, param)) * 1000), lambda: _changed(b, param)
 
     return handler
 

@@ -16,24 +16,45 @@ Sans-IO ``Instructor(board)``, on the board's clock (seconds, ``board.now / 1e6`
 - ``cable_open(now)``: whether the cable carries bytes now (the server drops both ways while it does not);
 - ``truth(now)``: the truth sample (``INSTRUCTOR_TRUTH`` fields) as a dict; ``truth_line(now)`` as a JSON line.
 
-``InstructorServer`` is the asyncio edge for ``fcb-sim serve --instructor tcp-server:HOST:PORT``: one client at a
-time, a hello line, then a truth line every ``1 / INSTRUCTOR_TRUTH_HZ`` s; each command line is applied and a
-refusal answered with an error line. A radio cut disconnects the BLE central and stops advertising for a while.
+``InstructorServer`` is the asyncio edge for ``fcb-sim serve --instructor tcp-server:HOST:PORT``: the channel is
+the simulator's and its terminal's alone. It listens on loopback only (another address needs ``public=True``,
+``--instructor-public``, and is warned about), makes a random token and gives it in its address
+(``tcp-client:HOST:PORT#TOKEN``, printed for term on a pipe); a client's first line must carry it
+(``{"kind": "auth", "token": ...}``) within ``AUTH_TIMEOUT_S``, else it gets an error line and is dropped. One client
+at a time: a second is refused while the first is there. Then a hello line, and a truth line every
+``1 / INSTRUCTOR_TRUTH_HZ`` s; each command line is applied and a refusal (a malformed line included: bad JSON,
+2000 nested brackets, a 400-digit number) answered with one error line, never a traceback. A radio cut disconnects
+the BLE central and stops advertising for a while. Cable and radio cuts add up to at most ``MAX_OUTAGE_S`` per
+attempt (until a reset).
 """
 
 from __future__ import annotations
 
 import asyncio
 import contextlib
+import hmac
+import ipaddress
 import json
 import logging
-import math
+import secrets
+import sys
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 from fcb_sim import constants as P
 from fcb_sim.errors import UsageError, parse_tcp_server
-from term.core.protocol import INSTRUCTOR_SITUATIONS, INSTRUCTOR_TRUTH, INSTRUCTOR_TRUTH_HZ, INSTRUCTOR_VERSION, Mode
+from term.core.protocol import (
+    INSTRUCTOR_AUTH,
+    INSTRUCTOR_MAX_CUT_S,
+    INSTRUCTOR_MAX_OUTAGE_S,
+    INSTRUCTOR_TOKEN_SEP,
+    INSTRUCTOR_TRUTH,
+    INSTRUCTOR_TRUTH_HZ,
+    INSTRUCTOR_VERSION,
+    Mode,
+    situation_problem,
+)
+from term.core.protocol.numbers import check_number, finite, shown_text
 
 if TYPE_CHECKING:
     from fcb_sim.board import Board
@@ -41,7 +62,9 @@ if TYPE_CHECKING:
 log = logging.getLogger(__name__)
 
 SOC_FLOOR = 0.03  # a failing cell's drain stops here (the pack is not drawn to nothing)
-MAX_CUT_S = 60.0  # the longest a cable or radio may be cut for
+MAX_CUT_S = INSTRUCTOR_MAX_CUT_S  # the longest a cable or radio may be cut for
+MAX_OUTAGE_S = INSTRUCTOR_MAX_OUTAGE_S  # cuts added up per attempt: 60 chained 60 s cuts must not make an hour
+MAX_CUTS = 20  # cuts in one cable command
 # Decimals a truth field is sent with (the rest: 4): angles finer, the pack and the touch-down coarser, the wind 2.
 TRUTH_DECIMALS = {"phi": 5, "theta": 5, "psi": 5, "volts": 3, "touchdown": 3, "wind_n": 2, "wind_e": 2, "gust": 2}
 
@@ -58,22 +81,20 @@ class Instructor:
         self.cuts: list[tuple[float, float]] = []  # (from, until) board seconds: the cable carries nothing
         self._last_tick: float | None = None
         self.applied = 0  # commands applied (for tests and the server's log)
+        self.outage = 0.0  # s of cable and radio cuts asked for since the last reset (this attempt's)
 
     # --- situations ---------------------------------------------------------------------------------------
 
     def apply(self, cmd: dict[str, Any], now: float) -> str | None:
         """Carry out one command; None, or why not (one line)."""
-        verb = cmd.get("do")
-        allowed = INSTRUCTOR_SITUATIONS.get(verb) if isinstance(verb, str) else None
-        if allowed is None:
-            return f"unknown situation {verb!r}; known: {', '.join(INSTRUCTOR_SITUATIONS)}"
-        extra = set(cmd) - {"do"} - set(allowed)
-        if extra:
-            return f"{verb}: unknown argument {', '.join(sorted(extra))}; known: {', '.join(allowed) or 'none'}"
+        why = situation_problem(cmd)  # the protocol's check, the one term runs on a lesson file at load
+        if why is not None:
+            return why
+        verb = cmd["do"]
         try:
             why = getattr(self, f"_do_{verb}")(cmd, now)
-        except (TypeError, ValueError) as exc:
-            return f"{verb}: {exc}"
+        except (TypeError, ValueError, ArithmeticError) as exc:
+            return " ".join(f"{verb}: {exc}".split())[:300]
         if why is None:
             self.applied += 1
         return why
@@ -97,6 +118,7 @@ class Instructor:
         self._battery(soc)
         self.drain = 0.0
         self.cuts = []
+        self.outage = 0.0  # a new attempt
         b.modes.battery_low_latched = False  # a fresh pack
         if getattr(b.modes, "crashed", False):
             b.modes.crashed = False  # a fresh craft: the instructor saw the crash
@@ -126,20 +148,39 @@ class Instructor:
         cuts = cmd.get("cuts", [])
         if not isinstance(cuts, list):
             raise ValueError("cuts is a list of [after s, for s]")
+        if len(cuts) > MAX_CUTS:
+            raise ValueError(f"at most {MAX_CUTS} cuts at a time, got {len(cuts)}")
         out = []
         for c in cuts:
             if (not isinstance(c, list | tuple) or len(c) != 2 or not all(_finite(x) for x in c)
                     or not (0.0 <= c[0] <= 3600.0 and 0.0 < c[1] <= MAX_CUT_S)):
-                raise ValueError(f"each cut is [after s (0..3600), for s (0..{MAX_CUT_S:g})], got {c!r}")
+                raise ValueError(f"each cut is [after s (0..3600), for s (0..{MAX_CUT_S:g})], got {shown_text(c)}")
             out.append((now + float(c[0]), now + float(c[0]) + float(c[1])))
+        why = self._outage(sum(b - a for a, b in out), "cable")
+        if why is not None:
+            return why
         self.cuts = sorted(out)  # an empty list: the cable is fine from now on
+        return None
+
+    def _outage(self, seconds: float, verb: str) -> str | None:
+        """Count ``seconds`` of cut against this attempt's bound; why not, if it would pass it."""
+        if self.outage + seconds > MAX_OUTAGE_S + 1e-9:
+            return (f"{verb}: {seconds:g} s more would make {self.outage + seconds:g} s of outage in this attempt "
+                    f"(at most {MAX_OUTAGE_S:g} s until a reset)")
+        self.outage += seconds
         return None
 
     def _do_radio(self, cmd: dict[str, Any], now: float) -> str | None:
         seconds = _number(cmd, "cut", 5.0, 0.1, MAX_CUT_S)
         if self.on_radio_cut is None:
             return "radio: this board has no radio (fcb-sim serve without --ble-hci)"
-        return self.on_radio_cut(seconds)
+        why = self._outage(seconds, "radio")
+        if why is not None:
+            return why
+        why = self.on_radio_cut(seconds)
+        if why is not None:
+            self.outage -= seconds  # not cut after all
+        return why
 
     def _battery(self, soc: float) -> None:
         w = self.board.world
@@ -182,52 +223,69 @@ class Instructor:
 
 
 def _finite(x: object) -> bool:
-    return isinstance(x, int | float) and not isinstance(x, bool) and math.isfinite(x)
+    return finite(x)  # an int of any size is finite and never converted before its range is checked
 
 
 def _number(cmd: dict[str, Any], name: str, default: float, lo: float, hi: float) -> float:
-    v = cmd.get(name, default)
-    if not _finite(v):
-        raise ValueError(f"{name} must be a number, got {v!r}")
-    if not lo <= v <= hi:
-        raise ValueError(f"{name} must be between {lo:g} and {hi:g}, got {v:g}")
-    return float(v)
+    """The protocol's one strict number check (term/core/protocol/numbers.py): finite, in range, one line."""
+    return float(check_number(cmd.get(name, default), name, lo, hi))
+
+
+def is_loopback(host: str) -> bool:
+    if host == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(host).is_loopback
+    except ValueError:
+        return False  # a name: it may resolve to anything
 
 
 # --- the asyncio edge -------------------------------------------------------------------------------------------
 
 WRITE_BACKLOG = 65536  # bytes queued for a client that does not read: truth lines are skipped beyond this
 MAX_LINE = 4096  # a command line longer than this is refused (and the client dropped)
+AUTH_TIMEOUT_S = 5.0  # a client that has not given the token by then is dropped
 
 
 class InstructorServer:
     """The instructor channel on a local TCP port (module docstring). ``radio``: the board's ``BoardRadio``."""
 
-    def __init__(self, instructor: Instructor, *, radio: Any = None) -> None:
+    def __init__(self, instructor: Instructor, *, radio: Any = None, token: str | None = None) -> None:
         self.instructor = instructor
         self.radio = radio
         if radio is not None:
             instructor.on_radio_cut = self._cut_radio
+        self.token = token or secrets.token_hex(16)
         self._server: asyncio.Server | None = None
-        self._writer: asyncio.StreamWriter | None = None
+        self._writer: asyncio.StreamWriter | None = None  # the one client, once it gave the token
+        self._clients: set[asyncio.Task[Any]] = set()
         self._task: asyncio.Task[None] | None = None
         self._radio_task: asyncio.Task[None] | None = None
         self.address = ""
         self.skipped = 0  # truth lines not sent to a slow client
+        self.refused = 0  # clients turned away (no token, a wrong one, a second one)
 
     @property
     def now(self) -> float:
         return self.instructor.board.now / 1e6
 
-    async def start(self, spec: str) -> str:
-        """Listen on ``spec``; returns the address a client connects to (``tcp-client:HOST:PORT``)."""
+    async def start(self, spec: str, *, public: bool = False) -> str:
+        """Listen on ``spec``; returns the address a client connects to (``tcp-client:HOST:PORT#TOKEN``). An
+        address beyond this machine needs ``public`` (``--instructor-public``) and is warned about on stderr."""
         host, port = parse_tcp_server(spec, "--instructor")
+        if not is_loopback(host):
+            if not public:
+                raise UsageError(f"--instructor {spec}: {host} is reachable from other machines; the channel cuts "
+                                 "cables and stops motors, so it listens on loopback (127.0.0.1) unless you add "
+                                 "--instructor-public")
+            print(f"fcb-sim: warning: the instructor channel listens on {host} (--instructor-public): every "
+                  "machine that can reach it and knows the token can set situations", file=sys.stderr, flush=True)
         try:
             self._server = await asyncio.start_server(self._client, host, port, limit=MAX_LINE)
         except OSError as exc:
             raise UsageError(f"--instructor {spec}: {exc.strerror or exc}") from None
         sock = self._server.sockets[0].getsockname()
-        self.address = f"tcp-client:{sock[0]}:{sock[1]}"
+        self.address = f"tcp-client:{sock[0]}:{sock[1]}{INSTRUCTOR_TOKEN_SEP}{self.token}"
         self._task = asyncio.create_task(self._ticker(), name="instructor truth")
         return self.address
 
@@ -245,41 +303,83 @@ class InstructorServer:
                 continue
             w.write(self.instructor.truth_line(now))
 
+    def _busy(self) -> bool:
+        return self._writer is not None and not self._writer.is_closing()
+
     async def _client(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
-        if self._writer is not None and not self._writer.is_closing():
-            self._writer.close()  # one instructor at a time: the newest (a restarted term) wins
-        self._writer = writer
-        writer.write((json.dumps({"kind": "hello", "version": INSTRUCTOR_VERSION,
-                                  "hz": INSTRUCTOR_TRUTH_HZ}) + "\n").encode())
+        task = asyncio.current_task()
+        if task is not None:
+            self._clients.add(task)
         try:
-            while True:
-                try:
-                    line = await reader.readline()
-                except (ValueError, asyncio.LimitOverrunError):
-                    self._answer(writer, None, f"a command line longer than {MAX_LINE} bytes")
-                    break
-                if not line:
-                    break
-                self._answer(writer, *self._command(line))
+            await self._session(reader, writer)
         except (ConnectionError, OSError):
             pass
+        except asyncio.CancelledError:
+            pass  # shutting down: the handler ends quietly (a cancelled handler is a traceback in asyncio)
         finally:
             if self._writer is writer:
                 self._writer = None
             with contextlib.suppress(Exception):
                 writer.close()
+            if task is not None:
+                self._clients.discard(task)
+
+    async def _session(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
+        if self._busy():
+            self._refuse(writer, "another instructor is connected (one at a time)")
+            return
+        why = await self._auth(reader)
+        if why is None and self._busy():
+            why = "another instructor is connected (one at a time)"
+        if why is not None:
+            self._refuse(writer, why)
+            return
+        self._writer = writer
+        writer.write((json.dumps({"kind": "hello", "version": INSTRUCTOR_VERSION,
+                                  "hz": INSTRUCTOR_TRUTH_HZ}) + "\n").encode())
+        while True:
+            try:
+                line = await reader.readline()
+            except (ValueError, asyncio.LimitOverrunError):
+                self._answer(writer, None, f"a command line longer than {MAX_LINE} bytes")
+                break
+            if not line:
+                break
+            self._answer(writer, *self._command(line))
+
+    async def _auth(self, reader: asyncio.StreamReader) -> str | None:
+        """None if the first line carries the token in time; else why not."""
+        try:
+            line = await asyncio.wait_for(reader.readline(), AUTH_TIMEOUT_S)
+        except TimeoutError:
+            return f"no token within {AUTH_TIMEOUT_S:g} s"
+        except (ValueError, asyncio.LimitOverrunError):
+            return "the first line must give the token"
+        msg = _json_object(line)
+        token = msg.get("token") if isinstance(msg, dict) and msg.get("kind") == INSTRUCTOR_AUTH else None
+        if not isinstance(token, str) or not hmac.compare_digest(token.encode(), self.token.encode()):
+            return "the first line must give this simulator's token ({\"kind\": \"auth\", \"token\": ...})"
+        return None
+
+    def _refuse(self, writer: asyncio.StreamWriter, why: str) -> None:
+        self.refused += 1
+        log.warning("instructor: a client refused: %s", why)
+        self._answer(writer, None, why)
 
     def _command(self, line: bytes) -> tuple[str | None, str | None]:
+        cmd = _json_object(line)
+        if isinstance(cmd, str):
+            return None, cmd
+        verb = cmd.get("do")
+        shown = verb if isinstance(verb, str) and len(verb) <= 20 else None
         try:
-            cmd = json.loads(line)
-        except (ValueError, UnicodeDecodeError):
-            return None, "not a JSON line"
-        if not isinstance(cmd, dict):
-            return None, "a command is a JSON object with \"do\""
-        why = self.instructor.apply(cmd, self.now)
+            why = self.instructor.apply(cmd, self.now)
+        except Exception as exc:  # the channel never ends in a traceback: the line is answered
+            log.warning("instructor: %s failed: %s", shown, exc)
+            why = f"could not be carried out ({type(exc).__name__})"
         if why is None:
-            log.info("instructor: %s", cmd)
-        return str(cmd.get("do")), why
+            log.info("instructor: %s", shown_text(cmd))
+        return shown, why
 
     def _answer(self, writer: asyncio.StreamWriter, verb: str | None, why: str | None) -> None:
         if why is not None and not writer.is_closing():
@@ -310,7 +410,7 @@ class InstructorServer:
                 await radio.advertise()
 
     async def close(self) -> None:
-        for task in (self._task, self._radio_task):
+        for task in (self._task, self._radio_task, *self._clients):
             if task is not None:
                 task.cancel()
                 with contextlib.suppress(asyncio.CancelledError, Exception):
@@ -322,3 +422,17 @@ class InstructorServer:
             self._server.close()
             with contextlib.suppress(Exception):
                 await self._server.wait_closed()
+
+
+def _json_object(line: bytes) -> dict[str, Any] | str:
+    """A command line as a JSON object, or why it is not one (one line). 2000 nested brackets are a refusal, not a
+    RecursionError; a 400-digit number parses (and is refused by its range later)."""
+    try:
+        cmd = json.loads(line)
+    except (ValueError, UnicodeDecodeError):
+        return "not a JSON line"
+    except RecursionError:
+        return "not a usable JSON line: it nests too deeply"
+    if not isinstance(cmd, dict):
+        return "a command is a JSON object with \"do\""
+    return cmd

@@ -324,7 +324,7 @@ async def _serve_main(args: Any) -> int:
             from fcb_sim.instructor import Instructor, InstructorServer
 
             instructor = InstructorServer(Instructor(board), radio=radio)
-            address = await instructor.start(args.instructor)
+            address = await instructor.start(args.instructor, public=getattr(args, "instructor_public", False))
             server.cable_open = lambda: instructor.instructor.cable_open(board.now / 1e6)
             print(f"instructor: {address}", flush=True)
         await server.serve(stop)
@@ -345,17 +345,25 @@ async def _serve_main(args: Any) -> int:
 
 def cmd_serve(args: Any) -> int:
     """``fcb-sim serve --pty [--seed N] [--scenario NAME] [--link-timeout S] [--ble-hci TRANSPORT]
-    [--instructor TRANSPORT]``."""
+    [--instructor TRANSPORT [--instructor-public]]``."""
     if not args.pty:
         raise UsageError("say where to serve the board: --pty (a fresh pseudo-terminal)")
     if args.scenario not in SCENARIOS:
         raise UsageError(f"unknown scenario {args.scenario!r}; choose one of: {', '.join(SCENARIOS)}")
     if not (0.05 <= args.link_timeout <= 60.0):
         raise UsageError(f"--link-timeout must be between 0.05 and 60 s, got {args.link_timeout:g}")
+    # SIGTERM before the loop's own handler is in place (starting the radio, the instructor) ends us as Ctrl+C
+    # does: cleanly, status 0; the loop then sets its stop event for either signal.
+    previous = signal.signal(signal.SIGTERM, _interrupt)
     try:
         with asyncio.Runner(loop_factory=event_loop) as runner:
             return runner.run(_serve_main(args))
     except KeyboardInterrupt:
         return 0
     finally:
+        signal.signal(signal.SIGTERM, previous)
         sys.stdout.flush()
+
+
+def _interrupt(signum: int, frame: Any) -> None:
+    raise KeyboardInterrupt

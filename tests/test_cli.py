@@ -151,7 +151,7 @@ def _edit(log: Path, tmp_path: Path, column: str, value: str, name: str = "edite
     (lambda log, d: _write(d, b"t_us,phi\n0,\xff\xfe\n"), "is not UTF-8 text (byte 0xff)"),
     (lambda log, d: _write(d, "t_us,phi,phi\n0,1,2\n"), "column 3 is 'phi' again"),
     (lambda log, d: _write(d, "t_us,phi\n"), "has a header but no records"),
-    (lambda log, d: Path("/dev/zero"), "line 1 is longer than 4096 characters"),  # read no further than that
+    (lambda log, d: Path("/dev/zero"), "/dev/zero is a device, not a file"),  # refused before a byte is read
 ])
 def test_plot_refuses_a_csv_that_is_not_a_flight_log(capsys: pytest.CaptureFixture[str], tmp_path: Path,
                                                      make, words: str) -> None:  # noqa: ANN001
@@ -160,7 +160,7 @@ def test_plot_refuses_a_csv_that_is_not_a_flight_log(capsys: pytest.CaptureFixtu
     out_png = tmp_path / "p.png"
     code, out, err = run(capsys, "plot", str(bad), "-o", str(out_png))
     assert code == 2 and out == "" and not out_png.exists()
-    assert err.startswith(f"term: {bad}") and words in err and err.count("\n") == 1, err
+    assert err.startswith("term: ") and str(bad) in err and words in err and err.count("\n") == 1, err
 
 
 def _write(tmp_path: Path, content: str | bytes) -> Path:

@@ -168,14 +168,14 @@ def test_a_bad_lesson_file_is_one_line_naming_the_file_and_the_field(tmp_path: P
 
 
 def test_not_toml_and_not_readable_are_one_line(tmp_path: Path) -> None:
-    with pytest.raises(LessonError, match="not TOML"):
+    with pytest.raises(LessonError, match="not valid TOML"):
         load_lesson(write(tmp_path, "number = = 1"))
     with pytest.raises(LessonError, match="No such file"):
         load_lesson(tmp_path / "nothing.toml")
     write(tmp_path, "\xff\xfe garbage", "bad.toml")
     (tmp_path / "bad.toml").write_bytes(b"\xff\xfe\x00garbage")
     _, skipped = load_lessons([tmp_path])
-    assert any("bad.toml: not TOML" in line for line in skipped)
+    assert any("bad.toml is not UTF-8" in line for line in skipped)
 
 
 # --- the attempt's scoring ------------------------------------------------------------------------------------

@@ -33,3 +33,11 @@ def test_doc_names_every_packet() -> None:
     doc = (ROOT / "docs" / "protocol.md").read_text()
     for spec in p.PACKETS.values():
         assert f"`{spec.type_id:#04x}` {spec.cls.__name__}" in doc
+
+
+def test_the_heading_names_the_protocol_version() -> None:
+    """docs/protocol.md was headed "version 2" while PROTOCOL_VERSION was 3 (issue 23): the generator writes it."""
+    from term.core.protocol import PROTOCOL_VERSION
+
+    first = (ROOT / "docs" / "protocol.md").read_text().splitlines()[0]
+    assert first == f"# The Quadrupel link protocol (version {PROTOCOL_VERSION})"

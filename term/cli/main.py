@@ -38,6 +38,7 @@ from pathlib import Path
 from typing import IO, TYPE_CHECKING, Any, NoReturn
 
 from term.core.errors import EXIT_INTERRUPTED, EXIT_USAGE, EXIT_VERSION, UsageError
+from term.core.protocol.numbers import cli_float, cli_int
 from term.core.schema import Number
 from term.session.sim import SimBoard
 
@@ -70,21 +71,21 @@ def build_parser() -> argparse.ArgumentParser:
                      "it; its BLE radio is connected too, for the handover (key 8)")
     p.add_argument("--ble", metavar="ADDR", help="the board's BLE address: alone, fly over BLE; with --serial, "
                    "the radio beside the cable for the handover (key 8)")
-    p.add_argument("--baud", type=int, default=None, help="serial speed (default 115200)")
+    p.add_argument("--baud", type=cli_int, default=None, help="serial speed (default 115200)")
     p.add_argument("--hci", metavar="TRANSPORT", default=None,
                    help="BLE through a bumble HCI transport instead of the system's radio, e.g. usb:0")
-    p.add_argument("--ble-timeout", type=float, default=10.0, metavar="S",
+    p.add_argument("--ble-timeout", type=cli_float, default=10.0, metavar="S",
                    help="seconds to look for the BLE board (default 10)")
     p.add_argument("--no-radio", action="store_true", help="--sim: the cable only, no simulated BLE radio")
     p.add_argument("--board", choices=["python", "c"], default="python", help="--sim: the board in the "
                    "simulator, python (fcb_sim) or c (firmware/board/, built with cc; no radio); docs/firmware.md")
-    p.add_argument("--seed", type=int, default=1, help="--sim: noise seed (same seed, same flight)")
+    p.add_argument("--seed", type=cli_int, default=1, help="--sim: noise seed (same seed, same flight)")
     p.add_argument("--scenario", default=None, help="--sim: initial conditions and disturbances")
     p.add_argument("--preset", default=None, help="--sim: the board's parameters, 'default' or 'report' (the lab "
                    "report's board: Table 1, the complementary filter, the Figure 10 height estimator)")
     p.add_argument("--config", type=Path, default=None, help="config file (default: the platform's, see below)")
     p.add_argument("--config-path", action="store_true", help="print where the config file is read from and exit")
-    p.add_argument("--link-timeout", type=float, default=None, help="seconds without data before LINK LOST")
+    p.add_argument("--link-timeout", type=cli_float, default=None, help="seconds without data before LINK LOST")
     p.add_argument("--log-dir", type=Path, default=None, help="where downloaded logs are written as CSV")
     p.add_argument("--no-joystick", action="store_true", help="keyboard only; do not look for a joystick")
     p.add_argument("--no-bell", action="store_true", help="no terminal bell on LINK LOST, PANIC, low battery or a "
@@ -93,8 +94,8 @@ def build_parser() -> argparse.ArgumentParser:
                    "both ways and every event is kept: 'term recordings')")
     p.add_argument("--record-dir", type=Path, default=None, help="where session recordings are kept (default: "
                    "the platform's user data directory)")
-    p.add_argument("--lesson", type=int, default=None, metavar="N", help="--sim: start lesson N (Ctrl+P lists them: "
-                   "'lesson'); docs/lessons.md")
+    p.add_argument("--lesson", type=cli_int, default=None, metavar="N", help="--sim: start lesson N (Ctrl+P lists "
+                   "them: 'lesson'); docs/lessons.md")
     p.add_argument("--demo", action="store_true", help="--sim: the autopilot flies a tour of the features, with "
                    "captions (any key of yours takes control)")
     p.add_argument("--lessons", type=Path, default=None, metavar="DIR", help="--sim: a directory of lesson files "
@@ -175,8 +176,9 @@ def build_plot_parser() -> argparse.ArgumentParser:
     p.add_argument("-o", "--output", type=Path, required=True, help="image to write (.png, .svg, .pdf)")
     p.add_argument("--signals", default=None, help="comma-separated series to draw, by field or export column "
                    "(phi,theta or phi_deg; default: every panel)")
-    p.add_argument("--from", dest="start", type=float, default=None, metavar="S", help="start of the time window (s)")
-    p.add_argument("--to", dest="end", type=float, default=None, metavar="S", help="end of the time window (s)")
+    p.add_argument("--from", dest="start", type=cli_float, default=None, metavar="S",
+                   help="start of the time window (s)")
+    p.add_argument("--to", dest="end", type=cli_float, default=None, metavar="S", help="end of the time window (s)")
     p.add_argument("--dir", type=Path, default=None, help="where recordings are kept (default: 'term recordings')")
     return p
 
@@ -184,7 +186,7 @@ def build_plot_parser() -> argparse.ArgumentParser:
 def build_scan_parser() -> argparse.ArgumentParser:
     p = _Parser(prog="term scan", description="List BLE boards advertising the board's service.")
     p.add_argument("--hci", metavar="TRANSPORT", default=None, help="bumble HCI transport instead of the system's")
-    p.add_argument("--timeout", type=float, default=3.0, help="seconds to scan (default 3)")
+    p.add_argument("--timeout", type=cli_float, default=3.0, help="seconds to scan (default 3)")
     _add_common(p)
     return p
 
@@ -252,7 +254,7 @@ def build_replay_parser() -> argparse.ArgumentParser:
                 "faster/slower, home from the start; F1 help, ctrl+q quit.")
     p.add_argument("source", nargs="?", type=Path, help="a session recording (.mcap, or a 'term export' MCAP)")
     p.add_argument("--latest", action="store_true", help="the newest session recording (instead of a file)")
-    p.add_argument("--speed", type=float, default=1.0, help="playback speed, 0.25 to 16 (default 1)")
+    p.add_argument("--speed", type=cli_float, default=1.0, help="playback speed, 0.25 to 16 (default 1)")
     _add_foxglove(p)
     p.add_argument("--dir", type=Path, default=None, help="where recordings are kept (default: 'term recordings')")
     return p
@@ -396,10 +398,10 @@ def build_params_parser() -> argparse.ArgumentParser:
     src.add_argument("--serial", metavar="PATH", help="the board's serial port")
     src.add_argument("--sim", action="store_true", help="start the simulated board (fcb-sim serve --pty) for this")
     p.add_argument("--ble", metavar="ADDR", help="the board's BLE address (alone: over BLE)")
-    p.add_argument("--baud", type=int, default=None, help="serial speed (default 115200)")
+    p.add_argument("--baud", type=cli_int, default=None, help="serial speed (default 115200)")
     p.add_argument("--hci", metavar="TRANSPORT", default=None, help="BLE through a bumble HCI transport")
-    p.add_argument("--ble-timeout", type=float, default=10.0, metavar="S", help="seconds to look for the BLE board")
-    p.add_argument("--seed", type=int, default=1, help="--sim: noise seed")
+    p.add_argument("--ble-timeout", type=cli_float, default=10.0, metavar="S", help="seconds to look for the BLE board")
+    p.add_argument("--seed", type=cli_int, default=1, help="--sim: noise seed")
     p.add_argument("--preset", default=None, help="--sim: the simulated board's preset (default, report)")
     p.add_argument("--config", type=Path, default=None, help="config file (for [connection] port)")
     p.add_argument("action", help="list | get NAME | set NAME VALUE | save FILE | load FILE | diff FILE")

@@ -42,6 +42,8 @@ def shown(value: Any) -> str:
         text = '"' + value.encode("unicode_escape").decode("ascii").replace('"', '\\"') + '"'
     elif isinstance(value, float):
         text = repr(value)  # nan, inf, -inf as TOML spells them
+    elif isinstance(value, int) and abs(value) >= 10**SHOWN_MAX:
+        text = f"{'-' if value < 0 else ''}a {len(str(abs(value)))}-digit integer"  # never thousands of digits
     elif isinstance(value, Mapping):
         text = "{" + ", ".join(f"{k} = {shown(v)}" for k, v in list(value.items())[:4]) + "}"
     elif isinstance(value, list | tuple):

@@ -26,7 +26,9 @@ from __future__ import annotations
 import csv
 import datetime as dt
 import importlib.util
+import io
 import json
+import os
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -36,6 +38,7 @@ from mcap.writer import CompressionType, Writer
 
 from term.core.logformat import LOG_TIME_COLUMN
 from term.core.protocol import MAX_FRAME, PACKETS, SPEC_OF, Decoder, PacketSpec, column_scale
+from term.core.userfile import LOG_MAX_BYTES, RECORDING_MAX_BYTES, UserFileError, open_user_file
 from term.data.channels import EVENTS, Channels, ChannelSpec
 from term.data.columns import (  # noqa: F401  (column_name, field_column: the export's names, used beside it)
     Column,
@@ -98,11 +101,13 @@ def decode(items: Iterable[Any], keep_raw: bool = False) -> Iterator[Any]:
 
 def kind_of(path: Path) -> str:
     """"session" (an MCAP recording) or "flashlog" (a CSV from the log download); ExportError otherwise."""
+    if not os.path.lexists(path):
+        raise ExportError(f"{path} not found")
     try:
-        with path.open("rb") as f:
+        with open_user_file(path, RECORDING_MAX_BYTES, "recording or log") as f:  # a FIFO or device: one line
             head = f.read(256)
-    except FileNotFoundError:
-        raise ExportError(f"{path} not found") from None
+    except UserFileError as exc:
+        raise ExportError(str(exc)) from None
     except OSError as exc:
         raise ExportError(f"cannot read {path}: {exc.strerror or exc}") from None
     if head.startswith(MAGIC):
@@ -129,7 +134,8 @@ def _session_items(path: Path, info: list[Recording]) -> Iterator[Any]:
 def read_flash_csv(path: Path) -> tuple[list[str], list[list[float]]]:
     """The header and rows of a downloaded flash log (board units); a repeated header (a new segment) is skipped."""
     try:
-        with path.open(newline="", encoding="utf-8") as f:
+        with io.TextIOWrapper(open_user_file(path, LOG_MAX_BYTES, "flash log"), encoding="utf-8",
+                              newline="") as f:
             reader = csv.reader(f)
             header = next(reader, None) or []
             rows = []
@@ -143,6 +149,8 @@ def read_flash_csv(path: Path) -> tuple[list[str], list[list[float]]]:
                 if len(values) != len(header):
                     raise ExportError(f"{path} line {n}: {len(values)} values for {len(header)} columns")
                 rows.append(values)
+    except UserFileError as exc:
+        raise ExportError(str(exc)) from None
     except (OSError, UnicodeDecodeError) as exc:
         raise ExportError(f"cannot read {path}: {exc}") from None
     if LOG_TIME_COLUMN not in header:

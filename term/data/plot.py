@@ -22,7 +22,9 @@ The output must name an image (.png, .svg, .pdf) in a folder that exists; it is 
 from __future__ import annotations
 
 import csv
+import io
 import math
+import os
 from array import array
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
@@ -31,6 +33,7 @@ from typing import Any, TextIO
 
 from term.core.protocol import LOG_TIME_COLUMN, column_scale
 from term.core.schema import Number, one_line, shown
+from term.core.userfile import LOG_MAX_BYTES, RECORDING_MAX_BYTES, UserFileError, open_user_file
 
 # Panels: columns that share a unit share one. Scales and units come from the packet table (the log's columns are
 # named after telemetry fields, in the same board units): term.core.protocol.column_scale.
@@ -94,7 +97,8 @@ def read_log(path: Path) -> dict[str, list[float]]:
     length, a field that is no finite number in range, broken quoting, bad UTF-8) is a ``PlotError``: one line
     naming the file, the line and the column."""
     try:
-        with path.open(newline="", encoding="utf-8-sig") as f:
+        with io.TextIOWrapper(open_user_file(path, LOG_MAX_BYTES, "flight log"), encoding="utf-8-sig",
+                              newline="") as f:
             reader = csv.reader(_lines(f, path), strict=True)
             try:
                 header = next(reader, None)
@@ -115,6 +119,8 @@ def read_log(path: Path) -> dict[str, list[float]]:
                 raise PlotError(f"{path} line {reader.line_num}: not a readable CSV ({one_line(str(exc))})") from None
     except FileNotFoundError:
         raise PlotError(f"{path} not found") from None
+    except UserFileError as exc:
+        raise PlotError(str(exc) if os.path.lexists(path) else f"{path} not found") from None
     except UnicodeDecodeError as exc:
         raise PlotError(f"{path} is not UTF-8 text (byte {exc.object[exc.start]:#04x}): not a flight log") from None
     except OSError as exc:
@@ -263,11 +269,13 @@ def read_session(path: Path, progress: Any = None) -> Source:
 
 def read_source(path: Path, progress: Any = None) -> Source:
     """A session recording (MCAP) or a flash-log CSV, told apart by the MCAP header (or a .mcap name)."""
+    if not os.path.lexists(path):
+        raise PlotError(f"{path} not found")
     try:
-        with path.open("rb") as f:
+        with open_user_file(path, RECORDING_MAX_BYTES, "recording or log") as f:  # a FIFO or device: one line
             head = f.read(len(MCAP_MAGIC))
-    except FileNotFoundError:
-        raise PlotError(f"{path} not found") from None
+    except UserFileError as exc:
+        raise PlotError(str(exc)) from None
     except OSError as exc:
         raise PlotError(f"cannot read {path}: {exc.strerror or exc}") from None
     if head == MCAP_MAGIC or path.suffix.lower() == ".mcap":

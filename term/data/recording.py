@@ -43,6 +43,7 @@ from mcap.reader import make_reader
 from mcap.writer import CompressionType, Writer
 
 from term.core.protocol import PROTOCOL_VERSION
+from term.core.userfile import RECORDING_MAX_BYTES, UserFileError, open_user_file
 from term.transports.base import Transport
 
 FORMAT_VERSION = 1  # of the session layout described above
@@ -503,9 +504,9 @@ def _records(path: Path, rec: Recording) -> Iterator[tuple[Any, ...]]:
     error. The file is read once into memory (a part is at most ``MAX_FILE_BYTES``): parsed with struct, some
     ten times quicker than the mcap package's stream reader, which replay, export and plot all wait on."""
     try:
-        f = path.open("rb")
-    except OSError as exc:
-        raise RecordingError(f"cannot read {path}: {exc.strerror or exc}") from None
+        f = open_user_file(path, RECORDING_MAX_BYTES, "session recording")  # a regular file: a FIFO never hangs
+    except UserFileError as exc:
+        raise RecordingError(str(exc)) from None
     with f:
         if f.read(len(MAGIC)) != MAGIC:
             raise RecordingError(f"{path} is not a session recording (no MCAP header)")
@@ -546,7 +547,7 @@ def iter_file(path: Path, recording: Recording | None = None) -> Iterator[Item]:
                 if where[1] == "station":
                     try:
                         yield StationRecord(t, json.loads(record[3]))
-                    except ValueError:
+                    except (ValueError, RecursionError):  # a hostile recording's record is skipped, never a crash
                         pass
                 elif where[1] != "events":
                     yield LinkBytes(t, where[0], where[1], record[3])
@@ -572,7 +573,7 @@ def _logged(t: int, data: bytes) -> LoggedEvent | None:
         d = json.loads(data)
         return LoggedEvent(t, SEVERITY_OF.get(int(d.get("level", 2)), "info"), str(d.get("name", "")),
                            str(d.get("message", "")))
-    except (ValueError, TypeError, AttributeError):
+    except (ValueError, TypeError, AttributeError, RecursionError):
         return None
 
 
@@ -593,7 +594,7 @@ def scan(path: Path) -> Recording:
 def describe(path: Path) -> Recording:
     """``scan``, but from the summary of a file closed cleanly (no need to read it through)."""
     try:
-        with path.open("rb") as f:
+        with open_user_file(path, RECORDING_MAX_BYTES, "session recording") as f:
             reader = make_reader(f)
             summary = reader.get_summary()
             meta = next((m for m in reader.iter_metadata() if m.name == "session"), None)

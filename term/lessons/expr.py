@@ -8,6 +8,12 @@ unary minus, and calls of ``abs``, ``min``, ``max``, ``round``. Anything else (a
 other calls) is a load error naming the file, the field and what is not allowed, so a lesson that loads is one
 that can run. Evaluation walks the tree itself (never ``eval``); a type mismatch or a division by zero at run time
 makes the expression's value ``None``, which conditions read as false.
+
+Resource limits by construction (a file is data a stranger may have written): arithmetic is on numbers only (no
+``'x' * 99999999999``, no ``(1,) * 999999999``, no ``'%999999d' % 1``: text and tuples are compared, never
+built), a tuple is only the constant right side of ``in``, there is no power operator, and an expression has at
+most ``MAX_CHARS`` characters, ``MAX_NODES`` nodes and ``MAX_DEPTH`` levels, so one evaluation is a few hundred
+steps on numbers of bounded size. Whatever still goes wrong at run time (an overflow, a recursion) is ``None``.
 """
 
 from __future__ import annotations
@@ -33,6 +39,11 @@ _CMP: dict[type, Callable[[Any, Any], bool]] = {
     ast.GtE: operator.ge, ast.In: lambda a, b: a in b, ast.NotIn: lambda a, b: a not in b,
 }
 FUNCTIONS: dict[str, Callable[..., Any]] = {"abs": abs, "min": min, "max": max, "round": round}
+ARITY: dict[str, tuple[int, int]] = {"abs": (1, 1), "min": (2, 8), "max": (2, 8), "round": (1, 2)}
+MAX_CHARS = 500
+MAX_NODES = 200
+MAX_DEPTH = 32
+ROUND_DIGITS = 15  # round(x, n): |n| at most this
 
 
 class Expr:
@@ -43,12 +54,19 @@ class Expr:
     def __init__(self, text: str, names: Collection[str]) -> None:
         if not isinstance(text, str) or not text.strip():
             raise ExprError("an expression must be a non-empty string")
-        if len(text) > 500:
-            raise ExprError("an expression longer than 500 characters")
+        if len(text) > MAX_CHARS:
+            raise ExprError(f"an expression longer than {MAX_CHARS} characters")
         try:
             tree = ast.parse(text.strip(), mode="eval")
         except SyntaxError as exc:
-            raise ExprError(f"{text!r} is not an expression: {exc.msg}") from None
+            raise ExprError(f"{_quoted(text)} is not an expression: {exc.msg}") from None
+        except (RecursionError, MemoryError, ValueError):
+            raise ExprError(f"{_quoted(text)} nests too deeply") from None
+        nodes = sum(1 for _ in ast.walk(tree))
+        if nodes > MAX_NODES:
+            raise ExprError(f"{_quoted(text)}: more than {MAX_NODES} parts; split it")
+        if _depth(tree.body) > MAX_DEPTH:
+            raise ExprError(f"{_quoted(text)}: nests deeper than {MAX_DEPTH} levels")
         used: set[str] = set()
         _check(tree.body, names, used, text)
         self.text = text
@@ -58,8 +76,8 @@ class Expr:
     def __call__(self, ns: Mapping[str, Any]) -> Any:
         try:
             value = _eval(self.tree, ns)
-        except (TypeError, ValueError, ZeroDivisionError, OverflowError, KeyError):
-            return None
+        except (ArithmeticError, LookupError, TypeError, ValueError, RecursionError, MemoryError):
+            return None  # a scored "expression failed": the condition reads false, a grade is "not measured"
         if isinstance(value, float) and math.isnan(value):
             return None
         return value
@@ -71,9 +89,27 @@ class Expr:
         return f"Expr({self.text!r})"
 
 
+def _quoted(text: str) -> str:
+    return repr(text if len(text) <= 60 else text[:59] + "…")
+
+
+def _depth(node: ast.AST) -> int:
+    deepest, stack = 0, [(node, 1)]
+    while stack:  # iterative: a deep tree must not recurse here
+        n, d = stack.pop()
+        deepest = max(deepest, d)
+        stack.extend((c, d + 1) for c in ast.iter_child_nodes(n))
+    return deepest
+
+
+def _text_or_tuple(node: ast.AST) -> bool:
+    return (isinstance(node, ast.Constant) and isinstance(node.value, str)
+            or isinstance(node, ast.Tuple | ast.List | ast.JoinedStr))
+
+
 def _check(node: ast.AST, names: Collection[str], used: set[str], text: str) -> None:
     def bad(what: str) -> ExprError:
-        return ExprError(f"{text!r}: {what} is not allowed in a lesson expression")
+        return ExprError(f"{_quoted(text)}: {what} is not allowed in a lesson expression")
 
     if isinstance(node, ast.Constant):
         if not isinstance(node.value, bool | int | float | str):
@@ -94,6 +130,8 @@ def _check(node: ast.AST, names: Collection[str], used: set[str], text: str) -> 
     elif isinstance(node, ast.BinOp):
         if type(node.op) not in _BIN:
             raise bad(f"the operator {type(node.op).__name__}")
+        if _text_or_tuple(node.left) or _text_or_tuple(node.right):
+            raise bad("arithmetic on text or a tuple (text is compared, never built)")
         _check(node.left, names, used, text)
         _check(node.right, names, used, text)
     elif isinstance(node, ast.Compare):
@@ -105,15 +143,18 @@ def _check(node: ast.AST, names: Collection[str], used: set[str], text: str) -> 
                 if not isinstance(right, ast.Tuple | ast.List) or not all(isinstance(e, ast.Constant)
                                                                           for e in right.elts):
                     raise bad("'in' with anything but a tuple of constants")
-            _check(right, names, used, text)
+                for e in right.elts:
+                    _check(e, names, used, text)
+            else:
+                _check(right, names, used, text)
     elif isinstance(node, ast.Tuple | ast.List):
-        for e in node.elts:
-            _check(e, names, used, text)
+        raise bad("a tuple anywhere but after 'in'")
     elif isinstance(node, ast.Call):
         if not isinstance(node.func, ast.Name) or node.func.id not in FUNCTIONS:
             raise bad("a call of anything but " + ", ".join(FUNCTIONS))
-        if node.keywords or not node.args:
-            raise bad(f"{node.func.id} without plain arguments")
+        lo, hi = ARITY[node.func.id]
+        if node.keywords or not lo <= len(node.args) <= hi or any(isinstance(a, ast.Starred) for a in node.args):
+            raise bad(f"{node.func.id} without {lo}{'' if lo == hi else f' to {hi}'} plain arguments")
         for a in node.args:
             _check(a, names, used, text)
     else:
@@ -125,6 +166,10 @@ def _suggest(name: str, names: Collection[str]) -> str:
 
     close = difflib.get_close_matches(name, list(names), n=1)
     return f" (did you mean {close[0]!r}?)" if close else ""
+
+
+def _number(v: Any) -> bool:
+    return isinstance(v, int | float)
 
 
 def _eval(node: ast.AST, ns: Mapping[str, Any]) -> Any:
@@ -165,14 +210,17 @@ def _eval(node: ast.AST, ns: Mapping[str, Any]) -> Any:
         return -v if isinstance(op, ast.USub) else +v
     if kind is ast.BinOp:
         a, b = _eval(node.left, ns), _eval(node.right, ns)  # type: ignore[attr-defined]
-        if a is None or b is None:
-            return None
+        if not _number(a) or not _number(b):
+            return None  # numbers only: a name holding text never repeats it
         return _BIN[type(node.op)](a, b)  # type: ignore[attr-defined]
     if kind in (ast.Tuple, ast.List):
         return tuple(_eval(e, ns) for e in node.elts)  # type: ignore[attr-defined]
     if kind is ast.Call:
         args = [_eval(a, ns) for a in node.args]  # type: ignore[attr-defined]
-        if any(a is None for a in args):
+        if not all(_number(a) for a in args):
+            return None
+        if len(args) == 2 and node.func.id == "round" and not (  # type: ignore[attr-defined]
+                isinstance(args[1], int) and abs(args[1]) <= ROUND_DIGITS):
             return None
         return FUNCTIONS[node.func.id](*args)  # type: ignore[attr-defined]
     raise TypeError(kind.__name__)

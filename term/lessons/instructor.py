@@ -9,7 +9,8 @@ craft). One JSON object per line each way; the vocabulary (``INSTRUCTOR_*``) is 
   (``tilt_deg``, ``heading_deg``, ``vz`` up, horizontal ``speed``). ``parse_line(bytes)`` gives a ``Truth``, a
   ``Refused`` (the simulator could not carry out a situation: why), a ``Hello``, or None for anything else (a
   bad line is skipped, never raised: the channel is a view, not a control path);
-- ``InstructorClient``: the asyncio TCP client (``tcp-client:HOST:PORT``, the address the child prints). It keeps
+- ``InstructorClient``: the asyncio TCP client (``tcp-client:HOST:PORT#TOKEN``, the address the child prints; the
+  token is the first line it sends, and the simulator refuses a client without it or a second one). It keeps
   the latest truth (``truth``), calls ``on_truth`` for each sample and ``on_refused`` for each refusal, and sends
   situations (``send``). Lost, it says why once (``lost``) and stays down: the child board is gone too.
 """
@@ -24,7 +25,13 @@ from collections.abc import Callable
 from dataclasses import MISSING, dataclass, fields
 from typing import Any
 
-from term.core.protocol import INSTRUCTOR_SITUATIONS, INSTRUCTOR_TRUTH, INSTRUCTOR_VERSION
+from term.core.protocol import (
+    INSTRUCTOR_AUTH,
+    INSTRUCTOR_TOKEN_SEP,
+    INSTRUCTOR_TRUTH,
+    INSTRUCTOR_VERSION,
+    situation_problem,
+)
 
 MAX_LINE = 65536
 
@@ -126,7 +133,7 @@ def truth_from(obj: dict[str, Any]) -> Truth | None:
 def parse_line(line: bytes) -> Truth | Refused | Hello | None:
     try:
         obj = json.loads(line)
-    except (ValueError, UnicodeDecodeError):
+    except (ValueError, UnicodeDecodeError, RecursionError):  # skipped, like any bad line
         return None
     if not isinstance(obj, dict):
         return None
@@ -142,23 +149,19 @@ def parse_line(line: bytes) -> Truth | Refused | Hello | None:
 
 
 def check_situation(cmd: dict[str, Any]) -> str | None:
-    """Why ``cmd`` is not a situation the simulator knows (its verb, its argument names), or None."""
-    verb = cmd.get("do")
-    allowed = INSTRUCTOR_SITUATIONS.get(verb) if isinstance(verb, str) else None
-    if allowed is None:
-        return f"unknown situation {verb!r}; known: {', '.join(INSTRUCTOR_SITUATIONS)}"
-    extra = sorted(set(cmd) - {"do"} - set(allowed))
-    if extra:
-        return f"{verb}: unknown argument {', '.join(extra)}; known: {', '.join(allowed) or 'none'}"
-    return None
+    """Why ``cmd`` is not a situation the simulator accepts (its verb, its argument names, each value's range: the
+    protocol's ``situation_problem``, which the simulator runs too), or None. A lesson file is checked so at load."""
+    return situation_problem(cmd)
 
 
-def parse_address(address: str) -> tuple[str, int]:
-    kind, _, rest = address.partition(":")
+def parse_address(address: str) -> tuple[str, int, str]:
+    """``tcp-client:HOST:PORT#TOKEN`` (what the simulator prints) -> (host, port, token)."""
+    where, _, token = address.partition(INSTRUCTOR_TOKEN_SEP)
+    kind, _, rest = where.partition(":")
     host, _, port = rest.rpartition(":")
-    if kind != "tcp-client" or not host or not port.isdigit():
-        raise ValueError(f"instructor address {address!r}: expected tcp-client:HOST:PORT")
-    return host, int(port)
+    if kind != "tcp-client" or not host or not port.isascii() or not port.isdigit() or int(port) > 65535:
+        raise ValueError(f"instructor address {where!r}: expected tcp-client:HOST:PORT#TOKEN")
+    return host, int(port), token
 
 
 class InstructorClient:
@@ -168,7 +171,7 @@ class InstructorClient:
                  on_refused: Callable[[Refused], None] | None = None,
                  on_lost: Callable[[str], None] | None = None) -> None:
         self.address = address
-        self.host, self.port = parse_address(address)
+        self.host, self.port, self.token = parse_address(address)
         self.on_truth = on_truth
         self.on_refused = on_refused
         self.on_lost = on_lost
@@ -188,6 +191,8 @@ class InstructorClient:
         """Connect; OSError (or TimeoutError) if the simulator does not answer."""
         self._reader, self._writer = await asyncio.wait_for(
             asyncio.open_connection(self.host, self.port, limit=MAX_LINE), timeout)
+        # the simulator's token first: the channel is its and ours alone (term/core/protocol/instructor.py)
+        self._writer.write((json.dumps({"kind": INSTRUCTOR_AUTH, "token": self.token}) + "\n").encode())
         self._task = asyncio.get_running_loop().create_task(self._read(), name="instructor channel")
 
     async def _read(self) -> None:
@@ -212,7 +217,9 @@ class InstructorClient:
             if self.on_truth is not None:
                 self.on_truth(msg)
         elif isinstance(msg, Refused):
-            if self.on_refused is not None:
+            if self.version is None:  # before the hello: the simulator turned us away (token, a second client)
+                self._gone(f"the simulator refused the instructor channel: {msg.why}")
+            elif self.on_refused is not None:
                 self.on_refused(msg)
         elif isinstance(msg, Hello):
             self.version = msg.version

@@ -18,8 +18,11 @@ import tempfile
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
+from term.core.userfile import UserFileError, read_user_file
+
 FILE_NAME = "lessons.json"
 FORMAT = 1
+PROGRESS_MAX_BYTES = 1_000_000  # a score per lesson: a few kB
 
 
 @dataclass
@@ -102,12 +105,12 @@ def load(path: Path | None = None) -> Progress:
     """The progress file at ``path`` (default: the user data directory); a fresh one if there is none."""
     path = path or default_path()
     prog = Progress(path)
-    try:
-        raw = path.read_bytes()
-    except FileNotFoundError:
+    if not os.path.lexists(path):
         return prog
-    except OSError as exc:
-        prog.problem = f"cannot read lesson progress {path}: {exc.strerror or exc}"
+    try:
+        raw = read_user_file(path, PROGRESS_MAX_BYTES, "lesson progress")
+    except UserFileError as exc:
+        prog.problem = str(exc)
         prog.path = None  # do not overwrite what we could not read
         return prog
     try:
@@ -119,7 +122,9 @@ def load(path: Path | None = None) -> Progress:
             if not key.isdigit() or entry is None:
                 raise ValueError(f"lesson {key!r}: not a progress entry")
             prog.lessons[int(key)] = entry
-    except (ValueError, UnicodeDecodeError) as exc:
+    except (ValueError, UnicodeDecodeError, RecursionError) as exc:  # 3000 nested [ is a bad file, not a crash
+        if isinstance(exc, RecursionError):
+            exc = ValueError("nests too deeply")
         bad = path.with_name(path.name + ".bad")
         with contextlib.suppress(OSError):
             os.replace(path, bad)

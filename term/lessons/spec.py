@@ -18,13 +18,14 @@ from __future__ import annotations
 
 import math
 import re
-import tomllib
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from term.core.protocol import STICK_MAX, Op
+from term.core.protocol.numbers import finite, shown_text
+from term.core.userfile import UserFileError, read_user_toml
 from term.lessons.expr import Expr, ExprError
 from term.lessons.instructor import check_situation
 from term.lessons.observe import NAMES, Box
@@ -35,6 +36,8 @@ MAX_S = 3600.0
 END_NAMES = ("failed", "failed_step", "score")  # the advice's variables beside the lesson's and the grades' names
 # What a script may press beside the key map's actions: the palette's board commands that have no key.
 COMMANDS: dict[str, tuple[Op, int]] = {"handback": (Op.WIRELESS, 0)}  # "Link: hand control back to the cable"
+TEXT_MAX = 1000  # characters of a caption, a reason or an advice
+_SAFE_FORMAT = re.compile(r"[<>^]?[+ -]?[0-9]{0,2}(\.[0-9]{1,2})?[fgde%]?", re.ASCII)  # {h:.2f}: never {h:999999999}
 VERBS = ("press", "wait", "hover", "land", "sticks", "pause", "say")  # the autopilot's maneuvers
 
 
@@ -165,16 +168,22 @@ class _Reader:
         v = self.get(key, default)
         if v is not None and (not isinstance(v, str) or not v.strip()):
             raise self.err(key, "expected non-empty text")
+        if v is not None and len(v) > TEXT_MAX:
+            raise self.err(key, f"longer than {TEXT_MAX} characters")
+        for m in re.finditer(r"\{\w*:([^{}]*)\}", v or ""):
+            if not _SAFE_FORMAT.fullmatch(m.group(1)):
+                raise self.err(key, f"{{…:{m.group(1)[:20]}}}: a format is like .2f, 5.1f or g (width and "
+                                    "precision at most 2 digits)")
         return v
 
     def number(self, key: str, default: float | None = None, lo: float = -math.inf, hi: float = math.inf) -> Any:
         v = self.get(key, default)
         if v is None:
             return None
-        if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
-            raise self.err(key, f"expected a number, got {v!r}")
-        if not lo <= v <= hi:
-            raise self.err(key, f"must be between {lo:g} and {hi:g}, got {v:g}")
+        if not finite(v):
+            raise self.err(key, f"expected a number, got {shown_text(v)}")
+        if not lo <= v <= hi:  # exact for an int of any size
+            raise self.err(key, f"must be between {lo:g} and {hi:g}, got {shown_text(v)}")
         return float(v)
 
     def why(self, key: str, extra: tuple[str, ...] = (), default: str | None = None) -> str | None:
@@ -306,8 +315,7 @@ def maneuvers(tables: list[Any], where: str, actions: Iterable[str] | None = Non
         elif verb == "hover":
             arg = r.get("hover")
             if (not isinstance(arg, list) or len(arg) != 3
-                    or not all(isinstance(x, int | float) and not isinstance(x, bool) and math.isfinite(x)
-                               for x in arg) or not 0 <= arg[2] <= 100):
+                    or not all(finite(x) and abs(x) <= 1000 for x in arg) or not 0 <= arg[2] <= 100):
                 raise r.err("hover", "expected [north, east, height] in m (height 0 to 100)")
             arg = tuple(float(x) for x in arg)
         elif verb == "land":
@@ -327,14 +335,14 @@ def maneuvers(tables: list[Any], where: str, actions: Iterable[str] | None = Non
     return tuple(out)
 
 
+LESSON_MAX_BYTES = 200_000  # the built-in lessons are 2 to 6 kB
+
+
 def _parse(path: Path) -> dict[str, Any]:
     try:
-        with path.open("rb") as f:
-            return tomllib.load(f)
-    except OSError as exc:
-        raise LessonError(f"{path}: {exc.strerror or exc}") from None
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
-        raise LessonError(f"{path}: not TOML: {exc}") from None
+        return read_user_toml(path, LESSON_MAX_BYTES, "lesson file")
+    except UserFileError as exc:
+        raise LessonError(str(exc)) from None
 
 
 def load_lesson(path: Path, actions: Iterable[str] | None = None) -> Lesson:

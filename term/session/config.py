@@ -44,6 +44,7 @@ keep a key (term/input/keymap.py). An example::
 
 from __future__ import annotations
 
+import os
 import tomllib
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -53,6 +54,7 @@ from typing import Any
 from term.core.logfile import check_directory
 from term.core.protocol import BAUD_RATE
 from term.core.schema import Flag, ListOf, Number, OneOf, SchemaError, Table, TableOf, Text, nearest, one_line, shown
+from term.core.userfile import UserFileError, read_user_text, read_user_toml
 from term.input.keymap import KeyBinding, KeymapError, build_keymap
 from term.input.mapping import (
     LAB,
@@ -143,28 +145,14 @@ def load_config(path: Path | None = None, *, required: bool = False) -> Config:
     """Read ``path`` (default: the platform's config file). A missing default file is fine; a missing file the
     user named (``required``) is an error. Every problem is a ``ConfigError`` of one line naming the file."""
     path = path or default_path()
-    try:
-        with path.open("rb") as f:
-            raw = f.read(CONFIG_MAX_BYTES + 1)
-    except FileNotFoundError:
-        if required:
-            raise ConfigError(f"config file {path} not found") from None
+    if not required and not os.path.lexists(path):
         return Config()
-    except OSError as exc:
-        raise ConfigError(f"cannot read config file {path}: {exc.strerror or exc}") from None
-    if len(raw) > CONFIG_MAX_BYTES:
-        raise ConfigError(f"config file {path} is larger than {CONFIG_MAX_BYTES // 1000} kB: not a term.toml")
     try:
-        text = raw.decode("utf-8")
-    except UnicodeDecodeError as exc:
-        raise ConfigError(f"config file {path} is not UTF-8 text (byte {raw[exc.start]:#04x} at offset "
-                          f"{exc.start}); TOML files are UTF-8") from None
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise ConfigError(one_line(f"config file {path} is not valid TOML: {exc}")) from None
-    except RecursionError:
-        raise ConfigError(f"config file {path} is not usable TOML: its values nest too deeply") from None
+        data = read_user_toml(path, CONFIG_MAX_BYTES, "config file")
+    except UserFileError as exc:
+        if required and not os.path.lexists(path):
+            raise ConfigError(f"config file {path} not found") from None
+        raise ConfigError(one_line(str(exc))) from None
     try:
         cfg = config_from_dict(data)
     except (SchemaError, KeymapError) as exc:
@@ -300,9 +288,9 @@ def save_joystick_mapping(path: Path, mapping: StickMapping, device: str) -> str
 
     name = mapping_table_name(device)
     try:
-        old = path.read_text(encoding="utf-8") if path.exists() else ""
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ConfigError(f"cannot read config file {path}: {exc}") from None
+        old = read_user_text(path, CONFIG_MAX_BYTES, "config file") if os.path.lexists(path) else ""
+    except UserFileError as exc:
+        raise ConfigError(one_line(str(exc))) from None
     header = re.compile(rf"^\[\s*joystick\.mappings\.{re.escape(name)}\s*[\].]")
     kept, skipping = [], False
     for line in old.splitlines():

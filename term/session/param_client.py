@@ -17,15 +17,14 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
-import math
-import tomllib
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
 from term.core.link import CommandAcked, CommandFailed, PacketReceived, VersionMismatch
 from term.core.protocol import PARAM_BY_NAME, PARAMS, Nak, Op, Param, ParamSpec, ParamValue, nak_text, param_arg
-from term.core.schema import nearest, shown
+from term.core.schema import nearest, one_line, shown
+from term.core.userfile import UserFileError, read_user_toml
 from term.session.connection import Connection, TransportFailed
 
 Value = float | str | bool
@@ -45,56 +44,25 @@ def spec_by_name(name: str) -> ParamSpec:
 
 
 def check_value(spec: ParamSpec, value: Any, given: str | None = None) -> Value:
-    """``value`` (from TOML or parsed text) as the parameter's value, inside its range; else a ParamError (quoting
+    """``value`` (from TOML or parsed text) as the parameter's value: ``ParamSpec.check``, the one strict check
+    (finite, in range before scaling, on the wire's step, an exact choice); else a ParamError of one line (quoting
     ``given``, what was typed, if any)."""
-    what = f"{spec.name} must be {_allowed(spec)}, got {given if given is not None else shown(value)}"
-    if spec.kind == "enum":
-        if value not in spec.choices:
-            raise ParamError(what + nearest(str(value), spec.choices))
-        return str(value)
-    if spec.kind == "bool":
-        if not isinstance(value, bool):
-            raise ParamError(what)
-        return value
-    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
-        raise ParamError(what)
-    if spec.kind == "int" and value != int(value):
-        raise ParamError(what)
     try:
-        raw = spec.to_raw(value)
-    except (OverflowError, ValueError):  # 1e308 is finite, but not once scaled to the wire's units
-        raise ParamError(what) from None
-    if not spec.accepts(raw):
-        raise ParamError(what)
-    return int(value) if spec.kind == "int" else float(value)
-
-
-def _allowed(spec: ParamSpec) -> str:
-    if spec.kind == "enum":
-        return "one of " + ", ".join(spec.choices)
-    if spec.kind == "bool":
-        return "true or false"
-    kind = "a whole number" if spec.kind == "int" else "a number"
-    return f"{kind} from {spec.text(spec.lo)} to {spec.text(spec.hi)}" + (f" {spec.unit}" if spec.unit else "")
+        return spec.check(value, given)
+    except ValueError as exc:
+        hint = nearest(value, spec.choices) if spec.kind == "enum" and isinstance(value, str) else ""
+        raise ParamError(one_line(f"{exc}{hint}")) from None
 
 
 def parse_text(spec: ParamSpec, text: str) -> Value:
-    """What a pilot typed, as the parameter's value (ParamError: one line saying what is allowed)."""
-    t = text.strip()
-    if spec.kind == "bool":
-        word = t.lower()
-        if word in ("true", "on", "yes", "1"):
-            return True
-        if word in ("false", "off", "no", "0"):
-            return False
-        return check_value(spec, t, shown(t))
-    if spec.kind == "enum":
-        return check_value(spec, t, shown(t))
+    """What a pilot typed, as the parameter's value (``ParamSpec.parse``: ASCII, strict; ParamError: one line
+    saying what is allowed)."""
     try:
-        number: Any = float(t)
-    except ValueError:
-        number = t
-    return check_value(spec, number, shown(t))
+        return spec.parse(text)
+    except ValueError as exc:
+        t = text.strip(" ") if isinstance(text, str) else ""
+        hint = nearest(t, spec.choices) if spec.kind == "enum" else ""
+        raise ParamError(one_line(f"{exc}{hint}")) from None
 
 
 def value_text(spec: ParamSpec, value: Value) -> str:
@@ -143,20 +111,12 @@ def from_toml(data: Mapping[str, Any], where: str) -> dict[Param, Value]:
 
 
 def load_file(path: Path) -> dict[Param, Value]:
-    """A parameter file (TOML); a missing, unreadable, too large, non-UTF-8 or invalid file is one ParamError."""
+    """A parameter file (TOML, through term/core/userfile.py: a regular file, at most ``FILE_MAX_BYTES``, UTF-8,
+    bounded nesting); every problem is one ParamError."""
     try:
-        with path.open("rb") as f:
-            raw = f.read(FILE_MAX_BYTES + 1)
-    except OSError as exc:
-        raise ParamError(f"cannot read parameter file {path}: {exc.strerror or exc}") from None
-    if len(raw) > FILE_MAX_BYTES:
-        raise ParamError(f"parameter file {path} is larger than {FILE_MAX_BYTES // 1000} kB")
-    try:
-        data = tomllib.loads(raw.decode("utf-8"))
-    except UnicodeDecodeError:
-        raise ParamError(f"parameter file {path} is not UTF-8 text") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise ParamError(" ".join(f"parameter file {path} is not valid TOML: {exc}".split())) from None
+        data = read_user_toml(path, FILE_MAX_BYTES, "parameter file")
+    except UserFileError as exc:
+        raise ParamError(str(exc)) from None
     return from_toml(data, f"parameter file {path}")
 
 

@@ -88,10 +88,15 @@ from term.core.protocol.framing import (  # noqa: F401
     to_dict,
 )
 from term.core.protocol.instructor import (  # noqa: F401
+    INSTRUCTOR_AUTH,
+    INSTRUCTOR_MAX_CUT_S,
+    INSTRUCTOR_MAX_OUTAGE_S,
     INSTRUCTOR_SITUATIONS,
+    INSTRUCTOR_TOKEN_SEP,
     INSTRUCTOR_TRUTH,
     INSTRUCTOR_TRUTH_HZ,
     INSTRUCTOR_VERSION,
+    situation_problem,
 )
 from term.core.protocol.packets import (  # noqa: F401
     EVENT_ARG_SCALE,

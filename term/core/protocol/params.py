@@ -4,11 +4,13 @@ not), the SET_PARAM argument packing and the presets. docs/parameters.md is gene
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from enum import IntEnum
 from typing import Any
 
 from term.core.protocol.facts import SCHEME_NAMES, Op
+from term.core.protocol.numbers import NumberError, check_number, parse_number, shown_text
 
 
 class Param(IntEnum):
@@ -91,21 +93,66 @@ class ParamSpec:
         return lo <= raw <= hi
 
     def to_raw(self, value: float | str | bool) -> int:
-        """The wire's int for ``value`` (a choice's name for an enum). ValueError (one line) if it is not one."""
+        """The wire's int for ``value`` (a choice's name for an enum). ValueError (one line) if it is not one, or
+        if it is so far out of range that it would not fit the wire (checked before it is scaled)."""
         if self.kind == "enum":
             if value not in self.choices:
-                raise ValueError(f"{self.name}: {value!r} is not one of {', '.join(self.choices)}")
+                raise ValueError(f"{self.name}: {shown_text(value)} is not one of {', '.join(self.choices)}")
             return self.base + self.choices.index(str(value))
         if self.kind == "bool":
             if not isinstance(value, bool):
-                raise ValueError(f"{self.name}: give true or false, got {value!r}")
+                raise ValueError(f"{self.name}: give true or false, got {shown_text(value)}")
             return int(value)
         bad = isinstance(value, bool) or not isinstance(value, int | float)
-        if bad or value != value or abs(value) == float("inf"):
-            raise ValueError(f"{self.name}: give a number, got {value!r}")
+        if bad or isinstance(value, float) and not math.isfinite(value):
+            raise ValueError(f"{self.name}: give a number, got {shown_text(value)}")
         if self.kind == "int" and value != int(value):
-            raise ValueError(f"{self.name}: give a whole number, got {value!r}")
+            raise ValueError(f"{self.name}: give a whole number, got {shown_text(value)}")
+        if not abs(value) <= _RAW_MAX * self.scale:  # exact for any int: nothing huge reaches round()
+            raise ValueError(f"{self.name}: {shown_text(value)} does not fit the wire's raw value")
         return round(value / self.scale)
+
+    def check(self, value: Any, given: str | None = None) -> float | str | bool:
+        """``value`` (from a file, a parser, the instructor) as this parameter's value: the one strict check every
+        surface uses. A number must be finite, inside ``lo..hi`` (before any scaling) and a whole multiple of the
+        wire's step (``1e-30`` is not silently 0); an enum one of its choices exactly; a bool a real bool.
+        NumberError (a ValueError) of one line naming the parameter and quoting ``given`` (what was typed)."""
+        shown = given if given is not None else shown_text(value)
+        if self.kind == "enum":
+            if not isinstance(value, str) or value not in self.choices:
+                raise NumberError(f"{self.name} must be one of {', '.join(self.choices)}, got {shown}")
+            return value
+        if self.kind == "bool":
+            if not isinstance(value, bool):
+                raise NumberError(f"{self.name} must be true or false, got {shown}")
+            return value
+        number = check_number(value, self.name, self.lo, self.hi, integer=self.kind == "int", unit=self.unit,
+                              what=shown)
+        raw = round(number / self.scale)
+        if abs(float(self.from_raw(raw)) - number) > 1e-9 * abs(number):  # 1e-30 is not 0, 0.12345 not 0.1235
+            step = self.text(self.scale) if self.kind == "float" else str(self.scale)
+            raise NumberError(f"{self.name} goes in steps of {step}, got {shown} (nearest: "
+                              f"{self.text(self.from_raw(raw))})")
+        return number
+
+    def parse(self, text: str) -> float | str | bool:
+        """What a pilot typed (the command line, the parameter screen) as this parameter's value: ASCII only,
+        spaces around it allowed, nothing else (``"kalman\\n"``, ``１``, ``1_0`` are refused); then ``check``."""
+        shown = shown_text(text)
+        if not isinstance(text, str):
+            raise NumberError(f"{self.name}: give text, got {shown}")
+        t = text.strip(" ")
+        if self.kind == "bool":
+            word = t.lower() if t.isascii() else t
+            if word in ("true", "on", "yes", "1"):
+                return True
+            if word in ("false", "off", "no", "0"):
+                return False
+            return self.check(t, shown)
+        if self.kind == "enum":
+            return self.check(t, shown)
+        number = parse_number(t, self.name, self.lo, self.hi, integer=self.kind == "int", unit=self.unit)
+        return self.check(number, shown)
 
     def from_raw(self, raw: int) -> float | str | bool:
         """The value for the wire's ``raw`` (an enum's raw out of its range is shown as its number)."""
