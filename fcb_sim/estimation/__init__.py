@@ -35,12 +35,26 @@ _FLOAT: dict[str, Callable[[], AttitudeFilter]] = {
     "qgate": QGateFilter,
     "ikf": InertialKalmanFilter,
 }
+
+
+def _ikf_fixed(native: bool | None) -> AttitudeFilter:
+    """ikf in fixed point: the C of firmware/board/ikf_q.c where it builds (fcb_sim.native), same bits as the Python
+    twin, which runs otherwise or with ``native=False``."""
+    if native is not False:
+        from fcb_sim.native import NativeIKFQ, library, why_not  # late: native imports this package's modules
+
+        if library() is not None:
+            return NativeIKFQ()
+        if native:
+            raise RuntimeError(f"the C filter is not available: {why_not()}")
+    return InertialKalmanFilterQ()
+
+
 _FIXED: dict[str, Callable[[], AttitudeFilter]] = {
     "complementary": lambda: ComplementaryFilterQ16(K_GYRO_FLOWN),
     "complementary-0.9": lambda: ComplementaryFilterQ16(K_GYRO_TABLE2),
     "kalman": KalmanFilterQ16,
     "kalman-cov": KalmanCovFilterQ16,
-    "ikf": InertialKalmanFilterQ,
 }
 
 FILTERS: tuple[str, ...] = tuple(_FLOAT)
@@ -57,12 +71,15 @@ DESCRIPTIONS: dict[str, str] = {
 }
 
 
-def make_filter(name: str, *, fixed_point: bool = False) -> AttitudeFilter:
-    """A fresh filter by name; ``fixed_point=True`` for the fixed-point variant. Raises KeyError for an unknown
-    name, ValueError if the filter has no fixed-point variant."""
+def make_filter(name: str, *, fixed_point: bool = False, native: bool | None = None) -> AttitudeFilter:
+    """A fresh filter by name; ``fixed_point=True`` for the fixed-point variant (ikf's in C where it builds;
+    ``native=False`` for the Python reference, ``True`` to insist on C). Raises KeyError for an unknown name,
+    ValueError if the filter has no fixed-point variant."""
     if name not in _FLOAT:
         raise KeyError(f"unknown filter {name!r}; known: {', '.join(FILTERS)}")
     if fixed_point:
+        if name == "ikf":
+            return _ikf_fixed(native)
         if name not in _FIXED:
             raise ValueError(f"filter {name!r} has no fixed-point variant")
         return _FIXED[name]()
@@ -70,7 +87,7 @@ def make_filter(name: str, *, fixed_point: bool = False) -> AttitudeFilter:
 
 
 def has_fixed_point(name: str) -> bool:
-    return name in _FIXED
+    return name in _FIXED or name == "ikf"
 
 
 __all__ = [

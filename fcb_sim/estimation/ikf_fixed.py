@@ -63,8 +63,11 @@ def sqrt(a: int, frac: int) -> int:
 def to_q(x: float, frac: int) -> int:
     """A float to Q.frac, rounded half away from zero, saturated (fix16_from_float for frac = 16)."""
     t = x * (1 << frac)
-    r = int(t + 0.5) if t >= 0.0 else int(t - 0.5)
-    return _sat(r)
+    if t >= 2147483647.0:  # also a finite x whose scaled value is inf (int() of it would raise)
+        return _I32_MAX
+    if t <= -2147483648.0:
+        return _I32_MIN
+    return int(t + 0.5) if t >= 0.0 else int(t - 0.5)
 
 
 def _to_q_wide(x: float, frac: int) -> int:
