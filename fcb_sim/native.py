@@ -133,6 +133,19 @@ class NativeIKFQ(QuaternionAnglesMixin):
     def quaternion(self) -> tuple[float, float, float, float]:
         return self._q
 
+    def step_q(self, g: tuple[int, int, int], a: tuple[int, int, int], dt: float) -> tuple[int, int, int, int]:
+        """One board step on Q.io samples (ikfq_set_dt, ikfq_step), as the M0 runs it; the predicted quaternion."""
+        lib = self._lib
+        lib.ikfq_set_dt(self._s, dt)
+        lib.ikfq_step(self._s, (ctypes.c_int32 * 3)(*g), (ctypes.c_int32 * 3)(*a))
+        q = (ctypes.c_int32 * 4)()
+        lib.ikfq_predicted(self._s, q)
+        return q[0], q[1], q[2], q[3]
+
+    def raw_state(self) -> bytes:
+        """The C struct's bytes (its layout is the M0 build's too: fcb_sim.m0emu starts from it)."""
+        return bytes(self._buf)
+
     def state(self) -> dict[str, int]:
         """The filter's integers by name (STATE_FIELDS), for comparing with the Python twin."""
         out = (ctypes.c_int64 * len(STATE_FIELDS))()

@@ -41,14 +41,52 @@ static int32_t mul_wide(int64_t a, int64_t b, unsigned shift)
     return rhi || rlo > UINT64_C(0x7FFFFFFF) ? I32_MAX : (int32_t)rlo;
 }
 
+/* The same for two int32 in 32-bit operations only: the Cortex-M0 has a 32x32->32 MULS and no 64-bit product,
+ * so the signed 64-bit product from four 16x16 products (libfixmath's fix16_mul without 64-bit types), then
+ * (p + h - (p < 0)) >> shift, which is Python's rounding half away from zero for either sign. */
+static int32_t mul32(int32_t a, int32_t b, unsigned shift)
+{
+    int32_t ah = a >> 16, bh = b >> 16, hi;
+    uint32_t al = (uint32_t)a & 0xFFFFu, bl = (uint32_t)b & 0xFFFFu, lo, add;
+    int32_t cross = ah * (int32_t)bl; /* |cross| < 2^31: each is a 16-bit signed times a 16-bit unsigned */
+    int32_t cross2 = bh * (int32_t)al;
+    uint32_t ll = al * bl, t;
+    hi = ah * bh + (cross >> 16) + (cross2 >> 16);
+    t = ll + ((uint32_t)cross << 16);
+    hi += t < ll;
+    lo = t + ((uint32_t)cross2 << 16);
+    hi += lo < t;
+    /* + h - (p < 0), a 64-bit addition of a non-negative number below 2^45 */
+    if (shift <= 32) {
+        add = (UINT32_C(1) << (shift - 1)) - (uint32_t)(hi < 0);
+        lo += add;
+        hi += lo < add;
+    } else {
+        uint32_t l0 = lo;
+        lo -= (uint32_t)(hi < 0);
+        hi += (int32_t)(UINT32_C(1) << (shift - 33)) - (lo > l0);
+    }
+    if (shift < 32) {
+        int32_t rhi = hi >> shift;
+        uint32_t rlo = (lo >> shift) | ((uint32_t)hi << (32 - shift));
+        if (rhi != ((int32_t)rlo >> 31))
+            return hi < 0 ? I32_MIN : I32_MAX;
+        return (int32_t)rlo;
+    } else {
+        int32_t r = hi >> (shift - 32); /* fits: the 64-bit value >> 32 or more, from a 62-bit product */
+        return r;
+    }
+}
+
 int32_t ikfq_mul(int64_t a, int64_t b, unsigned shift)
 {
-    if (a >= I32_MIN && a <= I32_MAX && b >= I32_MIN && b <= I32_MAX) {
-        int64_t p = a * b, h = (int64_t)1 << (shift - 1);
-        return sat(p >= 0 ? (p + h) >> shift : -((h - p) >> shift));
-    }
+    if ((int32_t)a == a && (int32_t)b == b)
+        return mul32((int32_t)a, (int32_t)b, shift);
     return mul_wide(a, b, shift);
 }
+
+/* Most products are of two int32: straight to mul32 (three arguments in registers, no 64-bit test). */
+#define MUL(a, b, shift) mul32((a), (b), (shift))
 
 int32_t ikfq_div(int64_t a, int64_t b, unsigned shift)
 {
@@ -158,6 +196,8 @@ void ikfq_init(ikfq_t *s, const ikfq_formats_t *f, const ikfq_params_t *p)
     s->pgg0 = ikfq_to_q(P_GG0, f->cov);
     s->pdd0 = ikfq_to_q(p->drift_init, f->cov);
     s->g0_io = ikfq_to_q(G0, f->io);
+    s->swing_max = (int32_t)((81 * (INT64_C(1) << f->quat)) / 100);
+    s->swing_k = (int32_t)((9 * (INT64_C(1) << f->quat)) / 10);
     s->dt_last = 0.0;
     s->dtq = s->dt2q = s->dthq = s->krq = s->kbq = 0;
     /* the rest filters' time constants live only in krq and kbq: keep them for ikfq_set_dt */
@@ -203,24 +243,24 @@ static void rotate(const ikfq_t *s, int64_t hx, int64_t hy, int64_t hz, int32_t 
 {
     unsigned qb = s->f.quat;
     int64_t one = INT64_C(1) << qb, h2, h4, c, sn, dx, dy, dz, w = s->qw, x = s->qx, y = s->qy, z = s->qz;
-    h2 = (int64_t)ikfq_mul(hx, hx, qb) + ikfq_mul(hy, hy, qb) + ikfq_mul(hz, hz, qb);
+    h2 = (int64_t)MUL(hx, hx, qb) + MUL(hy, hy, qb) + MUL(hz, hz, qb);
     if (h2 > one >> 4) { /* a half step over 0.25 rad: beyond the series' 1e-6; clip it */
         int32_t k = ikfq_div(one >> 2, ikfq_sqrt(h2, qb), qb);
-        hx = ikfq_mul(hx, k, qb);
-        hy = ikfq_mul(hy, k, qb);
-        hz = ikfq_mul(hz, k, qb);
+        hx = MUL(hx, k, qb);
+        hy = MUL(hy, k, qb);
+        hz = MUL(hz, k, qb);
         h2 = one >> 4;
     }
-    h4 = ikfq_mul(h2, h2, qb);
-    c = one - (h2 >> 1) + h4 / 24;
-    sn = one - h2 / 6 + h4 / 120; /* sin(h) / h */
-    dx = ikfq_mul(hx, sn, qb);
-    dy = ikfq_mul(hy, sn, qb);
-    dz = ikfq_mul(hz, sn, qb);
-    out[0] = sat((int64_t)ikfq_mul(w, c, qb) - ikfq_mul(x, dx, qb) - ikfq_mul(y, dy, qb) - ikfq_mul(z, dz, qb));
-    out[1] = sat((int64_t)ikfq_mul(w, dx, qb) + ikfq_mul(x, c, qb) + ikfq_mul(y, dz, qb) - ikfq_mul(z, dy, qb));
-    out[2] = sat((int64_t)ikfq_mul(w, dy, qb) - ikfq_mul(x, dz, qb) + ikfq_mul(y, c, qb) + ikfq_mul(z, dx, qb));
-    out[3] = sat((int64_t)ikfq_mul(w, dz, qb) + ikfq_mul(x, dy, qb) - ikfq_mul(y, dx, qb) + ikfq_mul(z, c, qb));
+    h4 = MUL(h2, h2, qb); /* h2 <= one / 16 here: both fit 32 bits, so 32-bit divisions */
+    c = one - (h2 >> 1) + (int32_t)h4 / 24;
+    sn = one - (int32_t)h2 / 6 + (int32_t)h4 / 120; /* sin(h) / h */
+    dx = MUL(hx, sn, qb);
+    dy = MUL(hy, sn, qb);
+    dz = MUL(hz, sn, qb);
+    out[0] = sat((int64_t)MUL(w, c, qb) - MUL(x, dx, qb) - MUL(y, dy, qb) - MUL(z, dz, qb));
+    out[1] = sat((int64_t)MUL(w, dx, qb) + MUL(x, c, qb) + MUL(y, dz, qb) - MUL(z, dy, qb));
+    out[2] = sat((int64_t)MUL(w, dy, qb) - MUL(x, dz, qb) + MUL(y, c, qb) + MUL(z, dx, qb));
+    out[3] = sat((int64_t)MUL(w, dz, qb) + MUL(x, dy, qb) - MUL(y, dx, qb) + MUL(z, c, qb));
 }
 
 void ikfq_predicted(const ikfq_t *s, int32_t q[4])
@@ -279,37 +319,37 @@ static void gravity(ikfq_t *s, int32_t fx, int32_t fy, int64_t rate, int32_t *gx
     unsigned io = s->f.io, vb = s->f.vel, db = s->f.drift, cb = s->f.cov, sd = s->f.dt;
     int64_t dtq = s->dtq, dt2q = s->dt2q;
     int32_t e = ikfq_mul(rate, dtq, io + sd - cb);
-    int32_t vx = sat(s->vx + (int64_t)ikfq_mul(fx, dtq, io + sd - vb));
-    int32_t vy = sat(s->vy + (int64_t)ikfq_mul(fy, dtq, io + sd - vb));
-    int32_t gxh = ikfq_mul(s->dx, e, db + cb - vb), gyh = ikfq_mul(s->dy, e, db + cb - vb);
+    int32_t vx = sat(s->vx + (int64_t)MUL(fx, dtq, io + sd - vb));
+    int32_t vy = sat(s->vy + (int64_t)MUL(fy, dtq, io + sd - vb));
+    int32_t gxh = MUL(s->dx, e, db + cb - vb), gyh = MUL(s->dy, e, db + cb - vb);
     int32_t pvv = s->pvv, pvg = s->pvg, pvd = s->pvd, pgg = s->pgg, pgd = s->pgd, pdd = s->pdd;
     int32_t a_vv, a_vg, a_vd, a_gg, a_gd, a_dd, q_dt, noise, r, den, kv, kg, kd;
-    a_vv = sat(pvv - 2 * (int64_t)ikfq_mul(pvg, dtq, sd) + ikfq_mul(pgg, dt2q, sd));
-    a_vg = sat((int64_t)pvg + ikfq_mul(e, pvd, cb) - ikfq_mul(pgg, dtq, sd)
-               - ikfq_mul(ikfq_mul(e, pgd, cb), dtq, sd));
-    a_vd = sat(pvd - (int64_t)ikfq_mul(pgd, dtq, sd));
-    q_dt = ikfq_mul(s->q_g0, dtq, (unsigned)(s->qg_shift + (int32_t)sd));
-    noise = sat(q_dt + (int64_t)ikfq_mul(ikfq_mul(q_dt, s->k_rot, io), rate, io));
-    a_gg = sat(pgg + 2 * (int64_t)ikfq_mul(e, pgd, cb) + ikfq_mul(ikfq_mul(e, e, cb), pdd, cb) + noise);
-    a_gd = sat(pgd + (int64_t)ikfq_mul(e, pdd, cb));
-    a_dd = sat(pdd + (int64_t)ikfq_mul(s->drift_noise, e, cb + 16u));
+    a_vv = sat(pvv - 2 * (int64_t)MUL(pvg, dtq, sd) + MUL(pgg, dt2q, sd));
+    a_vg = sat((int64_t)pvg + MUL(e, pvd, cb) - MUL(pgg, dtq, sd)
+               - MUL(MUL(e, pgd, cb), dtq, sd));
+    a_vd = sat(pvd - (int64_t)MUL(pgd, dtq, sd));
+    q_dt = MUL(s->q_g0, dtq, (unsigned)(s->qg_shift + (int32_t)sd));
+    noise = sat(q_dt + (int64_t)ikfq_mul(MUL(q_dt, s->k_rot, io), rate, io));
+    a_gg = sat(pgg + 2 * (int64_t)MUL(e, pgd, cb) + MUL(MUL(e, e, cb), pdd, cb) + noise);
+    a_gd = sat(pgd + (int64_t)MUL(e, pdd, cb));
+    a_dd = sat(pdd + (int64_t)MUL(s->drift_noise, e, cb + 16u));
     r = s->at_rest ? s->rest_r : (int32_t)(INT32_C(1) << cb);
-    den = sat((int64_t)ikfq_mul(a_vv, dtq, sd) + r);
-    kv = ikfq_div(ikfq_mul(a_vv, dtq, sd), den, cb);
-    kg = ikfq_div(ikfq_mul(a_vg, dtq, sd), den, cb);
-    kd = ikfq_div(ikfq_mul(a_vd, dtq, sd), den, cb);
-    *gxh_out = sat(gxh - (int64_t)ikfq_mul(kg, vx, cb));
-    *gyh_out = sat(gyh - (int64_t)ikfq_mul(kg, vy, cb));
-    s->dx = sat(s->dx - (int64_t)ikfq_mul(kd, vx, cb + vb - db));
-    s->dy = sat(s->dy - (int64_t)ikfq_mul(kd, vy, cb + vb - db));
-    s->vx = sat(vx - (int64_t)ikfq_mul(kv, vx, cb));
-    s->vy = sat(vy - (int64_t)ikfq_mul(kv, vy, cb));
-    s->pvv = sat(a_vv - (int64_t)ikfq_mul(kv, a_vv, cb));
-    s->pvg = sat(a_vg - (int64_t)ikfq_mul(kv, a_vg, cb));
-    s->pvd = sat(a_vd - (int64_t)ikfq_mul(kv, a_vd, cb));
-    s->pgg = sat(a_gg - (int64_t)ikfq_mul(kg, a_vg, cb));
-    s->pgd = sat(a_gd - (int64_t)ikfq_mul(kg, a_vd, cb));
-    s->pdd = sat(a_dd - (int64_t)ikfq_mul(kd, a_vd, cb));
+    den = sat((int64_t)MUL(a_vv, dtq, sd) + r);
+    kv = ikfq_div(MUL(a_vv, dtq, sd), den, cb);
+    kg = ikfq_div(MUL(a_vg, dtq, sd), den, cb);
+    kd = ikfq_div(MUL(a_vd, dtq, sd), den, cb);
+    *gxh_out = sat(gxh - (int64_t)MUL(kg, vx, cb));
+    *gyh_out = sat(gyh - (int64_t)MUL(kg, vy, cb));
+    s->dx = sat(s->dx - (int64_t)MUL(kd, vx, cb + vb - db));
+    s->dy = sat(s->dy - (int64_t)MUL(kd, vy, cb + vb - db));
+    s->vx = sat(vx - (int64_t)MUL(kv, vx, cb));
+    s->vy = sat(vy - (int64_t)MUL(kv, vy, cb));
+    s->pvv = sat(a_vv - (int64_t)MUL(kv, a_vv, cb));
+    s->pvg = sat(a_vg - (int64_t)MUL(kv, a_vg, cb));
+    s->pvd = sat(a_vd - (int64_t)MUL(kv, a_vd, cb));
+    s->pgg = sat(a_gg - (int64_t)MUL(kg, a_vg, cb));
+    s->pgd = sat(a_gd - (int64_t)MUL(kg, a_vd, cb));
+    s->pdd = sat(a_dd - (int64_t)MUL(kd, a_vd, cb));
 }
 
 /* Step 4: the swing that makes (gxh, gyh, g0) vertical, applied to q, normalised by one Newton step, kept */
@@ -317,24 +357,24 @@ static void rebase(ikfq_t *s, const int32_t q[4], int32_t gxh, int32_t gyh)
 {
     unsigned qb = s->f.quat, vb = s->f.vel;
     int64_t one = INT64_C(1) << qb, ux, uy, uh2, uz, cw, cx, cy, n2, k, w, x, y, z;
-    ux = ikfq_mul(gxh, s->inv_g0, vb);
-    uy = ikfq_mul(gyh, s->inv_g0, vb);
-    uh2 = (int64_t)ikfq_mul(ux, ux, qb) + ikfq_mul(uy, uy, qb);
-    if (uh2 > (81 * one) / 100) { /* at most a 64 degree step */
-        int32_t kk = ikfq_div(9 * one / 10, ikfq_sqrt(uh2, qb), qb);
-        ux = ikfq_mul(ux, kk, qb);
-        uy = ikfq_mul(uy, kk, qb);
-        uh2 = (81 * one) / 100;
+    ux = MUL(gxh, s->inv_g0, vb);
+    uy = MUL(gyh, s->inv_g0, vb);
+    uh2 = (int64_t)MUL(ux, ux, qb) + MUL(uy, uy, qb);
+    if (uh2 > s->swing_max) { /* at most a 64 degree step */
+        int32_t kk = ikfq_div(s->swing_k, ikfq_sqrt(uh2, qb), qb);
+        ux = MUL(ux, kk, qb);
+        uy = MUL(uy, kk, qb);
+        uh2 = s->swing_max;
     }
     uz = ikfq_sqrt(one - uh2, qb);
     cw = ikfq_sqrt((one >> 1) + (uz >> 1), qb);
     cx = ikfq_div(uy, cw, qb - 1);
     cy = -(int64_t)ikfq_div(ux, cw, qb - 1);
-    w = sat((int64_t)ikfq_mul(cw, q[0], qb) - ikfq_mul(cx, q[1], qb) - ikfq_mul(cy, q[2], qb));
-    x = sat((int64_t)ikfq_mul(cw, q[1], qb) + ikfq_mul(cx, q[0], qb) + ikfq_mul(cy, q[3], qb));
-    y = sat((int64_t)ikfq_mul(cw, q[2], qb) - ikfq_mul(cx, q[3], qb) + ikfq_mul(cy, q[0], qb));
-    z = sat((int64_t)ikfq_mul(cw, q[3], qb) + ikfq_mul(cx, q[2], qb) - ikfq_mul(cy, q[1], qb));
-    n2 = (int64_t)ikfq_mul(w, w, qb) + ikfq_mul(x, x, qb) + ikfq_mul(y, y, qb) + ikfq_mul(z, z, qb);
+    w = sat((int64_t)MUL(cw, q[0], qb) - MUL(cx, q[1], qb) - ikfq_mul(cy, q[2], qb));
+    x = sat((int64_t)MUL(cw, q[1], qb) + MUL(cx, q[0], qb) + ikfq_mul(cy, q[3], qb));
+    y = sat((int64_t)MUL(cw, q[2], qb) - MUL(cx, q[3], qb) + ikfq_mul(cy, q[0], qb));
+    z = sat((int64_t)MUL(cw, q[3], qb) + MUL(cx, q[2], qb) - ikfq_mul(cy, q[1], qb));
+    n2 = (int64_t)MUL(w, w, qb) + MUL(x, x, qb) + MUL(y, y, qb) + MUL(z, z, qb);
     if (one >> 1 < n2 && n2 < one + (one >> 1)) {
         k = (3 * one - n2) >> 1;
     } else if (n2 > 0) { /* never in use: a full normalisation */
@@ -344,10 +384,10 @@ static void rebase(ikfq_t *s, const int32_t q[4], int32_t gxh, int32_t gyh)
         w = one;
         x = y = z = 0;
     }
-    s->qw = ikfq_mul(w, k, qb);
-    s->qx = ikfq_mul(x, k, qb);
-    s->qy = ikfq_mul(y, k, qb);
-    s->qz = ikfq_mul(z, k, qb);
+    s->qw = MUL(w, k, qb);
+    s->qx = MUL(x, k, qb);
+    s->qy = MUL(y, k, qb);
+    s->qz = MUL(z, k, qb);
 }
 
 static void start(ikfq_t *s, const int32_t g[3], const int32_t a[3])
@@ -355,7 +395,7 @@ static void start(ikfq_t *s, const int32_t g[3], const int32_t a[3])
     unsigned io = s->f.io, qb = s->f.quat;
     int64_t one = INT64_C(1) << qb, n, ux, uy, uz;
     int up = (int)s->f.bias - (int)io, i;
-    n = ikfq_sqrt((int64_t)ikfq_mul(a[0], a[0], io) + ikfq_mul(a[1], a[1], io) + ikfq_mul(a[2], a[2], io), io);
+    n = ikfq_sqrt((int64_t)MUL(a[0], a[0], io) + MUL(a[1], a[1], io) + MUL(a[2], a[2], io), io);
     if (n < (INT64_C(1) << io) / 2)
         return;
     ux = ikfq_div(a[0], n, qb);
@@ -404,12 +444,12 @@ void ikfq_step(ikfq_t *s, const int32_t gq[3], const int32_t a[3])
     rate = ikfq_sqrt(sat((int64_t)ikfq_mul(wx, wx, 2 * bb - io) + ikfq_mul(wy, wy, 2 * bb - io)
                          + ikfq_mul(wz, wz, 2 * bb - io)), io);
     /* 3. horizontal specific force (Q.io) and the Kalman filter */
-    r00 = one - 2 * ((int64_t)ikfq_mul(q[2], q[2], qb) + ikfq_mul(q[3], q[3], qb));
-    r01 = 2 * ((int64_t)ikfq_mul(q[1], q[2], qb) - ikfq_mul(q[0], q[3], qb));
-    r02 = 2 * ((int64_t)ikfq_mul(q[1], q[3], qb) + ikfq_mul(q[0], q[2], qb));
-    r10 = 2 * ((int64_t)ikfq_mul(q[1], q[2], qb) + ikfq_mul(q[0], q[3], qb));
-    r11 = one - 2 * ((int64_t)ikfq_mul(q[1], q[1], qb) + ikfq_mul(q[3], q[3], qb));
-    r12 = 2 * ((int64_t)ikfq_mul(q[2], q[3], qb) - ikfq_mul(q[0], q[1], qb));
+    r00 = one - 2 * ((int64_t)MUL(q[2], q[2], qb) + MUL(q[3], q[3], qb));
+    r01 = 2 * ((int64_t)MUL(q[1], q[2], qb) - MUL(q[0], q[3], qb));
+    r02 = 2 * ((int64_t)MUL(q[1], q[3], qb) + MUL(q[0], q[2], qb));
+    r10 = 2 * ((int64_t)MUL(q[1], q[2], qb) + MUL(q[0], q[3], qb));
+    r11 = one - 2 * ((int64_t)MUL(q[1], q[1], qb) + MUL(q[3], q[3], qb));
+    r12 = 2 * ((int64_t)MUL(q[2], q[3], qb) - MUL(q[0], q[1], qb));
     fx = sat((int64_t)ikfq_mul(r00, a[0], qb) + ikfq_mul(r01, a[1], qb) + ikfq_mul(r02, a[2], qb));
     fy = sat((int64_t)ikfq_mul(r10, a[0], qb) + ikfq_mul(r11, a[1], qb) + ikfq_mul(r12, a[2], qb));
     gravity(s, fx, fy, rate, &gxh, &gyh);

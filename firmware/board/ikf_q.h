@@ -27,7 +27,7 @@ typedef struct {
     ikfq_formats_t f;
     /* constants (ikfq_init) */
     int32_t qg_shift, q_g0, k_rot, drift_noise, rest_r, rest_g2, rest_a2, bias_max, inv_g0, lat_half;
-    int32_t pgg0, pdd0, g0_io;
+    int32_t pgg0, pdd0, g0_io, swing_max, swing_k; /* the rebase's 0.81 one and 0.9 one */
     int64_t rest_time; /* Q.dt, not saturated to 32 bits */
     /* dt and what follows from it (ikfq_set_dt) */
     double dt_last, rest_tau_, rest_bias_tau_;
