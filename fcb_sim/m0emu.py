@@ -234,7 +234,9 @@ GAINS_Q16 = (26214, 111 << 16, 800 << 16)  # P1 0.4, P2 111, yaw P 800 (Table 1,
 
 @dataclass
 class TaskCycles:
-    """Per-sample cycles of each task, and whether every output equalled the host build's."""
+    """Per-sample cycles of each task (the filter: ikf's step, its predicted attitude and the angles the law reads;
+    the control: the law and the mixing, Figure 14's control row), and every output that differed from the
+    host build's."""
 
     filter: list[int] = field(default_factory=list)
     control: list[int] = field(default_factory=list)
@@ -289,8 +291,11 @@ def run_tasks(samples: list[tuple[float, ...]], seed: int = 1, elf: Path | None 
         out.filter.append(run.cycles)
         out.instructions["filter"].append(run.instructions)
         q_m0 = struct.unpack("<4i", m0.read("tm_q"))
-        if q_m0 != q_host:
-            out.mismatches.append(f"filter sample {i}: M0 {q_m0} host {q_host}")
+        phi, theta = ctypes.c_int32(), ctypes.c_int32()
+        lib.ctlq_angles((ctypes.c_int32 * 4)(*q_host), ctypes.byref(phi), ctypes.byref(theta))
+        angles_m0 = struct.unpack("<2i", m0.read("tm_angles"))
+        if q_m0 != q_host or angles_m0 != (phi.value, theta.value):
+            out.mismatches.append(f"filter sample {i}: M0 {q_m0} {angles_m0} host {q_host} {phi, theta}")
         # the control step on that attitude, the sample's rates (gyro LSB, FRD) and random sticks
         rates = [round(row[0] * RATE_LSB_PER_RAD_S), -round(row[1] * RATE_LSB_PER_RAD_S),
                  -round(row[2] * RATE_LSB_PER_RAD_S)]
@@ -302,7 +307,7 @@ def run_tasks(samples: list[tuple[float, ...]], seed: int = 1, elf: Path | None 
         run = m0.call("tm_control_step")
         out.control.append(run.cycles)
         out.instructions["control"].append(run.instructions)
-        lib.ctlq_step(ctypes.cast(gains, ctypes.c_void_p), ctypes.cast(ctl_in, ctypes.c_void_p), ae_host)
+        lib.ctlq_law(ctypes.cast(gains, ctypes.c_void_p), ctypes.cast(ctl_in, ctypes.c_void_p), phi, theta, ae_host)
         ae_m0 = struct.unpack("<4h", m0.read("tm_ae"))
         if ae_m0 != tuple(ae_host):
             out.mismatches.append(f"control sample {i}: M0 {ae_m0} host {tuple(ae_host)}")
@@ -311,3 +316,33 @@ def run_tasks(samples: list[tuple[float, ...]], seed: int = 1, elf: Path | None 
     if st_m0 != tuple(host.state().values()):
         out.mismatches.append("filter state after the run differs")
     return out
+
+
+EXCERPT = Path(__file__).resolve().parent.parent / "tests" / "data" / "broad_07_fast_rotation_excerpt.csv.gz"
+EXCERPT_ROWS = (2450, 2850)  # fast hand-held rotation (the excerpt is 8.5 s still, then moving)
+
+
+def recorded_samples(path: Path = EXCERPT, rows: tuple[int, int] = EXCERPT_ROWS) -> list[tuple[float, ...]]:
+    """(gx, gy, gz, ax, ay, az, dt) of a BROAD trial: its first row (which starts the filter), then ``rows``."""
+    import csv
+    import gzip
+
+    out: list[tuple[float, ...]] = []
+    with gzip.open(path, "rt", newline="") as fh:
+        t_prev = None
+        for i, row in enumerate(csv.DictReader(fh)):
+            t = float(row["t"])
+            if t_prev is not None and (i == 1 or rows[0] <= i < rows[1]):
+                out.append((*(float(row[k]) for k in ("gx", "gy", "gz", "ax", "ay", "az")), t - t_prev))
+            t_prev = t
+            if i >= rows[1]:
+                break
+    return out
+
+
+def emulated_table(samples: list[tuple[float, ...]] | None = None) -> tuple[dict[str, tuple[float, float]],
+                                                                              TaskCycles]:
+    """fcb_sim.timing.M0_EMULATED_US measured again: (mean, p99) µs of each task; and the run itself."""
+    run = run_tasks(samples or recorded_samples())
+    f, c = run.summary("filter"), run.summary("control")
+    return {"filter/ikf/fixed": (f["us_mean"], f["us_p99"]), "control_raw": (c["us_mean"], c["us_p99"])}, run

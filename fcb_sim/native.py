@@ -73,6 +73,9 @@ def _load(path: Path) -> ctypes.CDLL:
     lib.ikfq_set_dt.argtypes = [vp, d]
     lib.ikfq_step.argtypes = [vp, i32p, i32p]
     lib.ctlq_step.argtypes = [vp, vp, ctypes.POINTER(ctypes.c_int16)]
+    lib.ctlq_law.argtypes = [vp, vp, ctypes.c_int32, ctypes.c_int32, ctypes.POINTER(ctypes.c_int16)]
+    lib.ctlq_angles.argtypes = [ctypes.POINTER(ctypes.c_int32), ctypes.POINTER(ctypes.c_int32),
+                                ctypes.POINTER(ctypes.c_int32)]
     lib.ctlq_atan2.argtypes = [ctypes.c_int32, ctypes.c_int32]
     lib.ctlq_atan2.restype = ctypes.c_int32
     return lib

@@ -50,3 +50,27 @@ def test_the_cycle_table() -> None:
     assert c(0x4770) == 3  # bx lr
     assert c(0xF000) == 4  # bl (first half)
     assert c(0x4687) == 3 and c(0x4680) == 1  # mov pc, r0; mov r8, r0
+
+
+def test_the_timing_table_is_what_the_m0_runs() -> None:
+    """fcb_sim.timing.M0_EMULATED_US is a fresh emulation's figures (regenerate them with bench.profile)."""
+    why = m0emu.available()
+    if why:
+        pytest.skip(why)
+    from fcb_sim.timing import M0_EMULATED_US
+
+    table, run = m0emu.emulated_table()
+    assert run.mismatches == []
+    assert table == M0_EMULATED_US
+
+
+def test_the_model_follows_the_emulation_where_they_disagree() -> None:
+    from fcb_sim.timing import FIGURE14, M0_EMULATED_US, MODEL_TOLERANCE, raw_filter_price_us, raw_filter_us
+
+    emulated = M0_EMULATED_US["filter/ikf/fixed"][0]
+    model = raw_filter_us("ikf", True)
+    expected = emulated if abs(model - emulated) > MODEL_TOLERANCE * emulated else model
+    assert raw_filter_price_us("ikf", True) == expected
+    assert raw_filter_price_us("complementary", True) == raw_filter_us("complementary", True)  # not emulated
+    # the control law: Figure 14's row stays the model while the emulation is within the tolerance of it
+    assert abs(M0_EMULATED_US["control_raw"][0] - FIGURE14["control_raw"][0]) <= MODEL_TOLERANCE * 131.0

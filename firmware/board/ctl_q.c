@@ -1,6 +1,8 @@
 /* The RAW control step in integers (ctl_q.h). */
 #include "ctl_q.h"
 
+#include "ikf_q.h"
+
 #define FIX_ONE 65536
 #define FIX_OVERFLOW (-INT32_C(0x7FFFFFFF) - 1)
 #define PI_DIV_4 0x0000C90F
@@ -22,18 +24,11 @@ static int32_t wrap32(int64_t v)
     return (int32_t)(uint32_t)(uint64_t)v;
 }
 
-/* fix16_mul: rounded product, fix16_overflow when it does not fit */
-static int32_t fmul(int64_t a, int64_t b)
+/* fix16_smul: fix16_mul's rounding (half away from zero), saturating; ikf_q's 32-bit product (libgcc's 64-bit
+ * multiply costs the M0 twice as much) */
+static int32_t fmul(int32_t a, int32_t b)
 {
-    int64_t p = a * b;
-    if (p < 0) {
-        if ((p >> 47) != -1)
-            return FIX_OVERFLOW;
-        p -= 1;
-    } else if (p >> 47) {
-        return FIX_OVERFLOW;
-    }
-    return wrap32((p >> 16) + ((p & 0x8000) >> 15));
+    return ikfq_mul(a, b, 16);
 }
 
 /* fix16_div: rounded quotient, fix16_minimum for b == 0, fix16_overflow when it does not fit */
@@ -49,9 +44,9 @@ static int32_t fdiv(int64_t a, int64_t b)
     return (a < 0) != (b < 0) ? -(int32_t)r : (int32_t)r;
 }
 
-static int64_t floordiv(int64_t a, int64_t b) /* b > 0 */
+static int32_t floordiv(int32_t a, int32_t b) /* b > 0 */
 {
-    int64_t q = a / b;
+    int32_t q = a / b;
     return (a % b != 0 && a < 0) ? q - 1 : q;
 }
 
@@ -78,7 +73,8 @@ int32_t ctlq_atan2(int32_t y, int32_t x)
         u = HALF_PI - u;
     for (i = 0; i < 16 && KNOTS[i + 1] <= u; i++)
         ;
-    c = CORR[i] + floordiv((int64_t)(CORR[i + 1] - CORR[i]) * (u - KNOTS[i]), KNOTS[i + 1] - KNOTS[i]);
+    /* |correction step| <= 200 and u - knot < 2^13: the product fits 32 bits */
+    c = CORR[i] + floordiv((CORR[i + 1] - CORR[i]) * (int32_t)(u - KNOTS[i]), KNOTS[i + 1] - KNOTS[i]);
     if (mirrored)
         c = -c;
     return wrap32(a < 0 ? a - c : a + c);
@@ -157,9 +153,15 @@ static int32_t sat32(int64_t v)
 
 void ctlq_step(const ctlq_gains_t *g, const ctlq_in_t *in, int16_t ae[4])
 {
-    int32_t phi, theta, z = 0;
-    int64_t rate_sp, lm, mm, nm;
+    int32_t phi, theta;
     ctlq_angles(in->q, &phi, &theta);
+    ctlq_law(g, in, phi, theta, ae);
+}
+
+void ctlq_law(const ctlq_gains_t *g, const ctlq_in_t *in, int32_t phi, int32_t theta, int16_t ae[4])
+{
+    int32_t z = 0;
+    int64_t rate_sp, lm, mm, nm;
     /* L = P2 (P1 (phi_sp - phi) - p), angles in 10430 LSB per rad, rates in gyro LSB, gains Q16.16 */
     rate_sp = ((int64_t)g->p1 * ((in->roll >> 3) - (((int64_t)phi * ANGLE_LSB_PER_RAD) >> 16))) >> 16;
     lm = ((int64_t)g->p2 * (rate_sp - in->sp)) >> 16;

@@ -11,7 +11,7 @@ void tm_control_step(void);
 void tasks_main(void);
 
 ikfq_t tm_filter;
-int32_t tm_g[3], tm_a[3], tm_q[4];
+int32_t tm_g[3], tm_a[3], tm_q[4], tm_angles[2];
 int64_t tm_state[29];
 ctlq_gains_t tm_gains;
 ctlq_in_t tm_in;
@@ -27,10 +27,12 @@ void tm_filter_init(double dt)
     ikfq_set_dt(&tm_filter, dt);
 }
 
+/* The filter task: a sample in, the attitude and the angles the control law reads out. */
 void tm_filter_step(void)
 {
     ikfq_step(&tm_filter, tm_g, tm_a);
     ikfq_predicted(&tm_filter, tm_q);
+    ctlq_angles(tm_q, &tm_angles[0], &tm_angles[1]);
 }
 
 void tm_filter_export(void)
@@ -40,7 +42,7 @@ void tm_filter_export(void)
 
 void tm_control_step(void)
 {
-    ctlq_step(&tm_gains, &tm_in, tm_ae);
+    ctlq_law(&tm_gains, &tm_in, tm_angles[0], tm_angles[1], tm_ae);
 }
 
 /* The ELF's entry: it reaches every entry point, so --gc-sections keeps them (the emulator never runs it). */
