@@ -1,11 +1,13 @@
-"""The simulator's hot path in C: the fixed-point RAW filter (firmware/board/ikf_q.c) through ctypes.
+"""The simulator's hot path in C: the RAW filter ikf (firmware/board/ikf_f.c in doubles, ikf_q.c in fixed point)
+through ctypes.
 
 ``library()`` is the host build of firmware/board/ikf_q.c and ctl_q.c (``make -C firmware native``:
 firmware/build/libikfq.so, rebuilt when a source is newer), or None where it cannot be built (no C compiler, no
 make: the pure-Python filter runs, and ``why_not()`` says why in one line; ``QUADRUPEL_PURE_PYTHON=1`` asks
-for the Python path on purpose). ``NativeIKFQ`` is :class:`~fcb_sim.estimation.ikf_fixed.InertialKalmanFilterQ`
-in C: the same parameters and formats, bit for bit the same states (tests/test_ikf_native.py), about 40 times
-faster. The Python class stays the reference the C is tested against.
+for the Python path on purpose). ``NativeIKF`` is :class:`~fcb_sim.estimation.ikf.InertialKalmanFilter` in C
+(the same doubles), ``NativeIKFQ`` :class:`~fcb_sim.estimation.ikf_fixed.InertialKalmanFilterQ` (the same
+integers, formats too): tests/test_ikf_native.py feeds both sides the same samples. The Python classes stay the
+references the C is tested against.
 """
 
 from __future__ import annotations
@@ -18,6 +20,7 @@ import threading
 from pathlib import Path
 
 from fcb_sim.estimation.base import QuaternionAnglesMixin
+from fcb_sim.estimation.ikf import InertialKalmanFilter
 from fcb_sim.estimation.ikf_fixed import Formats, InertialKalmanFilterQ
 
 FIRMWARE = Path(__file__).resolve().parent.parent / "firmware"
@@ -40,7 +43,8 @@ class _Params(ctypes.Structure):
 
 
 def _sources() -> list[Path]:
-    return [FIRMWARE / "board" / n for n in ("ikf_q.c", "ikf_q.h", "ctl_q.c", "ctl_q.h")] + [FIRMWARE / "Makefile"]
+    names = ("ikf_q.c", "ikf_q.h", "ikf_f.c", "ikf_f.h", "ctl_q.c", "ctl_q.h")
+    return [FIRMWARE / "board" / n for n in names] + [FIRMWARE / "Makefile"]
 
 
 def build(build_dir: Path | None = None) -> Path:
@@ -62,6 +66,11 @@ def _load(path: Path) -> ctypes.CDLL:
     lib = ctypes.CDLL(str(path))
     vp, d, i32p, i64p = ctypes.c_void_p, ctypes.c_double, ctypes.POINTER(ctypes.c_int32), ctypes.POINTER(ctypes.c_int64)
     lib.ikfq_size.restype = ctypes.c_uint
+    lib.ikff_size.restype = ctypes.c_uint
+    lib.ikff_init.argtypes = [vp, ctypes.POINTER(_Params)]
+    lib.ikff_reset.argtypes = [vp]
+    lib.ikff_update_q.argtypes = [vp, d, d, d, d, d, d, d, ctypes.POINTER(d)]
+    lib.ikff_update_q.restype = None
     lib.ikfq_init.argtypes = [vp, ctypes.POINTER(_Formats), ctypes.POINTER(_Params)]
     lib.ikfq_reset.argtypes = [vp]
     lib.ikfq_update.argtypes = [vp, d, d, d, d, d, d, d]
@@ -100,6 +109,61 @@ def why_not() -> str | None:
     """Why the C path is not in use (None when it is)."""
     library()
     return _why
+
+
+class NativeIKF(QuaternionAnglesMixin):
+    """ikf in doubles, in C (firmware/board/ikf_f.c): InertialKalmanFilter's interface and the same doubles.
+    Its parameters (tau, k_rot, latency, ...) are read from the Python instance it was built from."""
+
+    native = True
+    _STATE = ("w", "x", "y", "z", "vx", "vy", "dx", "dy", "pvv", "pvg", "pvd", "pgg", "pgd", "pdd", "bx", "by", "bz",
+              "rx", "ry", "rz", "gl0", "gl1", "gl2", "al0", "al1", "al2", "rest_t")
+
+    def __init__(self, lib: ctypes.CDLL | None = None, **params: float) -> None:
+        lib = lib or library()
+        if lib is None:
+            raise RuntimeError(f"the C filter is not available: {why_not()}")
+        self._lib = lib
+        self.reference = p = InertialKalmanFilter(**params)  # validates and holds the parameters; never run
+        self._par = _Params(p.q_g0, p.k_rot, p.drift_init, p.drift_noise, p.latency, p.rest_r, p.rest_gyro,
+                            p.rest_acc, p.rest_time, p.rest_tau, p.rest_bias_tau, p.bias_max)
+        self._buf = ctypes.create_string_buffer(lib.ikff_size())
+        self._s = ctypes.cast(self._buf, ctypes.c_void_p)
+        self._qbuf = (ctypes.c_double * 4)()
+        self._q = (1.0, 0.0, 0.0, 0.0)
+        self._update_q = lib.ikff_update_q
+        lib.ikff_init(self._s, ctypes.byref(self._par))
+
+    def __getattr__(self, name: str) -> float:
+        if name.startswith("_") or name == "reference":
+            raise AttributeError(name)
+        return getattr(self.reference, name)  # the parameters: tau, k_rot, latency, ...
+
+    def reset(self) -> None:
+        self._lib.ikff_reset(self._s)
+        self._q = (1.0, 0.0, 0.0, 0.0)
+
+    def update(self, gx: float, gy: float, gz: float, ax: float, ay: float, az: float, dt: float) -> None:
+        qb = self._qbuf
+        self._update_q(self._s, gx, gy, gz, ax, ay, az, dt, qb)
+        self._q = (qb[0], qb[1], qb[2], qb[3])
+
+    def quaternion(self) -> tuple[float, float, float, float]:
+        return self._q
+
+    def state(self) -> dict[str, float]:
+        """The doubles after the parameters (ikff_t's layout: 12 parameters, then _STATE), by name."""
+        v = (ctypes.c_double * (12 + len(self._STATE))).from_buffer_copy(self._buf)
+        return dict(zip(self._STATE, v[12:], strict=True))
+
+    @property
+    def at_rest(self) -> bool:
+        return bool(ctypes.c_int.from_buffer_copy(self._buf, 8 * (12 + len(self._STATE))).value)
+
+    @property
+    def bias(self) -> tuple[float, float, float]:
+        st = self.state()
+        return st["bx"], st["by"], st["bz"]
 
 
 class NativeIKFQ(QuaternionAnglesMixin):

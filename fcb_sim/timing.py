@@ -364,7 +364,7 @@ RAW_FILTER_OPS: dict[tuple[str, bool], dict[str, float]] = {
     ("kalman-cov", False): {"add": 12.0, "atan2": 2.0, "mul": 9.0, "sqrt": 1.0},
     ("kalman-cov", True): {"atan2_correction": 2.0, "div": 6.0, "mul": 33.0, "sadd": 35.0, "sqrt": 1.0},
     ("qgate", False): {"add": 110.0, "atan2": 4.0, "cos": 2.0, "div": 6.0, "mul": 161.0, "sin": 2.0, "sqrt": 6.0},
-    ("ikf", False): {"add": 121.0, "atan2": 3.0, "cos": 2.0, "div": 5.0, "mul": 165.0, "sin": 2.0, "sqrt": 6.0},
+    ("ikf", False): {"add": 122.0, "atan2": 3.0, "cos": 2.0, "div": 5.0, "mul": 165.0, "sin": 2.0, "sqrt": 6.0},
     ("ikf", True): {"add": 12.0, "atan2": 3.0, "div": 5.5, "mul": 167.0, "sat": 48.0, "sqrt": 4.5},
 }
 

@@ -37,17 +37,17 @@ _FLOAT: dict[str, Callable[[], AttitudeFilter]] = {
 }
 
 
-def _ikf_fixed(native: bool | None) -> AttitudeFilter:
-    """ikf in fixed point: the C of firmware/board/ikf_q.c where it builds (fcb_sim.native), same bits as the Python
-    twin, which runs otherwise or with ``native=False``."""
+def _ikf(fixed_point: bool, native: bool | None) -> AttitudeFilter:
+    """ikf: the C of firmware/board/ikf_f.c (doubles) or ikf_q.c (fixed point) where it builds (fcb_sim.native),
+    the same bits as the Python class, which runs otherwise or with ``native=False``."""
     if native is not False:
-        from fcb_sim.native import NativeIKFQ, library, why_not  # late: native imports this package's modules
+        from fcb_sim import native as c  # late: native imports this package's modules
 
-        if library() is not None:
-            return NativeIKFQ()
+        if c.library() is not None:
+            return c.NativeIKFQ() if fixed_point else c.NativeIKF()
         if native:
-            raise RuntimeError(f"the C filter is not available: {why_not()}")
-    return InertialKalmanFilterQ()
+            raise RuntimeError(f"the C filter is not available: {c.why_not()}")
+    return InertialKalmanFilterQ() if fixed_point else InertialKalmanFilter()
 
 
 _FIXED: dict[str, Callable[[], AttitudeFilter]] = {
@@ -72,14 +72,14 @@ DESCRIPTIONS: dict[str, str] = {
 
 
 def make_filter(name: str, *, fixed_point: bool = False, native: bool | None = None) -> AttitudeFilter:
-    """A fresh filter by name; ``fixed_point=True`` for the fixed-point variant (ikf's in C where it builds;
+    """A fresh filter by name; ``fixed_point=True`` for the fixed-point variant (ikf in C where it builds;
     ``native=False`` for the Python reference, ``True`` to insist on C). Raises KeyError for an unknown name,
     ValueError if the filter has no fixed-point variant."""
     if name not in _FLOAT:
         raise KeyError(f"unknown filter {name!r}; known: {', '.join(FILTERS)}")
+    if name == "ikf":
+        return _ikf(fixed_point, native)
     if fixed_point:
-        if name == "ikf":
-            return _ikf_fixed(native)
         if name not in _FIXED:
             raise ValueError(f"filter {name!r} has no fixed-point variant")
         return _FIXED[name]()
