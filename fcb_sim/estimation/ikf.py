@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import math
 
-from fcb_sim.estimation.base import QuaternionAnglesMixin
+from fcb_sim.estimation.base import QuaternionAnglesMixin, quat_step
 
 G0 = 9.81
 # Samples no sensor gives are skipped like non-finite ones: finite but huge, they made sin() raise, a division by
@@ -96,21 +96,9 @@ class InertialKalmanFilter(QuaternionAnglesMixin):
     # --- outputs ---
     def quaternion(self) -> tuple[float, float, float, float]:
         """The attitude predicted ``latency`` seconds ahead along the current rate (body to earth, z up)."""
-        w, x, y, z = self.w, self.x, self.y, self.z
         rx, ry, rz = self.rx, self.ry, self.rz
         rate = math.sqrt(rx * rx + ry * ry + rz * rz)
-        half = 0.5 * rate * self.latency
-        if half <= 1e-12:
-            return w, x, y, z
-        s = math.sin(half) / rate
-        c = math.cos(half)
-        dx, dy, dz = rx * s, ry * s, rz * s
-        return (
-            w * c - x * dx - y * dy - z * dz,
-            w * dx + x * c + y * dz - z * dy,
-            w * dy - x * dz + y * c + z * dx,
-            w * dz + x * dy - y * dx + z * c,
-        )
+        return quat_step(self.w, self.x, self.y, self.z, rx, ry, rz, rate, self.latency)
 
     @property
     def bias(self) -> tuple[float, float, float]:
@@ -143,19 +131,8 @@ class InertialKalmanFilter(QuaternionAnglesMixin):
         # 2. strapdown with the bias-corrected rate (exact axis-angle step)
         wx, wy, wz = gx - self.bx, gy - self.by, gz - self.bz
         self.rx, self.ry, self.rz = wx, wy, wz
-        w, x, y, z = self.w, self.x, self.y, self.z
         rate = math.sqrt(wx * wx + wy * wy + wz * wz)
-        half = 0.5 * rate * dt
-        if half > 1e-12:
-            s = math.sin(half) / rate
-            c = math.cos(half)
-            dx, dy, dz = wx * s, wy * s, wz * s
-            w, x, y, z = (
-                w * c - x * dx - y * dy - z * dz,
-                w * dx + x * c + y * dz - z * dy,
-                w * dy - x * dz + y * c + z * dx,
-                w * dz + x * dy - y * dx + z * c,
-            )
+        w, x, y, z = quat_step(self.w, self.x, self.y, self.z, wx, wy, wz, rate, dt)
         # 3. horizontal specific force in the earth frame, and the Kalman filter
         fx = (1.0 - 2.0 * (y * y + z * z)) * ax + 2.0 * (x * y - w * z) * ay + 2.0 * (x * z + w * y) * az
         fy = 2.0 * (x * y + w * z) * ax + (1.0 - 2.0 * (x * x + z * z)) * ay + 2.0 * (y * z - w * x) * az
