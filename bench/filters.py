@@ -200,6 +200,22 @@ def leave_one_out(grid: np.ndarray) -> tuple[list[int], np.ndarray]:
     return picks, scores
 
 
+def _fixed_vs_float(summary: dict[str, dict[str, float]]) -> dict[str, object]:
+    """The default board flies ikf in fixed point (issue 27): its mean error beside the float filter's, and whether it
+    stays within 0.05 deg of it; which implementation ran (the C of firmware/board/ikf_q.c, or the Python twin)."""
+    from fcb_sim.native import why_not
+
+    fixed, flt = summary.get(f"{BEST}/fixed"), summary.get(BEST)
+    if fixed is None or flt is None:
+        return {}
+    diff = round(fixed["mean"] - flt["mean"], 3)
+    print(f"\n{BEST} fixed point {fixed['mean']:.3f} deg mean vs float {flt['mean']:.3f}: {diff:+.3f} deg "
+          f"(goal: within 0.05); fixed point ran in {'Python: ' + str(why_not()) if why_not() else 'C'}")
+    return {"fixed_mean_deg": fixed["mean"], "float_mean_deg": flt["mean"], "fixed_minus_float_deg": diff,
+            "fixed_within_0_05_deg": abs(diff) <= 0.05, "fixed_worst_deg": fixed["worst"],
+            "fixed_point_impl": "python" if why_not() else "c"}
+
+
 def _fmt_row(name: str, values: list[float], width: int) -> str:
     return f"{name:<{width}}" + "".join(f"{v:6.2f}" for v in values)
 
@@ -281,6 +297,7 @@ def main() -> None:
         "grid": {"points": [list(p) for p in points], "in_sample_mean": [round(x, 4) for x in in_sample]},
         "update_us": timing,
         "formats": formats,
+        **_fixed_vs_float(summary),
         "wall_seconds": round(time.perf_counter() - t_start, 1),
     }
     print(json.dumps(out))

@@ -5,7 +5,9 @@ and the height estimator and the controllers and mixing at 400 Hz (``FlightCore`
 the barometer at 20 Hz, hovering at 1 m after a real take-off. The factor is simulated seconds per CPU second of
 this process (``time.process_time``: what one core delivers), taken as the best of five equal pieces of the
 flight (the least disturbed by other processes sharing the cores, as timeit's minimum); the median piece and the
-wall-clock factor are printed beside it. Goal: >= 100x.
+wall-clock factor are printed beside it. Goal: >= 100x. The RAW filter ikf runs in C (firmware/board/ikf_f.c,
+ikf_q.c through fcb_sim.native; the same bits as the Python classes) where a C compiler builds it, else in
+Python: ``filter_impl`` says which ran, ``c_unavailable_because`` why not (QUADRUPEL_PURE_PYTHON=1 asks for it).
 
 Also printed: the cost of each part in microseconds per call and its share of one simulated second.
 
@@ -22,6 +24,7 @@ import time
 
 from fcb_sim.estimation import BEST, FILTERS, make_filter
 from fcb_sim.flight import FlightCore
+from fcb_sim.native import why_not
 from fcb_sim.physics import World
 from fcb_sim.scenarios import Sim
 from term.core.protocol import Mode
@@ -41,7 +44,7 @@ def flight_core_factor(seconds: float, filter_name: str, fixed_point: bool = Fal
         cpu_f.append(piece / max(1e-9, time.process_time() - c0))
         wall_f.append(piece / max(1e-9, time.perf_counter() - w0))
     return {
-        "filter": filter_name + (" (Q16.16)" if fixed_point else ""),
+        "filter": filter_name + (" (fixed point)" if fixed_point else ""),
         "realtime_factor": max(cpu_f),
         "realtime_factor_median": statistics.median(cpu_f),
         "realtime_factor_wall": max(wall_f),
@@ -121,6 +124,10 @@ def main() -> None:
                 table.append({k: (round(v, 1) if isinstance(v, float) else v) for k, v in r.items()})
                 print(json.dumps(table[-1]))
         result["filters"] = table
+    impl = type(FlightCore(filter_name=args.filter, fixed_point=args.fixed_point).filter)
+    result["filter_impl"] = "c" if getattr(impl, "native", False) else "python"
+    result["filter_class"] = impl.__name__
+    result["c_unavailable_because"] = why_not()  # None when the C of firmware/board built and ran
     result.update({"goal_realtime_factor": 100.0, "sim_seconds": args.seconds, "physics_hz": 1000,
                    "control_hz": 400, "python": platform.python_version(), "machine": platform.machine()})
     print(json.dumps(result))

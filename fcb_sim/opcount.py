@@ -138,7 +138,7 @@ def samples(n: int = 2000, seed: int = 1) -> list[tuple[float, ...]]:
 def count_ops(name: str, fixed_point: bool = False, n: int = 2000) -> dict[str, float]:
     """Operations per sample (mean over ``n`` samples after the first) of filter ``name``: its update and, for a
     quaternion filter, the angles read from it. Rounded to 0.1."""
-    f = make_filter(name, fixed_point=fixed_point)
+    f = make_filter(name, fixed_point=fixed_point, native=False)  # the Python twin: its primitives are counted
     data = samples(n + 1)
     dt = 1.0 / 400.0
     f.update(*data[0], dt)  # the first sample only initialises

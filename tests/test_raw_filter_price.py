@@ -50,7 +50,8 @@ def test_the_report_filter_adds_nothing_and_ikf_costs_more() -> None:
         assert RAW_FILTER_EXTRA_US[("complementary-0.9", fx)] == 0  # the same arithmetic, another constant
     # ikf in Q16.16: roughly 0.45-0.7 ms a sample (docs/attitude.md estimated 0.45 ms for the update alone)
     assert 450 < raw_filter_us("ikf", True) < 750
-    assert RAW_FILTER_EXTRA_US[("ikf", False)] > RAW_FILTER_EXTRA_US[("ikf", True)] > 400
+    # ikf in Q16.16 is charged its emulated cost (fcb_sim.m0emu: 2.5 times the priced one), float its priced one
+    assert RAW_FILTER_EXTRA_US[("ikf", True)] > 1000 and RAW_FILTER_EXTRA_US[("ikf", False)] > 400
     with pytest.raises(KeyError):
         raw_filter_us("qgate", True)  # float only
 

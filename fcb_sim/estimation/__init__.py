@@ -35,12 +35,26 @@ _FLOAT: dict[str, Callable[[], AttitudeFilter]] = {
     "qgate": QGateFilter,
     "ikf": InertialKalmanFilter,
 }
+
+
+def _ikf(fixed_point: bool, native: bool | None) -> AttitudeFilter:
+    """ikf: the C of firmware/board/ikf_f.c (doubles) or ikf_q.c (fixed point) where it builds (fcb_sim.native),
+    the same bits as the Python class, which runs otherwise or with ``native=False``."""
+    if native is not False:
+        from fcb_sim import native as c  # late: native imports this package's modules
+
+        if c.library() is not None:
+            return c.NativeIKFQ() if fixed_point else c.NativeIKF()
+        if native:
+            raise RuntimeError(f"the C filter is not available: {c.why_not()}")
+    return InertialKalmanFilterQ() if fixed_point else InertialKalmanFilter()
+
+
 _FIXED: dict[str, Callable[[], AttitudeFilter]] = {
     "complementary": lambda: ComplementaryFilterQ16(K_GYRO_FLOWN),
     "complementary-0.9": lambda: ComplementaryFilterQ16(K_GYRO_TABLE2),
     "kalman": KalmanFilterQ16,
     "kalman-cov": KalmanCovFilterQ16,
-    "ikf": InertialKalmanFilterQ,
 }
 
 FILTERS: tuple[str, ...] = tuple(_FLOAT)
@@ -57,11 +71,14 @@ DESCRIPTIONS: dict[str, str] = {
 }
 
 
-def make_filter(name: str, *, fixed_point: bool = False) -> AttitudeFilter:
-    """A fresh filter by name; ``fixed_point=True`` for the fixed-point variant. Raises KeyError for an unknown
-    name, ValueError if the filter has no fixed-point variant."""
+def make_filter(name: str, *, fixed_point: bool = False, native: bool | None = None) -> AttitudeFilter:
+    """A fresh filter by name; ``fixed_point=True`` for the fixed-point variant (ikf in C where it builds;
+    ``native=False`` for the Python reference, ``True`` to insist on C). Raises KeyError for an unknown name,
+    ValueError if the filter has no fixed-point variant."""
     if name not in _FLOAT:
         raise KeyError(f"unknown filter {name!r}; known: {', '.join(FILTERS)}")
+    if name == "ikf":
+        return _ikf(fixed_point, native)
     if fixed_point:
         if name not in _FIXED:
             raise ValueError(f"filter {name!r} has no fixed-point variant")
@@ -70,7 +87,7 @@ def make_filter(name: str, *, fixed_point: bool = False) -> AttitudeFilter:
 
 
 def has_fixed_point(name: str) -> bool:
-    return name in _FIXED
+    return name in _FIXED or name == "ikf"
 
 
 __all__ = [

@@ -51,6 +51,26 @@ def accel_roll_pitch(ax: float, ay: float, az: float) -> tuple[float, float]:
     return math.atan2(ay, az), math.atan2(-ax, math.sqrt(ay * ay + az * az))
 
 
+def quat_step(w: float, x: float, y: float, z: float, wx: float, wy: float, wz: float, rate: float,
+              t: float) -> tuple[float, float, float, float]:
+    """q (x) (cos h, sin h * omega / |omega|), h = |omega| t / 2: the attitude carried ``t`` seconds along the body
+    rate omega = (wx, wy, wz) (rad/s) by the exact axis-angle step, ``rate`` being |omega| (the caller has it).
+    Unchanged below a half step of 1e-12 rad. The strapdown step of ikf and qgate and ikf's latency prediction
+    (one step, issue 20); firmware/board/ikf_f.c repeats its operations."""
+    half = 0.5 * rate * t
+    if half <= 1e-12:
+        return w, x, y, z
+    s = math.sin(half) / rate
+    c = math.cos(half)
+    dx, dy, dz = wx * s, wy * s, wz * s
+    return (
+        w * c - x * dx - y * dy - z * dz,
+        w * dx + x * c + y * dz - z * dy,
+        w * dy - x * dz + y * c + z * dx,
+        w * dz + x * dy - y * dx + z * c,
+    )
+
+
 def wrap_pi(a: float) -> float:
     """Wrap an angle (rad) into (-π, π]."""
     if a > math.pi:

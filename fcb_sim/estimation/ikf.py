@@ -18,17 +18,24 @@ heading (no magnetometer).
 
 Parameters: tau, k_rot and latency chosen on the 17 BROAD trials and scored leave-one-trial-out by bench.filters
 (0.52° mean, VQF offline 0.53°); the rest thresholds and times are VQF's defaults. Cost per sample on the board:
-docs/board.md, "The RAW filter's price"; the fixed-point twin is :mod:`.ikf_fixed`. Non-finite samples and
-dt <= 0 are skipped; an all-zero accelerometer carries no gravity and leaves the estimate coasting on the gyro.
+docs/board.md, "The RAW filter's price"; the fixed-point twin is :mod:`.ikf_fixed`. Non-finite samples, dt <= 0
+and samples no sensor gives (RATE_MAX, ACC_MAX, DT_MAX) are skipped; an all-zero accelerometer carries no
+gravity and leaves the estimate coasting on the gyro. The simulator runs its C translation, firmware/board/ikf_f.c
+(fcb_sim.native: the same doubles).
 """
 
 from __future__ import annotations
 
 import math
 
-from fcb_sim.estimation.base import QuaternionAnglesMixin
+from fcb_sim.estimation.base import QuaternionAnglesMixin, quat_step
 
 G0 = 9.81
+# Samples no sensor gives are skipped like non-finite ones: finite but huge, they made sin() raise, a division by
+# zero, or a NaN state (found by tests/test_ikf_native.py's property). The MPU6050 reads 35 rad/s and 157 m/s² at most.
+RATE_MAX = 1e4  # |gx| + |gy| + |gz|, rad/s
+ACC_MAX = 1e5  # |ax| + |ay| + |az|, m/s²
+DT_MAX = 60.0  # s
 P_GG0 = 0.1  # initial gravity variance, (m/s²)², about its steady state: no extra trust in the first samples
 P_VV_MAX = 1e6  # covariance clamp against a runaway (it never gets near this in use)
 
@@ -89,21 +96,9 @@ class InertialKalmanFilter(QuaternionAnglesMixin):
     # --- outputs ---
     def quaternion(self) -> tuple[float, float, float, float]:
         """The attitude predicted ``latency`` seconds ahead along the current rate (body to earth, z up)."""
-        w, x, y, z = self.w, self.x, self.y, self.z
         rx, ry, rz = self.rx, self.ry, self.rz
         rate = math.sqrt(rx * rx + ry * ry + rz * rz)
-        half = 0.5 * rate * self.latency
-        if half <= 1e-12:
-            return w, x, y, z
-        s = math.sin(half) / rate
-        c = math.cos(half)
-        dx, dy, dz = rx * s, ry * s, rz * s
-        return (
-            w * c - x * dx - y * dy - z * dz,
-            w * dx + x * c + y * dz - z * dy,
-            w * dy - x * dz + y * c + z * dx,
-            w * dz + x * dy - y * dx + z * c,
-        )
+        return quat_step(self.w, self.x, self.y, self.z, rx, ry, rz, rate, self.latency)
 
     @property
     def bias(self) -> tuple[float, float, float]:
@@ -119,14 +114,15 @@ class InertialKalmanFilter(QuaternionAnglesMixin):
         if uz < -0.999999:
             self.w, self.x, self.y, self.z = 0.0, 1.0, 0.0, 0.0  # upside down: any half turn about a level axis
         else:
-            k = 1.0 / math.sqrt((1.0 + uz) ** 2 + uy * uy + ux * ux)
+            k = 1.0 / math.sqrt((1.0 + uz) * (1.0 + uz) + uy * uy + ux * ux)
             self.w, self.x, self.y, self.z = (1.0 + uz) * k, uy * k, -ux * k, 0.0
         self._gl = [gx, gy, gz]
         self._al = [ax, ay, az]
         self._started = True
 
     def update(self, gx: float, gy: float, gz: float, ax: float, ay: float, az: float, dt: float) -> None:
-        if not (dt > 0.0) or not math.isfinite(gx + gy + gz + ax + ay + az + dt):
+        if not (0.0 < dt < DT_MAX and abs(gx) + abs(gy) + abs(gz) < RATE_MAX
+                and abs(ax) + abs(ay) + abs(az) < ACC_MAX):  # also NaN: every comparison with it is false
             return
         if not self._started:
             self._start(gx, gy, gz, ax, ay, az)
@@ -135,19 +131,8 @@ class InertialKalmanFilter(QuaternionAnglesMixin):
         # 2. strapdown with the bias-corrected rate (exact axis-angle step)
         wx, wy, wz = gx - self.bx, gy - self.by, gz - self.bz
         self.rx, self.ry, self.rz = wx, wy, wz
-        w, x, y, z = self.w, self.x, self.y, self.z
         rate = math.sqrt(wx * wx + wy * wy + wz * wz)
-        half = 0.5 * rate * dt
-        if half > 1e-12:
-            s = math.sin(half) / rate
-            c = math.cos(half)
-            dx, dy, dz = wx * s, wy * s, wz * s
-            w, x, y, z = (
-                w * c - x * dx - y * dy - z * dz,
-                w * dx + x * c + y * dz - z * dy,
-                w * dy - x * dz + y * c + z * dx,
-                w * dz + x * dy - y * dx + z * c,
-            )
+        w, x, y, z = quat_step(self.w, self.x, self.y, self.z, wx, wy, wz, rate, dt)
         # 3. horizontal specific force in the earth frame, and the Kalman filter
         fx = (1.0 - 2.0 * (y * y + z * z)) * ax + 2.0 * (x * y - w * z) * ay + 2.0 * (x * z + w * y) * az
         fy = 2.0 * (x * y + w * z) * ax + (1.0 - 2.0 * (x * x + z * z)) * ay + 2.0 * (y * z - w * x) * az
@@ -171,9 +156,11 @@ class InertialKalmanFilter(QuaternionAnglesMixin):
         al[1] += kr * (ay - al[1])
         al[2] += kr * (az - al[2])
         m = self.bias_max
+        # products, not ** 2 (pow): the C of firmware/board/ikf_f.c computes the same bits
+        dgx, dgy, dgz, dax, day, daz = gx - gl[0], gy - gl[1], gz - gl[2], ax - al[0], ay - al[1], az - al[2]
         still = (
-            (gx - gl[0]) ** 2 + (gy - gl[1]) ** 2 + (gz - gl[2]) ** 2 < self.rest_gyro ** 2
-            and (ax - al[0]) ** 2 + (ay - al[1]) ** 2 + (az - al[2]) ** 2 < self.rest_acc ** 2
+            dgx * dgx + dgy * dgy + dgz * dgz < self.rest_gyro * self.rest_gyro
+            and dax * dax + day * day + daz * daz < self.rest_acc * self.rest_acc
             and abs(gl[0]) < m and abs(gl[1]) < m and abs(gl[2]) < m
         )
         self._rest_t = self._rest_t + dt if still else 0.0

@@ -63,8 +63,17 @@ def sqrt(a: int, frac: int) -> int:
 def to_q(x: float, frac: int) -> int:
     """A float to Q.frac, rounded half away from zero, saturated (fix16_from_float for frac = 16)."""
     t = x * (1 << frac)
-    r = int(t + 0.5) if t >= 0.0 else int(t - 0.5)
-    return _sat(r)
+    if t >= 2147483647.0:  # also a finite x whose scaled value is inf (int() of it would raise)
+        return _I32_MAX
+    if t <= -2147483648.0:
+        return _I32_MIN
+    return int(t + 0.5) if t >= 0.0 else int(t - 0.5)
+
+
+def _to_q_wide(x: float, frac: int) -> int:
+    """A non-negative float to Q.frac, rounded, not saturated to 32 bits (held below 2**62, as ikf_q.c)."""
+    t = x * (1 << frac) + 0.5
+    return 1 << 62 if t >= 4.6e18 else int(t)
 
 
 class Formats:
@@ -94,10 +103,11 @@ class InertialKalmanFilterQ(QuaternionAnglesMixin):
         self._k_rot = to_q(p.k_rot, F.io)
         self._drift_noise = to_q(p.drift_noise, F.cov + 16)
         self._rest_r = to_q(p.rest_r, F.cov)
-        self._rest_g2 = to_q(p.rest_gyro ** 2, 2 * F.bias - 16)
-        self._rest_a2 = to_q(p.rest_acc ** 2, F.io)
+        self._rest_g2 = to_q(p.rest_gyro * p.rest_gyro, 2 * F.bias - 16)
+        self._rest_a2 = to_q(p.rest_acc * p.rest_acc, F.io)
         self._bias_max = to_q(p.bias_max, F.bias)
         self._inv_g0 = to_q(1.0 / G0, F.quat)
+        self._rest_time = _to_q_wide(p.rest_time, F.dt)  # the time at rest counts in Q.dt, as dt does
         self._dt_cache: tuple[float, int, int, int, int, int] | None = None
         self.reset()
 
@@ -114,7 +124,7 @@ class InertialKalmanFilterQ(QuaternionAnglesMixin):
         self.rx = self.ry = self.rz = 0  # bias-corrected rate, Q.bias
         self.gl = [0, 0, 0]
         self.al = [0, 0, to_q(G0, F.io)]
-        self.rest_t = 0.0  # a counter the board would keep in ticks; time itself needs no fixed point
+        self.rest_t = 0  # time at rest, Q.dt (held at rest_time: it only has to reach it)
         self.at_rest = False
         self._started = False
 
@@ -189,7 +199,7 @@ class InertialKalmanFilterQ(QuaternionAnglesMixin):
         dtq, dt2q, dthq, krq, kbq = self._dt(dt)
         up = bb - io  # Q.io -> Q.bias
         g = tuple(_sat(v << up) if up >= 0 else v >> -up for v in (gxq, gyq, gzq))  # Q8.24 holds 128 rad/s
-        self._rest(g, (axq, ayq, azq), krq, kbq, dt)  # 1.
+        self._rest(g, (axq, ayq, azq), krq, kbq, dtq)  # 1.
         # 2. strapdown
         wx, wy, wz = g[0] - self.bx, g[1] - self.by, g[2] - self.bz
         self.rx, self.ry, self.rz = wx, wy, wz
@@ -213,7 +223,7 @@ class InertialKalmanFilterQ(QuaternionAnglesMixin):
         self.by = m if self.by > m else -m if self.by < -m else self.by
         self.bz = m if self.bz > m else -m if self.bz < -m else self.bz
 
-    def _rest(self, g: tuple[int, ...], a: tuple[int, int, int], krq: int, kbq: int, dt: float) -> None:
+    def _rest(self, g: tuple[int, ...], a: tuple[int, int, int], krq: int, kbq: int, dtq: int) -> None:
         """Step 1: rest detection and the bias at rest (gyro ``g`` in Q.bias, accelerometer ``a`` in Q.io)."""
         F = self.f
         io, cb = F.io, F.cov
@@ -226,8 +236,8 @@ class InertialKalmanFilterQ(QuaternionAnglesMixin):
         dg = _sat(sum(mul(g[i] - gl[i], g[i] - gl[i], 16) for i in range(3)))  # Q(2*bias-16)
         da = _sat(sum(mul(a[i] - al[i], a[i] - al[i], io) for i in range(3)))
         still = dg < self._rest_g2 and da < self._rest_a2 and all(-m < v < m for v in gl)
-        self.rest_t = self.rest_t + dt if still else 0.0
-        self.at_rest = self.rest_t >= self.ref.rest_time
+        self.rest_t = min(self.rest_t + dtq, self._rest_time) if still else 0
+        self.at_rest = self.rest_t >= self._rest_time
         if self.at_rest:
             self.bx = _sat(self.bx + mul(kbq, gl[0] - self.bx, cb))
             self.by = _sat(self.by + mul(kbq, gl[1] - self.by, cb))
@@ -317,7 +327,7 @@ class InertialKalmanFilterQ(QuaternionAnglesMixin):
         else:
             # (1 + uz, uy, -ux, 0) normalised: |.| = sqrt(2 (1 + uz)); cw = sqrt((1 + uz) / 2)
             cw = sqrt((one >> 1) + (uz >> 1), qb)
-            self.qw, self.qx, self.qy, self.qz = cw, div(uy, cw, qb - 1), -div(ux, cw, qb - 1), 0
+            self.qw, self.qx, self.qy, self.qz = cw, div(uy, cw, qb - 1), _sat(-div(ux, cw, qb - 1)), 0
         up = F.bias - io
         self.gl = [_sat(v << up) if up >= 0 else v >> -up for v in (gxq, gyq, gzq)]
         self.al = [axq, ayq, azq]

@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import math
 
-from fcb_sim.estimation.base import QuaternionAnglesMixin
+from fcb_sim.estimation.base import QuaternionAnglesMixin, quat_step
 
 G = 9.81
 
@@ -94,19 +94,8 @@ class QGateFilter(QuaternionAnglesMixin):
             return
         # 1. strapdown with the bias-corrected rate
         wx, wy, wz = gx - self.bx, gy - self.by, gz - self.bz
-        w, x, y, z = self.w, self.x, self.y, self.z
         rate = math.sqrt(wx * wx + wy * wy + wz * wz)
-        half = 0.5 * rate * dt
-        if half > 1e-12:
-            s = math.sin(half) / rate
-            c = math.cos(half)
-            dx, dy, dz = wx * s, wy * s, wz * s
-            w, x, y, z = (
-                w * c - x * dx - y * dy - z * dz,
-                w * dx + x * c + y * dz - z * dy,
-                w * dy - x * dz + y * c + z * dx,
-                w * dz + x * dy - y * dx + z * c,
-            )
+        w, x, y, z = quat_step(self.w, self.x, self.y, self.z, wx, wy, wz, rate, dt)
         self._lowpass(w, x, y, z, ax, ay, az, dt)  # 2.
         w, x, y, z = self._correct(w, x, y, z, dt)  # 3. and 4a.
         n = 1.0 / math.sqrt(w * w + x * x + y * y + z * z)

@@ -1,0 +1,237 @@
+"""The simulator's hot path in C: the RAW filter ikf (firmware/board/ikf_f.c in doubles, ikf_q.c in fixed point)
+through ctypes.
+
+``library()`` is the host build of firmware/board/ikf_q.c and ctl_q.c (``make -C firmware native``:
+firmware/build/libikfq.so, rebuilt when a source is newer), or None where it cannot be built (no C compiler, no
+make: the pure-Python filter runs, and ``why_not()`` says why in one line; ``QUADRUPEL_PURE_PYTHON=1`` asks
+for the Python path on purpose). ``NativeIKF`` is :class:`~fcb_sim.estimation.ikf.InertialKalmanFilter` in C
+(the same doubles), ``NativeIKFQ`` :class:`~fcb_sim.estimation.ikf_fixed.InertialKalmanFilterQ` (the same
+integers, formats too): tests/test_ikf_native.py feeds both sides the same samples. The Python classes stay the
+references the C is tested against.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import os
+import shutil
+import subprocess
+import threading
+from pathlib import Path
+
+from fcb_sim.estimation.base import QuaternionAnglesMixin
+from fcb_sim.estimation.ikf import InertialKalmanFilter
+from fcb_sim.estimation.ikf_fixed import Formats, InertialKalmanFilterQ
+
+FIRMWARE = Path(__file__).resolve().parent.parent / "firmware"
+LIBRARY = "libikfq.so"
+STATE_FIELDS = ("qw", "qx", "qy", "qz", "vx", "vy", "dx", "dy", "pvv", "pvg", "pvd", "pgg", "pgd", "pdd", "bx", "by",
+                "bz", "rx", "ry", "rz", "gl0", "gl1", "gl2", "al0", "al1", "al2", "rest_t", "at_rest", "started")
+_LOCK = threading.Lock()
+_lib: ctypes.CDLL | None = None
+_why: str | None = None
+
+
+class _Formats(ctypes.Structure):
+    _fields_ = [(n, ctypes.c_uint8) for n in ("io", "dt", "quat", "bias", "vel", "drift", "cov")]
+
+
+class _Params(ctypes.Structure):
+    _fields_ = [(n, ctypes.c_double) for n in (
+        "q_g0", "k_rot", "drift_init", "drift_noise", "latency", "rest_r", "rest_gyro", "rest_acc", "rest_time",
+        "rest_tau", "rest_bias_tau", "bias_max")]
+
+
+def _sources() -> list[Path]:
+    names = ("ikf_q.c", "ikf_q.h", "ikf_f.c", "ikf_f.h", "ctl_q.c", "ctl_q.h")
+    return [FIRMWARE / "board" / n for n in names] + [FIRMWARE / "Makefile"]
+
+
+def build(build_dir: Path | None = None) -> Path:
+    """The host library, built when missing or older than a source. Raises RuntimeError (one line) if it cannot."""
+    out = Path(build_dir) if build_dir is not None else FIRMWARE / "build"
+    lib = out / LIBRARY
+    if lib.exists() and lib.stat().st_mtime >= max(p.stat().st_mtime for p in _sources()):
+        return lib
+    if shutil.which(os.environ.get("CC", "cc")) is None or shutil.which("make") is None:
+        raise RuntimeError("no C compiler (cc) or make: the Python filter runs")
+    proc = subprocess.run(["make", "-s", "-C", str(FIRMWARE), f"BUILD={out}", "native"], capture_output=True,
+                          text=True)
+    if proc.returncode != 0:
+        raise RuntimeError(f"firmware/board/ikf_q.c does not build: {(proc.stderr or proc.stdout).strip()[-300:]}")
+    return lib
+
+
+def _load(path: Path) -> ctypes.CDLL:
+    lib = ctypes.CDLL(str(path))
+    vp, d, i32p, i64p = ctypes.c_void_p, ctypes.c_double, ctypes.POINTER(ctypes.c_int32), ctypes.POINTER(ctypes.c_int64)
+    lib.ikfq_size.restype = ctypes.c_uint
+    lib.ikff_size.restype = ctypes.c_uint
+    lib.ikff_init.argtypes = [vp, ctypes.POINTER(_Params)]
+    lib.ikff_reset.argtypes = [vp]
+    lib.ikff_update_q.argtypes = [vp, d, d, d, d, d, d, d, ctypes.POINTER(d)]
+    lib.ikff_update_q.restype = None
+    lib.ikfq_init.argtypes = [vp, ctypes.POINTER(_Formats), ctypes.POINTER(_Params)]
+    lib.ikfq_reset.argtypes = [vp]
+    lib.ikfq_update.argtypes = [vp, d, d, d, d, d, d, d]
+    lib.ikfq_update.restype = None
+    lib.ikfq_update_q.argtypes = [vp, d, d, d, d, d, d, d, ctypes.POINTER(d)]
+    lib.ikfq_update_q.restype = None
+    lib.ikfq_predicted.argtypes = [vp, i32p]
+    lib.ikfq_state.argtypes = [vp, i64p]
+    lib.ikfq_set_dt.argtypes = [vp, d]
+    lib.ikfq_step.argtypes = [vp, i32p, i32p]
+    lib.ctlq_step.argtypes = [vp, vp, ctypes.POINTER(ctypes.c_int16)]
+    lib.ctlq_law.argtypes = [vp, vp, ctypes.c_int32, ctypes.c_int32, ctypes.POINTER(ctypes.c_int16)]
+    lib.ctlq_angles.argtypes = [ctypes.POINTER(ctypes.c_int32), ctypes.POINTER(ctypes.c_int32),
+                                ctypes.POINTER(ctypes.c_int32)]
+    lib.ctlq_atan2.argtypes = [ctypes.c_int32, ctypes.c_int32]
+    lib.ctlq_atan2.restype = ctypes.c_int32
+    return lib
+
+
+def library() -> ctypes.CDLL | None:
+    """The loaded host library, or None (``why_not()`` says why); built and loaded once per process."""
+    global _lib, _why
+    with _LOCK:
+        if _lib is None and _why is None:
+            if os.environ.get("QUADRUPEL_PURE_PYTHON"):
+                _why = "QUADRUPEL_PURE_PYTHON is set"
+            else:
+                try:
+                    _lib = _load(build())
+                except (RuntimeError, OSError) as e:
+                    _why = str(e)
+        return _lib
+
+
+def why_not() -> str | None:
+    """Why the C path is not in use (None when it is)."""
+    library()
+    return _why
+
+
+class NativeIKF(QuaternionAnglesMixin):
+    """ikf in doubles, in C (firmware/board/ikf_f.c): InertialKalmanFilter's interface and the same doubles.
+    Its parameters (tau, k_rot, latency, ...) are read from the Python instance it was built from."""
+
+    native = True
+    _STATE = ("w", "x", "y", "z", "vx", "vy", "dx", "dy", "pvv", "pvg", "pvd", "pgg", "pgd", "pdd", "bx", "by", "bz",
+              "rx", "ry", "rz", "gl0", "gl1", "gl2", "al0", "al1", "al2", "rest_t")
+
+    def __init__(self, lib: ctypes.CDLL | None = None, **params: float) -> None:
+        lib = lib or library()
+        if lib is None:
+            raise RuntimeError(f"the C filter is not available: {why_not()}")
+        self._lib = lib
+        self.reference = p = InertialKalmanFilter(**params)  # validates and holds the parameters; never run
+        self._par = _Params(p.q_g0, p.k_rot, p.drift_init, p.drift_noise, p.latency, p.rest_r, p.rest_gyro,
+                            p.rest_acc, p.rest_time, p.rest_tau, p.rest_bias_tau, p.bias_max)
+        self._buf = ctypes.create_string_buffer(lib.ikff_size())
+        self._s = ctypes.cast(self._buf, ctypes.c_void_p)
+        self._qbuf = (ctypes.c_double * 4)()
+        self._q = (1.0, 0.0, 0.0, 0.0)
+        self._update_q = lib.ikff_update_q
+        lib.ikff_init(self._s, ctypes.byref(self._par))
+
+    def __getattr__(self, name: str) -> float:
+        if name.startswith("_") or name == "reference":
+            raise AttributeError(name)
+        return getattr(self.reference, name)  # the parameters: tau, k_rot, latency, ...
+
+    def reset(self) -> None:
+        self._lib.ikff_reset(self._s)
+        self._q = (1.0, 0.0, 0.0, 0.0)
+
+    def update(self, gx: float, gy: float, gz: float, ax: float, ay: float, az: float, dt: float) -> None:
+        qb = self._qbuf
+        self._update_q(self._s, gx, gy, gz, ax, ay, az, dt, qb)
+        self._q = (qb[0], qb[1], qb[2], qb[3])
+
+    def quaternion(self) -> tuple[float, float, float, float]:
+        return self._q
+
+    def state(self) -> dict[str, float]:
+        """The doubles after the parameters (ikff_t's layout: 12 parameters, then _STATE), by name."""
+        v = (ctypes.c_double * (12 + len(self._STATE))).from_buffer_copy(self._buf)
+        return dict(zip(self._STATE, v[12:], strict=True))
+
+    @property
+    def at_rest(self) -> bool:
+        return bool(ctypes.c_int.from_buffer_copy(self._buf, 8 * (12 + len(self._STATE))).value)
+
+    @property
+    def bias(self) -> tuple[float, float, float]:
+        st = self.state()
+        return st["bx"], st["by"], st["bz"]
+
+
+class NativeIKFQ(QuaternionAnglesMixin):
+    """ikf in fixed point, in C (firmware/board/ikf_q.c): InertialKalmanFilterQ's interface and bits."""
+
+    native = True
+
+    def __init__(self, formats: Formats | None = None, lib: ctypes.CDLL | None = None, **params: float) -> None:
+        self._lib = lib or library()
+        if self._lib is None:
+            raise RuntimeError(f"the C filter is not available: {why_not()}")
+        self.reference = InertialKalmanFilterQ(formats, **params)  # validates and holds the parameters; never run
+        self.f = self.reference.f
+        p = self.reference.ref
+        self._fmt = _Formats(*(getattr(self.f, n) for n in ("io", "dt", "quat", "bias", "vel", "drift", "cov")))
+        self._par = _Params(p.q_g0, p.k_rot, p.drift_init, p.drift_noise, p.latency, p.rest_r, p.rest_gyro,
+                            p.rest_acc, p.rest_time, p.rest_tau, p.rest_bias_tau, p.bias_max)
+        self._buf = ctypes.create_string_buffer(self._lib.ikfq_size())
+        self._s = ctypes.cast(self._buf, ctypes.c_void_p)
+        self._qbuf = (ctypes.c_double * 4)()
+        self._q = (1.0, 0.0, 0.0, 0.0)
+        self._update_q = self._lib.ikfq_update_q
+        self._lib.ikfq_init(self._s, ctypes.byref(self._fmt), ctypes.byref(self._par))
+
+    def reset(self) -> None:
+        self._lib.ikfq_reset(self._s)
+        self._q = (1.0, 0.0, 0.0, 0.0)
+
+    def update(self, gx: float, gy: float, gz: float, ax: float, ay: float, az: float, dt: float) -> None:
+        qb = self._qbuf
+        self._update_q(self._s, gx, gy, gz, ax, ay, az, dt, qb)
+        self._q = (qb[0], qb[1], qb[2], qb[3])
+
+    def quaternion(self) -> tuple[float, float, float, float]:
+        return self._q
+
+    def step_q(self, g: tuple[int, int, int], a: tuple[int, int, int], dt: float) -> tuple[int, int, int, int]:
+        """One board step on Q.io samples (ikfq_set_dt, ikfq_step), as the M0 runs it; the predicted quaternion."""
+        lib = self._lib
+        lib.ikfq_set_dt(self._s, dt)
+        lib.ikfq_step(self._s, (ctypes.c_int32 * 3)(*g), (ctypes.c_int32 * 3)(*a))
+        q = (ctypes.c_int32 * 4)()
+        lib.ikfq_predicted(self._s, q)
+        return q[0], q[1], q[2], q[3]
+
+    def raw_state(self) -> bytes:
+        """The C struct's bytes (its layout is the M0 build's too: fcb_sim.m0emu starts from it)."""
+        return bytes(self._buf)
+
+    def state(self) -> dict[str, int]:
+        """The filter's integers by name (STATE_FIELDS), for comparing with the Python twin."""
+        out = (ctypes.c_int64 * len(STATE_FIELDS))()
+        self._lib.ikfq_state(self._s, out)
+        return dict(zip(STATE_FIELDS, out, strict=True))
+
+    @property
+    def at_rest(self) -> bool:
+        return bool(self.state()["at_rest"])
+
+    @property
+    def bias(self) -> tuple[float, float, float]:
+        st, s = self.state(), 1.0 / (1 << self.f.bias)
+        return st["bx"] * s, st["by"] * s, st["bz"] * s
+
+
+def python_state(f: InertialKalmanFilterQ) -> dict[str, int]:
+    """The Python twin's integers in STATE_FIELDS' names."""
+    out = {n: getattr(f, n) for n in STATE_FIELDS[:20] if n != "rest_t"}
+    out.update(gl0=f.gl[0], gl1=f.gl[1], gl2=f.gl[2], al0=f.al[0], al1=f.al[1], al2=f.al[2], rest_t=f.rest_t,
+               at_rest=int(f.at_rest), started=int(f._started))
+    return {n: out[n] for n in STATE_FIELDS}

@@ -1,0 +1,72 @@
+/* The RAW path's attitude filter ("ikf") in 32-bit fixed point: the C of fcb_sim/estimation/ikf_fixed.py,
+ * bit-exact with it (tests/test_ikf_native.py feeds both the same BROAD samples and requires identical states).
+ *
+ * C99, no dynamic memory, no floating point in the per-sample step (ikfq_step, ikfq_predicted): the board runs
+ * those at 400 Hz. ikfq_init and ikfq_set_dt turn the float parameters into Q constants once (doubles, as the
+ * Python twin computes them, so the constants are the same bits); the host wrapper ikfq_update takes floats
+ * like the Python class. Formats (fractional bits) as ikf_fixed.Formats: samples and angles Q16.16, dt and the
+ * quaternion Q2.30, bias and rest low-pass Q8.24, V and G_h Q8.24, D Q4.28, covariances and gains Q2.30.
+ * Why each: docs/attitude.md, "Fixed point"; the cost on the Cortex-M0: docs/board.md.
+ */
+#ifndef IKF_Q_H
+#define IKF_Q_H
+
+#include <stdint.h>
+
+typedef struct {
+    uint8_t io, dt, quat, bias, vel, drift, cov; /* fractional bits of each group */
+} ikfq_formats_t;
+
+typedef struct {
+    double q_g0;        /* (sqrt(2) / tau)^4 */
+    double k_rot, drift_init, drift_noise, latency, rest_r, rest_gyro, rest_acc, rest_time, rest_tau;
+    double rest_bias_tau, bias_max;
+} ikfq_params_t;
+
+typedef struct {
+    ikfq_formats_t f;
+    /* constants (ikfq_init) */
+    int32_t qg_shift, q_g0, k_rot, drift_noise, rest_r, rest_g2, rest_a2, bias_max, inv_g0, lat_half;
+    int32_t pgg0, pdd0, g0_io, swing_max, swing_k; /* the rebase's 0.81 one and 0.9 one */
+    int64_t rest_time; /* Q.dt, not saturated to 32 bits */
+    /* dt and what follows from it (ikfq_set_dt) */
+    double dt_last, rest_tau_, rest_bias_tau_;
+    int32_t dtq, dt2q, dthq, krq, kbq;
+    /* state */
+    int32_t qw, qx, qy, qz, vx, vy, dx, dy, pvv, pvg, pvd, pgg, pgd, pdd, bx, by, bz, rx, ry, rz;
+    int32_t gl[3], al[3];
+    int64_t rest_t; /* time at rest, Q.dt, held at rest_time */
+    int32_t at_rest, started;
+} ikfq_t;
+
+/* The defaults of ikf_fixed.Formats and of ikf.InertialKalmanFilter's parameters. */
+void ikfq_default_formats(ikfq_formats_t *f);
+void ikfq_default_params(ikfq_params_t *p);
+
+void ikfq_init(ikfq_t *s, const ikfq_formats_t *f, const ikfq_params_t *p);
+void ikfq_reset(ikfq_t *s);
+void ikfq_set_dt(ikfq_t *s, double dt);
+
+/* One sample: gyro (rad/s) and specific force (m/s^2) in Q.io, chip frame z up; dt set by ikfq_set_dt. */
+void ikfq_step(ikfq_t *s, const int32_t g[3], const int32_t a[3]);
+/* The attitude carried latency ahead along the current rate (w, x, y, z in Q.quat). */
+void ikfq_predicted(const ikfq_t *s, int32_t q[4]);
+
+/* Host wrapper with the Python class's floats: skips non-finite samples and dt <= 0, converts, steps. */
+void ikfq_update(ikfq_t *s, double gx, double gy, double gz, double ax, double ay, double az, double dt);
+/* ikfq_update, then the predicted quaternion as doubles (one call a sample from Python). */
+void ikfq_update_q(ikfq_t *s, double gx, double gy, double gz, double ax, double ay, double az, double dt,
+                   double q[4]);
+
+/* The state in a fixed order, for the tests and the Python wrapper (fcb_sim/native.py): qw qx qy qz vx vy dx
+ * dy pvv pvg pvd pgg pgd pdd bx by bz rx ry rz gl[3] al[3] rest_t at_rest started. Returns the count, 29. */
+int ikfq_state(const ikfq_t *s, int64_t out[29]);
+unsigned ikfq_size(void);
+
+/* Q arithmetic (exposed for the tests): rounded half away from zero, saturated to int32. */
+int32_t ikfq_mul(int64_t a, int64_t b, unsigned shift);
+int32_t ikfq_div(int64_t a, int64_t b, unsigned shift);
+int64_t ikfq_sqrt(int64_t a, unsigned frac);
+int32_t ikfq_to_q(double x, unsigned frac);
+
+#endif
