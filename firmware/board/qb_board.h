@@ -154,7 +154,8 @@ typedef struct {
     int32_t pvv, pvg, pvd, pgg, pgd, pdd;  /* Q2.30 */
     int32_t bx, by, bz, rx, ry, rz;  /* Q8.24 */
     int32_t gl[3], al[3];
-    qb_real rest_t, dt_cached;
+    int64_t rest_t;          /* time at rest, Q.dt */
+    qb_real dt_cached;
     int32_t dtq, dt2q, dthq, krq, kbq;
     uint8_t at_rest, started, dt_set;
 } qb_ikf_t;
