@@ -2,11 +2,11 @@
 
 ``CBoard`` offers the surface the Python ``Board`` offers the world and the serve loop (sans-IO, the board's
 microsecond clock): ``uart_receive(data)``, ``advance(until_us)``, ``uart_transmit() -> bytes``,
-``next_event_us()``, ``now``, ``mode``, ``world``, ``config``. Behind it the C board, built as a shared library
-(``make -C firmware board``: firmware/build/libqb_host.so, rebuilt when a source is newer) and loaded with
-ctypes; its hardware layer's host backend (firmware/board/hal_host.c) calls back here for the sensors and the
-motors, at the board time of the task, so the World advances to that instant first: the same seed flies the
-same flight, as fast as the CPU allows or paced by ``fcb-sim serve``.
+``next_event_us()``, ``starved(until_us)``, ``now``, ``mode``, ``world``, ``config``. Behind it the C board,
+built as a shared library (``make -C firmware board``: firmware/build/libqb_host.so, rebuilt when a source is
+newer) and loaded with ctypes; its hardware layer's host backend (firmware/board/hal_host.c) calls back here for
+the sensors and the motors, at the board time of the task, so the World advances to that instant first: the same
+seed flies the same flight, as fast as the CPU allows or paced by ``fcb-sim serve``.
 
 What the C board has and has not yet: firmware/board/qb_board.h and docs/firmware.md. Without a C compiler,
 ``CBoardUnavailable`` says in one line what to install.
@@ -104,6 +104,7 @@ def _load(path: Path) -> ctypes.CDLL:
     lib.qbh_param.argtypes = [vp, ctypes.c_int]
     lib.qbh_param.restype = ctypes.c_int32
     lib.qbh_set_param.argtypes = [vp, ctypes.c_int, ctypes.c_int32]
+    lib.qbh_starved.argtypes = [vp, u64, ctypes.c_int]
     return lib
 
 
@@ -196,6 +197,10 @@ class CBoard:
     def advance(self, until_us: int) -> None:
         """Run every task due before board time ``until_us``."""
         self._lib.qbh_advance(self._h, int(until_us))
+
+    def starved(self, until_us: int, *, slip: bool = False) -> None:
+        """The real-time driver could not run the board until ``until_us``: not the PC's silence (SIM_LAG)."""
+        self._lib.qbh_starved(self._h, int(until_us), int(slip))
 
     def uart_receive(self, data: bytes) -> None:
         """Bytes from the PC, now: the parser runs at once."""

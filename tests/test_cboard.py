@@ -91,3 +91,47 @@ def test_without_a_compiler_one_line_says_what_to_install(tmp_path: Path, monkey
 def test_what_the_c_board_cannot_do_is_one_line(argv: list[str], says: str) -> None:
     out = subprocess.run([sys.executable, "-m", *argv], capture_output=True, text=True, timeout=60)
     assert out.returncode == 2 and says in out.stderr and len(out.stderr.strip().splitlines()) == 1, out.stderr
+
+
+@needs_cc
+def test_the_instructor_channel_acts_on_the_c_boards_world_and_cable() -> None:
+    """`fcb-sim serve --board c --instructor` as `term --sim --board c` starts it: the truth comes from the physics
+    the C board flies, and a cable cut silences its pty (the channel acts on the world and the wire, not the
+    board)."""
+    import asyncio
+    import time
+
+    import serial
+
+    from term.lessons.instructor import InstructorClient, Truth
+    from term.session.sim import SimBoard
+
+    cboard.library_path()
+    sim = SimBoard(seed=4, instructor=True, extra=["--board", "c"])
+    port = sim.start()
+    try:
+        async def cut() -> list[Truth]:
+            got: list[Truth] = []
+            client = InstructorClient(sim.instructor_address, on_truth=got.append)
+            await client.open()
+            async with asyncio.timeout(10):
+                while not got:
+                    await asyncio.sleep(0.01)
+            assert client.send({"do": "cable", "cuts": [[0.0, 0.6]]}) is None
+            await asyncio.sleep(0.05)
+            await client.close()
+            return got
+
+        with serial.Serial(port, 115200, timeout=0.05) as ser:
+            assert ser.read(4096)  # the C board talks
+            truths = asyncio.run(cut())
+            assert truths[0].cable and truths[0].h == pytest.approx(0.0, abs=0.05)  # on the pad
+            ser.reset_input_buffer()
+            t0 = time.monotonic()
+            quiet = ser.read(4096)
+            assert time.monotonic() - t0 < 0.3 and quiet == b""
+            time.sleep(0.7)
+            ser.reset_input_buffer()
+            assert ser.read(4096)
+    finally:
+        sim.stop()

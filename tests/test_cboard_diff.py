@@ -39,7 +39,7 @@ TOLERANCE_AE = 1  # observed: 0 (the same doubles, the same libm)
 # Events both boards send the same way (the Python board's cost model adds DEADLINE_MISS and OVERFLOW).
 COMPARED_EVENTS = {EventCode.BOOT, EventCode.MODE_CHANGED, EventCode.REFUSED, EventCode.CALIBRATION_DONE,
                    EventCode.PANIC_DONE, EventCode.LINK_TIMEOUT, EventCode.LOW_BATTERY, EventCode.TILT_LIMIT,
-                   EventCode.PARAM_CHANGED, EventCode.LINK_LOST, EventCode.LINK_REGAINED}
+                   EventCode.PARAM_CHANGED, EventCode.LINK_LOST, EventCode.LINK_REGAINED, EventCode.SIM_LAG}
 
 
 @dataclass
@@ -126,6 +126,12 @@ class Pair:
         self.cmd_id = (self.cmd_id + 1) & 0xFF
         self.send(Command(self.cmd_id, op, arg))
 
+    def starve(self, us: int) -> None:
+        """The simulator's process got no CPU for ``us``: both boards are told (fcb_sim/serve.py's catch-up)."""
+        until = self.py.now + us
+        self.py.starved(until)
+        self.c.starved(until)
+
     def step(self, n: int = 1) -> None:
         """n control steps; after each, what both say and (mode, motors) are kept."""
         for _ in range(n):
@@ -167,7 +173,7 @@ def _no_filter_cost(monkeypatch: pytest.MonkeyPatch) -> None:
 
 def _same(a: Any, b: Any) -> bool:
     """The same Ack or event; the link events' times (ms) are measured at a heartbeat and a frame's arrival."""
-    if type(a) is tuple and type(b) is tuple and a[0] == b[0] and a[0].startswith("LINK_"):
+    if type(a) is tuple and type(b) is tuple and a[0] == b[0] and a[0].startswith(("LINK_", "SIM_LAG")):
         return abs(a[1] - b[1]) <= 10
     return a == b
 
@@ -206,6 +212,10 @@ def test_a_scripted_flight_is_the_same_on_both_boards() -> None:
     pair.step(140)  # 0.7 s of silence in FULL: the failsafe's stage 1 holds level (LINK_LOST) ...
     _joystick(pair, 15000)  # ... and the link back within link.failsafe_ms gives control back (LINK_REGAINED)
     pair.step(10)
+    pair.starve(700_000)  # a starved simulator: 0.7 s it could not run is not the pilot's silence (SIM_LAG)
+    pair.step(140)
+    _joystick(pair, 15000)
+    pair.step(2)
     pair.command(Op.GAIN_P1, 2)
     pair.command(Op.TRIM_ROLL, -3)
     pair.command(Op.SET_PARAM, (7 << 24) | 5000)  # ctrl.p1 0.5
@@ -247,7 +257,8 @@ def test_a_scripted_flight_is_the_same_on_both_boards() -> None:
     modes = {pm for pm, *_ in pair.steps}
     assert {Mode.CALIBRATION, Mode.MANUAL, Mode.FULL, Mode.RAW, Mode.HEIGHT, Mode.PANIC, Mode.SAFE} <= modes
     events = [s for s in pair.said[1] if isinstance(s, tuple)]
-    assert {"LINK_LOST", "LINK_REGAINED", "LINK_TIMEOUT", "REFUSED"} <= {e[0] for e in events}
+    assert {"LINK_LOST", "LINK_REGAINED", "LINK_TIMEOUT", "REFUSED", "SIM_LAG"} <= {e[0] for e in events}
+    assert sum(e[0] == "LINK_LOST" for e in events) == 2  # the hold in FULL and the end's, not the starved 0.7 s
     assert pair.c.mode in (Mode.PANIC, Mode.SAFE)
 
 

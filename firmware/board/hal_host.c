@@ -55,6 +55,7 @@ void qbh_state(const qbh_t *h, double out[16]);
 uint32_t qbh_rx_dropped(const qbh_t *h);
 int32_t qbh_param(const qbh_t *h, int id);
 int qbh_set_param(qbh_t *h, int id, int32_t raw);
+void qbh_starved(qbh_t *h, uint64_t until_us, int slip);
 
 static qbh_t *cur; /* the board being run: the HAL functions below act on it */
 
@@ -258,4 +259,11 @@ int qbh_set_param(qbh_t *h, int id, int32_t raw)
 {
     cur = h;
     return qb_param_set(&h->board, id, raw, 0);
+}
+
+/* The driver could not run the board until ``until_us`` (fcb_sim/serve.py's starved wake-up). */
+void qbh_starved(qbh_t *h, uint64_t until_us, int slip)
+{
+    cur = h;
+    qb_starved(&h->board, until_us, slip);
 }

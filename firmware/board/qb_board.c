@@ -242,12 +242,55 @@ static void task_baro(qb_board_t *b)
         qb_modes_cal_add(&b->modes, QB_CAL_PRESSURE, b->pressure);
 }
 
+void qb_starved(qb_board_t *b, uint64_t until_us, int slip)
+{
+    uint64_t lag;
+    if (until_us <= b->now)
+        return;
+    lag = until_us - b->now;
+    if (!slip) {
+        if (b->n_deaf == QB_DEAF_SPANS) { /* the oldest span goes (silence is measured from the last frame on) */
+            memmove(b->deaf[0], b->deaf[1], (QB_DEAF_SPANS - 1) * sizeof b->deaf[0]);
+            b->n_deaf--;
+        }
+        b->deaf[b->n_deaf][0] = b->now;
+        b->deaf[b->n_deaf][1] = until_us;
+        b->n_deaf++;
+    }
+    b->lag_max_us = lag > b->lag_max_us ? lag : b->lag_max_us;
+    if (b->lag_max_us < 100000u || b->now < b->lag_report_at)
+        return;
+    send_event(b, QP_EVENT_CODE_SIM_LAG, (int32_t)(b->lag_max_us / 1000u));
+    b->lag_max_us = 0;
+    b->lag_report_at = b->now + 1000000u;
+}
+
+uint64_t qb_link_silent_us(qb_board_t *b)
+{
+    uint64_t last = b->last_frame_us, deaf = 0;
+    uint8_t i, n = 0;
+    if (!b->last_frame_set)
+        return 0;
+    for (i = 0; i < b->n_deaf; i++) {
+        uint64_t lo = b->deaf[i][0] > last ? b->deaf[i][0] : last, hi = b->deaf[i][1] < b->now ? b->deaf[i][1] : b->now;
+        if (b->deaf[i][1] <= last)
+            continue; /* before the last frame: forgotten */
+        if (hi > lo)
+            deaf += hi - lo;
+        b->deaf[n][0] = b->deaf[i][0];
+        b->deaf[n][1] = b->deaf[i][1];
+        n++;
+    }
+    b->n_deaf = n;
+    return b->now - last - deaf;
+}
+
 static void task_heartbeat(qb_board_t *b)
 {
     qp_packet_t p;
     int32_t att[3];
     uint32_t rtt = b->rtt_us / 100u;
-    qb_real silent = b->last_frame_set ? us_to_s(b->now - b->last_frame_us) : 0.0;
+    qb_real silent = us_to_s(qb_link_silent_us(b));
     b->heartbeats++;
     p.type = QP_TYPE_HEARTBEAT;
     p.u.heartbeat.counter = (uint16_t)b->heartbeats;

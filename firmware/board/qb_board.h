@@ -52,6 +52,7 @@ enum qb_timer { QB_TM_SENSOR, QB_TM_BARO, QB_TM_TELEMETRY, QB_TM_HEARTBEAT, QB_T
 #define QB_PARSE_MAX_BYTES 64u
 #define QB_DEDUPE_US 2000000u
 #define QB_EVENTS 16
+#define QB_DEAF_SPANS 8
 
 /* --- the mode machine (qb_modes.c) ------------------------------------------------------------------------ */
 
@@ -153,7 +154,8 @@ typedef struct {
     int32_t pvv, pvg, pvd, pgg, pgd, pdd;  /* Q2.30 */
     int32_t bx, by, bz, rx, ry, rz;  /* Q8.24 */
     int32_t gl[3], al[3];
-    qb_real rest_t, dt_cached;
+    int64_t rest_t;          /* time at rest, Q.dt */
+    qb_real dt_cached;
     int32_t dtq, dt2q, dthq, krq, kbq;
     uint8_t at_rest, started, dt_set;
 } qb_ikf_t;
@@ -243,6 +245,10 @@ typedef struct qb_board {
     int32_t telemetry_hz, sensor_path, scheduler, stick_reaction, queue_rule, log_scheme, attitude_filter;
     int32_t k_gyro_raw, fixed_point, height_estimator;
     uint32_t tx_dropped;
+    /* the link timer's deaf spans: board time a starved simulator could not run (not the PC's silence) */
+    uint64_t deaf[QB_DEAF_SPANS][2];
+    uint8_t n_deaf;
+    uint64_t lag_max_us, lag_report_at;
 } qb_board_t;
 
 void qb_config_default(qb_config_t *cfg);
@@ -251,6 +257,12 @@ void qb_init(qb_board_t *b, const qb_config_t *cfg);
 void qb_poll(qb_board_t *b);
 /* The board time at which a timer next expires (a driver sleeps until then, or until bytes arrive). */
 uint64_t qb_next_event_us(const qb_board_t *b);
+/* A simulator's driver could not run the board from now until ``until_us`` (its process got no CPU): that time is
+ * not the PC's silence (``slip``: the board's clock skips it instead), and a lag of 100 ms or more is said as event
+ * SIM_LAG, at most once a second (fcb_sim/linktimer.py). A real board never calls it. */
+void qb_starved(qb_board_t *b, uint64_t until_us, int slip);
+/* Board time since the last valid frame, less the time the board could not listen; 0 before the first. */
+uint64_t qb_link_silent_us(qb_board_t *b);
 /* Feed received bytes to the parser at once (the host backend's UART interrupt; qb_poll reads the HAL too). */
 void qb_receive(qb_board_t *b, const uint8_t *data, size_t len);
 

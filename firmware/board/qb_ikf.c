@@ -32,7 +32,7 @@ static const int32_t LAT_HALF = 1342177; /* latency / 2, Q.dt */
 static const int32_t P_GG0 = 107374182; /* 0.1, Q.cov */
 static const int32_t DRIFT_INIT = 1073742; /* 1e-3, Q.cov */
 static const int32_t G0_IO = 642908;    /* 9.81, Q16 */
-#define REST_TIME 1.5
+static const int64_t REST_TIME_Q = 1610612736; /* 1.5 s, Q.dt (the time at rest counts as dt does) */
 #define REST_TAU 0.5
 #define REST_BIAS_TAU 2.0
 
@@ -203,7 +203,7 @@ static void start(qb_ikf_t *f, const int32_t g[3], const int32_t a[3])
         int32_t cw = qsqrt((one >> 1) + (uz >> 1), QB);
         f->qw = cw;
         f->qx = qdiv(uy, cw, QB - 1);
-        f->qy = -qdiv(ux, cw, QB - 1);
+        f->qy = sat(-(int64_t)qdiv(ux, cw, QB - 1));
         f->qz = 0;
     }
     for (i = 0; i < 3; i++) {
@@ -214,7 +214,7 @@ static void start(qb_ikf_t *f, const int32_t g[3], const int32_t a[3])
 }
 
 /* Step 1: rest detection and the bias at rest (gyro in Q.bias, accelerometer in Q.io) */
-static void rest(qb_ikf_t *f, const int32_t g[3], const int32_t a[3], qb_real dt)
+static void rest(qb_ikf_t *f, const int32_t g[3], const int32_t a[3])
 {
     int64_t dg = 0, da = 0;
     int i, inside = 1;
@@ -227,8 +227,11 @@ static void rest(qb_ikf_t *f, const int32_t g[3], const int32_t a[3], qb_real dt
         da += mul64((int64_t)a[i] - f->al[i], (int64_t)a[i] - f->al[i], IO);
         inside = inside && -BIAS_MAX < f->gl[i] && f->gl[i] < BIAS_MAX;
     }
-    f->rest_t = (sat(dg) < REST_G2 && sat(da) < REST_A2 && inside) ? f->rest_t + dt : 0.0;
-    f->at_rest = f->rest_t >= REST_TIME;
+    if (sat(dg) < REST_G2 && sat(da) < REST_A2 && inside) /* held at REST_TIME_Q: it only has to reach it */
+        f->rest_t = f->rest_t + f->dtq < REST_TIME_Q ? f->rest_t + f->dtq : REST_TIME_Q;
+    else
+        f->rest_t = 0;
+    f->at_rest = f->rest_t >= REST_TIME_Q;
     if (f->at_rest) {
         f->bx = sat((int64_t)f->bx + mul64(f->kbq, (int64_t)f->gl[0] - f->bx, CB));
         f->by = sat((int64_t)f->by + mul64(f->kbq, (int64_t)f->gl[1] - f->by, CB));
@@ -287,7 +290,7 @@ static void rebase(qb_ikf_t *f, const int32_t q[4], const int32_t gh[2])
     uz = qsqrt(one - uh2, QB);
     cw = qsqrt((one >> 1) + (uz >> 1), QB);
     cx = qdiv(uy, cw, QB - 1);
-    cy = -qdiv(ux, cw, QB - 1);
+    cy = sat(-(int64_t)qdiv(ux, cw, QB - 1));
     w = sat((int64_t)mul(cw, q[0], QB) - mul(cx, q[1], QB) - mul(cy, q[2], QB));
     x = sat((int64_t)mul(cw, q[1], QB) + mul(cx, q[0], QB) + mul(cy, q[3], QB));
     y = sat((int64_t)mul(cw, q[2], QB) - mul(cx, q[3], QB) + mul(cy, q[0], QB));
@@ -341,7 +344,7 @@ void qb_ikf_update(qb_ikf_t *f, qb_real gx, qb_real gy, qb_real gz, qb_real ax, 
     set_dt(f, dt);
     for (i = 0; i < 3; i++)
         g[i] = sat((int64_t)g[i] * ((int64_t)1 << (BB - IO))); /* Q8.24 holds 128 rad/s */
-    rest(f, g, a, dt);
+    rest(f, g, a);
     wx = g[0] - f->bx;
     wy = g[1] - f->by;
     wz = g[2] - f->bz;
