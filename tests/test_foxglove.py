@@ -240,6 +240,15 @@ def test_the_address_and_a_missing_sdk_are_one_line() -> None:
     for bad in ("", "host:", "99999", "x:-1", "nan"):
         with pytest.raises(FoxgloveError, match="--foxglove"):
             parse_address(bad)
+    from term.data.foxglove_server import LiveServer
+
+    first = LiveServer("127.0.0.1", 0, t0=0.0, start_ns=WALL)
+    try:
+        with pytest.raises(FoxgloveError, match=f"cannot serve Foxglove on 127.0.0.1:{first.port}") as exc:
+            LiveServer("127.0.0.1", first.port, t0=0.0, start_ns=WALL)  # the port is taken
+        assert "\n" not in str(exc.value)
+    finally:
+        first.close()
 
 
 def test_live_parameters_are_the_boards_read_only() -> None:

@@ -108,7 +108,8 @@ class LiveServer:
 
     @property
     def url(self) -> str:
-        return f"ws://{self.host}:{self.port}"
+        host = f"[{self.host}]" if ":" in self.host else self.host  # an IPv6 address in brackets
+        return f"ws://{host}:{self.port}"
 
     # --- fed from any thread ------------------------------------------------------------------------------------
 
