@@ -192,7 +192,8 @@ async def test_a_client_subscribed_during_a_sim_flight_gets_the_attitude_as_the_
             app.set_stick(Joystick(0, 0, 0, 0, 0))
             app.simulate_key("0")
             await until(pilot, lambda: m.mode == Mode.SAFE)
-            await until(pilot, lambda: len(client.on("/cable/stats")) > 0)
+            await until(pilot, lambda: len(client.on("/cable/stats")) > 0 and len(client.on("/cable/rx/Attitude")) > 50
+                        and "MANUAL" in {r.json()["mode_name"] for r in client.on("/cable/rx/Attitude")})
             stop.set()
             await task
             app.exit()
