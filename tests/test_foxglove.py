@@ -192,7 +192,8 @@ async def test_a_client_subscribed_during_a_sim_flight_gets_the_attitude_as_the_
             app.set_stick(Joystick(0, 0, 0, 0, 0))
             app.simulate_key("0")
             await until(pilot, lambda: m.mode == Mode.SAFE)
-            await until(pilot, lambda: len(client.on("/cable/stats")) > 0)
+            await until(pilot, lambda: len(client.on("/cable/stats")) > 0 and len(client.on("/cable/rx/Attitude")) > 50
+                        and "MANUAL" in {r.json()["mode_name"] for r in client.on("/cable/rx/Attitude")})
             stop.set()
             await task
             app.exit()
@@ -240,6 +241,15 @@ def test_the_address_and_a_missing_sdk_are_one_line() -> None:
     for bad in ("", "host:", "99999", "x:-1", "nan"):
         with pytest.raises(FoxgloveError, match="--foxglove"):
             parse_address(bad)
+    from term.data.foxglove_server import LiveServer
+
+    first = LiveServer("127.0.0.1", 0, t0=0.0, start_ns=WALL)
+    try:
+        with pytest.raises(FoxgloveError, match=f"cannot serve Foxglove on 127.0.0.1:{first.port}") as exc:
+            LiveServer("127.0.0.1", first.port, t0=0.0, start_ns=WALL)  # the port is taken
+        assert "\n" not in str(exc.value)
+    finally:
+        first.close()
 
 
 def test_live_parameters_are_the_boards_read_only() -> None:

@@ -13,14 +13,15 @@ Contract:
 - Times: ``log_time`` is the time the bytes crossed the link, on the recording's clock (``start_ns`` plus the
   monotonic time since ``t0``, µs resolution, as ``SessionRecorder`` stamps them): a live message and the same
   message in the recording carry the same time.
-- Nothing is converted for a channel no client subscribes to. The board's parameters (from its ParamValue
-  answers, F11's list) are the server's parameters, read-only: a client's set is answered with the values as they
-  are (a change goes through F11 and its guards).
+- Nothing is sent on a channel no client subscribes to. The board's parameters (from its ParamValue answers,
+  F11's list) are the server's parameters, published as they change, read-only: a client's set is answered with
+  the values as they are (a change goes through F11 and its guards).
 - ``close()`` stops the thread and the server. ``port`` is the port bound (``0`` asks for any free one).
 """
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import queue
 import threading
@@ -107,7 +108,8 @@ class LiveServer:
 
     @property
     def url(self) -> str:
-        return f"ws://{self.host}:{self.port}"
+        host = f"[{self.host}]" if ":" in self.host else self.host  # an IPv6 address in brackets
+        return f"ws://{host}:{self.port}"
 
     # --- fed from any thread ------------------------------------------------------------------------------------
 
@@ -168,8 +170,13 @@ class LiveServer:
 
     def _param(self, param: int, raw: int) -> None:
         spec = PARAMS.get(Param(param)) if param in Param._value2member_map_ else None
-        if spec is not None:
-            self._params.values[spec.name] = spec.from_raw(raw)
+        if spec is None:
+            return
+        value = spec.from_raw(raw)
+        if self._params.values.get(spec.name) != value:
+            self._params.values[spec.name] = value
+            with contextlib.suppress(Exception):  # to the clients that subscribed to it (Foxglove's panel)
+                self._server.publish_parameter_values(self._params.parameters([spec.name]))
 
     def _publish(self, messages: Any) -> None:
         import json
