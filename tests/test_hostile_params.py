@@ -173,3 +173,21 @@ def test_fcb_sim_options_take_ascii_numbers_only(capsys: pytest.CaptureFixture[s
         code = int(exc.code or 0)
     err = capsys.readouterr().err
     assert code == 2 and "invalid" in err and err.count("\n") == 1, err
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.text(max_size=50) | st.floats().map(repr) | st.integers().map(str)
+       | st.from_regex(r"[+-]?[0-9_١１]{0,60}(\.[0-9]*)?([eE][+-]?[0-9]{1,5})?", fullmatch=True))
+def test_any_option_text_is_a_number_or_argparses_one_line(text: str) -> None:
+    import argparse
+
+    from term.core.protocol.numbers import cli_float, cli_int
+
+    for parse in (cli_float, cli_int):
+        try:
+            value = parse(text)
+        except argparse.ArgumentTypeError as exc:
+            assert "\n" not in str(exc) and len(str(exc)) < 100
+            continue
+        t = text.strip(" ")
+        assert t.isascii() and "_" not in t and isinstance(value, int | float)

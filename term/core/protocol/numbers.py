@@ -115,4 +115,5 @@ def cli_int(text: str) -> int:
 
 def _cli_shown(text: str) -> str:
     """As argparse quotes a value (``'abc'``), short and on one line."""
-    return repr(text if len(text) <= SHOWN_MAX else text[: SHOWN_MAX - 1] + "…")
+    shown = repr(text)  # escaped: a control character or another script's digit is seen as what it is
+    return shown if len(shown) <= SHOWN_MAX else shown[: SHOWN_MAX - 1] + "…"
