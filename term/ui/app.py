@@ -29,9 +29,9 @@ from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import Any
 
+from textual import events
 from textual.app import App, SystemCommand
 from textual.screen import Screen
-from textual.widgets import Input
 
 from term.core.errors import EXIT_USAGE
 from term.core.events import EventsCleared, Fatal, FromLink, JoystickNamed, NotSent, StationEvent
@@ -40,7 +40,15 @@ from term.core.protocol import FLIGHT_MODES, Joystick, Mode, Op
 from term.data.recording import SessionRecorder
 from term.data.replay import Replay
 from term.input.joystick import JoystickPoller
-from term.input.keymap import PRESET_TEXT, SAFETY_ACTIONS, Action, KeyBinding, action_by_name, pretty_key
+from term.input.keymap import (
+    PRESET_TEXT,
+    PRIORITY_IN_FLIGHT,
+    Action,
+    KeyBinding,
+    action_by_name,
+    action_for_key,
+    pretty_key,
+)
 from term.lessons.instructor import InstructorClient
 from term.session.alarms import Alarms
 from term.session.config import Config
@@ -53,6 +61,7 @@ from term.transports.base import Transport
 from term.ui.controllers.downloads import DownloadController
 from term.ui.controllers.lessons import LessonController
 from term.ui.controllers.params import ParamsController
+from term.ui.keygate import focus_state, pilot_key_acts
 from term.ui.screens.confirm import ConfirmScreen
 from term.ui.screens.dirprompt import DirectoryPrompt
 from term.ui.screens.flight import FlightScreen
@@ -196,11 +205,12 @@ class TermApp(App[int]):
         order = {name: i for i, name in enumerate(FOOTER_ACTIONS)}  # the footer shows them in binding order
         for b in sorted(self.keymap, key=lambda b: order.get(b.action.name, len(order))):
             name = b.action.name
-            self._bindings.bind(
-                ",".join(b.keys), f"pilot('{name}')", FOOTER_LABELS.get(name, b.action.description),
-                show=name in FOOTER_LABELS,
-                key_display=" ".join(pretty_key(k) for k in b.keys), priority=True,
-            )
+            for i, key in enumerate(b.keys):  # one binding per key: which key it was decides who gets it (keygate)
+                self._bindings.bind(
+                    key, f"pilot('{name}', '{key}')", FOOTER_LABELS.get(name, b.action.description),
+                    show=i == 0 and name in FOOTER_LABELS,
+                    key_display=" ".join(pretty_key(k) for k in b.keys), priority=True,
+                )
 
     # --- what the app is made of --------------------------------------------------------------------------
 
@@ -370,16 +380,28 @@ class TermApp(App[int]):
 
     # --- input ---------------------------------------------------------------------------------------------
 
+    def can_fly(self) -> bool:
+        """Out of SAFE (as far as the board said) on a live board: PANIC and SAFE are never text then."""
+        mode = self.model.mode
+        return mode is not None and mode != Mode.SAFE and self.replay is None
+
+    async def on_event(self, event: events.Event) -> None:
+        # Before Textual's bindings: a focused text box hides printable keys from them (check_consume_key).
+        if type(event) is events.Key and not event.is_forwarded and self.can_fly():
+            action = action_for_key(self.keymap, event.key)
+            if action is not None and action.name in PRIORITY_IN_FLIGHT:
+                self.perform(action)
+                return
+        await super().on_event(event)
+
     def check_action(self, action: str, parameters: tuple[object, ...]) -> bool | None:
-        if action == "pilot" and isinstance(self.focused, Input):
-            return False  # typing in the command palette
-        claimed = getattr(self.focused, "CLAIMED_KEYS", None)  # a list with focus moves on these (plots' chooser)
-        if action == "pilot" and claimed and parameters and parameters[0] not in SAFETY_ACTIONS:
-            if any(claimed & set(b.keys) for b in self.keymap if b.action.name == parameters[0]):
-                return False
+        if action == "pilot" and len(parameters) == 2:  # a key (term/ui/keygate.py): the pilot's or the widget's
+            typing, claimed = focus_state(self)
+            return pilot_key_acts(str(parameters[0]), str(parameters[1]), typing=typing, claimed=claimed,
+                                  can_fly=self.can_fly())
         return True
 
-    def action_pilot(self, name: str) -> None:
+    def action_pilot(self, name: str, key: str = "") -> None:
         action = action_by_name(self.keymap, name)
         if action is not None:
             self.perform(action)
