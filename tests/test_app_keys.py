@@ -208,3 +208,28 @@ async def test_the_palette_opened_and_typed_into_at_once_never_flies(scripted_bo
         await until(pilot, lambda: isinstance(app.screen, CommandPalette))
         await pilot.pause(0.3)
         assert not sent(board)
+
+
+# --- a dialog over a live screen keeps the figures behind it live -------------------------------------------------
+
+
+async def test_the_panels_behind_a_dialog_stay_live() -> None:
+    """Issue 22: a lesson's summary froze the panels behind it ("100/100 passed" over M A N U A L, motors 150,
+    though the events said MANUAL -> SAFE)."""
+    from term.core.protocol import Attitude
+    from term.ui.screens.confirm import ConfirmScreen
+    from term.ui.widgets.mode import ModeBanner
+
+    app = TermApp(joystick=False)
+    async with app.run_test(size=(160, 50)) as pilot:
+        app.model.apply_packet(Attitude(int(Mode.MANUAL), 0, 0, 0, 0, 0, 0), app.clock())
+        app.render_now()
+        await pilot.pause(0.05)
+        banner = app.screen.query_one("#mode", ModeBanner)
+        assert "M A N U A L" in str(banner.render())
+        app.push_screen(ConfirmScreen("a question", "yes", "no"))
+        await until(pilot, lambda: isinstance(app.screen, ConfirmScreen))
+        app.model.apply_packet(Attitude(int(Mode.SAFE), 0, 0, 0, 0, 0, 0), app.clock())
+        app.render_now()
+        await pilot.pause(0.05)
+        assert "M A N U A L" not in str(banner.render()) and "S A F E" in str(banner.render())

@@ -31,7 +31,7 @@ from typing import Any
 
 from textual import events
 from textual.app import App, SystemCommand
-from textual.screen import Screen
+from textual.screen import ModalScreen, Screen
 
 from term.core.errors import EXIT_USAGE
 from term.core.events import EventsCleared, Fatal, FromLink, JoystickNamed, NotSent, StationEvent
@@ -372,11 +372,21 @@ class TermApp(App[int]):
         if not self.screen_stack or not self.is_running:
             return  # shutting down
         model = self.model
-        screen = self.screen
-        for w in screen.query(ModelView):
-            w.show(model, now)
-        for p in screen.query(LivePlot):
-            p.show(model, now)
+        for screen in self._live_screens():
+            for w in screen.query(ModelView):
+                w.show(model, now)
+            for p in screen.query(LivePlot):
+                p.show(model, now)
+
+    def _live_screens(self) -> list[Screen[object]]:
+        """The screen on top and, under a dialog (a summary, a question, the help), the screens it lets show
+        through, down to the first full screen: their figures stay live, never frozen behind it."""
+        shown: list[Screen[object]] = []
+        for screen in reversed(self.screen_stack):
+            shown.append(screen)
+            if not isinstance(screen, ModalScreen):
+                break
+        return shown
 
     # --- input ---------------------------------------------------------------------------------------------
 
