@@ -233,3 +233,22 @@ async def test_the_panels_behind_a_dialog_stay_live() -> None:
         app.render_now()
         await pilot.pause(0.05)
         assert "M A N U A L" not in str(banner.render()) and "S A F E" in str(banner.render())
+
+
+async def test_ctrl_q_in_panic_with_the_motors_stopped_does_not_ask(scripted_board) -> None:  # noqa: ANN001
+    """Issue 22: Ctrl+Q in PANIC on the pad (lift 0 %, h 0.00) asked "quit while the motors run?"."""
+    from term.core.protocol import Motion
+    from term.ui.screens.confirm import ConfirmScreen
+
+    async with flying(scripted_board) as (app, pilot, board, peer):
+        await peer.send(attitude(Mode.PANIC), Motion(0, 0, -16384, 180, 180, 180, 180))
+        await until(pilot, lambda: app.model.mode == Mode.PANIC and app.model.motion is not None)
+        await pilot.press("ctrl+q")  # the motors still turn: it asks
+        await until(pilot, lambda: isinstance(app.screen, ConfirmScreen))
+        await pilot.press("enter")  # keep flying
+        await until(pilot, lambda: not isinstance(app.screen, ConfirmScreen))
+        await peer.send(Motion(0, 0, -16384, 0, 0, 0, 0))
+        await until(pilot, lambda: app.model.motion is not None and app.model.motion.ae1 == 0)
+        await pilot.press("ctrl+q")
+        await until(pilot, lambda: not app.is_running)
+    assert app.return_code == 0

@@ -509,8 +509,9 @@ class TermApp(App[int]):
     async def action_quit(self) -> None:
         """Ctrl+Q. While the motors run it asks first; quitting then sends PANIC before it goes (and says so), so
         the board descends under control at once rather than after its link timeout."""
-        mode = self.model.mode
-        running = mode in FLIGHT_MODES or mode == Mode.PANIC
+        mode, motion = self.model.mode, self.model.motion
+        turning = motion is None or any((motion.ae1, motion.ae2, motion.ae3, motion.ae4))
+        running = mode in FLIGHT_MODES or (mode == Mode.PANIC and turning)  # (a PANIC landed on the pad: no)
         if not running or self.replay is not None or self.control_connection() is None:
             self.exit()
             return
