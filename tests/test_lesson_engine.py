@@ -340,3 +340,20 @@ def test_an_attempt_that_ends_puts_back_the_faults_it_injected() -> None:
     d.start_lesson(lessons[2], 1.0)
     assert d.tick(model, 1.1).situations == [{"do": "wind"}, {"do": "cable", "cuts": []}]
     assert d.tick(model, 1.2).situations == []
+
+
+def test_the_advice_follows_the_score() -> None:
+    """Issue 22: lesson 2's advice after "10/100 not passed ... the board had to PANIC by itself" was "Good. Now try
+    FULL"; lesson 5 failed at its FULL climb got HEIGHT advice. The last advice (said otherwise) is for a pass."""
+    lessons, _ = load_lessons([], ACTIONS)
+    run = LessonRun(lessons[2], 0.0)
+    run.update(ns(), 0.0)
+    run.update({**ns(mode="MANUAL", on_ground=False, board_panics=1), **run.step_vars(1.0)}, 1.0)
+    r = run.result
+    assert r is not None and not r.passed and r.failed.startswith("the board had to PANIC")
+    assert not r.advice.startswith("Good") and "again" in r.advice
+    for n, lesson in lessons.items():  # passed: the lesson's own last word
+        run = LessonRun(lesson, 0.0)
+        run.update(ns(), 0.0)
+        run.stop(ns(), 1.0)
+        assert run.result is not None and run.result.advice != lesson.advice[-1].say, n

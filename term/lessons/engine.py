@@ -14,7 +14,8 @@ count again); past its ``timeout`` the attempt fails. A step done earns its poin
 grades (each value graded between best and worst), never below zero. The score is the points earned over the
 lesson's total, less the lesson-wide penalties, as a percentage; an attempt passes if it did not fail and scores
 at least the lesson's ``pass_score``. ``Result.lines`` says what went wrong (failure first, then every loss),
-``advice`` is the first advice whose ``when`` holds at the end, and ``trace`` (10 samples a second of time, height,
+``advice`` is the first advice whose ``when`` holds at the end (one without ``when`` only for a pass; a failure
+without advice of its own is told to try again), and ``trace`` (10 samples a second of time, height,
 north, east and whether in the box) is what the summary plots.
 """
 
@@ -281,7 +282,12 @@ class LessonRun:
         end_ns = {**ns, **self.values, "failed": bool(failed), "failed_step": failed_step, "score": score}
         for name in lesson.grade_names:
             end_ns.setdefault(name, None)
-        advice = next((a.say for a in lesson.advice if a.when is None or a.when.true(end_ns)), "")
+        # an advice without a condition is the lesson's word on a pass, never on a failure (it praises, moves on)
+        advice = next((a.say for a in lesson.advice if (a.when is None and passed) or
+                       (a.when is not None and a.when.true(end_ns))), "")
+        if not advice:
+            advice = (f"Not passed yet ({failed or f'{score}/100, {lesson.pass_score} passes'}): try again (r), or let "
+                      "the autopilot show it (s).")
         self.state = ENDED
         self._undo = undo_situations(self.sent)
         self.caption = f"lesson {lesson.number} {'passed' if passed else 'not passed'}: {score}/100"
