@@ -252,3 +252,14 @@ async def test_ctrl_q_in_panic_with_the_motors_stopped_does_not_ask(scripted_boa
         await pilot.press("ctrl+q")
         await until(pilot, lambda: not app.is_running)
     assert app.return_code == 0
+
+
+async def test_the_terminals_own_parameter_request_failing_is_no_error(scripted_board) -> None:  # noqa: ANN001
+    """Issue 22: `list the parameters failed: link lost` after every handover, hand-back and link restore: a
+    request the pilot never made. (The scripted board here answers no command at all.)"""
+    async with flying(scripted_board, answer=False) as (app, pilot, board, peer):
+        await until(pilot, lambda: any(c.op == Op.PARAM_LIST for c in board.commands))
+        await until(pilot, lambda: app.model.pending == 0, timeout=10)
+        assert not [e.text for e in app.model.events if "list the parameters" in e.text]
+        await pilot.press("f11", "r")  # the pilot's own request: its failure is said
+        await until(pilot, lambda: any("list the parameters failed" in e.text for e in app.model.events), 10)

@@ -145,7 +145,7 @@ class TermApp(App[int]):
         self.downloads = DownloadController(self.station, clock, self.send, self.control_connection,
                                             lambda work: self.run_worker(work, exclusive=False),
                                             log_directory or self.config.log_directory)
-        self.params = ParamsController(self.config, self.station, self.send)
+        self.params = ParamsController(self.config, self.station, self.send, replay=replay is not None)
         self.exit_message: str | None = None
         self.alarms = Alarms()
         self.alarms_rung: list[str] = []  # every alarm the bell was rung for (or would have been, bell off)
