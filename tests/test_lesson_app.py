@@ -214,10 +214,11 @@ async def test_show_me_stopped_in_flight_leaves_no_lift_behind_once_in_safe() ->
     """Issue 22: after lesson 2's "show me" ended in the air, the sticks panel kept the autopilot's lift (48 %),
     z did nothing, and 2 was refused ("throttle is up") until the terminal was quit."""
     async with sim_app(seed=3) as (app, pilot, board):
-        await until(pilot, lambda: app.model.mode == Mode.SAFE and app.room is not None and app.room.truth)
-        app.start_lesson(2, show=True)
+        room = app.lessons.room
+        await until(pilot, lambda: app.model.mode == Mode.SAFE and room is not None and bool(room.truth))
+        app.lessons.start_lesson(2, show=True)
         await until(pilot, lambda: app.model.mode == Mode.MANUAL and app.model.stick.lift > 0, timeout=30)
-        app.stop_lesson()
+        app.lessons.stop_lesson()
         await pilot.pause(0.3)
         assert app.model.stick.lift > 0  # still in the air: the lift stays until the pilot has it down
         app.simulate_key("1")  # PANIC: it lands by itself, then SAFE
