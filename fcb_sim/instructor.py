@@ -11,7 +11,8 @@ Sans-IO ``Instructor(board)``, on the board's clock (seconds, ``board.now / 1e6`
 - ``apply(cmd, now)``: one situation command (a dict: ``{"do": "wind", "n": -1.5, ...}``, the verbs and their
   arguments in ``INSTRUCTOR_SITUATIONS``); returns None or why it cannot be done (one line). ``reset`` puts the
   craft back on the pad (the room's origin, nose north) with a fresh battery, still air and every fault cleared,
-  only while it stands on the floor in SAFE;
+  the board's attitude and height estimates started again level on the pad, only while it stands on the floor in
+  SAFE;
 - ``tick(now)``: the battery's drain (a failing cell), called at the truth rate;
 - ``cable_open(now)``: whether the cable carries bytes now (the server drops both ways while it does not);
 - ``truth(now)``: the truth sample (``INSTRUCTOR_TRUTH`` fields) as a dict; ``truth_line(now)`` as a JSON line.
@@ -111,6 +112,16 @@ class Instructor:
         w.p = w.q = w.r = 0.0
         w.qw, w.qx, w.qy, w.qz = 1.0, 0.0, 0.0, 0.0
         w.gust = [0.0, 0.0, 0.0]
+        # The board's estimators start again from the craft as it now stands (level, at rest): the flight core keeps
+        # the angles of its last flight-mode step in SAFE, and its filters would spend a long while unlearning a
+        # crash's tilt. Its height estimate starts again from the pad too.
+        core = getattr(b, "core", None)  # (the C board keeps its own)
+        if core is not None:
+            core.filter.reset()
+            core.phi = core.theta = 0.0
+            if core.calibrated:
+                core.height_est.reset(core.calibration.pressure)
+                core.height = core.vz = 0.0
         w.set_wind(0.0, 0.0, 0.0, gust_std=0.0)
         for i in range(1, 5):
             w.stick_motor(i, None)

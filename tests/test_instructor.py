@@ -203,3 +203,31 @@ def test_term_sim_child_prints_the_channel_and_a_cable_cut_silences_the_pty() ->
             assert ser.read(4096)  # the cut is over
     finally:
         sim.stop()
+
+
+def test_after_a_crash_the_reset_puts_the_boards_attitude_level_on_the_pad() -> None:
+    """Issue 22: after lesson 7's reset the attitude read roll +46.3° pitch +4.5° on the pad for over 60 s (the
+    flight core keeps the angles of its last flight-mode step in SAFE; the reset starts them level, as the craft)."""
+    board, s = flying_board()
+    inst = Instructor(board)
+    t = board.now / 1e6
+    inst.apply({"do": "motor", "motor": 2, "level": 0}, t)  # a dead motor: it flips and crashes
+
+    def run(seconds: float) -> None:
+        nonlocal t
+        for _ in range(round(seconds / 0.002)):
+            t += 0.002
+            board.advance(round(t * 1e6))
+            s.receive(board.uart_transmit(), t)
+            s.poll(t)
+            board.uart_receive(s.data_to_send(t))
+
+    for _ in range(40):
+        run(0.5)
+        if board.mode == Mode.SAFE and board.world.on_ground:
+            break
+    assert board.world.crashes and board.mode == Mode.SAFE
+    assert inst.apply({"do": "reset"}, t) is None
+    run(0.5)
+    phi, theta, _ = board.core.attitude_centideg()
+    assert abs(phi) < 200 and abs(theta) < 200, (phi, theta)  # within 2° of level

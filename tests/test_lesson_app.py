@@ -18,7 +18,7 @@ import pytest
 from fcb_sim.instructor import Instructor, InstructorServer
 from fcb_sim.serve import ThreadedServer, make_board
 from term.cli.main import main
-from term.core.protocol import Mode
+from term.core.protocol import Joystick, Mode
 from term.lessons.instructor import InstructorClient
 from term.lessons.observe import Box
 from term.lessons.progress import default_path
@@ -133,7 +133,7 @@ async def test_a_lesson_flown_with_the_keys_is_scored_saved_and_summed_up() -> N
         app.simulate_key("2")
         await until(pilot, lambda: "3/3 Disarm" in bar.text)
         app.simulate_key("0")
-        await until(pilot, lambda: isinstance(app.screen, SummaryScreen))
+        await until(pilot, lambda: isinstance(app.screen, SummaryScreen) and bool(app.screen.query("#summary-head")))
         summary = app.screen
         assert summary.result.score == 100 and summary.result.passed and not summary.shown
         head = summary.query_one("#summary-head").render()
@@ -208,3 +208,21 @@ def test_the_room_figures_never_read_minus_zero() -> None:
     room = Room()
     room.update(Truth(**{f.name: (-0.001 if f.name in ("n", "e", "h") else 0.0) for f in fields(Truth)}))
     assert str(figures(room, False)).startswith("n +0.00 e +0.00 h 0.00 m")
+
+
+async def test_show_me_stopped_in_flight_leaves_no_lift_behind_once_in_safe() -> None:
+    """Issue 22: after lesson 2's "show me" ended in the air, the sticks panel kept the autopilot's lift (48 %),
+    z did nothing, and 2 was refused ("throttle is up") until the terminal was quit."""
+    async with sim_app(seed=3) as (app, pilot, board):
+        room = app.lessons.room
+        await until(pilot, lambda: app.model.mode == Mode.SAFE and room is not None and bool(room.truth))
+        app.lessons.start_lesson(2, show=True)
+        await until(pilot, lambda: app.model.mode == Mode.MANUAL and app.model.stick.lift > 0, timeout=30)
+        app.lessons.stop_lesson()
+        await pilot.pause(0.3)
+        assert app.model.stick.lift > 0  # still in the air: the lift stays until the pilot has it down
+        app.simulate_key("1")  # PANIC: it lands by itself, then SAFE
+        await until(pilot, lambda: app.model.mode == Mode.SAFE, timeout=30)
+        await until(pilot, lambda: app.model.stick == Joystick(0, 0, 0, 0, 0), timeout=2)
+        app.simulate_key("2")
+        await until(pilot, lambda: app.model.mode == Mode.MANUAL, timeout=5)

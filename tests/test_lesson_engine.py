@@ -217,7 +217,7 @@ def test_scoring_steps_holds_penalties_grades_and_advice(tmp_path: Path) -> None
         t += 0.1
     frames.append((t, ns(mode="FULL", on_ground=True, touchdown=0.4, refusals=1)))  # step 3: landed at 0.4
     sent = run_through(run, frames)
-    assert sent == [{"do": "reset", "soc": 0.9}, {"do": "wind", "n": -1.0}]
+    assert sent == [{"do": "reset", "soc": 0.9}, {"do": "wind", "n": -1.0}, {"do": "wind"}]  # (still air after)
     assert run.state == ENDED
     r = run.result
     assert r is not None and r.passed and not r.failed
@@ -316,3 +316,44 @@ def test_the_guides_table_of_variables_is_the_observers() -> None:
     text = (Path(__file__).resolve().parent.parent / "docs" / "lessons.md").read_text()
     table = text.split("<!-- variables:begin -->\n", 1)[1].split("<!-- variables:end -->", 1)[0]
     assert table == names_markdown(), "regenerate the table: term.lessons.observe.names_markdown()"
+
+
+def test_an_attempt_that_ends_puts_back_the_faults_it_injected() -> None:
+    """Issue 22: lesson 7's stuck motor outlived the attempt (the next take-off crashed with it still failed)."""
+    lessons, _ = load_lessons([], ACTIONS)
+    run = LessonRun(lessons[7], 0.0)
+    sent = run.update(ns(), 0.0)  # on the floor in SAFE: the attempt starts from the pad
+    assert sent[0]["do"] == "reset"
+    for k in range(40):  # step 1: in the box in FULL for 3 s
+        sent += run.update({**ns(mode="FULL", on_ground=False, in_box=True, h=1.0), **run.step_vars(0.1 + k * 0.1)},
+                           0.1 + k * 0.1)
+    assert {"do": "motor", "motor": 2, "level": 380} in sent and run.state == RUNNING
+    end = run.update({**ns(mode="FULL", on_ground=True, crashes=1), **run.step_vars(5.0)}, 5.0)
+    assert run.state == ENDED and end == [{"do": "motor", "motor": 2, "level": -1}]
+    # stopped by the pilot (or another lesson started): the driver sends the undo at its next tick
+    d = LessonDriver()
+    d.start_lesson(lessons[7], 0.0)
+    model = Model(start=0.0)
+    d.run.update(ns(), 0.0)  # type: ignore[union-attr]
+    d.run.sent += [{"do": "wind", "n": 2.0}, {"do": "cable", "cuts": [[0.0, 1.0]]}]  # type: ignore[union-attr]
+    d.stop(model, 1.0)
+    d.start_lesson(lessons[2], 1.0)
+    assert d.tick(model, 1.1).situations == [{"do": "wind"}, {"do": "cable", "cuts": []}]
+    assert d.tick(model, 1.2).situations == []
+
+
+def test_the_advice_follows_the_score() -> None:
+    """Issue 22: lesson 2's advice after "10/100 not passed ... the board had to PANIC by itself" was "Good. Now try
+    FULL"; lesson 5 failed at its FULL climb got HEIGHT advice. The last advice (said otherwise) is for a pass."""
+    lessons, _ = load_lessons([], ACTIONS)
+    run = LessonRun(lessons[2], 0.0)
+    run.update(ns(), 0.0)
+    run.update({**ns(mode="MANUAL", on_ground=False, board_panics=1), **run.step_vars(1.0)}, 1.0)
+    r = run.result
+    assert r is not None and not r.passed and r.failed.startswith("the board had to PANIC")
+    assert not r.advice.startswith("Good") and "again" in r.advice
+    for n, lesson in lessons.items():  # passed: the lesson's own last word
+        run = LessonRun(lesson, 0.0)
+        run.update(ns(), 0.0)
+        run.stop(ns(), 1.0)
+        assert run.result is not None and run.result.advice != lesson.advice[-1].say, n

@@ -163,6 +163,29 @@ def normalise_key(key: str, where: str) -> str:
                       "them: a, A, 1, escape, space, enter, up, f5, ctrl+x, question_mark, ...")
 
 
+@cache
+def _character_keys() -> frozenset[str]:
+    """The key names of printable characters ("a", "1", "slash", "space", ...): what a text box takes as text."""
+    from textual.keys import KEY_NAME_REPLACEMENTS
+
+    names = set()
+    for c in string.printable:
+        if c.isspace() and c != " ":
+            continue
+        name = c if c.isalnum() else unicodedata.name(c).lower().replace("-", "_").replace(" ", "_")
+        names.add(KEY_NAME_REPLACEMENTS.get(name, name))
+    return frozenset(names)
+
+
+def is_character_key(key: str) -> bool:
+    """A key that types a character (a letter, digit, punctuation, space; any one character, umlauts too)."""
+    return key in _character_keys() or len(key) == 1
+
+
+# Out of SAFE these act whatever has the focus, a text box included: they are never text while the craft can fly.
+PRIORITY_IN_FLIGHT = frozenset({"mode_panic", "mode_safe"})
+
+
 def _plain(key: str) -> bool:
     return key in _key_names()[0]
 

@@ -9,7 +9,8 @@ the way it carries out a pilot's keys, so a lesson flown by the autopilot takes 
 - ``start_lesson(lesson, now, show=False)``: an attempt (``LessonRun``), the autopilot flying the lesson's
   ``[[show]]`` too with ``show``;
 - ``start_script(title, goal, script, now)``: the autopilot alone (the demo);
-- ``stop(now, why)``: ends both (an attempt ends as failed with ``why``);
+- ``stop(now, why)``: ends both (an attempt ends as failed with ``why``); an attempt that ended, however, puts back
+  the faults it injected (motors, wind, battery drain, cable cuts) in the next tick's situations;
 - ``pilot_acted(now)``: the pilot pressed a key or moved a stick while the autopilot flies: it stops and hands
   over (the attempt goes on, the pilot's now).
 
@@ -49,6 +50,7 @@ class LessonDriver:
         self.lesson: Lesson | None = None
         self.script_title = ""
         self.intro = ""  # the demo's opening caption, until the autopilot has its own
+        self._undo: list[dict[str, Any]] = []  # what puts back an ended attempt's faults, for the next tick
 
     # --- inputs -------------------------------------------------------------------------------------------
 
@@ -92,6 +94,7 @@ class LessonDriver:
         if run is not None and run.state != ENDED:
             ns = self.observer.namespace(model, now, run.step_vars(now))
             run.stop(ns, now, why)
+            self._undo += run.take_undo()  # (sent at the next tick, whatever starts next)
             return run.result
         return None
 
@@ -104,16 +107,17 @@ class LessonDriver:
         return False
 
     def tick(self, model: Model, now: float) -> Tick:
-        out = Tick()
+        run = self.run
+        out = Tick(situations=self._undo + (run.take_undo() if run is not None else []))  # put things back
+        self._undo = []
         if not self.active:
             return out  # nothing runs: nothing to evaluate (the app ticks at the truth's rate all along)
-        run = self.run
         if run is not None and run.state != ENDED:
             ns = self.observer.namespace(model, now, run.step_vars(now))
             if run.state != RUNNING and run.ready(ns):
                 self.observer.reset(now)  # the attempt starts: its counters from zero
                 ns = self.observer.namespace(model, now)
-            out.situations = run.update(ns, now)
+            out.situations += run.update(ns, now)
             if run.state == ENDED:
                 out.result = run.result
         ns = self.observer.namespace(model, now, run.step_vars(now) if run is not None else None)

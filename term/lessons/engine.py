@@ -14,7 +14,8 @@ count again); past its ``timeout`` the attempt fails. A step done earns its poin
 grades (each value graded between best and worst), never below zero. The score is the points earned over the
 lesson's total, less the lesson-wide penalties, as a percentage; an attempt passes if it did not fail and scores
 at least the lesson's ``pass_score``. ``Result.lines`` says what went wrong (failure first, then every loss),
-``advice`` is the first advice whose ``when`` holds at the end, and ``trace`` (10 samples a second of time, height,
+``advice`` is the first advice whose ``when`` holds at the end (one without ``when`` only for a pass; a failure
+without advice of its own is told to try again), and ``trace`` (10 samples a second of time, height,
 north, east and whether in the box) is what the summary plots.
 """
 
@@ -28,6 +29,20 @@ from typing import Any
 from term.lessons.spec import Grade, Lesson, Penalty, Step
 
 WAITING, RUNNING, ENDED = "waiting", "running", "ended"
+
+
+def undo_situations(sent: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """What puts back the faults ``sent`` injected, once each: motors free, still air, no drain, the cable whole.
+    (A reset needs the craft on the floor in SAFE; these work wherever it is. A radio cut ends by itself.)"""
+    out: list[dict[str, Any]] = []
+    for s in sent:
+        verb = s.get("do")
+        undo = ({"do": "motor", "motor": s.get("motor"), "level": -1} if verb == "motor" else
+                {"do": "wind"} if verb == "wind" else {"do": "battery", "drain": 0.0} if verb == "battery" else
+                {"do": "cable", "cuts": []} if verb == "cable" else None)
+        if undo is not None and undo not in out:
+            out.append(undo)
+    return out
 READY_CAPTION = "land and press 0 (SAFE) to start: the lesson starts with the craft on the floor in SAFE"
 TRACE_PERIOD = 0.1
 
@@ -102,6 +117,8 @@ class LessonRun:
         self.index = 0  # the step running (0-based)
         self.caption = READY_CAPTION
         self.result: Result | None = None
+        self.sent: list[dict[str, Any]] = []  # every situation the attempt sent (what it changed)
+        self._undo: list[dict[str, Any]] = []
         self.earned = 0.0
         self.losses: list[Loss] = []
         self.values: dict[str, float] = {}
@@ -159,7 +176,17 @@ class LessonRun:
         return list(step.situation)
 
     def update(self, ns: dict[str, Any], now: float) -> list[dict[str, Any]]:
-        """One tick: the situations to send now (module docstring)."""
+        """One tick: the situations to send now (module docstring); when the attempt ends, what undoes them."""
+        out = self._update(ns, now)
+        self.sent += out
+        return out + self.take_undo()
+
+    def take_undo(self) -> list[dict[str, Any]]:
+        """Once the attempt ended (in ``update`` or by ``stop``): the situations that put back what it changed."""
+        undo, self._undo = self._undo, []
+        return undo
+
+    def _update(self, ns: dict[str, Any], now: float) -> list[dict[str, Any]]:
         if self.state == ENDED:
             return []
         if self.state == WAITING:
@@ -255,8 +282,14 @@ class LessonRun:
         end_ns = {**ns, **self.values, "failed": bool(failed), "failed_step": failed_step, "score": score}
         for name in lesson.grade_names:
             end_ns.setdefault(name, None)
-        advice = next((a.say for a in lesson.advice if a.when is None or a.when.true(end_ns)), "")
+        # an advice without a condition is the lesson's word on a pass, never on a failure (it praises, moves on)
+        advice = next((a.say for a in lesson.advice if (a.when is None and passed) or
+                       (a.when is not None and a.when.true(end_ns))), "")
+        if not advice:
+            advice = (f"Not passed yet ({failed or f'{score}/100, {lesson.pass_score} passes'}): try again (r), or let "
+                      "the autopilot show it (s).")
         self.state = ENDED
+        self._undo = undo_situations(self.sent)
         self.caption = f"lesson {lesson.number} {'passed' if passed else 'not passed'}: {score}/100"
         self.result = Result(lesson.number, score, passed, failed, failed_step, lines, advice,
                              now - self.started, dict(self.values), self.trace, steps_done)

@@ -261,6 +261,7 @@ class Model:
     events: deque[LogEntry] = field(default_factory=lambda: deque(maxlen=500))
     history: dict[str, deque[tuple[float, float]]] = field(default_factory=dict)
     pending: int = 0  # commands sent and not yet answered
+    own: set[int] = field(default_factory=set)  # cmd_ids the terminal sent on its own: no error if they fail
     wireless: int = 0  # WirelessState, as the board last said
     compact: Compact | None = None  # the phone's telemetry (over BLE): mode, attitude, battery
     compact2: Compact2 | None = None  # the rest of the flight screen over BLE: motors, height, vz, flags, lift trim
@@ -349,6 +350,7 @@ class Model:
 
     def _on_acked(self, event: CommandAcked, now: float) -> None:
         self.version += 1
+        self.own.discard(event.cmd_id)
         self.pending = max(0, self.pending - 1)
         self.arrivals.note_ack(event.op, event.value, now)  # a trim's Ack carries the new trim
         said = _LOG_ACKS.get(event.op)
@@ -367,6 +369,9 @@ class Model:
             spec = PARAMS.get(param_split(event.arg)[0])  # type: ignore[call-overload]
             if spec is not None:
                 self.param_refused[spec.name] = event.reason
+        if event.cmd_id in self.own and event.op == Op.PARAM_LIST:
+            self.own.discard(event.cmd_id)  # asked again at the board's next Hello (F11's r asks now)
+            return
         if event.op == Op.PARAM_LIST and event.nak in (Nak.NOT_IMPLEMENTED, Nak.UNKNOWN_COMMAND):
             # the terminal asks every board it meets; one without parameters is no error
             self.note(now, "info", "params", f"this board has no parameter list ({event.reason})")

@@ -29,9 +29,9 @@ from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import Any
 
+from textual import events
 from textual.app import App, SystemCommand
-from textual.screen import Screen
-from textual.widgets import Input
+from textual.screen import ModalScreen, Screen
 
 from term.core.errors import EXIT_USAGE
 from term.core.events import EventsCleared, Fatal, FromLink, JoystickNamed, NotSent, StationEvent
@@ -40,7 +40,15 @@ from term.core.protocol import FLIGHT_MODES, Joystick, Mode, Op
 from term.data.recording import SessionRecorder
 from term.data.replay import Replay
 from term.input.joystick import JoystickPoller
-from term.input.keymap import PRESET_TEXT, SAFETY_ACTIONS, Action, KeyBinding, action_by_name, pretty_key
+from term.input.keymap import (
+    PRESET_TEXT,
+    PRIORITY_IN_FLIGHT,
+    Action,
+    KeyBinding,
+    action_by_name,
+    action_for_key,
+    pretty_key,
+)
 from term.lessons.instructor import InstructorClient
 from term.session.alarms import Alarms
 from term.session.config import Config
@@ -53,6 +61,7 @@ from term.transports.base import Transport
 from term.ui.controllers.downloads import DownloadController
 from term.ui.controllers.lessons import LessonController
 from term.ui.controllers.params import ParamsController
+from term.ui.keygate import focus_state, pilot_key_acts
 from term.ui.screens.confirm import ConfirmScreen
 from term.ui.screens.dirprompt import DirectoryPrompt
 from term.ui.screens.flight import FlightScreen
@@ -136,7 +145,7 @@ class TermApp(App[int]):
         self.downloads = DownloadController(self.station, clock, self.send, self.control_connection,
                                             lambda work: self.run_worker(work, exclusive=False),
                                             log_directory or self.config.log_directory)
-        self.params = ParamsController(self.config, self.station, self.send)
+        self.params = ParamsController(self.config, self.station, self.send, replay=replay is not None)
         self.exit_message: str | None = None
         self.alarms = Alarms()
         self.alarms_rung: list[str] = []  # every alarm the bell was rung for (or would have been, bell off)
@@ -196,11 +205,12 @@ class TermApp(App[int]):
         order = {name: i for i, name in enumerate(FOOTER_ACTIONS)}  # the footer shows them in binding order
         for b in sorted(self.keymap, key=lambda b: order.get(b.action.name, len(order))):
             name = b.action.name
-            self._bindings.bind(
-                ",".join(b.keys), f"pilot('{name}')", FOOTER_LABELS.get(name, b.action.description),
-                show=name in FOOTER_LABELS,
-                key_display=" ".join(pretty_key(k) for k in b.keys), priority=True,
-            )
+            for i, key in enumerate(b.keys):  # one binding per key: which key it was decides who gets it (keygate)
+                self._bindings.bind(
+                    key, f"pilot('{name}', '{key}')", FOOTER_LABELS.get(name, b.action.description),
+                    show=i == 0 and name in FOOTER_LABELS,
+                    key_display=" ".join(pretty_key(k) for k in b.keys), priority=True,
+                )
 
     # --- what the app is made of --------------------------------------------------------------------------
 
@@ -362,24 +372,46 @@ class TermApp(App[int]):
         if not self.screen_stack or not self.is_running:
             return  # shutting down
         model = self.model
-        screen = self.screen
-        for w in screen.query(ModelView):
-            w.show(model, now)
-        for p in screen.query(LivePlot):
-            p.show(model, now)
+        for screen in self._live_screens():
+            for w in screen.query(ModelView):
+                w.show(model, now)
+            for p in screen.query(LivePlot):
+                p.show(model, now)
+
+    def _live_screens(self) -> list[Screen[object]]:
+        """The screen on top and, under a dialog (a summary, a question, the help), the screens it lets show
+        through, down to the first full screen: their figures stay live, never frozen behind it."""
+        shown: list[Screen[object]] = []
+        for screen in reversed(self.screen_stack):
+            shown.append(screen)
+            if not isinstance(screen, ModalScreen):
+                break
+        return shown
 
     # --- input ---------------------------------------------------------------------------------------------
 
+    def can_fly(self) -> bool:
+        """Out of SAFE (as far as the board said) on a live board: PANIC and SAFE are never text then."""
+        mode = self.model.mode
+        return mode is not None and mode != Mode.SAFE and self.replay is None
+
+    async def on_event(self, event: events.Event) -> None:
+        # Before Textual's bindings: a focused text box hides printable keys from them (check_consume_key).
+        if type(event) is events.Key and not event.is_forwarded and self.can_fly():
+            action = action_for_key(self.keymap, event.key)
+            if action is not None and action.name in PRIORITY_IN_FLIGHT:
+                self.perform(action)
+                return
+        await super().on_event(event)
+
     def check_action(self, action: str, parameters: tuple[object, ...]) -> bool | None:
-        if action == "pilot" and isinstance(self.focused, Input):
-            return False  # typing in the command palette
-        claimed = getattr(self.focused, "CLAIMED_KEYS", None)  # a list with focus moves on these (plots' chooser)
-        if action == "pilot" and claimed and parameters and parameters[0] not in SAFETY_ACTIONS:
-            if any(claimed & set(b.keys) for b in self.keymap if b.action.name == parameters[0]):
-                return False
+        if action == "pilot" and len(parameters) == 2:  # a key (term/ui/keygate.py): the pilot's or the widget's
+            typing, claimed = focus_state(self)
+            return pilot_key_acts(str(parameters[0]), str(parameters[1]), typing=typing, claimed=claimed,
+                                  can_fly=self.can_fly())
         return True
 
-    def action_pilot(self, name: str) -> None:
+    def action_pilot(self, name: str, key: str = "") -> None:
         action = action_by_name(self.keymap, name)
         if action is not None:
             self.perform(action)
@@ -477,8 +509,9 @@ class TermApp(App[int]):
     async def action_quit(self) -> None:
         """Ctrl+Q. While the motors run it asks first; quitting then sends PANIC before it goes (and says so), so
         the board descends under control at once rather than after its link timeout."""
-        mode = self.model.mode
-        running = mode in FLIGHT_MODES or mode == Mode.PANIC
+        mode, motion = self.model.mode, self.model.motion
+        turning = motion is None or any((motion.ae1, motion.ae2, motion.ae3, motion.ae4))
+        running = mode in FLIGHT_MODES or (mode == Mode.PANIC and turning)  # (a PANIC landed on the pad: no)
         if not running or self.replay is not None or self.control_connection() is None:
             self.exit()
             return

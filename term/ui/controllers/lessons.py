@@ -12,7 +12,8 @@ the app, through ``LessonHost`` (what only the app can do):
 - a timer at the truth's rate (``tick``) runs the driver and carries out its tick: situations to the
   simulator, the autopilot's presses through ``perform`` (exactly a key's path) and its stick through
   ``set_stick``; the caption line shows what happens; an attempt's end records the progress (not for "show me")
-  and opens the summary (again, show me, next lesson, close);
+  and opens the summary (again, show me, next lesson, close); once the autopilot stopped, the stick it left goes
+  back to neutral (``leftover_stick``: the lift once the craft is out of the flight modes);
 - the palette lists every lesson, each lesson's "show me", the demo, and stopping what runs.
 
 Without the simulator (a real board) there is no truth: the room panel says why, and the lessons are not offered.
@@ -29,7 +30,7 @@ from textual.app import SystemCommand
 from textual.screen import Screen
 
 from term.core.events import StationEvent, StickSet
-from term.core.protocol import INSTRUCTOR_TRUTH_HZ, STICK_NEUTRAL, Joystick, Op
+from term.core.protocol import FLIGHT_MODES, INSTRUCTOR_TRUTH_HZ, STICK_NEUTRAL, Joystick, Op
 from term.input.keymap import Action, KeyBinding, action_by_name
 from term.lessons.autopilot import COMMANDS, Press, Stick
 from term.lessons.driver import LessonDriver
@@ -203,8 +204,11 @@ class LessonController:
         if tick.autopilot_ended is not None:
             text = "autopilot: done" if tick.autopilot_ended == "done" else f"autopilot off: {tick.autopilot_ended}"
             self.station.note("info" if tick.autopilot_ended == "done" else "warning", "lesson", text)
-            if tick.autopilot_ended != "done":
-                self.host.set_stick(self.model.stick._replace(roll=0, pitch=0, yaw=0))
+        if not self.driver.flying:
+            left = leftover_stick(self.model.stick, self._autopilot_stick, self.model.mode)
+            if left is not None:
+                self._autopilot_stick = left
+                self.host.set_stick(left)
         if tick.result is not None:
             self._attempt_ended(tick.result)
         self._show_caption()
@@ -266,6 +270,17 @@ class LessonController:
                 yield SystemCommand(f"Lesson {n}: show me", f"the autopilot flies lesson {n}: {lesson.title}",
                                     _call(self.start_lesson, n, True))
         yield SystemCommand("Lesson: stop", "end the lesson, the show or the demo that runs", self.stop_lesson)
+
+
+def leftover_stick(stick: Joystick, autopilot: Joystick, mode: int | None) -> Joystick | None:
+    """The stick to put back once the autopilot stopped, or None: while the stick is still the one it left, its
+    roll, pitch and yaw go at once; its lift stays while the craft flies (a keyboard pilot who took over would
+    drop it) and goes once the board is out of the flight modes (landed, PANIC, SAFE)."""
+    if stick != autopilot or stick[:4] == (0, 0, 0, 0):
+        return None  # the pilot's own stick (a joystick moved), or nothing left
+    keep = stick.lift if mode in FLIGHT_MODES else 0
+    put = stick._replace(roll=0, pitch=0, yaw=0, lift=keep)
+    return None if put == stick else put
 
 
 def _call(fn: Callable[..., None], *args: Any) -> Callable[[], None]:

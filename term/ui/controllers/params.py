@@ -23,10 +23,12 @@ Send = Callable[[Op, int], "int | None"]
 class ParamsController:
     """The parameters' exchange with the board (module docstring); ``send`` is the app's command path."""
 
-    def __init__(self, config: Config, station: Station, send: Send) -> None:
+    def __init__(self, config: Config, station: Station, send: Send, *, replay: bool = False) -> None:
+        """``replay``: a recording plays (its Hello asks nothing: there is no board)."""
         self.config = config
         self.station = station
         self.send = send
+        self.replay = replay
 
     def on_station_event(self, ev: Any) -> None:
         """A station event: the board's Hello on its link starts the parameters' exchange."""
@@ -46,7 +48,11 @@ class ParamsController:
                     self.send(Op.SET_PARAM, param_arg(p, PARAMS[p].to_raw(v)))
                 self.station.note("info", "params", f"{len(values)} parameters from {cfg.params_file} sent to the "
                                   "board (apply_on_connect); refusals follow")
-        self.send(Op.PARAM_LIST, 0)
+        link = self.station.control()
+        if not self.replay and link is not None and link.connection is not None:
+            cmd = self.send(Op.PARAM_LIST, 0)  # the terminal's own request, not the pilot's: its failure is no error
+            if cmd is not None:
+                self.station.model.own.add(cmd)
 
     def set_param(self, param: Param, value: float | str | bool) -> None:
         self.send(Op.SET_PARAM, param_arg(param, PARAMS[param].to_raw(value)))

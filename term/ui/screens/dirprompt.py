@@ -13,8 +13,9 @@ from term.core.logfile import check_directory
 
 
 class DirectoryPrompt(ModalScreen[Path | None]):
-    """Enter accepts, Escape cancels (the pilot's ESC is PANIC everywhere else; here the input has focus, so the
-    key belongs to the dialog)."""
+    """Enter accepts, Escape cancels (in SAFE; out of SAFE ESC is PANIC here too, term/ui/keygate.py)."""
+
+    TYPING = True  # a text box: keys typed before its box has the focus are text too
 
     DEFAULT_CSS = """
     DirectoryPrompt { align: center middle; }

@@ -9,7 +9,8 @@ the values the board last said, searchable, editable, changed ones marked, refus
 - **Enter** on a row opens the edit line with its value; Enter there checks the value against the table (a value
   the table refuses is said at once, in one line, and nothing is sent) and posts ``SetParam`` up: the app sends
   ``SET_PARAM``; the board's answer comes back through the model (``Model.params``, ``Model.param_refused``).
-  Escape (while typing: the pilot's keys rest, as in the command palette) closes the line unchanged.
+  Escape closes the line unchanged (in SAFE: out of SAFE, 1, Esc and 0 are PANIC and SAFE even here; the other
+  keys typed into a line are text, term/ui/keygate.py).
 - The list claims ↑ ↓ and Enter while it has the focus (``CLAIMED_KEYS``: the app leaves them to it); PANIC, SAFE
   and lift down always work.
 
@@ -83,8 +84,9 @@ class ParamsScreen(Screen[None]):
     ParamsScreen #param-edit.editing { display: block; }
     ParamsScreen #param-help { height: 2; padding: 0 1; }
     """
-    BINDINGS = [
-        Binding("slash", "search", "search", show=False),
+    BINDINGS = [  # / and Enter move the focus at once (priority): the keys typed after them are text at once
+        Binding("slash", "search", "search", show=False, priority=True),
+        Binding("enter", "edit_row", "edit", show=False, priority=True),
         Binding("r", "reload", "reload", show=False),
     ]
 
@@ -149,7 +151,7 @@ class ParamsScreen(Screen[None]):
     def on_input_submitted(self, event: Input.Submitted) -> None:
         event.stop()
         if event.input.id == "param-search":
-            self.query_one(ParamTable).focus()
+            self.set_focus(self.query_one(ParamTable))
             return
         spec = self.editing
         if spec is None:
@@ -165,9 +167,11 @@ class ParamsScreen(Screen[None]):
         self._say(f"{spec.name} = {spec.text(value)}: sent; the board's answer shows in the row")
         self._close_edit()
 
-    def on_data_table_row_selected(self, event: DataTable.RowSelected) -> None:
+    def on_data_table_row_selected(self, event: DataTable.RowSelected) -> None:  # a click on a row
         event.stop()
-        name = event.row_key.value
+        self._open_edit(event.row_key.value)
+
+    def _open_edit(self, name: str | None) -> None:
         spec = next((s for s in _ORDER if s.name == name), None)
         if spec is None:
             return
@@ -177,27 +181,45 @@ class ParamsScreen(Screen[None]):
         edit.value = spec.text(value if value is not None else spec.default)
         edit.border_title = f"{spec.name} ({spec.limits_text()}{' ' + spec.unit if spec.unit else ''}): Enter sets"
         edit.add_class("editing")
-        edit.focus()
+        self.set_focus(edit)
         self._say(f"{spec.name}: {spec.doc}")
 
     def on_key(self, event: events.Key) -> None:
-        if event.key == "escape" and self.editing is not None and self.focused is self.query_one("#param-edit"):
+        """Esc leaves a line (in SAFE; out of SAFE it is PANIC, term/ui/keygate.py): the edit line unchanged."""
+        if event.key != "escape":
+            return
+        if self.editing is not None and self.focused is self.query_one("#param-edit"):
             self._close_edit()
+            event.stop()
+        elif self.focused is self.query_one("#param-search"):
+            self.set_focus(self.query_one(ParamTable))
             event.stop()
 
     def _close_edit(self) -> None:
         self.editing = None
         edit = self.query_one("#param-edit", Input)
         edit.remove_class("editing")
-        self.query_one(ParamTable).focus()
+        self.set_focus(self.query_one(ParamTable))
 
     def _say(self, text: str, style: str = "dim") -> None:
         self.query_one("#param-help", Static).update(Text(text, style=style))
 
     # --- actions --------------------------------------------------------------------------------------------
 
+    def check_action(self, action: str, parameters: tuple[object, ...]) -> bool | None:
+        if action == "search":  # (a / typed into a line is text)
+            return not isinstance(self.focused, Input)
+        if action == "edit_row":  # (Enter in a line submits it)
+            return isinstance(self.focused, ParamTable)
+        return True
+
     def action_search(self) -> None:
-        self.query_one("#param-search", Input).focus()
+        self.set_focus(self.query_one("#param-search", Input))
+
+    def action_edit_row(self) -> None:
+        table = self.query_one(ParamTable)
+        if table.row_count:
+            self._open_edit(table.coordinate_to_cell_key(table.cursor_coordinate).row_key.value)
 
     def action_reload(self) -> None:
         self.post_message(ReloadParams())

@@ -121,6 +121,9 @@ _PRECISION = re.compile(r"\.(\d+)[eEfF%]$")
 def _format(value: float, spec: str) -> str:
     if spec.endswith("d"):
         return format(int(round(value)), spec)
+    m = _PRECISION.search(spec)
+    if value == 0.0 or (m and spec[-1] in "fF" and round(value, int(m.group(1))) == 0.0):
+        value = 0.0  # never "-0" (a value that rounds to zero has no sign)
     return format(value, spec)
 
 

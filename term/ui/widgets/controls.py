@@ -2,13 +2,14 @@
 
 from __future__ import annotations
 
+import struct
 from dataclasses import replace
 
 from rich.console import RenderableType
 from rich.text import Text
 
 from term.core.freshness import Reading
-from term.core.protocol import Button, Flag, LogState, Mode
+from term.core.protocol import PARAMS, Button, Flag, LogState, Mode
 from term.input.mapping import FULL, LIFT_ZERO
 from term.session.model import Model
 from term.ui.widgets.bars import cbar, hbar
@@ -90,12 +91,33 @@ def _lift_lines(out: Text, model: Model, lift_trim: Reading, width: int) -> None
         out.append("FIRE pressed: PANIC\n", style="bold red")
 
 
+_GAIN_SPECS = {s.name.removeprefix("ctrl."): s for s in PARAMS.values()  # the gains as the parameter table has them
+               if s.name in ("ctrl.yaw_p", "ctrl.p1", "ctrl.p2", "ctrl.height_p", "ctrl.height_d")}
+
+
+def _shortest_half(value: float) -> float:
+    """The shortest decimal that is the same half float (the Gains packet's "e" field: 0.4 arrives as 0.39990)."""
+    try:
+        want = struct.pack("<e", value)
+    except (OverflowError, struct.error):
+        return value
+    for digits in range(1, 6):
+        short = float(f"{value:.{digits}g}")
+        if struct.pack("<e", short) == want:
+            return short
+    return value
+
+
 def _gains_line(out: Text, gains: list[Reading]) -> None:
     if gains[0].shown:
         out.append("gains ")
         for label, r in zip((" yaw P ", "  P1 ", "  P2 ", "  height P ", "  D "), gains, strict=True):
             out.append(label, style=STALE_STYLE if r.stale else "")
-            out.append_text(figure(r, ".4g"))
+            spec = _GAIN_SPECS.get(r.name)
+            if spec is not None and r.shown and r.value is not None and not r.bound:  # as the table rounds it
+                out.append(spec.text(_shortest_half(r.value)), style=STALE_STYLE if r.stale else "")
+            else:
+                out.append_text(figure(r, ".4g"))
         out.append("\n")
     else:
         out.append("gains  —\n", style="dim")

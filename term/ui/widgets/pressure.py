@@ -50,9 +50,8 @@ class PressureIndicator(ModelView):
             out.append_text(hbar(max(0.0, num(spr)), 0.0, HEIGHT_SPAN_M, width, sp_bar))
             out.append(" ")
             out.append_text(figure(spr, "+6.2f", " m"))
-        else:
-            out.append("(HEIGHT mode)".ljust(width)[:width], style="dim")
-            out.append_text(figure(spr, "+6.2f", " m", style="dim", pad=" "))
+        else:  # not in force: no figure (an old set point read as if it held the craft)
+            out.append("— (HEIGHT mode only)".ljust(width + 9)[:width + 9], style="dim")
         vz = num(vzr)
         arrow = "↑" if vz > 0.05 else "↓" if vz < -0.05 else "·"
         out.append("\nvz       ")
