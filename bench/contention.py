@@ -110,8 +110,8 @@ class BoardChild:
         self.path = line[5:].strip()
         self.ble = ""
         if radio:
-            words = self.proc.stdout.readline().split()  # ble: NAME ADDRESS hci SPEC
-            self.ble = f"{words[2]} {words[4]}" if len(words) >= 5 else ""
+            words = self.proc.stdout.readline().split()  # ble: Quadrupel 1 ADDRESS hci SPEC (term/session/sim.py)
+            self.ble = f"{words[-3]} {words[-1]}" if len(words) >= 5 and words[-2] == "hci" else ""
         self.js: list[tuple[float, int]] = []
         self.events: list[tuple[float, str, int]] = []
         self.gaps: list[float] = []
