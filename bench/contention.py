@@ -188,7 +188,8 @@ async def term_main(port: str, ble: str, seconds: float, seed: int) -> int:
             print(f"stick {t:.6f} {LIFTS[level]}", flush=True)
         print(f"done {time.monotonic():.6f}", flush=True)  # the board's silence after we quit is no failsafe
         screen = " ".join(str(w.render()) for w in app.screen.query("#mode, #events"))
-        losses = [e.text for e in m.events if e.text.startswith(("LINK LOST", "BLE LINK LOST"))]
+        losses = [e.text for e in m.events  # the terminal's own (the board's stage 1 says LINK LOST too)
+                  if e.source != "board" and e.text.startswith(("LINK LOST", "BLE LINK LOST"))]
         print("result " + json.dumps({"losses": losses, "mode": mode_name(m.mode),
                                       "panic_named": "board saw link timeout" in screen}),
               flush=True)
