@@ -81,7 +81,8 @@ def board_main(seed: int, radio: bool) -> int:
             handle(pkt)
 
         def _emit(code: EventCode, arg: int, now: float) -> None:
-            print(f"ev {time.monotonic():.6f} {EventCode(code).name} {int(arg)}", flush=True)
+            mode = board.modes.mode.name  # the mode it was said in (a timeout in SAFE is no PANIC)
+            print(f"ev {time.monotonic():.6f} {EventCode(code).name} {int(arg)} {mode}", flush=True)
             emit(code, arg, now)
 
         board._handle = _handle  # type: ignore[method-assign]
@@ -110,10 +111,10 @@ class BoardChild:
         self.path = line[5:].strip()
         self.ble = ""
         if radio:
-            words = self.proc.stdout.readline().split()  # ble: NAME ADDRESS hci SPEC
-            self.ble = f"{words[2]} {words[4]}" if len(words) >= 5 else ""
+            words = self.proc.stdout.readline().split()  # ble: Quadrupel 1 ADDRESS hci SPEC (term/session/sim.py)
+            self.ble = f"{words[-3]} {words[-1]}" if len(words) >= 5 and words[-2] == "hci" else ""
         self.js: list[tuple[float, int]] = []
-        self.events: list[tuple[float, str, int]] = []
+        self.events: list[tuple[float, str, int, str]] = []
         self.gaps: list[float] = []
         self._done = threading.Event()
         threading.Thread(target=self._read, daemon=True).start()
@@ -121,11 +122,11 @@ class BoardChild:
     def _read(self) -> None:
         assert self.proc.stdout is not None
         for line in self.proc.stdout:
-            parts = line.split(maxsplit=1 if line.startswith("gaps") else 3)
+            parts = line.split(maxsplit=1 if line.startswith("gaps") else 4)
             if parts[0] == "js":
                 self.js.append((float(parts[1]), int(parts[2])))
             elif parts[0] == "ev":
-                self.events.append((float(parts[1]), parts[2], int(parts[3])))
+                self.events.append((float(parts[1]), parts[2], int(parts[3]), parts[4].strip()))
             elif parts[0] == "gaps":
                 self.gaps = json.loads(parts[1])
         self._done.set()
@@ -187,7 +188,8 @@ async def term_main(port: str, ble: str, seconds: float, seed: int) -> int:
             print(f"stick {t:.6f} {LIFTS[level]}", flush=True)
         print(f"done {time.monotonic():.6f}", flush=True)  # the board's silence after we quit is no failsafe
         screen = " ".join(str(w.render()) for w in app.screen.query("#mode, #events"))
-        losses = [e.text for e in m.events if e.text.startswith(("LINK LOST", "BLE LINK LOST"))]
+        losses = [e.text for e in m.events  # the terminal's own (the board's stage 1 says LINK LOST too)
+                  if e.source != "board" and e.text.startswith(("LINK LOST", "BLE LINK LOST"))]
         print("result " + json.dumps({"losses": losses, "mode": mode_name(m.mode),
                                       "panic_named": "board saw link timeout" in screen}),
               flush=True)
@@ -281,7 +283,7 @@ def flight(link: str, per_core: int, freezes: tuple[float, ...], seconds: float,
         board.stop()
     flown = [e for e in board.events if e[0] <= term.done]  # (after the pilot's SAFE the terminal quits)
     stage1 = [e for e in flown if e[1] == "LINK_LOST"]
-    stage2 = [e for e in flown if e[1] == "LINK_TIMEOUT"]
+    stage2 = [e for e in flown if e[1] == "LINK_TIMEOUT" and e[3] not in ("SAFE", "PANIC", "CALIBRATION")]
     lat = []
     for t, lift in term.sticks:
         got = next((r for r, v in board.js if r >= t and v == lift), None)

@@ -21,7 +21,7 @@ async def test_take_off_hover_in_full_and_land() -> None:
         async with app.run_test(size=(120, 44)) as pilot:
             m = app.model
 
-            async def until(cond, timeout: float = 10.0) -> None:  # noqa: ANN001
+            async def until(cond, timeout: float = 30.0) -> None:  # noqa: ANN001
                 async with asyncio.timeout(timeout):
                     while not cond():
                         await pilot.pause(0.02)

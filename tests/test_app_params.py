@@ -27,7 +27,7 @@ async def served(config: Config | None = None, preset: str | None = None) -> Asy
         app = TermApp(SerialTransport(port), joystick=False, config=config)
         async with app.run_test(size=(120, 44)) as pilot:
 
-            async def until(cond: Callable[[], bool], timeout: float = 10.0) -> None:
+            async def until(cond: Callable[[], bool], timeout: float = 30.0) -> None:
                 async with asyncio.timeout(timeout):
                     while not cond():
                         await pilot.pause(0.02)

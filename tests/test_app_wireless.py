@@ -73,7 +73,7 @@ async def test_the_handover_through_the_app_end_to_end() -> None:
         async with app.run_test(size=(120, 44)) as pilot:
             m = app.model
 
-            async def until(cond: Callable[[], bool], timeout: float = 10.0) -> None:
+            async def until(cond: Callable[[], bool], timeout: float = 30.0) -> None:
                 async with asyncio.timeout(timeout):
                     while not cond():
                         await pilot.pause(0.02)
@@ -403,7 +403,7 @@ async def test_no_stale_figure_goes_unmarked_through_a_handover() -> None:
         async with app.run_test(size=(120, 44)) as pilot:
             m = app.model
 
-            async def until(cond: Callable[[], bool], timeout: float = 10.0) -> None:
+            async def until(cond: Callable[[], bool], timeout: float = 30.0) -> None:
                 async with asyncio.timeout(timeout):
                     while not cond():
                         await pilot.pause(0.03)

@@ -14,7 +14,7 @@ from term.core.protocol import Ack, Compact, Decoder, Encoder, Heartbeat, Heartb
 from term.transports.bumble_backend import BumbleClient, BumbleHost, BumbleScanner
 
 
-async def until(condition, timeout: float = 5.0) -> None:
+async def until(condition, timeout: float = 20.0) -> None:
     async with asyncio.timeout(timeout):
         while not condition():
             await asyncio.sleep(0.001)

@@ -108,7 +108,7 @@ async def test_ble_alone_waits_for_the_handover_and_reconnects_a_lost_radio() ->
         async with app.run_test(size=(100, 32)) as pilot:
             m = app.model
 
-            async def until(cond: Callable[[], bool], timeout: float = 10.0) -> None:
+            async def until(cond: Callable[[], bool], timeout: float = 30.0) -> None:
                 async with asyncio.timeout(timeout):
                     while not cond():
                         await pilot.pause(0.02)

@@ -565,3 +565,25 @@ def test_a_burst_of_key_presses_is_merged_not_refused() -> None:
     assert packets(s.data_to_send(0.02)) == [Command(mode, Op.MODE, 2)]
     s.receive(Board()(Ack(mode, Op.MODE, Nak.OK, 0)), 0.03)
     assert packets(s.data_to_send(0.03)) == [Command(down, Op.TRIM_LIFT, -1)]
+
+
+def test_time_the_terminal_could_not_listen_is_not_the_boards_silence() -> None:
+    """Issue 21: a starved terminal (its process got no CPU for 0.7 s) woke, ran its timer before the bytes that
+    waited in the OS, and said LINK LOST with the same millisecond as 'link restored'. The time it could not run
+    (``starved``) is left out of the silence; a board that stays silent is still lost, a timeout later."""
+    from term.core.link import LinkLost
+    from term.core.protocol import Encoder, Heartbeat
+
+    s = LinkSession(0.0, link_timeout=0.5)
+    board = Encoder()
+    s.receive(board.encode(Heartbeat(0, 0)), 0.1)
+    s.starved(0.3, 1.0)  # the terminal's timer, due at 0.3 s, ran at 1.0 s
+    assert not any(type(e) is LinkLost for e in s.poll(1.0))
+    s.data_to_send(1.0)  # (the heartbeat's answer)
+    assert s.next_deadline() == pytest.approx(0.1 + 0.7 + 0.5)
+    s.receive(board.encode(Heartbeat(1, 100)), 1.0)  # what waited in the OS meanwhile
+    assert not s.lost
+    s.starved(1.2, 1.3)
+    assert not any(type(e) is LinkLost for e in s.poll(1.55))  # 0.55 s since the frame, 0.1 s of them starved
+    lost = [e for e in s.poll(1.65) if type(e) is LinkLost]  # the board really is silent: lost after all
+    assert lost and lost[0].silent_s == pytest.approx(0.55)

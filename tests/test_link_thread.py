@@ -26,7 +26,7 @@ from term.transports.serial import SerialTransport
 from tests.conftest import PtyBoard
 
 
-async def until(cond: Callable[[], bool], timeout: float = 10.0) -> None:
+async def until(cond: Callable[[], bool], timeout: float = 30.0) -> None:
     async with asyncio.timeout(timeout):
         while not cond():
             await asyncio.sleep(0.01)

@@ -21,7 +21,7 @@ from term.transports.serial import SerialTransport
 from tests.test_app import LoopBoard, sent
 
 
-async def until(cond: Callable[[], bool], timeout: float = 5.0) -> None:
+async def until(cond: Callable[[], bool], timeout: float = 20.0) -> None:
     async with asyncio.timeout(timeout):
         while not cond():
             await asyncio.sleep(0.005)

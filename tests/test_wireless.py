@@ -361,7 +361,7 @@ class Phone:
         await self.peer.write_value(self.rx, data, with_response=False)
 
 
-async def until(condition, timeout: float = 5.0) -> None:
+async def until(condition, timeout: float = 20.0) -> None:
     """Wait (bounded) for something the stack does asynchronously."""
     async with asyncio.timeout(timeout):
         while not condition():

@@ -20,7 +20,7 @@ from term.transports.ble import BleTransport
 S = WirelessState
 
 
-async def until(condition, timeout: float = 5.0) -> None:
+async def until(condition, timeout: float = 20.0) -> None:
     async with asyncio.timeout(timeout):
         while not condition():
             await asyncio.sleep(0.002)

@@ -14,7 +14,9 @@ A ``LinkSession`` knows the protocol's rules for talking to a board and nothing 
   ``joystick_rate`` times per second, and with ``change_only`` (BLE, and the serial ``stream`` policy) only when
   the value changed, plus a keep-alive every ``keepalive`` seconds, which never delays the next change;
 - it keeps the statistics a pilot needs to trust the link (``stats_at(now)`` / ``stats``), declares the link
-  lost after ``link_timeout`` seconds without a valid frame and restored at the next one;
+  lost after ``link_timeout`` seconds without a valid frame and restored at the next one; time the caller says
+  it could not run (``starved``: its process got no CPU) is not the board's silence, so a starved terminal does
+  not call a loss for frames that waited in the OS;
 - it sends a ``Hello`` at connect and reports a board that speaks another protocol version.
 
 Nothing here reads a clock: every call takes ``now`` (seconds, any monotonic origin). The caller (an asyncio
@@ -233,6 +235,7 @@ class LinkSession:
         self._js_next = -math.inf  # the earliest time the next one may go (the rate limit)
 
         self._last_frame: float | None = None
+        self._deaf: list[tuple[float, float]] = []  # when the caller could not run (``starved``): not silence
         self._last_hb: float | None = None
         self._lost = False
         self._lost_since = 0.0
@@ -372,6 +375,12 @@ class LinkSession:
         self._count_tx(out, now)
         return out
 
+    def starved(self, since: float, until: float) -> None:
+        """The caller could not run from ``since`` to ``until`` (its process got no CPU: a timer that fired that
+        late). The board's frames of that time waited in the OS, so that time is not the board's silence."""
+        if until > since:
+            self._deaf.append((since, until))
+
     def poll(self, now: float) -> list[LinkEvent]:
         """Run the timers: commands that ran out of retries, the link-lost timeout."""
         self._now = now
@@ -386,7 +395,8 @@ class LinkSession:
             return -math.inf
         deadlines = [p.last_sent + self.command_timeout for p in self._inflight.values()]
         if not self._lost:
-            deadlines.append(self._silence_start() + self.link_timeout)
+            start = self._silence_start()
+            deadlines.append(start + self.link_timeout + self._deaf_since(start, None))
         js = self._joystick_deadline()
         if js is not None:
             deadlines.append(js)
@@ -455,6 +465,17 @@ class LinkSession:
     def _silence_start(self) -> float:
         return self._start if self._last_frame is None else self._last_frame
 
+    def _deaf_since(self, start: float, now: float | None) -> float:
+        """How long, since ``start`` (until ``now``; None: all of it), the caller could not listen."""
+        self._deaf = [(a, b) for a, b in self._deaf if b > start]
+        end = math.inf if now is None else now
+        return sum(max(0.0, min(b, end) - max(a, start)) for a, b in self._deaf)
+
+    def _silent(self, now: float) -> float:
+        """The board's silence: since its last frame, less the time the caller could not listen."""
+        start = self._silence_start()
+        return now - start - self._deaf_since(start, now)
+
     def _alloc_id(self) -> int:
         # Consecutive ids (mod 256); at most 1 + max_queued (< 256) are alive, so an id is never reused while
         # its command still waits.
@@ -478,7 +499,7 @@ class LinkSession:
         return None
 
     def _check_timers(self, now: float, events: list[LinkEvent]) -> None:
-        silent = now - self._silence_start()
+        silent = self._silent(now)
         if not self._lost and silent >= self.link_timeout:
             self._lost = True
             self._lost_since = self._silence_start()

@@ -29,6 +29,7 @@ from term.core.protocol import Joystick, Op
 from term.transports.base import Transport, TransportClosed, TransportError
 
 log = logging.getLogger("term.link")
+STARVED_S = 0.05  # a timer this late means this process got no CPU meanwhile (the session leaves that time out)
 
 
 @dataclass(frozen=True, slots=True)
@@ -187,13 +188,18 @@ class Connection:
                 await self._flush()
                 self._deliver(events)
                 with self._lock:
-                    delay = session.next_deadline() - self.clock()
+                    due = session.next_deadline()
+                    delay = due - self.clock()
                 if delay > 0:
                     self._wake.clear()
                     # asyncio.timeout, not wait_for: 3.11's wait_for can swallow the cancel that stop() sends.
                     with contextlib.suppress(TimeoutError):
                         async with asyncio.timeout(min(delay, 3600.0)):
                             await self._wake.wait()
+                    now = self.clock()
+                    if now - due > STARVED_S:  # we could not run (no CPU): not the board's silence
+                        with self._lock:
+                            session.starved(due, now)
         except TransportClosed as exc:
             if self._running:  # closed under us, not by stop(): the link is gone all the same
                 await self._fail(exc)
