@@ -135,3 +135,24 @@ def test_the_instructor_channel_acts_on_the_c_boards_world_and_cable() -> None:
             assert ser.read(4096)
     finally:
         sim.stop()
+
+
+@needs_cc
+def test_a_flood_is_dropped_counted_and_said_once() -> None:
+    """10 KB at once into the C board's 4 KB receive queue: the rest is dropped, counted, and said in one event
+    OVERFLOW (a flood is one event a heartbeat period); the board parses on and answers the retried command."""
+    from fcb_sim.parts import BoardConfig
+    from term.core.protocol import Ack, Command, Decoder, Event, EventCode, Op, encode
+
+    board = cboard.CBoard(BoardConfig(seed=2))
+    dec = Decoder()
+    board.advance(100_000)
+    board.uart_receive(bytes(range(1, 256)) * 40)  # 10200 bytes, no frame in them
+    board.advance(200_000)
+    board.uart_receive(encode(Command(7, Op.MODE, 0)))  # lost: the flood's tail runs into it (one bad frame)
+    board.uart_receive(encode(Command(7, Op.MODE, 0)))  # the terminal's retry
+    board.advance(300_000)
+    pkts = dec.feed(board.uart_transmit())
+    overflows = [p.arg for p in pkts if type(p) is Event and p.code == EventCode.OVERFLOW]
+    assert overflows == [10200 - 4096] and board.rx_overflow == 10200 - 4096
+    assert [p.status for p in pkts if type(p) is Ack and p.cmd_id == 7] == [0]

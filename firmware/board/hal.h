@@ -24,6 +24,8 @@ uint64_t hal_time_us(void);
  * required: returns how many were taken). */
 size_t hal_uart_read(uint8_t *buf, size_t cap);
 size_t hal_uart_write(const uint8_t *data, size_t len);
+/* Bytes the UART's receive queue dropped since boot (it was full): the board reports them (event OVERFLOW). */
+uint32_t hal_uart_dropped(void);
 
 /* IMU: one read of the raw words (gx gy gz ax ay az, chip frame). */
 void hal_imu_read(int16_t out[6]);

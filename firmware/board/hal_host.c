@@ -82,6 +82,11 @@ size_t hal_uart_write(const uint8_t *data, size_t len)
     return len;
 }
 
+uint32_t hal_uart_dropped(void)
+{
+    return cur->rx_dropped;
+}
+
 void hal_imu_read(int16_t out[6])
 {
     cur->imu(cur->time_us, out);

@@ -45,6 +45,11 @@ size_t hal_uart_read(uint8_t *buf, size_t cap)
     return n;
 }
 
+uint32_t hal_uart_dropped(void)
+{
+    return 0; /* TODO: the receive ring buffer's overflow count */
+}
+
 size_t hal_uart_write(const uint8_t *data, size_t len)
 {
     size_t i; /* TODO: a transmit ring buffer drained by the TXDRDY interrupt; blocking here */

@@ -596,6 +596,13 @@ static void task_parse(qb_board_t *b)
 {
     uint8_t buf[QB_PARSE_MAX_BYTES];
     size_t n = hal_uart_read(buf, sizeof buf);
+    uint32_t dropped = hal_uart_dropped();
+    if (dropped > b->overflow_reported && b->now >= b->overflow_report_at) {
+        /* what was dropped since the last report, at most once per heartbeat period (a flood is one event) */
+        send_event(b, QP_EVENT_CODE_OVERFLOW, (int32_t)(dropped - b->overflow_reported));
+        b->overflow_reported = dropped;
+        b->overflow_report_at = b->now + QB_HEARTBEAT_PERIOD_US;
+    }
     qb_receive(b, buf, n);
     if (n == sizeof buf)
         b->flags[QB_T_PARSE] = 1; /* more may be waiting */

@@ -249,6 +249,8 @@ typedef struct qb_board {
     uint64_t deaf[QB_DEAF_SPANS][2];
     uint8_t n_deaf;
     uint64_t lag_max_us, lag_report_at;
+    uint32_t overflow_reported;  /* receive-queue drops already said (event OVERFLOW) */
+    uint64_t overflow_report_at;
 } qb_board_t;
 
 void qb_config_default(qb_config_t *cfg);

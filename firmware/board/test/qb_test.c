@@ -56,6 +56,8 @@ size_t hal_uart_write(const uint8_t *data, size_t len)
     return len;
 }
 
+uint32_t hal_uart_dropped(void) { return 0; }
+
 void hal_imu_read(int16_t out[6])
 {
     int i;
