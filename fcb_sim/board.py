@@ -9,9 +9,11 @@ task table, in the order the scheduler picks (round robin, the report's, or prio
 - ``sensor``: the IMU read, DMP at 200 Hz (quaternion plus raw words) or RAW at 400 Hz (raw words);
 - ``control``: the flight core's control step at the sensor rate, motors to the world;
 - ``baro``: the ADC (battery) and barometer at 20 Hz;
-- ``telemetry``: Attitude and Motion at 50 Hz, Height at 20 Hz, Status and Gains at 5 Hz (over BLE: Compact);
+- ``telemetry``: Attitude and Motion at 50 Hz (``link.telemetry_hz``), Height at 20 Hz, Status and Gains at 5 Hz
+  (over BLE: Compact);
   during a log download, the log chunks instead;
-- ``heartbeat``: the Heartbeat at 10 Hz, and the safety monitor (link silence, battery, tilt -> PANIC);
+- ``heartbeat``: the Heartbeat at 10 Hz (``link.heartbeat_ms``), and the safety monitor (the link failsafe's two
+  stages, battery, tilt -> PANIC; docs/modes.md);
 - ``logging``: one flash-log record per control step while logging is on.
 
 The board's clock advances as the real board's would (the Figure 14 cost model, ``fcb_sim/timing.py``), and the
