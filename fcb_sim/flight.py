@@ -155,9 +155,11 @@ class FlightCore:
         self.height = self.vz = 0.0
 
     def adjust_gain(self, name: str, steps: int) -> float:
-        """Change a gain by ``steps`` key presses (constants.GAIN_STEPS), not below 0; returns the new value."""
+        """Change a gain by ``steps`` key presses (constants.GAIN_STEPS) inside the parameter table's range (as the
+        board's gain keys and SET_PARAM); returns the new value."""
         step = P.GAIN_STEPS[name]
-        value = max(0.0, getattr(self.gains, name) + steps * step)
+        spec = PARAMS[P.GAIN_PARAMS[name]]
+        value = min(spec.hi, max(spec.lo, getattr(self.gains, name) + steps * step))
         setattr(self.gains, name, value)
         return value
 

@@ -159,3 +159,12 @@ def test_a_situation_the_simulator_would_refuse_is_refused_at_load(tmp_path: Pat
     with pytest.raises(LessonError) as info:
         load_lesson(f)
     assert "situation" in str(info.value) and "\n" not in str(info.value)
+
+
+def test_a_folder_of_thousands_of_lesson_files_is_read_only_so_far(tmp_path: Path) -> None:
+    from term.lessons.spec import MAX_FILES
+
+    for i in range(MAX_FILES + 5):
+        (tmp_path / f"{i:05d}.toml").write_text("number = = 1")
+    lessons, skipped = load_lessons([tmp_path])
+    assert len(skipped) == MAX_FILES + 1 and "more than" in skipped[-1] and "\n" not in skipped[-1]

@@ -191,3 +191,11 @@ def test_any_option_text_is_a_number_or_argparses_one_line(text: str) -> None:
             continue
         t = text.strip(" ")
         assert t.isascii() and "_" not in t and isinstance(value, int | float)
+
+
+def test_the_flight_cores_own_gain_step_keeps_the_tables_range_too() -> None:
+    from fcb_sim.flight import FlightCore
+
+    core = FlightCore()
+    assert core.adjust_gain("p2", 1_000_000) == PARAMS[Param.P2].hi
+    assert core.adjust_gain("p2", -1_000_000) == PARAMS[Param.P2].lo

@@ -335,6 +335,7 @@ def maneuvers(tables: list[Any], where: str, actions: Iterable[str] | None = Non
     return tuple(out)
 
 
+MAX_FILES = 200  # lesson files read from one folder
 LESSON_MAX_BYTES = 200_000  # the built-in lessons are 2 to 6 kB
 
 
@@ -399,13 +400,19 @@ def load_lessons(dirs: Iterable[Path] = (), actions: Iterable[str] | None = None
     for d in (BUILTIN, *dirs):
         if not d.is_dir():
             continue
-        for path in sorted(d.glob("*.toml")):
-            if path.name == DEMO.name:
-                continue
+        paths = sorted(p for p in d.glob("*.toml") if p.name != DEMO.name)
+        if len(paths) > MAX_FILES:  # a folder of thousands is not a teacher's: read the first, say so
+            skipped_files = len(paths) - MAX_FILES
+            paths = paths[:MAX_FILES]
+        else:
+            skipped_files = 0
+        for path in paths:
             try:
                 lesson = load_lesson(path, acts)
             except LessonError as exc:
                 skipped.append(str(exc))
                 continue
             lessons[lesson.number] = lesson
+        if skipped_files:
+            skipped.append(f"{d}: more than {MAX_FILES} lesson files; the last {skipped_files} were not read")
     return dict(sorted(lessons.items())), skipped
