@@ -13,6 +13,7 @@ references the C is tested against.
 from __future__ import annotations
 
 import ctypes
+import fcntl
 import os
 import shutil
 import subprocess
@@ -51,12 +52,21 @@ def build(build_dir: Path | None = None) -> Path:
     """The host library, built when missing or older than a source. Raises RuntimeError (one line) if it cannot."""
     out = Path(build_dir) if build_dir is not None else FIRMWARE / "build"
     lib = out / LIBRARY
-    if lib.exists() and lib.stat().st_mtime >= max(p.stat().st_mtime for p in _sources()):
+
+    def fresh() -> bool:
+        return lib.exists() and lib.stat().st_mtime >= max(p.stat().st_mtime for p in _sources())
+
+    if fresh():
         return lib
     if shutil.which(os.environ.get("CC", "cc")) is None or shutil.which("make") is None:
         raise RuntimeError("no C compiler (cc) or make: the Python filter runs")
-    proc = subprocess.run(["make", "-s", "-C", str(FIRMWARE), f"BUILD={out}", "native"], capture_output=True,
-                          text=True)
+    out.mkdir(parents=True, exist_ok=True)
+    with open(out / ".ikfq.lock", "w") as lock:  # another process (a simulator, a test) may be building it too
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        if fresh():
+            return lib
+        proc = subprocess.run(["make", "-s", "-C", str(FIRMWARE), f"BUILD={out}", "native"], capture_output=True,
+                              text=True)
     if proc.returncode != 0:
         raise RuntimeError(f"firmware/board/ikf_q.c does not build: {(proc.stderr or proc.stdout).strip()[-300:]}")
     return lib
