@@ -274,7 +274,14 @@ def run_tasks(samples: list[tuple[float, ...]], seed: int = 1, elf: Path | None 
     host = NativeIKFQ()
     host.update(*samples[0])  # starts it (the start is no per-sample work)
     host._lib.ikfq_set_dt(host._s, samples[1][6])
-    m0.write("tm_filter", host.raw_state())  # one struct layout on both (checked by the outputs below)
+    # the M0 sets itself up from the integers alone (ikfq_init_q: no doubles on the board), then takes the host's
+    # state after the first sample (one struct layout on both: checked by every output below)
+    consts = host.consts(samples[1][6])
+    m0.write("tm_formats", bytes(host._fmt))
+    m0.write("tm_consts", bytes(_consts_struct(consts)))
+    m0.call("tm_filter_init")
+    init_state = m0.read("tm_filter")
+    m0.write("tm_filter", host.raw_state())
     m0.write("tm_gains", struct.pack("<3i", *GAINS_Q16))
     rng = random.Random(seed)
     out = TaskCycles()
@@ -311,11 +318,25 @@ def run_tasks(samples: list[tuple[float, ...]], seed: int = 1, elf: Path | None 
         ae_m0 = struct.unpack("<4h", m0.read("tm_ae"))
         if ae_m0 != tuple(ae_host):
             out.mismatches.append(f"control sample {i}: M0 {ae_m0} host {tuple(ae_host)}")
+    if not _same_constants(init_state, host.raw_state()):
+        out.mismatches.append("the M0's ikfq_init_q gave other constants than the host's ikfq_init")
     m0.call("tm_filter_export")
     st_m0 = struct.unpack("<29q", m0.read("tm_state"))
     if st_m0 != tuple(host.state().values()):
         out.mismatches.append("filter state after the run differs")
     return out
+
+
+def _consts_struct(consts: dict[str, int]) -> Any:
+    from fcb_sim.native import _Consts
+
+    return _Consts(**consts)
+
+
+def _same_constants(a: bytes, b: bytes) -> bool:
+    """The constants' bytes of two ikfq_t: qg_shift .. rest_time (offsets 8 .. 80) and dtq .. kbq (104 .. 124);
+    the doubles between them are the host's alone."""
+    return a[8:80] == b[8:80] and a[104:124] == b[104:124]
 
 
 EXCERPT = Path(__file__).resolve().parent.parent / "tests" / "data" / "broad_07_fast_rotation_excerpt.csv.gz"

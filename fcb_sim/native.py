@@ -13,6 +13,7 @@ references the C is tested against.
 from __future__ import annotations
 
 import ctypes
+import fcntl
 import os
 import shutil
 import subprocess
@@ -42,6 +43,13 @@ class _Params(ctypes.Structure):
         "rest_tau", "rest_bias_tau", "bias_max")]
 
 
+class _Consts(ctypes.Structure):
+    _fields_ = [(n, ctypes.c_int32) for n in (
+        "qg_shift", "q_g0", "k_rot", "drift_noise", "rest_r", "rest_g2", "rest_a2", "bias_max", "inv_g0",
+        "lat_half", "pgg0", "pdd0", "g0_io", "swing_max", "swing_k")] + [("rest_time", ctypes.c_int64)] + [
+        (n, ctypes.c_int32) for n in ("dtq", "dt2q", "dthq", "krq", "kbq")]
+
+
 def _sources() -> list[Path]:
     names = ("ikf_q.c", "ikf_q.h", "ikf_f.c", "ikf_f.h", "ctl_q.c", "ctl_q.h")
     return [FIRMWARE / "board" / n for n in names] + [FIRMWARE / "Makefile"]
@@ -51,12 +59,21 @@ def build(build_dir: Path | None = None) -> Path:
     """The host library, built when missing or older than a source. Raises RuntimeError (one line) if it cannot."""
     out = Path(build_dir) if build_dir is not None else FIRMWARE / "build"
     lib = out / LIBRARY
-    if lib.exists() and lib.stat().st_mtime >= max(p.stat().st_mtime for p in _sources()):
+
+    def fresh() -> bool:
+        return lib.exists() and lib.stat().st_mtime >= max(p.stat().st_mtime for p in _sources())
+
+    if fresh():
         return lib
     if shutil.which(os.environ.get("CC", "cc")) is None or shutil.which("make") is None:
         raise RuntimeError("no C compiler (cc) or make: the Python filter runs")
-    proc = subprocess.run(["make", "-s", "-C", str(FIRMWARE), f"BUILD={out}", "native"], capture_output=True,
-                          text=True)
+    out.mkdir(parents=True, exist_ok=True)
+    with open(out / ".ikfq.lock", "w") as lock:  # another process (a simulator, a test) may be building it too
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        if fresh():
+            return lib
+        proc = subprocess.run(["make", "-s", "-C", str(FIRMWARE), f"BUILD={out}", "native"], capture_output=True,
+                              text=True)
     if proc.returncode != 0:
         raise RuntimeError(f"firmware/board/ikf_q.c does not build: {(proc.stderr or proc.stdout).strip()[-300:]}")
     return lib
@@ -72,6 +89,8 @@ def _load(path: Path) -> ctypes.CDLL:
     lib.ikff_update_q.argtypes = [vp, d, d, d, d, d, d, d, ctypes.POINTER(d)]
     lib.ikff_update_q.restype = None
     lib.ikfq_init.argtypes = [vp, ctypes.POINTER(_Formats), ctypes.POINTER(_Params)]
+    lib.ikfq_init_q.argtypes = [vp, ctypes.POINTER(_Formats), ctypes.POINTER(_Consts)]
+    lib.ikfq_consts.argtypes = [vp, ctypes.POINTER(_Consts)]
     lib.ikfq_reset.argtypes = [vp]
     lib.ikfq_update.argtypes = [vp, d, d, d, d, d, d, d]
     lib.ikfq_update.restype = None
@@ -209,6 +228,21 @@ class NativeIKFQ(QuaternionAnglesMixin):
         lib.ikfq_predicted(self._s, q)
         return q[0], q[1], q[2], q[3]
 
+    CONSTS = ("qg_shift", "q_g0", "k_rot", "drift_noise", "rest_r", "rest_g2", "rest_a2", "bias_max", "inv_g0",
+              "lat_half", "pgg0", "pdd0", "g0_io", "swing_max", "swing_k", "rest_time", "dtq", "dt2q", "dthq", "krq",
+              "kbq")
+
+    def consts(self, dt: float) -> dict[str, int]:
+        """The integers ikfq_init and ikfq_set_dt derive (ikfq_consts_t), for a board's table: no doubles there."""
+        self._lib.ikfq_set_dt(self._s, dt)
+        c = _Consts()
+        self._lib.ikfq_consts(self._s, ctypes.byref(c))
+        return {n: getattr(c, n) for n in self.CONSTS}
+
+    def init_from_consts(self, consts: dict[str, int]) -> None:
+        """ikfq_init_q: the filter set up from the integers alone (as a board without doubles would)."""
+        self._lib.ikfq_init_q(self._s, ctypes.byref(self._fmt), ctypes.byref(_Consts(**consts)))
+
     def raw_state(self) -> bytes:
         """The C struct's bytes (its layout is the M0 build's too: fcb_sim.m0emu starts from it)."""
         return bytes(self._buf)
@@ -235,3 +269,17 @@ def python_state(f: InertialKalmanFilterQ) -> dict[str, int]:
     out.update(gl0=f.gl[0], gl1=f.gl[1], gl2=f.gl[2], al0=f.al[0], al1=f.al[1], al2=f.al[2], rest_t=f.rest_t,
                at_rest=int(f.at_rest), started=int(f._started))
     return {n: out[n] for n in STATE_FIELDS}
+
+
+def constants_c(dt: float = 0.0025) -> str:
+    """A C initializer of ikfq_consts_t for the default parameters and formats at ``dt``."""
+    c = NativeIKFQ().consts(dt)
+    body = ", ".join(f".{k} = {v}" for k, v in c.items())
+    return f"/* fcb_sim.native.constants_c(dt={dt!r}): ikf's defaults, ikf_fixed.Formats() */\n" \
+           f"static const ikfq_consts_t IKFQ_CONSTS = {{{body}}};"
+
+
+if __name__ == "__main__":
+    import sys
+
+    print(constants_c(float(sys.argv[2]) if len(sys.argv) > 2 and sys.argv[1] == "--constants" else 0.0025))

@@ -33,6 +33,15 @@ from term.core.protocol import (
 
 
 @pytest.fixture(autouse=True, scope="session")
+def _the_c_filter_built_first() -> None:
+    """The simulator's RAW filter is C built on first use (fcb_sim.native): built here, before any test starts a
+    simulator whose link would time out while it compiles. Without a compiler the Python filter runs."""
+    from fcb_sim.native import library
+
+    library()
+
+
+@pytest.fixture(autouse=True, scope="session")
 def _user_data_in_a_temporary_directory(tmp_path_factory: pytest.TempPathFactory) -> Iterator[None]:
     """term records every session in the platform's user data directory: a test run keeps its own apart
     (platformdirs reads XDG_DATA_HOME; child processes inherit it)."""

@@ -149,3 +149,19 @@ def test_without_the_c_filter_the_python_one_runs() -> None:
     env = {**os.environ, "QUADRUPEL_PURE_PYTHON": "1"}
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, check=True)
     assert out.stdout.strip() == "InertialKalmanFilterQ InertialKalmanFilter | QUADRUPEL_PURE_PYTHON is set"
+
+
+def test_a_filter_set_up_from_the_integers_alone_runs_the_same() -> None:
+    """ikfq_init_q with the constants ikfq_consts gives (what a board without doubles takes from a table): the same
+    states as ikfq_init on the same Q.io samples."""
+    from fcb_sim.estimation.ikf_fixed import to_q
+    from fcb_sim.native import constants_c
+
+    rows = _rows(EXCERPT, 3000)[2400:2700]
+    a, b = NativeIKFQ(), NativeIKFQ()
+    b.init_from_consts(a.consts(rows[0][6]))
+    for r in rows:
+        g, acc = tuple(to_q(v, 16) for v in r[:3]), tuple(to_q(v, 16) for v in r[3:6])
+        assert a.step_q(g, acc, r[6]) == b.step_q(g, acc, r[6])  # type: ignore[arg-type]
+    assert a.state() == b.state()
+    assert ".dtq = 2684355" in constants_c(0.0025)  # 0.0025 in Q2.30

@@ -199,11 +199,67 @@ void ikfq_init(ikfq_t *s, const ikfq_formats_t *f, const ikfq_params_t *p)
     s->swing_max = (int32_t)((81 * (INT64_C(1) << f->quat)) / 100);
     s->swing_k = (int32_t)((9 * (INT64_C(1) << f->quat)) / 10);
     s->dt_last = 0.0;
+    s->from_table = 0;
     s->dtq = s->dt2q = s->dthq = s->krq = s->kbq = 0;
     /* the rest filters' time constants live only in krq and kbq: keep them for ikfq_set_dt */
     s->rest_tau_ = p->rest_tau;
     s->rest_bias_tau_ = p->rest_bias_tau;
     ikfq_reset(s);
+}
+
+void ikfq_init_q(ikfq_t *s, const ikfq_formats_t *f, const ikfq_consts_t *c)
+{
+    s->f = *f;
+    s->qg_shift = c->qg_shift;
+    s->q_g0 = c->q_g0;
+    s->k_rot = c->k_rot;
+    s->drift_noise = c->drift_noise;
+    s->rest_r = c->rest_r;
+    s->rest_g2 = c->rest_g2;
+    s->rest_a2 = c->rest_a2;
+    s->bias_max = c->bias_max;
+    s->inv_g0 = c->inv_g0;
+    s->lat_half = c->lat_half;
+    s->pgg0 = c->pgg0;
+    s->pdd0 = c->pdd0;
+    s->g0_io = c->g0_io;
+    s->swing_max = c->swing_max;
+    s->swing_k = c->swing_k;
+    s->rest_time = c->rest_time;
+    s->dtq = c->dtq;
+    s->dt2q = c->dt2q;
+    s->dthq = c->dthq;
+    s->krq = c->krq;
+    s->kbq = c->kbq;
+    s->dt_last = 0.0; /* ikfq_update (host) would derive them again from its dt; ikfq_step keeps these */
+    s->rest_tau_ = s->rest_bias_tau_ = 0.0;
+    s->from_table = 1;
+    ikfq_reset(s);
+}
+
+void ikfq_consts(const ikfq_t *s, ikfq_consts_t *c)
+{
+    c->qg_shift = s->qg_shift;
+    c->q_g0 = s->q_g0;
+    c->k_rot = s->k_rot;
+    c->drift_noise = s->drift_noise;
+    c->rest_r = s->rest_r;
+    c->rest_g2 = s->rest_g2;
+    c->rest_a2 = s->rest_a2;
+    c->bias_max = s->bias_max;
+    c->inv_g0 = s->inv_g0;
+    c->lat_half = s->lat_half;
+    c->pgg0 = s->pgg0;
+    c->pdd0 = s->pdd0;
+    c->g0_io = s->g0_io;
+    c->swing_max = s->swing_max;
+    c->swing_k = s->swing_k;
+    c->rest_time = s->rest_time;
+    c->dtq = s->dtq;
+    c->dt2q = s->dt2q;
+    c->dthq = s->dthq;
+    c->krq = s->krq;
+    c->kbq = s->kbq;
 }
 
 void ikfq_reset(ikfq_t *s)
@@ -228,7 +284,7 @@ void ikfq_reset(ikfq_t *s)
 void ikfq_set_dt(ikfq_t *s, double dt)
 {
     const ikfq_formats_t *f = &s->f;
-    if (dt == s->dt_last)
+    if (dt == s->dt_last || s->from_table)
         return;
     s->dt_last = dt;
     s->dtq = ikfq_to_q(dt, f->dt);

@@ -37,6 +37,7 @@ typedef struct {
     int32_t gl[3], al[3];
     int64_t rest_t; /* time at rest, Q.dt, held at rest_time */
     int32_t at_rest, started;
+    int32_t from_table; /* set up by ikfq_init_q: dt is the table's, ikfq_set_dt leaves it */
 } ikfq_t;
 
 /* The defaults of ikf_fixed.Formats and of ikf.InertialKalmanFilter's parameters. */
@@ -44,6 +45,18 @@ void ikfq_default_formats(ikfq_formats_t *f);
 void ikfq_default_params(ikfq_params_t *p);
 
 void ikfq_init(ikfq_t *s, const ikfq_formats_t *f, const ikfq_params_t *p);
+
+/* What ikfq_init and ikfq_set_dt derive from the parameters and dt, as integers: a board with a fixed dt takes
+ * them from a table (`python -m fcb_sim.native --constants` prints one) and links no double arithmetic. */
+typedef struct {
+    int32_t qg_shift, q_g0, k_rot, drift_noise, rest_r, rest_g2, rest_a2, bias_max, inv_g0, lat_half;
+    int32_t pgg0, pdd0, g0_io, swing_max, swing_k;
+    int64_t rest_time;
+    int32_t dtq, dt2q, dthq, krq, kbq;
+} ikfq_consts_t;
+
+void ikfq_init_q(ikfq_t *s, const ikfq_formats_t *f, const ikfq_consts_t *c);
+void ikfq_consts(const ikfq_t *s, ikfq_consts_t *c); /* an initialised filter's constants (for the table) */
 void ikfq_reset(ikfq_t *s);
 void ikfq_set_dt(ikfq_t *s, double dt);
 

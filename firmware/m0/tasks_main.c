@@ -4,27 +4,25 @@
 #include "ctl_q.h"
 #include "ikf_q.h"
 
-void tm_filter_init(double dt);
+void tm_filter_init(void);
 void tm_filter_step(void);
 void tm_filter_export(void);
 void tm_control_step(void);
 void tasks_main(void);
 
 ikfq_t tm_filter;
+ikfq_formats_t tm_formats;
+ikfq_consts_t tm_consts;
 int32_t tm_g[3], tm_a[3], tm_q[4], tm_angles[2];
 int64_t tm_state[29];
 ctlq_gains_t tm_gains;
 ctlq_in_t tm_in;
 int16_t tm_ae[4];
 
-void tm_filter_init(double dt)
+/* From the constants the emulator wrote (a board would hold them in a table): no double arithmetic linked. */
+void tm_filter_init(void)
 {
-    ikfq_formats_t f;
-    ikfq_params_t p;
-    ikfq_default_formats(&f);
-    ikfq_default_params(&p);
-    ikfq_init(&tm_filter, &f, &p);
-    ikfq_set_dt(&tm_filter, dt);
+    ikfq_init_q(&tm_filter, &tm_formats, &tm_consts);
 }
 
 /* The filter task: a sample in, the attitude and the angles the control law reads out. */
@@ -48,7 +46,7 @@ void tm_control_step(void)
 /* The ELF's entry: it reaches every entry point, so --gc-sections keeps them (the emulator never runs it). */
 void tasks_main(void)
 {
-    tm_filter_init(0.0025);
+    tm_filter_init();
     for (;;) {
         tm_filter_step();
         tm_filter_export();
