@@ -310,3 +310,11 @@ def test_without_the_sdk_foxglove_says_how_to_add_it_in_one_line(tmp_path: Path,
     assert err.count("\n") == 1 and "pip install 'quadrupel[foxglove]'" in err, err
     assert main(["replay", str(rec.path), "--foxglove", "nope"]) == 2
     assert "--foxglove takes [HOST:]PORT" in capsys.readouterr().err
+
+
+def test_the_estimates_pose_is_the_frame_transform_as_json() -> None:
+    from term.data.channels import craft_pose
+
+    for args in ((WALL, 1.25, 0.1, -0.2, 3.0), (WALL + 999, -0.07, 0.0, 0.0, 0.0), (0, 0.0, -1.5, 1.4, -3.1)):
+        t_ns, up, phi, theta, psi = args
+        assert json.loads(craft_pose(*args)) == frame_transform(t_ns, CRAFT, (0.0, 0.0, up), phi, theta, psi)
