@@ -577,6 +577,25 @@ def _logged(t: int, data: bytes) -> LoggedEvent | None:
         return None
 
 
+def decoded_only(path: Path) -> bool:
+    """Whether ``path`` is a ``term export`` MCAP without ``--raw``: decoded channels and no link bytes, so
+    nothing a replay or a plot can decode (from the file's summary; False if it has none)."""
+    try:
+        with path.open("rb") as f:
+            summary = make_reader(f).get_summary()
+    except Exception:  # no summary (cut short), not MCAP: not an export
+        return False
+    if summary is None:
+        return False
+    topics = [c.topic.strip("/").split("/") for c in summary.channels.values()]
+    raw = any(len(t) == 2 and t[1] in ("rx", "tx") for t in topics)
+    return not raw and any(len(t) == 3 and t[1] in ("rx", "tx") for t in topics)
+
+
+NOT_REPLAYABLE = "is a 'term export' without --raw (decoded values only): give the session recording itself, " \
+                 "or an export made with --raw"
+
+
 def iter_session(path: Path) -> Iterator[Item]:
     """Every item of the session ``path`` belongs to, all its parts in order."""
     for part in session_parts(path):

@@ -32,12 +32,14 @@ from term.core.events import Fatal, FromLink, LinkUp, Note, StickSet
 from term.core.link import PacketReceived
 from term.core.protocol import Decoder, Joystick
 from term.data.recording import (
+    NOT_REPLAYABLE,
     LinkBytes,
     LoggedEvent,
     Recording,
     RecordingError,
     StationRecord,
     decode_event,
+    decoded_only,
     iter_file,
     session_parts,
 )
@@ -147,6 +149,8 @@ class Replay:
         have their summary (closed) is read as the playback goes (the first frame of an hour's recording at once),
         one cut short is read whole first."""
         parts = session_parts(Path(path))
+        if decoded_only(Path(path)):
+            raise RecordingError(f"{path} {NOT_REPLAYABLE}")
         found = _summaries(parts)
         if found is not None:
             has_station, end_ns, meta = found
