@@ -581,7 +581,7 @@ def decoded_only(path: Path) -> bool:
     """Whether ``path`` is a ``term export`` MCAP without ``--raw``: decoded channels and no link bytes, so
     nothing a replay or a plot can decode (from the file's summary; False if it has none)."""
     try:
-        with path.open("rb") as f:
+        with open_user_file(path, RECORDING_MAX_BYTES, "session recording") as f:  # never a FIFO
             summary = make_reader(f).get_summary()
     except Exception:  # no summary (cut short), not MCAP: not an export
         return False

@@ -31,6 +31,7 @@ from typing import Any
 from term.core.events import Fatal, FromLink, LinkUp, Note, StickSet
 from term.core.link import PacketReceived
 from term.core.protocol import Decoder, Joystick
+from term.core.userfile import RECORDING_MAX_BYTES, open_user_file
 from term.data.recording import (
     NOT_REPLAYABLE,
     LinkBytes,
@@ -109,7 +110,7 @@ def _summaries(parts: list[Path]) -> tuple[bool, int, dict[str, str]] | None:
     has_station, end_ns, meta = False, 0, {}
     for i, part in enumerate(parts):
         try:
-            with part.open("rb") as f:
+            with open_user_file(part, RECORDING_MAX_BYTES, "session recording") as f:  # never a FIFO
                 reader = make_reader(f)
                 summary = reader.get_summary()
                 if summary is None or summary.statistics is None:
