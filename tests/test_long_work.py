@@ -85,3 +85,24 @@ def test_the_summary_reads_never_hang_on_a_fifo(tmp_path: Path, reader: str) -> 
     t.join(30)
     assert not t.is_alive(), f"{reader} hangs on a FIFO"
     assert said and "\n" not in said[0] and str(path) in said[0], said
+
+
+def test_a_chunk_claiming_a_huge_size_is_one_line_not_an_allocation(tmp_path: Path, session: Path) -> None:
+    import struct
+
+    from mcap.opcode import Opcode
+
+    from term.data.recording import RecordingError
+
+    data = bytearray(session.read_bytes())
+    pos = 8
+    while pos < len(data):  # the first chunk's uncompressed size: 2**60 bytes
+        op, length = struct.unpack_from("<BQ", data, pos)
+        if op == Opcode.CHUNK:
+            struct.pack_into("<Q", data, pos + 9 + 16, 2**60)
+            break
+        pos += 9 + length
+    bad = tmp_path / "x.mcap"
+    bad.write_bytes(bytes(data))
+    with pytest.raises(RecordingError, match="damaged near byte .* \\(ValueError\\)"):
+        list(iter_file(bad))

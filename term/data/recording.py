@@ -434,6 +434,8 @@ def _valid_prefix(f: IO[bytes], size: int) -> tuple[int, bool]:
 
 
 _HEAD = struct.Struct("<BQ")  # a record's opcode and length
+_INSIDE = [0]  # _walk's ``at`` inside a chunk
+CHUNK_MAX_BYTES = 64 * 1024 * 1024  # a chunk's records, decompressed (the recorder's and the exports' are ~1 MB)
 _MSG = struct.Struct("<HIQQ")  # a Message's channel id, sequence, log time, publish time
 _CHUNK = struct.Struct("<QQQI")  # a Chunk's start and end times, uncompressed size and CRC
 
@@ -479,14 +481,16 @@ def _walk(buf: memoryview, start: int, end: int, at: list[int]) -> Iterator[tupl
         if opcode == Opcode.MESSAGE:
             ch, _, log_time, _ = _MSG.unpack_from(buf, body)
             yield ("m", ch, log_time, bytes(buf[body + 22 : pos]))
-        elif opcode == Opcode.CHUNK:
+        elif opcode == Opcode.CHUNK and at is not _INSIDE:  # (a chunk holds no chunk: no nesting to recurse on)
             _, _, size, crc = _CHUNK.unpack_from(buf, body)
+            if size > CHUNK_MAX_BYTES:  # a hostile size would be allocated before a byte is checked
+                raise ValueError("chunk too large")
             compression, q = _string(buf, body + 28)
             (n,) = struct.unpack_from("<Q", buf, q)
             inner = _decompress(compression, buf[q + 8 : q + 8 + n], size)
             if len(inner) != size or (crc and zlib.crc32(inner) != crc):
                 raise ValueError("chunk CRC")
-            yield from _walk(memoryview(inner), 0, len(inner), [0])
+            yield from _walk(memoryview(inner), 0, len(inner), _INSIDE)
         elif opcode == Opcode.CHANNEL:
             (cid,) = struct.unpack_from("<H", buf, body)
             topic, _ = _string(buf, body + 4)
