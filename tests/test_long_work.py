@@ -52,3 +52,57 @@ def test_export_and_plot_say_how_far_they_are(session: Path, tmp_path: Path) -> 
     calls.clear()
     plot_log(session, tmp_path / "p.png", ["phi"], progress=lambda done, total: calls.append((done, total)))
     assert calls[0] == (0, total) and calls[-1] == (total, total)
+
+
+@pytest.mark.parametrize("reader", ["replay", "export", "plot"])
+def test_the_summary_reads_never_hang_on_a_fifo(tmp_path: Path, reader: str) -> None:
+    """The indexed replay and the progress bars read a recording's summary first: through the one reader too, so
+    a FIFO named like a recording is one line (a daemon thread guards against a hang: a watchdog, not a timing)."""
+    import os
+    import threading
+
+    from term.data.plot import PlotError
+    from term.data.recording import RecordingError
+    from term.data.replay import Replay
+
+    path = tmp_path / "session.mcap"
+    os.mkfifo(path)
+    said: list[str] = []
+
+    def run() -> None:
+        try:
+            if reader == "replay":
+                Replay.load(path)
+            elif reader == "export":
+                export(path, tmp_path / "out.mcap", progress=lambda done, total: None)
+            else:
+                plot_log(path, tmp_path / "p.png", progress=lambda done, total: None)
+        except (RecordingError, PlotError, ValueError) as exc:
+            said.append(str(exc))
+
+    t = threading.Thread(target=run, daemon=True)
+    t.start()
+    t.join(30)
+    assert not t.is_alive(), f"{reader} hangs on a FIFO"
+    assert said and "\n" not in said[0] and str(path) in said[0], said
+
+
+def test_a_chunk_claiming_a_huge_size_is_one_line_not_an_allocation(tmp_path: Path, session: Path) -> None:
+    import struct
+
+    from mcap.opcode import Opcode
+
+    from term.data.recording import RecordingError
+
+    data = bytearray(session.read_bytes())
+    pos = 8
+    while pos < len(data):  # the first chunk's uncompressed size: 2**60 bytes
+        op, length = struct.unpack_from("<BQ", data, pos)
+        if op == Opcode.CHUNK:
+            struct.pack_into("<Q", data, pos + 9 + 16, 2**60)
+            break
+        pos += 9 + length
+    bad = tmp_path / "x.mcap"
+    bad.write_bytes(bytes(data))
+    with pytest.raises(RecordingError, match="damaged near byte .* \\(ValueError\\)"):
+        list(iter_file(bad))

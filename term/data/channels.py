@@ -153,6 +153,15 @@ def frame_transform(t_ns: int, child: str, xyz: tuple[float, float, float], phi:
 
 
 _CDEG = math.pi / 18000.0  # rad per 0.01° (the attitude's unit on the wire)
+# frame_transform's JSON for the estimate, as one format string (a pose goes with every attitude: the hot path)
+_POSE = ('{"timestamp": {"sec": %d, "nsec": %d}, "parent_frame_id": "' + ROOM + '", "child_frame_id": "' + CRAFT
+         + '", "translation": {"x": 0.0, "y": 0.0, "z": %r}, "rotation": {"x": %r, "y": %r, "z": %r, "w": %r}}')
+
+
+def craft_pose(t_ns: int, up: float, phi: float, theta: float, psi: float) -> bytes:
+    """``json.dumps(frame_transform(t_ns, CRAFT, (0, 0, up), phi, theta, psi))``, numerically, as bytes."""
+    q = quaternion(phi, -theta, -psi)
+    return (_POSE % (t_ns // 1_000_000_000, t_ns % 1_000_000_000, up, q["x"], q["y"], q["z"], q["w"])).encode()
 
 
 class Channels:
@@ -177,8 +186,8 @@ class Channels:
             return out
         if kind is Attitude or kind is Compact:
             up = self._height.get(link, 0.0)
-            out.append((pose_channel(link), t_ns, frame_transform(
-                t_ns, CRAFT, (0.0, 0.0, up), pkt.phi * _CDEG, pkt.theta * _CDEG, pkt.psi * _CDEG)))
+            out.append((pose_channel(link), t_ns,
+                        craft_pose(t_ns, up, pkt.phi * _CDEG, pkt.theta * _CDEG, pkt.psi * _CDEG)))
         elif kind is Height or kind is Compact2:
             self._height[link] = pkt.height * 0.01  # cm (the table's Height and Compact2)
         return out

@@ -235,7 +235,7 @@ def message_count(src: Path) -> int | None:
     total = 0
     for part in session_parts(src) if src.parent.exists() else [src]:
         try:
-            with part.open("rb") as f:
+            with open_user_file(part, RECORDING_MAX_BYTES, "session recording") as f:  # never a FIFO
                 summary = make_reader(f).get_summary()
         except Exception:  # a file cut short has no summary: the mcap package's reader gives up on it
             return None

@@ -257,6 +257,10 @@ def read_session(path: Path, progress: Any = None) -> Source:
     except RecordingError as exc:
         raise PlotError(str(exc)) from None
     if not n:
+        from term.data.recording import NOT_REPLAYABLE, decoded_only
+
+        if decoded_only(path):
+            raise PlotError(f"{path} {NOT_REPLAYABLE}")
         raise PlotError(f"{path} holds no telemetry from the board (a session without a link up?)")
     traces: dict[str, list[Trace]] = {}
     for (name, _link), tr in per_link.items():

@@ -434,6 +434,8 @@ def _valid_prefix(f: IO[bytes], size: int) -> tuple[int, bool]:
 
 
 _HEAD = struct.Struct("<BQ")  # a record's opcode and length
+_INSIDE = [0]  # _walk's ``at`` inside a chunk
+CHUNK_MAX_BYTES = 64 * 1024 * 1024  # a chunk's records, decompressed (the recorder's and the exports' are ~1 MB)
 _MSG = struct.Struct("<HIQQ")  # a Message's channel id, sequence, log time, publish time
 _CHUNK = struct.Struct("<QQQI")  # a Chunk's start and end times, uncompressed size and CRC
 
@@ -479,14 +481,16 @@ def _walk(buf: memoryview, start: int, end: int, at: list[int]) -> Iterator[tupl
         if opcode == Opcode.MESSAGE:
             ch, _, log_time, _ = _MSG.unpack_from(buf, body)
             yield ("m", ch, log_time, bytes(buf[body + 22 : pos]))
-        elif opcode == Opcode.CHUNK:
+        elif opcode == Opcode.CHUNK and at is not _INSIDE:  # (a chunk holds no chunk: no nesting to recurse on)
             _, _, size, crc = _CHUNK.unpack_from(buf, body)
+            if size > CHUNK_MAX_BYTES:  # a hostile size would be allocated before a byte is checked
+                raise ValueError("chunk too large")
             compression, q = _string(buf, body + 28)
             (n,) = struct.unpack_from("<Q", buf, q)
             inner = _decompress(compression, buf[q + 8 : q + 8 + n], size)
             if len(inner) != size or (crc and zlib.crc32(inner) != crc):
                 raise ValueError("chunk CRC")
-            yield from _walk(memoryview(inner), 0, len(inner), [0])
+            yield from _walk(memoryview(inner), 0, len(inner), _INSIDE)
         elif opcode == Opcode.CHANNEL:
             (cid,) = struct.unpack_from("<H", buf, body)
             topic, _ = _string(buf, body + 4)
@@ -575,6 +579,25 @@ def _logged(t: int, data: bytes) -> LoggedEvent | None:
                            str(d.get("message", "")))
     except (ValueError, TypeError, AttributeError, RecursionError):
         return None
+
+
+def decoded_only(path: Path) -> bool:
+    """Whether ``path`` is a ``term export`` MCAP without ``--raw``: decoded channels and no link bytes, so
+    nothing a replay or a plot can decode (from the file's summary; False if it has none)."""
+    try:
+        with open_user_file(path, RECORDING_MAX_BYTES, "session recording") as f:  # never a FIFO
+            summary = make_reader(f).get_summary()
+    except Exception:  # no summary (cut short), not MCAP: not an export
+        return False
+    if summary is None:
+        return False
+    topics = [c.topic.strip("/").split("/") for c in summary.channels.values()]
+    raw = any(len(t) == 2 and t[1] in ("rx", "tx") for t in topics)
+    return not raw and any(len(t) == 3 and t[1] in ("rx", "tx") for t in topics)
+
+
+NOT_REPLAYABLE = "is a 'term export' without --raw (decoded values only): give the session recording itself, " \
+                 "or an export made with --raw"
 
 
 def iter_session(path: Path) -> Iterator[Item]:

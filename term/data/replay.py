@@ -31,13 +31,16 @@ from typing import Any
 from term.core.events import Fatal, FromLink, LinkUp, Note, StickSet
 from term.core.link import PacketReceived
 from term.core.protocol import Decoder, Joystick
+from term.core.userfile import RECORDING_MAX_BYTES, open_user_file
 from term.data.recording import (
+    NOT_REPLAYABLE,
     LinkBytes,
     LoggedEvent,
     Recording,
     RecordingError,
     StationRecord,
     decode_event,
+    decoded_only,
     iter_file,
     session_parts,
 )
@@ -107,7 +110,7 @@ def _summaries(parts: list[Path]) -> tuple[bool, int, dict[str, str]] | None:
     has_station, end_ns, meta = False, 0, {}
     for i, part in enumerate(parts):
         try:
-            with part.open("rb") as f:
+            with open_user_file(part, RECORDING_MAX_BYTES, "session recording") as f:  # never a FIFO
                 reader = make_reader(f)
                 summary = reader.get_summary()
                 if summary is None or summary.statistics is None:
@@ -147,6 +150,8 @@ class Replay:
         have their summary (closed) is read as the playback goes (the first frame of an hour's recording at once),
         one cut short is read whole first."""
         parts = session_parts(Path(path))
+        if decoded_only(Path(path)):
+            raise RecordingError(f"{path} {NOT_REPLAYABLE}")
         found = _summaries(parts)
         if found is not None:
             has_station, end_ns, meta = found
