@@ -84,7 +84,7 @@ def _timed_plots(drawn: list[float]) -> Any:
 
 async def run(seconds: float, render_hz: float | None, seed: int, policy: str = "stream",
               record: bool = True, link_thread: bool = True) -> dict[str, Any]:
-    from term.core.protocol import Op, Param, param_arg
+    from term.core.protocol import PARAMS, Op, Param, param_arg
     from term.session.sim import SimBoard
     from term.transports.serial import SerialTransport
     from term.ui.app import TermApp
@@ -120,7 +120,8 @@ async def run(seconds: float, render_hz: float | None, seed: int, policy: str = 
                         await asyncio.sleep(0.02)
 
             await until(lambda: app.model.attitude is not None)
-            app.send(Op.SET_PARAM, param_arg(Param.TELEMETRY_HZ, 100))  # telemetry at the board's full rate
+            full = PARAMS[Param.TELEMETRY_HZ].to_raw(100.0)  # a float parameter: raw is value / scale
+            app.send(Op.SET_PARAM, param_arg(Param.TELEMETRY_HZ, full))  # telemetry at the board's full rate
             await asyncio.sleep(1.0)
             for screen, key in (("flight", None), ("plots", "f8")):
                 if key:
