@@ -103,7 +103,11 @@ def _shortest_half(value: float) -> float:
         return value
     for digits in range(1, 6):
         short = float(f"{value:.{digits}g}")
-        if struct.pack("<e", short) == want:
+        try:
+            same = struct.pack("<e", short) == want
+        except OverflowError:  # 65504, the largest half, rounds to 7e+04 at one digit: not a half at all
+            continue
+        if same:
             return short
     return value
 

@@ -22,9 +22,10 @@ class PressureIndicator(ModelView):
         return model.mode == Mode.HEIGHT
 
     def render_model(self, model: Model, now: float) -> RenderableType:
-        p, temp, hr, spr, vzr = (self.read(model, n, now)
-                                 for n in ("pressure", "temperature", "height", "setpoint", "vz"))
-        self.mark(p, hr, spr, vzr, temp)
+        hold = model.mode == Mode.HEIGHT or bool(model.flags & Flag.HEIGHT_HOLD)
+        p, temp, hr, vzr = (self.read(model, n, now) for n in ("pressure", "temperature", "height", "vz"))
+        spr = self.read(model, "setpoint", now, figure=hold)  # a figure only while it is in force
+        self.mark(p, hr, vzr, temp, *((spr,) if hold else ()))
         out = Text()
         if not (p.known or hr.known):  # over BLE alone the height comes without the pressure (Compact2)
             out.append("pressure  —\nheight    —\nvz        —")
@@ -43,7 +44,6 @@ class PressureIndicator(ModelView):
         out.append_text(hbar(max(0.0, num(hr)), 0.0, HEIGHT_SPAN_M, width, bar))
         out.append(" ")
         out.append_text(figure(hr, "+6.2f", " m"))
-        hold = model.mode == Mode.HEIGHT or bool(model.flags & Flag.HEIGHT_HOLD)
         out.append("\nset pt   ")
         if hold:
             sp_bar = STALE_STYLE if spr.stale else "magenta"
