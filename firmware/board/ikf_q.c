@@ -12,7 +12,7 @@
 #define REST_T_CAP (INT64_C(1) << 62)
 
 /* FMT(s): the filter's formats. Built with -DIKFQ_DEFAULT_FORMATS (the C board) they are ikf_fixed.Formats()'s
- * at compile time, whatever the set-up was given: every shift is then an immediate, 2 KB less on the Cortex-M0. */
+ * at compile time, whatever the set-up was given: every shift is then an immediate (0.4 KB less on the Cortex-M0). */
 #ifdef IKFQ_DEFAULT_FORMATS
 static const ikfq_formats_t DEFAULT_FORMATS = {16, 30, 30, 24, 24, 28, 30};
 #define FMT(s) DEFAULT_FORMATS
