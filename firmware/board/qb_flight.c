@@ -82,16 +82,16 @@ static void ikf_set_dt(qb_ikf_t *f, qb_real dt)
 
 void qb_ikf_update(qb_ikf_t *f, qb_real gx, qb_real gy, qb_real gz, qb_real ax, qb_real ay, qb_real az, qb_real dt)
 {
-    const int io = IKF_FORMATS.io;
+    const qb_real v[6] = {gx, gy, gz, ax, ay, az};
     int32_t g[3], a[3];
+    int i;
+    /* ikfq_update in qb_real: its doubles would cost the M0 the soft-double routines */
     if (!(dt > 0.0) || !isfinite(gx + gy + gz + ax + ay + az + dt))
         return; /* as ikf_fixed.py: the sample is skipped */
-    g[0] = ikf_to_q(gx, io);
-    g[1] = ikf_to_q(gy, io);
-    g[2] = ikf_to_q(gz, io);
-    a[0] = ikf_to_q(ax, io);
-    a[1] = ikf_to_q(ay, io);
-    a[2] = ikf_to_q(az, io);
+    for (i = 0; i < 3; i++) {
+        g[i] = ikf_to_q(v[i], IKF_FORMATS.io);
+        a[i] = ikf_to_q(v[3 + i], IKF_FORMATS.io);
+    }
     if (f->q.started)
         ikf_set_dt(f, dt);
     ikfq_step(&f->q, g, a);
