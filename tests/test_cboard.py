@@ -156,3 +156,54 @@ def test_a_flood_is_dropped_counted_and_said_once() -> None:
     overflows = [p.arg for p in pkts if type(p) is Event and p.code == EventCode.OVERFLOW]
     assert overflows == [10200 - 4096] and board.rx_overflow == 10200 - 4096
     assert [p.status for p in pkts if type(p) is Ack and p.cmd_id == 7] == [0]
+
+
+def _board_filter_rows() -> list[tuple[float, ...]]:
+    """BROAD trial 07's excerpt (still, then fast rotation) at the dts the board measures: 81 and 82 RTC ticks on
+    the RAW path's 400 Hz, 0.005 s on the DMP path's 200 Hz."""
+    import csv
+    import gzip
+
+    path = Path(__file__).parent / "data" / "broad_07_fast_rotation_excerpt.csv.gz"
+    with gzip.open(path, "rt", newline="") as fh:
+        rows = [tuple(float(r[k]) for k in ("gx", "gy", "gz", "ax", "ay", "az")) for r in csv.DictReader(fh)]
+    dts = (81 / 32768, 82 / 32768, 81 / 32768, 0.005)
+    return [(*r, dts[i % len(dts)]) for i, r in enumerate(rows[:3000])]
+
+
+@needs_cc
+def test_the_boards_filter_is_ikf_fixed_bit_for_bit_at_the_boards_dts() -> None:
+    """The C board's RAW filter (qb_ikf_*: ikf_q.c set up from the integer table, its dt constants derived from
+    each measured dt) and ikf_fixed.py: the same integers after every sample."""
+    import ctypes
+
+    from fcb_sim.estimation.ikf_fixed import InertialKalmanFilterQ
+    from fcb_sim.native import STATE_FIELDS, python_state
+
+    lib = ctypes.CDLL(str(cboard.library_path()))
+    dbl = ctypes.c_double
+    lib.qb_ikf_update.argtypes = [ctypes.c_void_p, *([dbl] * 7)]
+    lib.ikfq_size.restype = ctypes.c_uint
+    f = (ctypes.c_int64 * (lib.ikfq_size() // 8 + 4))()  # qb_ikf_t: an ikfq_t first, then the dt it was set for
+    lib.qb_ikf_reset(f)
+    py = InertialKalmanFilterQ()
+    out = (ctypes.c_int64 * len(STATE_FIELDS))()
+    for i, s in enumerate(_board_filter_rows()):
+        py.update(*s)
+        lib.qb_ikf_update(f, *s)
+        lib.ikfq_state(f, out)
+        c = dict(zip(STATE_FIELDS, out, strict=True))
+        assert c == python_state(py), (i, s, {k: (v, c[k]) for k, v in python_state(py).items() if v != c[k]})
+
+
+def test_the_boards_constants_table_is_what_fcb_sim_native_prints() -> None:
+    """qb_flight.c's IKF_CONSTS (ikf's defaults as integers, so the M0 links no double set-up) is still the table
+    `python -m fcb_sim.native --constants 0.0025` prints."""
+    from fcb_sim.native import NativeIKFQ, library, why_not
+
+    if library() is None:
+        pytest.skip(f"the C filter is not built here: {why_not()}")
+    src = (FIRMWARE / "board" / "qb_flight.c").read_text()
+    body = re.search(r"ikfq_consts_t IKF_CONSTS = \{(.*?)\};", src, re.S).group(1)
+    table = {k: int(v) for k, v in re.findall(r"\.(\w+) = (-?\d+)", body)}
+    assert table == NativeIKFQ().consts(0.0025)

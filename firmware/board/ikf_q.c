@@ -11,6 +11,15 @@
 #define P_GG0 0.1
 #define REST_T_CAP (INT64_C(1) << 62)
 
+/* FMT(s): the filter's formats. Built with -DIKFQ_DEFAULT_FORMATS (the C board) they are ikf_fixed.Formats()'s
+ * at compile time, whatever the set-up was given: every shift is then an immediate (0.4 KB less on the Cortex-M0). */
+#ifdef IKFQ_DEFAULT_FORMATS
+static const ikfq_formats_t DEFAULT_FORMATS = {16, 30, 30, 24, 24, 28, 30};
+#define FMT(s) DEFAULT_FORMATS
+#else
+#define FMT(s) ((s)->f)
+#endif
+
 static int32_t sat(int64_t v)
 {
     return v > I32_MAX ? I32_MAX : v < I32_MIN ? I32_MIN : (int32_t)v;
@@ -265,7 +274,7 @@ void ikfq_consts(const ikfq_t *s, ikfq_consts_t *c)
 void ikfq_reset(ikfq_t *s)
 {
     int i;
-    s->qw = INT32_C(1) << s->f.quat;
+    s->qw = INT32_C(1) << FMT(s).quat;
     s->qx = s->qy = s->qz = 0;
     s->vx = s->vy = s->dx = s->dy = 0;
     s->pvv = s->pvg = s->pvd = s->pgd = 0;
@@ -283,7 +292,7 @@ void ikfq_reset(ikfq_t *s)
 
 void ikfq_set_dt(ikfq_t *s, double dt)
 {
-    const ikfq_formats_t *f = &s->f;
+    const ikfq_formats_t *f = &FMT(s);
     if (dt == s->dt_last || s->from_table)
         return;
     s->dt_last = dt;
@@ -297,7 +306,7 @@ void ikfq_set_dt(ikfq_t *s, double dt)
 /* q (x) (cos h, sin h * axis) for the half-angle vector h (Q.quat), by the 4th-order series */
 static void rotate(const ikfq_t *s, int64_t hx, int64_t hy, int64_t hz, int32_t out[4])
 {
-    unsigned qb = s->f.quat;
+    unsigned qb = FMT(s).quat;
     int64_t one = INT64_C(1) << qb, h2, h4, c, sn, dx, dy, dz, w = s->qw, x = s->qx, y = s->qy, z = s->qz;
     h2 = (int64_t)MUL(hx, hx, qb) + MUL(hy, hy, qb) + MUL(hz, hz, qb);
     if (h2 > one >> 4) { /* a half step over 0.25 rad: beyond the series' 1e-6; clip it */
@@ -321,7 +330,7 @@ static void rotate(const ikfq_t *s, int64_t hx, int64_t hy, int64_t hz, int32_t 
 
 void ikfq_predicted(const ikfq_t *s, int32_t q[4])
 {
-    unsigned sh = s->f.bias + s->f.dt - s->f.quat;
+    unsigned sh = FMT(s).bias + FMT(s).dt - FMT(s).quat;
     int64_t lat = s->lat_half;
     if (lat == 0 || (s->rx == 0 && s->ry == 0 && s->rz == 0)) {
         q[0] = s->qw;
@@ -341,7 +350,7 @@ static int32_t clamp(int32_t v, int32_t m)
 /* Step 1: rest detection and the bias at rest (gyro g in Q.bias, accelerometer a in Q.io) */
 static void rest(ikfq_t *s, const int32_t g[3], const int32_t a[3])
 {
-    unsigned io = s->f.io, cb = s->f.cov;
+    unsigned io = FMT(s).io, cb = FMT(s).cov;
     int64_t dg = 0, da = 0;
     int32_t m = s->bias_max;
     int i, still;
@@ -372,7 +381,7 @@ static void rest(ikfq_t *s, const int32_t g[3], const int32_t a[3])
 /* Step 3: the Kalman filter on (V, G_h, D), fed the horizontal specific force and the turn rate (Q.io) */
 static void gravity(ikfq_t *s, int32_t fx, int32_t fy, int64_t rate, int32_t *gxh_out, int32_t *gyh_out)
 {
-    unsigned io = s->f.io, vb = s->f.vel, db = s->f.drift, cb = s->f.cov, sd = s->f.dt;
+    unsigned io = FMT(s).io, vb = FMT(s).vel, db = FMT(s).drift, cb = FMT(s).cov, sd = FMT(s).dt;
     int64_t dtq = s->dtq, dt2q = s->dt2q;
     int32_t e = ikfq_mul(rate, dtq, io + sd - cb);
     int32_t vx = sat(s->vx + (int64_t)MUL(fx, dtq, io + sd - vb));
@@ -411,7 +420,7 @@ static void gravity(ikfq_t *s, int32_t fx, int32_t fy, int64_t rate, int32_t *gx
 /* Step 4: the swing that makes (gxh, gyh, g0) vertical, applied to q, normalised by one Newton step, kept */
 static void rebase(ikfq_t *s, const int32_t q[4], int32_t gxh, int32_t gyh)
 {
-    unsigned qb = s->f.quat, vb = s->f.vel;
+    unsigned qb = FMT(s).quat, vb = FMT(s).vel;
     int64_t one = INT64_C(1) << qb, ux, uy, uh2, uz, cw, cx, cy, n2, k, w, x, y, z;
     ux = MUL(gxh, s->inv_g0, vb);
     uy = MUL(gyh, s->inv_g0, vb);
@@ -448,9 +457,9 @@ static void rebase(ikfq_t *s, const int32_t q[4], int32_t gxh, int32_t gyh)
 
 static void start(ikfq_t *s, const int32_t g[3], const int32_t a[3])
 {
-    unsigned io = s->f.io, qb = s->f.quat;
+    unsigned io = FMT(s).io, qb = FMT(s).quat;
     int64_t one = INT64_C(1) << qb, n, ux, uy, uz;
-    int up = (int)s->f.bias - (int)io, i;
+    int up = (int)FMT(s).bias - (int)io, i;
     n = ikfq_sqrt((int64_t)MUL(a[0], a[0], io) + MUL(a[1], a[1], io) + MUL(a[2], a[2], io), io);
     if (n < (INT64_C(1) << io) / 2)
         return;
@@ -477,7 +486,7 @@ static void start(ikfq_t *s, const int32_t g[3], const int32_t a[3])
 
 void ikfq_step(ikfq_t *s, const int32_t gq[3], const int32_t a[3])
 {
-    const ikfq_formats_t *f = &s->f;
+    const ikfq_formats_t *f = &FMT(s);
     unsigned io = f->io, qb = f->quat, bb = f->bias, sh = f->bias + f->dt - f->quat;
     int up = (int)bb - (int)io, i;
     int32_t g[3], q[4], fx, fy, gxh, gyh;
@@ -518,7 +527,7 @@ void ikfq_step(ikfq_t *s, const int32_t gq[3], const int32_t a[3])
 void ikfq_update(ikfq_t *s, double gx, double gy, double gz, double ax, double ay, double az, double dt)
 {
     int32_t g[3], a[3];
-    unsigned io = s->f.io;
+    unsigned io = FMT(s).io;
     if (!(dt > 0.0) || !isfinite(gx + gy + gz + ax + ay + az + dt))
         return;
     g[0] = ikfq_to_q(gx, io);
@@ -536,7 +545,7 @@ void ikfq_update_q(ikfq_t *s, double gx, double gy, double gz, double ax, double
                    double q[4])
 {
     int32_t p[4];
-    double k = ldexp(1.0, -(int)s->f.quat);
+    double k = ldexp(1.0, -(int)FMT(s).quat);
     ikfq_update(s, gx, gy, gz, ax, ay, az, dt);
     ikfq_predicted(s, p);
     q[0] = p[0] * k;

@@ -11,7 +11,8 @@
  *   - the flight core: cascaded P roll/pitch, yaw P, HEIGHT's PID on the height estimate, PANIC's descent,
  *     mixing with the integer square root (qb_flight.c, fcb_sim/flight.py, control.py);
  *   - the height estimator, HeightKalman (qb_height.c, fcb_sim/estimation/height.py);
- *   - the RAW path's attitude filter, ikf's fixed-point twin (qb_ikf.c, fcb_sim/estimation/ikf_fixed.py);
+ *   - the RAW path's attitude filter, ikf's fixed-point twin (ikf_q.c, fcb_sim/estimation/ikf_fixed.py; the
+ *     board's set-up and dt in qb_flight.c);
  *   - commands, telemetry, heartbeats, the link-loss failsafe, the parameter table generated from term's
  *     (qb_board.c, qb_params.c, qb_params.h; fcb_sim/commands.py, telemetry.py, paramtable.py).
  * Not yet: the flash log (LOG_* commands answer NOT_IMPLEMENTED), the BLE handover, the task profile, RAW filters
@@ -26,6 +27,7 @@
 
 #include <stdint.h>
 
+#include "ikf_q.h"
 #include "qb_params.h"
 #include "qp_protocol.h"
 
@@ -146,18 +148,11 @@ void qb_height_update_imu(qb_height_t *h, qb_real ax, qb_real ay, qb_real az, qb
                           qb_real qz, qb_real dt);
 void qb_height_update_baro(qb_height_t *h, qb_real pressure_pa, qb_real dt);
 
-/* --- the RAW path's attitude filter (qb_ikf.c): ikf's fixed-point twin, fcb_sim/estimation/ikf_fixed.py ----- */
+/* --- the RAW path's attitude filter: ikf_q.c, fcb_sim/estimation/ikf_fixed.py bit for bit ------------------ */
 
 typedef struct {
-    int32_t qw, qx, qy, qz;  /* Q2.30 */
-    int32_t vx, vy, dx, dy;  /* Q8.24, Q4.28 */
-    int32_t pvv, pvg, pvd, pgg, pgd, pdd;  /* Q2.30 */
-    int32_t bx, by, bz, rx, ry, rz;  /* Q8.24 */
-    int32_t gl[3], al[3];
-    int64_t rest_t;          /* time at rest, Q.dt */
-    qb_real dt_cached;
-    int32_t dtq, dt2q, dthq, krq, kbq;
-    uint8_t at_rest, started, dt_set;
+    ikfq_t q;   /* set up from integers (ikfq_init_q): the M0 links no double arithmetic */
+    qb_real dt; /* the dt its five dt constants were derived from (0: none yet) */
 } qb_ikf_t;
 
 void qb_ikf_reset(qb_ikf_t *f);

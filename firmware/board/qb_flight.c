@@ -34,6 +34,97 @@
 #define ASIN_FALLBACK 0.99
 #define RAD_S_PER_LSB (1.0 / (16.4 * 180.0 / 3.141592653589793)) /* 1 / (GYRO_LSB_PER_DPS * 180 / pi) */
 
+/* --- the RAW path's attitude filter: ikf_q.c, set up from integers -------------------------------------- */
+
+/* ikf's default parameters in ikf_fixed.Formats(), from `python -m fcb_sim.native --constants 0.0025`
+ * (tests/test_cboard.py checks they are still what it prints). Integers: the M0 links no double set-up. */
+static const ikfq_formats_t IKF_FORMATS = {16, 30, 30, 24, 24, 28, 30};
+static const ikfq_consts_t IKF_CONSTS = {
+    .qg_shift = 5, .q_g0 = 335165867, .k_rot = 32768, .drift_noise = 70368744, .rest_r = 10737418,
+    .rest_g2 = 5233287, .rest_a2 = 16384, .bias_max = 1464088, .inv_g0 = 109453805, .lat_half = 1342177,
+    .pgg0 = 107374182, .pdd0 = 1073742, .g0_io = 642908, .swing_max = 869730877, .swing_k = 966367641,
+    .rest_time = 1610612736, .dtq = 2684355, .dt2q = 6711, .dthq = 1342177, .krq = 5341999, .kbq = 1340502};
+/* ikf's rest_tau and rest_bias_tau (s): the table holds them only as krq and kbq at its own dt */
+#define IKF_REST_TAU 0.5
+#define IKF_REST_BIAS_TAU 2.0
+
+/* ikfq_to_q in qb_real: the same bits in double (host); float on the M0, where a double would link soft double */
+static int32_t ikf_to_q(qb_real x, int frac)
+{
+    qb_real t = x * (qb_real)((int32_t)1 << frac); /* frac <= 30 */
+    if (t >= (qb_real)INT32_MAX)
+        return INT32_MAX;
+    if (t <= (qb_real)INT32_MIN)
+        return INT32_MIN;
+    return t >= 0 ? (int32_t)(t + 0.5) : (int32_t)(t - 0.5); /* an int32 conversion: no 64-bit soft routine */
+}
+
+void qb_ikf_reset(qb_ikf_t *f)
+{
+    ikfq_init_q(&f->q, &IKF_FORMATS, &IKF_CONSTS);
+    f->dt = 0.0;
+}
+
+/* The board's dt is measured (RTC ticks: 400 Hz on the RAW path, 200 Hz on the DMP's) and the Python filter
+ * derives its dt constants from each new one: so does this, as ikfq_set_dt does. */
+static void ikf_set_dt(qb_ikf_t *f, qb_real dt)
+{
+    const int sd = IKF_FORMATS.dt, cb = IKF_FORMATS.cov;
+    if (f->dt == dt)
+        return;
+    f->dt = dt;
+    f->q.dtq = ikf_to_q(dt, sd);
+    f->q.dt2q = ikf_to_q(dt * dt, sd);
+    f->q.dthq = ikf_to_q(0.5 * dt, sd);
+    f->q.krq = ikf_to_q(dt / (IKF_REST_TAU + dt), cb);
+    f->q.kbq = ikf_to_q(dt / (IKF_REST_BIAS_TAU + dt), cb);
+}
+
+void qb_ikf_update(qb_ikf_t *f, qb_real gx, qb_real gy, qb_real gz, qb_real ax, qb_real ay, qb_real az, qb_real dt)
+{
+    const qb_real v[6] = {gx, gy, gz, ax, ay, az};
+    int32_t g[3], a[3];
+    int i;
+    /* ikfq_update in qb_real: its doubles would cost the M0 the soft-double routines */
+    if (!(dt > 0.0) || !isfinite(gx + gy + gz + ax + ay + az + dt))
+        return; /* as ikf_fixed.py: the sample is skipped */
+    for (i = 0; i < 3; i++) {
+        g[i] = ikf_to_q(v[i], IKF_FORMATS.io);
+        a[i] = ikf_to_q(v[3 + i], IKF_FORMATS.io);
+    }
+    if (f->q.started)
+        ikf_set_dt(f, dt);
+    ikfq_step(&f->q, g, a);
+}
+
+void qb_ikf_quaternion(const qb_ikf_t *f, qb_real q[4])
+{
+    const qb_real s = 1.0 / (qb_real)((int32_t)1 << IKF_FORMATS.quat);
+    int32_t p[4];
+    ikfq_predicted(&f->q, p);
+    q[0] = p[0] * s;
+    q[1] = p[1] * s;
+    q[2] = p[2] * s;
+    q[3] = p[3] * s;
+}
+
+void qb_ikf_angles(const qb_ikf_t *f, qb_real out[3])
+{
+    qb_real q[4], sp;
+    qb_ikf_quaternion(f, q);
+    out[0] = QM(atan2)(2.0 * (q[0] * q[1] + q[2] * q[3]), 1.0 - 2.0 * (q[1] * q[1] + q[2] * q[2]));
+    sp = 2.0 * (q[0] * q[2] - q[1] * q[3]);
+    sp = sp > 1.0 ? 1.0 : sp < -1.0 ? -1.0 : sp;
+#ifdef QB_FLOAT
+    out[1] = QM(atan2)(sp, QM(sqrt)((1.0 - sp) * (1.0 + sp))); /* asin(sp), without asinf's 700 B on the M0 */
+#else
+    out[1] = asin(sp); /* as the Python filter: the differential test compares the two */
+#endif
+    out[2] = QM(atan2)(2.0 * (q[0] * q[3] + q[1] * q[2]), 1.0 - 2.0 * (q[2] * q[2] + q[3] * q[3]));
+}
+
+/* --- the flight core ------------------------------------------------------------------------------------- */
+
 static qb_real gain_default(int id)
 {
     const qb_param_spec_t *s = &QB_PARAMS[id - 1];
