@@ -97,8 +97,9 @@ async def traced_open(self):
     print("opening", self.port, file=sys.stderr, flush=True)
     return await real_open(self)
 serial.SerialTransport.open = traced_open
-from term.cli.main import main
-sys.exit(main(sys.argv[1:]))
+import term.cli.main
+term.cli.main.has_terminal = lambda: True  # (no terminal here: what comes after that check is tested)
+sys.exit(term.cli.main.main(sys.argv[1:]))
 """
 
 
@@ -135,9 +136,19 @@ def test_no_port_names_the_serial_ports(tmp_path: Path) -> None:
         in res.stderr
 
 
+# A scenario term offers and the board does not know (two versions), in a terminal: the simulator fails to start.
+SKEWED = """
+import sys
+import term.cli.main, term.core.protocol
+term.core.protocol.SIM_SCENARIOS += ("nope",)
+term.cli.main.has_terminal = lambda: True
+sys.exit(term.cli.main.main(sys.argv[1:]))
+"""
+
+
 def test_the_simulators_stderr_and_the_log_are_kept(tmp_path: Path) -> None:
     env = {"QUADRUPEL_LOG_DIR": str(tmp_path)}
-    res = _run([_script("term"), "--sim", "--scenario", "nope", "--no-joystick", "--verbose"], env)
+    res = _run([sys.executable, "-c", SKEWED, "--sim", "--scenario", "nope", "--no-joystick", "--verbose"], env)
     assert res.returncode == 2 and f"term: logging to {tmp_path / 'term.log'}" in res.stderr
     assert "unknown scenario 'nope'" in res.stderr.splitlines()[-1]
     kept = (tmp_path / "fcb-sim.log").read_text()
