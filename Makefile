@@ -14,13 +14,12 @@ LOWEST := .venv-lowest
 .PHONY: run test test-busy test-lowest lock lint bench clean
 .PHONY: firmware
 
-# Each step says what it does in one line; pip shows its own progress (a first install takes a minute or so).
+# Each step says what it does in one line; pip shows its own progress (a first install takes a minute or so). The
+# venv's own pip does the install: upgrading it first cost a first make run seconds and changed nothing here.
 $(BIN)/python:
 	@echo "make: making the virtual environment $(VENV) with $$($(PY) --version 2>&1)"
 	@$(PY) -m venv $(VENV) || { rm -rf $(VENV); echo "could not make $(VENV): needs Python >= 3.11 with venv" \
 		"(Debian/Ubuntu: sudo apt install python3-venv)" >&2; exit 1; }
-	@echo "make: bringing pip up to date in $(VENV)"
-	@$(PIP) install -q --disable-pip-version-check --upgrade pip
 
 # pygame-ce replaced pygame (both install the module 'pygame'): a venv from before drops pygame first.
 # The install is editable (-e): the sources are used where they are, so an edit needs no reinstall.

@@ -4,7 +4,7 @@ Clones this repository's committed HEAD into a temporary folder and runs `make r
 of 120x40 (as a user's terminal: pip draws its progress, term its screen), timing from the start to
 
 - the first screen: term switches to the alternate screen (Textual's first draw);
-- flying: the screen says ``link OK`` (the simulated board answers over the pty);
+- flying: the link panel says ``cable OK`` (or ``link OK``): the simulated board answers over the pty;
 
 then quits term with Ctrl+Q and runs `make run` a second time in the same clone (everything installed: the
 goal is under 3 s to the first screen). The lines `make` printed for each step are shown with their times.
@@ -34,7 +34,8 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 ALT_SCREEN = b"\x1b[?1049h"
-FLYING = b"link OK"
+ANSI = re.compile(r"\x1b\[[0-9;?]*[a-zA-Z]")
+FLYING = re.compile(rb"(link|cable) OK")  # the link panel: the board answers
 
 
 def run_make(clone: Path, timeout: float) -> dict[str, object]:
@@ -61,12 +62,12 @@ def run_make(clone: Path, timeout: float) -> dict[str, object]:
             now = round(time.monotonic() - start, 2)
             for line in out[seen:].split(b"\n")[:-1]:  # whole lines only
                 seen += len(line) + 1
-                text = line.decode(errors="replace").strip()
-                if text.startswith("make: "):
-                    steps.append((now, text))
+                text = ANSI.sub("", line.decode(errors="replace"))
+                if "make: " in text:  # (pip's progress may leave cursor codes on the line)
+                    steps.append((now, text[text.index("make: "):].strip()))
             if first_screen is None and ALT_SCREEN in out:
                 first_screen = now
-            if FLYING in out:
+            if FLYING.search(out):
                 flying = now
         if flying is not None:
             os.write(master, b"\x11")  # Ctrl+Q: term quits in order and stops its board
