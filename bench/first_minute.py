@@ -35,7 +35,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 ALT_SCREEN = b"\x1b[?1049h"
 ANSI = re.compile(r"\x1b\[[0-9;?]*[a-zA-Z]")
-FLYING = re.compile(rb"(link|cable) OK")  # the link panel: the board answers
+FLYING = re.compile(r"(link|cable) OK")  # the link panel: the board answers
 
 
 def run_make(clone: Path, timeout: float) -> dict[str, object]:
@@ -67,22 +67,31 @@ def run_make(clone: Path, timeout: float) -> dict[str, object]:
                     steps.append((now, text[text.index("make: "):].strip()))
             if first_screen is None and ALT_SCREEN in out:
                 first_screen = now
-            if FLYING.search(out):
+            if FLYING.search(ANSI.sub("", out[-20000:].decode(errors="replace"))):  # (text between styles)
                 flying = now
         if flying is not None:
             os.write(master, b"\x11")  # Ctrl+Q: term quits in order and stops its board
-            try:
-                proc.wait(timeout=20)
-            except subprocess.TimeoutExpired:
-                pass
+            _drain_until_exit(master, proc, 20)
     finally:
-        if proc.poll() is None:
-            os.killpg(proc.pid, signal.SIGTERM)
-            proc.wait(timeout=20)
+        for sig in (signal.SIGTERM, signal.SIGKILL):
+            if proc.poll() is None:
+                os.killpg(proc.pid, sig)
+                _drain_until_exit(master, proc, 20)
         os.close(master)
     tail = re.sub(rb"\x1b\[[0-9;?]*[a-zA-Z]", b"", out[-2000:]).decode(errors="replace")
     return {"first_screen_s": first_screen, "flying_s": flying, "steps": steps, "exit": proc.returncode,
             "tail": tail if flying is None else ""}
+
+
+def _drain_until_exit(master: int, proc: subprocess.Popen[bytes], timeout: float) -> None:
+    """Read what term still draws while it exits: a terminal nobody reads blocks its writes, and its exit."""
+    deadline = time.monotonic() + timeout
+    while proc.poll() is None and time.monotonic() < deadline:
+        if select.select([master], [], [], 0.05)[0]:
+            try:
+                os.read(master, 65536)
+            except OSError:
+                time.sleep(0.05)
 
 
 def venv_size(clone: Path) -> tuple[float, int]:
