@@ -87,7 +87,7 @@ test-busy: $(STAMP)
 		$(BIN)/python -m pytest; rc=$$?; kill $$pids; exit $$rc; fi
 
 BENCHES := codec realtime flight filters profile log_compression pacing latency ui plots ble firmware download soak lessons keyboard foxglove long_work \
-	contention
+	contention first_minute
 
 # Every benchmark runs (its last line, the JSON, is printed); make bench fails if any of them failed.
 bench: $(BENCH_STAMP)
