@@ -407,7 +407,10 @@ def _fly(args: argparse.Namespace) -> int:
                     sim.cmd += ["--preset", args.preset]
                 if c_board:
                     sim.cmd += ["--board", "c"]
-                transport = _serial(sim.start(), baud)
+                screens = _import_in_background("term.ui.app")  # while the board starts: each takes seconds
+                started = sim.start()
+                screens.join()
+                transport = _serial(started, baud)
                 if sim.ble_address:
                     radio = _ble(sim.ble_address, sim.ble_hci, args.ble_timeout)
             elif port is None:
@@ -420,6 +423,25 @@ def _fly(args: argparse.Namespace) -> int:
         finally:
             if sim is not None:
                 sim.stop()
+
+
+def _import_in_background(module: str) -> threading.Thread:
+    """Import ``module`` (Textual and the screens) on a thread while the main one waits for the simulated board:
+    the child boots on the other core. Join it before importing anything else (two threads importing the same
+    modules can deadlock on their locks); what SimBoard.start imports is imported first, here."""
+    import importlib
+
+    import platformdirs  # noqa: F401  (SimBoard.start's own imports, done before the thread's)
+
+    import term.session.applog  # noqa: F401
+
+    def run() -> None:
+        with contextlib.suppress(Exception):  # a failure shows again where the app is imported, in one line
+            importlib.import_module(module)
+
+    thread = threading.Thread(target=run, name=f"import {module}", daemon=True)
+    thread.start()
+    return thread
 
 
 def _serial(port: str, baud: int) -> Any:
