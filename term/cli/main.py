@@ -158,10 +158,15 @@ def _replay(a: argparse.Namespace) -> int:
         cfg = load_config(a.config, required=a.config is not None)
     except ConfigError as exc:
         raise UsageError(str(exc)) from None
-    _need_terminal()
     _start_log(a.verbose)
 
-    live = _live_server(a.foxglove, 0.0, int(replay.meta.get("start_ns", 0) or 0))
+    live = _live_server(a.foxglove, 0.0, int(replay.meta.get("start_ns", 0) or 0))  # (its one-line errors first)
+    try:
+        _need_terminal()
+    except UsageError:
+        if live is not None:
+            live.close()
+        raise
 
     async def run() -> int:
         from term.ui.app import TermApp
