@@ -511,16 +511,7 @@ async def _run_app(transport: Any, cfg: Any, args: argparse.Namespace, radio: An
     session = dict(RADIO_SESSION) if ble_only else {}
     recorder = _recorder(args, transport, radio, ble_only)
     live = _live_foxglove(args, recorder)
-    sinks = tuple(s for s in (recorder, live) if s is not None)
-    if sinks:  # every byte both ways on both links, tapped at the transports (term/data/recording.py); the live
-        import time  # server gets the same bytes with the same times as the recording
-
-        from term.core.events import CABLE, RADIO
-        from term.data.recording import RecordingTransport
-
-        transport = RecordingTransport(transport, sinks, CABLE, time.monotonic)
-        if radio is not None:
-            radio = RecordingTransport(radio, sinks, RADIO, time.monotonic)
+    transport, radio = _tapped(transport, radio, tuple(s for s in (recorder, live) if s is not None))
     app = TermApp(transport, config=cfg, joystick=not args.no_joystick, log_directory=args.log_dir,
                   session_options=session, radio=radio, primary_ble=ble_only,
                   start_screen="wireless" if ble_only else "flight", recorder=recorder, instructor=instructor,
@@ -553,6 +544,22 @@ async def _run_app(transport: Any, cfg: Any, args: argparse.Namespace, radio: An
         print(f"term: {app.exit_message}", file=sys.stderr)
     code = app.return_code
     return int(code if code is not None else (result or 0))
+
+
+def _tapped(transport: Any, radio: Any, sinks: tuple[Any, ...]) -> tuple[Any, Any]:
+    """Every byte both ways on both links, tapped at the transports for the sinks (term/data/recording.py): the
+    live server gets the same bytes with the same times as the recording."""
+    if not sinks:
+        return transport, radio
+    import time
+
+    from term.core.events import CABLE, RADIO
+    from term.data.recording import RecordingTransport
+
+    transport = RecordingTransport(transport, sinks, CABLE, time.monotonic)
+    if radio is not None:
+        radio = RecordingTransport(radio, sinks, RADIO, time.monotonic)
+    return transport, radio
 
 
 def _live_foxglove(args: argparse.Namespace, recorder: Any) -> Any:
