@@ -14,19 +14,23 @@ LOWEST := .venv-lowest
 .PHONY: run test test-busy test-lowest lock lint bench clean
 .PHONY: firmware
 
+# Each step says what it does in one line; pip shows its own progress (a first install takes a minute or so). The
+# venv's own pip does the install: upgrading it first cost a first make run seconds and changed nothing here.
 $(BIN)/python:
+	@echo "make: making the virtual environment $(VENV) with $$($(PY) --version 2>&1)"
 	@$(PY) -m venv $(VENV) || { rm -rf $(VENV); echo "could not make $(VENV): needs Python >= 3.11 with venv" \
 		"(Debian/Ubuntu: sudo apt install python3-venv)" >&2; exit 1; }
-	$(PIP) install -q --upgrade pip
 
 # pygame-ce replaced pygame (both install the module 'pygame'): a venv from before drops pygame first.
+# The install is editable (-e): the sources are used where they are, so an edit needs no reinstall.
 define install
 	@if $(PIP) show -q pygame >/dev/null 2>&1; then $(PIP) uninstall -q -y pygame pygame-ce; fi
-	$(PIP) install -q -c $(LOCK) -e '$(1)'
-	touch $@
+	@echo "make: installing quadrupel$(patsubst .%,%,$(1)) and its dependencies (the versions in $(LOCK)) into $(VENV)"
+	@$(PIP) install --disable-pip-version-check --progress-bar on -c $(LOCK) -e '$(1)'
+	@touch $@
 endef
 
-# make run: only what running needs
+# make run: only what flying needs (term plot's matplotlib is the plot extra: .venv/bin/pip install -e '.[plot]')
 $(RUN_STAMP): pyproject.toml $(LOCK) | $(BIN)/python
 	$(call install,.)
 
@@ -38,7 +42,8 @@ $(BENCH_STAMP): pyproject.toml $(LOCK) | $(BIN)/python
 	$(call install,$(BENCH_EXTRAS))
 
 run: $(RUN_STAMP)
-	$(BIN)/term --sim
+	@echo "make: starting term --sim (the simulated board, its radio and the terminal; Ctrl+Q quits)"
+	@$(BIN)/term --sim
 
 # The autopilot's tour of the features (term --sim --demo) in a 120x40 tmux session: Ctrl+Q quits, Ctrl+B D
 # detaches. Without a terminal (CI) it runs detached, waits for the tour's end, prints the last screen, and fails
@@ -82,7 +87,7 @@ test-busy: $(STAMP)
 		$(BIN)/python -m pytest; rc=$$?; kill $$pids; exit $$rc; fi
 
 BENCHES := codec realtime flight filters profile log_compression pacing latency ui plots ble firmware download soak lessons keyboard foxglove long_work \
-	contention
+	contention first_minute
 
 # Every benchmark runs (its last line, the JSON, is printed); make bench fails if any of them failed.
 bench: $(BENCH_STAMP)
@@ -104,7 +109,7 @@ test-lowest:
 lock:
 	rm -rf .venv-lock && $(PY) -m venv .venv-lock
 	.venv-lock/bin/python -m pip install -q --upgrade pip
-	.venv-lock/bin/python -m pip install -q '.[test,bench]'
+	.venv-lock/bin/python -m pip install -q '.[plot,analysis,test,bench]'
 	{ sed -n '1,2p' $(LOCK); .venv-lock/bin/python -m pip freeze --all --exclude-editable \
 		| grep -v -i '^pip==\|^quadrupel' | sort -f; } > $(LOCK).new && mv $(LOCK).new $(LOCK)
 	rm -rf .venv-lock

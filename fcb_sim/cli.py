@@ -38,14 +38,23 @@ def build_parser() -> argparse.ArgumentParser:
     )
     from term.core.protocol import PROTOCOL_VERSION
 
-    parser.add_argument("--version", action="version", version=f"%(prog)s {_version()} (protocol v{PROTOCOL_VERSION})")
-    parser.add_argument("-v", "--verbose", action="store_true", help="log INFO and up (bumble's too) to stderr")
+    version = f"fcb-sim {_version()} (protocol v{PROTOCOL_VERSION})"
+    _add_global(parser, version, command=False)
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     _add_run(sub)
     _add_replay_imu(sub)
     _add_profile(sub)
     _add_serve(sub)
+    for child in sub.choices.values():  # -v and --version after the command too, as term's
+        _add_global(child, version, command=True)
     return parser
+
+
+def _add_global(p: argparse.ArgumentParser, version: str, command: bool) -> None:
+    """A command's -v has no default of its own (argparse.SUPPRESS): one given before the command is kept."""
+    p.add_argument("--version", action="version", version=version, help="print the version and exit")
+    p.add_argument("-v", "--verbose", action="store_true", default=argparse.SUPPRESS if command else False,
+                   help="log INFO and up (bumble's too) to stderr")
 
 
 # One helper a subcommand, in the order --help lists them (argparse names no public type for `sub`).

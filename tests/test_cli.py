@@ -19,10 +19,16 @@ def run(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, str, str]:
     return code, out, err
 
 
+@pytest.fixture
+def a_terminal(monkeypatch: pytest.MonkeyPatch) -> None:
+    """As if term ran in a terminal (pytest's stdin is none): what comes after the no-terminal check is tested."""
+    monkeypatch.setattr("term.cli.main.has_terminal", lambda: True)
+
+
 def test_help_lists_everything() -> None:
     out = subprocess.run([sys.executable, "-m", "term.cli.main", "--help"], capture_output=True, text=True, timeout=60)
     assert out.returncode == 0
-    for word in ("--serial", "--baud", "--sim", "--seed", "--scenario", "--ble", "--hci", "term plot", "term scan",
+    for word in ("--serial", "--baud", "--sim", "--seed", "--scenario", "--ble", "--hci", "plot", "scan",
                  "--config", "--no-joystick", "--log-dir"):
         assert word in out.stdout
 
@@ -54,7 +60,12 @@ def test_user_errors_are_one_line_and_non_zero(capsys: pytest.CaptureFixture[str
     assert "Traceback" not in err
 
 
-def test_a_simulated_board_that_does_not_start(capsys: pytest.CaptureFixture[str]) -> None:
+def test_a_simulated_board_that_does_not_start(capsys: pytest.CaptureFixture[str], a_terminal: None,
+                                               monkeypatch: pytest.MonkeyPatch) -> None:
+    """A scenario term offers but the board does not know (the two programs of different versions)."""
+    import term.core.protocol
+
+    monkeypatch.setattr(term.core.protocol, "SIM_SCENARIOS", (*term.core.protocol.SIM_SCENARIOS, "nope"))
     code, _, err = run(capsys, "--sim", "--scenario", "nope", "--no-joystick")
     assert code == 2 and err.count("\n") == 1
     assert err.startswith("term: the simulated board did not start: unknown scenario 'nope'; choose one of: bench")
@@ -74,7 +85,7 @@ def test_a_malformed_config_is_one_line(capsys: pytest.CaptureFixture[str], tmp_
     assert code == 2 and f"config file {cfg}: [connection] baud: must be an integer" in err and err.count("\n") == 1
 
 
-def test_a_path_that_is_not_a_serial_port(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+def test_a_path_that_is_not_a_serial_port(capsys: pytest.CaptureFixture[str], tmp_path: Path, a_terminal: None) -> None:
     code, _, err = run(capsys, "--serial", str(tmp_path), "--no-joystick")
     assert code == 2 and "is not a serial port" in err and err.count("\n") == 1
 

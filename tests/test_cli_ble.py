@@ -16,6 +16,12 @@ from term.cli.main import main
 from term.session.sim import SimBoard
 
 
+@pytest.fixture(autouse=True)
+def a_terminal(monkeypatch: pytest.MonkeyPatch) -> None:
+    """As if term ran in a terminal (pytest's stdin is none): the link's own failures come after that check."""
+    monkeypatch.setattr("term.cli.main.has_terminal", lambda: True)
+
+
 def run(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, str]:
     code = main([*argv, "--no-joystick"])
     return code, capsys.readouterr().err
@@ -45,6 +51,10 @@ def free_port() -> int:
     (["--ble", "F0:5A:00:00:00:01", "--sim"], "--ble and --sim"),
     (["--serial", "/dev/null", "--hci", "usb:0"], "--hci needs --ble ADDR"),
     (["--ble", "F0:5A:00:00:00:01", "--ble-timeout", "0"], "--ble-timeout: must be a number between 0.1 and 600 s"),
+    # the address before the adapter (issue 25: 'nonsense' got "no Bluetooth adapter reachable")
+    (["--ble", "nonsense"], "--ble 'nonsense' is not a Bluetooth address: six hex pairs such as F0:5A:00:00:00:01"),
+    (["--ble", "F0:5A:00:00:00:0G", "--hci", "usb:0"], "is not a Bluetooth address"),
+    (["--serial", "/dev/null", "--ble", "F0:5A:00:00:00"], "is not a Bluetooth address"),
 ])
 def test_option_errors(capsys: pytest.CaptureFixture[str], argv: list[str], words: str) -> None:
     code, err = run(capsys, *argv)

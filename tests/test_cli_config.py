@@ -5,8 +5,8 @@ from pathlib import Path
 import pytest
 
 from term.input.keymap import action_for_key
-from term.input.mapping import XBOX
-from term.session.config import Config, ConfigError, forced_mapping, load_config
+from term.input.mapping import XBOX, AxisMap, StickMapping
+from term.session.config import Config, ConfigError, forced_mapping, load_config, save_joystick_mapping
 
 
 def write(tmp_path: Path, text: str) -> Path:
@@ -129,3 +129,94 @@ def test_the_panic_key_cannot_be_lost(tmp_path: Path) -> None:
     cfg = load_config(write(tmp_path, '[keys]\nmode_panic = ["space", "alt+p"]\nhelp = ["f1", "?"]\n'))
     assert action_for_key(cfg.keymap, "space").name == "mode_panic"
     assert action_for_key(cfg.keymap, "question_mark").name == "help"  # "?" is Textual's question_mark
+
+
+# --- the joystick mapping's save (the F12 screen): the user's file kept as written ----------------------------
+
+COMMENTED = """\
+# my settings, by hand
+[connection]   # the cable
+port = "/dev/ttyUSB0"  # the lab's
+baud = 115200
+
+# the stick
+[joystick]
+mapping = ""   # pick by name
+resolution = 64
+
+[joystick.mappings.old_pad]  # my old pad
+match = ["Old"]
+roll = { axis = 0 }
+pitch = { axis = 1 }
+yaw = { axis = 2 }
+lift = { axis = 3, invert = true, kind = "throttle" }
+# said after the old pad
+
+# the plots, next
+[plots]
+window = 20.0 # seconds
+# the end
+"""
+
+
+def _pad(lift_deadzone: float = 0.08) -> StickMapping:
+    return StickMapping("x", ("Pad",), AxisMap(0), AxisMap(1, True), AxisMap(2),
+                        AxisMap(3, True, lift_deadzone, "throttle"), (0, 1))
+
+
+def _table_span(text: str, header: str) -> tuple[int, int]:
+    """Where the table ``header`` starts and where its keys end (the line after its last key)."""
+    start = text.index(header)
+    end = start
+    for line in text[start:].splitlines(keepends=True)[1:]:
+        if not line.strip() or line.lstrip().startswith(("#", "[")):
+            break
+        end += len(line)
+    return start, end + len(text[start:].splitlines(keepends=True)[0])
+
+
+JOYSTICK_FIRST = "# mine\n[joystick]  # the stick\nmapping = \"\"\n\n# the plots\n[plots]\nwindow = 5.0\n"
+
+
+@pytest.mark.parametrize("original", [COMMENTED, JOYSTICK_FIRST, "", "# only a comment\n"])
+def test_a_saved_mapping_keeps_the_rest_of_a_commented_file_byte_for_byte(tmp_path: Path, original: str) -> None:
+    """Issue 25: the save edited the file line by line and could lose comments near the table it replaced."""
+    path = write(tmp_path, original)
+    assert save_joystick_mapping(path, _pad(), "Virtual Joystick") == "virtual_joystick"
+    text = path.read_text(encoding="utf-8")
+    start, end = _table_span(text, "[joystick.mappings.virtual_joystick]")
+    head, tail = text[:start], text[end:]  # a new table (with a blank line on one side), and nothing else changed
+    assert original in (head + tail, head + tail.removeprefix("\n"), head.removesuffix("\n") + tail), text
+    mine = next(m for m in load_config(path, required=True).joystick_mappings if m.name == "virtual_joystick")
+    assert mine.match == ("Virtual Joystick",) and mine.lift.deadzone == 0.08 and mine.fire == (0, 1)
+
+    before = text
+    save_joystick_mapping(path, _pad(0.12), "Virtual Joystick")  # again: the same table, replaced in place
+    text = path.read_text(encoding="utf-8")
+    assert text.count("[joystick.mappings.virtual_joystick]") == 1
+    old_start, old_end = _table_span(before, "[joystick.mappings.virtual_joystick]")
+    new_start, new_end = _table_span(text, "[joystick.mappings.virtual_joystick]")
+    assert text[:new_start] == before[:old_start] and text[new_end:] == before[old_end:]
+    assert "deadzone = 0.12" in text[new_start:new_end]
+
+
+def test_replacing_a_mapping_keeps_its_comments(tmp_path: Path) -> None:
+    path = write(tmp_path, COMMENTED)
+    save_joystick_mapping(path, _pad(), "Old Pad")
+    text = path.read_text(encoding="utf-8")
+    start, end = _table_span(text, "[joystick.mappings.old_pad]")
+    old_start, old_end = _table_span(COMMENTED, "[joystick.mappings.old_pad]")
+    assert text[:start] == COMMENTED[:old_start] and text[end:] == COMMENTED[old_end:]
+    assert "[joystick.mappings.old_pad]  # my old pad\n" in text and '"Old Pad"' in text
+
+
+@pytest.mark.parametrize("text, words", [
+    ("[joystick\n", "not saved, it does not read as a config"),
+    ("joystick = 3\n", "not saved"),
+    ("[keys]\nmode_panic = ['nosuchkey']\n", "not saved, it would not load"),
+])
+def test_a_file_that_cannot_take_the_mapping_is_left_alone(tmp_path: Path, text: str, words: str) -> None:
+    path = write(tmp_path, text)
+    with pytest.raises(ConfigError, match=words):
+        save_joystick_mapping(path, _pad(), "Virtual Joystick")
+    assert path.read_text(encoding="utf-8") == text

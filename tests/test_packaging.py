@@ -6,6 +6,7 @@ lock file, and the sdist's contents and metadata."""
 from __future__ import annotations
 
 import os
+import re
 import subprocess
 import sys
 import tarfile
@@ -34,7 +35,7 @@ def _script(name: str) -> str:
     return str(path)
 
 
-def _requirements(extras: tuple[str, ...] = ("test", "bench")) -> list[Requirement]:
+def _requirements(extras: tuple[str, ...] = ("plot", "analysis", "test", "bench")) -> list[Requirement]:
     project = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]
     reqs = list(project["dependencies"])
     for extra in extras:
@@ -72,8 +73,15 @@ def test_version_and_python_dash_m() -> None:
 @pytest.mark.parametrize(("line", "words"), [
     ("term --ser", ["--serial"]),
     ("term rec", ["recordings"]),
+    ("term ", ["plot", "scan", "export", "recordings", "replay", "params"]),
     ("term scan --ti", ["--timeout"]),
+    ("term plot -", ["--verbose", "--version", "--output"]),
+    ("term --sim --preset ", ["default", "report"]),
+    ("term --sim --scenario ", ["bench", "breeze", "gusty", "low-battery", "no-spikes"]),
+    ("term --sim --lesson ", ["1", "2", "8"]),
+    ("term params --sim ", ["list", "get", "set", "save", "load", "diff"]),
     ("fcb-sim se", ["serve"]),
+    ("fcb-sim run --ver", ["--verbose", "--version"]),
 ])
 def test_shell_completion(tmp_path: Path, line: str, words: list[str]) -> None:
     pytest.importorskip("argcomplete")
@@ -97,8 +105,9 @@ async def traced_open(self):
     print("opening", self.port, file=sys.stderr, flush=True)
     return await real_open(self)
 serial.SerialTransport.open = traced_open
-from term.cli.main import main
-sys.exit(main(sys.argv[1:]))
+import term.cli.main
+term.cli.main.has_terminal = lambda: True  # (no terminal here: what comes after that check is tested)
+sys.exit(term.cli.main.main(sys.argv[1:]))
 """
 
 
@@ -135,9 +144,19 @@ def test_no_port_names_the_serial_ports(tmp_path: Path) -> None:
         in res.stderr
 
 
+# A scenario term offers and the board does not know (two versions), in a terminal: the simulator fails to start.
+SKEWED = """
+import sys
+import term.cli.main, term.core.protocol
+term.core.protocol.SIM_SCENARIOS += ("nope",)
+term.cli.main.has_terminal = lambda: True
+sys.exit(term.cli.main.main(sys.argv[1:]))
+"""
+
+
 def test_the_simulators_stderr_and_the_log_are_kept(tmp_path: Path) -> None:
     env = {"QUADRUPEL_LOG_DIR": str(tmp_path)}
-    res = _run([_script("term"), "--sim", "--scenario", "nope", "--no-joystick", "--verbose"], env)
+    res = _run([sys.executable, "-c", SKEWED, "--sim", "--scenario", "nope", "--no-joystick", "--verbose"], env)
     assert res.returncode == 2 and f"term: logging to {tmp_path / 'term.log'}" in res.stderr
     assert "unknown scenario 'nope'" in res.stderr.splitlines()[-1]
     kept = (tmp_path / "fcb-sim.log").read_text()
@@ -159,12 +178,79 @@ def test_the_log_file_takes_library_warnings(tmp_path: Path) -> None:
 
 
 def test_every_floor_is_pinned_in_constraints_lowest() -> None:
-    floors = {}
-    for req in _requirements(("test",)):  # (the bench extra's floors are not proven: no test imports them)
+    floors: dict[str, str] = {}
+    # (the bench extra's floors are not proven: no test imports them)
+    for req in _requirements(("plot", "analysis", "test")):
         lows = [s.version for s in req.specifier if s.operator == ">="]
         assert len(lows) == 1, f"{req}: every dependency has one floor (>=) that make test-lowest proves"
-        floors[req.name.lower()] = lows[0]
+        assert floors.setdefault(req.name.lower(), lows[0]) == lows[0], f"{req}: one floor in every extra"
     assert floors == _pins("constraints-lowest.txt")
+
+
+# --- extras by job (issue 25): the default install flies; plotting and the offline fits are extras -----------
+
+FLYING = {"textual", "pyserial", "bleak", "bumble", "pygame-ce", "platformdirs", "mcap", "argcomplete", "tomlkit"}
+
+
+def test_the_default_install_is_what_flying_needs() -> None:
+    project = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]
+    default = {Requirement(r).name.lower() for r in project["dependencies"]}
+    assert default == FLYING  # no matplotlib, no numpy: 169 MiB of the 329 MB install flew nothing
+    extras = project["optional-dependencies"]
+    assert [Requirement(r).name for r in extras["plot"]] == ["matplotlib"]
+    assert [Requirement(r).name for r in extras["analysis"]] == ["numpy"]
+    # and the installed metadata says the same (what pip resolved from)
+    from importlib.metadata import requires
+
+    unconditional = {Requirement(r).name.lower() for r in requires("quadrupel") or [] if "extra ==" not in r}
+    assert unconditional == FLYING
+
+
+BLOCKED = """
+import importlib, pkgutil, sys
+for name in ("numpy", "matplotlib", "vqf", "ahrs"):  # as if not installed: import fails
+    sys.modules[name] = None
+import term, fcb_sim
+for package in (term, fcb_sim):
+    for info in pkgutil.walk_packages(package.__path__, package.__name__ + "."):
+        if not info.name.endswith("__main__"):
+            importlib.import_module(info.name)
+from term.cli.main import main
+sys.exit(main(sys.argv[1:]))
+"""
+
+
+def test_flying_imports_no_numpy_nor_matplotlib(tmp_path: Path) -> None:
+    """Every module of term and fcb_sim imports without them, and term plot says in one line how to add them."""
+    (tmp_path / "log.csv").write_text("t_us,phi\n0,1\n")
+    res = _run([sys.executable, "-c", BLOCKED, "plot", str(tmp_path / "log.csv"), "-o", str(tmp_path / "p.png")])
+    assert res.returncode == 2 and res.stderr.count("\n") == 1, res.stderr
+    assert res.stderr == ("term: term plot needs matplotlib, which the default install leaves out: "
+                          "pip install 'quadrupel[plot]' (in a clone: .venv/bin/pip install -e '.[plot]')\n")
+    assert not (tmp_path / "p.png").exists()
+    code = "import sys\nsys.modules['numpy'] = None\nfrom fcb_sim.estimation.fixed import fit_atan2_correction\n" \
+           "fit_atan2_correction([(1.0, 1.0)])"
+    res = _run([sys.executable, "-c", code])
+    assert res.returncode == 1 and "needs numpy: pip install 'quadrupel[analysis]'" in res.stderr
+
+
+# --- the command line as a user meets it ----------------------------------------------------------------------
+
+
+def test_help_names_every_command_with_a_line() -> None:
+    out = _run([_script("term"), "--help"])
+    assert out.returncode == 0
+    commands = out.stdout.split("commands (none: fly")[1].split("flying (no command)")[0]
+    for name in ("plot", "scan", "export", "recordings", "replay", "params"):
+        assert re.search(rf"^    {name} +\S", commands, re.M), commands
+    for option in ("--serial PATH", "--ble ADDR", "--sim", "-v, --verbose", "--version"):
+        assert option in out.stdout
+
+
+def test_no_terminal_is_one_line_and_exit_2() -> None:
+    res = _run([_script("term"), "--sim", "--no-joystick"], timeout=30)  # stdin /dev/null, stdout a pipe
+    assert res.returncode == 2 and res.stdout == "" and res.stderr.count("\n") == 1, res
+    assert res.stderr.startswith("term: no terminal: the screen needs one on stdin and stdout")
 
 
 def test_the_lock_satisfies_pyproject() -> None:

@@ -219,9 +219,13 @@ def fit_atan2_correction(pairs: Iterable[tuple[float, float]]) -> list[int]:
     """Least-squares piecewise-linear fit of the fix16_atan2 error on the folded angle (see above).
 
     ``pairs`` are (y, x) arguments in any consistent unit. Returns the correction at each knot in fix16
-    units, ends pinned to 0. Offline tool: uses numpy.
+    units, ends pinned to 0. Offline tool: uses numpy, which only the analysis extra installs.
     """
-    import numpy as np
+    try:
+        import numpy as np
+    except ImportError:
+        raise ImportError("fit_atan2_correction is an offline fit that needs numpy: "
+                          "pip install 'quadrupel[analysis]'") from None
 
     knots = np.array(ATAN2_KNOTS, dtype=float)
     us: list[float] = []

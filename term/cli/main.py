@@ -15,6 +15,10 @@
     term                                          no board given: one line naming the serial ports seen
     term --version, python -m term                the version (and the protocol's); the same program
 
+The parser is term/cli/parser.py: one argparse parser with a subparser per command, which shell completion reads
+too; -v and --version are taken before and after a command. The screens (flying, replay) need a terminal on stdin
+and stdout: without one they say so in one line and exit 2, before anything is started.
+
 term's own log (warnings always, everything with --verbose) and the simulated board's stderr are kept in the
 platform's log directory (term/session/applog.py): the TUI owns the terminal, so nothing can be printed while it runs.
 POSIX-only parts (SIGHUP, the hung-up-tty watcher, the child's PR_SET_PDEATHSIG) are skipped where missing.
@@ -29,110 +33,51 @@ import argparse
 import asyncio
 import contextlib
 import os
+import re
 import select
 import signal
 import sys
 import threading
 from collections.abc import Sequence
-from pathlib import Path
-from typing import IO, TYPE_CHECKING, Any, NoReturn
+from typing import IO, TYPE_CHECKING, Any
 
+from term.cli.parser import build_parser, check_command, complete, serial_ports, version_text
 from term.core.errors import EXIT_INTERRUPTED, EXIT_USAGE, EXIT_VERSION, UsageError
-from term.core.protocol.numbers import cli_float, cli_int
 from term.core.schema import Number
 from term.session.sim import SimBoard
 
 if TYPE_CHECKING:
     from term.session.config import Config
 
-__all__ = ["EXIT_USAGE", "EXIT_VERSION", "UsageError", "main"]
+__all__ = ["EXIT_USAGE", "EXIT_VERSION", "UsageError", "build_parser", "main", "version_text"]
 
 BLE_TIMEOUT = Number(0.1, 600.0, unit="s")  # --ble-timeout, scan --timeout: seconds to look for the board
+# A BLE address as the platforms name one: six hex pairs (BlueZ, Windows, bumble), or CoreBluetooth's UUID (macOS)
+BLE_ADDRESS = re.compile(r"[0-9A-Fa-f]{2}(:[0-9A-Fa-f]{2}){5}|[0-9A-Fa-f]{8}(-[0-9A-Fa-f]{4}){3}-[0-9A-Fa-f]{12}")
 
 
-class _Parser(argparse.ArgumentParser):
-    def error(self, message: str) -> NoReturn:  # one line, not usage + message
-        raise UsageError(f"{message} (see {self.prog} --help)")
-
-
-def build_parser() -> argparse.ArgumentParser:
-    p = _Parser(
-        prog="term",
-        description="Ground station for the Quadrupel quadcopter: fly the board (or its simulator) with keyboard "
-        "and joystick; gauges, link health, events, plots and log download.",
-        epilog="more: 'term plot LOG.csv -o out.png' draws a downloaded log; 'term scan' lists BLE boards. "
-        "Keys: press F1 in the terminal. Config: 'term --config-path' shows where term.toml is read from.",
-    )
-    src = p.add_mutually_exclusive_group()
-    serial_arg = src.add_argument("--serial", metavar="PATH",
-                                  help="the board's serial port (or any pty), e.g. /dev/ttyUSB0 or COM3")
-    serial_arg.completer = lambda **_: [device for device, _ in serial_ports()]  # type: ignore[attr-defined]
-    src.add_argument("--sim", action="store_true", help="start the simulated board (fcb-sim serve --pty) and fly "
-                     "it; its BLE radio is connected too, for the handover (key 8)")
-    p.add_argument("--ble", metavar="ADDR", help="the board's BLE address: alone, fly over BLE; with --serial, "
-                   "the radio beside the cable for the handover (key 8)")
-    p.add_argument("--baud", type=cli_int, default=None, help="serial speed (default 115200)")
-    p.add_argument("--hci", metavar="TRANSPORT", default=None,
-                   help="BLE through a bumble HCI transport instead of the system's radio, e.g. usb:0")
-    p.add_argument("--ble-timeout", type=cli_float, default=10.0, metavar="S",
-                   help="seconds to look for the BLE board (default 10)")
-    p.add_argument("--no-radio", action="store_true", help="--sim: the cable only, no simulated BLE radio")
-    p.add_argument("--board", choices=["python", "c"], default="python", help="--sim: the board in the "
-                   "simulator, python (fcb_sim) or c (firmware/board/, built with cc; no radio); docs/firmware.md")
-    p.add_argument("--seed", type=cli_int, default=1, help="--sim: noise seed (same seed, same flight)")
-    p.add_argument("--scenario", default=None, help="--sim: initial conditions and disturbances")
-    p.add_argument("--preset", default=None, help="--sim: the board's parameters, 'default' or 'report' (the lab "
-                   "report's board: Table 1, the complementary filter, the Figure 10 height estimator)")
-    p.add_argument("--config", type=Path, default=None, help="config file (default: the platform's, see below)")
-    p.add_argument("--config-path", action="store_true", help="print where the config file is read from and exit")
-    p.add_argument("--link-timeout", type=cli_float, default=None, help="seconds without data before LINK LOST")
-    p.add_argument("--log-dir", type=Path, default=None, help="where downloaded logs are written as CSV")
-    p.add_argument("--no-joystick", action="store_true", help="keyboard only; do not look for a joystick")
-    p.add_argument("--no-bell", action="store_true", help="no terminal bell on LINK LOST, PANIC, low battery or a "
-                   "crash (the config's [alarms] bell)")
-    p.add_argument("--no-record", action="store_true", help="do not record this session (by default every frame "
-                   "both ways and every event is kept: 'term recordings')")
-    p.add_argument("--record-dir", type=Path, default=None, help="where session recordings are kept (default: "
-                   "the platform's user data directory)")
-    p.add_argument("--lesson", type=cli_int, default=None, metavar="N", help="--sim: start lesson N (Ctrl+P lists "
-                   "them: 'lesson'); docs/lessons.md")
-    p.add_argument("--demo", action="store_true", help="--sim: the autopilot flies a tour of the features, with "
-                   "captions (any key of yours takes control)")
-    p.add_argument("--lessons", type=Path, default=None, metavar="DIR", help="--sim: a directory of lesson files "
-                   "(*.toml) beside the built-in ones (a teacher's)")
-    _add_foxglove(p)
-    _add_common(p)
-    return p
-
-
-def _add_common(p: argparse.ArgumentParser) -> None:
-    p.add_argument("-v", "--verbose", action="store_true",
-                   help="log everything of term's to term.log in the platform's log directory (warnings always go "
-                   "there)")
-    p.add_argument("--version", action="version", version=f"%(prog)s {version_text()}")
-
-
-def version_text() -> str:
-    """The installed package's version and the protocol version this terminal speaks."""
-    from importlib.metadata import PackageNotFoundError, version
-
-    from term.core.protocol import PROTOCOL_VERSION
-
+def has_terminal() -> bool:
+    """Both stdin and stdout are a terminal: the screen reads keys from one and draws on the other."""
     try:
-        installed = version("quadrupel")
-    except PackageNotFoundError:
-        installed = "(not installed)"
-    return f"{installed} (protocol v{PROTOCOL_VERSION})"
+        return sys.stdin is not None and sys.stdout is not None and sys.stdin.isatty() and sys.stdout.isatty()
+    except (AttributeError, ValueError):  # a closed or replaced stream
+        return False
 
 
-def serial_ports() -> list[tuple[str, str]]:
-    """The serial ports this machine shows (pyserial's list_ports), as (device, description)."""
-    try:
-        from serial.tools import list_ports
+def _need_terminal() -> None:
+    """Every screen (flying, replay) refuses to start without a terminal, in one line, before anything starts."""
+    if not has_terminal():
+        raise UsageError("no terminal: the screen needs one on stdin and stdout (run term in a terminal; "
+                         "'term plot', 'export' and 'params' work without)")
 
-        return sorted((port.device, port.description) for port in list_ports.comports())
-    except Exception:  # a platform pyserial cannot enumerate: no list, not an error
-        return []
+
+def _plain_on_dumb_terminals() -> None:
+    """TERM=dumb gets the screen as NO_COLOR does (Textual honours NO_COLOR: monochrome) in the 16 basic colours:
+    Textual draws in 24-bit colour when it detects no colour system, as for a dumb terminal. Set before textual is
+    first imported (its constants are read then), so at the start of main."""
+    if os.environ.get("TERM") == "dumb":
+        os.environ.setdefault("NO_COLOR", "1")
+        os.environ.setdefault("TEXTUAL_COLOR_SYSTEM", "standard")
 
 
 def _ports_hint() -> str:
@@ -144,20 +89,11 @@ def _ports_hint() -> str:
     )
 
 
-def _complete() -> None:
-    """Shell completion (argcomplete; it exits when the shell asked): term's options and subcommands in one parser."""
-    try:
-        import argcomplete
-    except ImportError:
-        return
-    parser = build_parser()
-    sub = parser.add_subparsers(dest="command", required=False)
-    for name, build in (("plot", build_plot_parser), ("scan", build_scan_parser), ("export", build_export_parser),
-                        ("recordings", build_recordings_parser), ("replay", build_replay_parser),
-                        ("params", build_params_parser)):
-        child = build()
-        sub.add_parser(name, parents=[child], add_help=False, help=child.description)
-    argcomplete.autocomplete(parser)
+def _check_ble_address(address: str | None) -> None:
+    """The address's form before any adapter is asked for: 'nonsense' is named as what it is."""
+    if address is not None and not BLE_ADDRESS.fullmatch(address):
+        raise UsageError(f"--ble {address!r} is not a Bluetooth address: six hex pairs such as F0:5A:00:00:00:01 "
+                         "(on macOS the board's UUID); 'term scan' lists the boards nearby")
 
 
 def _start_log(verbose: bool) -> None:
@@ -168,55 +104,11 @@ def _start_log(verbose: bool) -> None:
         print(f"term: logging to {path}", file=sys.stderr)
 
 
-def build_plot_parser() -> argparse.ArgumentParser:
-    p = _Parser(prog="term plot", description="Draw a session recording or a downloaded flight log to an image, "
-                "in SI units (°, °/s, g, m, V).")
-    p.add_argument("log", nargs="?", type=Path, help="a session recording (.mcap) or a CSV of the log download (F5)")
-    p.add_argument("--latest", action="store_true", help="the newest session recording (instead of a file)")
-    p.add_argument("-o", "--output", type=Path, required=True, help="image to write (.png, .svg, .pdf)")
-    p.add_argument("--signals", default=None, help="comma-separated series to draw, by field or export column "
-                   "(phi,theta or phi_deg; default: every panel)")
-    p.add_argument("--from", dest="start", type=cli_float, default=None, metavar="S",
-                   help="start of the time window (s)")
-    p.add_argument("--to", dest="end", type=cli_float, default=None, metavar="S", help="end of the time window (s)")
-    p.add_argument("--dir", type=Path, default=None, help="where recordings are kept (default: 'term recordings')")
-    return p
-
-
-def build_scan_parser() -> argparse.ArgumentParser:
-    p = _Parser(prog="term scan", description="List BLE boards advertising the board's service.")
-    p.add_argument("--hci", metavar="TRANSPORT", default=None, help="bumble HCI transport instead of the system's")
-    p.add_argument("--timeout", type=cli_float, default=3.0, help="seconds to scan (default 3)")
-    _add_common(p)
-    return p
-
-
-def build_export_parser() -> argparse.ArgumentParser:
-    p = _Parser(prog="term export", description="Convert a session recording, or a flash log downloaded as CSV, "
-                "to MCAP (Foxglove, PlotJuggler) or to CSV with the unit in each column (phi_deg, height_m).")
-    p.add_argument("source", nargs="?", type=Path, help="a session recording (.mcap) or a flash-log CSV")
-    p.add_argument("--latest", action="store_true", help="the newest session recording (instead of a file)")
-    p.add_argument("-o", "--output", type=Path, required=True, help="file to write (.mcap or .csv)")
-    p.add_argument("-f", "--format", choices=("mcap", "csv"), default=None, help="default: from the output's suffix")
-    p.add_argument("--board-units", action="store_true", help="CSV in the board's units (raw field values)")
-    p.add_argument("--raw", action="store_true", help="MCAP: the link's raw bytes and the station's records too "
-                   "(channels in the quadrupel-frames encoding other readers skip; 'term replay' plays the file)")
-    p.add_argument("--dir", type=Path, default=None, help="where recordings are kept (default: 'term recordings')")
-    return p
-
-
-def build_recordings_parser() -> argparse.ArgumentParser:
-    p = _Parser(prog="term recordings", description="List the session recordings (one file per session, every "
-                "frame both ways on every link and every event), oldest first.")
-    p.add_argument("--dir", type=Path, default=None, help="where recordings are kept (default: the platform's "
-                   "user data directory)")
-    return p
-
-
 def _export(a: argparse.Namespace) -> int:
     from term.data.export import ExportError, export
     from term.data.recording import RecordingError, latest
 
+    _start_log(a.verbose)
     if a.latest == (a.source is not None):
         raise UsageError("give one recording or flash log, or --latest")
     try:
@@ -248,18 +140,6 @@ def _progress_bar(what: str) -> Any:
     return show
 
 
-def build_replay_parser() -> argparse.ArgumentParser:
-    p = _Parser(prog="term replay", description="Play a session recording back in the terminal's screens (all "
-                "panels, plots and events), no board needed. Keys: space pause, left/right 5 s back/on, +/- "
-                "faster/slower, home from the start; F1 help, ctrl+q quit.")
-    p.add_argument("source", nargs="?", type=Path, help="a session recording (.mcap, or a 'term export' MCAP)")
-    p.add_argument("--latest", action="store_true", help="the newest session recording (instead of a file)")
-    p.add_argument("--speed", type=cli_float, default=1.0, help="playback speed, 0.25 to 16 (default 1)")
-    _add_foxglove(p)
-    p.add_argument("--dir", type=Path, default=None, help="where recordings are kept (default: 'term recordings')")
-    return p
-
-
 def _replay(a: argparse.Namespace) -> int:
     from term.data.recording import RecordingError, latest
     from term.data.replay import SPEEDS, Replay
@@ -275,11 +155,18 @@ def _replay(a: argparse.Namespace) -> int:
         raise UsageError(str(exc)) from None
     replay.speed = a.speed
     try:
-        cfg = load_config(None)
+        cfg = load_config(a.config, required=a.config is not None)
     except ConfigError as exc:
         raise UsageError(str(exc)) from None
+    _start_log(a.verbose)
 
-    live = _live_server(a.foxglove, 0.0, int(replay.meta.get("start_ns", 0) or 0))
+    live = _live_server(a.foxglove, 0.0, int(replay.meta.get("start_ns", 0) or 0))  # (its one-line errors first)
+    try:
+        _need_terminal()
+    except UsageError:
+        if live is not None:
+            live.close()
+        raise
 
     async def run() -> int:
         from term.ui.app import TermApp
@@ -316,11 +203,6 @@ def _recorder(args: argparse.Namespace, transport: Any, radio: Any, ble_only: bo
     return rec
 
 
-def _add_foxglove(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--foxglove", metavar="[HOST:]PORT", default=None, help="serve the session live to Foxglove "
-                   "(ws://HOST:PORT, loopback unless a host is given; needs the 'foxglove' extra); docs/recording.md")
-
-
 def _live_server(address: str | None, t0: float, start_ns: int) -> Any:
     """The live Foxglove server (term/data/foxglove_server.py) if asked for; its trouble is one line, before the
     screen is taken over."""
@@ -340,6 +222,7 @@ def _live_server(address: str | None, t0: float, start_ns: int) -> Any:
 def _recordings(a: argparse.Namespace) -> int:
     from term.data.recording import default_directory, session_table
 
+    _start_log(a.verbose)
     directory = a.dir or default_directory()
     lines = session_table(directory)
     if len(lines) == 1:
@@ -349,64 +232,39 @@ def _recordings(a: argparse.Namespace) -> int:
     return 0
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    if "_ARGCOMPLETE" in os.environ:
-        _complete()
-    argv = list(sys.argv[1:] if argv is None else argv)
-    try:
-        if argv and argv[0] == "plot":
-            from term.data.plot import PlotError, plot_log
-            from term.data.recording import RecordingError, latest
+def _plot(a: argparse.Namespace) -> int:
+    from term.data.plot import PlotError, plot_log
+    from term.data.recording import RecordingError, latest
 
-            a = build_plot_parser().parse_args(argv[1:])
-            if a.latest == (a.log is not None):
-                raise UsageError("give one recording or flight log, or --latest")
-            try:
-                src = latest(a.dir) if a.latest else a.log
-                written = plot_log(src, a.output, a.signals.split(",") if a.signals else None, a.start, a.end,
-                                   progress=_progress_bar("reading"))
-            except (PlotError, RecordingError) as exc:
-                raise UsageError(str(exc)) from None
-            print(f"wrote {written}")
-            return 0
-        if argv and argv[0] == "scan":
-            a = build_scan_parser().parse_args(argv[1:])
-            return _scan(a)
-        if argv and argv[0] == "export":
-            return _export(build_export_parser().parse_args(argv[1:]))
-        if argv and argv[0] == "recordings":
-            return _recordings(build_recordings_parser().parse_args(argv[1:]))
-        if argv and argv[0] == "replay":
-            return _replay(build_replay_parser().parse_args(argv[1:]))
-        if argv and argv[0] == "params":
-            return _params(build_params_parser().parse_args(argv[1:]))
-        return _fly(build_parser().parse_args(argv))
+    _start_log(a.verbose)
+    if a.latest == (a.log is not None):
+        raise UsageError("give one recording or flight log, or --latest")
+    try:
+        src = latest(a.dir) if a.latest else a.log
+        written = plot_log(src, a.output, a.signals.split(",") if a.signals else None, a.start, a.end,
+                           progress=_progress_bar("reading"))
+    except (PlotError, RecordingError) as exc:
+        raise UsageError(str(exc)) from None
+    print(f"wrote {written}")
+    return 0
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    _plain_on_dumb_terminals()
+    parser = build_parser()
+    if "_ARGCOMPLETE" in os.environ:
+        complete(parser)
+    try:
+        args = parser.parse_args(argv)
+        check_command(parser, args)
+        handlers = {None: _fly, "plot": _plot, "scan": _scan, "export": _export, "recordings": _recordings,
+                    "replay": _replay, "params": _params}
+        return handlers[args.command](args)
     except UsageError as exc:
         print(f"term: {exc}", file=sys.stderr)
         return EXIT_USAGE
     except KeyboardInterrupt:
         return EXIT_INTERRUPTED
-
-
-def build_params_parser() -> argparse.ArgumentParser:
-    p = _Parser(prog="term params", description="The board's parameters (docs/parameters.md) over the same links as "
-                "term: list them (name, value, unit, default; * changed), get or set one, save them to a TOML file, "
-                "load one (only what differs is set) or diff the board against one.",
-                epilog="examples: term params --sim list; term params --serial /dev/ttyUSB0 set ctrl.p1 0.45; "
-                "term params --sim --preset report save report.toml")
-    src = p.add_mutually_exclusive_group()
-    src.add_argument("--serial", metavar="PATH", help="the board's serial port")
-    src.add_argument("--sim", action="store_true", help="start the simulated board (fcb-sim serve --pty) for this")
-    p.add_argument("--ble", metavar="ADDR", help="the board's BLE address (alone: over BLE)")
-    p.add_argument("--baud", type=cli_int, default=None, help="serial speed (default 115200)")
-    p.add_argument("--hci", metavar="TRANSPORT", default=None, help="BLE through a bumble HCI transport")
-    p.add_argument("--ble-timeout", type=cli_float, default=10.0, metavar="S", help="seconds to look for the BLE board")
-    p.add_argument("--seed", type=cli_int, default=1, help="--sim: noise seed")
-    p.add_argument("--preset", default=None, help="--sim: the simulated board's preset (default, report)")
-    p.add_argument("--config", type=Path, default=None, help="config file (for [connection] port)")
-    p.add_argument("action", help="list | get NAME | set NAME VALUE | save FILE | load FILE | diff FILE")
-    p.add_argument("words", nargs="*", help="the action's NAME, VALUE or FILE")
-    return p
 
 
 def _params(a: argparse.Namespace) -> int:
@@ -423,6 +281,10 @@ def _params(a: argparse.Namespace) -> int:
     except (ConfigError, SchemaError) as exc:
         raise UsageError(str(exc)) from None
     _check_preset(a)
+    if a.sim and (a.serial or a.ble):  # (one may stand before 'params' and the other after it)
+        raise UsageError("--sim brings its own board: not with --serial or --ble")
+    _check_ble_address(a.ble)
+    _start_log(a.verbose)
     sim: SimBoard | None = None
     try:
         if a.sim:
@@ -495,6 +357,7 @@ def _check_fly_args(args: argparse.Namespace) -> None:
         _check_c_board(args)
     if args.hci and not args.ble:
         raise UsageError("--hci needs --ble ADDR")
+    _check_ble_address(args.ble)
     _check_lessons(args)
 
 
@@ -512,6 +375,19 @@ def _check_c_board(args: argparse.Namespace) -> None:
         raise UsageError(str(exc)) from None
 
 
+def _cable(args: argparse.Namespace, cfg: Config) -> str | None:
+    """The serial port to fly over (None for --sim or BLE alone), checked before anything starts."""
+    if args.sim or (args.ble and not args.serial):
+        return None
+    port = args.serial or cfg.port
+    if not port:
+        raise UsageError("no board given: use --serial PATH, --sim or --ble ADDR "
+                         f"(or set [connection] port in the config); {_ports_hint()}")
+    if not os.path.exists(port) and not port.upper().startswith("COM"):
+        raise UsageError(f"serial port {port} not found: check the cable and the name (ls /dev/tty*), or try --sim")
+    return port
+
+
 def _fly(args: argparse.Namespace) -> int:
     from term.session.config import default_path
 
@@ -520,6 +396,8 @@ def _fly(args: argparse.Namespace) -> int:
         return 0
     cfg, baud = _fly_config(args)
     _check_fly_args(args)
+    port = _cable(args, cfg)
+    _need_terminal()
     _start_log(args.verbose)
 
     sim: SimBoard | None = None
@@ -534,20 +412,15 @@ def _fly(args: argparse.Namespace) -> int:
                     sim.cmd += ["--preset", args.preset]
                 if c_board:
                     sim.cmd += ["--board", "c"]
-                port = sim.start()
-                transport = _serial(port, baud)
+                screens = _import_in_background("term.ui.app")  # while the board starts: each takes seconds
+                started = sim.start()
+                screens.join()
+                transport = _serial(started, baud)
                 if sim.ble_address:
                     radio = _ble(sim.ble_address, sim.ble_hci, args.ble_timeout)
-            elif args.ble and not args.serial:
+            elif port is None:
                 transport = _ble(args.ble, args.hci, args.ble_timeout)
             else:
-                port = args.serial or cfg.port
-                if not port:
-                    raise UsageError("no board given: use --serial PATH, --sim or --ble ADDR "
-                                     f"(or set [connection] port in the config); {_ports_hint()}")
-                if not os.path.exists(port) and not port.upper().startswith("COM"):
-                    raise UsageError(f"serial port {port} not found: check the cable and the name "
-                                     "(ls /dev/tty*), or try --sim")
                 transport = _serial(port, baud)
                 if args.ble:
                     radio = _ble(args.ble, args.hci, args.ble_timeout)
@@ -555,6 +428,25 @@ def _fly(args: argparse.Namespace) -> int:
         finally:
             if sim is not None:
                 sim.stop()
+
+
+def _import_in_background(module: str) -> threading.Thread:
+    """Import ``module`` (Textual and the screens) on a thread while the main one waits for the simulated board:
+    the child boots on the other core. Join it before importing anything else (two threads importing the same
+    modules can deadlock on their locks); what SimBoard.start imports is imported first, here."""
+    import importlib
+
+    import platformdirs  # noqa: F401  (SimBoard.start's own imports, done before the thread's)
+
+    import term.session.applog  # noqa: F401
+
+    def run() -> None:
+        with contextlib.suppress(Exception):  # a failure shows again where the app is imported, in one line
+            importlib.import_module(module)
+
+    thread = threading.Thread(target=run, name=f"import {module}", daemon=True)
+    thread.start()
+    return thread
 
 
 def _serial(port: str, baud: int) -> Any:
@@ -619,16 +511,7 @@ async def _run_app(transport: Any, cfg: Any, args: argparse.Namespace, radio: An
     session = dict(RADIO_SESSION) if ble_only else {}
     recorder = _recorder(args, transport, radio, ble_only)
     live = _live_foxglove(args, recorder)
-    sinks = tuple(s for s in (recorder, live) if s is not None)
-    if sinks:  # every byte both ways on both links, tapped at the transports (term/data/recording.py); the live
-        import time  # server gets the same bytes with the same times as the recording
-
-        from term.core.events import CABLE, RADIO
-        from term.data.recording import RecordingTransport
-
-        transport = RecordingTransport(transport, sinks, CABLE, time.monotonic)
-        if radio is not None:
-            radio = RecordingTransport(radio, sinks, RADIO, time.monotonic)
+    transport, radio = _tapped(transport, radio, tuple(s for s in (recorder, live) if s is not None))
     app = TermApp(transport, config=cfg, joystick=not args.no_joystick, log_directory=args.log_dir,
                   session_options=session, radio=radio, primary_ble=ble_only,
                   start_screen="wireless" if ble_only else "flight", recorder=recorder, instructor=instructor,
@@ -661,6 +544,22 @@ async def _run_app(transport: Any, cfg: Any, args: argparse.Namespace, radio: An
         print(f"term: {app.exit_message}", file=sys.stderr)
     code = app.return_code
     return int(code if code is not None else (result or 0))
+
+
+def _tapped(transport: Any, radio: Any, sinks: tuple[Any, ...]) -> tuple[Any, Any]:
+    """Every byte both ways on both links, tapped at the transports for the sinks (term/data/recording.py): the
+    live server gets the same bytes with the same times as the recording."""
+    if not sinks:
+        return transport, radio
+    import time
+
+    from term.core.events import CABLE, RADIO
+    from term.data.recording import RecordingTransport
+
+    transport = RecordingTransport(transport, sinks, CABLE, time.monotonic)
+    if radio is not None:
+        radio = RecordingTransport(radio, sinks, RADIO, time.monotonic)
+    return transport, radio
 
 
 def _live_foxglove(args: argparse.Namespace, recorder: Any) -> Any:

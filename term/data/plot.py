@@ -48,6 +48,9 @@ PANELS: tuple[tuple[str, tuple[str, ...]], ...] = (
     ("mode", ("mode",)),
 )
 
+NO_MATPLOTLIB = ("term plot needs matplotlib, which the default install leaves out: pip install 'quadrupel[plot]' "
+                 "(in a clone: .venv/bin/pip install -e '.[plot]')")
+
 
 def _scale(column: str) -> tuple[float, str]:
     try:
@@ -356,12 +359,14 @@ def plot_log(path: Path, output: Path, signals: Sequence[str] | None = None, sta
     """Draw the recording or flash log at ``path`` to ``output`` (the very file named); returns it. ``signals``:
     the series to draw (field or export column names; default: every panel present); ``start``, ``end``: the
     window on the x axis (s); ``progress``: told how far the reading of a recording is."""
+    try:  # first: the one thing a default install lacks (matplotlib is the plot extra's, issue 25)
+        import matplotlib
+    except ImportError:
+        raise PlotError(NO_MATPLOTLIB) from None
     check_output(output)
     window(start, end)  # before reading a file that may be large
     src = read_source(path, progress)
     drawn = panels_of(src, path, signals, start, end)
-
-    import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt

@@ -266,40 +266,96 @@ def mapping_table_name(device: str) -> str:
     return (re.sub(r"[^a-z0-9_-]+", "_", device.lower()).strip("_") or "my_stick")[:40]
 
 
-def mapping_toml(name: str, mapping: StickMapping, device: str) -> str:
-    """One ``[joystick.mappings.NAME]`` table for ``mapping``, matching ``device`` by its name."""
-    import json
+def mapping_table(mapping: StickMapping, device: str) -> Any:
+    """One ``[joystick.mappings.NAME]`` table for ``mapping`` (a tomlkit table), matching ``device`` by its name."""
+    import tomlkit
 
-    def axis(a: Any) -> str:
-        return (f"{{ axis = {a.index}, invert = {'true' if a.invert else 'false'}, deadzone = {a.deadzone:.3f}, "
-                f"kind = {json.dumps(a.kind)} }}")
+    table = tomlkit.table()
+    table["match"] = [device]
+    for key in ("roll", "pitch", "yaw", "lift"):
+        a = getattr(mapping, key)
+        axis = tomlkit.inline_table()
+        axis.update({"axis": a.index, "invert": a.invert, "deadzone": round(a.deadzone, 3), "kind": a.kind})
+        table[key] = axis
+    table["fire"] = list(mapping.fire)
+    return table
 
-    lines = [f"[joystick.mappings.{name}]", f"match = [{json.dumps(device, ensure_ascii=False)}]"]
-    lines += [f"{k} = {axis(getattr(mapping, k))}" for k in ("roll", "pitch", "yaw", "lift")]
-    lines.append(f"fire = [{', '.join(str(b) for b in mapping.fire)}]")
-    return "\n".join(lines) + "\n"
+
+def _last_table(table: Any) -> Any:
+    """The table drawn last in ``table``'s family (itself or its last sub-table, down), or None."""
+    from tomlkit.items import Table
+
+    if not isinstance(table, Table):
+        return None
+    keyed = [item for key, item in table.value.body if key is not None]
+    if keyed and isinstance(keyed[-1], Table):
+        return _last_table(keyed[-1])
+    return table
+
+
+def _take_introduction(table: Any) -> list[Any]:
+    """The comment lines after ``table``'s last blank line, taken out of it: tomlkit counts them as the table's,
+    but they introduce the table below (``# the plots`` above ``[plots]``), where they must stay."""
+    from tomlkit.items import Whitespace
+
+    body = table.value.body
+    keys = [i for i, (key, _) in enumerate(body) if key is not None]
+    blanks = [i for i, (key, item) in enumerate(body) if key is None and isinstance(item, Whitespace)
+              and i > (keys[-1] if keys else -1)]
+    if not blanks or blanks[-1] == len(body) - 1:
+        return []
+    taken = [item for _, item in body[blanks[-1] + 1:]]
+    del body[blanks[-1]:]  # (the blank line too: tomlkit puts one before the new table's header)
+    return taken
+
+
+def _with_trivia_of(old: Any, new: Any) -> Any:
+    """``new`` with what the user wrote around ``old`` (the header's comment, the comments and blank lines after
+    its last key, which tomlkit counts as the table's): only the keys change. A new table ends in a blank line."""
+    import tomlkit
+    from tomlkit.items import Table
+
+    if not isinstance(old, Table):
+        new.add(tomlkit.nl())
+        return new
+    new.trivia.comment_ws, new.trivia.comment = old.trivia.comment_ws, old.trivia.comment
+    body = old.value.body
+    last_key = max((i for i, (key, _) in enumerate(body) if key is not None), default=-1)
+    for _, item in body[last_key + 1:]:
+        new.add(item)
+    return new
 
 
 def save_joystick_mapping(path: Path, mapping: StickMapping, device: str) -> str:
     """Write ``mapping`` into the config file at ``path`` as the device's own mapping (replacing an earlier one of
-    the same name, keeping the rest of the file as it is) and return the table's name. The new file is checked as
-    the terminal will read it before it is written; trouble is a ``ConfigError`` of one line."""
-    import re
+    the same name) and return the table's name. tomlkit edits the document in place: every comment, blank line
+    and key outside that one table stays byte for byte as the user wrote it. The new file is checked as the
+    terminal will read it before it is written; trouble is a ``ConfigError`` of one line."""
+    import tomlkit
+    from tomlkit.exceptions import TOMLKitError
 
     name = mapping_table_name(device)
     try:
         old = read_user_text(path, CONFIG_MAX_BYTES, "config file") if os.path.lexists(path) else ""
     except UserFileError as exc:
         raise ConfigError(one_line(str(exc))) from None
-    header = re.compile(rf"^\[\s*joystick\.mappings\.{re.escape(name)}\s*[\].]")
-    kept, skipping = [], False
-    for line in old.splitlines():
-        if line.lstrip().startswith("["):
-            skipping = bool(header.match(line.strip()))
-        if not skipping:
-            kept.append(line)
-    body = "\n".join(kept).rstrip()
-    text = (body + "\n\n" if body else "") + mapping_toml(name, mapping, device)
+    try:
+        doc = tomlkit.parse(old)
+        old_mappings = doc.get("joystick", {}).get("mappings", {})
+        # A new table goes after the joystick's last one, and the comments that introduce the table below move
+        # down with it; a table saved before is replaced where it is.
+        before = None if name in old_mappings else _last_table(doc.get("joystick"))
+        introduction = _take_introduction(before) if before is not None else []
+        joystick = doc.setdefault("joystick", tomlkit.table(is_super_table=True))
+        mappings = joystick.setdefault("mappings", tomlkit.table(is_super_table=True))
+        mappings[name] = _with_trivia_of(mappings.get(name), mapping_table(mapping, device))
+        for item in introduction:
+            mappings[name].add(item)
+        text = tomlkit.dumps(doc)
+        if text.endswith("\n\n") and not old.endswith("\n\n"):  # (a new table at the end: no blank line after)
+            text = text[:-1]
+    except (TOMLKitError, AttributeError, TypeError) as exc:  # not TOML, or [joystick] is not a table
+        raise ConfigError(one_line(f"config file {path}: not saved, it does not read as a config: {exc}")) from None
     try:
         config_from_dict(tomllib.loads(text))
     except (tomllib.TOMLDecodeError, SchemaError, KeymapError) as exc:

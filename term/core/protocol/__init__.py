@@ -96,6 +96,7 @@ from term.core.protocol.instructor import (  # noqa: F401
     INSTRUCTOR_TRUTH,
     INSTRUCTOR_TRUTH_HZ,
     INSTRUCTOR_VERSION,
+    SIM_SCENARIOS,
     situation_problem,
 )
 from term.core.protocol.packets import (  # noqa: F401

@@ -20,6 +20,10 @@ from term.core.protocol.numbers import NumberError, check_number, finite, shown_
 # at a time: a second is refused. Cable and radio cuts add up to at most INSTRUCTOR_MAX_OUTAGE_S per attempt (a
 # reset starts the next one).
 
+# The simulator's starting worlds (`term --sim --scenario NAME` passes NAME to `fcb-sim serve`; fcb_sim/serve.py
+# SCENARIOS describes each): both programs name them, and term offers them to shell completion.
+SIM_SCENARIOS = ("bench", "breeze", "gusty", "low-battery", "no-spikes")
+
 INSTRUCTOR_VERSION = 2
 INSTRUCTOR_AUTH = "auth"  # the first line's kind
 INSTRUCTOR_TOKEN_SEP = "#"  # the address's token follows this
