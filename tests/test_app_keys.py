@@ -136,9 +136,12 @@ def is_text(w: Widget | None) -> bool:
 
 async def open_screen(app: TermApp, pilot, name: str) -> None:  # noqa: ANN001
     while len(app.screen_stack) > 1:
+        await pilot.pause(0.05)  # (the palette's search worker ends before it goes)
         await app.pop_screen()
     SCREENS[name](app)
     await pilot.pause(0.1)
+    if name in ("palette", "directory"):  # a text screen: its box takes the focus when it is up
+        await settle(pilot, lambda: isinstance(app.focused, Input))
 
 
 async def settle(pilot, cond: Callable[[], bool], timeout: float = 5.0) -> bool:  # noqa: ANN001
@@ -263,3 +266,23 @@ async def test_the_terminals_own_parameter_request_failing_is_no_error(scripted_
         assert not [e.text for e in app.model.events if "list the parameters" in e.text]
         await pilot.press("f11", "r")  # the pilot's own request: its failure is said
         await until(pilot, lambda: any("list the parameters failed" in e.text for e in app.model.events), 10)
+
+
+async def test_the_readiness_panel_asks_nothing_of_a_recording() -> None:
+    """Issue 22: in replay the readiness panel asked to `press ?` (a recording has no board to command)."""
+    from term.core.protocol import Attitude, Status
+
+    app = TermApp(joystick=False)
+    async with app.run_test(size=(160, 50)) as pilot:
+        app.model.apply_packet(Attitude(int(Mode.SAFE), 0, 0, 0, 0, 0, 0), app.clock())
+        app.model.apply_packet(Status(0, 0, 0, 0, 0, 42, 10, 0), app.clock())  # not calibrated
+        app.render_now()
+        await pilot.pause(0.05)
+        panel = app.screen.query_one("#readiness")
+        assert "press" in str(panel.render())  # live: the keys to press
+        app.model.link_name = "REPLAY 00:01 / 00:10 playing  flight.mcap"
+        app.model.version += 1
+        app.render_now()
+        await pilot.pause(0.05)
+        text = str(panel.render())
+        assert "press" not in text and "?" not in text and "recording" in text, text

@@ -112,6 +112,8 @@ async def test_log_record_download_as_csv_and_reset(tmp_path: Path) -> None:
             assert seen_progress, (board.log.used, records, [e.text for e in m.events])
             files = list(tmp_path.glob("quadrupel-log-*.csv"))
             assert len(files) == 1
+            # issue 22: the size said is the file's (it said the flash's bytes: 97344 for a file of 710,334)
+            assert f"{files[0].stat().st_size:,} bytes" in m.download_note, m.download_note
             with files[0].open() as f:
                 rows = list(csv.reader(f))
             assert rows[0][:3] == ["segment", "t_us", "mode"]

@@ -54,3 +54,29 @@ def test_the_set_point_is_shown_only_while_height_hold_is_in_force() -> None:
     m.apply_packet(Height(101300, 0, raw("setpoint", 3.4), 0, 1200, 2150), 0.2)
     text = panel.render_model(m, 0.3).plain
     assert "3.40" not in text and "set pt" in text
+
+
+def stats(rtt_last: float | None, rtt_mean: float | None, heartbeat_ago: float | None):  # noqa: ANN201
+    from term.core.link import LinkStats
+
+    return LinkStats(rtt_last, rtt_mean, rtt_mean, 0.0, 0.0, 100.0, 100.0, 10, 0, 0.01, heartbeat_ago, 1.0, False,
+                     1000, 1000, 5, 0, 0, 10, 1)
+
+
+def test_one_rtt_and_none_for_an_idle_link() -> None:
+    """Issue 22: `▶ cable OK, RTT 244 ms`, `cable RTT 79.2 ms` and `link up cable (RTT 27 ms)` on one screen; an RTT
+    shown for a silent cable and an idle radio; `RTT 0 ms` over BLE."""
+    from term.session.model import Model, rtt_text
+    from term.session.phone import link_states
+    from term.session.readiness import checks
+
+    assert rtt_text(stats(244.0, 27.4, 0.05)) == "RTT 27 ms"  # the heartbeat's round trip, its recent mean
+    assert rtt_text(stats(5.0, 0.2, 0.05)) == "RTT <1 ms"
+    assert rtt_text(stats(30.0, 36.0, 2.5)) == "" and rtt_text(stats(None, None, 0.05)) == ""  # idle: none
+    m = Model(start=0.0, link_name="cable")
+    m.link = stats(244.0, 27.4, 0.05)
+    said = [s.state for s in link_states(m)] + [c.text for c in checks(m, 0.0, ()) if c.item == "link"]
+    assert all("RTT 27 ms" in s for s in said) and not any("244" in s for s in said), said
+    m.link = stats(244.0, 36.0, 3.0)  # the cable silent for 3 s
+    said = [s.state for s in link_states(m)] + [c.text for c in checks(m, 0.0, ()) if c.item == "link"]
+    assert not any("RTT" in s for s in said), said

@@ -110,7 +110,7 @@ def test_link_states_say_which_link_carries_control() -> None:
     m.radio_name = "ble"
     cable, ble = link_states(m)
     assert cable.carries and not ble.carries and ble.state == "not connected" and ble.level == "warn"
-    m.radio_up, m.radio = True, _stats(rtt_last_ms=30.0)
+    m.radio_up, m.radio = True, _stats(rtt_last_ms=30.0, rtt_mean_ms=30.0)  # (the mean is the one shown)
     m.apply_packet(Compact(int(Mode.SAFE), int(WirelessState.STARTED), 0, 0, 0, 1200), 0.1)
     m.link_lost = True
     cable, ble = link_states(m)

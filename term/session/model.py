@@ -110,6 +110,18 @@ def mode_name(mode: int | None) -> str:
         return f"MODE {mode}"
 
 
+RTT_IDLE_S = 1.0  # a link that answered no heartbeat for this long is idle: it shows no round-trip time
+
+
+def rtt_text(s: LinkStats | None) -> str:
+    """The one round-trip time the screens show: the heartbeat's round trip (the board's own measurement and the
+    commands' acknowledgements), the mean of the recent ones, as "RTT 27 ms"; "" for a link that is idle or has
+    none measured (issue 22: three RTTs on one screen, and one for a silent cable)."""
+    if s is None or s.rtt_mean_ms is None or s.since_last_heartbeat_s is None or s.since_last_heartbeat_s > RTT_IDLE_S:
+        return ""
+    return "RTT <1 ms" if s.rtt_mean_ms < 0.5 else f"RTT {s.rtt_mean_ms:.0f} ms"
+
+
 def op_text(op: int, arg: int) -> str:
     """A command in words, for the events list."""
     try:

@@ -27,7 +27,7 @@ from dataclasses import dataclass
 from term.core.freshness import Reading
 from term.core.protocol import Joystick, Mode, Op, WirelessState
 from term.input.mapping import FULL
-from term.session.model import Model, battery_level, mode_name
+from term.session.model import Model, battery_level, mode_name, rtt_text
 
 
 @dataclass(frozen=True, slots=True)
@@ -184,8 +184,8 @@ def link_states(model: Model) -> list[LinkState]:
     elif model.link_lost:
         state, level = "LINK LOST", "alarm"
     else:
-        rtt = "" if s.rtt_last_ms is None else f", RTT {s.rtt_last_ms:.0f} ms"
-        state, level = f"OK{rtt}", "ok"
+        rtt = rtt_text(s)
+        state, level = f"OK{', ' + rtt if rtt else ''}", "ok"
     out = [LinkState("ble" if model.primary_ble else "cable", state, level,
                      carries=not model.radio_name or not over_ble)]
     if not model.radio_name:
@@ -196,8 +196,8 @@ def link_states(model: Model) -> list[LinkState]:
     elif model.radio_lost:
         state, level = "BLE LINK LOST", "alarm"
     elif model.wireless == WirelessState.STARTED:
-        rtt = "" if r is None or r.rtt_last_ms is None else f", RTT {r.rtt_last_ms:.0f} ms"
-        state, level = f"flying over BLE{rtt}", "active"
+        rtt = rtt_text(r)
+        state, level = f"flying over BLE{', ' + rtt if rtt else ''}", "active"
     elif model.wireless == WirelessState.STARTING:
         state, level = "STARTING: answering the board's heartbeats", "warn"
     else:

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 from term.core.protocol import LIFT_ZERO, STICK_MAX, STICK_NEUTRAL, Flag, LogState, Mode, Nak, Op, WirelessState
 from term.input.keymap import KeyBinding, pretty_key
-from term.session.model import BATTERY_PANIC_V, BATTERY_WARN_V, Model
+from term.session.model import BATTERY_PANIC_V, BATTERY_WARN_V, Model, rtt_text
 
 # The checks, in the order the panel lists them.
 ITEMS = ("calibrated", "lift", "sticks", "link", "battery", "crash", "wireless", "log")
@@ -116,8 +116,8 @@ def _link(model: Model, now: float) -> Check:
         return Check("link", "todo", "BLE: 8 on the cable terminal")
     if s is None or s.since_last_frame_s is None:
         return Check("link", "wait", "waiting for the board…")
-    rtt = "" if s.rtt_last_ms is None else f" (RTT {s.rtt_last_ms:.0f} ms)"
-    return Check("link", "ok", f"{'BLE' if model.over_ble else 'cable'}{rtt}")
+    rtt = rtt_text(model.radio if model.over_ble else s)  # the link that carries control
+    return Check("link", "ok", f"{'BLE' if model.over_ble else 'cable'}{f' ({rtt})' if rtt else ''}")
 
 
 def _calibrated(model: Model, now: float, keymap: tuple[KeyBinding, ...]) -> Check:

@@ -104,6 +104,8 @@ class DownloadController:
             model.note(self.clock(), "error", "term", msg)
             model.download_note = msg
             return
-        msg = f"log saved: {path} ({len(data)} bytes, {rows} rows, {rate:.2f} kB/s)"
+        size = path.stat().st_size if path.exists() else 0  # the file's size, not the flash's bytes it came from
+        msg = (f"log saved: {path} ({rows} rows, {size:,} bytes; {len(data):,} bytes read from the flash at "
+               f"{rate:.2f} kB/s)")
         model.note(self.clock(), "info", "term", msg)
         model.download_note = msg

@@ -7,7 +7,7 @@ from rich.console import RenderableType
 from rich.text import Text
 
 from term.core.protocol import Hello, WirelessState
-from term.session.model import Model
+from term.session.model import Model, rtt_text
 from term.ui.screens.wireless import link_lines
 from term.ui.widgets.base import ModelView
 
@@ -96,7 +96,7 @@ class LinkPanel(ModelView):
                 continue
             hb = s.since_last_heartbeat_s
             loss = "—" if s.loss_pct is None else f"{s.loss_pct:.1f}"
-            out.append(f"{name:<6}RTT {_ms(s.rtt_mean_ms)} ms  loss {loss}%  rx/tx {s.rx_bytes_per_s:.0f}/"
+            out.append(f"{name:<6}{rtt_text(s) or 'RTT —'}  loss {loss}%  rx/tx {s.rx_bytes_per_s:.0f}/"
                        f"{s.tx_bytes_per_s:.0f}\n", style="dim" if model.over_ble != (name == "ble") else "")
             out.append(f"      frames {s.frames_ok} bad {s.frames_bad}  heartbeat {_heartbeat(model, name, hb)}\n",
                        style="dim")

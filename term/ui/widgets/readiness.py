@@ -12,7 +12,7 @@ from rich.text import Text
 from term.core.protocol import Mode
 from term.input.keymap import KeyBinding
 from term.session.model import Model
-from term.session.readiness import checks, keys_for, next_step, ready
+from term.session.readiness import Check, checks, keys_for, next_step, ready
 from term.ui.widgets.base import ModelView
 
 ICON = {"ok": ("✔", "green"), "todo": ("✘", "bold yellow"), "wait": ("…", "dim"), "info": ("·", "cyan")}
@@ -37,6 +37,8 @@ class ReadinessPanel(ModelView):
         found = checks(model, now, self.keymap, lift_step=lift_step, trim_step=trim_step)
         out = Text()
         step = next_step(found)
+        if model.link_name.startswith("REPLAY "):  # term replay: what the checks were, nothing to press
+            return self._as_recorded(found)
         if step is not None:
             out.append("next: ", style="bold")
             out.append(f"{step.step}\n", style="bold yellow")
@@ -53,6 +55,17 @@ class ReadinessPanel(ModelView):
             out.append(f"{icon} ", style=style)
             out.append(f"{c.label:<16}", style="" if c.state != "wait" else "dim")
             out.append(c.text, style=style if c.state != "ok" else "")
+            out.append("\n")
+        out.rstrip()
+        return out
+
+    def _as_recorded(self, found: list[Check]) -> Text:
+        out = Text("as recorded: the checks as the pilot saw them (a recording flies nothing)\n", style="dim")
+        for c in found:
+            icon, style = ICON[c.state]
+            out.append(f"{icon} ", style=style)
+            out.append(f"{c.label:<16}", style="" if c.state != "wait" else "dim")
+            out.append({"ok": "ok", "todo": "not ready", "wait": "not known", "info": "noted"}[c.state], style="dim")
             out.append("\n")
         out.rstrip()
         return out
