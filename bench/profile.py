@@ -154,6 +154,10 @@ def cost_table(emu: dict[str, Any]) -> list[dict[str, Any]]:
         {"task": "RAW filter ikf, fixed point (update, prediction, angles)", "figure14_us": None,
          "model_us": raw_filter_us("ikf", True), "emulated_us": us["filter/ikf/fixed"][0],
          "charged_us": raw_filter_price_us("ikf", True), "note": "firmware/board/ikf_q.c; in the sensor task"},
+        *({"task": f"RAW filter ikf, fixed point, gravity every {n}th sample", "figure14_us": None, "model_us": None,
+           "emulated_us": us[f"filter/ikf/fixed/decimation{n}"][0], "charged_us": None,
+           "note": f"p99 {us[f'filter/ikf/fixed/decimation{n}'][1]:.0f} µs (the full sample); not the default"}
+          for n in (4, 8)),
         {"task": "RAW filter ikf, float (qfplib)", "figure14_us": None, "model_us": raw_filter_us("ikf", False),
          "emulated_us": None, "charged_us": raw_filter_price_us("ikf", False),
          "note": "not emulated: no FPU, qfplib is not in the build"},
@@ -163,7 +167,7 @@ def cost_table(emu: dict[str, Any]) -> list[dict[str, Any]]:
     ]
     for r in rows:
         e, m = r["emulated_us"], r["model_us"]
-        r["model_follows_emulation"] = e is not None and abs(m - e) > MODEL_TOLERANCE * e
+        r["model_follows_emulation"] = e is not None and m is not None and abs(m - e) > MODEL_TOLERANCE * e
     return rows
 
 
@@ -184,6 +188,63 @@ def print_cost_table(rows: list[dict[str, Any]], emu: dict[str, Any]) -> None:
         for task, d in emu["detail"].items():
             print(f"  emulated {task}: {d['instructions_mean']:.0f} instructions, {d['cycles_mean']:.0f} cycles mean,"
                   f" p99 {d['cycles_p99']}, max {d['cycles_max']} ({d['n']} samples of BROAD trial 07)")
+
+
+class _PerSample(dict):
+    """RAW_FILTER_EXTRA_US with ikf's fixed-point entry drawn sample by sample from a measured pattern: a board
+    charging each sample its own emulated cost (a decimated filter's cheap samples and its full one)."""
+
+    def __init__(self, table: dict[tuple[str, bool], int], pattern: list[int]) -> None:
+        super().__init__(table)
+        self.pattern, self.i = pattern, 0
+
+    def __getitem__(self, key: tuple[str, bool]) -> int:
+        if key != ("ikf", True):
+            return super().__getitem__(key)
+        self.i += 1
+        return self.pattern[self.i % len(self.pattern)]
+
+
+def decimated(emu: dict[str, Any], seconds: float, seed: int) -> dict[str, dict[str, Any]]:
+    """ikf in Q16.16 with the gravity part every N-th sample (fcb_sim.m0emu.DECIMATIONS) on the RAW path: each
+    sample charged its own emulated cost (round robin and priority), and, beside it, every sample charged the mean
+    (what spreading the gravity part evenly over the N samples would cost; not built). Needs the emulation."""
+    from fcb_sim import board as board_module
+    from fcb_sim import m0emu
+
+    if not emu["ran"]:
+        return {}
+    base = raw_filter_us(REPORT_RAW_FILTER, True)
+    out: dict[str, dict[str, Any]] = {}
+    table = dict(RAW_FILTER_EXTRA_US)
+    try:
+        for n in m0emu.DECIMATIONS:
+            extra = [round(c * 1e6 / m0emu.CPU_HZ - base) for c in m0emu.decimated_cycles(n)]
+            mean = round(sum(extra) / len(extra))
+            for label, pattern, sched in (("per-sample", extra, "round-robin"), ("per-sample", extra, "priority"),
+                                          ("mean", [mean], "round-robin")):
+                board_module.RAW_FILTER_EXTRA_US = _PerSample(table, pattern)  # type: ignore[assignment]
+                key = f"decimation{n}/{label}/{sched}"
+                try:
+                    r = run_profile("raw", sched, seconds, seed, filter_name="ikf", fixed_point=True)
+                    out[key] = {"miss_rate": round(r["deadline_miss_rate"], 5), "cpu_pct": r["cpu_load_pct"],
+                                "extra_us_mean": mean}
+                except RuntimeError as e:
+                    out[key] = {"failed": str(e)}
+    finally:
+        board_module.RAW_FILTER_EXTRA_US = table  # type: ignore[assignment]
+    return out
+
+
+def print_decimated(dec: dict[str, dict[str, Any]]) -> None:
+    if not dec:
+        print("\nikf decimated: needs the emulation (unicorn and arm-none-eabi-gcc)")
+        return
+    print("\nikf Q16.16, gravity part every N-th sample (RAW, >= WCET99; charged each sample its own emulated cost, "
+          "or every sample the mean):")
+    for key, r in dec.items():
+        fig = r["failed"] if "failed" in r else f"{pct(r['miss_rate'])}, CPU {r['cpu_pct']:.0f} %"
+        print(f"  {key:40s} {fig}")
 
 
 def print_report_misses(runs: dict[str, dict[str, Any]], tau: float) -> None:
@@ -238,6 +299,8 @@ def main() -> None:
           f"{model_sd} µs (model) vs {REPORT_SENSOR_PERIOD_SD['raw']} µs (report)")
     print_filters(runs, failed)
     print_cost_table(costs, emu)
+    dec = decimated(emu, args.seconds, args.seed)
+    print_decimated(dec)
     print_report_misses(runs, tau)
     rates = {k.replace("/", "_").replace("-", "_") + "_miss_rate": round(v["deadline_miss_rate"], 5)
              for k, v in runs.items()}
@@ -253,6 +316,7 @@ def main() -> None:
         **rates,
         **rates999,
         "failed_runs": failed,
+        "ikf_decimated": dec,
         "residual_jitter_us": tau,
         "task_costs_us": costs,
         "emulation": {k: v for k, v in emu.items() if k != "us"} | {"us": {k: list(v) for k, v in emu["us"].items()}},

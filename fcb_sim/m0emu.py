@@ -256,10 +256,12 @@ class TaskCycles:
                 "us_p99": round(p99 * us, 1), "us_max": round(xs[-1] * us, 1)}
 
 
-def run_tasks(samples: list[tuple[float, ...]], seed: int = 1, elf: Path | None = None) -> TaskCycles:
+def run_tasks(samples: list[tuple[float, ...]], seed: int = 1, elf: Path | None = None,
+              decimation: int = 1) -> TaskCycles:
     """The filter step and the control step on the M0 and on the host, fed the same inputs: ``samples`` are
     (gx, gy, gz, ax, ay, az, dt) rows (rad/s, m/s², s; the first starts the filter), the sticks pseudo-random
-    from ``seed``. Returns each step's cycles, and every output that differed (none, or it is a fault)."""
+    from ``seed``; the filter's gravity part every ``decimation``-th sample. Returns each step's cycles, and
+    every output that differed (none, or it is a fault)."""
     import ctypes
     import random
 
@@ -271,7 +273,7 @@ def run_tasks(samples: list[tuple[float, ...]], seed: int = 1, elf: Path | None 
     if lib is None:
         raise RuntimeError("the host build of firmware/board is not available (fcb_sim.native.why_not())")
     m0 = M0Tasks(elf)
-    host = NativeIKFQ()
+    host = NativeIKFQ(decimation=decimation)
     host.update(*samples[0])  # starts it (the start is no per-sample work)
     host._lib.ikfq_set_dt(host._s, samples[1][6])
     # the M0 sets itself up from the integers alone (ikfq_init_q: no doubles on the board), then takes the host's
@@ -361,9 +363,27 @@ def recorded_samples(path: Path = EXCERPT, rows: tuple[int, int] = EXCERPT_ROWS)
     return out
 
 
+DECIMATIONS = (4, 8)  # the decimated variants measured beside the default (docs/attitude.md, "Decimation")
+
+
 def emulated_table(samples: list[tuple[float, ...]] | None = None) -> tuple[dict[str, tuple[float, float]],
                                                                               TaskCycles]:
-    """fcb_sim.timing.M0_EMULATED_US measured again: (mean, p99) µs of each task; and the run itself."""
-    run = run_tasks(samples or recorded_samples())
+    """fcb_sim.timing.M0_EMULATED_US measured again: (mean, p99) µs of each task, the decimated filters too
+    ("filter/ikf/fixed/decimation4": the gravity part every 4th sample); and the default's run itself (a decimated
+    run's mismatches are added to it)."""
+    samples = samples or recorded_samples()
+    run = run_tasks(samples)
     f, c = run.summary("filter"), run.summary("control")
-    return {"filter/ikf/fixed": (f["us_mean"], f["us_p99"]), "control_raw": (c["us_mean"], c["us_p99"])}, run
+    table = {"filter/ikf/fixed": (f["us_mean"], f["us_p99"]), "control_raw": (c["us_mean"], c["us_p99"])}
+    for n in DECIMATIONS:
+        d = run_tasks(samples, decimation=n)
+        run.mismatches += [f"decimation {n}: {m}" for m in d.mismatches]
+        s = d.summary("filter")
+        table[f"filter/ikf/fixed/decimation{n}"] = (s["us_mean"], s["us_p99"])
+    return table, run
+
+
+def decimated_cycles(n: int, samples: list[tuple[float, ...]] | None = None) -> list[int]:
+    """The filter task's cycles sample by sample with the gravity part every ``n``-th (a light, light, ..., heavy
+    pattern: what a board charging each sample its own cost sees)."""
+    return run_tasks(samples or recorded_samples(), decimation=n).filter

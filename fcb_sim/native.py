@@ -47,7 +47,7 @@ class _Consts(ctypes.Structure):
     _fields_ = [(n, ctypes.c_int32) for n in (
         "qg_shift", "q_g0", "k_rot", "drift_noise", "rest_r", "rest_g2", "rest_a2", "bias_max", "inv_g0",
         "lat_half", "pgg0", "pdd0", "g0_io", "swing_max", "swing_k")] + [("rest_time", ctypes.c_int64)] + [
-        (n, ctypes.c_int32) for n in ("dtq", "dt2q", "dthq", "krq", "kbq")]
+        (n, ctypes.c_int32) for n in ("dtq", "dt2q", "dthq", "krq", "kbq", "decim")]
 
 
 def _sources() -> list[Path]:
@@ -99,6 +99,7 @@ def _load(path: Path) -> ctypes.CDLL:
     lib.ikfq_predicted.argtypes = [vp, i32p]
     lib.ikfq_state.argtypes = [vp, i64p]
     lib.ikfq_set_dt.argtypes = [vp, d]
+    lib.ikfq_set_decimation.argtypes = [vp, ctypes.c_int32]
     lib.ikfq_step.argtypes = [vp, i32p, i32p]
     lib.ctlq_step.argtypes = [vp, vp, ctypes.POINTER(ctypes.c_int16)]
     lib.ctlq_law.argtypes = [vp, vp, ctypes.c_int32, ctypes.c_int32, ctypes.POINTER(ctypes.c_int16)]
@@ -144,6 +145,8 @@ class NativeIKF(QuaternionAnglesMixin):
             raise RuntimeError(f"the C filter is not available: {why_not()}")
         self._lib = lib
         self.reference = p = InertialKalmanFilter(**params)  # validates and holds the parameters; never run
+        if p.decimation != 1:
+            raise ValueError("ikf_f.c runs the gravity part every sample (decimation 1): use the Python class")
         self._par = _Params(p.q_g0, p.k_rot, p.drift_init, p.drift_noise, p.latency, p.rest_r, p.rest_gyro,
                             p.rest_acc, p.rest_time, p.rest_tau, p.rest_bias_tau, p.bias_max)
         self._buf = ctypes.create_string_buffer(lib.ikff_size())
@@ -206,6 +209,8 @@ class NativeIKFQ(QuaternionAnglesMixin):
         self._q = (1.0, 0.0, 0.0, 0.0)
         self._update_q = self._lib.ikfq_update_q
         self._lib.ikfq_init(self._s, ctypes.byref(self._fmt), ctypes.byref(self._par))
+        if p.decimation != 1:
+            self._lib.ikfq_set_decimation(self._s, p.decimation)
 
     def reset(self) -> None:
         self._lib.ikfq_reset(self._s)
@@ -230,7 +235,7 @@ class NativeIKFQ(QuaternionAnglesMixin):
 
     CONSTS = ("qg_shift", "q_g0", "k_rot", "drift_noise", "rest_r", "rest_g2", "rest_a2", "bias_max", "inv_g0",
               "lat_half", "pgg0", "pdd0", "g0_io", "swing_max", "swing_k", "rest_time", "dtq", "dt2q", "dthq", "krq",
-              "kbq")
+              "kbq", "decim")
 
     def consts(self, dt: float) -> dict[str, int]:
         """The integers ikfq_init and ikfq_set_dt derive (ikfq_consts_t), for a board's table: no doubles there."""

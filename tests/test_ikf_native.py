@@ -57,7 +57,7 @@ def _float_state(f: InertialKalmanFilter) -> dict[str, float]:
 def _same_run(samples: list[tuple[float, ...]], every: int = 1, **kw: object) -> None:
     """The fixed-point pair and the float pair, side by side."""
     pairs = [(InertialKalmanFilterQ(**kw), NativeIKFQ(**kw), python_state)]  # type: ignore[arg-type]
-    if "formats" not in kw:
+    if "formats" not in kw and kw.get("decimation", 1) == 1:  # ikf_f.c has no decimation
         pairs.append((InertialKalmanFilter(**kw), NativeIKF(**kw), _float_state))  # type: ignore[arg-type]
     for py, c, state in pairs:
         for i, s in enumerate(samples):
@@ -92,6 +92,46 @@ def test_other_formats_and_parameters_give_the_same_bits() -> None:
     _same_run(rows, every=7, latency=0.0, rest_time=0.2, tau=2.0, bias_max=0.5)
 
 
+def test_decimation_gives_the_same_bits() -> None:
+    """The gravity part every 4th (every 3rd) sample, the strapdown every one: C and Python agree on every sample."""
+    rows = _rows(EXCERPT, 10**6)
+    _same_run(rows, decimation=4)
+    _same_run(rows[2000:3500], every=3, decimation=3, formats=Formats.all_q16())
+
+
+def test_decimation_one_is_the_filter_of_before() -> None:
+    """decimation=1 runs the gravity part every sample, with the constants of dt: the same states as the default."""
+    rows = _rows(EXCERPT, 3000)[:2600]
+    a, b = InertialKalmanFilterQ(), InertialKalmanFilterQ(decimation=1)
+    fa, fb = InertialKalmanFilter(), InertialKalmanFilter(decimation=1)
+    for r in rows:
+        a.update(*r), b.update(*r), fa.update(*r), fb.update(*r)
+        assert python_state(a) == python_state(b) and fa.quaternion() == fb.quaternion()
+
+
+def test_decimation_is_checked_and_the_float_c_filter_refuses_it() -> None:
+    for bad in (0, -1, 65, 2.0):
+        with pytest.raises(ValueError):
+            InertialKalmanFilter(decimation=bad)  # type: ignore[arg-type]
+    with pytest.raises(ValueError):
+        NativeIKF(decimation=4)
+
+
+def test_a_decimated_filter_from_the_integers_alone_runs_the_same() -> None:
+    """The table carries the decimation (ikfq_consts_t.decim): ikfq_init_q gives the same states."""
+    from fcb_sim.estimation.ikf_fixed import to_q
+
+    rows = _rows(EXCERPT, 3000)[2400:2700]
+    a, b = NativeIKFQ(decimation=4), NativeIKFQ()
+    consts = a.consts(rows[0][6])
+    assert consts["decim"] == 4
+    b.init_from_consts(consts)
+    for r in rows:
+        g, acc = tuple(to_q(v, 16) for v in r[:3]), tuple(to_q(v, 16) for v in r[3:6])
+        assert a.step_q(g, acc, r[6]) == b.step_q(g, acc, r[6])  # type: ignore[arg-type]
+    assert a.state() == b.state()
+
+
 _wild = st.one_of(st.floats(allow_nan=True, allow_infinity=True, width=64),
                   st.sampled_from([0.0, -0.0, 1e-9, 35.0, -35.0, 1e4, -1e4, 32767.9, -32768.0, 1e300]))
 _sample = st.tuples(_wild, _wild, _wild, _wild, _wild, _wild,
@@ -99,12 +139,12 @@ _sample = st.tuples(_wild, _wild, _wild, _wild, _wild, _wild,
 
 
 @settings(max_examples=40, deadline=None)
-@given(st.lists(_sample, min_size=1, max_size=40), st.integers(0, 300))
-def test_the_worst_samples_give_the_same_bits(wild: list[tuple[float, ...]], start: int) -> None:
+@given(st.lists(_sample, min_size=1, max_size=40), st.integers(0, 300), st.sampled_from([1, 1, 4]))
+def test_the_worst_samples_give_the_same_bits(wild: list[tuple[float, ...]], start: int, decimation: int) -> None:
     """Saturating rates, huge and non-finite values, zero and negative dt, mixed into real motion: the paths
-    beyond 32 bits (products of unsaturated sums) agree too."""
+    beyond 32 bits (products of unsaturated sums) agree too, decimated or not."""
     rows = _rows(EXCERPT, 4000)[3400 + start:3400 + start + 60]
-    _same_run(rows[:30] + wild + rows[30:])
+    _same_run(rows[:30] + wild + rows[30:], decimation=decimation)
 
 
 def test_a_huge_finite_sample_saturates() -> None:

@@ -58,7 +58,10 @@ class InertialKalmanFilter(QuaternionAnglesMixin):
         rest_tau: float = 0.5,
         rest_bias_tau: float = 2.0,
         bias_max: float = math.radians(5.0),
+        decimation: int = 1,
     ) -> None:
+        if not (isinstance(decimation, int) and 1 <= decimation <= 64):
+            raise ValueError("decimation must be an int in 1..64")
         if not (tau > 0.0 and k_rot >= 0.0 and drift_init >= 0.0 and drift_noise >= 0.0 and latency >= 0.0):
             raise ValueError("tau must be > 0; k_rot, drift_init, drift_noise and latency >= 0")
         self.tau = tau
@@ -73,6 +76,7 @@ class InertialKalmanFilter(QuaternionAnglesMixin):
         self.rest_tau = rest_tau
         self.rest_bias_tau = rest_bias_tau
         self.bias_max = bias_max
+        self.decimation = decimation  # the gravity part runs every decimation-th sample (docs/attitude.md)
         self.q_g0 = (math.sqrt(2.0) / tau) ** 4  # gravity random-walk intensity per unit velocity-noise intensity
         self.reset()
 
@@ -92,6 +96,7 @@ class InertialKalmanFilter(QuaternionAnglesMixin):
         self._rest_t = 0.0
         self.at_rest = False
         self._started = False
+        self._phase = 0
 
     # --- outputs ---
     def quaternion(self) -> tuple[float, float, float, float]:
@@ -127,16 +132,25 @@ class InertialKalmanFilter(QuaternionAnglesMixin):
         if not self._started:
             self._start(gx, gy, gz, ax, ay, az)
             return
-        self._rest(gx, gy, gz, ax, ay, az, dt)  # 1.
-        # 2. strapdown with the bias-corrected rate (exact axis-angle step)
+        n = self.decimation
+        last = self._phase + 1 >= n  # this sample runs the gravity part (every n-th; every one for n = 1)
+        if last:
+            self._rest(gx, gy, gz, ax, ay, az, n * dt)  # 1.
+        # 2. strapdown with the bias-corrected rate (exact axis-angle step), every sample
         wx, wy, wz = gx - self.bx, gy - self.by, gz - self.bz
         self.rx, self.ry, self.rz = wx, wy, wz
         rate = math.sqrt(wx * wx + wy * wy + wz * wz)
         w, x, y, z = quat_step(self.w, self.x, self.y, self.z, wx, wy, wz, rate, dt)
-        # 3. horizontal specific force in the earth frame, and the Kalman filter
+        if not last:  # between gravity steps q is the strapdown alone
+            self._phase += 1
+            self.w, self.x, self.y, self.z = w, x, y, z
+            return
+        self._phase = 0
+        # 3. horizontal specific force in the earth frame (this sample's: a mean of the n samples in the body frame
+        # was worse, 0.71° against 0.51° at n = 4, since the body turns under it), and the Kalman filter
         fx = (1.0 - 2.0 * (y * y + z * z)) * ax + 2.0 * (x * y - w * z) * ay + 2.0 * (x * z + w * y) * az
         fy = 2.0 * (x * y + w * z) * ax + (1.0 - 2.0 * (x * x + z * z)) * ay + 2.0 * (y * z - w * x) * az
-        gxh, gyh = self._gravity(fx, fy, rate, dt)
+        gxh, gyh = self._gravity(fx, fy, rate, n * dt)
         self._rebase(w, x, y, z, gxh, gyh)  # 4.
         # the bias is clamped last: a stuck-high rate must not become a stuck-high bias
         m = self.bias_max

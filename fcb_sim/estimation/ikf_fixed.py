@@ -127,6 +127,7 @@ class InertialKalmanFilterQ(QuaternionAnglesMixin):
         self.rest_t = 0  # time at rest, Q.dt (held at rest_time: it only has to reach it)
         self.at_rest = False
         self._started = False
+        self.phase = 0  # samples since the last gravity step
 
     # --- outputs (floats read back from the fixed-point state) ---
     def quaternion(self) -> tuple[float, float, float, float]:
@@ -179,10 +180,10 @@ class InertialKalmanFilterQ(QuaternionAnglesMixin):
         c = self._dt_cache
         if c is None or c[0] != dt:
             F = self.f
-            dq = to_q(dt, F.dt)
-            self._dt_cache = c = (dt, dq, to_q(dt * dt, F.dt), to_q(0.5 * dt, F.dt),
-                                  to_q(dt / (self.ref.rest_tau + dt), F.cov),
-                                  to_q(dt / (self.ref.rest_bias_tau + dt), F.cov))
+            dn = self.ref.decimation * dt  # the gravity part's step; the strapdown's half step is of dt
+            self._dt_cache = c = (dt, to_q(dn, F.dt), to_q(dn * dn, F.dt), to_q(0.5 * dt, F.dt),
+                                  to_q(dn / (self.ref.rest_tau + dn), F.cov),
+                                  to_q(dn / (self.ref.rest_bias_tau + dn), F.cov))
         return c[1], c[2], c[3], c[4], c[5]
 
     # --- the filter (step for step the float one) ---
@@ -199,12 +200,19 @@ class InertialKalmanFilterQ(QuaternionAnglesMixin):
         dtq, dt2q, dthq, krq, kbq = self._dt(dt)
         up = bb - io  # Q.io -> Q.bias
         g = tuple(_sat(v << up) if up >= 0 else v >> -up for v in (gxq, gyq, gzq))  # Q8.24 holds 128 rad/s
-        self._rest(g, (axq, ayq, azq), krq, kbq, dtq)  # 1.
+        last = self.phase + 1 >= self.ref.decimation  # the gravity part in this sample: every decimation-th
+        if last:
+            self._rest(g, (axq, ayq, azq), krq, kbq, dtq)  # 1.
         # 2. strapdown
         wx, wy, wz = g[0] - self.bx, g[1] - self.by, g[2] - self.bz
         self.rx, self.ry, self.rz = wx, wy, wz
         sh = bb + F.dt - qb
         w, x, y, z = self._rotate(mul(wx, dthq, sh), mul(wy, dthq, sh), mul(wz, dthq, sh))
+        if not last:  # between gravity steps q is the strapdown alone
+            self.phase += 1
+            self.qw, self.qx, self.qy, self.qz = w, x, y, z
+            return
+        self.phase = 0
         rate = sqrt(_sat(mul(wx, wx, 2 * bb - io) + mul(wy, wy, 2 * bb - io) + mul(wz, wz, 2 * bb - io)), io)
         # 3. horizontal specific force (Q.io) and the Kalman filter
         two = 2

@@ -213,6 +213,14 @@ void ikfq_init(ikfq_t *s, const ikfq_formats_t *f, const ikfq_params_t *p)
     /* the rest filters' time constants live only in krq and kbq: keep them for ikfq_set_dt */
     s->rest_tau_ = p->rest_tau;
     s->rest_bias_tau_ = p->rest_bias_tau;
+    s->decim = 1;
+    ikfq_reset(s);
+}
+
+void ikfq_set_decimation(ikfq_t *s, int32_t n)
+{
+    s->decim = n > 1 ? n : 1;
+    s->dt_last = 0.0; /* the dt constants are of decim * dt: derive them again */
     ikfq_reset(s);
 }
 
@@ -240,6 +248,7 @@ void ikfq_init_q(ikfq_t *s, const ikfq_formats_t *f, const ikfq_consts_t *c)
     s->dthq = c->dthq;
     s->krq = c->krq;
     s->kbq = c->kbq;
+    s->decim = c->decim > 1 ? c->decim : 1;
     s->dt_last = 0.0; /* ikfq_update (host) would derive them again from its dt; ikfq_step keeps these */
     s->rest_tau_ = s->rest_bias_tau_ = 0.0;
     s->from_table = 1;
@@ -269,6 +278,7 @@ void ikfq_consts(const ikfq_t *s, ikfq_consts_t *c)
     c->dthq = s->dthq;
     c->krq = s->krq;
     c->kbq = s->kbq;
+    c->decim = s->decim;
 }
 
 void ikfq_reset(ikfq_t *s)
@@ -288,19 +298,21 @@ void ikfq_reset(ikfq_t *s)
     s->rest_t = 0;
     s->at_rest = 0;
     s->started = 0;
+    s->phase = 0;
 }
 
 void ikfq_set_dt(ikfq_t *s, double dt)
 {
     const ikfq_formats_t *f = &FMT(s);
+    double dn = s->decim * dt; /* the gravity part's step */
     if (dt == s->dt_last || s->from_table)
         return;
     s->dt_last = dt;
-    s->dtq = ikfq_to_q(dt, f->dt);
-    s->dt2q = ikfq_to_q(dt * dt, f->dt);
+    s->dtq = ikfq_to_q(dn, f->dt);
+    s->dt2q = ikfq_to_q(dn * dn, f->dt);
     s->dthq = ikfq_to_q(0.5 * dt, f->dt);
-    s->krq = ikfq_to_q(dt / (s->rest_tau_ + dt), f->cov);
-    s->kbq = ikfq_to_q(dt / (s->rest_bias_tau_ + dt), f->cov);
+    s->krq = ikfq_to_q(dn / (s->rest_tau_ + dn), f->cov);
+    s->kbq = ikfq_to_q(dn / (s->rest_bias_tau_ + dn), f->cov);
 }
 
 /* q (x) (cos h, sin h * axis) for the half-angle vector h (Q.quat), by the 4th-order series */
@@ -488,7 +500,7 @@ void ikfq_step(ikfq_t *s, const int32_t gq[3], const int32_t a[3])
 {
     const ikfq_formats_t *f = &FMT(s);
     unsigned io = f->io, qb = f->quat, bb = f->bias, sh = f->bias + f->dt - f->quat;
-    int up = (int)bb - (int)io, i;
+    int up = (int)bb - (int)io, i, last = s->phase + 1 >= s->decim;
     int32_t g[3], q[4], fx, fy, gxh, gyh;
     int64_t wx, wy, wz, rate, one = INT64_C(1) << qb, r00, r01, r02, r10, r11, r12;
     if (!s->started) {
@@ -497,7 +509,8 @@ void ikfq_step(ikfq_t *s, const int32_t gq[3], const int32_t a[3])
     }
     for (i = 0; i < 3; i++) /* Q8.24 holds 128 rad/s */
         g[i] = up >= 0 ? sat((int64_t)gq[i] * ((int64_t)1 << up)) : gq[i] >> -up;
-    rest(s, g, a); /* 1. */
+    if (last) /* the gravity part in this sample: every decim-th */
+        rest(s, g, a); /* 1. */
     /* 2. strapdown */
     wx = (int64_t)g[0] - s->bx;
     wy = (int64_t)g[1] - s->by;
@@ -506,6 +519,15 @@ void ikfq_step(ikfq_t *s, const int32_t gq[3], const int32_t a[3])
     s->ry = wy;
     s->rz = wz;
     rotate(s, ikfq_mul(wx, s->dthq, sh), ikfq_mul(wy, s->dthq, sh), ikfq_mul(wz, s->dthq, sh), q);
+    if (!last) { /* between gravity steps q is the strapdown alone */
+        s->phase++;
+        s->qw = q[0];
+        s->qx = q[1];
+        s->qy = q[2];
+        s->qz = q[3];
+        return;
+    }
+    s->phase = 0;
     rate = ikfq_sqrt(sat((int64_t)ikfq_mul(wx, wx, 2 * bb - io) + ikfq_mul(wy, wy, 2 * bb - io)
                          + ikfq_mul(wz, wz, 2 * bb - io)), io);
     /* 3. horizontal specific force (Q.io) and the Kalman filter */

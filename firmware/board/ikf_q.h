@@ -38,6 +38,9 @@ typedef struct {
     int64_t rest_t; /* time at rest, Q.dt, held at rest_time */
     int32_t at_rest, started;
     int32_t from_table; /* set up by ikfq_init_q: dt is the table's, ikfq_set_dt leaves it */
+    /* the gravity part (rest, Kalman, rebase) runs every decim-th sample, the strapdown every one (ikfq_set_decimation;
+     * docs/attitude.md, "Decimation"): dtq, dt2q, krq and kbq are then of decim * dt, dthq of dt */
+    int32_t decim, phase;
 } ikfq_t;
 
 /* The defaults of ikf_fixed.Formats and of ikf.InertialKalmanFilter's parameters. */
@@ -53,12 +56,15 @@ typedef struct {
     int32_t pgg0, pdd0, g0_io, swing_max, swing_k;
     int64_t rest_time;
     int32_t dtq, dt2q, dthq, krq, kbq;
+    int32_t decim; /* 0 (left out of an initializer) is 1 */
 } ikfq_consts_t;
 
 void ikfq_init_q(ikfq_t *s, const ikfq_formats_t *f, const ikfq_consts_t *c);
 void ikfq_consts(const ikfq_t *s, ikfq_consts_t *c); /* an initialised filter's constants (for the table) */
 void ikfq_reset(ikfq_t *s);
 void ikfq_set_dt(ikfq_t *s, double dt);
+/* After ikfq_init: the gravity part every n-th sample (1, the default: every sample); resets the filter. */
+void ikfq_set_decimation(ikfq_t *s, int32_t n);
 
 /* One sample: gyro (rad/s) and specific force (m/s^2) in Q.io, chip frame z up; dt set by ikfq_set_dt. */
 void ikfq_step(ikfq_t *s, const int32_t g[3], const int32_t a[3]);
