@@ -43,7 +43,7 @@ static const ikfq_consts_t IKF_CONSTS = {
     .qg_shift = 5, .q_g0 = 335165867, .k_rot = 32768, .drift_noise = 70368744, .rest_r = 10737418,
     .rest_g2 = 5233287, .rest_a2 = 16384, .bias_max = 1464088, .inv_g0 = 109453805, .lat_half = 1342177,
     .pgg0 = 107374182, .pdd0 = 1073742, .g0_io = 642908, .swing_max = 869730877, .swing_k = 966367641,
-    .rest_time = 1610612736, .dtq = 2684355, .dt2q = 6711, .dthq = 1342177, .krq = 5341999, .kbq = 1340502};
+    .rest_time = 1610612736, .dtq = 2684355, .dt2q = 6711, .dthq = 1342177, .krq = 5341999, .kbq = 1340502, .decim = 1};
 /* ikf's rest_tau and rest_bias_tau (s): the table holds them only as krq and kbq at its own dt */
 #define IKF_REST_TAU 0.5
 #define IKF_REST_BIAS_TAU 2.0
