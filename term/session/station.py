@@ -102,6 +102,10 @@ class StationLink:
         for a retry (``attempt`` >= 1), only ``last_error`` for the first connection (attempt 0)."""
         st = self.station
         try:
+            if st.runner is not None and not self._connected_once and attempt == 0:
+                # Opened already on the caller's loop (term's command line checks the port before the screen
+                # starts)? Its reader would hand the bytes to that loop, the display's: opened again here.
+                await self.transport.close()
             await self.transport.open()
             session = LinkSession(st.clock(), **self.policy.session)
             session.set_joystick(st.model.stick)  # the board hears the current stick at once
@@ -244,6 +248,8 @@ class Station:
             self._door = FrontDoor(asyncio.get_running_loop())
             if self.runner.on_thaw is None:
                 self.runner.on_thaw = self._thawed
+            if self.runner.armed is None:  # a frozen display stops the link only while the board flies
+                self.runner.armed = lambda: self.model.flying
             self.runner.start()
             self.runner.watch(asyncio.get_running_loop())
         if self.cable is not None and not await self._on_link(self.cable.connect()):
