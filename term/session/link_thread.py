@@ -247,3 +247,12 @@ def movable(transport: object | None) -> bool:
     (serial, BLE) may; a loopback pair shares asyncio queues with a peer on the caller's loop and may not."""
     chain = _chain(transport)
     return bool(chain) and type(chain[-1]).__name__ in _MOVABLE
+
+
+def is_open(transport: object | None) -> bool:
+    """Whether ``transport`` (through its taps) is open already: BLE says so (``is_open``), serial has its port."""
+    chain = _chain(transport)
+    if not chain:
+        return False
+    inner = chain[-1]
+    return bool(getattr(inner, "is_open", False)) or getattr(inner, "_serial", None) is not None

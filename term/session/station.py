@@ -53,7 +53,7 @@ from term.core.protocol import Button, Joystick, Mode, Op
 from term.input.keymap import ZERO_TRIM_STEPS
 from term.input.mapping import leave_safe_refusal
 from term.session.connection import Connection, ConnectionEvent, TransportFailed
-from term.session.link_thread import FrontDoor, LinkThread
+from term.session.link_thread import FrontDoor, LinkThread, is_open
 from term.session.model import Model, mode_name, op_text
 from term.transports.base import Transport, TransportError
 
@@ -102,10 +102,6 @@ class StationLink:
         for a retry (``attempt`` >= 1), only ``last_error`` for the first connection (attempt 0)."""
         st = self.station
         try:
-            if st.runner is not None and not self._connected_once and attempt == 0:
-                # Opened already on the caller's loop (term's command line checks the port before the screen
-                # starts)? Its reader would hand the bytes to that loop, the display's: opened again here.
-                await self.transport.close()
             await self.transport.open()
             session = LinkSession(st.clock(), **self.policy.session)
             session.set_joystick(st.model.stick)  # the board hears the current stick at once
@@ -250,6 +246,9 @@ class Station:
                 self.runner.on_thaw = self._thawed
             if self.runner.armed is None:  # a frozen display stops the link only while the board flies
                 self.runner.armed = lambda: self.model.flying
+            for link in self.links:  # opened here already (term's command line checks the port before the screen)?
+                if is_open(link.transport):  # closed on this loop, opened again on the link's (its reader's loop)
+                    await link.transport.close()
             self.runner.start()
             self.runner.watch(asyncio.get_running_loop())
         if self.cable is not None and not await self._on_link(self.cable.connect()):
