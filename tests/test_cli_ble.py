@@ -127,7 +127,8 @@ async def test_ble_alone_waits_for_the_handover_and_reconnects_a_lost_radio() ->
             await until(lambda: m.link_lost)  # silent: the board talks over BLE only after the handover
             assert not m.control_lost and "waiting for the handover" in m.events[-1].text + str(
                 app.screen.query_one("#w-telemetry").render())
-            await transport._client._backend._host.transport.close()
+            hci = transport._client._backend._host.transport  # the radio dies (on the link's thread, where it runs)
+            await app.station.runner.run(hci.close()) if app.station.runner is not None else await hci.close()
             await until(lambda: any(e.text.startswith("LINK LOST: BLE connection") for e in m.events))
             assert app.connection is None
             await until(lambda: any(e.text.startswith("reconnected to BLE") for e in m.events))

@@ -74,7 +74,7 @@ def test_heartbeat_answered_in_the_same_step_ahead_of_everything() -> None:
     assert of(events, PacketReceived) == [PacketReceived(Heartbeat(7, 123456))]
     out = packets(s.data_to_send(0.01))
     assert out[0] == HeartbeatAck(7, 123456)
-    assert [type(p) for p in out] == [HeartbeatAck, Command, Joystick]
+    assert [type(p) for p in out] == [HeartbeatAck, Joystick, Command]  # a changed stick goes ahead of a command
     assert s.data_to_send(0.01) == b""  # each thing once
 
 
@@ -587,3 +587,21 @@ def test_time_the_terminal_could_not_listen_is_not_the_boards_silence() -> None:
     assert not any(type(e) is LinkLost for e in s.poll(1.55))  # 0.55 s since the frame, 0.1 s of them starved
     lost = [e for e in s.poll(1.65) if type(e) is LinkLost]  # the board really is silent: lost after all
     assert lost and lost[0].silent_s == pytest.approx(0.55)
+
+
+def test_a_command_leaves_after_the_stick_set_before_it() -> None:
+    """Issue 21 (found by test_export once the link had its own thread): the pilot zeroes the lift, then presses
+    SAFE; the command left at once while the stick's frame waited out the joystick rate, so the board read SAFE
+    with the old lift and refused it ('lift not at zero'). A changed stick now goes ahead of a command."""
+    from term.core.protocol import Command, Decoder, Joystick, Mode, Op
+
+    s = LinkSession(0.0, link_timeout=10.0, joystick_rate=50.0)
+    dec = Decoder()
+    s.set_joystick(Joystick(0, 0, 0, 9000, 0))
+    dec.feed(s.data_to_send(0.0))  # (its Hello was sent by the caller; this is the stick at 9000)
+    s.set_joystick(Joystick(0, 0, 0, 0, 0))
+    s.send_command(Op.MODE, Mode.SAFE, 0.001)  # 1 ms later: the rate would hold the stick for 19 ms
+    out = dec.feed(s.data_to_send(0.001))
+    assert [type(p).__name__ for p in out] == ["Joystick", "Command"]
+    assert out[0].lift == 0 and isinstance(out[1], Command)
+    assert not dec.feed(s.data_to_send(0.005))  # and the stick is not sent twice

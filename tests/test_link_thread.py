@@ -15,9 +15,11 @@ import time
 from collections.abc import AsyncIterator, Callable
 from contextlib import asynccontextmanager
 
+import pytest
+
 from term.core.events import LinkDown, StationEvent
 from term.core.link import LinkLost
-from term.core.protocol import Op
+from term.core.protocol import Attitude, Mode, Op
 from term.session.link_thread import FrontDoor, LinkThread, movable
 from term.session.model import Model
 from term.session.station import Station
@@ -34,14 +36,18 @@ async def until(cond: Callable[[], bool], timeout: float = 30.0) -> None:
 
 @asynccontextmanager
 async def linked(pty_pair, scripted_board, runner: LinkThread,  # noqa: ANN001
-                 on_event: Callable[[StationEvent], None] | None = None) -> AsyncIterator[tuple[Station, object]]:
+                 on_event: Callable[[StationEvent], None] | None = None,
+                 opened_first: bool = False) -> AsyncIterator[tuple[Station, object]]:
     master, path = pty_pair
     board_thread = LinkThread(name="test board")  # the board's own loop, apart from the display's
     board_thread.start()
     board = scripted_board(start=time.monotonic())
     peer = PtyBoard(master, board, time.monotonic)
     await board_thread.run(peer.start())
-    st = Station(Model(start=time.monotonic()), cable=SerialTransport(path),
+    cable = SerialTransport(path)
+    if opened_first:  # as term's command line does, to fail in one line before the screen starts
+        await cable.open()
+    st = Station(Model(start=time.monotonic()), cable=cable,
                  cable_session={"link_timeout": 0.5}, on_event=on_event, runner=runner)
 
     async def render_tick() -> None:  # the display's sign of life, as the app's render tick
@@ -62,8 +68,11 @@ async def linked(pty_pair, scripted_board, runner: LinkThread,  # noqa: ANN001
         board_thread.stop()
 
 
-async def test_a_blocked_display_does_not_starve_the_board(pty_pair, scripted_board) -> None:  # noqa: ANN001
-    async with linked(pty_pair, scripted_board, LinkThread()) as (st, board):
+@pytest.mark.parametrize("opened_first", [False, True])
+async def test_a_blocked_display_does_not_starve_the_board(pty_pair, scripted_board, opened_first: bool) -> None:  # noqa: ANN001
+    """``opened_first``: the cable was opened on the display's loop (term's command line checks it before the
+    screen starts); its reader then handed the bytes to the display's loop, which a blocked display never ran."""
+    async with linked(pty_pair, scripted_board, LinkThread(), opened_first=opened_first) as (st, board):
         n = len(board.hb_acks)
         time.sleep(1.0)  # the display's loop is busy (a slow widget, a big export): it does nothing else meanwhile
         assert len(board.hb_acks) >= n + 3  # the board heard its heartbeats answered all the while (every 0.1 s)
@@ -92,6 +101,7 @@ async def test_a_frozen_display_stops_the_answers_on_purpose_and_says_why(pty_pa
     wall = [0.0]
     runner = LinkThread(freeze_s=1.5, clock=lambda: wall[0])
     async with linked(pty_pair, scripted_board, runner) as (st, board):
+        st.model.apply_packet(Attitude(int(Mode.FULL), 0, 0, 0, 0, 0, 0), time.monotonic())  # flying: armed
         wall[0] = 1.0
         n = len(board.hb_acks)
         await until(lambda: len(board.hb_acks) >= n + 3)  # the display's loop beats: still fed
@@ -115,6 +125,31 @@ async def test_a_frozen_display_stops_the_answers_on_purpose_and_says_why(pty_pa
         n = len(board.hb_acks)
         await until(lambda: len(board.hb_acks) > n + 2)  # the display beats again: the board is fed again
         await until(lambda: any("display was frozen for" in e.text for e in st.model.events))
+
+
+async def test_a_frozen_display_in_safe_keeps_the_board_fed(pty_pair, scripted_board) -> None:  # noqa: ANN001
+    """The watchdog acts only while the board flies: in SAFE a silence lands nothing, it would only be a false
+    alarm (a start-up's first frames on a busy machine took the display past the bound)."""
+    wall = [0.0]
+    async with linked(pty_pair, scripted_board, LinkThread(freeze_s=1.5, clock=lambda: wall[0])) as (st, board):
+        seen: dict[str, int] = {}
+        released = threading.Event()
+
+        def meanwhile() -> None:  # on another thread, while the display's loop is frozen below
+            wall[0] = 3.0  # 3 s since the display's last beat, the board in SAFE (it never said otherwise)
+            acks, sent = len(board.hb_acks), board._counter
+            while board._counter < sent + 5:
+                time.sleep(0.01)
+            time.sleep(0.05)  # (the last answer on its way)
+            seen["answered"] = len(board.hb_acks) - acks
+            released.set()
+
+        helper = threading.Thread(target=meanwhile)
+        helper.start()
+        released.wait(30.0)
+        helper.join()
+        assert seen["answered"] >= 4
+        assert not any("display was frozen" in e.text for e in st.model.events)
 
 
 async def test_an_exception_on_the_link_thread_is_link_lost_and_the_link_comes_back(

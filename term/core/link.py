@@ -335,11 +335,18 @@ class LinkSession:
     # --- output and timers ----------------------------------------------------------------------------------
 
     def data_to_send(self, now: float) -> bytes:
-        """Everything due now, in order: heartbeat ACKs (and Hellos), new commands and retries, the joystick."""
+        """Everything due now, in order: heartbeat ACKs (and Hellos), a changed stick before a new command, new
+        commands and retries, the joystick."""
         self._now = now
         parts = self._urgent
         self._urgent = []
         enc = self.encoder
+        if self._new and not self._inflight and self._js is not None and self._js != self._js_sent \
+                and self._mismatch is None:
+            # A changed stick goes ahead of a command, whatever the rate: the board must read the stick the pilot
+            # set before the key (lift to zero, then SAFE), not the one before it.
+            parts.append(enc.encode(self._js))
+            self._js_sent, self._js_last, self._js_next = self._js, now, now + self.joystick_interval
         while self._new and not self._inflight:  # one in flight: the next leaves when this one is settled
             p = self._new.popleft()
             p.attempts = 1

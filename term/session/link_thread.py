@@ -11,7 +11,9 @@ expression or a big export never delay reading, heartbeat answers, command retri
 - The watchdog (``may_send``): the display's loop calls ``alive()`` ten times a second (``watch``) and on
   every render tick. While it does, the link keeps
   the board fed; once the display has been frozen past ``freeze_s`` (about 1.5 s: the pilot is blind) the link
-  stops writing on purpose, so the board's link-loss failsafe takes over instead of flying a craft nobody sees.
+  stops writing on purpose, so the board's link-loss failsafe takes over instead of flying a craft nobody sees
+  (only while ``armed`` says so: the station arms it while the board flies; in SAFE a silence lands nothing and
+  would only be a false alarm, e.g. a start-up's first frames on a busy machine).
   When the display is back the link writes again, and ``on_thaw(frozen_s)`` says why it was quiet (the log and
   the events list). Time for the watchdog is the wall clock (``clock``), never a test's fake flight clock.
 
@@ -45,6 +47,7 @@ class LinkThread:
         self.freeze_s = freeze_s
         self.clock = clock
         self.on_thaw = on_thaw
+        self.armed: Callable[[], bool] | None = None  # the watchdog acts only while this says so (flying)
         self.name = name
         self.loop: asyncio.AbstractEventLoop | None = None
         self._thread: threading.Thread | None = None
@@ -135,7 +138,7 @@ class LinkThread:
     def may_send(self) -> bool:
         """False while the display has been frozen past ``freeze_s`` (the link's writes stop on purpose)."""
         frozen = self.frozen_for()
-        if frozen > self.freeze_s:
+        if frozen > self.freeze_s and (self.armed is None or self.armed()):
             if self._frozen_since is None:
                 self._frozen_since = self._alive
                 log.warning("display frozen for %.1f s: the link stops answering the board on purpose; the display "
@@ -244,3 +247,12 @@ def movable(transport: object | None) -> bool:
     (serial, BLE) may; a loopback pair shares asyncio queues with a peer on the caller's loop and may not."""
     chain = _chain(transport)
     return bool(chain) and type(chain[-1]).__name__ in _MOVABLE
+
+
+def is_open(transport: object | None) -> bool:
+    """Whether ``transport`` (through its taps) is open already: BLE says so (``is_open``), serial has its port."""
+    chain = _chain(transport)
+    if not chain:
+        return False
+    inner = chain[-1]
+    return bool(getattr(inner, "is_open", False)) or getattr(inner, "_serial", None) is not None

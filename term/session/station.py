@@ -53,7 +53,7 @@ from term.core.protocol import Button, Joystick, Mode, Op
 from term.input.keymap import ZERO_TRIM_STEPS
 from term.input.mapping import leave_safe_refusal
 from term.session.connection import Connection, ConnectionEvent, TransportFailed
-from term.session.link_thread import FrontDoor, LinkThread
+from term.session.link_thread import FrontDoor, LinkThread, is_open
 from term.session.model import Model, mode_name, op_text
 from term.transports.base import Transport, TransportError
 
@@ -244,6 +244,11 @@ class Station:
             self._door = FrontDoor(asyncio.get_running_loop())
             if self.runner.on_thaw is None:
                 self.runner.on_thaw = self._thawed
+            if self.runner.armed is None:  # a frozen display stops the link only while the board flies
+                self.runner.armed = lambda: self.model.flying
+            for link in self.links:  # opened here already (term's command line checks the port before the screen)?
+                if is_open(link.transport):  # closed on this loop, opened again on the link's (its reader's loop)
+                    await link.transport.close()
             self.runner.start()
             self.runner.watch(asyncio.get_running_loop())
         if self.cable is not None and not await self._on_link(self.cable.connect()):
