@@ -37,7 +37,7 @@ extern "C" {
 
 /* --- constants both ends share ---------------------------------------------------------------------------- */
 
-#define QP_PROTOCOL_VERSION 3
+#define QP_PROTOCOL_VERSION 4
 #define QP_MAX_FRAME 20
 #define QP_MAX_BODY 14
 #define QP_CRC_INIT 0xffffu

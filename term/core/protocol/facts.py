@@ -12,9 +12,10 @@ SCHEME_RICE = 2  # ours: prediction and an adaptive Rice code, the same error bo
 SCHEME_NAMES = {SCHEME_DELTA8: "delta8", SCHEME_RICE: "rice"}
 LOG_TIME_COLUMN = "t_us"  # the board time of each record, µs; the other columns are named after telemetry fields
 
-PROTOCOL_VERSION = 3  # 3: the parameter table (SET_PARAM id 8 + value 24 bits, PARAM_GET, PARAM_LIST, ParamValue,
-#   PARAM_CHANGED), Compact2 (the flight screen's figures over BLE); 2: Height in cm and cm/s (was mm: saturated at
-#   32.77 m), crash flag, event and command
+PROTOCOL_VERSION = 4  # 4: link.telemetry_hz in 0.01 Hz (was whole Hz), the failsafe's and the report preset's
+#   parameters (ids 20-23), NAK ONLY_SHORTER_IN_FLIGHT, events LINK_LOST, LINK_REGAINED, SIM_LAG; 3: the parameter
+#   table (SET_PARAM id 8 + value 24 bits, PARAM_GET, PARAM_LIST, ParamValue, PARAM_CHANGED), Compact2 (the flight
+#   screen's figures over BLE); 2: Height in cm and cm/s (was mm: saturated at 32.77 m), crash flag, event, command
 MAX_FRAME = 20  # bytes on the wire, delimiter included: one BLE notification
 MAX_BODY = MAX_FRAME - 6  # type, seq, crc16 (2), COBS overhead (1), delimiter (1)
 DELIMITER = b"\x00"

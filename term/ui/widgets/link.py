@@ -27,7 +27,7 @@ def _heartbeat(model: Model, name: str, age: float | None) -> str:
 
 def board_text(hello: Hello | None, width: int = 80) -> str:
     """The board as its last Hello named it, in at most ``width`` characters where it can: "board 1 · fw 0.1 ·
-    protocol v3", narrower "#1 · fw 0.1 · protocol v3" ("" before any Hello)."""
+    protocol v4", narrower "#1 · fw 0.1 · protocol v4" ("" before any Hello)."""
     if hello is None:
         return ""
     version = f"fw {hello.major}.{hello.minor} · protocol v{hello.protocol}"
