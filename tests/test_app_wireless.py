@@ -125,7 +125,8 @@ async def test_the_handover_through_the_app_end_to_end() -> None:
 
             # The radio is gone (its HCI transport dropped: out of range): the board goes DISCONNECTED and PANICs,
             # and the cable carries control again.
-            await app.radio.inner._client._backend._host.transport.close()
+            hci = app.radio.inner._client._backend._host.transport  # (on the link's thread, where the radio runs)
+            await app.station.runner.run(hci.close()) if app.station.runner is not None else await hci.close()
             await until(lambda: said("BLE LOST"))
             assert not m.over_ble and app.control_connection() is app.connection
             assert said("PANICs (it was flying over BLE)")
