@@ -34,8 +34,7 @@ from textual.app import App, SystemCommand
 from textual.screen import ModalScreen, Screen
 
 from term.core.errors import EXIT_USAGE
-from term.core.events import EventsCleared, Fatal, FromLink, JoystickNamed, NotSent, StationEvent
-from term.core.link import PacketReceived
+from term.core.events import EventsCleared, Fatal, FromLink, NotSent, StationEvent
 from term.core.protocol import FLIGHT_MODES, Joystick, Mode, Op
 from term.data.recording import SessionRecorder
 from term.data.replay import Replay
@@ -59,8 +58,12 @@ from term.session.phone import Phone, RunAction, SendCommand, SetAxes
 from term.session.station import Station
 from term.transports.base import Transport
 from term.ui.controllers.downloads import DownloadController
+from term.ui.controllers.joystick import JoystickController
 from term.ui.controllers.lessons import LessonController
+from term.ui.controllers.outputs import SessionOutputs
 from term.ui.controllers.params import ParamsController
+from term.ui.controllers.replay import SEEK_S as REPLAY_SEEK_S
+from term.ui.controllers.replay import ReplayController
 from term.ui.keygate import focus_state, pilot_key_acts
 from term.ui.screens.confirm import ConfirmScreen
 from term.ui.screens.dirprompt import DirectoryPrompt
@@ -128,20 +131,20 @@ class TermApp(App[int]):
         self.recorder = recorder
         self.replay = replay
         self.live = live
-        self._noted = 0  # the seq of the last events-list entry recorded
-        self._record_error_said = False
         if replay is not None:
             clock = replay.clock  # the panels, plots and events run on the recording's time
             joystick = False
         self.clock = clock
         self.render_hz = render_hz
         self.joystick_hz = joystick_hz
-        self._replay_wall: float | None = None
         self.station = self._make_station(transport, radio, primary_ble, session_options, link_thread)
         self.phone = Phone()
         self.start_screen = start_screen
-        self.poller: JoystickPoller | None = None
         self._want_joystick = joystick
+        self.joystick = JoystickController(self.station, self.config, self.send, self.set_stick, self.set_interval,
+                                           joystick_hz)
+        self.outputs = SessionOutputs(self.station, clock, recorder, live, replaying=replay is not None)
+        self.replayer = None if replay is None else ReplayController(replay, self.station, self.render_now)
         self.downloads = DownloadController(self.station, clock, self.send, self.control_connection,
                                             lambda work: self.run_worker(work, exclusive=False),
                                             log_directory or self.config.log_directory)
@@ -257,14 +260,14 @@ class TermApp(App[int]):
         self.install_screen(PlotsScreen(self.config.plot_series, self.config.plot_window), "plots")
         self.install_screen(ProfileScreen(), "profile")
         self.install_screen(WirelessScreen(self.phone), "wireless")
-        self.install_screen(JoystickScreen(lambda: self.poller), "joystick")
+        self.install_screen(JoystickScreen(lambda: self.joystick.poller), "joystick")
         self.install_screen(ParamsScreen(lambda: self.model), "params")
         self.set_interval(1.0 / self.render_hz, self.render_now)
         await self.station.start()
         if self.start_screen != "flight":
             self.show_screen(self.start_screen)
         if self._want_joystick:
-            self.call_after_refresh(self._start_joystick)
+            self.call_after_refresh(self.joystick.start)
         self.lessons.mount()
         self.render_now()
         # The widget tree and the libraries are built: a full collection need not walk them again (it holds the
@@ -274,12 +277,7 @@ class TermApp(App[int]):
 
     def _on_station_event(self, ev: StationEvent) -> None:
         """The app's reactions to the station's events (the model has them already)."""
-        if self.recorder is not None:
-            now = self.clock()
-            self.recorder.station_event(ev, now)
-            self._record_notes(now)
-        if self.live is not None:
-            self._serve_live(ev)
+        self.outputs.station_event(ev)
         self.lessons.on_station_event(ev)
         if type(ev) is FromLink:
             self.downloads.on_link_event(ev.event)
@@ -323,26 +321,12 @@ class TermApp(App[int]):
         """The palette's "reconnect now": every dead link is tried at once (and then with the usual pauses)."""
         self.station.reconnect_now()
 
-    def _start_joystick(self) -> None:
-        from term.session.config import forced_mapping
-
-        poller = JoystickPoller(self.config.joystick_mappings, resolution=self.config.joystick_resolution,
-                                forced=forced_mapping(self.config))
-        for msg in poller.start():
-            self.station.note("info", "joystick", msg)
-        self.poller = poller
-        if poller.name:
-            self.station.emit(JoystickNamed(poller.name, poller.mapping.name))
-        self.set_interval(1.0 / self.joystick_hz, self.poll_joystick)
-
     async def on_unmount(self) -> None:
         await self.shutdown()
 
     async def shutdown(self) -> None:
         await self.station.shutdown()
-        if self.poller is not None:
-            self.poller.close()
-            self.poller = None
+        self.joystick.close()
         gc.unfreeze()  # (another app in this process, a test's, starts from a clean slate)
 
     def _fatal(self, message: str, code: int = EXIT_USAGE) -> None:
@@ -352,8 +336,8 @@ class TermApp(App[int]):
     # --- rendering ----------------------------------------------------------------------------------------
 
     def render_now(self) -> None:
-        if self.replay is not None:
-            self._replay_step()
+        if self.replayer is not None:
+            self.sub_title = self.replayer.step()
         now = self.clock()
         self.station.sample()
         self.downloads.tick(now)
@@ -362,13 +346,7 @@ class TermApp(App[int]):
                 self.alarms_rung.append(alarm)
                 if self.config.bell:
                     self.bell()
-        if self.recorder is not None or self.live is not None:
-            self._record_notes(now)  # (notes written straight into the model, as the log download does)
-        if self.recorder is not None:
-            self.recorder.poll(now)
-            if self.recorder.error and not self._record_error_said:  # said once; the flight goes on
-                self._record_error_said = True
-                self.station.note("error", "term", self.recorder.error)
+        self.outputs.tick(now)
         if not self.screen_stack or not self.is_running:
             return  # shutting down
         model = self.model
@@ -433,38 +411,9 @@ class TermApp(App[int]):
         """A new stick value: to the model and the links at once; the fire button's press is PANIC."""
         self.station.set_stick(js)
 
-    def poll_joystick(self) -> None:
-        if self.poller is None:
-            return
-        res = self.poller.poll()
-        for msg in res.messages:
-            self.station.note("warning" if res.disconnected else "info", "joystick", msg)
-        if res.messages:
-            self.station.emit(JoystickNamed(self.poller.name, self.poller.mapping.name if self.poller.name else ""))
-        if res.disconnected and self.model.flying:
-            self.station.note("error", "joystick", "joystick lost in flight: PANIC")
-            self.send(Op.MODE, Mode.PANIC)
-        if res.packet is not None:
-            self.set_stick(res.packet)
-
     def on_save_mapping(self, message: SaveMapping) -> None:
-        """The joystick screen's "save": the mapping into the config file as the device's own (term.session.config)."""
-        from dataclasses import replace
-
-        from term.session.config import ConfigError, default_path, save_joystick_mapping
-
-        path = self.config.source or default_path()
-        try:
-            name = save_joystick_mapping(path, message.mapping, message.device)
-        except ConfigError as exc:
-            self.station.note("error", "joystick", str(exc))
-            return
-        mine = replace(message.mapping, name=name, match=(message.device,))
-        self.config.joystick_mappings = (*(m for m in self.config.joystick_mappings if m.name != name), mine)
-        if self.poller is not None:
-            self.poller.state.mapping = mine
-            self.station.emit(JoystickNamed(self.poller.name, name))
-        self.station.note("info", "joystick", f"joystick mapping saved to {path} as [joystick.mappings.{name}]")
+        """The joystick screen\'s "save": the mapping into the config file as the device\'s own."""
+        self.joystick.save_mapping(message.mapping, message.device)
 
     def on_phone_request(self, message: PhoneRequest) -> None:
         """The phone's controls (the wireless screen): carried out as the keys would."""
@@ -568,71 +517,20 @@ class TermApp(App[int]):
 
     # --- recording and replay (term/data/recording.py, term/data/replay.py) ---------------------------------------
 
-    def _serve_live(self, ev: StationEvent) -> None:
-        """A station event to the live server: the link statistics; in a replay, the packets (no taps there)."""
-        now = self.clock()
-        self.live.station_event(ev, now)
-        if self.replay is not None and type(ev) is FromLink and type(ev.event) is PacketReceived:
-            self.live.packet(ev.link, "rx", ev.event.packet, now)
-        self._record_notes(now)
-
-    def _record_notes(self, now: float) -> None:
-        """The events list's new lines to the recording and the live server (/events: what the pilot read)."""
-        new = []
-        for entry in reversed(self.model.events):
-            if entry.seq <= self._noted:
-                break
-            new.append(entry)
-        for entry in reversed(new):  # (a merged repeat is written again, with its count)
-            text = entry.text if entry.count == 1 else f"{entry.text} (×{entry.count})"
-            for sink in (self.recorder, self.live):
-                if sink is not None:
-                    sink.event(now, entry.severity, entry.source, text)
-        if new:
-            self._noted = new[0].seq
-
-    def _replay_step(self) -> None:
-        """Play the recording on by the wall time since the last step; the link panel says it is a replay."""
-        replay = self.replay
-        assert replay is not None
-        wall = time.monotonic()
-        dt, self._replay_wall = (0.0 if self._replay_wall is None else wall - self._replay_wall), wall
-        for ev in replay.advance(dt):
-            self.station.emit(ev)
-        self.model.link_name = f"{replay.status()}  {Path(replay.source).name}"
-        self.sub_title = replay.status()
+    @property
+    def poller(self) -> JoystickPoller | None:
+        return self.joystick.poller
 
     def replay_seek(self, t: float) -> None:
-        """Jump to ``t`` s into the recording (back: a fresh model brought forward to it)."""
-        replay = self.replay
-        assert replay is not None
-        if replay.seek(t):
-            old = self.model
-            self.model = Model(start=0.0, radio_name=old.radio_name, primary_ble=old.primary_ble)
-        for ev in replay.catch_up():
-            self.station.emit(ev)
-        self.model.link_name = f"{replay.status()}  {Path(replay.source).name}"
-        self.render_now()
+        if self.replayer is not None:
+            self.replayer.seek(t)
 
     def action_replay(self, what: str) -> None:
-        replay = self.replay
-        if replay is None:
-            return
-        if what == "pause":
-            replay.paused = not replay.paused
-        elif what == "faster":
-            replay.faster()
-        elif what == "slower":
-            replay.slower()
-        elif what in ("back", "forward"):
-            self.replay_seek(replay.position + (REPLAY_SEEK_S if what == "forward" else -REPLAY_SEEK_S))
-        elif what == "start":
-            self.replay_seek(0.0)
-        self.notify(replay.status(), timeout=1.5)
+        if self.replayer is not None:
+            self.notify(self.replayer.act(what), timeout=1.5)
 
 
 QUIT_PANIC_WAIT_S = 0.5  # quitting in flight: the PANIC command's time to reach the board before the link closes
-REPLAY_SEEK_S = 5.0
 REPLAY_KEYS = (  # term replay: the pilot's keys have no board to command; these play the recording
     ("space", "replay('pause')", "pause / play"),
     ("right", "replay('forward')", f"{REPLAY_SEEK_S:g} s on"),
