@@ -97,3 +97,20 @@ def test_snapshot_flying(snap_compare, flying, size) -> None:  # noqa: ANN001
 @pytest.mark.parametrize("size", SIZES, ids=[f"{w}x{h}" for w, h in SIZES])
 def test_snapshot_safe(snap_compare, safe, size) -> None:  # noqa: ANN001
     assert snap_compare(app_for(safe), terminal_size=size)
+
+
+async def test_80x24_keeps_mode_height_battery_link_under_a_lessons_bar_and_a_download_line(flying) -> None:  # noqa: ANN001
+    app = app_for(flying)
+    async with app.run_test(size=(80, 24)) as pilot:
+        app.screen.query_one("#lesson-bar").add_class("running")  # a lesson's two rows
+        app.model.download_note = "log saved: flight.csv"  # the download panel's row
+        app.model.version += 1
+        app.render_now()
+        await pilot.pause()
+        app.render_now()
+        await pilot.pause()
+        text = "\n".join(screen_lines(app))
+        for word in ("F U L L", "height", " V", "link OK", "roll", "PANIC", "log saved", "param ctrl.p2"):
+            assert word in text, word
+        events = app.screen.query_one("#events").region
+        assert events.bottom <= 23 and events.height >= 3  # whole, above the footer: the screen does not scroll
