@@ -114,3 +114,23 @@ async def test_80x24_keeps_mode_height_battery_link_under_a_lessons_bar_and_a_do
             assert word in text, word
         events = app.screen.query_one("#events").region
         assert events.bottom <= 23 and events.height >= 3  # whole, above the footer: the screen does not scroll
+
+
+async def test_the_link_panels_two_links_fit_at_160x50() -> None:
+    """Over BLE the link panel gives each link two lines: at 160x50 with the room view (term --sim) they are whole
+    (they wrapped into each other)."""
+    from term.lessons.room import Room
+    from term.ui.app import TermApp
+    from tests.test_app_wireless import seeded_handover
+
+    app = TermApp(joystick=False, clock=lambda: 3.0)
+    app.model = seeded_handover()
+    app.lessons.room = Room()  # the room panel as term --sim has it
+    async with app.run_test(size=(160, 50)) as pilot:
+        await pilot.pause()
+        app.render_now()
+        await pilot.pause()
+        text = "\n".join(screen_lines(app))
+        for line in ("heartbeat — (over BLE)", "rx/tx 0/1500", "rx/tx 994/224", "heartbeat 70 ms ago"):
+            assert line in text, line
+        assert "…" not in "\n".join(line for line in text.splitlines() if "RTT" in line)
