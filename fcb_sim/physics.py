@@ -13,7 +13,9 @@ Model, integrated at a fixed step (default 1 kHz, ``physics_hz`` may be raised):
   renormalised every 10 ms; stable at 1 kHz (the fastest mode, the 30 ms motor lag, is integrated exactly);
 - ground contact at h = 0: the quadrotor rests level on its feet until the thrust lifts it, lands inelastically
   (vertical and horizontal speed to zero, levelled on its legs), and never goes below the floor; the sky ends at
-  ``P.CEILING_M`` (a climb stops there); an impact faster than ``P.CRASH_SPEED_M_S``, or a touch-down tilted past
+  ``P.CEILING_M`` (a climb stops there); in a ``room`` (term --sim: the lab of ROOM_HALF_M and ROOM_CEILING_M in
+  term.core.protocol) walls that far from the pad and a lower ceiling stop it the same way (the speed into them
+  zeroed, the craft sliding along them); an impact faster than ``P.CRASH_SPEED_M_S``, or a touch-down tilted past
   ``P.CRASH_TILT_DEG``, is recorded in ``crashes`` (time, speed, tilt);
 - 3S LiPo: resting voltage against state of charge, internal resistance (the voltage sags with the motors'
   current, which slows the motors for the same command), charge drawn by the motors' electrical power;
@@ -38,7 +40,7 @@ SLOW_EVERY = 10  # physics steps between updates of the slow parts (battery, win
 
 class Crash(NamedTuple):
     """An impact the craft does not walk away from: when (s), how fast (m/s, the whole speed), how tilted (deg),
-    and where ("ground" or "ceiling")."""
+    and where ("ground", "ceiling" or "wall")."""
 
     t: float
     speed: float
@@ -98,7 +100,7 @@ class World:
     def __init__(self, seed: int = 1, *, physics_hz: float = 1000.0, height: float = 0.0, airborne: bool = False,
                  phi: float = 0.0, theta: float = 0.0, psi: float = 0.0, soc: float = P.BATTERY_SOC_START,
                  drag: bool = True, ground: bool = True, baro_spikes: bool = True, vibration: float = 1.0,
-                 dmp_latency: float = P.DMP_LATENCY) -> None:
+                 dmp_latency: float = P.DMP_LATENCY, room: tuple[float, float] | None = None) -> None:
         if physics_hz < 1000.0:
             raise ValueError("physics_hz must be at least 1000")
         self.rng = random.Random(seed)
@@ -106,6 +108,7 @@ class World:
         self.k = 0  # physics steps taken; time = k * dt
         self.t = 0.0
         self.ground_enabled = ground
+        self.room = room  # (walls' distance from the pad, ceiling) in m; None: the open sky up to P.CEILING_M
         self.drag_lin = P.DRAG_LINEAR if drag else 0.0
         self.drag_xy = P.DRAG_ROT_XY if drag else 0.0
         self.drag_z = P.DRAG_ROT_Z if drag else 0.0
@@ -137,7 +140,8 @@ class World:
             self.qw, self.qx, self.qy, self.qz = euler_to_quat(0.0, 0.0, psi)
         self.landings: list[tuple[float, float]] = []  # (time, vertical impact speed m/s)
         self.crashes: list[Crash] = []  # impacts too fast or too tilted (params: CRASH_SPEED_M_S, CRASH_TILT_DEG)
-        self.ceiling_d = -P.CEILING_M  # NED down coordinate of the ceiling
+        self.ceiling_d = -P.CEILING_M if self.room is None else -min(P.CEILING_M, self.room[1])  # NED down
+        self.wall = math.inf if self.room is None else self.room[0]
 
     def _init_power(self, soc: float, airborne: bool) -> None:
         """Battery and motors: idle, or (``airborne``) rotors at hover speed with the battery at that load."""
@@ -320,7 +324,7 @@ class World:
         self._update_forcing()
 
     def _impact(self, t: float, vn: float, ve: float, vd: float, qx: float, qy: float, where: str) -> None:
-        """A hit on the floor or the ceiling: a crash if too fast or (on the floor) too tilted."""
+        """A hit on the floor, the ceiling or a wall: a crash if too fast or (on the floor) too tilted."""
         speed = math.sqrt(vn * vn + ve * ve + vd * vd)
         tilt = math.degrees(math.acos(max(-1.0, min(1.0, 1.0 - 2.0 * (qx * qx + qy * qy)))))
         if speed > P.CRASH_SPEED_M_S or (where == "ground" and tilt > P.CRASH_TILT_DEG):
@@ -337,7 +341,7 @@ class World:
             n, e, d, vn, ve, vd = self.n, self.e, self.d, self.vn, self.ve, self.vd
             qw, qx, qy, qz, p, q, r = self.qw, self.qx, self.qy, self.qz, self.p, self.q, self.r
             w1, w2, w3, w4 = self.w1, self.w2, self.w3, self.w4
-            on_ground, ground, ceiling_d = self.on_ground, self.ground_enabled, self.ceiling_d
+            on_ground, ground, ceiling_d, wall = self.on_ground, self.ground_enabled, self.ceiling_d, self.wall
             c1, c2, c3, c4 = self._targets
             alpha, kbm, klm, kl, km, kn, dpx, dpy, dpz, gx_, gy_, gz_, hdt = self._consts
             wn, we, wd, fxn, fxe, fxdg, txb, tyb, tzb = self._forcing
@@ -373,6 +377,12 @@ class World:
                 if d < ceiling_d:
                     self._impact(k * dt, vn, ve, vd, qx, qy, "ceiling")
                     d, vd = ceiling_d, 0.0
+                if n > wall or n < -wall:  # a wall: the speed into it stops, the craft slides along it
+                    self._impact(k * dt, vn, 0.0, 0.0, qx, qy, "wall")
+                    n, vn = (wall if n > 0.0 else -wall), 0.0
+                if e > wall or e < -wall:
+                    self._impact(k * dt, 0.0, ve, 0.0, qx, qy, "wall")
+                    e, ve = (wall if e > 0.0 else -wall), 0.0
                 if ground and d > 0.0:  # touch-down: inelastic
                     qw, qx, qy, qz = self._touch_down(k * dt, vn, ve, vd, qw, qx, qy, qz)
                     d = vn = ve = vd = an = ae = ad = p = q = r = 0.0

@@ -38,6 +38,7 @@ from typing import Any
 from fcb_sim.board import Board, BoardConfig
 from fcb_sim.errors import UsageError
 from fcb_sim.physics import World
+from term.core.protocol import ROOM_CEILING_M, ROOM_HALF_M
 
 READ_BYTES = 4096  # per wake-up
 PENDING_TX_LIMIT = 16384  # bytes kept for a client that does not read; older ones are dropped
@@ -74,7 +75,7 @@ def make_board(seed: int = 1, scenario: str = "bench", link_timeout: float = 0.5
         raise UsageError(f"unknown scenario {scenario!r}; choose one of: {', '.join(SCENARIOS)}")
     if not (0.05 <= link_timeout <= 60.0):
         raise UsageError(f"--link-timeout must be between 0.05 and 60 s, got {link_timeout:g}")
-    world = World(seed, **sc.world)
+    world = World(seed, room=(ROOM_HALF_M, ROOM_CEILING_M), **sc.world)  # the lab's walls, as term --sim draws them
     if sc.wind != (0.0, 0.0, 0.0) or sc.gust_std:
         world.set_wind(*sc.wind, gust_std=sc.gust_std)
     if board == "c":

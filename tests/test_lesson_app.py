@@ -113,7 +113,7 @@ async def test_the_room_view_draws_the_craft_where_the_simulator_has_it() -> Non
         assert abs(n - truth.n) < 0.15 and abs(e - truth.e) < 0.15 and abs(h - truth.h) < 0.15
         words = figures.split()
         assert figures.endswith("in box") and abs(int(words[words.index("hdg") + 1].rstrip("°")) - 90) < 10
-        assert view.border_subtitle is not None and "6 m room" in str(view.border_subtitle)
+        assert view.border_subtitle is not None and "6 × 6 × 3 m room" in str(view.border_subtitle)
         app.lessons.driver.stop(app.model, app.clock())
 
 

@@ -13,12 +13,11 @@ from fcb_sim.serve import ThreadedServer
 from term.core.protocol import PROTOCOL_VERSION
 from term.transports.serial import SerialTransport
 from term.ui.app import TermApp
-from term.ui.screens.flight import MIN_SIZE
 
 VERSION = f"fw {BOARD_VERSION[0]}.{BOARD_VERSION[1]} · protocol v{PROTOCOL_VERSION}"
 
 
-@pytest.mark.parametrize(("size", "shown"), [((160, 50), f"board 7 · {VERSION}"), (MIN_SIZE, f"#7 · {VERSION}")])
+@pytest.mark.parametrize(("size", "shown"), [((160, 50), f"board 7 · {VERSION}"), ((80, 24), f"board 7 · {VERSION}")])
 async def test_the_link_panel_shows_the_boards_version(size: tuple[int, int], shown: str) -> None:
     server = ThreadedServer(Board(BoardConfig(seed=1, board_id=7)))
     port = server.start()

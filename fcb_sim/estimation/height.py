@@ -197,6 +197,11 @@ class HeightEstimator:
 GROUND_REST_S = 0.5
 REST_ACC = 0.5  # m/s²: |specific force| within this of g is at rest (no thrust, no vibration, no fall, no carry)
 ANCHOR_S = 1.0  # s of barometer readings (a trimmed mean: spikes and noise out) to re-anchor the height
+# While the craft stands anchored, the barometer's slow drift (weather, self-heating: minutes on the pad at term
+# --sim) is followed by a mean of this time constant, each reading's pull clipped (a spike moves it little); at
+# lift-off the reference pressure takes that drift out, so the climb starts from the held height (issue 22).
+STAND_TAU_S = 2.0
+STAND_CLIP_M = 0.1
 GROUND_BIAS_TAU_S = 2.0  # s: on the ground the accelerometer's earth-up reading is its bias
 
 # HeightKalman defaults (module docstring).
@@ -266,6 +271,7 @@ class HeightKalman:
         self.trend_resets = 0  # times the speed was made unsure by a lasting trend (telemetry)
         self.on_ground = False  # no thrust and at rest for GROUND_REST_S (set by update_imu)
         self.anchored = False  # on the ground, the height re-anchored to the barometer (then held)
+        self._stand_baro = 0.0  # while anchored: the barometer's height, slowly followed (its drift)
         self._rest_s = 0.0
         self._ground_baro: list[float] = []
         self._ground_baro_s = 0.0
@@ -364,6 +370,8 @@ class HeightKalman:
             # lift-off: the covariance of a filter at rest, no spike running; a height not yet anchored is unsure
             sh, sv, _sb = INITIAL_SIGMA
             var_h = sh * sh if self.anchored else max(self.p[0], 1.0)
+            if self.anchored:  # the barometer drifted while the craft stood: its reference takes the drift out
+                self.p_ref *= math.exp(-(self._stand_baro - self.height) * self.k_pa_per_m / self.p_ref)
             self.p = [var_h, 0.0, 0.0, 0.0, sv * sv, 0.0, 0.0, self.p[7], 0.0, _SS_FLOOR]
             self.spike = 0.0
         self.on_ground = on
@@ -377,6 +385,8 @@ class HeightKalman:
         """On the ground: the first ANCHOR_S of readings give the height (a trimmed mean, so neither the noise nor
         a spike moves it); after that the height is held, whatever the barometer drifts (the craft stands)."""
         if self.anchored:
+            pull = max(-STAND_CLIP_M, min(STAND_CLIP_M, z - self._stand_baro))
+            self._stand_baro += pull * min(1.0, max(0.0, dt) / STAND_TAU_S)
             return
         buf = self._ground_baro
         buf.append(z)
@@ -387,6 +397,7 @@ class HeightKalman:
         cut = len(ordered) // 4
         middle = ordered[cut : len(ordered) - cut]
         self.height = sum(middle) / len(middle)
+        self._stand_baro = self.height
         self.anchored = True
         self.spike = 0.0
 

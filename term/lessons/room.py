@@ -2,12 +2,13 @@
 box, and the geometry that maps metres to the view's braille dots. Sans-IO, no Textual (the widget is
 term/ui/widgets/room.py); a real board has no position, so there is no room without ``term --sim``.
 
-The room is the lab: the pad at its centre, walls ``extent`` m away on every side (3 m: a 6 m room), ``CEILING_M``
-high in the side view. It grows (never shrinks while the attempt lasts) when the craft flies beyond it, so it stays
-in view. The top view looks down (north up, east right; its dots square), the side view looks north (east right,
-the floor at the bottom) with the same metres per dot across, so distances read the same in both.
-``TopView``/``SideView`` give, for a canvas of so many character cells, the cell of a point: the widget draws with
-them and the tests check the craft's cell against the simulator's position with them.
+The room is the lab the simulator flies in (term.core.protocol's ROOM_HALF_M and ROOM_CEILING_M, the walls and
+ceiling fcb_sim's world meets): the pad at its centre, walls ``extent`` m away on every side (3 m: a 6 m room), the
+ceiling ``ceiling`` m up. Only a craft beyond them (a simulator without walls) makes it grow (never shrink while the
+attempt lasts), so it stays in view. The top view looks down (north up, east right; its dots square), the side
+view looks north (east right, the floor at the bottom) with the same metres per dot across, so distances read the
+same in both. ``TopView``/``SideView`` give, for a canvas of so many character cells, the cell of a point: the
+widget draws with them and the tests check the craft's cell against the simulator's position with them.
 """
 
 from __future__ import annotations
@@ -16,11 +17,12 @@ import math
 from collections import deque
 from dataclasses import dataclass
 
+from term.core.protocol import ROOM_CEILING_M, ROOM_HALF_M
 from term.lessons.instructor import Truth
 from term.lessons.observe import Box
 
-EXTENT_M = 3.0  # walls this far from the pad (a 6 m room)
-CEILING_M = 3.0
+EXTENT_M = ROOM_HALF_M  # walls this far from the pad (a 6 m room)
+CEILING_M = ROOM_CEILING_M
 TRAIL_S = 6.0  # seconds of trail
 TRAIL_EVERY_S = 0.1
 
@@ -38,9 +40,9 @@ class Room:
 
     def update(self, truth: Truth) -> None:
         self.truth = truth
-        far = max(abs(truth.n), abs(truth.e)) + 0.5
-        if far > self.extent:
-            self.extent = math.ceil(far)
+        far = max(abs(truth.n), abs(truth.e))
+        if far > self.extent + 1e-6:  # past the walls: no simulator of ours, but keep it in view
+            self.extent = math.ceil(far + 0.5)
         if not self.trail or truth.t - self.trail[-1][0] >= TRAIL_EVERY_S or truth.t < self.trail[-1][0]:
             self.trail.append((truth.t, truth.n, truth.e, truth.h))
             while self.trail and (truth.t - self.trail[0][0] > TRAIL_S or self.trail[0][0] > truth.t):
@@ -57,8 +59,8 @@ class Room:
     @property
     def ceiling(self) -> float:
         high = max(CEILING_M, self.box.high + 0.5 if self.box is not None else 0.0)
-        if self.truth is not None:
-            high = max(high, math.ceil(self.truth.h + 0.5))
+        if self.truth is not None and self.truth.h > high + 1e-6:  # above the ceiling: not in our room
+            high = math.ceil(self.truth.h + 0.5)
         return high
 
 

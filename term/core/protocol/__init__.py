@@ -96,6 +96,8 @@ from term.core.protocol.instructor import (  # noqa: F401
     INSTRUCTOR_TRUTH,
     INSTRUCTOR_TRUTH_HZ,
     INSTRUCTOR_VERSION,
+    ROOM_CEILING_M,
+    ROOM_HALF_M,
     SIM_SCENARIOS,
     situation_problem,
 )

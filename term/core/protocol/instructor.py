@@ -25,6 +25,11 @@ from term.core.protocol.numbers import NumberError, check_number, finite, shown_
 SIM_SCENARIOS = ("bench", "breeze", "gusty", "low-battery", "no-spikes")
 
 INSTRUCTOR_VERSION = 2
+# The room term --sim flies in (the lab): walls ROOM_HALF_M from the pad on every side (a 6 m room), the ceiling
+# ROOM_CEILING_M above the floor. The simulator's world meets them as it meets the floor (fcb_sim/physics.py); the
+# room view draws them (term/lessons/room.py).
+ROOM_HALF_M = 3.0
+ROOM_CEILING_M = 3.0
 INSTRUCTOR_AUTH = "auth"  # the first line's kind
 INSTRUCTOR_TOKEN_SEP = "#"  # the address's token follows this
 INSTRUCTOR_MAX_CUT_S = 60.0  # the longest one cable or radio cut may be

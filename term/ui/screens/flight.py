@@ -27,7 +27,9 @@ from term.ui.widgets.rates import RateGauges
 from term.ui.widgets.readiness import ReadinessPanel
 from term.ui.widgets.room import RoomView
 
-MIN_SIZE = (110, 35)  # the flight screen's panels need this many columns and rows; smaller: a notice instead
+MIN_SIZE = (60, 18)  # the compact layout needs this many columns and rows; smaller: a notice instead
+COMPACT_BELOW = (110, 35)  # narrower or lower: the compact layout (mode, attitude, battery, height, link, events)
+WIDE_FROM = (200, 55)  # this wide and high: the horizon, the room view and the events grow into the space
 
 
 def panel(widget: ModelView, title: str, wid: str) -> ModelView:
@@ -37,8 +39,10 @@ def panel(widget: ModelView, title: str, wid: str) -> ModelView:
 
 
 class FlightScreen(Screen[None]):
-    """The main screen: everything a pilot needs at a glance; in SAFE, the readiness checks beside the events. In a
-    terminal too small for its panels, a notice says so instead of cut panels (the keys keep working)."""
+    """The main screen: everything a pilot needs at a glance; in SAFE, the readiness checks beside the events. Its
+    layout follows the terminal (app.tcss): compact below ``COMPACT_BELOW`` (the rates, motors and room give way),
+    wide from ``WIDE_FROM`` (the panels grow); in a terminal too small even for the compact layout, a notice says so
+    instead of cut panels (the keys keep working)."""
 
     def __init__(self, keymap: Sequence[KeyBinding], room: Room | None = None, *, id: str | None = None) -> None:
         """``keymap``: the pilot's keys (the readiness checks name them); ``room``: the simulator's truth for the
@@ -76,6 +80,8 @@ class FlightScreen(Screen[None]):
         w, h = event.size
         small = w < MIN_SIZE[0] or h < MIN_SIZE[1]
         self.set_class(small, "too-small")
+        self.set_class(not small and (w < COMPACT_BELOW[0] or h < COMPACT_BELOW[1]), "compact")
+        self.set_class(w >= WIDE_FROM[0] and h >= WIDE_FROM[1], "wide")
         if small:
             self.query_one("#too-small", Static).update(
                 f"This terminal is {w}×{h}: the flight screen needs at least {MIN_SIZE[0]}×{MIN_SIZE[1]}.\n"

@@ -162,8 +162,12 @@ class ControlsPanel(ModelView):
         self.subtitle(_marks((("trims", trims), ("gains", gains), ("flags", [flags_r]), ("cpu, log", [cpu, log]))))
         width = max(7, ((self.content_size.width or 44) - 26) | 1)
         out = Text()
-        _stick_lines(out, model, trims, width)
-        _lift_lines(out, model, trims[3], width)
+        if 0 < self.content_size.height < 6:  # the compact layout: the lift first, it is what the pilot flies by
+            _lift_lines(out, model, trims[3], width)
+            _stick_lines(out, model, trims, width)
+        else:
+            _stick_lines(out, model, trims, width)
+            _lift_lines(out, model, trims[3], width)
         _gains_line(out, gains)
         _flags_line(out, flags_r)
         _status_line(out, model, cpu, log)

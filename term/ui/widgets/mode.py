@@ -38,7 +38,8 @@ def spaced(word: str) -> str:
 
 
 class ModeBanner(ModelView):
-    """Three rows: blank, the spaced-out mode name (with the link state when it matters), blank."""
+    """Three rows: blank, the spaced-out mode name (with the link state when it matters), blank; in the compact
+    layout the name's row alone."""
 
     TIME_DEPENDENT = False
 
@@ -81,6 +82,8 @@ class ModeBanner(ModelView):
         width = max(self.size.width, len(text) + 4, len(lag) + 4)
         blank = Text(" " * width, style=style)
         line = Text(text.center(width), style=style)
+        if 0 < self.size.height < 3:  # the compact layout: the mode's own row (the lag note would hide it)
+            return line
         out = Text()
         out.append_text(blank)
         out.append("\n")

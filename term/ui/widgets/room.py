@@ -96,6 +96,9 @@ def draw(room: Room, width: int, height: int) -> tuple[Text, TopView, SideView]:
         wx, _ = side.dot(wall, 0.0)
         _, wy = side.dot(wall, room.ceiling)
         sc.line(wx, fy, wx, wy, WALL, dash=1)
+    cx0, cy = side.dot(-room.extent, room.ceiling)
+    cx1, _ = side.dot(room.extent, room.ceiling)
+    sc.line(cx0, cy, cx1, cy, WALL, dash=1)  # the ceiling the simulator's craft meets
     # the lesson's box
     b = room.box
     inside = t is not None and b is not None and b.distance(t.n, t.e, t.h) == 0.0
@@ -138,6 +141,12 @@ def figures(room: Room, inside: bool) -> Text:
     return text
 
 
+def room_name(room: Room) -> str:
+    """The room by its size: "6 × 6 × 3 m room" (across, across, high)."""
+    side = f"{2 * room.extent:.0f}"
+    return f"{side} × {side} × {room.ceiling:.0f} m room"
+
+
 _COMPASS = ("N", "NE", "E", "SE", "S", "SW", "W", "NW")
 
 
@@ -176,5 +185,5 @@ class RoomView(ModelView):
         text, self.top, self.side = draw(room, w, h)
         self._drawn = room.version
         wind = wind_text(room)
-        self.subtitle(f"top · side (looking N) · {2 * room.extent:.0f} m room" + (f" · {wind}" if wind else ""))
+        self.subtitle(f"top · side (looking N) · {room_name(room)}" + (f" · {wind}" if wind else ""))
         return text
