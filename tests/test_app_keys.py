@@ -136,8 +136,8 @@ def is_text(w: Widget | None) -> bool:
 
 async def open_screen(app: TermApp, pilot, name: str) -> None:  # noqa: ANN001
     while len(app.screen_stack) > 1:
-        await pilot.pause(0.05)  # (the palette's search worker ends before it goes)
-        await app.pop_screen()
+        app.close_top_screen()  # (the palette stops its search first, as an F-key's screen change does)
+        await pilot.pause(0.05)
     SCREENS[name](app)
     await pilot.pause(0.1)
     if name in ("palette", "directory"):  # a text screen: its box takes the focus when it is up

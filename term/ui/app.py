@@ -31,6 +31,7 @@ from typing import Any
 
 from textual import events
 from textual.app import App, SystemCommand
+from textual.command import CommandPalette
 from textual.screen import ModalScreen, Screen
 
 from term.core.errors import EXIT_USAGE
@@ -427,6 +428,15 @@ class TermApp(App[int]):
 
     # --- local actions (named in the key map) -------------------------------------------------------------
 
+    def close_top_screen(self) -> None:
+        """Pop the top screen. The command palette first stops its search, as its own Esc does: its worker would
+        otherwise look for its list after the palette is gone, and a worker's error ends the app (an F-key pressed
+        while the palette searches, in flight too)."""
+        stop_search = getattr(self.screen, "_cancel_gather_commands", None)  # Textual's own Esc path
+        if isinstance(self.screen, CommandPalette) and stop_search is not None:
+            stop_search()
+        self.pop_screen()
+
     def toggle_help(self) -> None:
         if isinstance(self.screen, HelpScreen):
             self.pop_screen()
@@ -487,7 +497,7 @@ class TermApp(App[int]):
 
     def show_screen(self, name: str) -> None:
         while len(self.screen_stack) > 1:
-            self.pop_screen()
+            self.close_top_screen()
         if name != "flight":
             self.push_screen(name)
         self.call_after_refresh(self.render_now)
