@@ -26,13 +26,25 @@ $(BIN)/python:
 define install
 	@if $(PIP) show -q pygame >/dev/null 2>&1; then $(PIP) uninstall -q -y pygame pygame-ce; fi
 	@echo "make: installing quadrupel$(patsubst .%,%,$(1)) and its dependencies (the versions in $(LOCK)) into $(VENV)"
-	@$(PIP) install --disable-pip-version-check --progress-bar on -c $(LOCK) -e '$(1)'
+	@$(PIP) install --disable-pip-version-check --progress-bar on $(2) -c $(LOCK) -e '$(1)'
 	@touch $@
+endef
+
+# pip byte-compiles every module of every dependency (46 MB here, most never imported: pygame's tests and examples,
+# pygments' lexers, prompt_toolkit). The flying install skips that and compiles only the packages a flight
+# imports, so the second start is as quick; anything else is compiled by Python when first imported.
+FLIGHT_PACKAGES := term fcb_sim textual rich bumble bleak mcap platformdirs serial pyee pygame
+define compile_flight
+	@echo "make: compiling the modules a flight imports"
+	@$(BIN)/python -c "import compileall, importlib.util as u, os, re, sys; skip = re.compile('/(tests|examples|docs)/'); \
+		sys.exit(not all([compileall.compile_dir(os.path.dirname(u.find_spec(p).origin), quiet=1, workers=0, rx=skip) \
+			for p in sys.argv[1:]]))" $(FLIGHT_PACKAGES)
 endef
 
 # make run: only what flying needs (term plot's matplotlib is the plot extra: .venv/bin/pip install -e '.[plot]')
 $(RUN_STAMP): pyproject.toml $(LOCK) | $(BIN)/python
-	$(call install,.)
+	$(call install,.,--no-compile)
+	$(call compile_flight)
 
 $(STAMP): pyproject.toml $(LOCK) | $(BIN)/python
 	$(call install,.[test])
