@@ -126,6 +126,11 @@ def _sensor_path(setting: str, modes: ModeMachine) -> str:
     return "dmp"
 
 
+# A log download rides the telemetry task (in SAFE only) at this period whatever link.telemetry_hz says: the
+# report preset's 1.9 s telemetry period paced a download to 0.3 kB/s and a Status to one every 19 s.
+DOWNLOAD_PERIOD_US = 20_000
+
+
 class Board:
     """The simulated flight-control board (module docstring)."""
 
@@ -318,6 +323,8 @@ class Board:
                 self.on_task(task, start, dur)
 
     def _fire_timers(self) -> None:
+        if self.download.active and self.sched.next["telemetry"] - self.now > DOWNLOAD_PERIOD_US:
+            self.sched.restart("telemetry", self.now)  # a download began under a slower telemetry rate
         self.sched.fire(self.now)
         if self._ble_rx or self.uart.arrived(self.now):
             self.sched.flags["parse"] = True
@@ -327,6 +334,8 @@ class Board:
         return self.sched.pick(self.now, lambda name: int(COSTS[name].figure[3]))
 
     def _period(self, name: str) -> int:
+        if name == "telemetry" and self.download.active:
+            return DOWNLOAD_PERIOD_US
         return timer_period(name, self._path, self.config.telemetry_hz, self.config.heartbeat_ms * 1000)
 
     def _deadline_missed(self, period: int) -> None:

@@ -16,9 +16,11 @@ from term.core.protocol import (
     EventCode,
     Heartbeat,
     Joystick,
+    LogChunk,
     Mode,
     Nak,
     Op,
+    Status,
 )
 from tests.test_board import HOVER_LIFT, Pc
 
@@ -95,3 +97,28 @@ def test_the_reports_panic_counts_down_at_a_fixed_level_then_stops() -> None:
     assert abs(end - start - REPORT_PANIC_COUNTDOWN_MS / 1000) < 0.01  # the countdown, to the control period
     assert b.ae == (0, 0, 0, 0) and b.mode == Mode.SAFE
     assert max(levels) - min(levels) < 60 and max(levels) <= b.core.panic_ae + 30  # a level under hover, held
+
+
+def download_seconds(preset: str) -> tuple[float, int, list[Status]]:
+    """Record 4 s in SAFE, then download: board seconds from the Ack to LOG_DONE, the bytes, the Status seen."""
+    b, pc = board(preset)
+    pc.run(0.5)
+    assert pc.command(Op.LOG_START).status == Nak.OK
+    pc.run(4.0)
+    assert pc.command(Op.LOG_STOP).status == Nak.OK
+    start, first = b.now, len(pc.packets)
+    assert pc.command(Op.LOG_DOWNLOAD, 0).status == Nak.OK
+    while not any(type(p) is Event and p.code == EventCode.LOG_DONE for p in pc.packets[first:]):
+        assert b.now - start < 120e6, "the download did not end in 120 s"
+        pc.run(0.1)
+    got = sum(len(p.data) for p in pc.packets[first:] if type(p) is LogChunk)
+    return (b.now - start) / 1e6, got, [p for p in pc.packets[first:] if type(p) is Status]
+
+
+def test_the_report_preset_downloads_as_fast_as_the_wire_takes() -> None:
+    """The download rides the telemetry task; the report's 1.9 s telemetry period must not pace it (it did:
+    0.32 kB/s, a Status every 19 s, and the terminal's readiness said 'not known yet' all the while)."""
+    ours_s, ours_bytes, _ = download_seconds("default")
+    s, n, status = download_seconds("report")
+    assert n / s >= 0.8 * ours_bytes / ours_s  # bytes a second, as the default preset's download
+    assert len(status) >= s / 2.5  # the terminal keeps hearing the board's Status while it downloads
