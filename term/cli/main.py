@@ -249,6 +249,14 @@ def _plot(a: argparse.Namespace) -> int:
     return 0
 
 
+def run() -> None:
+    """The ``term`` command (and ``python -m term``): ``main``, then an exit that skips the interpreter's teardown
+    (term/core/quick_exit.py: freeing Textual's and bumble's objects one by one made quitting slow)."""
+    from term.core.quick_exit import exit_now
+
+    exit_now(main())
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     _plain_on_dumb_terminals()
     parser = build_parser()
