@@ -279,39 +279,54 @@ def _params(a: argparse.Namespace) -> int:
     """term params: the link named as for flying (the config's port if none), then
     term.session.param_client.run_command."""
     from term.core.schema import SchemaError
+    from term.session.config import BAUD
+
+    try:
+        if a.baud is not None:
+            BAUD.check(a.baud, "--baud")
+        BLE_TIMEOUT.check(a.ble_timeout, "--ble-timeout")
+    except SchemaError as exc:
+        raise UsageError(str(exc)) from None
+    _check_preset(a)
+    if a.sim and (a.serial or a.ble):  # (one may stand before 'params' and the other after it)
+        raise UsageError("--sim brings its own board: not with --serial or --ble")
+    _check_ble_address(a.ble)
+    sim: SimBoard | None = None
+    try:
+        if a.sim:  # the board boots on the other core while the config is read and the client imported
+            sim = SimBoard(seed=a.seed, extra=["--preset", a.preset] if a.preset else [], log=True)
+            sim.launch()
+        _start_log(a.verbose)
+        return _params_on(a, sim)
+    finally:
+        if sim is not None:
+            sim.stop()
+
+
+def _params_on(a: argparse.Namespace, sim: SimBoard | None) -> int:
+    """``term params`` once the simulated board (if any) is launched: the config, the link, the command."""
+    from term.core.schema import SchemaError
     from term.session.config import BAUD, ConfigError, load_config
     from term.session.param_client import ParamError, run_command
 
     try:
         cfg = load_config(a.config, required=a.config is not None)
         baud = BAUD.check(a.baud, "--baud") if a.baud is not None else cfg.baud
-        BLE_TIMEOUT.check(a.ble_timeout, "--ble-timeout")
     except (ConfigError, SchemaError) as exc:
         raise UsageError(str(exc)) from None
-    _check_preset(a)
-    if a.sim and (a.serial or a.ble):  # (one may stand before 'params' and the other after it)
-        raise UsageError("--sim brings its own board: not with --serial or --ble")
-    _check_ble_address(a.ble)
-    _start_log(a.verbose)
-    sim: SimBoard | None = None
+    if sim is not None:
+        transport = _serial(sim.start(), baud)
+    elif a.ble and not a.serial:
+        transport = _ble(a.ble, a.hci, a.ble_timeout)
+    else:
+        port = a.serial or cfg.port
+        if not port:
+            raise UsageError(f"no board given: use --serial PATH, --sim or --ble ADDR; {_ports_hint()}")
+        transport = _serial(port, baud)
     try:
-        if a.sim:
-            sim = SimBoard(seed=a.seed, extra=["--preset", a.preset] if a.preset else [], log=True)
-            transport = _serial(sim.start(), baud)
-        elif a.ble and not a.serial:
-            transport = _ble(a.ble, a.hci, a.ble_timeout)
-        else:
-            port = a.serial or cfg.port
-            if not port:
-                raise UsageError(f"no board given: use --serial PATH, --sim or --ble ADDR; {_ports_hint()}")
-            transport = _serial(port, baud)
-        try:
-            return asyncio.run(run_command(transport, a.action, a.words))
-        except ParamError as exc:
-            raise UsageError(str(exc)) from None
-    finally:
-        if sim is not None:
-            sim.stop()
+        return asyncio.run(run_command(transport, a.action, a.words))
+    except ParamError as exc:
+        raise UsageError(str(exc)) from None
 
 
 def _check_preset(a: argparse.Namespace) -> None:

@@ -73,7 +73,9 @@ class SimBoard:
         self._stderr_start = 0  # where this run's stderr begins in the file
         self.log = log
 
-    def start(self, timeout: float = SIM_START_TIMEOUT) -> str:
+    def launch(self) -> None:
+        """Start the child without waiting for it: the caller's own set-up runs while the board boots (on the
+        other core); ``start`` then waits for its first lines."""
         self._stderr, self._stderr_start = None, 0
         if self.log:
             from term.session.applog import child_log
@@ -86,6 +88,12 @@ class SimBoard:
             self.cmd, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=self._stderr, env=env,
             preexec_fn=_die_with_parent if sys.platform.startswith("linux") else None,
         )
+
+    def start(self, timeout: float = SIM_START_TIMEOUT) -> str:
+        """The pty path, once the child has said it (launched here unless ``launch`` was called)."""
+        if self.proc is None:
+            self.launch()
+        assert self.proc is not None
         line = _readline_with_timeout(self.proc, timeout)
         if not line.startswith("pty: "):
             if not line:  # its stdout closed: let it exit, so its last words on stderr can be read
