@@ -1,0 +1,66 @@
+"""term export's output pinned, byte for byte (CSV) and message for message (MCAP: topics, schemas, times, payloads,
+metadata; the container's chunking is the writer's), for small recordings: the export may get faster, never
+different (issue 22). A change of format is a deliberate change of these digests, said in the commit."""
+
+from __future__ import annotations
+
+import hashlib
+from pathlib import Path
+
+import pytest
+from mcap.reader import make_reader
+
+from bench.long_work import write_session
+from term.data.export import export
+from tests.test_export import flash_log_csv, record
+
+
+def _mcap_digest(path: Path) -> str:
+    h = hashlib.sha256()
+    with path.open("rb") as f:
+        reader = make_reader(f)
+        for m in reader.iter_metadata():
+            h.update(repr((m.name, sorted(m.metadata.items()))).encode())
+        for schema, channel, msg in reader.iter_messages(log_time_order=False):
+            h.update(repr((channel.topic, channel.message_encoding, schema.name if schema else None,
+                           schema.data if schema else None, msg.log_time, msg.publish_time)).encode())
+            h.update(msg.data)
+    return h.hexdigest()[:16]
+
+
+@pytest.fixture(scope="module")
+def sources(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    d = tmp_path_factory.mktemp("pinned")
+    rec, _ = record(d / "two-links")
+    flash = d / "quadrupel-log.csv"
+    flash_log_csv(flash)
+    assert rec.path is not None
+    return {"two-links": rec.path, "full-telemetry": write_session(d / "full", 0.1), "flash": flash}
+
+
+PINNED = {
+    ("two-links", "csv", False, False): "aca624fd9b2aa54c",
+    ("two-links", "csv", True, False): "e672b78a00a4884f",
+    ("two-links", "mcap", False, False): "04ff09c1f7766bae",
+    ("two-links", "mcap", False, True): "889b47456442e09f",
+    ("full-telemetry", "csv", False, False): "4418701f1c0d787e",
+    ("full-telemetry", "csv", True, False): "a84f8d7c1878efe4",
+    ("full-telemetry", "mcap", False, False): "2ed3e5b0bd419cd3",
+    ("full-telemetry", "mcap", False, True): "4968ed95535441c6",
+    ("flash", "csv", False, False): "320403bcfcfd0a83",
+    ("flash", "csv", True, False): "29bec888cc3ebce2",
+    ("flash", "mcap", False, False): "371543421664ec7b",
+}
+
+
+CASES = [(case, library) for case in PINNED for library in (("sdk", "mcap") if case[1] == "mcap" else ("auto",))]
+
+
+@pytest.mark.parametrize(("case", "library"), CASES, ids=lambda c: "-".join(map(str, c)) if isinstance(c, tuple) else c)
+def test_the_export_is_what_it_was(sources: dict[str, Path], tmp_path: Path, case: tuple[str, str, bool, bool],
+                                   library: str) -> None:
+    name, fmt, board_units, raw = case
+    out = tmp_path / f"out.{fmt}"
+    export(sources[name], out, fmt, board_units=board_units, raw=raw, library=library)
+    got = hashlib.sha256(out.read_bytes()).hexdigest()[:16] if fmt == "csv" else _mcap_digest(out)
+    assert got == PINNED[case]
