@@ -5,13 +5,16 @@ different (issue 22). A change of format is a deliberate change of these digests
 from __future__ import annotations
 
 import hashlib
+import random
 from pathlib import Path
 
 import pytest
 from mcap.reader import make_reader
 
 from bench.long_work import write_session
+from term.core.protocol import MAX_FRAME, Attitude, Encoder, Height, Mode
 from term.data.export import export
+from term.data.recording import SessionRecorder
 from tests.test_export import flash_log_csv, record
 
 
@@ -28,6 +31,33 @@ def _mcap_digest(path: Path) -> str:
     return h.hexdigest()[:16]
 
 
+def noisy_session(directory: Path) -> Path:
+    """A line with noise: frames split across reads, zeros and runs of bytes longer than a frame without a zero
+    (some across reads), a frame cut short."""
+    rng = random.Random(7)
+    rec = SessionRecorder(directory, 0.0, wall_ns=WALL)
+    enc = Encoder()
+    for i in range(400):
+        data = enc.encode(Attitude(int(Mode.FULL), i, -i, 9000, 0, 0, 0))
+        if i % 7 == 0:
+            data += enc.encode(Height(101325, 150 + i, 150, 0, 1168, 2150))
+        if i % 50 == 3:  # a long run without a delimiter, over three reads
+            for _ in range(3):
+                rec.received("cable", bytes(rng.randrange(1, 256) for _ in range(MAX_FRAME + 5)), i / 100)
+        if i % 31 == 5:
+            data = bytes(rng.randrange(0, 256) for _ in range(rng.randrange(1, 40))) + data[3:]
+        cut = rng.randrange(0, len(data) + 1)
+        rec.received("cable", data[:cut], i / 100)
+        rec.received("cable", data[cut:], i / 100 + 0.001)
+        rec.poll(i / 100)
+    rec.close()
+    assert rec.path is not None
+    return rec.path
+
+
+WALL = 1_700_000_000_000_000_000
+
+
 @pytest.fixture(scope="module")
 def sources(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     d = tmp_path_factory.mktemp("pinned")
@@ -35,7 +65,8 @@ def sources(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     flash = d / "quadrupel-log.csv"
     flash_log_csv(flash)
     assert rec.path is not None
-    return {"two-links": rec.path, "full-telemetry": write_session(d / "full", 0.1), "flash": flash}
+    return {"two-links": rec.path, "full-telemetry": write_session(d / "full", 0.1), "flash": flash,
+            "noisy": noisy_session(d / "noisy")}
 
 
 PINNED = {
@@ -47,6 +78,8 @@ PINNED = {
     ("full-telemetry", "csv", True, False): "a84f8d7c1878efe4",
     ("full-telemetry", "mcap", False, False): "2ed3e5b0bd419cd3",
     ("full-telemetry", "mcap", False, True): "4968ed95535441c6",
+    ("noisy", "csv", False, False): "9bb35b6b00fa0973",
+    ("noisy", "mcap", False, False): "6b6fb497412efb05",
     ("flash", "csv", False, False): "320403bcfcfd0a83",
     ("flash", "csv", True, False): "29bec888cc3ebce2",
     ("flash", "mcap", False, False): "371543421664ec7b",

@@ -282,21 +282,50 @@ def utc_text(t_ns: int) -> str:
 def _types_present(items: Iterator[Any]) -> dict[int, PacketSpec]:
     """The packet types in the recording's frames, from each frame's type byte without decoding it (a frame is
     COBS-encoded and its first data byte, the type, is never zero, so it stands as sent): a damaged frame can at
-    worst add a column that stays empty."""
+    worst add a column that stays empty. The bytes of each link and direction are split a batch at a time."""
     present: dict[int, PacketSpec] = {}
     pending: dict[tuple[str, str], bytes] = {}
+    batch: dict[tuple[str, str], list[bytes]] = {}
+    n = 0
     for item in items:
-        if type(item) is not tuple:
-            continue
-        key = (item[1], item[2])
-        pieces = (pending.get(key, b"") + item[3]).split(b"\x00")
-        pending[key] = pieces.pop()[-MAX_FRAME:]
-        for piece in pieces:
-            if len(piece) > 4 and piece[1] not in present:
-                spec = PACKETS.get(piece[1])
-                if spec is not None and len(piece) == spec.struct.size + 5:
-                    present[spec.type_id] = spec
+        if type(item) is tuple:
+            datas = batch.get((item[1], item[2]))
+            if datas is None:
+                datas = batch[(item[1], item[2])] = []
+            datas.append(item[3])
+            n += 1
+            if n == TYPES_BATCH:
+                _scan_types(batch, pending, present)
+                batch, n = {}, 0
+    _scan_types(batch, pending, present)
     return present
+
+
+TYPES_BATCH = 4096  # link reads split together
+
+
+def _scan_types(batch: dict[tuple[str, str], list[bytes]], pending: dict[tuple[str, str], bytes],
+                present: dict[int, PacketSpec]) -> None:
+    for key, datas in batch.items():
+        pieces = (pending.get(key, b"") + b"".join(datas)).split(b"\x00")
+        tail = pieces.pop()
+        if len(tail) > MAX_FRAME or any(len(p) > MAX_FRAME for p in pieces):
+            # a run longer than a frame: read by read, each keeping at most a frame's length pending
+            for data in datas:
+                pieces = (pending.get(key, b"") + data).split(b"\x00")
+                pending[key] = pieces.pop()[-MAX_FRAME:]
+                _add_types(pieces, present)
+            continue
+        pending[key] = tail  # (no read's pending piece was longer than a frame: the same pieces as read by read)
+        _add_types(pieces, present)
+
+
+def _add_types(pieces: list[bytes], present: dict[int, PacketSpec]) -> None:
+    for type_id, size in {(p[1], len(p)) for p in pieces if len(p) > 4}:
+        if type_id not in present:
+            spec = PACKETS.get(type_id)
+            if spec is not None and size == spec.struct.size + 5:
+                present[spec.type_id] = spec
 
 
 def _finite(x: float) -> Any:
