@@ -97,3 +97,15 @@ def test_the_export_is_what_it_was(sources: dict[str, Path], tmp_path: Path, cas
     export(sources[name], out, fmt, board_units=board_units, raw=raw, library=library)
     got = hashlib.sha256(out.read_bytes()).hexdigest()[:16] if fmt == "csv" else _mcap_digest(out)
     assert got == PINNED[case]
+
+
+def test_a_link_name_that_needs_quoting_is_quoted(tmp_path: Path) -> None:
+    import csv
+
+    rec = SessionRecorder(tmp_path, 0.0, wall_ns=WALL)
+    rec.received('odd, "link"', Encoder().encode(Attitude(int(Mode.SAFE), 1, 2, 3, 0, 0, 0)), 0.5)
+    rec.close()
+    assert rec.path is not None
+    export(rec.path, tmp_path / "out.csv")
+    rows = list(csv.DictReader((tmp_path / "out.csv").open(encoding="utf-8", newline="")))
+    assert [(r["link"], r["packet"], r["phi_deg"]) for r in rows] == [('odd, "link"', "Attitude", "0.01")]
