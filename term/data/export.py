@@ -250,12 +250,17 @@ def message_count(src: Path) -> int | None:
 
 
 def _counted(items: Iterator[Any], src: Path, progress: Progress | None) -> Iterator[Any]:
+    """``items``, telling ``progress`` how far they are; the first call (0 of the total) at once, before a CSV's
+    first pass or a plot's first read, so the bar is there from the start."""
     if progress is None:
-        yield from items
-        return
+        return items
     total = message_count(src)
-    n = 0
     progress(0, total)
+    return _counting(items, total, progress)
+
+
+def _counting(items: Iterator[Any], total: int | None, progress: Progress) -> Iterator[Any]:
+    n = 0
     for item in items:
         n += 1
         if n % PROGRESS_EVERY == 0:
