@@ -1,7 +1,8 @@
 """Quitting does not wait on the interpreter's teardown (issue 22: Ctrl+Q took 3-4 s, once 22 s): the `term`
-command, `python -m term` and the simulated board's child end with term.core.quick_exit.exit_now once the work is
-done, which keeps what an orderly exit promises (atexit handlers, stdout and stderr flushed, the exit code) and skips
-freeing every object one by one. A process with a non-daemon thread still running exits as usual."""
+command, `python -m term` and the simulated board's child end with term.session.quick_exit.exit_now once the
+work is done, which keeps what an orderly exit promises (atexit handlers, stdout and stderr flushed, the exit
+code) and skips freeing every object one by one. A process with a non-daemon thread still running exits as
+usual."""
 
 from __future__ import annotations
 
@@ -48,7 +49,7 @@ def test_a_running_non_daemon_thread_gets_the_normal_exit() -> None:
     res = _run("import threading, time\n"
                "t = threading.Thread(target=lambda: (time.sleep(0.2), sys.stderr.write('thread done\\n')))\n"
                "t.start()\n"
-               "from term.core.quick_exit import exit_now\nexit_now(5)")
+               "from term.session.quick_exit import exit_now\nexit_now(5)")
     assert res.returncode == 5
     assert "thread done" in res.stderr and "atexit ran" in res.stderr and "teardown ran" in res.stderr
 

@@ -254,8 +254,8 @@ def _plot(a: argparse.Namespace) -> int:
 
 def run() -> None:
     """The ``term`` command (and ``python -m term``): ``main``, then an exit that skips the interpreter's teardown
-    (term/core/quick_exit.py: freeing Textual's and bumble's objects one by one made quitting slow)."""
-    from term.core.quick_exit import exit_now
+    (term/session/quick_exit.py: freeing Textual's and bumble's objects one by one made quitting slow)."""
+    from term.session.quick_exit import exit_now
 
     exit_now(main())
 

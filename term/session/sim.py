@@ -50,9 +50,9 @@ class SimBoard:
     def __init__(self, *, seed: int = 1, scenario: str | None = None, link_timeout: float | None = None,
                  extra: Sequence[str] = (), radio: bool = False, log: bool = False, instructor: bool = False) -> None:
         # Through fcb_sim.cli.main (not "-m fcb_sim.cli", where its UsageError would be __main__'s, uncaught), and
-        # out without the interpreter's teardown (term/core/quick_exit.py): stop() waits for the child's exit.
-        self.cmd = [sys.executable, "-c", "from fcb_sim.cli import main; from term.core.quick_exit import exit_now; "
-                    "exit_now(main())",
+        # out without the interpreter's teardown (term/session/quick_exit.py): stop() waits for the child's exit.
+        self.cmd = [sys.executable, "-c", "from fcb_sim.cli import main; "
+                    "from term.session.quick_exit import exit_now; exit_now(main())",
                     "serve", "--pty", "--seed", str(seed)]
         if scenario:
             self.cmd += ["--scenario", scenario]
