@@ -379,8 +379,8 @@ def _csv_cell(text: str) -> str:
 CSV_BATCH = 2048  # rows joined into one write
 
 
-def _session_csv(src: Path, items: Iterator[Any], f: Any, board_units: bool, info: list[Recording]) -> int:
-    present = _types_present(_session_items(src, []))  # first pass: which packet types are there
+def _csv_header(present: dict[int, PacketSpec], board_units: bool) -> tuple[list[str], dict[int, list[Column]]]:
+    """The CSV's header, and each present packet type's columns."""
     columns: dict[int, list[Column]] = {}
     names: list[str] = []
     for type_id in sorted(present):
@@ -389,7 +389,12 @@ def _session_csv(src: Path, items: Iterator[Any], f: Any, board_units: bool, inf
             for name in (c.name, f"{c.name}_name") if c.enum is not None else (c.name,):
                 if name not in names:
                     names.append(name)
-    header = ["t_s", "utc", "link", "dir", "packet", *names, "level", "source", "message"]
+    return ["t_s", "utc", "link", "dir", "packet", *names, "level", "source", "message"], columns
+
+
+def _session_csv(src: Path, items: Iterator[Any], f: Any, board_units: bool, info: list[Recording]) -> int:
+    # first pass: which packet types are there (the columns)
+    header, columns = _csv_header(_types_present(_session_items(src, [])), board_units)
     index = {name: i for i, name in enumerate(header)}
     width = len(header)
     rows: dict[type, Callable[[Any], str] | None] = {}
