@@ -27,6 +27,9 @@ define install
 	@if $(PIP) show -q pygame >/dev/null 2>&1; then $(PIP) uninstall -q -y pygame pygame-ce; fi
 	@echo "make: installing quadrupel$(patsubst .%,%,$(1)) and its dependencies (the versions in $(LOCK)) into $(VENV)"
 	@$(PIP) install --disable-pip-version-check --progress-bar on $(2) -c $(LOCK) -e '$(1)'
+	@# the editable sources' bytecode, which an environment with PYTHONDONTWRITEBYTECODE never writes: without it
+	@# every start compiles them again (a quarter of a second of term params --sim list, twice)
+	@$(BIN)/python -m compileall -q term fcb_sim >/dev/null
 	@touch $@
 endef
 

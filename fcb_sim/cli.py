@@ -13,8 +13,8 @@ import argparse
 import logging
 import os
 import sys
-from collections.abc import Sequence
-from typing import NoReturn
+from collections.abc import Callable, Sequence
+from typing import Any, NoReturn
 
 from fcb_sim.errors import EXIT_INTERRUPTED, EXIT_USAGE, UsageError
 from fcb_sim.estimation.replay import cmd_replay
@@ -38,7 +38,9 @@ def build_parser() -> argparse.ArgumentParser:
     )
     from term.core.protocol import PROTOCOL_VERSION
 
-    version = f"fcb-sim {_version()} (protocol v{PROTOCOL_VERSION})"
+    def version() -> str:
+        return f"fcb-sim {_version()} (protocol v{PROTOCOL_VERSION})"
+
     _add_global(parser, version, command=False)
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     _add_run(sub)
@@ -50,9 +52,21 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def _add_global(p: argparse.ArgumentParser, version: str, command: bool) -> None:
+class _LazyVersion(argparse._VersionAction):
+    """--version, its text made when it is given: reading the package's metadata cost every start-up (term --sim's
+    board too) some 40 ms of CPU."""
+
+    def __call__(self, parser: argparse.ArgumentParser, namespace: argparse.Namespace, values: Any,
+                 option_string: str | None = None) -> None:
+        if callable(self.version):
+            self.version = self.version()
+        super().__call__(parser, namespace, values, option_string)
+
+
+def _add_global(p: argparse.ArgumentParser, version: Callable[[], str], command: bool) -> None:
     """A command's -v has no default of its own (argparse.SUPPRESS): one given before the command is kept."""
-    p.add_argument("--version", action="version", version=version, help="print the version and exit")
+    p.add_argument("--version", action=_LazyVersion, version=version,  # type: ignore[arg-type]
+                   help="print the version and exit")
     p.add_argument("-v", "--verbose", action="store_true", default=argparse.SUPPRESS if command else False,
                    help="log INFO and up (bumble's too) to stderr")
 

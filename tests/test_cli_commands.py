@@ -185,3 +185,13 @@ def test_fcb_sim_takes_verbose_and_version_after_its_command_too(capsys: pytest.
         with pytest.raises(SystemExit):
             p.parse_args(argv)
         assert capsys.readouterr().out.startswith("fcb-sim ")
+
+
+def test_the_version_is_read_only_when_asked_for() -> None:
+    """Reading the installed package's metadata costs a start-up some 40 ms of CPU (term's and its simulated
+    board's, a second of waiting on a busy machine): the parsers ask for it only when --version is given."""
+    code = ("import sys; from term.cli.parser import build_parser; from fcb_sim.cli import build_parser as sim\n"
+            "build_parser().parse_args(['params', '--sim', 'list']); sim().parse_args(['serve', '--pty'])\n"
+            "print('importlib.metadata' in sys.modules)")
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert res.stdout.strip() == "False", res.stderr

@@ -3,7 +3,9 @@ plays the same events as one read whole; export and plot say how far they are. (
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -106,3 +108,23 @@ def test_a_chunk_claiming_a_huge_size_is_one_line_not_an_allocation(tmp_path: Pa
     bad.write_bytes(bytes(data))
     with pytest.raises(RecordingError, match="damaged near byte .* \\(ValueError\\)"):
         list(iter_file(bad))
+
+
+def test_the_bar_is_there_before_a_csvs_first_pass(session: Path, tmp_path: Path,
+                                                   monkeypatch: pytest.MonkeyPatch) -> None:
+    """A CSV export reads the recording twice (which packet types are there, then the rows): its bar starts at 0
+    before the first pass, not after it."""
+    import term.data.export as ex
+
+    read = [0]
+    real = ex.iter_file
+
+    def counting(*args: Any, **kwargs: Any) -> Iterator[Any]:
+        for item in real(*args, **kwargs):
+            read[0] += 1
+            yield item
+
+    monkeypatch.setattr(ex, "iter_file", counting)
+    seen: list[tuple[int, int | None, int]] = []
+    export(session, tmp_path / "f.csv", progress=lambda done, total: seen.append((done, total, read[0])))
+    assert seen[0][:2] == (0, seen[-1][1]) and seen[0][2] == 0

@@ -117,3 +117,42 @@ def test_the_simulated_report_board(capsys: pytest.CaptureFixture[str]) -> None:
     shown = {x.split()[1 if x.startswith("*") else 0]: x for x in lines}
     assert shown["est.attitude"].startswith("*") and "complementary" in shown["est.attitude"]
     assert shown["est.height"].startswith("*") and not shown["ctrl.p1"].startswith("*")
+
+
+def _children() -> set[int]:
+    """This process's live children (Linux's /proc: the ppid is the fourth field of /proc/PID/stat)."""
+    import os
+
+    found = set()
+    for d in Path("/proc").iterdir():
+        if d.name.isdigit():
+            try:
+                fields = (d / "stat").read_text().rsplit(")", 1)[1].split()
+            except OSError:
+                continue
+            if int(fields[1]) == os.getpid() and fields[0] != "Z":
+                found.add(int(d.name))
+    return found
+
+
+def test_the_simulated_board_boots_while_the_config_is_read(capsys: pytest.CaptureFixture[str],
+                                                            monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
+    """`term params --sim` starts the child first and reads the config (Textual's key names: a fifth of a second)
+    while the board boots on the other core; a bad config still stops the child."""
+    from term.session import config
+
+    before = _children()
+    seen: list[set[int]] = []
+    real = config.load_config
+
+    def load_config(*args: object, **kwargs: object) -> object:
+        seen.append(_children() - before)
+        return real(*args, **kwargs)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(config, "load_config", load_config)
+    code, lines, _ = run(capsys, "--sim", "list")
+    assert code == 0 and len(lines) == len(PARAMS)
+    assert len(seen) == 1 and len(seen[0]) == 1, "the board's child was not running while the config was read"
+    code, _, err = run(capsys, "--sim", "--config", str(tmp_path / "none.toml"), "list")
+    assert code == 2 and "config file" in err
+    assert len(seen) == 2 and seen[1] and _children() - before == set()

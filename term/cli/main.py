@@ -30,7 +30,6 @@ a missing port or a board that will not start; 3 for a board that speaks another
 from __future__ import annotations
 
 import argparse
-import asyncio
 import contextlib
 import os
 import re
@@ -47,6 +46,8 @@ from term.core.schema import Number
 from term.session.sim import SimBoard
 
 if TYPE_CHECKING:
+    import asyncio
+
     from term.session.config import Config
 
 __all__ = ["EXIT_USAGE", "EXIT_VERSION", "UsageError", "build_parser", "main", "version_text"]
@@ -141,6 +142,8 @@ def _progress_bar(what: str) -> Any:
 
 
 def _replay(a: argparse.Namespace) -> int:
+    import asyncio  # (not at the top: 'term params --sim' starts its board before this)
+
     from term.data.recording import RecordingError, latest
     from term.data.replay import SPEEDS, Replay
     from term.session.config import ConfigError, load_config
@@ -249,6 +252,14 @@ def _plot(a: argparse.Namespace) -> int:
     return 0
 
 
+def run() -> None:
+    """The ``term`` command (and ``python -m term``): ``main``, then an exit that skips the interpreter's teardown
+    (term/session/quick_exit.py: freeing Textual's and bumble's objects one by one made quitting slow)."""
+    from term.session.quick_exit import exit_now
+
+    exit_now(main())
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     _plain_on_dumb_terminals()
     parser = build_parser()
@@ -271,39 +282,57 @@ def _params(a: argparse.Namespace) -> int:
     """term params: the link named as for flying (the config's port if none), then
     term.session.param_client.run_command."""
     from term.core.schema import SchemaError
+
+    try:
+        if a.baud is not None:
+            from term.session.config import BAUD
+
+            BAUD.check(a.baud, "--baud")
+        BLE_TIMEOUT.check(a.ble_timeout, "--ble-timeout")
+    except SchemaError as exc:
+        raise UsageError(str(exc)) from None
+    _check_preset(a)
+    if a.sim and (a.serial or a.ble):  # (one may stand before 'params' and the other after it)
+        raise UsageError("--sim brings its own board: not with --serial or --ble")
+    _check_ble_address(a.ble)
+    sim: SimBoard | None = None
+    try:
+        if a.sim:  # the board boots on the other core while the config is read and the client imported
+            sim = SimBoard(seed=a.seed, extra=["--preset", a.preset] if a.preset else [], log=True)
+            sim.launch()
+        _start_log(a.verbose)
+        return _params_on(a, sim)
+    finally:
+        if sim is not None:
+            sim.stop()
+
+
+def _params_on(a: argparse.Namespace, sim: SimBoard | None) -> int:
+    """``term params`` once the simulated board (if any) is launched: the config, the link, the command."""
+    import asyncio  # (not at the top: 'term params --sim' starts its board before this)
+
+    from term.core.schema import SchemaError
     from term.session.config import BAUD, ConfigError, load_config
     from term.session.param_client import ParamError, run_command
 
     try:
         cfg = load_config(a.config, required=a.config is not None)
         baud = BAUD.check(a.baud, "--baud") if a.baud is not None else cfg.baud
-        BLE_TIMEOUT.check(a.ble_timeout, "--ble-timeout")
     except (ConfigError, SchemaError) as exc:
         raise UsageError(str(exc)) from None
-    _check_preset(a)
-    if a.sim and (a.serial or a.ble):  # (one may stand before 'params' and the other after it)
-        raise UsageError("--sim brings its own board: not with --serial or --ble")
-    _check_ble_address(a.ble)
-    _start_log(a.verbose)
-    sim: SimBoard | None = None
+    if sim is not None:
+        transport = _serial(sim.start(), baud)
+    elif a.ble and not a.serial:
+        transport = _ble(a.ble, a.hci, a.ble_timeout)
+    else:
+        port = a.serial or cfg.port
+        if not port:
+            raise UsageError(f"no board given: use --serial PATH, --sim or --ble ADDR; {_ports_hint()}")
+        transport = _serial(port, baud)
     try:
-        if a.sim:
-            sim = SimBoard(seed=a.seed, extra=["--preset", a.preset] if a.preset else [], log=True)
-            transport = _serial(sim.start(), baud)
-        elif a.ble and not a.serial:
-            transport = _ble(a.ble, a.hci, a.ble_timeout)
-        else:
-            port = a.serial or cfg.port
-            if not port:
-                raise UsageError(f"no board given: use --serial PATH, --sim or --ble ADDR; {_ports_hint()}")
-            transport = _serial(port, baud)
-        try:
-            return asyncio.run(run_command(transport, a.action, a.words))
-        except ParamError as exc:
-            raise UsageError(str(exc)) from None
-    finally:
-        if sim is not None:
-            sim.stop()
+        return asyncio.run(run_command(transport, a.action, a.words))
+    except ParamError as exc:
+        raise UsageError(str(exc)) from None
 
 
 def _check_preset(a: argparse.Namespace) -> None:
@@ -389,6 +418,8 @@ def _cable(args: argparse.Namespace, cfg: Config) -> str | None:
 
 
 def _fly(args: argparse.Namespace) -> int:
+    import asyncio  # (not at the top: 'term params --sim' starts its board before this)
+
     from term.session.config import default_path
 
     if args.config_path:
@@ -465,6 +496,8 @@ def _ble(address: str, hci: str | None, timeout: float = 10.0) -> Any:
 
 
 def _scan(args: argparse.Namespace) -> int:
+    import asyncio  # (not at the top: 'term params --sim' starts its board before this)
+
     _start_log(args.verbose)
     try:
         from term.transports.ble import scan  # type: ignore[import-not-found,unused-ignore]
@@ -490,6 +523,8 @@ def _scan(args: argparse.Namespace) -> int:
 
 async def _run_app(transport: Any, cfg: Any, args: argparse.Namespace, radio: Any = None,
                    instructor_address: str = "") -> int:
+    import asyncio  # (not at the top: 'term params --sim' starts its board before this)
+
     from term.session.station import RADIO_SESSION
     from term.transports.base import TransportError
     from term.ui.app import TermApp
@@ -662,6 +697,8 @@ async def _exit_on_hangup(stream: IO[str], period: float = 0.5) -> None:
     """Exit when the terminal goes away. Closing a terminal does not always signal us (a session leader that
     ignores SIGHUP does not pass it on), and Textual reads a hung-up terminal's EOF as piped input and keeps
     running; a hung-up tty reports POLLHUP, which polling sees without taking any input."""
+    import asyncio  # (not at the top: 'term params --sim' starts its board before this)
+
     try:
         fd = stream.fileno()
     except (AttributeError, OSError, ValueError):

@@ -38,12 +38,24 @@ def version_text() -> str:
     return f"{installed} (protocol v{PROTOCOL_VERSION})"
 
 
-def _add_global(p: argparse.ArgumentParser, version: str, command: bool) -> None:
+class _LazyVersion(argparse._VersionAction):
+    """--version, its text made when it is given: the installed package's metadata costs every start-up some
+    40 ms of CPU otherwise (a second of waiting on a busy machine)."""
+
+    def __call__(self, parser: argparse.ArgumentParser, namespace: argparse.Namespace, values: Any,
+                 option_string: str | None = None) -> None:
+        if callable(self.version):
+            self.version = self.version()
+        super().__call__(parser, namespace, values, option_string)
+
+
+def _add_global(p: argparse.ArgumentParser, version: Callable[[], str], command: bool) -> None:
     """-v and --version: on the main parser and on every command (there without a default: see the module doc)."""
     p.add_argument("-v", "--verbose", action="store_true", default=argparse.SUPPRESS if command else False,
                    help="log everything of term's to term.log in the platform's log directory (warnings always go "
                    "there)")
-    p.add_argument("--version", action="version", version=version, help="print term's and the protocol's version")
+    p.add_argument("--version", action=_LazyVersion, version=version,  # type: ignore[arg-type]
+                   help="print term's and the protocol's version")
 
 
 def serial_ports() -> list[tuple[str, str]]:
@@ -210,7 +222,9 @@ COMMANDS: dict[str, tuple[str, str, Callable[[argparse.ArgumentParser], None], s
 def build_parser() -> argparse.ArgumentParser:
     """term's parser: flying's options, the global ones and one subparser per command (``args.command``; None
     is flying)."""
-    version = f"term {version_text()}"
+    def version() -> str:
+        return f"term {version_text()}"
+
     p = _Parser(
         prog="term",
         usage="term [-v] [--sim | --serial PATH | --ble ADDR] [flying options]\n       term COMMAND [options] "

@@ -28,6 +28,7 @@ import datetime as dt
 import importlib.util
 import io
 import json
+import math
 import os
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass
@@ -39,8 +40,9 @@ from mcap.writer import CompressionType, Writer
 from term.core.logformat import LOG_TIME_COLUMN
 from term.core.protocol import MAX_FRAME, PACKETS, SPEC_OF, Decoder, PacketSpec, column_scale
 from term.core.userfile import LOG_MAX_BYTES, RECORDING_MAX_BYTES, UserFileError, open_user_file
-from term.data.channels import EVENTS, Channels, ChannelSpec
+from term.data.channels import EVENTS, Channels, ChannelSpec, raw_channel
 from term.data.columns import (  # noqa: F401  (column_name, field_column: the export's names, used beside it)
+    DIGITS,
     Column,
     _enum_name,
     _enum_of,
@@ -122,11 +124,13 @@ def kind_of(path: Path) -> str:
 
 
 def _session_items(path: Path, info: list[Recording]) -> Iterator[Any]:
+    """Every part's items, link bytes as plain tuples ``(t_ns, link, direction, data)`` (``iter_file``'s
+    ``plain``: no object a message on the export's hot path)."""
     for part in session_parts(path) if path.parent.exists() else [path]:
         rec = Recording(part)
         info.append(rec)
         try:
-            yield from iter_file(part, rec)
+            yield from iter_file(part, rec, plain=True)
         except RecordingError as exc:
             raise ExportError(str(exc)) from None
 
@@ -246,12 +250,17 @@ def message_count(src: Path) -> int | None:
 
 
 def _counted(items: Iterator[Any], src: Path, progress: Progress | None) -> Iterator[Any]:
+    """``items``, telling ``progress`` how far they are; the first call (0 of the total) at once, before a CSV's
+    first pass or a plot's first read, so the bar is there from the start."""
     if progress is None:
-        yield from items
-        return
+        return items
     total = message_count(src)
-    n = 0
     progress(0, total)
+    return _counting(items, total, progress)
+
+
+def _counting(items: Iterator[Any], total: int | None, progress: Progress) -> Iterator[Any]:
+    n = 0
     for item in items:
         n += 1
         if n % PROGRESS_EVERY == 0:
@@ -278,46 +287,100 @@ def utc_text(t_ns: int) -> str:
 def _types_present(items: Iterator[Any]) -> dict[int, PacketSpec]:
     """The packet types in the recording's frames, from each frame's type byte without decoding it (a frame is
     COBS-encoded and its first data byte, the type, is never zero, so it stands as sent): a damaged frame can at
-    worst add a column that stays empty."""
+    worst add a column that stays empty. The bytes of each link and direction are split a batch at a time."""
     present: dict[int, PacketSpec] = {}
     pending: dict[tuple[str, str], bytes] = {}
+    batch: dict[tuple[str, str], list[bytes]] = {}
+    n = 0
     for item in items:
-        if type(item) is not LinkBytes:
-            continue
-        key = (item.link, item.direction)
-        pieces = (pending.get(key, b"") + item.data).split(b"\x00")
-        pending[key] = pieces.pop()[-MAX_FRAME:]
-        for piece in pieces:
-            if len(piece) > 4 and piece[1] not in present:
-                spec = PACKETS.get(piece[1])
-                if spec is not None and len(piece) == spec.struct.size + 5:
-                    present[spec.type_id] = spec
+        if type(item) is tuple:
+            datas = batch.get((item[1], item[2]))
+            if datas is None:
+                datas = batch[(item[1], item[2])] = []
+            datas.append(item[3])
+            n += 1
+            if n == TYPES_BATCH:
+                _scan_types(batch, pending, present)
+                batch, n = {}, 0
+    _scan_types(batch, pending, present)
     return present
 
 
-def _row_writer(spec: PacketSpec, columns: list[Column], index: dict[str, int], width: int,
-                board_units: bool) -> Callable[[Any], list[Any]]:
-    """A function giving a packet's CSV cells (``width`` of them, its columns in their places: ``index``),
-    numerically as ``packet_record`` has them, from one list display per packet type (the export's hot path)."""
-    cells = ['""'] * width
-    env: dict[str, Any] = {"_v": _value, "_n": _enum_name}
+TYPES_BATCH = 4096  # link reads split together
+
+
+def _scan_types(batch: dict[tuple[str, str], list[bytes]], pending: dict[tuple[str, str], bytes],
+                present: dict[int, PacketSpec]) -> None:
+    for key, datas in batch.items():
+        pieces = (pending.get(key, b"") + b"".join(datas)).split(b"\x00")
+        tail = pieces.pop()
+        if len(tail) > MAX_FRAME or any(len(p) > MAX_FRAME for p in pieces):
+            # a run longer than a frame: read by read, each keeping at most a frame's length pending
+            for data in datas:
+                pieces = (pending.get(key, b"") + data).split(b"\x00")
+                pending[key] = pieces.pop()[-MAX_FRAME:]
+                _add_types(pieces, present)
+            continue
+        pending[key] = tail  # (no read's pending piece was longer than a frame: the same pieces as read by read)
+        _add_types(pieces, present)
+
+
+def _add_types(pieces: list[bytes], present: dict[int, PacketSpec]) -> None:
+    for type_id, size in {(p[1], len(p)) for p in pieces if len(p) > 4}:
+        if type_id not in present:
+            spec = PACKETS.get(type_id)
+            if spec is not None and size == spec.struct.size + 5:
+                present[spec.type_id] = spec
+
+
+def _finite(x: float) -> Any:
+    return x if math.isfinite(x) else ""
+
+
+def _finite_scaled(x: float, scale: float) -> Any:
+    v = round(x * scale, DIGITS)
+    return v if math.isfinite(v) else ""
+
+
+def _row_text(spec: PacketSpec, columns: list[Column], index: dict[str, int], width: int) -> Callable[[Any], str]:
+    """A function giving the text of a packet's CSV row from its ``packet`` cell to the line's end (``width``
+    cells, its columns in their places: ``index``), as ``csv.writer`` writes the values ``packet_record`` has, from
+    one f-string per packet type (the export's hot path). No cell of it needs quoting: numbers, hex, the names of
+    an enumeration."""
+    cells = [""] * width
+    env: dict[str, Any] = {"_f": _finite, "_fs": _finite_scaled}
     for i, (col, fs) in enumerate(zip(columns, spec.fields, strict=True)):
-        env[f"c{i}"] = col
-        if fs.fmt.endswith("s") or fs.fmt == "e" or col.scale != 1.0:
-            value = f"_v(p[{i}], c{i}.scale)"
+        if fs.fmt.endswith("s"):
+            value = f"p[{i}].hex()"
+        elif fs.fmt == "e":  # a float on the wire: nan and inf are empty cells, as None is to csv.writer
+            value = f"_f(p[{i}])" if col.scale == 1.0 else f"_fs(p[{i}], {col.scale!r})"
+        elif col.scale != 1.0:
+            value = f"round(p[{i}] * {col.scale!r}, {DIGITS})"
         else:
             value = f"p[{i}]"
-        cells[index[col.name]] = value
+        cells[index[col.name]] = "{" + value + "}"
         if col.enum is not None:
-            cells[index[f"{col.name}_name"]] = f"_n(c{i}.enum, p[{i}])"
-    cells[4] = repr(spec.cls.__name__)
-    src = f"def cells(p):\n    return [{', '.join(cells)}]\n"
+            env[f"_n{i}"] = {int(m): m.name for m in col.enum}
+            cells[index[f"{col.name}_name"]] = f"{{_n{i}.get(p[{i}]) or p[{i}]}}"
+    cells[4] = spec.cls.__name__
+    text = ",".join(cells[4:]) + "\r\n"
+    src = f"def row(p):\n    return f{text!r}\n"
     exec(src, env)  # noqa: S102  # built from the packet table above, never from input
-    return env["cells"]  # type: ignore[no-any-return]
+    return env["row"]  # type: ignore[no-any-return]
 
 
-def _session_csv(src: Path, items: Iterator[Any], f: Any, board_units: bool, info: list[Recording]) -> int:
-    present = _types_present(_session_items(src, []))  # first pass: which packet types are there
+def _csv_cell(text: str) -> str:
+    """``text`` as ``csv.writer`` writes it among other cells (quoted if it holds a comma, quote or line end)."""
+    buf = io.StringIO()
+    csv.writer(buf).writerow([text, ""])
+    return buf.getvalue()[:-3]
+
+
+CSV_BATCH = 2048  # rows joined into one write
+
+
+def _csv_header(present: dict[int, PacketSpec], board_units: bool) -> tuple[list[str], dict[int, list[Column]]]:
+    """The CSV's header, and each present packet type's columns."""
     columns: dict[int, list[Column]] = {}
     names: list[str] = []
     for type_id in sorted(present):
@@ -326,39 +389,64 @@ def _session_csv(src: Path, items: Iterator[Any], f: Any, board_units: bool, inf
             for name in (c.name, f"{c.name}_name") if c.enum is not None else (c.name,):
                 if name not in names:
                     names.append(name)
-    header = ["t_s", "utc", "link", "dir", "packet", *names, "level", "source", "message"]
+    return ["t_s", "utc", "link", "dir", "packet", *names, "level", "source", "message"], columns
+
+
+def _session_csv(src: Path, items: Iterator[Any], f: Any, board_units: bool, info: list[Recording]) -> int:
+    # first pass: which packet types are there (the columns)
+    header, columns = _csv_header(_types_present(_session_items(src, [])), board_units)
     index = {name: i for i, name in enumerate(header)}
     width = len(header)
-    writers: dict[type, Callable[[Any], list[Any]]] = {}
+    rows: dict[type, Callable[[Any], str] | None] = {}
+    cells: dict[str, str] = {}  # a link's or direction's name as a cell
+    decoders: dict[tuple[str, str], Decoder] = {}
     w = csv.writer(f)
     w.writerow(header)
+    out: list[str] = []
     start: int | None = None
     n = 0
-    for item in decode(items):
-        if start is None:
+    for item in items:
+        if type(item) is tuple:
+            t_ns, link, direction, data = item
+            dec = decoders.get((link, direction))
+            if dec is None:
+                dec = decoders[(link, direction)] = Decoder()
+            pkts = dec.feed(data)
+            if not pkts:
+                continue
+            if start is None:
+                start = info[0].start_ns if info[0].meta else t_ns
+            head = cells.get(link)
+            if head is None:
+                head = cells[link] = _csv_cell(link)
+            prefix = f"{(t_ns - start) / 1e9:.6f},{utc_text(t_ns)},{head},{direction},"
+            for pkt in pkts:
+                row = rows.get(type(pkt), False)
+                if row is False:
+                    spec = SPEC_OF[type(pkt)]  # (a type the first pass did not see has no column: None)
+                    row = rows[type(pkt)] = (_row_text(spec, columns[spec.type_id], index, width)
+                                             if spec.type_id in columns else None)
+                if row is not None:
+                    out.append(prefix + row(pkt))
+            if len(out) >= CSV_BATCH:
+                f.write("".join(out))
+                n += len(out)
+                out.clear()
+        elif type(item) is LoggedEvent:
+            if start is None:
+                start = info[0].start_ns if info[0].meta else item.t_ns
+            f.write("".join(out))
+            n += len(out) + 1
+            out.clear()
+            line = [""] * width
+            line[:2] = [f"{(item.t_ns - start) / 1e9:.6f}", utc_text(item.t_ns)]
+            line[4] = "log"
+            line[-3:] = [item.severity, item.source, item.text]
+            w.writerow(line)
+        elif start is None:  # the station's own records are for a replay, not a table; the first starts the clock
             start = info[0].start_ns if info[0].meta else item.t_ns
-        kind = type(item)
-        if kind is DecodedFrame:
-            pkt = item.packet
-            cells = writers.get(type(pkt))
-            if cells is None:
-                spec = SPEC_OF[type(pkt)]
-                if spec.type_id not in columns:  # (a type the first pass did not see: there is no column for it)
-                    continue
-                cells = writers[type(pkt)] = _row_writer(spec, columns[spec.type_id], index, width, board_units)
-            row = cells(pkt)
-            row[2], row[3] = item.link, item.direction
-        elif kind is LoggedEvent:
-            row = [""] * width
-            row[4] = "log"
-            row[-3:] = [item.severity, item.source, item.text]
-        else:
-            continue  # the station's own records are for a replay, not a table
-        row[0] = f"{(item.t_ns - start) / 1e9:.6f}"
-        row[1] = utc_text(item.t_ns)
-        w.writerow(row)
-        n += 1
-    return n
+    f.write("".join(out))
+    return n + len(out)
 
 
 class _McapLibWriter:
@@ -373,7 +461,8 @@ class _McapLibWriter:
     def metadata(self, name: str, data: dict[str, str]) -> None:
         self.w.add_metadata(name, data)
 
-    def channel(self, spec: ChannelSpec) -> Callable[[int, bytes], None]:
+    def channel(self, spec: ChannelSpec) -> Callable[[bytes, int], None]:
+        """The channel's ``log(data, log_time_ns)``."""
         sid = self.schemas.get(spec.schema_name)
         if sid is None:
             sid = self.schemas[spec.schema_name] = self.w.register_schema(spec.schema_name, spec.schema_encoding,
@@ -381,7 +470,7 @@ class _McapLibWriter:
         ch = self.w.register_channel(spec.topic, spec.message_encoding, sid)
         seq, add = [0], self.w.add_message
 
-        def log(t_ns: int, data: bytes) -> None:
+        def log(data: bytes, t_ns: int) -> None:
             seq[0] += 1
             add(ch, log_time=t_ns, data=data, publish_time=t_ns, sequence=seq[0])
 
@@ -407,11 +496,11 @@ class _SdkWriter:
     def metadata(self, name: str, data: dict[str, str]) -> None:
         self.w.write_metadata(name, data)
 
-    def channel(self, spec: ChannelSpec) -> Callable[[int, bytes], None]:
+    def channel(self, spec: ChannelSpec) -> Callable[[bytes, int], None]:
+        """The channel's ``log(data, log_time_ns)``."""
         schema = self.fg.Schema(name=spec.schema_name, encoding=spec.schema_encoding, data=spec.schema)
-        ch = self.fg.Channel(spec.topic, schema=schema, message_encoding=spec.message_encoding,
-                             context=self.context).base
-        return lambda t_ns, data: ch.log(data, t_ns)
+        return self.fg.Channel(spec.topic, schema=schema, message_encoding=spec.message_encoding,  # type: ignore
+                               context=self.context).base.log
 
     def finish(self) -> None:
         self.w.close()
@@ -428,23 +517,48 @@ def _session_mcap(src: Path, items: Iterator[Any], f: Any, info: list[Recording]
                   library: str = "auto") -> int:
     """The session's channels (term.data.channels: the ones the live server serves) into an MCAP file."""
     w = mcap_writer(f, library)
-    channels: dict[str, Callable[[int, bytes], None]] = {}  # by topic (a spec's hash would hash its schema)
+    channels: dict[str, tuple[Callable[[bytes, int], None], bool]] = {}  # by topic (a spec's hash hashes its schema)
+    decoders: dict[tuple[str, str], Decoder] = {}
     n = 0
     meta_written = False
     dumps = json.dumps
     maker = Channels(raw=raw)
+    frame = maker.frame
     for item in items:
         if not meta_written and info[0].meta:
             w.metadata("session", dict(info[0].meta, exported_from=src.name))
             meta_written = True
+        if type(item) is tuple:  # link bytes: decoded here (Channels.item's work, without an object a message)
+            t_ns, link, direction, data = item
+            if raw:
+                n += _log(w, channels, raw_channel(link, direction), t_ns, data)
+            dec = decoders.get((link, direction))
+            if dec is None:
+                dec = decoders[(link, direction)] = Decoder()
+            for pkt in dec.feed(data):
+                for spec, t, msg in frame(t_ns, link, direction, pkt):
+                    found = channels.get(spec.topic)
+                    if found is None:
+                        n += _log(w, channels, spec, t, msg)
+                    else:
+                        found[0](msg, t)
+                        n += found[1]
+            continue
         for spec, t_ns, msg in maker.item(item):
-            log = channels.get(spec.topic)
-            if log is None:
-                log = channels[spec.topic] = w.channel(spec)
-            log(t_ns, msg if type(msg) is bytes else dumps(msg, ensure_ascii=False).encode())
-            n += spec is EVENTS or spec.topic.count("/") == 3  # frames and events, as the CSV counts its rows
+            n += _log(w, channels, spec, t_ns, msg if type(msg) is bytes else dumps(msg, ensure_ascii=False).encode())
     w.finish()
     return n
+
+
+def _log(w: _McapLibWriter | _SdkWriter, channels: dict[str, tuple[Callable[[bytes, int], None], bool]],
+         spec: ChannelSpec, t_ns: int, data: bytes) -> bool:
+    """One message on ``spec``'s channel (registered on first use); whether it is a row (a frame or an event, as
+    the CSV counts its rows)."""
+    found = channels.get(spec.topic)
+    if found is None:
+        found = channels[spec.topic] = (w.channel(spec), spec is EVENTS or spec.topic.count("/") == 3)
+    found[0](data, t_ns)
+    return found[1]
 
 
 def _flash_csv(header: list[str], rows: list[list[float]], f: Any, board_units: bool) -> int:

@@ -530,8 +530,9 @@ def _records(path: Path, rec: Recording) -> Iterator[tuple[Any, ...]]:
         yield record
 
 
-def iter_file(path: Path, recording: Recording | None = None) -> Iterator[Item]:
-    """The link bytes and events of one file, in the order recorded; fills ``recording`` as it goes."""
+def iter_file(path: Path, recording: Recording | None = None, plain: bool = False) -> Iterator[Any]:
+    """The link bytes and events of one file, in the order recorded; fills ``recording`` as it goes. ``plain``:
+    link bytes as tuples ``(t_ns, link, direction, data)`` instead of ``LinkBytes`` (the export's hot path)."""
     rec = recording if recording is not None else Recording(path)
     channels: dict[int, tuple[str, str]] = {}
     n = 0
@@ -554,7 +555,7 @@ def iter_file(path: Path, recording: Recording | None = None) -> Iterator[Item]:
                     except (ValueError, RecursionError):  # a hostile recording's record is skipped, never a crash
                         pass
                 elif where[1] != "events":
-                    yield LinkBytes(t, where[0], where[1], record[3])
+                    yield (t, *where, record[3]) if plain else LinkBytes(t, where[0], where[1], record[3])
                 else:
                     ev = _logged(t, record[3])
                     if ev is not None:

@@ -49,8 +49,10 @@ class SimBoard:
 
     def __init__(self, *, seed: int = 1, scenario: str | None = None, link_timeout: float | None = None,
                  extra: Sequence[str] = (), radio: bool = False, log: bool = False, instructor: bool = False) -> None:
-        # Through fcb_sim.cli.main (not "-m fcb_sim.cli", where its UsageError would be __main__'s, uncaught).
-        self.cmd = [sys.executable, "-c", "import sys; from fcb_sim.cli import main; sys.exit(main())",
+        # Through fcb_sim.cli.main (not "-m fcb_sim.cli", where its UsageError would be __main__'s, uncaught), and
+        # out without the interpreter's teardown (term/session/quick_exit.py): stop() waits for the child's exit.
+        self.cmd = [sys.executable, "-c", "from fcb_sim.cli import main; "
+                    "from term.session.quick_exit import exit_now; exit_now(main())",
                     "serve", "--pty", "--seed", str(seed)]
         if scenario:
             self.cmd += ["--scenario", scenario]
@@ -71,7 +73,9 @@ class SimBoard:
         self._stderr_start = 0  # where this run's stderr begins in the file
         self.log = log
 
-    def start(self, timeout: float = SIM_START_TIMEOUT) -> str:
+    def launch(self) -> None:
+        """Start the child without waiting for it: the caller's own set-up runs while the board boots (on the
+        other core); ``start`` then waits for its first lines."""
         self._stderr, self._stderr_start = None, 0
         if self.log:
             from term.session.applog import child_log
@@ -84,6 +88,12 @@ class SimBoard:
             self.cmd, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=self._stderr, env=env,
             preexec_fn=_die_with_parent if sys.platform.startswith("linux") else None,
         )
+
+    def start(self, timeout: float = SIM_START_TIMEOUT) -> str:
+        """The pty path, once the child has said it (launched here unless ``launch`` was called)."""
+        if self.proc is None:
+            self.launch()
+        assert self.proc is not None
         line = _readline_with_timeout(self.proc, timeout)
         if not line.startswith("pty: "):
             if not line:  # its stdout closed: let it exit, so its last words on stderr can be read
