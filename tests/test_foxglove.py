@@ -9,6 +9,7 @@ import asyncio
 import contextlib
 import json
 import math
+import threading
 import time
 from collections import Counter
 from collections.abc import Callable
@@ -153,6 +154,19 @@ async def until(pilot: object, cond: Callable[[], bool], timeout: float = 20.0) 
             await pilot.pause(0.02)  # type: ignore[attr-defined]
 
 
+def tap_threads(live: object) -> list[int]:
+    """The threads ``live``'s byte taps are called on, from now on, one entry a call."""
+    threads: list[int] = []
+    received = live.received  # type: ignore[attr-defined]
+
+    def counted(*args: object) -> None:
+        threads.append(threading.get_ident())
+        received(*args)
+
+    live.received = counted  # type: ignore[attr-defined]
+    return threads
+
+
 async def test_a_client_subscribed_during_a_sim_flight_gets_the_attitude_as_the_recording_has_it(
         tmp_path: Path) -> None:
     """``term --sim --foxglove`` as the cli wires it: the transports tapped for the recording and the live server,
@@ -181,9 +195,18 @@ async def test_a_client_subscribed_during_a_sim_flight_gets_the_attitude_as_the_
                       log_directory=tmp_path / "logs")
         client = Client(live.url, ("/cable/rx/Attitude", "/cable/pose", "/truth/pose", "/events", "/cable/stats"))
         stop = asyncio.Event()
+        tapped = tap_threads(live)
         async with app.run_test(size=(120, 44)) as pilot:
             m = app.model
             await until(pilot, lambda: m.mode == Mode.SAFE and m.link is not None)
+            # The live server is fed on the link's thread as the bytes are read, never through the display's loop:
+            # with the display held (a slow render), it still gets them.
+            display = threading.get_ident()
+            n, deadline = len(tapped), time.monotonic() + 5.0
+            while len(tapped) == n and time.monotonic() < deadline:
+                threading.Event().wait(0.01)  # the display's thread held on purpose
+            assert len(tapped) > n, "the live server got no bytes while the display was busy"
+            assert display not in set(tapped)
             task = asyncio.create_task(client.run(stop))
             await until(pilot, lambda: len(client.on("/cable/pose")) > 20 and len(client.on("/truth/pose")) > 5)
             app.simulate_key("2")
