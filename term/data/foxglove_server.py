@@ -4,26 +4,28 @@ package, the optional extra ``foxglove``), on the channels ``term export`` write
 Contract:
 
 - ``LiveServer(host, port, t0=, start_ns=)`` starts the SDK's server (loopback unless a host is given) in a context
-  of its own. It is fed like the recording, from any thread and at once: ``received``/``sent`` (a link's bytes
-  and the caller's monotonic ``now``; ``RecordingTransport`` taps them at the transports), ``packet`` (a replay's
-  decoded packets), ``event`` (an events-panel line), ``station_event`` (the link statistics), ``truth`` (the
-  simulator's). Each call only queues; one thread of the server's own decodes, converts (``Channels``) and hands
-  the message to the SDK, which sends it from its own threads. So serving never blocks the link or the screen,
-  and a slow client loses its oldest messages (the SDK's backlog), never the flight's.
+  of its own. It is fed like the recording: ``received``/``sent`` (a link's bytes and the caller's monotonic
+  ``now``; ``RecordingTransport`` taps them at the transports, on the link's thread: ``thread_safe`` tells
+  ``post_taps`` not to route them through the display), ``packet`` (a replay's decoded packets), ``event`` (an
+  events-panel line), ``station_event`` (the link statistics), ``truth`` (the simulator's). Each call decodes and
+  converts (``Channels``) on the caller's thread, only for channels a client subscribed to (the parameters
+  always), and hands the message to the SDK's ``log``, which never blocks: the SDK's own threads send it, and a
+  slow client loses its oldest messages (the SDK's backlog), never the flight's. No hop through a thread of our
+  own: a hop is a wake-up that a busy machine delays by tens of ms (bench.foxglove), and the link's thread is
+  awake with the bytes already. A conversion that fails costs that message (``errors`` counts), never the link.
 - Times: ``log_time`` is the time the bytes crossed the link, on the recording's clock (``start_ns`` plus the
   monotonic time since ``t0``, µs resolution, as ``SessionRecorder`` stamps them): a live message and the same
   message in the recording carry the same time.
 - Nothing is sent on a channel no client subscribes to. The board's parameters (from its ParamValue answers,
   F11's list) are the server's parameters, published as they change, read-only: a client's set is answered with
   the values as they are (a change goes through F11 and its guards).
-- ``close()`` stops the thread and the server. ``port`` is the port bound (``0`` asks for any free one).
+- ``close()`` stops the server (taps after it are ignored). ``port`` is the port bound (``0`` asks for any free one).
 """
 
 from __future__ import annotations
 
 import contextlib
 import dataclasses
-import queue
 import threading
 from typing import Any
 
@@ -102,11 +104,11 @@ class LiveServer:
         self.host = host
         self.port = self._server.port
         self._channels: dict[str, Any] = {}
-        self._maker = Channels()
-        self._queue: queue.SimpleQueue[Any] = queue.SimpleQueue()
-        self.published = 0  # messages handed to the SDK (a client subscribed to their channel)
-        self._thread = threading.Thread(target=self._run, name="foxglove", daemon=True)
-        self._thread.start()
+        self._lock = threading.Lock()  # the channels are made once, whichever thread asks first
+        self._maker = Channels()  # (its state is per link and direction: each is fed from one thread)
+        self.published = 0  # messages handed to the SDK (a client subscribed to their channel; about: not locked)
+        self.errors = 0  # items that could not be converted (each lost alone)
+        self._closed = False
 
     @property
     def url(self) -> str:
@@ -120,44 +122,39 @@ class LiveServer:
 
     def received(self, link: str, data: bytes, now: float) -> None:
         if data:
-            self._queue.put(LinkBytes(self.t_ns(now), link, "rx", bytes(data)))
+            self._serve(LinkBytes(self.t_ns(now), link, "rx", bytes(data)))
 
     def sent(self, link: str, data: bytes, now: float) -> None:
         if data:
-            self._queue.put(LinkBytes(self.t_ns(now), link, "tx", bytes(data)))
+            self._serve(LinkBytes(self.t_ns(now), link, "tx", bytes(data)))
 
     def packet(self, link: str, direction: str, pkt: Any, now: float) -> None:
-        self._queue.put(DecodedFrame(self.t_ns(now), link, direction, pkt))
+        self._serve(DecodedFrame(self.t_ns(now), link, direction, pkt))
 
     def event(self, now: float, severity: str, source: str, text: str) -> None:
-        self._queue.put(LoggedEvent(self.t_ns(now), severity, source, text))
+        self._serve(LoggedEvent(self.t_ns(now), severity, source, text))
 
     def station_event(self, ev: Any, now: float) -> None:
         """The station's events the channels carry: the link statistics."""
         if type(ev).__name__ == "StatsSample":
-            self._queue.put(("stats", self.t_ns(now), ev.link, dataclasses.asdict(ev.stats)))
+            self._serve(("stats", self.t_ns(now), ev.link, dataclasses.asdict(ev.stats)))
 
     def truth(self, truth: Any, now: float) -> None:
-        self._queue.put(("truth", self.t_ns(now), truth))
+        self._serve(("truth", self.t_ns(now), truth))
 
     def close(self) -> None:
-        if self._thread.is_alive():
-            self._queue.put(None)
-            self._thread.join(2.0)
+        self._closed = True
         self._server.stop()
 
-    # --- the server's thread ------------------------------------------------------------------------------------
+    # --- on the caller's thread ---------------------------------------------------------------------------------
 
-    def _run(self) -> None:
-        get = self._queue.get
-        while True:
-            item = get()
-            if item is None:
-                return
-            try:
-                self._publish(self._messages(item))
-            except Exception:  # noqa: S112  # one bad item costs that item, never the serving
-                continue
+    def _serve(self, item: Any) -> None:
+        if self._closed:
+            return
+        try:
+            self._publish(self._messages(item))
+        except Exception:  # one bad item costs that item, never the link or the screen
+            self.errors += 1
 
     def _messages(self, item: Any) -> Any:
         maker = self._maker
@@ -196,8 +193,11 @@ class LiveServer:
 
     def _channel(self, spec: ChannelSpec) -> Any:
         fg = self._foxglove
-        schema = fg.Schema(name=spec.schema_name, encoding=spec.schema_encoding, data=spec.schema)
-        ch = self._channels[spec.topic] = fg.Channel(spec.topic, schema=schema,
-                                                      message_encoding=spec.message_encoding,
-                                                      context=self._context).base
+        with self._lock:  # (two threads asking at once would advertise the topic twice)
+            ch = self._channels.get(spec.topic)
+            if ch is None:
+                schema = fg.Schema(name=spec.schema_name, encoding=spec.schema_encoding, data=spec.schema)
+                ch = self._channels[spec.topic] = fg.Channel(spec.topic, schema=schema,
+                                                              message_encoding=spec.message_encoding,
+                                                              context=self._context).base
         return ch
