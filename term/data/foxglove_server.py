@@ -8,8 +8,8 @@ Contract:
   ``now``; ``RecordingTransport`` taps them at the transports, on the link's thread: ``thread_safe`` tells
   ``post_taps`` not to route them through the display), ``packet`` (a replay's decoded packets), ``event`` (an
   events-panel line), ``station_event`` (the link statistics), ``truth`` (the simulator's). Each call decodes and
-  converts (``Channels``) on the caller's thread, only for channels a client subscribed to (the parameters
-  always), and hands the message to the SDK's ``log``, which never blocks: the SDK's own threads send it, and a
+  converts (``Channels``) on the caller's thread and, on the channels a client subscribed to, hands the message
+  to the SDK's ``log``, which never blocks: the SDK's own threads send it, and a
   slow client loses its oldest messages (the SDK's backlog), never the flight's. No hop through a thread of our
   own: a hop is a wake-up that a busy machine delays by tens of ms (bench.foxglove), and the link's thread is
   awake with the bytes already. A conversion that fails costs that message (``errors`` counts), never the link.
@@ -26,13 +26,15 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
+import json
 import threading
 from typing import Any
 
+from term.core.protocol import Decoder
 from term.core.protocol.params import PARAMS, Param
 from term.data.channels import Channels, ChannelSpec
 from term.data.export import DecodedFrame
-from term.data.recording import LinkBytes, LoggedEvent
+from term.data.recording import LoggedEvent
 
 DEFAULT_HOST = "127.0.0.1"  # loopback: a flight's data leaves the machine only when the pilot names a host
 INSTALL_HINT = "live Foxglove needs the SDK: pip install 'quadrupel[foxglove]' (or: pip install foxglove-sdk)"
@@ -103,7 +105,8 @@ class LiveServer:
             raise FoxgloveError(f"cannot serve Foxglove on {host}:{port}: {exc}") from None
         self.host = host
         self.port = self._server.port
-        self._channels: dict[str, Any] = {}
+        self._channels: dict[str, tuple[Any, bool]] = {}
+        self._decoders: dict[tuple[str, str], Decoder] = {}  # each link and direction's (one thread each)
         self._lock = threading.Lock()  # the channels are made once, whichever thread asks first
         self._maker = Channels()  # (its state is per link and direction: each is fed from one thread)
         self.published = 0  # messages handed to the SDK (a client subscribed to their channel; about: not locked)
@@ -121,12 +124,12 @@ class LiveServer:
         return self.start_ns + round((now - self.t0) * 1e6) * 1000  # µs resolution, as the recording stamps
 
     def received(self, link: str, data: bytes, now: float) -> None:
-        if data:
-            self._serve(LinkBytes(self.t_ns(now), link, "rx", bytes(data)))
+        if data and not self._closed:
+            self._bytes(link, "rx", data, now)
 
     def sent(self, link: str, data: bytes, now: float) -> None:
-        if data:
-            self._serve(LinkBytes(self.t_ns(now), link, "tx", bytes(data)))
+        if data and not self._closed:
+            self._bytes(link, "tx", data, now)
 
     def packet(self, link: str, direction: str, pkt: Any, now: float) -> None:
         self._serve(DecodedFrame(self.t_ns(now), link, direction, pkt))
@@ -156,6 +159,18 @@ class LiveServer:
         except Exception:  # one bad item costs that item, never the link or the screen
             self.errors += 1
 
+    def _bytes(self, link: str, direction: str, data: bytes, now: float) -> None:
+        """A link's bytes (the hot path: every read and write): decoded, each packet to its channels."""
+        t_ns = self.t_ns(now)
+        key = (link, direction)
+        dec = self._decoders.get(key) or self._decoders.setdefault(key, Decoder())
+        frame = self._maker.frame
+        try:
+            for pkt in dec.feed(data):
+                self._publish(frame(t_ns, link, direction, pkt))
+        except Exception:  # one bad packet costs that chunk's rest, never the link
+            self.errors += 1
+
     def _messages(self, item: Any) -> Any:
         maker = self._maker
         kind = type(item)
@@ -178,26 +193,26 @@ class LiveServer:
                 self._server.publish_parameter_values(self._params.parameters([spec.name]))
 
     def _publish(self, messages: Any) -> None:
-        import json
-
+        channels = self._channels
         for spec, t_ns, msg in messages:
-            if spec.schema_name == "quadrupel.ParamValue":
+            found = channels.get(spec.topic) or self._channel(spec)
+            ch, is_param = found
+            if is_param:
                 d = json.loads(msg)
                 self._param(d["param"], d["value"])  # (whether or not a client subscribed to the channel)
-            ch = self._channels.get(spec.topic) or self._channel(spec)
             if not ch.has_sinks():
                 continue
-            data = msg if type(msg) is bytes else json.dumps(msg, ensure_ascii=False).encode()
-            ch.log(data, t_ns)
+            ch.log(msg if type(msg) is bytes else json.dumps(msg, ensure_ascii=False).encode(), t_ns)
             self.published += 1
 
-    def _channel(self, spec: ChannelSpec) -> Any:
+    def _channel(self, spec: ChannelSpec) -> tuple[Any, bool]:
+        """The SDK's channel of ``spec`` (made on first use), and whether it carries the board's parameters."""
         fg = self._foxglove
         with self._lock:  # (two threads asking at once would advertise the topic twice)
-            ch = self._channels.get(spec.topic)
-            if ch is None:
+            found = self._channels.get(spec.topic)
+            if found is None:
                 schema = fg.Schema(name=spec.schema_name, encoding=spec.schema_encoding, data=spec.schema)
-                ch = self._channels[spec.topic] = fg.Channel(spec.topic, schema=schema,
-                                                              message_encoding=spec.message_encoding,
-                                                              context=self._context).base
-        return ch
+                ch = fg.Channel(spec.topic, schema=schema, message_encoding=spec.message_encoding,
+                                context=self._context).base
+                found = self._channels[spec.topic] = (ch, spec.schema_name == "quadrupel.ParamValue")
+        return found
