@@ -143,7 +143,7 @@ class LiveServer:
             self._serve(("stats", self.t_ns(now), ev.link, dataclasses.asdict(ev.stats)))
 
     def truth(self, truth: Any, now: float) -> None:
-        self._serve(("truth", self.t_ns(now), truth))
+        self._serve(("truth", self.t_ns(now), dataclasses.asdict(truth)))
 
     def close(self) -> None:
         self._closed = True
