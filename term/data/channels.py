@@ -157,7 +157,8 @@ def frame_transform(t_ns: int, child: str, xyz: tuple[float, float, float], phi:
     about x into the room's z-up frame (y and z negated), so roll stays and pitch and yaw change sign."""
     n, e, up = xyz
     return {"timestamp": stamp(t_ns), "parent_frame_id": ROOM, "child_frame_id": child,
-            "translation": {"x": n, "y": 0.0 - e, "z": up}, "rotation": quaternion(phi, -theta, -psi)}  # no -0.0
+            "translation": {"x": n + 0.0, "y": 0.0 - e, "z": up + 0.0},  # (+ 0.0: never a -0.0 in the JSON)
+            "rotation": quaternion(phi, -theta, -psi)}
 
 
 _CDEG = math.pi / 18000.0  # rad per 0.01° (the attitude's unit on the wire)
