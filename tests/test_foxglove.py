@@ -405,3 +405,17 @@ def test_the_simulators_truth_is_recorded_and_exported_on_its_own_channel_with_i
     # The link's frames are all there as before: the truth is beside them, not instead.
     want = Counter(f"/{link}/{d}/{type(p).__name__}" for link, d, p in sent)
     assert all(got[topic] == n for topic, n in want.items())
+
+
+def test_a_frame_is_converted_only_for_the_channels_wanted_and_the_height_is_kept_all_the_same() -> None:
+    """The live server converts nothing no client asked for (``want``); the pose still has the last height."""
+    from term.core.protocol import Height
+
+    maker = Channels()
+    assert maker.frame(WALL, "cable", "rx", Height(101325, 150, 100, -2, 1168, 2150), lambda spec: False) == []
+    att = Attitude(int(Mode.MANUAL), 1234, -500, 9000, 164, -328, 0)
+    only_pose = maker.frame(WALL, "cable", "rx", att, lambda spec: spec.topic == "/cable/pose")
+    assert [spec.topic for spec, _, _ in only_pose] == ["/cable/pose"]
+    assert json.loads(only_pose[0][2])["translation"]["z"] == 1.5
+    assert [spec.topic for spec, _, _ in maker.frame(WALL, "cable", "rx", att)] == ["/cable/rx/Attitude",
+                                                                                     "/cable/pose"]

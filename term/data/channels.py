@@ -182,21 +182,24 @@ class Channels:
         self._decoders: dict[tuple[str, str], Decoder] = {}
         self._packet_channels: dict[tuple[str, str, type], tuple[ChannelSpec, Callable[[Any], bytes]]] = {}
 
-    def frame(self, t_ns: int, link: str, direction: str, pkt: Any) -> list[Message]:
-        """A packet decoded from ``link``'s bytes in ``direction`` at ``t_ns``: its channel, and the pose."""
+    def frame(self, t_ns: int, link: str, direction: str, pkt: Any,
+              want: Callable[[ChannelSpec], bool] | None = None) -> list[Message]:
+        """A packet decoded from ``link``'s bytes in ``direction`` at ``t_ns``: its channel, and the pose; only the
+        channels ``want`` says yes to (all without it: the live server converts nothing no client asked for)."""
         kind = type(pkt)
         key = (link, direction, kind)
         found = self._packet_channels.get(key)  # (a PacketSpec's own hash is slow: it hashes every field's spec)
         if found is None:
             found = self._packet_channels[key] = packet_channel(link, direction, SPEC_OF[kind])
         ch, enc = found
-        out: list[Message] = [(ch, t_ns, enc(pkt))]
+        out: list[Message] = [(ch, t_ns, enc(pkt))] if want is None or want(ch) else []
         if direction != "rx":
             return out
         if kind is Attitude or kind is Compact:
-            up = self._height.get(link, 0.0)
-            out.append((pose_channel(link), t_ns,
-                        craft_pose(t_ns, up, pkt.phi * _CDEG, pkt.theta * _CDEG, pkt.psi * _CDEG)))
+            pose = pose_channel(link)
+            if want is None or want(pose):
+                up = self._height.get(link, 0.0)
+                out.append((pose, t_ns, craft_pose(t_ns, up, pkt.phi * _CDEG, pkt.theta * _CDEG, pkt.psi * _CDEG)))
         elif kind is Height or kind is Compact2:
             self._height[link] = pkt.height * 0.01  # cm (the table's Height and Compact2)
         return out

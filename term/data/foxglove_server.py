@@ -8,8 +8,8 @@ Contract:
   ``now``; ``RecordingTransport`` taps them at the transports, on the link's thread: ``thread_safe`` tells
   ``post_taps`` not to route them through the display), ``packet`` (a replay's decoded packets), ``event`` (an
   events-panel line), ``station_event`` (the link statistics), ``truth`` (the simulator's). Each call decodes and
-  converts (``Channels``) on the caller's thread and, on the channels a client subscribed to, hands the message
-  to the SDK's ``log``, which never blocks: the SDK's own threads send it, and a
+  converts (``Channels``) on the caller's thread what a client subscribed to (and the parameters, always), and
+  hands each message to the SDK's ``log``, which never blocks: the SDK's own threads send it, and a
   slow client loses its oldest messages (the SDK's backlog), never the flight's. No hop through a thread of our
   own: a hop is a wake-up that a busy machine delays by tens of ms (bench.foxglove), and the link's thread is
   awake with the bytes already. A conversion that fails costs that message (``errors`` counts), never the link.
@@ -164,12 +164,17 @@ class LiveServer:
         t_ns = self.t_ns(now)
         key = (link, direction)
         dec = self._decoders.get(key) or self._decoders.setdefault(key, Decoder())
-        frame = self._maker.frame
+        frame, want = self._maker.frame, self._wanted
         try:
             for pkt in dec.feed(data):
-                self._publish(frame(t_ns, link, direction, pkt))
+                self._publish(frame(t_ns, link, direction, pkt, want), wanted=True)
         except Exception:  # one bad packet costs that chunk's rest, never the link
             self.errors += 1
+
+    def _wanted(self, spec: ChannelSpec) -> bool:
+        """Worth converting: a client subscribed to the channel, or it carries the board's parameters."""
+        ch, is_param = self._channels.get(spec.topic) or self._channel(spec)
+        return is_param or ch.has_sinks()
 
     def _messages(self, item: Any) -> Any:
         maker = self._maker
@@ -192,15 +197,17 @@ class LiveServer:
             with contextlib.suppress(Exception):  # to the clients that subscribed to it (Foxglove's panel)
                 self._server.publish_parameter_values(self._params.parameters([spec.name]))
 
-    def _publish(self, messages: Any) -> None:
+    def _publish(self, messages: Any, wanted: bool = False) -> None:
+        """``messages`` to the SDK; ``wanted``: only what ``_wanted`` let through (asked once, not again)."""
         channels = self._channels
         for spec, t_ns, msg in messages:
-            found = channels.get(spec.topic) or self._channel(spec)
-            ch, is_param = found
+            ch, is_param = channels.get(spec.topic) or self._channel(spec)
             if is_param:
                 d = json.loads(msg)
                 self._param(d["param"], d["value"])  # (whether or not a client subscribed to the channel)
-            if not ch.has_sinks():
+                if not ch.has_sinks():
+                    continue
+            elif not wanted and not ch.has_sinks():
                 continue
             ch.log(msg if type(msg) is bytes else json.dumps(msg, ensure_ascii=False).encode(), t_ns)
             self.published += 1
