@@ -85,7 +85,7 @@ def _listener(params: type, base: type) -> type:
 class LiveServer:
     """The session's channels served live (see the module docstring)."""
 
-    thread_safe = True  # its taps only queue: the link's thread calls them as bytes pass (link_thread.post_taps)
+    thread_safe = True  # its taps never block: the link's thread calls them as bytes pass (link_thread.post_taps)
 
     def __init__(self, host: str, port: int, *, t0: float, start_ns: int, name: str = "quadrupel term") -> None:
         try:

@@ -4,7 +4,8 @@ Contract (docs/recording.md has the why and the numbers):
 
 - ``SessionRecorder(directory, now)`` opens ``<directory>/<YYYYmmdd-HHMMSS>.mcap`` (the session's UTC start) and is
   fed by the terminal: ``received(link, data, now)`` for bytes read from a link, ``sent(link, data, now)`` for
-  bytes written to it, ``event(now, severity, source, text)`` for what the events panel shows. ``now`` is the
+  bytes written to it, ``event(now, severity, source, text)`` for what the events panel shows, ``truth(truth,
+  now)`` for the simulator's truth in ``--sim`` (``/truth``, JSON; read back as ``TruthSample``). ``now`` is the
   caller's monotonic clock in seconds; nothing here reads a clock except once, at the start, the wall clock
   (``wall_ns`` injects it), so times are absolute in the file.
 - The bytes are kept exactly as they crossed the link (whole frames or any split of them, garbage included), on
