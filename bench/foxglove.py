@@ -73,11 +73,11 @@ def _handoffs(live: Any, ages: list[float]) -> None:
     """The age of each message (ms) when the live server hands it to the SDK: the terminal's share of the age."""
     publish = live._publish
 
-    def timed(messages: Any) -> None:
+    def timed(messages: Any, *args: Any, **kwargs: Any) -> None:
         messages = list(messages)
         now = time.time_ns()
         ages.extend([(now - t) / 1e6 for _, t, _ in messages])
-        publish(messages)
+        publish(messages, *args, **kwargs)
 
     live._publish = timed
 
@@ -148,6 +148,7 @@ async def run(seconds: float, seed: int) -> dict[str, Any]:
             out["serve_tap_cpu_pct"] = round(100 * (t1 - t0) / wall, 2)  # ours, in the taps (the rest: the SDK's)
             out["handoff_p99_ms"] = round(_pct(handoff[h0:h1], 99), 2)  # read off the link -> in the SDK's hands
             out["load_avg_1min"] = round(os.getloadavg()[0], 2)
+            out["serve_errors"] = live.errors  # items the server could not convert (0, or the figures are wrong)
             out["term_cpu_pct"] = round(100 * (c1 - c0) / wall, 1)
             out.update(json.loads(got.strip().splitlines()[-1]))
         live.close()
