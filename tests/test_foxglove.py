@@ -9,6 +9,7 @@ import asyncio
 import contextlib
 import json
 import math
+import threading
 import time
 from collections import Counter
 from collections.abc import Callable
@@ -29,7 +30,7 @@ from term.data.channels import (
 )
 from term.data.columns import packet_columns, packet_record
 from term.data.export import ExportError, export
-from term.data.recording import LinkBytes, StationRecord, iter_file
+from term.data.recording import LinkBytes, StationRecord, TruthSample, iter_file
 from tests.test_export import WALL, record
 
 foxglove = pytest.importorskip("foxglove", reason="the foxglove extra (foxglove-sdk) is not installed")
@@ -153,6 +154,19 @@ async def until(pilot: object, cond: Callable[[], bool], timeout: float = 20.0) 
             await pilot.pause(0.02)  # type: ignore[attr-defined]
 
 
+def tap_threads(live: object) -> list[int]:
+    """The threads ``live``'s byte taps are called on, from now on, one entry a call."""
+    threads: list[int] = []
+    received = live.received  # type: ignore[attr-defined]
+
+    def counted(*args: object) -> None:
+        threads.append(threading.get_ident())
+        received(*args)
+
+    live.received = counted  # type: ignore[attr-defined]
+    return threads
+
+
 async def test_a_client_subscribed_during_a_sim_flight_gets_the_attitude_as_the_recording_has_it(
         tmp_path: Path) -> None:
     """``term --sim --foxglove`` as the cli wires it: the transports tapped for the recording and the live server,
@@ -179,11 +193,21 @@ async def test_a_client_subscribed_during_a_sim_flight_gets_the_attitude_as_the_
         await instructor.open()
         app = TermApp(cable, joystick=False, recorder=rec, instructor=instructor, live=live,
                       log_directory=tmp_path / "logs")
-        client = Client(live.url, ("/cable/rx/Attitude", "/cable/pose", "/truth/pose", "/events", "/cable/stats"))
+        client = Client(live.url, ("/cable/rx/Attitude", "/cable/pose", "/truth/pose", "/truth", "/events",
+                                  "/cable/stats"))
         stop = asyncio.Event()
+        tapped = tap_threads(live)
         async with app.run_test(size=(120, 44)) as pilot:
             m = app.model
             await until(pilot, lambda: m.mode == Mode.SAFE and m.link is not None)
+            # The live server is fed on the link's thread as the bytes are read, never through the display's loop:
+            # with the display held (a slow render), it still gets them.
+            display = threading.get_ident()
+            n, deadline = len(tapped), time.monotonic() + 5.0
+            while len(tapped) == n and time.monotonic() < deadline:
+                threading.Event().wait(0.01)  # the display's thread held on purpose
+            assert len(tapped) > n, "the live server got no bytes while the display was busy"
+            assert display not in set(tapped)
             task = asyncio.create_task(client.run(stop))
             await until(pilot, lambda: len(client.on("/cable/pose")) > 20 and len(client.on("/truth/pose")) > 5)
             app.simulate_key("2")
@@ -219,6 +243,11 @@ async def test_a_client_subscribed_during_a_sim_flight_gets_the_attitude_as_the_
                     recorded.setdefault(item.t_ns, []).append(p)
     got = client.on("/cable/rx/Attitude")
     assert len(got) > 50
+    # The truth is recorded as served: the same samples at the same times.
+    recorded_truth = {i.t_ns: i.data["h"] for i in iter_file(rec.path) if isinstance(i, TruthSample)}
+    served_truth = client.on("/truth")
+    assert len(recorded_truth) > 5 and served_truth
+    assert all(recorded_truth.get(r.log_time) == r.json()["h"] for r in served_truth)
     cols = packet_columns(SPEC_OF[Attitude], si=True)
     for r in got:  # the same bytes at the same time: the live message is the recorded one
         assert r.log_time in recorded, "a live attitude the recording does not have at that time"
@@ -339,3 +368,54 @@ def test_an_export_without_raw_is_refused_by_replay_and_plot_in_one_line(tmp_pat
         plot_log(tmp_path / "decoded.mcap", tmp_path / "p.png")
     export(rec.path, tmp_path / "raw.mcap", raw=True)
     assert Replay.load(tmp_path / "raw.mcap").timeline
+
+
+def sim_truth(i: int, **change: float) -> object:
+    """A sample of the simulator's truth as the instructor channel gives it."""
+    from term.lessons.instructor import Truth
+
+    d = dict(t=i * 0.02, n=0.5, e=-0.25, h=1.0 + i * 0.01, vn=0.0, ve=0.0, vd=-0.1, phi=0.1, theta=-0.05, psi=1.0,
+             p=0.0, q=0.0, r=0.0, on_ground=False, volts=11.8, soc=0.9, landings=0, touchdown=0.0, crashes=0,
+             cable=True)
+    return Truth(**{**d, **change})  # type: ignore[arg-type]
+
+
+def test_the_simulators_truth_is_recorded_and_exported_on_its_own_channel_with_its_pose(tmp_path: Path) -> None:
+    """In --sim the recording keeps the instructor's truth beside the link's bytes; the export gives it as
+    ``/truth`` (quadrupel.Truth) and ``/truth/pose`` (foxglove.FrameTransform, frame ``truth``), as live. A sample
+    a hostile file made not finite is left out, never written as NaN into JSON."""
+    rec, sent = record(tmp_path / "rec", close=False)
+    for i in range(40):
+        rec.truth(sim_truth(i), 10.0 + i * 0.02)  # type: ignore[attr-defined]
+    rec.truth(sim_truth(40, h=math.nan), 10.9)  # type: ignore[attr-defined]
+    rec.close()
+    assert rec.path is not None
+    export(rec.path, tmp_path / "flight.mcap")
+    channels, messages = read_mcap(tmp_path / "flight.mcap")
+    assert channels["/truth"] == ("quadrupel.Truth", "jsonschema", "json")
+    assert channels["/truth/pose"] == ("foxglove.FrameTransform", "jsonschema", "json")
+    got = Counter(topic for topic, _, _ in messages)
+    assert got["/truth"] == got["/truth/pose"] == 40
+    truths = [(t, json.loads(d)) for topic, t, d in messages if topic == "/truth"]
+    assert truths[0][0] == WALL  # the recording's time of the sample (its clock starts at 10.0)
+    assert truths[3][1]["h"] == pytest.approx(1.03) and truths[3][1]["on_ground"] is False
+    pose = [json.loads(d) for topic, _, d in messages if topic == "/truth/pose"][0]
+    sdk_frame_transform(pose)
+    assert pose["child_frame_id"] == "truth" and pose["translation"] == {"x": 0.5, "y": 0.25, "z": 1.0}
+    # The link's frames are all there as before: the truth is beside them, not instead.
+    want = Counter(f"/{link}/{d}/{type(p).__name__}" for link, d, p in sent)
+    assert all(got[topic] == n for topic, n in want.items())
+
+
+def test_a_frame_is_converted_only_for_the_channels_wanted_and_the_height_is_kept_all_the_same() -> None:
+    """The live server converts nothing no client asked for (``want``); the pose still has the last height."""
+    from term.core.protocol import Height
+
+    maker = Channels()
+    assert maker.frame(WALL, "cable", "rx", Height(101325, 150, 100, -2, 1168, 2150), lambda spec: False) == []
+    att = Attitude(int(Mode.MANUAL), 1234, -500, 9000, 164, -328, 0)
+    only_pose = maker.frame(WALL, "cable", "rx", att, lambda spec: spec.topic == "/cable/pose")
+    assert [spec.topic for spec, _, _ in only_pose] == ["/cable/pose"]
+    assert json.loads(only_pose[0][2])["translation"]["z"] == 1.5
+    assert [spec.topic for spec, _, _ in maker.frame(WALL, "cable", "rx", att)] == ["/cable/rx/Attitude",
+                                                                                     "/cable/pose"]

@@ -8,10 +8,10 @@ Contract (docs/recording.md lists the channels with what each holds):
   ``/<link>/<rx|tx>/<Packet>`` (schema ``quadrupel.<Packet>``, generated from the packet table) in SI units:
   angles in rad, rates in rad/s, accelerations in m/s², heights in m, volts, Pa, °C (``term.data.columns``).
 - Foxglove's well-known schemas where one fits: the board's attitude estimate and height as ``foxglove.FrameTransform``
-  on ``/<link>/pose`` (frame ``craft`` in ``room``), the simulator's true pose on ``/truth/pose`` (frame
-  ``truth``; ``term --sim`` live), the events panel's lines as ``foxglove.Log`` on ``/events``. The frame ``room``
-  is the pad with x north, y west, z up (the board's NED turned about x, so the 3D panel's z is up); the craft's
-  frame is x forward, y left, z up.
+  on ``/<link>/pose`` (frame ``craft`` in ``room``), the simulator's true pose on ``/truth/pose`` (frame ``truth``;
+  ``term --sim``, live and recorded), the events panel's lines as ``foxglove.Log`` on ``/events``. The frame
+  ``room`` is the pad with x north, y west, z up (the board's NED turned about x, so the 3D panel's z is up); the
+  craft's frame is x forward, y left, z up.
 - The link statistics on ``/<link>/stats`` (``quadrupel.LinkStats``, times in s), the simulator's truth on
   ``/truth`` (``quadrupel.Truth``).
 - Raw link bytes only when asked (``raw_channel``): message encoding ``quadrupel-frames`` with a schema of that
@@ -19,22 +19,30 @@ Contract (docs/recording.md lists the channels with what each holds):
   records (``/station``, what a replay applies) go with them: an export with them replays as the session did.
 
 ``Channels`` turns what a session holds (decoded frames, event lines, link statistics, truth samples, and the
-recording's items) into ``(ChannelSpec, log_time_ns, message)``; it keeps the latest height of each link for the
-pose. Sans-IO: the writers (a file, a server) encode and send.
+recording's items, the truth among them) into ``(ChannelSpec, log_time_ns, message)``; it keeps the latest height of
+each link for the pose. Sans-IO: the writers (a file, a server) encode and send.
 """
 
 from __future__ import annotations
 
 import json
 import math
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass
 from functools import cache
 from typing import Any
 
 from term.core.protocol import SPEC_OF, Attitude, Compact, Compact2, Decoder, Height, PacketSpec
 from term.data.columns import json_schema, packet_columns, packet_json
-from term.data.recording import LEVEL_OF, LOG_SCHEMA, RAW_ENCODING, LinkBytes, LoggedEvent, StationRecord
+from term.data.recording import (
+    LEVEL_OF,
+    LOG_SCHEMA,
+    RAW_ENCODING,
+    LinkBytes,
+    LoggedEvent,
+    StationRecord,
+    TruthSample,
+)
 
 ROOM, CRAFT, TRUTH = "room", "craft", "truth"  # the 3D panel's frames
 
@@ -149,7 +157,8 @@ def frame_transform(t_ns: int, child: str, xyz: tuple[float, float, float], phi:
     about x into the room's z-up frame (y and z negated), so roll stays and pitch and yaw change sign."""
     n, e, up = xyz
     return {"timestamp": stamp(t_ns), "parent_frame_id": ROOM, "child_frame_id": child,
-            "translation": {"x": n, "y": 0.0 - e, "z": up}, "rotation": quaternion(phi, -theta, -psi)}  # no -0.0
+            "translation": {"x": n + 0.0, "y": 0.0 - e, "z": up + 0.0},  # (+ 0.0: never a -0.0 in the JSON)
+            "rotation": quaternion(phi, -theta, -psi)}
 
 
 _CDEG = math.pi / 18000.0  # rad per 0.01° (the attitude's unit on the wire)
@@ -173,21 +182,24 @@ class Channels:
         self._decoders: dict[tuple[str, str], Decoder] = {}
         self._packet_channels: dict[tuple[str, str, type], tuple[ChannelSpec, Callable[[Any], bytes]]] = {}
 
-    def frame(self, t_ns: int, link: str, direction: str, pkt: Any) -> list[Message]:
-        """A packet decoded from ``link``'s bytes in ``direction`` at ``t_ns``: its channel, and the pose."""
+    def frame(self, t_ns: int, link: str, direction: str, pkt: Any,
+              want: Callable[[ChannelSpec], bool] | None = None) -> list[Message]:
+        """A packet decoded from ``link``'s bytes in ``direction`` at ``t_ns``: its channel, and the pose; only the
+        channels ``want`` says yes to (all without it: the live server converts nothing no client asked for)."""
         kind = type(pkt)
         key = (link, direction, kind)
         found = self._packet_channels.get(key)  # (a PacketSpec's own hash is slow: it hashes every field's spec)
         if found is None:
             found = self._packet_channels[key] = packet_channel(link, direction, SPEC_OF[kind])
         ch, enc = found
-        out: list[Message] = [(ch, t_ns, enc(pkt))]
+        out: list[Message] = [(ch, t_ns, enc(pkt))] if want is None or want(ch) else []
         if direction != "rx":
             return out
         if kind is Attitude or kind is Compact:
-            up = self._height.get(link, 0.0)
-            out.append((pose_channel(link), t_ns,
-                        craft_pose(t_ns, up, pkt.phi * _CDEG, pkt.theta * _CDEG, pkt.psi * _CDEG)))
+            pose = pose_channel(link)
+            if want is None or want(pose):
+                up = self._height.get(link, 0.0)
+                out.append((pose, t_ns, craft_pose(t_ns, up, pkt.phi * _CDEG, pkt.theta * _CDEG, pkt.psi * _CDEG)))
         elif kind is Height or kind is Compact2:
             self._height[link] = pkt.height * 0.01  # cm (the table's Height and Compact2)
         return out
@@ -206,11 +218,18 @@ class Channels:
             out[_stat_name(k)] = v
         return (stats_channel(link), t_ns, out)
 
-    def truth(self, t_ns: int, truth: Any) -> list[Message]:
-        """A sample of the simulator's truth (``term.lessons.instructor.Truth``): its channel and the pose."""
-        rec = {k: getattr(truth, k) for k in TRUTH_FIELDS}
-        rec["on_ground"], rec["crashes"] = bool(truth.on_ground), int(truth.crashes)
-        pose = frame_transform(t_ns, TRUTH, (truth.n, truth.e, truth.h), truth.phi, truth.theta, truth.psi)
+    def truth(self, t_ns: int, truth: Mapping[str, Any]) -> list[Message]:
+        """A sample of the simulator's truth (``term.lessons.instructor.Truth``'s fields by name, live or from a
+        recording): its channel and the pose; none if a field is missing or not a finite number (a hostile file)."""
+        rec: dict[str, Any] = {}
+        for k in TRUTH_FIELDS:
+            v = truth.get(k)
+            if type(v) not in (int, float) or not math.isfinite(v):
+                return []
+            rec[k] = float(v)
+        crashes = truth.get("crashes", 0)
+        rec["on_ground"], rec["crashes"] = truth.get("on_ground") is True, crashes if type(crashes) is int else 0
+        pose = frame_transform(t_ns, TRUTH, (rec["n"], rec["e"], rec["h"]), rec["phi"], rec["theta"], rec["psi"])
         return [(TRUTH_CHANNEL, t_ns, rec), (TRUTH_POSE, t_ns, pose)]
 
     def item(self, item: Any) -> Iterator[Message]:
@@ -226,6 +245,8 @@ class Channels:
                 yield from self.frame(item.t_ns, item.link, item.direction, pkt)
         elif kind is LoggedEvent:
             yield self.log(item.t_ns, item.severity, item.source, item.text)
+        elif kind is TruthSample:
+            yield from self.truth(item.t_ns, item.data)
         elif kind is StationRecord:
             if self.raw:
                 yield (STATION, item.t_ns, item.data)

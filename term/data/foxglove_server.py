@@ -4,33 +4,37 @@ package, the optional extra ``foxglove``), on the channels ``term export`` write
 Contract:
 
 - ``LiveServer(host, port, t0=, start_ns=)`` starts the SDK's server (loopback unless a host is given) in a context
-  of its own. It is fed like the recording, from any thread and at once: ``received``/``sent`` (a link's bytes
-  and the caller's monotonic ``now``; ``RecordingTransport`` taps them at the transports), ``packet`` (a replay's
-  decoded packets), ``event`` (an events-panel line), ``station_event`` (the link statistics), ``truth`` (the
-  simulator's). Each call only queues; one thread of the server's own decodes, converts (``Channels``) and hands
-  the message to the SDK, which sends it from its own threads. So serving never blocks the link or the screen,
-  and a slow client loses its oldest messages (the SDK's backlog), never the flight's.
+  of its own. It is fed like the recording: ``received``/``sent`` (a link's bytes and the caller's monotonic
+  ``now``; ``RecordingTransport`` taps them at the transports, on the link's thread: ``thread_safe`` tells
+  ``post_taps`` not to route them through the display), ``packet`` (a replay's decoded packets), ``event`` (an
+  events-panel line), ``station_event`` (the link statistics), ``truth`` (the simulator's). Each call decodes and
+  converts (``Channels``) on the caller's thread what a client subscribed to (and the parameters, always), and
+  hands each message to the SDK's ``log``, which never blocks: the SDK's own threads send it, and a
+  slow client loses its oldest messages (the SDK's backlog), never the flight's. No hop through a thread of our
+  own: a hop is a wake-up that a busy machine delays by tens of ms (bench.foxglove), and the link's thread is
+  awake with the bytes already. A conversion that fails costs that message (``errors`` counts), never the link.
 - Times: ``log_time`` is the time the bytes crossed the link, on the recording's clock (``start_ns`` plus the
   monotonic time since ``t0``, µs resolution, as ``SessionRecorder`` stamps them): a live message and the same
   message in the recording carry the same time.
 - Nothing is sent on a channel no client subscribes to. The board's parameters (from its ParamValue answers,
   F11's list) are the server's parameters, published as they change, read-only: a client's set is answered with
   the values as they are (a change goes through F11 and its guards).
-- ``close()`` stops the thread and the server. ``port`` is the port bound (``0`` asks for any free one).
+- ``close()`` stops the server (taps after it are ignored). ``port`` is the port bound (``0`` asks for any free one).
 """
 
 from __future__ import annotations
 
 import contextlib
 import dataclasses
-import queue
+import json
 import threading
 from typing import Any
 
+from term.core.protocol import Decoder
 from term.core.protocol.params import PARAMS, Param
 from term.data.channels import Channels, ChannelSpec
 from term.data.export import DecodedFrame
-from term.data.recording import LinkBytes, LoggedEvent
+from term.data.recording import LoggedEvent
 
 DEFAULT_HOST = "127.0.0.1"  # loopback: a flight's data leaves the machine only when the pilot names a host
 INSTALL_HINT = "live Foxglove needs the SDK: pip install 'quadrupel[foxglove]' (or: pip install foxglove-sdk)"
@@ -81,6 +85,8 @@ def _listener(params: type, base: type) -> type:
 class LiveServer:
     """The session's channels served live (see the module docstring)."""
 
+    thread_safe = True  # its taps never block: the link's thread calls them as bytes pass (link_thread.post_taps)
+
     def __init__(self, host: str, port: int, *, t0: float, start_ns: int, name: str = "quadrupel term") -> None:
         try:
             import foxglove
@@ -99,12 +105,13 @@ class LiveServer:
             raise FoxgloveError(f"cannot serve Foxglove on {host}:{port}: {exc}") from None
         self.host = host
         self.port = self._server.port
-        self._channels: dict[str, Any] = {}
-        self._maker = Channels()
-        self._queue: queue.SimpleQueue[Any] = queue.SimpleQueue()
-        self.published = 0  # messages handed to the SDK (a client subscribed to their channel)
-        self._thread = threading.Thread(target=self._run, name="foxglove", daemon=True)
-        self._thread.start()
+        self._channels: dict[str, tuple[Any, bool]] = {}
+        self._decoders: dict[tuple[str, str], Decoder] = {}  # each link and direction's (one thread each)
+        self._lock = threading.Lock()  # the channels are made once, whichever thread asks first
+        self._maker = Channels()  # (its state is per link and direction: each is fed from one thread)
+        self.published = 0  # messages handed to the SDK (a client subscribed to their channel; about: not locked)
+        self.errors = 0  # items that could not be converted (each lost alone)
+        self._closed = False
 
     @property
     def url(self) -> str:
@@ -117,45 +124,57 @@ class LiveServer:
         return self.start_ns + round((now - self.t0) * 1e6) * 1000  # µs resolution, as the recording stamps
 
     def received(self, link: str, data: bytes, now: float) -> None:
-        if data:
-            self._queue.put(LinkBytes(self.t_ns(now), link, "rx", bytes(data)))
+        if data and not self._closed:
+            self._bytes(link, "rx", data, now)
 
     def sent(self, link: str, data: bytes, now: float) -> None:
-        if data:
-            self._queue.put(LinkBytes(self.t_ns(now), link, "tx", bytes(data)))
+        if data and not self._closed:
+            self._bytes(link, "tx", data, now)
 
     def packet(self, link: str, direction: str, pkt: Any, now: float) -> None:
-        self._queue.put(DecodedFrame(self.t_ns(now), link, direction, pkt))
+        self._serve(DecodedFrame(self.t_ns(now), link, direction, pkt))
 
     def event(self, now: float, severity: str, source: str, text: str) -> None:
-        self._queue.put(LoggedEvent(self.t_ns(now), severity, source, text))
+        self._serve(LoggedEvent(self.t_ns(now), severity, source, text))
 
     def station_event(self, ev: Any, now: float) -> None:
         """The station's events the channels carry: the link statistics."""
         if type(ev).__name__ == "StatsSample":
-            self._queue.put(("stats", self.t_ns(now), ev.link, dataclasses.asdict(ev.stats)))
+            self._serve(("stats", self.t_ns(now), ev.link, dataclasses.asdict(ev.stats)))
 
     def truth(self, truth: Any, now: float) -> None:
-        self._queue.put(("truth", self.t_ns(now), truth))
+        self._serve(("truth", self.t_ns(now), truth))
 
     def close(self) -> None:
-        if self._thread.is_alive():
-            self._queue.put(None)
-            self._thread.join(2.0)
+        self._closed = True
         self._server.stop()
 
-    # --- the server's thread ------------------------------------------------------------------------------------
+    # --- on the caller's thread ---------------------------------------------------------------------------------
 
-    def _run(self) -> None:
-        get = self._queue.get
-        while True:
-            item = get()
-            if item is None:
-                return
-            try:
-                self._publish(self._messages(item))
-            except Exception:  # noqa: S112  # one bad item costs that item, never the serving
-                continue
+    def _serve(self, item: Any) -> None:
+        if self._closed:
+            return
+        try:
+            self._publish(self._messages(item))
+        except Exception:  # one bad item costs that item, never the link or the screen
+            self.errors += 1
+
+    def _bytes(self, link: str, direction: str, data: bytes, now: float) -> None:
+        """A link's bytes (the hot path: every read and write): decoded, each packet to its channels."""
+        t_ns = self.t_ns(now)
+        key = (link, direction)
+        dec = self._decoders.get(key) or self._decoders.setdefault(key, Decoder())
+        frame, want = self._maker.frame, self._wanted
+        try:
+            for pkt in dec.feed(data):
+                self._publish(frame(t_ns, link, direction, pkt, want), wanted=True)
+        except Exception:  # one bad packet costs that chunk's rest, never the link
+            self.errors += 1
+
+    def _wanted(self, spec: ChannelSpec) -> bool:
+        """Worth converting: a client subscribed to the channel, or it carries the board's parameters."""
+        ch, is_param = self._channels.get(spec.topic) or self._channel(spec)
+        return is_param or ch.has_sinks()
 
     def _messages(self, item: Any) -> Any:
         maker = self._maker
@@ -165,7 +184,7 @@ class LiveServer:
         if kind is tuple:
             if item[0] == "stats":
                 return [maker.stats(item[1], item[2], item[3])]
-            return maker.truth(item[1], item[2])
+            return maker.truth(item[1], dataclasses.asdict(item[2]))  # (a bad sample: an error counted, not raised)
         return maker.item(item)
 
     def _param(self, param: int, raw: int) -> None:
@@ -178,24 +197,29 @@ class LiveServer:
             with contextlib.suppress(Exception):  # to the clients that subscribed to it (Foxglove's panel)
                 self._server.publish_parameter_values(self._params.parameters([spec.name]))
 
-    def _publish(self, messages: Any) -> None:
-        import json
-
+    def _publish(self, messages: Any, wanted: bool = False) -> None:
+        """``messages`` to the SDK; ``wanted``: only what ``_wanted`` let through (asked once, not again)."""
+        channels = self._channels
         for spec, t_ns, msg in messages:
-            if spec.schema_name == "quadrupel.ParamValue":
+            ch, is_param = channels.get(spec.topic) or self._channel(spec)
+            if is_param:
                 d = json.loads(msg)
                 self._param(d["param"], d["value"])  # (whether or not a client subscribed to the channel)
-            ch = self._channels.get(spec.topic) or self._channel(spec)
-            if not ch.has_sinks():
+                if not ch.has_sinks():
+                    continue
+            elif not wanted and not ch.has_sinks():
                 continue
-            data = msg if type(msg) is bytes else json.dumps(msg, ensure_ascii=False).encode()
-            ch.log(data, t_ns)
+            ch.log(msg if type(msg) is bytes else json.dumps(msg, ensure_ascii=False).encode(), t_ns)
             self.published += 1
 
-    def _channel(self, spec: ChannelSpec) -> Any:
+    def _channel(self, spec: ChannelSpec) -> tuple[Any, bool]:
+        """The SDK's channel of ``spec`` (made on first use), and whether it carries the board's parameters."""
         fg = self._foxglove
-        schema = fg.Schema(name=spec.schema_name, encoding=spec.schema_encoding, data=spec.schema)
-        ch = self._channels[spec.topic] = fg.Channel(spec.topic, schema=schema,
-                                                      message_encoding=spec.message_encoding,
-                                                      context=self._context).base
-        return ch
+        with self._lock:  # (two threads asking at once would advertise the topic twice)
+            found = self._channels.get(spec.topic)
+            if found is None:
+                schema = fg.Schema(name=spec.schema_name, encoding=spec.schema_encoding, data=spec.schema)
+                ch = fg.Channel(spec.topic, schema=schema, message_encoding=spec.message_encoding,
+                                context=self._context).base
+                found = self._channels[spec.topic] = (ch, spec.schema_name == "quadrupel.ParamValue")
+        return found

@@ -4,7 +4,8 @@ Contract (docs/recording.md has the why and the numbers):
 
 - ``SessionRecorder(directory, now)`` opens ``<directory>/<YYYYmmdd-HHMMSS>.mcap`` (the session's UTC start) and is
   fed by the terminal: ``received(link, data, now)`` for bytes read from a link, ``sent(link, data, now)`` for
-  bytes written to it, ``event(now, severity, source, text)`` for what the events panel shows. ``now`` is the
+  bytes written to it, ``event(now, severity, source, text)`` for what the events panel shows, ``truth(truth,
+  now)`` for the simulator's truth in ``--sim`` (``/truth``, JSON; read back as ``TruthSample``). ``now`` is the
   caller's monotonic clock in seconds; nothing here reads a clock except once, at the start, the wall clock
   (``wall_ns`` injects it), so times are absolute in the file.
 - The bytes are kept exactly as they crossed the link (whole frames or any split of them, garbage included), on
@@ -34,7 +35,7 @@ import struct
 import time
 import zlib
 from collections.abc import Callable, Collection, Iterator
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import IO, Any
 
@@ -69,6 +70,9 @@ LOG_SCHEMA = {
         "line": {"type": "integer"},
     },
 }
+TRUTH_SAMPLE = {"title": "quadrupel.Truth", "type": "object",
+                "description": "the simulator's truth as it sent it (term/lessons/instructor.py Truth): earth NED from "
+                               "the pad, body FRD, SI units"}
 LEVEL_OF = {"debug": 1, "info": 2, "warning": 3, "error": 4, "fatal": 5}
 SEVERITY_OF = {v: k for k, v in LEVEL_OF.items()}
 
@@ -163,6 +167,17 @@ class SessionRecorder:
             return  # not a plain event: nothing a replay could use
         self._add("/station", data, self._t_ns(now), now)
 
+    def truth(self, truth: Any, now: float) -> None:
+        """A sample of the simulator's truth (``term --sim``: the instructor channel's ``Truth``), its fields as the
+        simulator sent them, on ``/truth``: where the craft really was, beside what the board estimated."""
+        if self._writer is None:
+            return
+        try:
+            data = json.dumps(asdict(truth), ensure_ascii=False).encode()
+        except (TypeError, ValueError):
+            return
+        self._add("/truth", data, self._t_ns(now), now)
+
     def poll(self, now: float) -> None:
         """Flush if data waits and ``flush_period`` has passed; call at least once a ``flush_period``."""
         if self._dirty and now - self._last_flush >= self.flush_period:
@@ -238,6 +253,9 @@ class SessionRecorder:
             ch = self._writer.register_channel(name, "json", schema)
         elif name == "/station":
             ch = self._writer.register_channel(name, "json", 0)
+        elif name == "/truth":
+            schema = self._writer.register_schema("quadrupel.Truth", "jsonschema", json.dumps(TRUTH_SAMPLE).encode())
+            ch = self._writer.register_channel(name, "json", schema)
         else:
             ch = self._writer.register_channel(name, RAW_ENCODING, 0)
         self._channels[name] = ch
@@ -387,7 +405,15 @@ class StationRecord:
     data: dict[str, Any]
 
 
-Item = LinkBytes | LoggedEvent | StationRecord
+@dataclass(frozen=True, slots=True)
+class TruthSample:
+    """A sample of the simulator's truth as recorded (its fields by name; unchecked: a file is hostile)."""
+
+    t_ns: int
+    data: dict[str, Any]
+
+
+Item = LinkBytes | LoggedEvent | StationRecord | TruthSample
 
 
 class RecordingError(ValueError):
@@ -549,11 +575,15 @@ def iter_file(path: Path, recording: Recording | None = None, plain: bool = Fals
                     rec.first_ns = t
                 if rec.last_ns is None or t > rec.last_ns:
                     rec.last_ns = t
-                if where[1] == "station":
+                if where[1] in ("station", "truth"):
                     try:
-                        yield StationRecord(t, json.loads(record[3]))
+                        d = json.loads(record[3])
                     except (ValueError, RecursionError):  # a hostile recording's record is skipped, never a crash
-                        pass
+                        continue
+                    if where[1] == "station":
+                        yield StationRecord(t, d)
+                    elif isinstance(d, dict):
+                        yield TruthSample(t, d)
                 elif where[1] != "events":
                     yield (t, *where, record[3]) if plain else LinkBytes(t, where[0], where[1], record[3])
                 else:
@@ -563,7 +593,7 @@ def iter_file(path: Path, recording: Recording | None = None, plain: bool = Fals
             elif kind == "c":
                 topic = record[2]
                 parts = topic.strip("/").split("/")
-                if topic in ("/events", "/station"):
+                if topic in ("/events", "/station", "/truth"):
                     channels[record[1]] = ("", topic[1:])
                 elif len(parts) == 2 and parts[1] in ("rx", "tx"):
                     channels[record[1]] = (parts[0], parts[1])

@@ -230,12 +230,14 @@ def _chain(transport: object | None) -> list[object]:
 
 
 def post_taps(transport: object | None, post: Callable[..., None]) -> None:
-    """Every recording tap in ``transport``'s chain (its ``sinks``: the recording, the live server) writes through
-    ``post`` (the display's thread) from now on."""
+    """Every recording tap in ``transport``'s chain (its ``sinks``: the recording) writes through ``post`` (the
+    display's thread) from now on; a sink that says ``thread_safe`` (the live server: it never blocks) is
+    called on the link's thread as the bytes pass, so what it serves does not wait for the display."""
     for t in _chain(transport):
         sinks = t.__dict__.get("sinks")
         if isinstance(sinks, tuple):
-            posted = tuple(s if isinstance(s, PostedTap) else PostedTap(s, post) for s in sinks)
+            posted = tuple(s if isinstance(s, PostedTap) or getattr(s, "thread_safe", False) else PostedTap(s, post)
+                           for s in sinks)
             t.sinks = posted  # type: ignore[attr-defined]
 
 

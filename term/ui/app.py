@@ -155,9 +155,9 @@ class TermApp(App[int]):
         self.alarms_rung: list[str] = []  # every alarm the bell was rung for (or would have been, bell off)
         self.lessons = LessonController(self.station, clock, self.keymap, self, instructor, lesson, demo,
                                         lessons_dirs)
-        if live is not None and instructor is not None:  # the simulator's true pose beside the estimate
+        if instructor is not None and (live is not None or recorder is not None):  # the true pose, kept and served
             on_truth = instructor.on_truth
-            instructor.on_truth = lambda truth: (live.truth(truth, self.clock()), on_truth(truth))
+            instructor.on_truth = lambda truth: (self.outputs.truth(truth), on_truth and on_truth(truth))
         self._bind_keys()
 
     def _make_station(self, transport: Transport | None, radio: Transport | None, primary_ble: bool,

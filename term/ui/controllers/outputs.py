@@ -1,7 +1,7 @@
 """Where a session goes besides the screen: the recording (term.data.recording) and the live Foxglove server
 (term.data.foxglove_server). Each station event goes to both; the events list's new lines too (what the pilot
-read), each once; in a replay the packets go to the live server (no transport taps there). A recording that can
-no longer be written is said once, and the flight goes on.
+read), each once; in ``--sim`` the simulator's truth too; in a replay the packets go to the live server (no
+transport taps there). A recording that can no longer be written is said once, and the flight goes on.
 """
 
 from __future__ import annotations
@@ -37,6 +37,14 @@ class SessionOutputs:
             if self.replaying and type(ev) is FromLink and type(ev.event) is PacketReceived:
                 self.live.packet(ev.link, "rx", ev.event.packet, now)
         self.notes(now)
+
+    def truth(self, truth: Any) -> None:
+        """A sample of the simulator's truth (``--sim``'s instructor channel): recorded and served beside the
+        board's estimate, at the same time."""
+        now = self.clock()
+        for sink in (self.recorder, self.live):
+            if sink is not None:
+                sink.truth(truth, now)
 
     def tick(self, now: float) -> None:
         """The render tick: notes written straight into the model (as the log download's), the recorder's flush."""
