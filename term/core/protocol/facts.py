@@ -49,7 +49,7 @@ class Op(IntEnum):
     """Keyboard command operations (``Command.op``); ``arg`` meaning is given per op."""
 
     MODE = 1  # arg: the requested Mode
-    TRIM_LIFT = 2  # arg: steps, +1 up / -1 down
+    TRIM_LIFT = 2  # arg: steps, +1 up / -1 down (finer near hover: lift_trim_after)
     TRIM_ROLL = 3  # arg: steps
     TRIM_PITCH = 4  # arg: steps
     TRIM_YAW = 5  # arg: steps
