@@ -314,12 +314,24 @@ class FlightCore:
                 nm = yaw * C.MANUAL_N_GAIN
             out = C.mix(C.lift_to_z(lift), lm, mm, nm)
         elif mode == _PANIC:
+            self._follow_sensors()
             out = self.panic_motors(self.panic_scale, dt)
         else:  # SAFE, CALIBRATION, WIRELESS: motors off
+            self._follow_sensors()
             out = (0, 0, 0, 0)
         self.ae = out
         self.height_est.motors_off = not (out[0] or out[1] or out[2] or out[3])  # its on-the-ground test
         return out
+
+    def _follow_sensors(self) -> None:
+        # No attitude loop runs (PANIC levels on the DMP itself): the angles shown follow the sensor path that runs,
+        # the DMP's or, without it (RAW's path), the filter's, so a flight that ended tilted is not shown tilted on
+        # the pad (issue 22).
+        if self._have_dmp:
+            self.phi, self.theta, self._psi_src = self.dmp_phi, self.dmp_theta, _FULL
+        else:
+            f = self.filter
+            self.phi, self.theta, self._psi_src = f.roll, -f.pitch, _RAW
 
     # ---- telemetry helpers -----------------------------------------------------------------------------------
     @property

@@ -40,6 +40,7 @@ from term.core.protocol import (
     Mode,
     Nak,
     Param,
+    lift_trim_after,
 )
 
 # FLIGHT_MODES (the motors may turn under the flight core), LIFT_ZERO and STICK_NEUTRAL (the guards for leaving
@@ -65,7 +66,7 @@ class ModeConfig:
     tilt_limit_cdeg: int = 5000  # 50°
     low_battery: int = BATTERY_LOW  # 10 mV units: 10.5 V
     trim_step: int = int(PARAMS[Param.TRIM_STEP].default)  # roll, pitch, yaw trim per key press (stick units)
-    lift_step: int = int(PARAMS[Param.LIFT_STEP].default)  # lift trim per key press (1 %)
+    lift_step: int = int(PARAMS[Param.LIFT_STEP].default)  # lift trim per key press (1 %; finer near hover)
 
 
 @dataclass
@@ -303,8 +304,8 @@ class ModeMachine:
 
     def adjust_trim(self, axis: str, steps: int) -> int:
         """Move one trim by ``steps`` key presses; returns the new value."""
-        if axis == "lift":
-            self.trims.lift = max(0, min(STICK_MAX, self.trims.lift + steps * self.config.lift_step))
+        if axis == "lift":  # finer near hover: the protocol's rule (lift_trim_after)
+            self.trims.lift = lift_trim_after(self.trims.lift, steps, self.config.lift_step, self.joystick.lift)
             return self.trims.lift
         value = getattr(self.trims, axis) + steps * self.config.trim_step
         value = max(-TRIM_LIMIT, min(TRIM_LIMIT, value))

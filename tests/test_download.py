@@ -73,8 +73,10 @@ def test_logstatus_dropped_and_bytes_damaged_fails_with_a_resume_point() -> None
 
 def test_ten_percent_fails_cleanly_with_a_resume_point_and_f5_finishes_it() -> None:
     # At 10 % only 12 % of the chunk frames survive: it may not finish within its deadline (shortened here, to
-    # see it fail), but every failure names its reason and resume point, and F5 carries on from there.
-    rig = Rig(seed=1, record_s=0.2)
+    # see it fail), but every failure names its reason and resume point, and F5 carries on from there. Whether a
+    # seed stalls 8 s is chance: seed 5 fails 4 times (seed 1 no longer did once the log's attitude in SAFE followed
+    # the DMP, issue 22, instead of a frozen zero).
+    rig = Rig(seed=5, record_s=0.2)
     rig.faults(Faults(corrupt=0.10), Faults(corrupt=0.10))
     d = LogDownloader(started=rig.now, deadline_s=8.0)
     failures = []

@@ -28,6 +28,7 @@ from term.core.protocol import (
     field_limits,
     field_scale,
     field_spec,
+    lift_trim_after,
 )
 from term.session.model import Model
 from term.ui.widgets.base import figure
@@ -222,7 +223,8 @@ def test_lift_trims_flown_over_ble_are_shown_as_the_board_has_them() -> None:
         board.uart_receive(cable.data_to_send(t))
         board.ble_receive(phone.data_to_send(t))
     assert m.over_ble and m.mode == Mode.MANUAL and len(shown) == 55
-    assert all(a == b for a, b in shown) and shown[-1][1] == 55 * shown[0][1]  # every press, as the board has it
+    # every press, as the board has it (finer near hover: the protocol's lift_trim_after)
+    assert all(a == b for a, b in shown) and shown[-1][1] == lift_trim_after(0, 55, shown[0][1])
     motors, height, rate = m.reading("ae1", t), m.reading("height", t), m.reading("sp", t)
     assert motors.fresh and motors.source == "Compact2" and abs(motors.value - board.ae[0]) <= 2  # steps of 4
     # the board's estimate, less what it climbed since it was sampled (up to a heartbeat period in the BLE batch)

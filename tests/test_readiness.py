@@ -98,6 +98,13 @@ def test_lift_trim_counts_the_presses_and_offers_zero() -> None:
     assert "press z till 0 %, or Z" in by_item(m)["lift"].text  # the board's step not known
     m.set_stick(Joystick(0, 0, 0, 8000, 0))
     assert "throttle fully down" in by_item(m)["lift"].text
+
+
+def test_lift_presses_near_hover_count_the_boards_finer_steps() -> None:
+    # 40 presses of 1 % and 36 of 0.25 % near hover (the protocol's lift_trim_after): z steps down the same way
+    m = good_model(trims=(0, 0, 0, 40 * 328 + 36 * 82))
+    c = by_item(m, lift_step=328)["lift"]
+    assert c.text == "trim 49 %: press z 75 times, or Z", c.text  # 36 of 0.25 %, then 39 of 1 % under 500
     m.set_stick(Joystick(0, 0, 0, LIFT_ZERO, 0))
     m.apply_packet(status(), NOW)
     assert by_item(m)["lift"].state == "ok"

@@ -413,6 +413,23 @@ static qb_real height_z(qb_flight_t *fc, int32_t lift, qb_real dt)
     return z;
 }
 
+/* No attitude loop runs (SAFE, CALIBRATION, PANIC): the angles shown follow the sensor path that runs, the DMP's
+ * or, without it (RAW's path), the filter's, so a flight that ended tilted is not shown tilted on the pad. */
+static void follow_sensors(qb_flight_t *fc)
+{
+    if (fc->have_dmp) {
+        fc->phi = fc->dmp_phi;
+        fc->theta = fc->dmp_theta;
+        fc->psi_raw = 0;
+    } else {
+        qb_real e[3];
+        qb_ikf_angles(&fc->ikf, e);
+        fc->phi = e[0];
+        fc->theta = -e[1];
+        fc->psi_raw = 1;
+    }
+}
+
 void qb_flight_control(qb_flight_t *fc, uint8_t mode, const int32_t sticks[4], qb_real dt, uint16_t out[4])
 {
     const qb_gains_t *g = &fc->g;
@@ -438,8 +455,10 @@ void qb_flight_control(qb_flight_t *fc, uint8_t mode, const int32_t sticks[4], q
         nm = mode == QP_MODE_YAW ? g->yaw_p * ((yaw >> STICK_YAW_SHIFT) - fc->sr) : (qb_real)yaw * MANUAL_N_GAIN;
         qb_mix(lift_to_z(lift), (qb_real)roll * MANUAL_LM_GAIN, (qb_real)pitch * MANUAL_LM_GAIN, nm, 1, out);
     } else if (mode == QP_MODE_PANIC) {
+        follow_sensors(fc);
         panic_motors(fc, fc->panic_scale, dt, out);
     } else {
+        follow_sensors(fc);
         out[0] = out[1] = out[2] = out[3] = 0;
     }
     memcpy(fc->ae, out, sizeof fc->ae);

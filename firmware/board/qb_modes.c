@@ -105,13 +105,30 @@ void qb_modes_sticks(const qb_modes_t *m, int32_t out[4])
     out[3] = qb_modes_lift(m);
 }
 
+/* The lift trim after `steps` presses, finer near hover: term/core/protocol's lift_trim_after, press by press (the
+ * closed form cost the M0 248 bytes of flash it has not got; a press stops at the trim's clip, so Z's -32767 at
+ * the default step is at most ~180 turns) */
+static int32_t lift_trim_after(int32_t trim, int32_t steps, int32_t lift_step, int32_t js_lift)
+{
+    const int32_t coarse = lift_step > 1 ? lift_step : 1;
+    const int32_t fine = lift_step / QP_LIFT_FINE_DIVISOR > 1 ? lift_step / QP_LIFT_FINE_DIVISOR : 1;
+    const int32_t dir = steps > 0 ? 1 : -1, edge = steps > 0 ? QP_STICK_MAX : 0;
+    while (steps != 0 && trim != edge) {
+        int32_t level = js_lift + trim, to = level + dir * fine;
+        int32_t in_band = (dir > 0 ? level : to) >= QP_LIFT_FINE_FROM && (dir > 0 ? to : level) <= QP_LIFT_FINE_TO;
+        trim += dir * (in_band ? fine : coarse);
+        trim = trim < 0 ? 0 : trim > QP_STICK_MAX ? QP_STICK_MAX : trim;
+        steps -= dir;
+    }
+    return trim;
+}
+
 int32_t qb_modes_adjust_trim(qb_modes_t *m, int axis, int32_t steps)
 {
     int64_t v;
     int32_t *t;
     if (axis == 0) {
-        v = (int64_t)m->trim_lift + (int64_t)steps * m->lift_step;
-        m->trim_lift = (int32_t)(v < 0 ? 0 : v > QP_STICK_MAX ? QP_STICK_MAX : v);
+        m->trim_lift = lift_trim_after(m->trim_lift, steps, m->lift_step, m->js.lift);
         return m->trim_lift;
     }
     t = axis == 1 ? &m->trim_roll : axis == 2 ? &m->trim_pitch : &m->trim_yaw;

@@ -19,7 +19,18 @@ import math
 from collections.abc import Iterable
 from dataclasses import dataclass
 
-from term.core.protocol import LIFT_ZERO, STICK_MAX, STICK_NEUTRAL, Flag, LogState, Mode, Nak, Op, WirelessState
+from term.core.protocol import (
+    LIFT_ZERO,
+    STICK_MAX,
+    STICK_NEUTRAL,
+    Flag,
+    LogState,
+    Mode,
+    Nak,
+    Op,
+    WirelessState,
+    lift_trim_after,
+)
 from term.input.keymap import KeyBinding, pretty_key
 from term.session.model import BATTERY_PANIC_V, BATTERY_WARN_V, Model, rtt_text
 
@@ -97,6 +108,21 @@ def _presses(excess: float, step: int | None) -> int | None:
     return None if not step else max(1, math.ceil(excess / step))
 
 
+def _lift_presses(stick: int, trim: int, step: int | None) -> int | None:
+    """Presses of lift down that bring stick + trim to LIFT_ZERO, as the board steps them (finer near hover: the
+    protocol's lift_trim_after); the fewest, by bisection (the rule is monotonic in the presses)."""
+    if not step:
+        return None
+    lo, hi = 1, STICK_MAX
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if stick + lift_trim_after(trim, -mid, step, stick) <= LIFT_ZERO:
+            hi = mid
+        else:
+            lo = mid + 1
+    return lo
+
+
 def _value(model: Model, name: str, now: float) -> float | None:
     r = model.reading(name, now)
     return float(r.value) if r.shown and r.value is not None and r.bound != "?" else None
@@ -141,7 +167,7 @@ def _lift(model: Model, now: float, keymap: tuple[KeyBinding, ...], lift_step: i
     if stick > LIFT_ZERO:
         return Check("lift", "todo", f"throttle fully down (now {round(100 * stick / STICK_MAX)} %)")
     down, zero = keys_for(keymap, "lift_down"), keys_for(keymap, "lift_zero")
-    n = _presses(total - LIFT_ZERO, lift_step)
+    n = _lift_presses(int(stick), round(trim), lift_step)
     times = f"{n} time{'s' if n != 1 else ''}" if n is not None else "till 0 %"
     return Check("lift", "todo", f"trim {pct} %: press {down} {times}, or {zero}")
 

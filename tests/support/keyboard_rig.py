@@ -1,4 +1,4 @@
-"""A keyboard pilot hovering in FULL on the simulated board (bench/keyboard.py describes it;
+"""A keyboard pilot hovering in FULL on the simulated board (bench/keyboard.py describes it and gives the figures;
 tests/test_keyboard_flight.py uses it)."""
 
 from __future__ import annotations
@@ -6,19 +6,25 @@ from __future__ import annotations
 from fcb_sim.board import Board, BoardConfig
 from fcb_sim.physics import World
 from term.core.link import LinkSession
-from term.core.protocol import Joystick, Mode, Op, scaled
+from term.core.protocol import LIFT_FINE_DIVISOR, LIFT_FINE_FROM, LIFT_FINE_TO, Joystick, Mode, Op, scaled
 from term.session.model import Model
 
 TARGET_M = 1.0
-LOOK_HZ = 5.0  # how often the pilot reads the screen and may press
-# What one press does, as a pilot learns it: 1 % of lift near a hover at about half lift is 4 % of the thrust.
-PRESS_ACCEL = 0.4  # m/s² per press
+LOOK_HZ = 5.0  # how often the pilot looks and may press
+# What one press does, as a pilot learns it: 1 % of lift near a hover at about half lift is 4 % of the thrust; in the
+# fine band near hover (the protocol's LIFT_FINE_*) a press is a quarter of that.
+PRESS_ACCEL = 0.4  # m/s² per press of trim.lift_step
 HOLD_S = 30.0
+GOAL_M = 0.3  # issue 22: within ±0.3 m of 1 m for the 30 s
+EYES = ("room", "screen")  # what the pilot reads the height from (keyboard_hover)
 
 
-def keyboard_hover(seed: int, seconds: float = 60.0, lift_step: int | None = None) -> tuple[list[tuple[float, float]],
-                                                                                         int]:
-    """Fly; returns (time, true height) at every look while in FULL, and the number of key presses."""
+def keyboard_hover(seed: int, seconds: float = 60.0, lift_step: int | None = None,
+                   eyes: str = "room") -> tuple[list[tuple[float, float]], int]:
+    """Fly; returns (time, true height) at every look while in FULL, and the number of key presses.
+
+    ``eyes`` "room": the pilot watches the craft, as the room view of ``term --sim`` shows it (its height to 0.01 m;
+    its vertical speed from two looks); "screen": the Height telemetry (the board's estimate and its vz)."""
     board = Board(BoardConfig(seed=seed), world=World(seed))
     if lift_step is not None:
         board.modes.config.lift_step = lift_step
@@ -28,7 +34,7 @@ def keyboard_hover(seed: int, seconds: float = 60.0, lift_step: int | None = Non
     session.set_joystick(Joystick(0, 0, 0, 0, 0))  # no stick: the keyboard alone
     track: list[tuple[float, float]] = []
     presses = 0
-    vz_before = 0.0
+    vz_before = h_before = 0.0
     airborne = False
     t_us, next_look = 0, 0.0
     script = [(0.3, Mode.CALIBRATION), (2.0, Mode.FULL)]
@@ -39,10 +45,16 @@ def keyboard_hover(seed: int, seconds: float = 60.0, lift_step: int | None = Non
             session.send_command(Op.MODE, script.pop(0)[1], t)
         if model.mode == Mode.FULL and model.height is not None and t >= next_look:
             next_look = t + 1 / LOOK_HZ
-            h, vz = scaled(model.height, "height"), scaled(model.height, "vz")
+            if eyes == "room":
+                h = round(board.world.truth.h, 2)
+                vz, h_before = (h - h_before) * LOOK_HZ, h
+            else:
+                h, vz = scaled(model.height, "height"), scaled(model.height, "vz")
             accel, vz_before = (vz - vz_before) * LOOK_HZ, vz
             want_vz = max(-0.3, min(0.3, 0.6 * (TARGET_M - h)))
-            n = round((1.2 * (want_vz - vz) - accel) / PRESS_ACCEL)
+            lift = model.status.trim_lift if model.status is not None else 0  # the lift the screen shows
+            press = PRESS_ACCEL / LIFT_FINE_DIVISOR if LIFT_FINE_FROM <= lift < LIFT_FINE_TO else PRESS_ACCEL
+            n = round((1.2 * (want_vz - vz) - accel) / press)
             if not airborne and h < 0.05:
                 n = 3  # on the ground: the key held until it lifts
             airborne = airborne or h > 0.3

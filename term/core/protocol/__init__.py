@@ -19,7 +19,8 @@ never with a retyped factor. ``field_limits`` and ``saturated`` tell a value pin
 from a true one.
 
 The shared facts (one home each; a test fails on a copy elsewhere): ``Role``, the Nordic UART Service UUIDs and
-``BOARD_NAME_PREFIX``, ``FLIGHT_MODES``, the stick guards ``LIFT_ZERO`` and ``STICK_NEUTRAL``, the battery
+``BOARD_NAME_PREFIX``, ``FLIGHT_MODES``, the stick guards ``LIFT_ZERO`` and ``STICK_NEUTRAL``, the lift keys'
+fine band near hover (``LIFT_FINE_FROM``, ``LIFT_FINE_TO``, ``LIFT_FINE_DIVISOR``, ``lift_trim_after``), the battery
 thresholds, the board's parameter table (``Param``, ``PARAMS``: name, type, unit, range, default, in flight or not;
 ``PRESETS``; ``param_arg``/``param_split``; docs/parameters.md is generated from it). The flash-log payload codec
 lives in ``term.core.logformat``.
@@ -46,6 +47,9 @@ from term.core.protocol.facts import (  # noqa: F401
     DELIMITER,
     FLIGHT_MODES,
     GYRO_LSB_PER_DPS,
+    LIFT_FINE_DIVISOR,
+    LIFT_FINE_FROM,
+    LIFT_FINE_TO,
     LIFT_ZERO,
     LOG_TIME_COLUMN,
     LOW_BATTERY_HOLD_S,
@@ -72,6 +76,7 @@ from term.core.protocol.facts import (  # noqa: F401
     Op,
     Role,
     WirelessState,
+    lift_trim_after,
     nak_text,
 )
 from term.core.protocol.framing import (  # noqa: F401

@@ -49,7 +49,7 @@ class Op(IntEnum):
     """Keyboard command operations (``Command.op``); ``arg`` meaning is given per op."""
 
     MODE = 1  # arg: the requested Mode
-    TRIM_LIFT = 2  # arg: steps, +1 up / -1 down
+    TRIM_LIFT = 2  # arg: steps, +1 up / -1 down (finer near hover: lift_trim_after)
     TRIM_ROLL = 3  # arg: steps
     TRIM_PITCH = 4  # arg: steps
     TRIM_YAW = 5  # arg: steps
@@ -228,6 +228,51 @@ FLIGHT_MODES = frozenset({Mode.MANUAL, Mode.YAW, Mode.FULL, Mode.RAW, Mode.HEIGH
 STICK_MAX = 32767  # full deflection (lift: full throttle)
 LIFT_ZERO = 500  # joystick lift plus lift trim at most this (1.5 %) counts as zero lift
 STICK_NEUTRAL = 1000  # |joystick + trim| at most this on roll, pitch and yaw (3 %) counts as neutral
+
+# The lift keys step finer near hover (issue 22): one press of a/z moves the lift trim by trim.lift_step (1 %), but
+# by a LIFT_FINE_DIVISOR-th of it while the lift (joystick + trim) is in [LIFT_FINE_FROM, LIFT_FINE_TO): about
+# 40-60 %, where the craft hovers (about 50 %). At hover 1 % of lift is 4 % of the thrust, 0.4 m/s² per press;
+# a quarter is 0.1 m/s². bench.keyboard has the figures; lift_trim_after is the rule both ends apply.
+LIFT_FINE_FROM = 13107  # 40 %
+LIFT_FINE_TO = 19661  # 60 %
+LIFT_FINE_DIVISOR = 4
+
+
+
+def lift_trim_after(trim: int, steps: int, lift_step: int, joystick_lift: int = 0) -> int:
+    """The lift trim after ``steps`` presses of a (positive) or z (negative), each moving the lift (``joystick_lift``
+    plus the trim) by ``lift_step``, or by ``max(1, lift_step // LIFT_FINE_DIVISOR)`` while the press starts and
+    ends within the fine band; the trim stays in 0..STICK_MAX. Closed form per stretch: a merged burst or Z's
+    -32767 costs a few loops, not one per press."""
+    fine, coarse = max(1, lift_step // LIFT_FINE_DIVISOR), max(1, lift_step)
+    lo, hi = LIFT_FINE_FROM, LIFT_FINE_TO
+    level = joystick_lift + trim
+    floor_, top = joystick_lift, joystick_lift + STICK_MAX  # the trim's clip, as a lift
+    n = abs(steps)
+    while n > 0 and (floor_ < level if steps < 0 else level < top):
+        if steps > 0:
+            if lo <= level and level + fine <= hi:
+                k = min(n, (hi - level) // fine)  # fine presses that stay in the band
+                level += k * fine
+            elif level < lo:
+                k = min(n, max(1, -(-(lo - level) // coarse)))  # coarse presses up to (or just into) the band
+                level += k * coarse
+            else:
+                k = min(n, max(1, -(-(top - level) // coarse)))
+                level += k * coarse
+        else:
+            if level <= hi and level - fine >= lo:
+                k = min(n, (level - lo) // fine)
+                level -= k * fine
+            elif level > hi:
+                k = min(n, max(1, -(-(level - hi) // coarse)))
+                level -= k * coarse
+            else:
+                k = min(n, max(1, -(-(level - floor_) // coarse)))
+                level -= k * coarse
+        n -= k
+    return max(0, min(STICK_MAX, level - joystick_lift))
+
 
 # The UART's speed (8N1): the board's wire and the terminal's default.
 BAUD_RATE = 115_200

@@ -240,7 +240,8 @@ PARAMS: dict[Param, ParamSpec] = {p.param: p for p in (
        in_flight=False),
     _p(Param.TRIM_STEP, "trim.step", "int", "stick", 256, "roll, pitch and yaw trim per key press (0.8 %)",
        lo=1, hi=4096),
-    _p(Param.LIFT_STEP, "trim.lift_step", "int", "stick", 328, "lift trim per key press (1 %)", lo=1, hi=4096),
+    _p(Param.LIFT_STEP, "trim.lift_step", "int", "stick", 328, "lift trim per key press (1 %); a quarter of it "
+       "while the lift is in 40-60 %, near hover (LIFT_FINE_*)", lo=1, hi=4096),
     _p(Param.CALIBRATION_MS, "mode.calibration_ms", "int", "ms", 1000, "CALIBRATION averages this long, then "
        "returns to SAFE by itself (0: for as long as the pilot holds it, the report's, section 3.6)", lo=0,
        hi=60000),

@@ -75,12 +75,13 @@ def _lift_lines(out: Text, model: Model, lift_trim: Reading, width: int) -> None
     s = model.stick
     total = s.lift + _num(lift_trim)
     out.append("lift  ")
-    out.append_text(hbar(total, 0, FULL, width - 7, "yellow" if total > LIFT_ZERO else "green"))
-    # The lift the board flies is the stick plus the trim: one percentage, then its two parts.
+    out.append_text(hbar(total, 0, FULL, width - 10, "yellow" if total > LIFT_ZERO else "green"))
+    # The lift the board flies is the stick plus the trim: one percentage, then its two parts. A tenth of a per cent:
+    # near hover a press of a/z is a quarter of one (the protocol's lift_trim_after), and each must show.
     if lift_trim.shown and not lift_trim.bound:  # a bound ("<", ">", "?") is said as the trim itself, below
-        out.append_text(figure(_as_pct(lift_trim, s.lift), "4.0f", "%", pad=" "))
+        out.append_text(figure(_as_pct(lift_trim, s.lift), "5.1f", "%", pad=" "))
         out.append(f" (stick {100 * s.lift / FULL:.0f} + trim", style="dim")
-        out.append_text(figure(_as_pct(lift_trim, 0), ".0f", ")", style="dim", pad=" "))
+        out.append_text(figure(_as_pct(lift_trim, 0), ".1f", ")", style="dim", pad=" "))
     else:
         out.append(f" {100 * s.lift / FULL:4.0f}% (stick; trim ")
         out.append_text(figure(lift_trim, "+d", ")"))
