@@ -214,6 +214,13 @@ void ikfq_init(ikfq_t *s, const ikfq_formats_t *f, const ikfq_params_t *p)
     s->rest_tau_ = p->rest_tau;
     s->rest_bias_tau_ = p->rest_bias_tau;
     s->decim = 1;
+    s->lite = 0;
+    ikfq_reset(s);
+}
+
+void ikfq_set_lite(ikfq_t *s, int32_t on)
+{
+    s->lite = on != 0;
     ikfq_reset(s);
 }
 
@@ -249,6 +256,7 @@ void ikfq_init_q(ikfq_t *s, const ikfq_formats_t *f, const ikfq_consts_t *c)
     s->krq = c->krq;
     s->kbq = c->kbq;
     s->decim = c->decim > 1 ? c->decim : 1;
+    s->lite = c->lite != 0;
     s->dt_last = 0.0; /* ikfq_update (host) would derive them again from its dt; ikfq_step keeps these */
     s->rest_tau_ = s->rest_bias_tau_ = 0.0;
     s->from_table = 1;
@@ -279,6 +287,7 @@ void ikfq_consts(const ikfq_t *s, ikfq_consts_t *c)
     c->krq = s->krq;
     c->kbq = s->kbq;
     c->decim = s->decim;
+    c->lite = s->lite;
 }
 
 void ikfq_reset(ikfq_t *s)
@@ -299,6 +308,7 @@ void ikfq_reset(ikfq_t *s)
     s->at_rest = 0;
     s->started = 0;
     s->phase = 0;
+    s->fx = s->fy = s->rate = s->gxh = s->gyh = 0;
 }
 
 void ikfq_set_dt(ikfq_t *s, double dt)
@@ -340,6 +350,8 @@ static void rotate(const ikfq_t *s, int64_t hx, int64_t hy, int64_t hz, int32_t 
     out[3] = sat((int64_t)MUL(w, dz, qb) + MUL(x, dy, qb) - MUL(y, dx, qb) + MUL(z, c, qb));
 }
 
+static void rotate_lite(const ikfq_t *s, int32_t hx, int32_t hy, int32_t hz, int32_t out[4]);
+
 void ikfq_predicted(const ikfq_t *s, int32_t q[4])
 {
     unsigned sh = FMT(s).bias + FMT(s).dt - FMT(s).quat;
@@ -351,7 +363,10 @@ void ikfq_predicted(const ikfq_t *s, int32_t q[4])
         q[3] = s->qz;
         return;
     }
-    rotate(s, ikfq_mul(s->rx, lat, sh), ikfq_mul(s->ry, lat, sh), ikfq_mul(s->rz, lat, sh), q);
+    if (s->lite)
+        rotate_lite(s, ikfq_mul(s->rx, lat, sh), ikfq_mul(s->ry, lat, sh), ikfq_mul(s->rz, lat, sh), q);
+    else
+        rotate(s, ikfq_mul(s->rx, lat, sh), ikfq_mul(s->ry, lat, sh), ikfq_mul(s->rz, lat, sh), q);
 }
 
 static int32_t clamp(int32_t v, int32_t m)
@@ -390,33 +405,42 @@ static void rest(ikfq_t *s, const int32_t g[3], const int32_t a[3])
     }
 }
 
-/* Step 3: the Kalman filter on (V, G_h, D), fed the horizontal specific force and the turn rate (Q.io) */
-static void gravity(ikfq_t *s, int32_t fx, int32_t fy, int64_t rate, int32_t *gxh_out, int32_t *gyh_out)
+/* Step 3: the Kalman filter on (V, G_h, D), fed the horizontal specific force and the turn rate (Q.io). In two
+ * halves a spread filter runs apart (ikf_lite.py): the prediction leaves V, G_h and the covariance in the state. */
+static void predict(ikfq_t *s, int32_t fx, int32_t fy, int64_t rate)
 {
     unsigned io = FMT(s).io, vb = FMT(s).vel, db = FMT(s).drift, cb = FMT(s).cov, sd = FMT(s).dt;
     int64_t dtq = s->dtq, dt2q = s->dt2q;
     int32_t e = ikfq_mul(rate, dtq, io + sd - cb);
-    int32_t vx = sat(s->vx + (int64_t)MUL(fx, dtq, io + sd - vb));
-    int32_t vy = sat(s->vy + (int64_t)MUL(fy, dtq, io + sd - vb));
-    int32_t gxh = MUL(s->dx, e, db + cb - vb), gyh = MUL(s->dy, e, db + cb - vb);
-    int32_t pvv = s->pvv, pvg = s->pvg, pvd = s->pvd, pgg = s->pgg, pgd = s->pgd, pdd = s->pdd;
-    int32_t a_vv, a_vg, a_vd, a_gg, a_gd, a_dd, q_dt, noise, r, den, kv, kg, kd;
-    a_vv = sat(pvv - 2 * (int64_t)MUL(pvg, dtq, sd) + MUL(pgg, dt2q, sd));
-    a_vg = sat((int64_t)pvg + MUL(e, pvd, cb) - MUL(pgg, dtq, sd)
-               - MUL(MUL(e, pgd, cb), dtq, sd));
-    a_vd = sat(pvd - (int64_t)MUL(pgd, dtq, sd));
+    int32_t pvv = s->pvv, pvg = s->pvg, pvd = s->pvd, pgg = s->pgg, pgd = s->pgd, pdd = s->pdd, q_dt, noise;
+    s->vx = sat(s->vx + (int64_t)MUL(fx, dtq, io + sd - vb));
+    s->vy = sat(s->vy + (int64_t)MUL(fy, dtq, io + sd - vb));
+    s->gxh = MUL(s->dx, e, db + cb - vb);
+    s->gyh = MUL(s->dy, e, db + cb - vb);
+    s->pvv = sat(pvv - 2 * (int64_t)MUL(pvg, dtq, sd) + MUL(pgg, dt2q, sd));
+    s->pvg = sat((int64_t)pvg + MUL(e, pvd, cb) - MUL(pgg, dtq, sd) - MUL(MUL(e, pgd, cb), dtq, sd));
+    s->pvd = sat(pvd - (int64_t)MUL(pgd, dtq, sd));
     q_dt = MUL(s->q_g0, dtq, (unsigned)(s->qg_shift + (int32_t)sd));
     noise = sat(q_dt + (int64_t)ikfq_mul(MUL(q_dt, s->k_rot, io), rate, io));
-    a_gg = sat(pgg + 2 * (int64_t)MUL(e, pgd, cb) + MUL(MUL(e, e, cb), pdd, cb) + noise);
-    a_gd = sat(pgd + (int64_t)MUL(e, pdd, cb));
-    a_dd = sat(pdd + (int64_t)MUL(s->drift_noise, e, cb + 16u));
+    s->pgg = sat(pgg + 2 * (int64_t)MUL(e, pgd, cb) + MUL(MUL(e, e, cb), pdd, cb) + noise);
+    s->pgd = sat(pgd + (int64_t)MUL(e, pdd, cb));
+    s->pdd = sat(pdd + (int64_t)MUL(s->drift_noise, e, cb + 16u));
+}
+
+/* ... and the update with the pseudo measurement V = 0 on the predicted state; G_h (Q.vel) left in gxh, gyh */
+static void correct(ikfq_t *s)
+{
+    unsigned vb = FMT(s).vel, db = FMT(s).drift, cb = FMT(s).cov, sd = FMT(s).dt;
+    int64_t dtq = s->dtq;
+    int32_t vx = s->vx, vy = s->vy, a_vv = s->pvv, a_vg = s->pvg, a_vd = s->pvd, a_gg = s->pgg, a_gd = s->pgd;
+    int32_t a_dd = s->pdd, r, den, kv, kg, kd;
     r = s->at_rest ? s->rest_r : (int32_t)(INT32_C(1) << cb);
     den = sat((int64_t)MUL(a_vv, dtq, sd) + r);
     kv = ikfq_div(MUL(a_vv, dtq, sd), den, cb);
     kg = ikfq_div(MUL(a_vg, dtq, sd), den, cb);
     kd = ikfq_div(MUL(a_vd, dtq, sd), den, cb);
-    *gxh_out = sat(gxh - (int64_t)MUL(kg, vx, cb));
-    *gyh_out = sat(gyh - (int64_t)MUL(kg, vy, cb));
+    s->gxh = sat(s->gxh - (int64_t)MUL(kg, vx, cb));
+    s->gyh = sat(s->gyh - (int64_t)MUL(kg, vy, cb));
     s->dx = sat(s->dx - (int64_t)MUL(kd, vx, cb + vb - db));
     s->dy = sat(s->dy - (int64_t)MUL(kd, vy, cb + vb - db));
     s->vx = sat(vx - (int64_t)MUL(kv, vx, cb));
@@ -467,6 +491,167 @@ static void rebase(ikfq_t *s, const int32_t q[4], int32_t gxh, int32_t gyh)
     s->qz = MUL(z, k, qb);
 }
 
+/* --- the variant cut to fit the Cortex-M0 (fcb_sim/estimation/ikf_lite.py says what and why) ------------------ */
+
+#define ONE30 (INT32_C(1) << 30)
+#define R28 (INT32_C(1) << 28)
+#define SIXTH_Q30 INT32_C(178956971)
+#define PIECES 4
+
+/* (a b) >> 30 of two Q2.30 from three 16x16 MULS, the low halves' product dropped, wrapped as ikf_lite.qmul */
+static inline __attribute__((always_inline)) int32_t qmul(int32_t a, int32_t b)
+{
+    int32_t ah = a >> 16, bh = b >> 16;
+    int32_t al = (int32_t)((uint32_t)a & 0xFFFFu), bl = (int32_t)((uint32_t)b & 0xFFFFu);
+    return (int32_t)((uint32_t)(ah * bh) * 4u + (uint32_t)((ah * bl) >> 14) + (uint32_t)((al * bh) >> 14));
+}
+
+static uint32_t isqrt32(uint32_t n) /* floor */
+{
+    uint32_t r = 0, bit = UINT32_C(1) << 30;
+    while (bit > n)
+        bit >>= 2;
+    while (bit) {
+        if (n >= r + bit) {
+            n -= r + bit;
+            r = (r >> 1) + bit;
+        } else {
+            r >>= 1;
+        }
+        bit >>= 2;
+    }
+    return r;
+}
+
+/* q (x) (cos h, sin h * axis) by the 2nd-order series; a half step over 0.25 rad is clipped as rotate() does */
+static void rotate_lite(const ikfq_t *s, int32_t hx, int32_t hy, int32_t hz, int32_t out[4])
+{
+    int32_t h2, c, sn, dx, dy, dz, w = s->qw, x = s->qx, y = s->qy, z = s->qz;
+    if (-R28 < hx && hx < R28 && -R28 < hy && hy < R28 && -R28 < hz && hz < R28)
+        h2 = qmul(hx, hx) + qmul(hy, hy) + qmul(hz, hz);
+    else
+        h2 = ONE30;
+    if (h2 > ONE30 >> 4) {
+        int64_t e2 = (int64_t)MUL(hx, hx, 30) + MUL(hy, hy, 30) + MUL(hz, hz, 30);
+        int32_t k = ikfq_div(ONE30 >> 2, ikfq_sqrt(e2, 30), 30);
+        hx = MUL(hx, k, 30);
+        hy = MUL(hy, k, 30);
+        hz = MUL(hz, k, 30);
+        h2 = ONE30 >> 4;
+    }
+    c = ONE30 - (h2 >> 1);
+    sn = ONE30 - qmul(h2, SIXTH_Q30);
+    dx = qmul(hx, sn);
+    dy = qmul(hy, sn);
+    dz = qmul(hz, sn);
+    out[0] = sat((int64_t)qmul(w, c) - qmul(x, dx) - qmul(y, dy) - qmul(z, dz));
+    out[1] = sat((int64_t)qmul(w, dx) + qmul(x, c) + qmul(y, dz) - qmul(z, dy));
+    out[2] = sat((int64_t)qmul(w, dy) - qmul(x, dz) + qmul(y, c) + qmul(z, dx));
+    out[3] = sat((int64_t)qmul(w, dz) + qmul(x, dy) - qmul(y, dx) + qmul(z, c));
+}
+
+/* The turn rate (a 32-bit root) and the horizontal specific force in the earth frame, for the prediction */
+static void force_lite(ikfq_t *s, int64_t wx, int64_t wy, int64_t wz, const int32_t a[3])
+{
+    unsigned io = FMT(s).io, bb = FMT(s).bias;
+    int32_t w = s->qw, x = s->qx, y = s->qy, z = s->qz;
+    int64_t r00, r01, r02, r10, r11, r12;
+    int32_t r2 = sat((int64_t)ikfq_mul(wx, wx, 2 * bb - io) + ikfq_mul(wy, wy, 2 * bb - io)
+                     + ikfq_mul(wz, wz, 2 * bb - io));
+    s->rate = (int32_t)(isqrt32((uint32_t)r2) << 8);
+    r00 = ONE30 - 2 * ((int64_t)qmul(y, y) + qmul(z, z));
+    r01 = 2 * ((int64_t)qmul(x, y) - qmul(w, z));
+    r02 = 2 * ((int64_t)qmul(x, z) + qmul(w, y));
+    r10 = 2 * ((int64_t)qmul(x, y) + qmul(w, z));
+    r11 = ONE30 - 2 * ((int64_t)qmul(x, x) + qmul(z, z));
+    r12 = 2 * ((int64_t)qmul(y, z) - qmul(w, x));
+    s->fx = sat((int64_t)ikfq_mul(r00, a[0], 30) + ikfq_mul(r01, a[1], 30) + ikfq_mul(r02, a[2], 30));
+    s->fy = sat((int64_t)ikfq_mul(r10, a[0], 30) + ikfq_mul(r11, a[1], 30) + ikfq_mul(r12, a[2], 30));
+}
+
+/* q turned by the 2nd-order swing (1 - |u|^2/8, uy/2, -ux/2, 0), then the Newton normalisation */
+static void rebase_lite(ikfq_t *s)
+{
+    unsigned vb = FMT(s).vel;
+    int32_t ux = MUL(s->gxh, s->inv_g0, vb), uy = MUL(s->gyh, s->inv_g0, vb), cw, cx, cy, w, x, y, z;
+    int32_t q0 = s->qw, q1 = s->qx, q2 = s->qy, q3 = s->qz;
+    int64_t uh2, n2;
+    if (-ONE30 < ux && ux < ONE30 && -ONE30 < uy && uy < ONE30)
+        uh2 = (int64_t)qmul(ux, ux) + qmul(uy, uy);
+    else
+        uh2 = (int64_t)MUL(ux, ux, 30) + MUL(uy, uy, 30);
+    if (uh2 > s->swing_max) { /* at most a 64 degree step (never in use) */
+        int32_t kk = ikfq_div(s->swing_k, ikfq_sqrt(uh2, 30), 30);
+        ux = MUL(ux, kk, 30);
+        uy = MUL(uy, kk, 30);
+        uh2 = s->swing_max;
+    }
+    cw = ONE30 - (int32_t)(uh2 >> 3);
+    cx = uy >> 1;
+    cy = -(ux >> 1);
+    w = sat((int64_t)qmul(cw, q0) - qmul(cx, q1) - qmul(cy, q2));
+    x = sat((int64_t)qmul(cw, q1) + qmul(cx, q0) + qmul(cy, q3));
+    y = sat((int64_t)qmul(cw, q2) - qmul(cx, q3) + qmul(cy, q0));
+    z = sat((int64_t)qmul(cw, q3) + qmul(cx, q2) - qmul(cy, q1));
+    n2 = (int64_t)qmul(w, w) + qmul(x, x) + qmul(y, y) + qmul(z, z);
+    if (ONE30 >> 1 < n2 && n2 < ONE30 + (ONE30 >> 1)) {
+        int32_t k = (int32_t)((3 * (int64_t)ONE30 - n2) >> 1);
+        s->qw = qmul(w, k);
+        s->qx = qmul(x, k);
+        s->qy = qmul(y, k);
+        s->qz = qmul(z, k);
+        return;
+    }
+    n2 = (int64_t)MUL(w, w, 30) + MUL(x, x, 30) + MUL(y, y, 30) + MUL(z, z, 30); /* never in use */
+    if (n2 > 0) {
+        int32_t k = ikfq_div(ONE30, ikfq_sqrt(n2, 30), 30);
+        s->qw = MUL(w, k, 30);
+        s->qx = MUL(x, k, 30);
+        s->qy = MUL(y, k, 30);
+        s->qz = MUL(z, k, 30);
+    } else {
+        s->qw = ONE30;
+        s->qx = s->qy = s->qz = 0;
+    }
+}
+
+/* One sample of the lite variant: the strapdown every sample, the gravity part's piece p at phase p decim / 4 */
+static void step_lite(ikfq_t *s, const int32_t g[3], const int32_t a[3])
+{
+    unsigned sh = FMT(s).bias + FMT(s).dt - 30;
+    int32_t n = s->decim, ph = s->phase, q[4];
+    int here0 = 0 == ph, here1 = (1 * n) / PIECES == ph, here2 = (2 * n) / PIECES == ph;
+    int here3 = (3 * n) / PIECES == ph;
+    int64_t wx, wy, wz;
+    if (here0)
+        rest(s, g, a); /* 1. */
+    wx = (int64_t)g[0] - s->bx;
+    wy = (int64_t)g[1] - s->by;
+    wz = (int64_t)g[2] - s->bz;
+    s->rx = (int32_t)wx;
+    s->ry = (int32_t)wy;
+    s->rz = (int32_t)wz;
+    rotate_lite(s, ikfq_mul(wx, s->dthq, sh), ikfq_mul(wy, s->dthq, sh), ikfq_mul(wz, s->dthq, sh), q);
+    s->qw = q[0];
+    s->qx = q[1];
+    s->qy = q[2];
+    s->qz = q[3];
+    s->phase = ph + 1 >= n ? 0 : ph + 1;
+    if (here0) {
+        force_lite(s, wx, wy, wz, a);
+        s->bx = clamp(s->bx, s->bias_max);
+        s->by = clamp(s->by, s->bias_max);
+        s->bz = clamp(s->bz, s->bias_max);
+    }
+    if (here1)
+        predict(s, s->fx, s->fy, s->rate); /* 3. */
+    if (here2)
+        correct(s);
+    if (here3)
+        rebase_lite(s); /* 4. */
+}
+
+
 static void start(ikfq_t *s, const int32_t g[3], const int32_t a[3])
 {
     unsigned io = FMT(s).io, qb = FMT(s).quat;
@@ -501,7 +686,7 @@ void ikfq_step(ikfq_t *s, const int32_t gq[3], const int32_t a[3])
     const ikfq_formats_t *f = &FMT(s);
     unsigned io = f->io, qb = f->quat, bb = f->bias, sh = f->bias + f->dt - f->quat;
     int up = (int)bb - (int)io, i, last = s->phase + 1 >= s->decim;
-    int32_t g[3], q[4], fx, fy, gxh, gyh;
+    int32_t g[3], q[4], fx, fy;
     int64_t wx, wy, wz, rate, one = INT64_C(1) << qb, r00, r01, r02, r10, r11, r12;
     if (!s->started) {
         start(s, gq, a);
@@ -509,6 +694,10 @@ void ikfq_step(ikfq_t *s, const int32_t gq[3], const int32_t a[3])
     }
     for (i = 0; i < 3; i++) /* Q8.24 holds 128 rad/s */
         g[i] = up >= 0 ? sat((int64_t)gq[i] * ((int64_t)1 << up)) : gq[i] >> -up;
+    if (s->lite) {
+        step_lite(s, g, a);
+        return;
+    }
     if (last) /* the gravity part in this sample: every decim-th */
         rest(s, g, a); /* 1. */
     /* 2. strapdown */
@@ -539,8 +728,9 @@ void ikfq_step(ikfq_t *s, const int32_t gq[3], const int32_t a[3])
     r12 = 2 * ((int64_t)MUL(q[2], q[3], qb) - MUL(q[0], q[1], qb));
     fx = sat((int64_t)ikfq_mul(r00, a[0], qb) + ikfq_mul(r01, a[1], qb) + ikfq_mul(r02, a[2], qb));
     fy = sat((int64_t)ikfq_mul(r10, a[0], qb) + ikfq_mul(r11, a[1], qb) + ikfq_mul(r12, a[2], qb));
-    gravity(s, fx, fy, rate, &gxh, &gyh);
-    rebase(s, q, gxh, gyh); /* 4. */
+    predict(s, fx, fy, rate);
+    correct(s);
+    rebase(s, q, s->gxh, s->gyh); /* 4. */
     s->bx = clamp(s->bx, s->bias_max);
     s->by = clamp(s->by, s->bias_max);
     s->bz = clamp(s->bz, s->bias_max);
@@ -576,7 +766,7 @@ void ikfq_update_q(ikfq_t *s, double gx, double gy, double gz, double ax, double
     q[3] = p[3] * k;
 }
 
-int ikfq_state(const ikfq_t *s, int64_t out[29])
+int ikfq_state(const ikfq_t *s, int64_t out[IKFQ_STATE_N])
 {
     const int32_t v[20] = {s->qw, s->qx, s->qy, s->qz, s->vx, s->vy, s->dx, s->dy, s->pvv, s->pvg, s->pvd, s->pgg,
                            s->pgd, s->pdd, s->bx, s->by, s->bz, 0, 0, 0};
@@ -593,7 +783,13 @@ int ikfq_state(const ikfq_t *s, int64_t out[29])
     out[26] = s->rest_t;
     out[27] = s->at_rest;
     out[28] = s->started;
-    return 29;
+    out[29] = s->phase;
+    out[30] = s->fx;
+    out[31] = s->fy;
+    out[32] = s->rate;
+    out[33] = s->gxh;
+    out[34] = s->gyh;
+    return IKFQ_STATE_N;
 }
 
 unsigned ikfq_size(void)
