@@ -92,6 +92,8 @@ class Formats:
 class InertialKalmanFilterQ(QuaternionAnglesMixin):
     """:class:`~.ikf.InertialKalmanFilter` in fixed point (module docstring). Same parameters, same outputs."""
 
+    lite = False  # the variant cut to fit the Cortex-M0 is ikf_lite's subclass
+
     def __init__(self, formats: Formats | None = None, **params: float) -> None:
         self.f = formats or Formats()
         self.ref = InertialKalmanFilter(**params)  # holds the parameters (and validates them); never updated
@@ -290,9 +292,13 @@ class InertialKalmanFilterQ(QuaternionAnglesMixin):
         # gain K = dt a / (dt a_vv + r), r = 1 (rest_r at rest): dt scaled so nothing exceeds the format
         r = self._rest_r if self.at_rest else 1 << cb
         den = _sat(mul(a_vv, dtq, sd) + r)
-        kv = div(mul(a_vv, dtq, sd), den, cb)
-        kg = div(mul(a_vg, dtq, sd), den, cb)
-        kd = div(mul(a_vd, dtq, sd), den, cb)
+        if self.lite:  # one division (ikf_lite): 1 / den in Q8.24 (den >= rest_r), then three products
+            inv = div(1 << cb, den, 24)
+            kv, kg, kd = (mul(mul(a, dtq, sd), inv, 24) for a in (a_vv, a_vg, a_vd))
+        else:
+            kv = div(mul(a_vv, dtq, sd), den, cb)
+            kg = div(mul(a_vg, dtq, sd), den, cb)
+            kd = div(mul(a_vd, dtq, sd), den, cb)
         self.gxh = _sat(self.gxh - mul(kg, vx, cb))
         self.gyh = _sat(self.gyh - mul(kg, vy, cb))
         self.dx = _sat(self.dx - mul(kd, vx, cb + vb - db))

@@ -45,6 +45,7 @@ SIXTH_Q30 = 178956971  # round(2^30 / 6)
 _ONE = 1 << 30
 _R28 = 1 << 28  # |half step| below 0.25 rad: qmul cannot overflow and the series holds
 _R30 = 1 << 30
+_R27 = 1 << 27
 
 
 def qmul(a: int, b: int) -> int:
@@ -52,6 +53,15 @@ def qmul(a: int, b: int) -> int:
     ah, bh = a >> 16, b >> 16
     r = ah * bh * 4 + ((ah * (b & 0xFFFF)) >> 14) + (((a & 0xFFFF) * bh) >> 14)
     return ((r + 0x80000000) & 0xFFFFFFFF) - 0x80000000
+
+
+def _half_step(wx: int, wy: int, wz: int, k: int) -> tuple[int, int, int]:
+    """w k >> 24 (Q2.30 from a Q8.24 rate and a Q2.30 half step): qmul(w, k << 6) while k < 2^24 (dt under 31 ms)
+    and |w| < 2^30 (64 rad/s), else the exact product."""
+    if k < 1 << 24 and -_R30 < wx < _R30 and -_R30 < wy < _R30 and -_R30 < wz < _R30:
+        k6 = k << 6
+        return qmul(wx, k6), qmul(wy, k6), qmul(wz, k6)
+    return mul(wx, k, 24), mul(wy, k, 24), mul(wz, k, 24)
 
 
 class InertialKalmanFilterQL(InertialKalmanFilterQ):
@@ -63,8 +73,8 @@ class InertialKalmanFilterQL(InertialKalmanFilterQ):
     def __init__(self, formats: Formats | None = None, **params: float) -> None:
         params.setdefault("decimation", LITE_DECIMATION)
         super().__init__(formats, **params)
-        if self.f.quat != 30:
-            raise ValueError("the lite filter's products are Q2.30: quat must be 30")
+        if vars(self.f) != vars(Formats()):
+            raise ValueError("the lite filter's products assume ikf_fixed.Formats(), the defaults")
 
     def _rotate(self, hx: int, hy: int, hz: int) -> tuple[int, int, int, int]:
         """q (x) (cos h, sin h * axis) for the half-angle vector h (Q2.30), by the 2nd-order series."""
@@ -110,8 +120,7 @@ class InertialKalmanFilterQL(InertialKalmanFilterQ):
             self._rest(g, a, krq, kbq, dtq)  # 1.
         wx, wy, wz = g[0] - self.bx, g[1] - self.by, g[2] - self.bz  # 2. strapdown, every sample
         self.rx, self.ry, self.rz = wx, wy, wz
-        sh = bb + F.dt - 30
-        self.qw, self.qx, self.qy, self.qz = self._rotate(mul(wx, dthq, sh), mul(wy, dthq, sh), mul(wz, dthq, sh))
+        self.qw, self.qx, self.qy, self.qz = self._rotate(*_half_step(wx, wy, wz, dthq))
         self.phase = 0 if ph + 1 >= n else ph + 1
         if here[0]:
             self._force(wx, wy, wz, a)
@@ -126,6 +135,11 @@ class InertialKalmanFilterQL(InertialKalmanFilterQ):
         if here[3]:
             self._rebase(self.qw, self.qx, self.qy, self.qz, self.gxh, self.gyh)  # 4.
 
+    def _predicted(self) -> tuple[int, int, int, int]:
+        if self._lat_half == 0 or (self.rx == 0 and self.ry == 0 and self.rz == 0):
+            return self.qw, self.qx, self.qy, self.qz
+        return self._rotate(*_half_step(self.rx, self.ry, self.rz, self._lat_half))
+
     def _force(self, wx: int, wy: int, wz: int, a: tuple[int, int, int]) -> None:
         """The turn rate (Q.io, a 32-bit root) and the horizontal specific force in the earth frame (Q.io), kept
         for the Kalman filter's prediction."""
@@ -139,8 +153,12 @@ class InertialKalmanFilterQL(InertialKalmanFilterQ):
         r10 = 2 * (qmul(x, y) + qmul(w, z))
         r11 = _ONE - 2 * (qmul(x, x) + qmul(z, z))
         r12 = 2 * (qmul(y, z) - qmul(w, x))
-        self.fx = _sat(mul(r00, a[0], 30) + mul(r01, a[1], 30) + mul(r02, a[2], 30))
-        self.fy = _sat(mul(r10, a[0], 30) + mul(r11, a[1], 30) + mul(r12, a[2], 30))
+        if all(-_R27 < v < _R27 for v in a):  # 2048 m/s²: qmul cannot overflow
+            self.fx = _sat(qmul(r00, a[0]) + qmul(r01, a[1]) + qmul(r02, a[2]))
+            self.fy = _sat(qmul(r10, a[0]) + qmul(r11, a[1]) + qmul(r12, a[2]))
+        else:
+            self.fx = _sat(mul(r00, a[0], 30) + mul(r01, a[1], 30) + mul(r02, a[2], 30))
+            self.fy = _sat(mul(r10, a[0], 30) + mul(r11, a[1], 30) + mul(r12, a[2], 30))
 
     def _rebase(self, w: int, x: int, y: int, z: int, gxh: int, gyh: int) -> None:
         """Step 4: q turned in the earth frame by the 2nd-order swing that makes (gxh, gyh, g0) vertical, then the

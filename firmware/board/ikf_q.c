@@ -25,6 +25,16 @@ static int32_t sat(int64_t v)
     return v > I32_MAX ? I32_MAX : v < I32_MIN ? I32_MIN : (int32_t)v;
 }
 
+/* v << up saturated, in 32-bit operations (a 64-bit product is a libgcc call on the M0) */
+static int32_t shl_sat(int32_t v, int up)
+{
+    if (v > (I32_MAX >> up))
+        return I32_MAX;
+    if (v < (I32_MIN >> up))
+        return I32_MIN;
+    return (int32_t)((uint32_t)v << up);
+}
+
 static uint64_t mag(int64_t v)
 {
     return v < 0 ? 0u - (uint64_t)v : (uint64_t)v;
@@ -351,6 +361,7 @@ static void rotate(const ikfq_t *s, int64_t hx, int64_t hy, int64_t hz, int32_t 
 }
 
 static void rotate_lite(const ikfq_t *s, int32_t hx, int32_t hy, int32_t hz, int32_t out[4]);
+static void half_step(const int64_t w[3], int32_t k, int32_t h[3]);
 
 void ikfq_predicted(const ikfq_t *s, int32_t q[4])
 {
@@ -363,9 +374,12 @@ void ikfq_predicted(const ikfq_t *s, int32_t q[4])
         q[3] = s->qz;
         return;
     }
-    if (s->lite)
-        rotate_lite(s, ikfq_mul(s->rx, lat, sh), ikfq_mul(s->ry, lat, sh), ikfq_mul(s->rz, lat, sh), q);
-    else
+    if (s->lite) {
+        const int64_t w[3] = {s->rx, s->ry, s->rz};
+        int32_t h[3];
+        half_step(w, s->lat_half, h);
+        rotate_lite(s, h[0], h[1], h[2], q);
+    } else
         rotate(s, ikfq_mul(s->rx, lat, sh), ikfq_mul(s->ry, lat, sh), ikfq_mul(s->rz, lat, sh), q);
 }
 
@@ -436,9 +450,16 @@ static void correct(ikfq_t *s)
     int32_t a_dd = s->pdd, r, den, kv, kg, kd;
     r = s->at_rest ? s->rest_r : (int32_t)(INT32_C(1) << cb);
     den = sat((int64_t)MUL(a_vv, dtq, sd) + r);
-    kv = ikfq_div(MUL(a_vv, dtq, sd), den, cb);
-    kg = ikfq_div(MUL(a_vg, dtq, sd), den, cb);
-    kd = ikfq_div(MUL(a_vd, dtq, sd), den, cb);
+    if (s->lite) { /* one division: 1 / den in Q8.24 (den >= rest_r), then three products */
+        int32_t inv = ikfq_div(INT64_C(1) << cb, den, 24);
+        kv = MUL(MUL(a_vv, dtq, sd), inv, 24);
+        kg = MUL(MUL(a_vg, dtq, sd), inv, 24);
+        kd = MUL(MUL(a_vd, dtq, sd), inv, 24);
+    } else {
+        kv = ikfq_div(MUL(a_vv, dtq, sd), den, cb);
+        kg = ikfq_div(MUL(a_vg, dtq, sd), den, cb);
+        kd = ikfq_div(MUL(a_vd, dtq, sd), den, cb);
+    }
     s->gxh = sat(s->gxh - (int64_t)MUL(kg, vx, cb));
     s->gyh = sat(s->gyh - (int64_t)MUL(kg, vy, cb));
     s->dx = sat(s->dx - (int64_t)MUL(kd, vx, cb + vb - db));
@@ -495,6 +516,8 @@ static void rebase(ikfq_t *s, const int32_t q[4], int32_t gxh, int32_t gyh)
 
 #define ONE30 (INT32_C(1) << 30)
 #define R28 (INT32_C(1) << 28)
+#define R30 (INT64_C(1) << 30)
+#define R27 (INT32_C(1) << 27)
 #define SIXTH_Q30 INT32_C(178956971)
 #define PIECES 4
 
@@ -521,6 +544,20 @@ static uint32_t isqrt32(uint32_t n) /* floor */
         bit >>= 2;
     }
     return r;
+}
+
+/* The half-step vector w k >> 24 (Q2.30 from a Q8.24 rate and a Q2.30 half step k): qmul(w, k << 6) while k is
+ * below 2^24 (dt under 31 ms) and |w| below 2^30 (64 rad/s), else the exact product */
+static void half_step(const int64_t w[3], int32_t k, int32_t h[3])
+{
+    int i;
+    if (k < (INT32_C(1) << 24) && -R30 < w[0] && w[0] < R30 && -R30 < w[1] && w[1] < R30 && -R30 < w[2] && w[2] < R30) {
+        for (i = 0; i < 3; i++)
+            h[i] = qmul((int32_t)w[i], k << 6);
+    } else {
+        for (i = 0; i < 3; i++)
+            h[i] = ikfq_mul(w[i], k, 24);
+    }
 }
 
 /* q (x) (cos h, sin h * axis) by the 2nd-order series; a half step over 0.25 rad is clipped as rotate() does */
@@ -565,8 +602,13 @@ static void force_lite(ikfq_t *s, int64_t wx, int64_t wy, int64_t wz, const int3
     r10 = 2 * ((int64_t)qmul(x, y) + qmul(w, z));
     r11 = ONE30 - 2 * ((int64_t)qmul(x, x) + qmul(z, z));
     r12 = 2 * ((int64_t)qmul(y, z) - qmul(w, x));
-    s->fx = sat((int64_t)ikfq_mul(r00, a[0], 30) + ikfq_mul(r01, a[1], 30) + ikfq_mul(r02, a[2], 30));
-    s->fy = sat((int64_t)ikfq_mul(r10, a[0], 30) + ikfq_mul(r11, a[1], 30) + ikfq_mul(r12, a[2], 30));
+    if (-R27 < a[0] && a[0] < R27 && -R27 < a[1] && a[1] < R27 && -R27 < a[2] && a[2] < R27) { /* 2048 m/s^2 */
+        s->fx = sat((int64_t)qmul((int32_t)r00, a[0]) + qmul((int32_t)r01, a[1]) + qmul((int32_t)r02, a[2]));
+        s->fy = sat((int64_t)qmul((int32_t)r10, a[0]) + qmul((int32_t)r11, a[1]) + qmul((int32_t)r12, a[2]));
+    } else {
+        s->fx = sat((int64_t)ikfq_mul(r00, a[0], 30) + ikfq_mul(r01, a[1], 30) + ikfq_mul(r02, a[2], 30));
+        s->fy = sat((int64_t)ikfq_mul(r10, a[0], 30) + ikfq_mul(r11, a[1], 30) + ikfq_mul(r12, a[2], 30));
+    }
 }
 
 /* q turned by the 2nd-order swing (1 - |u|^2/8, uy/2, -ux/2, 0), then the Newton normalisation */
@@ -618,7 +660,6 @@ static void rebase_lite(ikfq_t *s)
 /* One sample of the lite variant: the strapdown every sample, the gravity part's piece p at phase p decim / 4 */
 static void step_lite(ikfq_t *s, const int32_t g[3], const int32_t a[3])
 {
-    unsigned sh = FMT(s).bias + FMT(s).dt - 30;
     int32_t n = s->decim, ph = s->phase, q[4];
     int here0 = 0 == ph, here1 = (1 * n) / PIECES == ph, here2 = (2 * n) / PIECES == ph;
     int here3 = (3 * n) / PIECES == ph;
@@ -631,7 +672,12 @@ static void step_lite(ikfq_t *s, const int32_t g[3], const int32_t a[3])
     s->rx = (int32_t)wx;
     s->ry = (int32_t)wy;
     s->rz = (int32_t)wz;
-    rotate_lite(s, ikfq_mul(wx, s->dthq, sh), ikfq_mul(wy, s->dthq, sh), ikfq_mul(wz, s->dthq, sh), q);
+    {
+        const int64_t w[3] = {wx, wy, wz};
+        int32_t h[3];
+        half_step(w, s->dthq, h);
+        rotate_lite(s, h[0], h[1], h[2], q);
+    }
     s->qw = q[0];
     s->qx = q[1];
     s->qy = q[2];
@@ -693,7 +739,7 @@ void ikfq_step(ikfq_t *s, const int32_t gq[3], const int32_t a[3])
         return;
     }
     for (i = 0; i < 3; i++) /* Q8.24 holds 128 rad/s */
-        g[i] = up >= 0 ? sat((int64_t)gq[i] * ((int64_t)1 << up)) : gq[i] >> -up;
+        g[i] = up >= 0 ? shl_sat(gq[i], up) : gq[i] >> -up;
     if (s->lite) {
         step_lite(s, g, a);
         return;
