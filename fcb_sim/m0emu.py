@@ -365,14 +365,16 @@ def recorded_samples(path: Path = EXCERPT, rows: tuple[int, int] = EXCERPT_ROWS)
     return out
 
 
-DECIMATIONS = (4, 8)  # the decimated variants measured beside the default (docs/attitude.md, "Decimation")
+DECIMATIONS = (4, 8)  # the exact twin decimated, measured beside it (docs/attitude.md, "Decimation")
+LITE = (1, 4, 8)  # the variant cut to fit (ikf_lite), its gravity part spread over N samples; 4 is the default's
 
 
 def emulated_table(samples: list[tuple[float, ...]] | None = None) -> tuple[dict[str, tuple[float, float]],
                                                                               TaskCycles]:
     """fcb_sim.timing.M0_EMULATED_US measured again: (mean, p99) µs of each task, the decimated filters too
-    ("filter/ikf/fixed/decimation4": the gravity part every 4th sample); and the default's run itself (a decimated
-    run's mismatches are added to it)."""
+    ("filter/ikf/fixed/decimation4": the gravity part every 4th sample) and the lite ones ("filter/ikf/lite4": the
+    variant that fits, its gravity part spread over 4 samples); and the exact twin's run itself (the other runs'
+    mismatches are added to it)."""
     samples = samples or recorded_samples()
     run = run_tasks(samples)
     f, c = run.summary("filter"), run.summary("control")
@@ -382,10 +384,15 @@ def emulated_table(samples: list[tuple[float, ...]] | None = None) -> tuple[dict
         run.mismatches += [f"decimation {n}: {m}" for m in d.mismatches]
         s = d.summary("filter")
         table[f"filter/ikf/fixed/decimation{n}"] = (s["us_mean"], s["us_p99"])
+    for n in LITE:
+        d = run_tasks(samples, decimation=n, lite=True)
+        run.mismatches += [f"lite {n}: {m}" for m in d.mismatches]
+        s = d.summary("filter")
+        table[f"filter/ikf/lite{n}"] = (s["us_mean"], s["us_p99"])
     return table, run
 
 
-def decimated_cycles(n: int, samples: list[tuple[float, ...]] | None = None) -> list[int]:
+def decimated_cycles(n: int, samples: list[tuple[float, ...]] | None = None, lite: bool = False) -> list[int]:
     """The filter task's cycles sample by sample with the gravity part every ``n``-th (a light, light, ..., heavy
-    pattern: what a board charging each sample its own cost sees)."""
-    return run_tasks(samples or recorded_samples(), decimation=n).filter
+    pattern: what a board charging each sample its own cost sees; ``lite``: its pieces spread over the n)."""
+    return run_tasks(samples or recorded_samples(), decimation=n, lite=lite).filter

@@ -6,10 +6,10 @@ beside its other tasks (docs/board.md, "Cycles from execution"). What this varia
 
 - Quaternion products (strapdown, prediction, rebase, the rotation to the earth frame) are ``qmul``: a Q2.30
   product from three 16x16 MULS, the low halves' product dropped and no rounding or range test, inlined
-  (about 12 cycles against 70 for the rounded, saturated ``mul``). Its error is at most 3 units of 2^-30
-  (3e-9) against the exact product's 0.5, harmless against the filter's 1e-3 rad; its operands are quaternion
-  components, half steps and swings, all of magnitude below 1, and every place that could see more (a wild rate
-  or dt, a swing past 64°) takes the exact path first, as the twin does.
+  (about 12 cycles against 70 for the rounded, saturated ``mul``). It is under 6 units of 2^-30 (6e-9) below
+  the exact product, harmless against the filter's 1e-3 rad; its operands are quaternion components, half
+  steps and swings, all of magnitude below 1, and every place that could see more (a wild rate or dt, a swing
+  past 64°) takes the exact path first, as the twin does.
 - The strapdown's series to 2nd order: the half step is at most 0.044 rad (2000 °/s at 400 Hz), where the
   dropped 4th-order terms are below 2e-7 (and 1e-10 at the 200 °/s of hand-held motion); renormalised at
   every gravity step.
