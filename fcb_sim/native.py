@@ -295,10 +295,11 @@ def python_state(f: InertialKalmanFilterQ) -> dict[str, int]:
 
 
 def constants_c(dt: float = 0.0025) -> str:
-    """A C initializer of ikfq_consts_t for the default parameters and formats at ``dt``."""
-    c = NativeIKFQ().consts(dt)
+    """A C initializer of ikfq_consts_t for the default parameters and formats at ``dt``: ikf in fixed point as
+    make_filter gives it (the lite variant, its gravity part spread over 4 samples)."""
+    c = NativeIKFQL().consts(dt)
     body = ", ".join(f".{k} = {v}" for k, v in c.items())
-    return f"/* fcb_sim.native.constants_c(dt={dt!r}): ikf's defaults, ikf_fixed.Formats() */\n" \
+    return f"/* fcb_sim.native.constants_c(dt={dt!r}): ikf's defaults, ikf_fixed.Formats(), ikf_lite */\n" \
            f"static const ikfq_consts_t IKFQ_CONSTS = {{{body}}};"
 
 

@@ -204,4 +204,5 @@ def test_a_filter_set_up_from_the_integers_alone_runs_the_same() -> None:
         g, acc = tuple(to_q(v, 16) for v in r[:3]), tuple(to_q(v, 16) for v in r[3:6])
         assert a.step_q(g, acc, r[6]) == b.step_q(g, acc, r[6])  # type: ignore[arg-type]
     assert a.state() == b.state()
-    assert ".dtq = 2684355" in constants_c(0.0025)  # 0.0025 in Q2.30
+    assert ".dtq = 10737418" in constants_c(0.0025)  # 4 x 0.0025 in Q2.30: the lite filter's gravity step
+    assert ".decim = 4, .lite = 1" in constants_c(0.0025)

@@ -1,33 +1,36 @@
 """ikf in fixed point cut to fit the Cortex-M0 ("lite"): the algorithm of :mod:`.ikf_fixed` with cheaper arithmetic
 where precision allows and the gravity part spread over the samples between two gravity steps.
 
-Executed on the emulated M0 the exact twin costs 1654 µs a sample; the report's round robin leaves about 550 µs
+Executed on the emulated M0 the exact twin costs 1668 µs a sample; the report's round robin leaves about 550 µs
 beside its other tasks (docs/board.md, "Cycles from execution"). What this variant changes, each measured there:
 
-- Quaternion products (strapdown, prediction, rebase, the rotation to the earth frame) are ``qmul``: a Q2.30
-  product from three 16x16 MULS, the low halves' product dropped and no rounding or range test, inlined
-  (about 12 cycles against 70 for the rounded, saturated ``mul``). It is under 6 units of 2^-30 (6e-9) below
-  the exact product, harmless against the filter's 1e-3 rad; its operands are quaternion components, half
-  steps and swings, all of magnitude below 1, and every place that could see more (a wild rate or dt, a swing
-  past 64°) takes the exact path first, as the twin does.
+- Quaternion products (strapdown, prediction, rebase, the force turned to the earth frame) are ``qmul``: a Q2.30
+  product from three 16x16 MULS, the low halves' product dropped, no rounding or range test, inlined (about 12
+  cycles against 70 for the rounded, saturated ``mul``), and a quaternion product's sums are 32-bit (``qprod``).
+  It is under 6 units of 2^-30 (6e-9) below the exact product, harmless against the filter's 1e-3 rad. Its
+  operands stay below 1 in magnitude: a wild rate or dt takes the exact path, a specific force is held within
+  2048 m/s² (no sensor reads more) and a swing's |u| below 1.
 - The strapdown's series to 2nd order: the half step is at most 0.044 rad (2000 °/s at 400 Hz), where the
   dropped 4th-order terms are below 2e-7 (and 1e-10 at the 200 °/s of hand-held motion); renormalised at
   every gravity step.
 - The turn rate by a 32-bit square root (of its square in Q16.16: 1/256 rad/s resolution; it scales the
   drift and the noise only), not the 64-bit one (1100 cycles).
 - The rebase's swing to 2nd order, (1 - |u|²/8, u_y/2, -u_x/2, 0), without the two square roots and two
-  divisions (3100 cycles): the exact swing is this plus terms of |u|³; the normalisation after it is the
-  twin's Newton step. A swing past 64° is clipped as before (the exact path, never in use).
-- The gravity part (rest detection, rate and specific force; the Kalman prediction; its gains and update; the
-  rebase) is cut into four pieces, run on successive samples of each gravity step (piece p at phase
-  p * N // 4 of N): with N = 4 one piece a sample, so no sample carries the whole of it. The rebase is a
-  rotation in the earth frame, so applying it to q two samples after the strapdown it corrects is the same
-  rotation: c (x) (q (x) dq) = (c (x) q) (x) dq.
+  divisions (3100 cycles): the exact swing is this plus terms of |u|³. A swing past 64° is clipped as before
+  (the exact path, never in use); the normalisation after it is the twin's Newton step (without its full
+  normalisation, never in use either: a wild norm is held within [1/2, 3/2]).
+- The three Kalman gains from one division (1 / den in Q8.24) and three products, not three 64-bit divisions.
+- The specific force turned to the earth frame as q (x) (0, a) (x) q*, by the one quaternion product in the
+  code (the C board's flash goal of 32 KB), not by the rotation matrix.
+- The gravity part in four pieces (rest detection and the turn rate; the specific force and the Kalman
+  prediction; its gains and update; the rebase), piece p at phase p * N // 4 of N samples: with N = 4 one piece
+  a sample, so no sample carries the whole of it. The rebase is a rotation in the earth frame, so applying it
+  to q a few samples after the strapdown it corrects is the same rotation: c (x) (q (x) dq) = (c (x) q) (x) dq.
 
 The angles the control law reads come from ``angles_lite`` (ctl_q.c's ``ctlq_angles_lite``): the quaternion's top
 16 bits, an atan2 from one 32-bit division and a 7th-order odd polynomial in Q15 (at most 0.011° off math.atan2,
-``ATAN_COEFFS``), a 32-bit square root for the pitch's cosine (from the roll's
-two legs: sqrt(1 - sin²) lost 0.1° near ±90°).
+``ATAN_COEFFS``), a 32-bit square root for the pitch's cosine (from the roll's two legs: sqrt(1 - sin²) lost
+0.1° near ±90°).
 
 Bit for bit firmware/board/ikf_q.c with ``lite`` set (tests/test_ikf_lite.py); N (``decimation``) is 4 by default
 (``LITE_DECIMATION``). Accuracy on the BROAD trials: bench.filters, docs/attitude.md ("The variant that fits").
@@ -40,7 +43,7 @@ import math
 from .ikf_fixed import Formats, InertialKalmanFilterQ, _sat, div, mul, sqrt
 
 LITE_DECIMATION = 4  # the gravity part's period in samples (spread over them)
-PIECES = 4  # rest + rate + force; Kalman prediction; gains and update; rebase
+PIECES = 4  # rest and rate; force and Kalman prediction; gains and update; rebase
 SIXTH_Q30 = 178956971  # round(2^30 / 6)
 _ONE = 1 << 30
 _R28 = 1 << 28  # |half step| below 0.25 rad: qmul cannot overflow and the series holds
@@ -53,6 +56,23 @@ def qmul(a: int, b: int) -> int:
     ah, bh = a >> 16, b >> 16
     r = ah * bh * 4 + ((ah * (b & 0xFFFF)) >> 14) + (((a & 0xFFFF) * bh) >> 14)
     return ((r + 0x80000000) & 0xFFFFFFFF) - 0x80000000
+
+
+def _wrap(v: int) -> int:
+    return ((v + 0x80000000) & 0xFFFFFFFF) - 0x80000000
+
+
+def qprod(a: tuple[int, int, int, int], b: tuple[int, int, int, int]) -> tuple[int, int, int, int]:
+    """a (x) b by qmul, the sums wrapped to int32 as the C's 32-bit sums (of unit quaternions and steps they stay
+    below 1.01 * 2^30, far from wrapping)."""
+    a0, a1, a2, a3 = a
+    b0, b1, b2, b3 = b
+    return (
+        _wrap(qmul(a0, b0) - qmul(a1, b1) - qmul(a2, b2) - qmul(a3, b3)),
+        _wrap(qmul(a0, b1) + qmul(a1, b0) + qmul(a2, b3) - qmul(a3, b2)),
+        _wrap(qmul(a0, b2) - qmul(a1, b3) + qmul(a2, b0) + qmul(a3, b1)),
+        _wrap(qmul(a0, b3) + qmul(a1, b2) - qmul(a2, b1) + qmul(a3, b0)),
+    )
 
 
 def _half_step(wx: int, wy: int, wz: int, k: int) -> tuple[int, int, int]:
@@ -90,14 +110,7 @@ class InertialKalmanFilterQL(InertialKalmanFilterQ):
             h2 = one >> 4
         c = one - (h2 >> 1)
         s = one - qmul(h2, SIXTH_Q30)  # sin(h) / h
-        dx, dy, dz = qmul(hx, s), qmul(hy, s), qmul(hz, s)
-        w, x, y, z = self.qw, self.qx, self.qy, self.qz
-        return (
-            _sat(qmul(w, c) - qmul(x, dx) - qmul(y, dy) - qmul(z, dz)),
-            _sat(qmul(w, dx) + qmul(x, c) + qmul(y, dz) - qmul(z, dy)),
-            _sat(qmul(w, dy) - qmul(x, dz) + qmul(y, c) + qmul(z, dx)),
-            _sat(qmul(w, dz) + qmul(x, dy) - qmul(y, dx) + qmul(z, c)),
-        )
+        return qprod((self.qw, self.qx, self.qy, self.qz), (c, qmul(hx, s), qmul(hy, s), qmul(hz, s)))
 
     def update(self, gx: float, gy: float, gz: float, ax: float, ay: float, az: float, dt: float) -> None:
         if not (dt > 0.0) or not math.isfinite(gx + gy + gz + ax + ay + az + dt):
@@ -123,12 +136,13 @@ class InertialKalmanFilterQL(InertialKalmanFilterQ):
         self.qw, self.qx, self.qy, self.qz = self._rotate(*_half_step(wx, wy, wz, dthq))
         self.phase = 0 if ph + 1 >= n else ph + 1
         if here[0]:
-            self._force(wx, wy, wz, a)
+            self._rate(wx, wy, wz)
             m = self._bias_max
             self.bx = m if self.bx > m else -m if self.bx < -m else self.bx
             self.by = m if self.by > m else -m if self.by < -m else self.by
             self.bz = m if self.bz > m else -m if self.bz < -m else self.bz
         if here[1]:
+            self._force(a)  # this sample's (the rate is the first piece's: 2.5 ms apart, the cost spread)
             self._predict(self.fx, self.fy, self.rate, dtq, dt2q)  # 3.
         if here[2]:
             self._correct(dtq)
@@ -140,56 +154,42 @@ class InertialKalmanFilterQL(InertialKalmanFilterQ):
             return self.qw, self.qx, self.qy, self.qz
         return self._rotate(*_half_step(self.rx, self.ry, self.rz, self._lat_half))
 
-    def _force(self, wx: int, wy: int, wz: int, a: tuple[int, int, int]) -> None:
-        """The turn rate (Q.io, a 32-bit root) and the horizontal specific force in the earth frame (Q.io), kept
-        for the Kalman filter's prediction."""
+    def _rate(self, wx: int, wy: int, wz: int) -> None:
+        """The turn rate (Q.io) by a 32-bit root of its square in Q16.16, kept for the Kalman filter's prediction."""
         io, bb = self.f.io, self.f.bias
         r2 = _sat(mul(wx, wx, 2 * bb - io) + mul(wy, wy, 2 * bb - io) + mul(wz, wz, 2 * bb - io))
         self.rate = math.isqrt(r2) << 8
-        w, x, y, z = self.qw, self.qx, self.qy, self.qz
-        r00 = _ONE - 2 * (qmul(y, y) + qmul(z, z))
-        r01 = 2 * (qmul(x, y) - qmul(w, z))
-        r02 = 2 * (qmul(x, z) + qmul(w, y))
-        r10 = 2 * (qmul(x, y) + qmul(w, z))
-        r11 = _ONE - 2 * (qmul(x, x) + qmul(z, z))
-        r12 = 2 * (qmul(y, z) - qmul(w, x))
-        if all(-_R27 < v < _R27 for v in a):  # 2048 m/s²: qmul cannot overflow
-            self.fx = _sat(qmul(r00, a[0]) + qmul(r01, a[1]) + qmul(r02, a[2]))
-            self.fy = _sat(qmul(r10, a[0]) + qmul(r11, a[1]) + qmul(r12, a[2]))
-        else:
-            self.fx = _sat(mul(r00, a[0], 30) + mul(r01, a[1], 30) + mul(r02, a[2], 30))
-            self.fy = _sat(mul(r10, a[0], 30) + mul(r11, a[1], 30) + mul(r12, a[2], 30))
+
+    def _force(self, a: tuple[int, int, int]) -> None:
+        """The horizontal specific force in the earth frame (Q.io), q (x) (0, a) (x) q*, for the prediction."""
+        m = _R27 - 1  # 2048 m/s² (no sensor reads more): the sums stay far from 2^31
+        v = (0, *(m if c > m else -m if c < -m else c for c in a))
+        q = (self.qw, self.qx, self.qy, self.qz)
+        e = qprod(qprod(q, v), (q[0], _wrap(-q[1]), _wrap(-q[2]), _wrap(-q[3])))  # type: ignore[arg-type]
+        self.fx, self.fy = e[1], e[2]
 
     def _rebase(self, w: int, x: int, y: int, z: int, gxh: int, gyh: int) -> None:
         """Step 4: q turned in the earth frame by the 2nd-order swing that makes (gxh, gyh, g0) vertical, then the
         twin's Newton normalisation."""
         one = _ONE
         vb = self.f.vel
-        ux = mul(gxh, self._inv_g0, vb)
-        uy = mul(gyh, self._inv_g0, vb)
-        if -_R30 < ux < _R30 and -_R30 < uy < _R30:
-            uh2 = qmul(ux, ux) + qmul(uy, uy)
-        else:
-            uh2 = mul(ux, ux, 30) + mul(uy, uy, 30)
+        m = _R30 - 1  # |u| below 1: qmul cannot overflow (a swing past 64° is clipped below anyway)
+        ux, uy = (max(-m, min(m, mul(g, self._inv_g0, vb))) for g in (gxh, gyh))
+        uh2 = qmul(ux, ux) + qmul(uy, uy)
         if uh2 > (81 * one) // 100:  # at most a 64° step (never in use): the twin's exact clip
             k = div(9 * one // 10, sqrt(uh2, 30), 30)
             ux, uy, uh2 = mul(ux, k, 30), mul(uy, k, 30), (81 * one) // 100
-        cw, cx, cy = one - (uh2 >> 3), uy >> 1, -(ux >> 1)
-        w, x, y, z = (
-            _sat(qmul(cw, w) - qmul(cx, x) - qmul(cy, y)),
-            _sat(qmul(cw, x) + qmul(cx, w) + qmul(cy, z)),
-            _sat(qmul(cw, y) - qmul(cx, z) + qmul(cy, w)),
-            _sat(qmul(cw, z) + qmul(cx, y) - qmul(cy, x)),
-        )
+        swing = (one - (uh2 >> 3), uy >> 1, -(ux >> 1), 0)
+        w, x, y, z = qprod(swing, (w, x, y, z))  # in the earth frame: swing (x) q
         n2 = qmul(w, w) + qmul(x, x) + qmul(y, y) + qmul(z, z)
-        if one >> 1 < n2 < one + (one >> 1):
-            k = (3 * one - n2) >> 1
-            self.qw, self.qx, self.qy, self.qz = qmul(w, k), qmul(x, k), qmul(y, k), qmul(z, k)
+        if n2 <= 0:  # never in use: a lost attitude starts level
+            self.qw, self.qx, self.qy, self.qz = one, 0, 0, 0
             return
-        n2 = mul(w, w, 30) + mul(x, x, 30) + mul(y, y, 30) + mul(z, z, 30)  # never in use: the twin's full one
-        k = div(one, sqrt(n2, 30), 30) if n2 > 0 else one
-        w, x, y, z = (w, x, y, z) if n2 > 0 else (one, 0, 0, 0)
-        self.qw, self.qx, self.qy, self.qz = mul(w, k, 30), mul(x, k, 30), mul(y, k, 30), mul(z, k, 30)
+        # one Newton step of 1 / sqrt(n2) from 1, n2 held within [1/2, 3/2] (it is 1 within 1e-6; a wilder one
+        # gets there in a few gravity steps)
+        n2 = min(max(n2, one >> 1), one + (one >> 1))
+        k = (3 * one - n2) >> 1
+        self.qw, self.qx, self.qy, self.qz = qmul(w, k), qmul(x, k), qmul(y, k), qmul(z, k)
 
 
 # --- the angles the control law reads, cheaply (ctl_q.c's ctlq_angles_lite) ------------------------------------

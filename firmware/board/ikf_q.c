@@ -13,6 +13,14 @@
 
 /* FMT(s): the filter's formats. Built with -DIKFQ_DEFAULT_FORMATS (the C board) they are ikf_fixed.Formats()'s
  * at compile time, whatever the set-up was given: every shift is then an immediate (0.4 KB less on the Cortex-M0). */
+/* LITE(s): the variant that fits the Cortex-M0 (ikfq_set_lite). Built with -DIKFQ_LITE_ONLY (the C board, which
+ * runs it alone) the exact twin's paths fold away: 2 KB less flash. */
+#ifdef IKFQ_LITE_ONLY
+#define LITE(s) 1
+#else
+#define LITE(s) ((s)->lite)
+#endif
+
 #ifdef IKFQ_DEFAULT_FORMATS
 static const ikfq_formats_t DEFAULT_FORMATS = {16, 30, 30, 24, 24, 28, 30};
 #define FMT(s) DEFAULT_FORMATS
@@ -374,7 +382,7 @@ void ikfq_predicted(const ikfq_t *s, int32_t q[4])
         q[3] = s->qz;
         return;
     }
-    if (s->lite) {
+    if (LITE(s)) {
         const int64_t w[3] = {s->rx, s->ry, s->rz};
         int32_t h[3];
         half_step(w, s->lat_half, h);
@@ -450,7 +458,7 @@ static void correct(ikfq_t *s)
     int32_t a_dd = s->pdd, r, den, kv, kg, kd;
     r = s->at_rest ? s->rest_r : (int32_t)(INT32_C(1) << cb);
     den = sat((int64_t)MUL(a_vv, dtq, sd) + r);
-    if (s->lite) { /* one division: 1 / den in Q8.24 (den >= rest_r), then three products */
+    if (LITE(s)) { /* one division: 1 / den in Q8.24 (den >= rest_r), then three products */
         int32_t inv = ikfq_div(INT64_C(1) << cb, den, 24);
         kv = MUL(MUL(a_vv, dtq, sd), inv, 24);
         kg = MUL(MUL(a_vg, dtq, sd), inv, 24);
@@ -529,6 +537,12 @@ static inline __attribute__((always_inline)) int32_t qmul(int32_t a, int32_t b)
     return (int32_t)((uint32_t)(ah * bh) * 4u + (uint32_t)((ah * bl) >> 14) + (uint32_t)((al * bh) >> 14));
 }
 
+/* The same as a call: the gravity part's pieces (once in decim samples) take it, 1.5 KB less flash than inlined */
+static __attribute__((noinline)) int32_t qmulf(int32_t a, int32_t b)
+{
+    return qmul(a, b);
+}
+
 static uint32_t isqrt32(uint32_t n) /* floor */
 {
     uint32_t r = 0, bit = UINT32_C(1) << 30;
@@ -560,12 +574,28 @@ static void half_step(const int64_t w[3], int32_t k, int32_t h[3])
     }
 }
 
+/* a (x) b, each term a qmul, the sums in 32 bits (wrapped, as ikf_lite.qprod: of unit quaternions and steps they
+ * stay below 1.01 * 2^30): the strapdown's, the prediction's and the rebase's product, one copy of its 16 inlined
+ * products (the board's flash goal) */
+static __attribute__((noinline)) void qprod(const int32_t a[4], const int32_t b[4], int32_t out[4])
+{
+    out[0] = (int32_t)((uint32_t)qmul(a[0], b[0]) - (uint32_t)qmul(a[1], b[1]) - (uint32_t)qmul(a[2], b[2])
+                       - (uint32_t)qmul(a[3], b[3]));
+    out[1] = (int32_t)((uint32_t)qmul(a[0], b[1]) + (uint32_t)qmul(a[1], b[0]) + (uint32_t)qmul(a[2], b[3])
+                       - (uint32_t)qmul(a[3], b[2]));
+    out[2] = (int32_t)((uint32_t)qmul(a[0], b[2]) - (uint32_t)qmul(a[1], b[3]) + (uint32_t)qmul(a[2], b[0])
+                       + (uint32_t)qmul(a[3], b[1]));
+    out[3] = (int32_t)((uint32_t)qmul(a[0], b[3]) + (uint32_t)qmul(a[1], b[2]) - (uint32_t)qmul(a[2], b[1])
+                       + (uint32_t)qmul(a[3], b[0]));
+}
+
 /* q (x) (cos h, sin h * axis) by the 2nd-order series; a half step over 0.25 rad is clipped as rotate() does */
 static void rotate_lite(const ikfq_t *s, int32_t hx, int32_t hy, int32_t hz, int32_t out[4])
 {
-    int32_t h2, c, sn, dx, dy, dz, w = s->qw, x = s->qx, y = s->qy, z = s->qz;
+    const int32_t q[4] = {s->qw, s->qx, s->qy, s->qz};
+    int32_t h2, sn, r[4];
     if (-R28 < hx && hx < R28 && -R28 < hy && hy < R28 && -R28 < hz && hz < R28)
-        h2 = qmul(hx, hx) + qmul(hy, hy) + qmul(hz, hz);
+        h2 = qmulf(hx, hx) + qmulf(hy, hy) + qmulf(hz, hz);
     else
         h2 = ONE30;
     if (h2 > ONE30 >> 4) {
@@ -576,85 +606,75 @@ static void rotate_lite(const ikfq_t *s, int32_t hx, int32_t hy, int32_t hz, int
         hz = MUL(hz, k, 30);
         h2 = ONE30 >> 4;
     }
-    c = ONE30 - (h2 >> 1);
-    sn = ONE30 - qmul(h2, SIXTH_Q30);
-    dx = qmul(hx, sn);
-    dy = qmul(hy, sn);
-    dz = qmul(hz, sn);
-    out[0] = sat((int64_t)qmul(w, c) - qmul(x, dx) - qmul(y, dy) - qmul(z, dz));
-    out[1] = sat((int64_t)qmul(w, dx) + qmul(x, c) + qmul(y, dz) - qmul(z, dy));
-    out[2] = sat((int64_t)qmul(w, dy) - qmul(x, dz) + qmul(y, c) + qmul(z, dx));
-    out[3] = sat((int64_t)qmul(w, dz) + qmul(x, dy) - qmul(y, dx) + qmul(z, c));
+    r[0] = ONE30 - (h2 >> 1);
+    sn = ONE30 - qmulf(h2, SIXTH_Q30);
+    r[1] = qmulf(hx, sn);
+    r[2] = qmulf(hy, sn);
+    r[3] = qmulf(hz, sn);
+    qprod(q, r, out);
 }
 
-/* The turn rate (a 32-bit root) and the horizontal specific force in the earth frame, for the prediction */
-static void force_lite(ikfq_t *s, int64_t wx, int64_t wy, int64_t wz, const int32_t a[3])
+/* The turn rate (a 32-bit root), and apart (the next piece) the horizontal specific force in the earth frame:
+ * what the prediction takes */
+static void rate_lite(ikfq_t *s, int64_t wx, int64_t wy, int64_t wz)
 {
     unsigned io = FMT(s).io, bb = FMT(s).bias;
-    int32_t w = s->qw, x = s->qx, y = s->qy, z = s->qz;
-    int64_t r00, r01, r02, r10, r11, r12;
     int32_t r2 = sat((int64_t)ikfq_mul(wx, wx, 2 * bb - io) + ikfq_mul(wy, wy, 2 * bb - io)
                      + ikfq_mul(wz, wz, 2 * bb - io));
     s->rate = (int32_t)(isqrt32((uint32_t)r2) << 8);
-    r00 = ONE30 - 2 * ((int64_t)qmul(y, y) + qmul(z, z));
-    r01 = 2 * ((int64_t)qmul(x, y) - qmul(w, z));
-    r02 = 2 * ((int64_t)qmul(x, z) + qmul(w, y));
-    r10 = 2 * ((int64_t)qmul(x, y) + qmul(w, z));
-    r11 = ONE30 - 2 * ((int64_t)qmul(x, x) + qmul(z, z));
-    r12 = 2 * ((int64_t)qmul(y, z) - qmul(w, x));
-    if (-R27 < a[0] && a[0] < R27 && -R27 < a[1] && a[1] < R27 && -R27 < a[2] && a[2] < R27) { /* 2048 m/s^2 */
-        s->fx = sat((int64_t)qmul((int32_t)r00, a[0]) + qmul((int32_t)r01, a[1]) + qmul((int32_t)r02, a[2]));
-        s->fy = sat((int64_t)qmul((int32_t)r10, a[0]) + qmul((int32_t)r11, a[1]) + qmul((int32_t)r12, a[2]));
-    } else {
-        s->fx = sat((int64_t)ikfq_mul(r00, a[0], 30) + ikfq_mul(r01, a[1], 30) + ikfq_mul(r02, a[2], 30));
-        s->fy = sat((int64_t)ikfq_mul(r10, a[0], 30) + ikfq_mul(r11, a[1], 30) + ikfq_mul(r12, a[2], 30));
-    }
+}
+
+static void force_lite(ikfq_t *s, const int32_t a[3])
+{
+    const int32_t q[4] = {s->qw, s->qx, s->qy, s->qz};
+    const int32_t qc[4] = {s->qw, (int32_t)(0u - (uint32_t)s->qx), (int32_t)(0u - (uint32_t)s->qy),
+                           (int32_t)(0u - (uint32_t)s->qz)};
+    int32_t v[4], p[4], e[4], i;
+    v[0] = 0;
+    for (i = 0; i < 3; i++) /* 2048 m/s^2 (no sensor reads more): the sums stay far from 2^31 */
+        v[1 + i] = clamp(a[i], R27 - 1);
+    qprod(q, v, p); /* q (x) (0, a) (x) q*: the specific force in the earth frame, by the product's one copy */
+    qprod(p, qc, e);
+    s->fx = e[1];
+    s->fy = e[2];
 }
 
 /* q turned by the 2nd-order swing (1 - |u|^2/8, uy/2, -ux/2, 0), then the Newton normalisation */
 static void rebase_lite(ikfq_t *s)
 {
     unsigned vb = FMT(s).vel;
-    int32_t ux = MUL(s->gxh, s->inv_g0, vb), uy = MUL(s->gyh, s->inv_g0, vb), cw, cx, cy, w, x, y, z;
-    int32_t q0 = s->qw, q1 = s->qx, q2 = s->qy, q3 = s->qz;
-    int64_t uh2, n2;
-    if (-ONE30 < ux && ux < ONE30 && -ONE30 < uy && uy < ONE30)
-        uh2 = (int64_t)qmul(ux, ux) + qmul(uy, uy);
-    else
-        uh2 = (int64_t)MUL(ux, ux, 30) + MUL(uy, uy, 30);
+    int32_t ux = clamp(MUL(s->gxh, s->inv_g0, vb), ONE30 - 1), uy = clamp(MUL(s->gyh, s->inv_g0, vb), ONE30 - 1);
+    int32_t c[4], q[4] = {s->qw, s->qx, s->qy, s->qz}, o[4], w, x, y, z, k;
+    int64_t uh2 = (int64_t)qmulf(ux, ux) + qmulf(uy, uy), n2;
     if (uh2 > s->swing_max) { /* at most a 64 degree step (never in use) */
         int32_t kk = ikfq_div(s->swing_k, ikfq_sqrt(uh2, 30), 30);
         ux = MUL(ux, kk, 30);
         uy = MUL(uy, kk, 30);
         uh2 = s->swing_max;
     }
-    cw = ONE30 - (int32_t)(uh2 >> 3);
-    cx = uy >> 1;
-    cy = -(ux >> 1);
-    w = sat((int64_t)qmul(cw, q0) - qmul(cx, q1) - qmul(cy, q2));
-    x = sat((int64_t)qmul(cw, q1) + qmul(cx, q0) + qmul(cy, q3));
-    y = sat((int64_t)qmul(cw, q2) - qmul(cx, q3) + qmul(cy, q0));
-    z = sat((int64_t)qmul(cw, q3) + qmul(cx, q2) - qmul(cy, q1));
-    n2 = (int64_t)qmul(w, w) + qmul(x, x) + qmul(y, y) + qmul(z, z);
-    if (ONE30 >> 1 < n2 && n2 < ONE30 + (ONE30 >> 1)) {
-        int32_t k = (int32_t)((3 * (int64_t)ONE30 - n2) >> 1);
-        s->qw = qmul(w, k);
-        s->qx = qmul(x, k);
-        s->qy = qmul(y, k);
-        s->qz = qmul(z, k);
-        return;
-    }
-    n2 = (int64_t)MUL(w, w, 30) + MUL(x, x, 30) + MUL(y, y, 30) + MUL(z, z, 30); /* never in use */
-    if (n2 > 0) {
-        int32_t k = ikfq_div(ONE30, ikfq_sqrt(n2, 30), 30);
-        s->qw = MUL(w, k, 30);
-        s->qx = MUL(x, k, 30);
-        s->qy = MUL(y, k, 30);
-        s->qz = MUL(z, k, 30);
-    } else {
+    c[0] = ONE30 - (int32_t)(uh2 >> 3);
+    c[1] = uy >> 1;
+    c[2] = -(ux >> 1);
+    c[3] = 0;
+    qprod(c, q, o); /* c (x) q: the swing in the earth frame */
+    w = o[0];
+    x = o[1];
+    y = o[2];
+    z = o[3];
+    n2 = (int64_t)qmulf(w, w) + qmulf(x, x) + qmulf(y, y) + qmulf(z, z);
+    if (n2 <= 0) { /* never in use: a lost attitude starts level */
         s->qw = ONE30;
         s->qx = s->qy = s->qz = 0;
+        return;
     }
+    /* one Newton step of 1 / sqrt(n2) from 1, n2 held within [1/2, 3/2] (it is 1 within 1e-6; a wilder one gets
+     * there in a few gravity steps) */
+    n2 = n2 < ONE30 >> 1 ? ONE30 >> 1 : n2 > ONE30 + (ONE30 >> 1) ? ONE30 + (ONE30 >> 1) : n2;
+    k = (int32_t)((3 * (int64_t)ONE30 - n2) >> 1);
+    s->qw = qmulf(w, k);
+    s->qx = qmulf(x, k);
+    s->qy = qmulf(y, k);
+    s->qz = qmulf(z, k);
 }
 
 /* One sample of the lite variant: the strapdown every sample, the gravity part's piece p at phase p decim / 4 */
@@ -684,13 +704,15 @@ static void step_lite(ikfq_t *s, const int32_t g[3], const int32_t a[3])
     s->qz = q[3];
     s->phase = ph + 1 >= n ? 0 : ph + 1;
     if (here0) {
-        force_lite(s, wx, wy, wz, a);
+        rate_lite(s, wx, wy, wz);
         s->bx = clamp(s->bx, s->bias_max);
         s->by = clamp(s->by, s->bias_max);
         s->bz = clamp(s->bz, s->bias_max);
     }
-    if (here1)
+    if (here1) {
+        force_lite(s, a);
         predict(s, s->fx, s->fy, s->rate); /* 3. */
+    }
     if (here2)
         correct(s);
     if (here3)
@@ -740,7 +762,7 @@ void ikfq_step(ikfq_t *s, const int32_t gq[3], const int32_t a[3])
     }
     for (i = 0; i < 3; i++) /* Q8.24 holds 128 rad/s */
         g[i] = up >= 0 ? shl_sat(gq[i], up) : gq[i] >> -up;
-    if (s->lite) {
+    if (LITE(s)) {
         step_lite(s, g, a);
         return;
     }
