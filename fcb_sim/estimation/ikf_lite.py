@@ -10,15 +10,16 @@ beside its other tasks (docs/board.md, "Cycles from execution"). What this varia
   It is under 6 units of 2^-30 (6e-9) below the exact product, harmless against the filter's 1e-3 rad. Its
   operands stay below 1 in magnitude: a wild rate or dt takes the exact path, a specific force is held within
   2048 m/s² (no sensor reads more) and a swing's |u| below 1.
-- The strapdown's series to 2nd order: the half step is at most 0.044 rad (2000 °/s at 400 Hz), where the
-  dropped 4th-order terms are below 2e-7 (and 1e-10 at the 200 °/s of hand-held motion); renormalised at
-  every gravity step.
+- The strapdown's series to 2nd order while the half step is below 0.0625 rad (it is at most 0.044 rad at
+  the gyro's 2000 °/s and 400 Hz), where the dropped 4th-order terms are below 1.3e-6 (1e-10 at the 200 °/s of
+  hand-held motion); beyond (a long dt), the 4th order as the twin; renormalised at every gravity step.
 - The turn rate by a 32-bit square root (of its square in Q16.16: 1/256 rad/s resolution; it scales the
   drift and the noise only), not the 64-bit one (1100 cycles).
 - The rebase's swing to 2nd order, (1 - |u|²/8, u_y/2, -u_x/2, 0), without the two square roots and two
   divisions (3100 cycles): the exact swing is this plus terms of |u|³. A swing past 64° is clipped as before
-  (the exact path, never in use); the normalisation after it is the twin's Newton step (without its full
-  normalisation, never in use either: a wild norm is held within [1/2, 3/2]).
+  (the exact path, never in use); the normalisation after it is the twin's Newton step, two of them after
+  such a clip (its norm is 1.01) and none of the twin's full normalisation (never in use: a wild norm is held
+  within [1/2, 3/2] and converges over a few gravity steps).
 - The three Kalman gains from one division (1 / den in Q8.24) and three products, not three 64-bit divisions.
 - The specific force turned to the earth frame as q (x) (0, a) (x) q*, by the one quaternion product in the
   code (the C board's flash goal of 32 KB), not by the rotation matrix.
@@ -45,6 +46,8 @@ from .ikf_fixed import Formats, InertialKalmanFilterQ, _sat, div, mul, sqrt
 LITE_DECIMATION = 4  # the gravity part's period in samples (spread over them)
 PIECES = 4  # rest and rate; force and Kalman prediction; gains and update; rebase
 SIXTH_Q30 = 178956971  # round(2^30 / 6)
+C24_Q30 = 44739243  # round(2^30 / 24)
+C120_Q30 = 8947849  # round(2^30 / 120)
 _ONE = 1 << 30
 _R28 = 1 << 28  # |half step| below 0.25 rad: qmul cannot overflow and the series holds
 _R30 = 1 << 30
@@ -110,6 +113,9 @@ class InertialKalmanFilterQL(InertialKalmanFilterQ):
             h2 = one >> 4
         c = one - (h2 >> 1)
         s = one - qmul(h2, SIXTH_Q30)  # sin(h) / h
+        if h2 > one >> 8:  # a half step over 0.0625 rad (80 rad/s at 400 Hz, or a long dt): 4th order too
+            h4 = qmul(h2, h2)
+            c, s = c + qmul(h4, C24_Q30), s + qmul(h4, C120_Q30)
         return qprod((self.qw, self.qx, self.qy, self.qz), (c, qmul(hx, s), qmul(hy, s), qmul(hz, s)))
 
     def update(self, gx: float, gy: float, gz: float, ax: float, ay: float, az: float, dt: float) -> None:
@@ -185,11 +191,13 @@ class InertialKalmanFilterQL(InertialKalmanFilterQ):
         if n2 <= 0:  # never in use: a lost attitude starts level
             self.qw, self.qx, self.qy, self.qz = one, 0, 0, 0
             return
-        # one Newton step of 1 / sqrt(n2) from 1, n2 held within [1/2, 3/2] (it is 1 within 1e-6; a wilder one
-        # gets there in a few gravity steps)
-        n2 = min(max(n2, one >> 1), one + (one >> 1))
-        k = (3 * one - n2) >> 1
-        self.qw, self.qx, self.qy, self.qz = qmul(w, k), qmul(x, k), qmul(y, k), qmul(z, k)
+        # Newton steps of 1 / sqrt(n2) from 1, n2 held within [1/2, 3/2]: one (n2 is 1 within 1e-6), two after a
+        # swing clipped at 64° (n2 1.01 from the 2nd-order swing) or a wilder norm
+        for _ in range(2 if abs(n2 - one) > one >> 12 else 1):
+            k = (3 * one - min(max(n2, one >> 1), one + (one >> 1))) >> 1
+            w, x, y, z = qmul(w, k), qmul(x, k), qmul(y, k), qmul(z, k)
+            n2 = qmul(w, w) + qmul(x, x) + qmul(y, y) + qmul(z, z)
+        self.qw, self.qx, self.qy, self.qz = w, x, y, z
 
 
 # --- the angles the control law reads, cheaply (ctl_q.c's ctlq_angles_lite) ------------------------------------

@@ -396,35 +396,39 @@ static int32_t clamp(int32_t v, int32_t m)
     return v > m ? m : v < -m ? -m : v;
 }
 
+/* y + k (x - y), saturated: a step of the rest low-passes and of the bias at rest */
+static int32_t lowpass(int32_t y, int64_t x, int32_t k, unsigned cb)
+{
+    return sat(y + (int64_t)ikfq_mul(k, x - y, cb));
+}
+
 /* Step 1: rest detection and the bias at rest (gyro g in Q.bias, accelerometer a in Q.io) */
 static void rest(ikfq_t *s, const int32_t g[3], const int32_t a[3])
 {
     unsigned io = FMT(s).io, cb = FMT(s).cov;
     int64_t dg = 0, da = 0;
-    int32_t m = s->bias_max;
-    int i, still;
-    for (i = 0; i < 3; i++)
-        s->gl[i] = sat(s->gl[i] + (int64_t)ikfq_mul(s->krq, (int64_t)g[i] - s->gl[i], cb));
-    for (i = 0; i < 3; i++)
-        s->al[i] = sat(s->al[i] + (int64_t)ikfq_mul(s->krq, (int64_t)a[i] - s->al[i], cb));
+    int32_t m = s->bias_max, *b[3];
+    int i, inside = 1;
+    b[0] = &s->bx;
+    b[1] = &s->by;
+    b[2] = &s->bz;
     for (i = 0; i < 3; i++) {
-        int64_t d = (int64_t)g[i] - s->gl[i], e = (int64_t)a[i] - s->al[i];
+        int64_t d, e;
+        s->gl[i] = lowpass(s->gl[i], g[i], s->krq, cb);
+        s->al[i] = lowpass(s->al[i], a[i], s->krq, cb);
+        d = (int64_t)g[i] - s->gl[i];
+        e = (int64_t)a[i] - s->al[i];
         dg += ikfq_mul(d, d, 16);
         da += ikfq_mul(e, e, io);
+        inside = inside && -m < s->gl[i] && s->gl[i] < m;
     }
-    still = sat(dg) < s->rest_g2 && sat(da) < s->rest_a2;
-    for (i = 0; i < 3; i++)
-        still = still && -m < s->gl[i] && s->gl[i] < m;
-    if (still)
+    if (sat(dg) < s->rest_g2 && sat(da) < s->rest_a2 && inside)
         s->rest_t = s->rest_t + s->dtq < s->rest_time ? s->rest_t + s->dtq : s->rest_time;
     else
         s->rest_t = 0;
     s->at_rest = s->rest_t >= s->rest_time;
-    if (s->at_rest) {
-        s->bx = sat(s->bx + (int64_t)ikfq_mul(s->kbq, (int64_t)s->gl[0] - s->bx, cb));
-        s->by = sat(s->by + (int64_t)ikfq_mul(s->kbq, (int64_t)s->gl[1] - s->by, cb));
-        s->bz = sat(s->bz + (int64_t)ikfq_mul(s->kbq, (int64_t)s->gl[2] - s->bz, cb));
-    }
+    for (i = 0; i < 3 && s->at_rest; i++)
+        *b[i] = lowpass(*b[i], s->gl[i], s->kbq, cb);
 }
 
 /* Step 3: the Kalman filter on (V, G_h, D), fed the horizontal specific force and the turn rate (Q.io). In two
@@ -527,6 +531,8 @@ static void rebase(ikfq_t *s, const int32_t q[4], int32_t gxh, int32_t gyh)
 #define R30 (INT64_C(1) << 30)
 #define R27 (INT32_C(1) << 27)
 #define SIXTH_Q30 INT32_C(178956971)
+#define C24_Q30 INT32_C(44739243) /* 2^30 / 24 */
+#define C120_Q30 INT32_C(8947849) /* 2^30 / 120 */
 #define PIECES 4
 
 /* (a b) >> 30 of two Q2.30 from three 16x16 MULS, the low halves' product dropped, wrapped as ikf_lite.qmul */
@@ -608,6 +614,11 @@ static void rotate_lite(const ikfq_t *s, int32_t hx, int32_t hy, int32_t hz, int
     }
     r[0] = ONE30 - (h2 >> 1);
     sn = ONE30 - qmulf(h2, SIXTH_Q30);
+    if (h2 > ONE30 >> 8) { /* a half step over 0.0625 rad (80 rad/s at 400 Hz, or a long dt): 4th order too */
+        int32_t h4 = qmulf(h2, h2);
+        r[0] += qmulf(h4, C24_Q30);
+        sn += qmulf(h4, C120_Q30);
+    }
     r[1] = qmulf(hx, sn);
     r[2] = qmulf(hy, sn);
     r[3] = qmulf(hz, sn);
@@ -644,7 +655,7 @@ static void rebase_lite(ikfq_t *s)
 {
     unsigned vb = FMT(s).vel;
     int32_t ux = clamp(MUL(s->gxh, s->inv_g0, vb), ONE30 - 1), uy = clamp(MUL(s->gyh, s->inv_g0, vb), ONE30 - 1);
-    int32_t c[4], q[4] = {s->qw, s->qx, s->qy, s->qz}, o[4], w, x, y, z, k;
+    int32_t c[4], q[4] = {s->qw, s->qx, s->qy, s->qz}, o[4], w, x, y, z, k, passes;
     int64_t uh2 = (int64_t)qmulf(ux, ux) + qmulf(uy, uy), n2;
     if (uh2 > s->swing_max) { /* at most a 64 degree step (never in use) */
         int32_t kk = ikfq_div(s->swing_k, ikfq_sqrt(uh2, 30), 30);
@@ -667,14 +678,22 @@ static void rebase_lite(ikfq_t *s)
         s->qx = s->qy = s->qz = 0;
         return;
     }
-    /* one Newton step of 1 / sqrt(n2) from 1, n2 held within [1/2, 3/2] (it is 1 within 1e-6; a wilder one gets
-     * there in a few gravity steps) */
-    n2 = n2 < ONE30 >> 1 ? ONE30 >> 1 : n2 > ONE30 + (ONE30 >> 1) ? ONE30 + (ONE30 >> 1) : n2;
-    k = (int32_t)((3 * (int64_t)ONE30 - n2) >> 1);
-    s->qw = qmulf(w, k);
-    s->qx = qmulf(x, k);
-    s->qy = qmulf(y, k);
-    s->qz = qmulf(z, k);
+    /* Newton steps of 1 / sqrt(n2) from 1, n2 held within [1/2, 3/2]: one (n2 is 1 within 1e-6), two after a
+     * swing clipped at 64 deg (n2 1.01 from the 2nd-order swing) or a wilder norm */
+    passes = n2 - ONE30 > ONE30 >> 12 || ONE30 - n2 > ONE30 >> 12 ? 2 : 1;
+    while (passes--) {
+        n2 = n2 < ONE30 >> 1 ? ONE30 >> 1 : n2 > ONE30 + (ONE30 >> 1) ? ONE30 + (ONE30 >> 1) : n2;
+        k = (int32_t)((3 * (int64_t)ONE30 - n2) >> 1);
+        w = qmulf(w, k);
+        x = qmulf(x, k);
+        y = qmulf(y, k);
+        z = qmulf(z, k);
+        n2 = (int64_t)qmulf(w, w) + qmulf(x, x) + qmulf(y, y) + qmulf(z, z);
+    }
+    s->qw = w;
+    s->qx = x;
+    s->qy = y;
+    s->qz = z;
 }
 
 /* One sample of the lite variant: the strapdown every sample, the gravity part's piece p at phase p decim / 4 */
