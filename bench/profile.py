@@ -9,9 +9,11 @@ Runs, each `--seconds` of board time:
 - the model: RAW and DMP, round robin and priority;
 - "report telemetry": RAW round robin with telemetry at 0.5 Hz, as in the report's profile (Figure 14: nine
   telemetry runs, 1.9 s apart), instead of our 50 Hz;
-- "ikf": RAW with the default filter instead of the report's (the report's complementary filter runs in the rest),
-  float and Q16.16, both schedulers: its cost beyond the report's filter, priced from its counted operations
-  (fcb_sim/timing.py RAW_FILTER_EXTRA_US; docs/board.md, "The RAW filter's price"), added to every sensor read;
+- "ikf": RAW with ikf instead of the report's filter (the report's complementary filter runs in the rest), in
+  float and in fixed point (the lite variant that fits the M0, the default), both schedulers: its cost beyond the
+  report's filter, priced from its counted operations or executed (fcb_sim/timing.py RAW_FILTER_EXTRA_US;
+  docs/board.md, "The RAW filter's price"), added to every sensor read; then each sample charged its own
+  emulated cost, the lite variant's and the exact twin's decimated ones;
 - "residual" (a diagnostic, not the model): the report's sensor-read period jitters more (sigma 193 µs for the
   RAW read) than the model's, and nothing the report documents accounts for it. This run adds the missing start
   jitter as an exponential delay on every start out of an idle wait, its mean set so the RAW sensor period
@@ -37,6 +39,7 @@ from typing import Any
 from fcb_sim.profile import run_profile
 from fcb_sim.timing import (
     COSTS,
+    EMULATED_FILTERS,
     FIGURE14,
     M0_EMULATED_US,
     MODEL_TOLERANCE,
@@ -107,8 +110,8 @@ def print_filters(runs: dict[str, dict[str, Any]], failed: dict[str, str]) -> No
     print("\nRAW path by filter (charged per sample, fcb_sim/timing.py: priced, or executed on the M0; the report's "
           f"{REPORT_RAW_FILTER} filter {raw_filter_us(REPORT_RAW_FILTER):.0f} µs float, "
           f"{raw_filter_us(REPORT_RAW_FILTER, True):.0f} µs Q16.16, is inside Figure 14's sensor row)")
-    rows = (("report's filter (float)", "", REPORT_RAW_FILTER, False), ("ikf, Q16.16", "/ikf-fixed", "ikf", True),
-            ("ikf, float", "/ikf-float", "ikf", False))
+    rows = (("report's filter (float)", "", REPORT_RAW_FILTER, False),
+            ("ikf, fixed point (lite)", "/ikf-fixed", "ikf", True), ("ikf, float", "/ikf-float", "ikf", False))
     for label, key, name, fixed in rows:
         for sched in ("round-robin", "priority"):
             if f"raw/{sched}{key}" in failed:
@@ -121,6 +124,9 @@ def print_filters(runs: dict[str, dict[str, Any]], failed: dict[str, str]) -> No
                   f"{out['tasks']['sensor']['mean_us']:6.0f} µs, >= WCET99 {pct(out['deadline_miss_rate'])}, "
                   f">= WCET99.9 {pct(out['deadline_miss_rate_999'])}, CPU {out['cpu_load_pct']:.0f} %, "
                   f"ticks lost {lost}")
+    mean, p99 = M0_EMULATED_US[EMULATED_FILTERS[("ikf", True)]]
+    print(f"  ikf in fixed point (the variant that fits the M0, its gravity part over 4 samples) executes in {mean:.0f}"
+          f" µs a sample on the emulated M0, {p99:.0f} at p99; charged each sample that cost: 'liteN' below")
 
 
 def emulation(run_it: bool) -> dict[str, Any]:
@@ -151,12 +157,20 @@ def cost_table(emu: dict[str, Any]) -> list[dict[str, Any]]:
         {"task": "control, RAW (law + mixing)", "figure14_us": ctl_fig, "model_us": ctl_model, "emulated_us": ctl_emu,
          "charged_us": ctl_model if abs(ctl_model - ctl_emu) <= MODEL_TOLERANCE * ctl_emu else ctl_emu,
          "note": "firmware/board/ctl_q.c"},
-        {"task": "RAW filter ikf, fixed point (update, prediction, angles)", "figure14_us": None,
-         "model_us": raw_filter_us("ikf", True), "emulated_us": us["filter/ikf/fixed"][0],
-         "charged_us": raw_filter_price_us("ikf", True), "note": "firmware/board/ikf_q.c; in the sensor task"},
-        *({"task": f"RAW filter ikf, fixed point, gravity every {n}th sample", "figure14_us": None, "model_us": None,
+        {"task": "RAW filter ikf lite, N=4: ikf in fixed point (the default)", "figure14_us": None,
+         "model_us": raw_filter_us("ikf", True), "emulated_us": us["filter/ikf/lite4"][0],
+         "charged_us": raw_filter_price_us("ikf", True),
+         "note": f"ikf_lite.py, ikf_q.c lite: gravity part spread over 4; p99 {us['filter/ikf/lite4'][1]:.0f} µs"},
+        *({"task": f"RAW filter ikf lite, N={n}", "figure14_us": None, "model_us": None,
+           "emulated_us": us[f"filter/ikf/lite{n}"][0], "charged_us": None,
+           "note": f"p99 {us[f'filter/ikf/lite{n}'][1]:.0f} µs" + (" (nothing spread: one sample)" if n == 1 else "")}
+          for n in (1, 8)),
+        {"task": "RAW filter ikf, fixed point, exact twin (ikf_fixed.py)", "figure14_us": None, "model_us": None,
+         "emulated_us": us["filter/ikf/fixed"][0], "charged_us": None,
+         "note": f"p99 {us['filter/ikf/fixed'][1]:.0f} µs; does not fit (docs/board.md)"},
+        *({"task": f"RAW filter ikf exact twin, gravity every {n}th sample", "figure14_us": None, "model_us": None,
            "emulated_us": us[f"filter/ikf/fixed/decimation{n}"][0], "charged_us": None,
-           "note": f"p99 {us[f'filter/ikf/fixed/decimation{n}'][1]:.0f} µs (the full sample); not the default"}
+           "note": f"p99 {us[f'filter/ikf/fixed/decimation{n}'][1]:.0f} µs (the full sample)"}
           for n in (4, 8)),
         {"task": "RAW filter ikf, float (qfplib)", "figure14_us": None, "model_us": raw_filter_us("ikf", False),
          "emulated_us": None, "charged_us": raw_filter_price_us("ikf", False),
@@ -206,9 +220,9 @@ class _PerSample(dict):
 
 
 def decimated(emu: dict[str, Any], seconds: float, seed: int) -> dict[str, dict[str, Any]]:
-    """ikf in Q16.16 with the gravity part every N-th sample (fcb_sim.m0emu.DECIMATIONS) on the RAW path: each
-    sample charged its own emulated cost (round robin and priority), and, beside it, every sample charged the mean
-    (what spreading the gravity part evenly over the N samples would cost; not built). Needs the emulation."""
+    """ikf in fixed point on the RAW path, each sample charged its own emulated cost (round robin and priority) and,
+    beside it, every sample charged the mean: the lite variant with its gravity part spread over N samples
+    (fcb_sim.m0emu.LITE), and the exact twin with it every N-th sample (DECIMATIONS). Needs the emulation."""
     from fcb_sim import board as board_module
     from fcb_sim import m0emu
 
@@ -217,18 +231,23 @@ def decimated(emu: dict[str, Any], seconds: float, seed: int) -> dict[str, dict[
     base = raw_filter_us(REPORT_RAW_FILTER, True)
     out: dict[str, dict[str, Any]] = {}
     table = dict(RAW_FILTER_EXTRA_US)
+    variants = [(f"lite{n}", n, True) for n in m0emu.LITE] + [(f"decimation{n}", n, False) for n in m0emu.DECIMATIONS]
     try:
-        for n in m0emu.DECIMATIONS:
-            extra = [round(c * 1e6 / m0emu.CPU_HZ - base) for c in m0emu.decimated_cycles(n)]
+        for name, n, lite in variants:
+            cycles = m0emu.decimated_cycles(n, lite=lite)
+            extra = [round(c * 1e6 / m0emu.CPU_HZ - base) for c in cycles]
             mean = round(sum(extra) / len(extra))
             for label, pattern, sched in (("per-sample", extra, "round-robin"), ("per-sample", extra, "priority"),
                                           ("mean", [mean], "round-robin")):
                 board_module.RAW_FILTER_EXTRA_US = _PerSample(table, pattern)  # type: ignore[assignment]
-                key = f"decimation{n}/{label}/{sched}"
+                key = f"{name}/{label}/{sched}"
                 try:
                     r = run_profile("raw", sched, seconds, seed, filter_name="ikf", fixed_point=True)
-                    out[key] = {"miss_rate": round(r["deadline_miss_rate"], 5), "cpu_pct": r["cpu_load_pct"],
-                                "extra_us_mean": mean}
+                    out[key] = {"miss_rate": round(r["deadline_miss_rate"], 5),
+                                "miss_rate_999": round(r["deadline_miss_rate_999"], 5), "cpu_pct": r["cpu_load_pct"],
+                                "extra_us_mean": mean, "extra_us_max": max(extra),
+                                "filter_us_mean": round(sum(cycles) / len(cycles) * 1e6 / m0emu.CPU_HZ, 1),
+                                "filter_us_max": round(max(cycles) * 1e6 / m0emu.CPU_HZ, 1)}
                 except RuntimeError as e:
                     out[key] = {"failed": str(e)}
     finally:
@@ -238,13 +257,17 @@ def decimated(emu: dict[str, Any], seconds: float, seed: int) -> dict[str, dict[
 
 def print_decimated(dec: dict[str, dict[str, Any]]) -> None:
     if not dec:
-        print("\nikf decimated: needs the emulation (unicorn and arm-none-eabi-gcc)")
+        print("\nikf lite and decimated: needs the emulation (unicorn and arm-none-eabi-gcc)")
         return
-    print("\nikf Q16.16, gravity part every N-th sample (RAW, >= WCET99; charged each sample its own emulated cost, "
-          "or every sample the mean):")
+    print("\nikf in fixed point on the RAW path, each sample charged its own emulated cost (or every sample the "
+          "mean): >= WCET99 (report 2.10 %), >= WCET99.9, CPU. liteN: the variant that fits, its gravity part "
+          "spread over N samples (lite4 is the default's); decimationN: the exact twin's, whole every N-th sample")
     for key, r in dec.items():
-        fig = r["failed"] if "failed" in r else f"{pct(r['miss_rate'])}, CPU {r['cpu_pct']:.0f} %"
-        print(f"  {key:40s} {fig}")
+        if "failed" in r:
+            print(f"  {key:36s} {r['failed']}")
+            continue
+        print(f"  {key:36s} filter {r['filter_us_mean']:6.1f} µs mean, {r['filter_us_max']:6.1f} max: "
+              f">= WCET99 {pct(r['miss_rate'])}, >= WCET99.9 {pct(r['miss_rate_999'])}, CPU {r['cpu_pct']:.0f} %")
 
 
 def print_report_misses(runs: dict[str, dict[str, Any]], tau: float) -> None:

@@ -11,7 +11,10 @@ Python: ``filter_impl`` says which ran, ``c_unavailable_because`` why not (QUADR
 
 Also printed: the cost of each part in microseconds per call and its share of one simulated second.
 
-Run: ``python -m bench.realtime [--seconds S] [--filter NAME] [--fixed-point] [--all-filters]``.
+The filter is the default board's: ikf in fixed point (the variant that fits the Cortex-M0, est.fixed_point on
+in the default preset); ``--no-fixed-point`` times the float one.
+
+Run: ``python -m bench.realtime [--seconds S] [--filter NAME] [--[no-]fixed-point] [--all-filters]``.
 """
 
 from __future__ import annotations
@@ -27,7 +30,9 @@ from fcb_sim.flight import FlightCore
 from fcb_sim.native import why_not
 from fcb_sim.physics import World
 from fcb_sim.scenarios import Sim
-from term.core.protocol import Mode
+from term.core.protocol import PARAMS, Mode, Param
+
+DEFAULT_FIXED_POINT = bool(PARAMS[Param.FIXED_POINT].default)  # the default board's RAW filter arithmetic
 
 
 def flight_core_factor(seconds: float, filter_name: str, fixed_point: bool = False, chunks: int = 5) -> dict:
@@ -108,7 +113,9 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seconds", type=float, default=30.0, help="simulated seconds to time (default 30)")
     ap.add_argument("--filter", default=BEST, choices=FILTERS, help=f"RAW filter (default {BEST})")
-    ap.add_argument("--fixed-point", action="store_true", help="Q16.16 variant of the filter")
+    ap.add_argument("--fixed-point", action=argparse.BooleanOptionalAction, default=DEFAULT_FIXED_POINT,
+                    help="the filter in fixed point (default: the default preset's est.fixed_point, "
+                    f"{DEFAULT_FIXED_POINT}: ikf's variant that fits the Cortex-M0); --no-fixed-point for float")
     ap.add_argument("--all-filters", action="store_true", help="also time every filter, float and fixed")
     args = ap.parse_args()
     result = flight_core_factor(args.seconds, args.filter, args.fixed_point)

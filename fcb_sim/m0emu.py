@@ -257,23 +257,25 @@ class TaskCycles:
 
 
 def run_tasks(samples: list[tuple[float, ...]], seed: int = 1, elf: Path | None = None,
-              decimation: int = 1) -> TaskCycles:
+              decimation: int = 1, lite: bool = False) -> TaskCycles:
     """The filter step and the control step on the M0 and on the host, fed the same inputs: ``samples`` are
     (gx, gy, gz, ax, ay, az, dt) rows (rad/s, m/s², s; the first starts the filter), the sticks pseudo-random
-    from ``seed``; the filter's gravity part every ``decimation``-th sample. Returns each step's cycles, and
-    every output that differed (none, or it is a fault)."""
+    from ``seed``; the filter's gravity part every ``decimation``-th sample; ``lite``: the variant cut to fit
+    (ikf_lite.py, its gravity part spread over the decimation, its angles ctlq_angles_lite). Returns each step's
+    cycles, and every output that differed (none, or it is a fault)."""
     import ctypes
     import random
 
     from fcb_sim.constants import RATE_LSB_PER_RAD_S
     from fcb_sim.estimation.ikf_fixed import to_q
-    from fcb_sim.native import NativeIKFQ, library
+    from fcb_sim.native import STATE_FIELDS, NativeIKFQ, NativeIKFQL, library
 
     lib = library()
     if lib is None:
         raise RuntimeError("the host build of firmware/board is not available (fcb_sim.native.why_not())")
     m0 = M0Tasks(elf)
-    host = NativeIKFQ(decimation=decimation)
+    host = (NativeIKFQL if lite else NativeIKFQ)(decimation=decimation)
+    angles = lib.ctlq_angles_lite if lite else lib.ctlq_angles
     host.update(*samples[0])  # starts it (the start is no per-sample work)
     host._lib.ikfq_set_dt(host._s, samples[1][6])
     # the M0 sets itself up from the integers alone (ikfq_init_q: no doubles on the board), then takes the host's
@@ -301,7 +303,7 @@ def run_tasks(samples: list[tuple[float, ...]], seed: int = 1, elf: Path | None 
         out.instructions["filter"].append(run.instructions)
         q_m0 = struct.unpack("<4i", m0.read("tm_q"))
         phi, theta = ctypes.c_int32(), ctypes.c_int32()
-        lib.ctlq_angles((ctypes.c_int32 * 4)(*q_host), ctypes.byref(phi), ctypes.byref(theta))
+        angles((ctypes.c_int32 * 4)(*q_host), ctypes.byref(phi), ctypes.byref(theta))
         angles_m0 = struct.unpack("<2i", m0.read("tm_angles"))
         if q_m0 != q_host or angles_m0 != (phi.value, theta.value):
             out.mismatches.append(f"filter sample {i}: M0 {q_m0} {angles_m0} host {q_host} {phi, theta}")
@@ -323,7 +325,7 @@ def run_tasks(samples: list[tuple[float, ...]], seed: int = 1, elf: Path | None 
     if not _same_constants(init_state, host.raw_state()):
         out.mismatches.append("the M0's ikfq_init_q gave other constants than the host's ikfq_init")
     m0.call("tm_filter_export")
-    st_m0 = struct.unpack("<29q", m0.read("tm_state"))
+    st_m0 = struct.unpack(f"<{len(STATE_FIELDS)}q", m0.read("tm_state"))
     if st_m0 != tuple(host.state().values()):
         out.mismatches.append("filter state after the run differs")
     return out
@@ -363,14 +365,16 @@ def recorded_samples(path: Path = EXCERPT, rows: tuple[int, int] = EXCERPT_ROWS)
     return out
 
 
-DECIMATIONS = (4, 8)  # the decimated variants measured beside the default (docs/attitude.md, "Decimation")
+DECIMATIONS = (4, 8)  # the exact twin decimated, measured beside it (docs/attitude.md, "Decimation")
+LITE = (1, 4, 8)  # the variant cut to fit (ikf_lite), its gravity part spread over N samples; 4 is the default's
 
 
 def emulated_table(samples: list[tuple[float, ...]] | None = None) -> tuple[dict[str, tuple[float, float]],
                                                                               TaskCycles]:
     """fcb_sim.timing.M0_EMULATED_US measured again: (mean, p99) µs of each task, the decimated filters too
-    ("filter/ikf/fixed/decimation4": the gravity part every 4th sample); and the default's run itself (a decimated
-    run's mismatches are added to it)."""
+    ("filter/ikf/fixed/decimation4": the gravity part every 4th sample) and the lite ones ("filter/ikf/lite4": the
+    variant that fits, its gravity part spread over 4 samples); and the exact twin's run itself (the other runs'
+    mismatches are added to it)."""
     samples = samples or recorded_samples()
     run = run_tasks(samples)
     f, c = run.summary("filter"), run.summary("control")
@@ -380,10 +384,15 @@ def emulated_table(samples: list[tuple[float, ...]] | None = None) -> tuple[dict
         run.mismatches += [f"decimation {n}: {m}" for m in d.mismatches]
         s = d.summary("filter")
         table[f"filter/ikf/fixed/decimation{n}"] = (s["us_mean"], s["us_p99"])
+    for n in LITE:
+        d = run_tasks(samples, decimation=n, lite=True)
+        run.mismatches += [f"lite {n}: {m}" for m in d.mismatches]
+        s = d.summary("filter")
+        table[f"filter/ikf/lite{n}"] = (s["us_mean"], s["us_p99"])
     return table, run
 
 
-def decimated_cycles(n: int, samples: list[tuple[float, ...]] | None = None) -> list[int]:
+def decimated_cycles(n: int, samples: list[tuple[float, ...]] | None = None, lite: bool = False) -> list[int]:
     """The filter task's cycles sample by sample with the gravity part every ``n``-th (a light, light, ..., heavy
-    pattern: what a board charging each sample its own cost sees)."""
-    return run_tasks(samples or recorded_samples(), decimation=n).filter
+    pattern: what a board charging each sample its own cost sees; ``lite``: its pieces spread over the n)."""
+    return run_tasks(samples or recorded_samples(), decimation=n, lite=lite).filter

@@ -23,11 +23,13 @@ from pathlib import Path
 from fcb_sim.estimation.base import QuaternionAnglesMixin
 from fcb_sim.estimation.ikf import InertialKalmanFilter
 from fcb_sim.estimation.ikf_fixed import Formats, InertialKalmanFilterQ
+from fcb_sim.estimation.ikf_lite import InertialKalmanFilterQL
 
 FIRMWARE = Path(__file__).resolve().parent.parent / "firmware"
 LIBRARY = "libikfq.so"
 STATE_FIELDS = ("qw", "qx", "qy", "qz", "vx", "vy", "dx", "dy", "pvv", "pvg", "pvd", "pgg", "pgd", "pdd", "bx", "by",
-                "bz", "rx", "ry", "rz", "gl0", "gl1", "gl2", "al0", "al1", "al2", "rest_t", "at_rest", "started")
+                "bz", "rx", "ry", "rz", "gl0", "gl1", "gl2", "al0", "al1", "al2", "rest_t", "at_rest", "started",
+                "phase", "fx", "fy", "rate", "gxh", "gyh")
 _LOCK = threading.Lock()
 _lib: ctypes.CDLL | None = None
 _why: str | None = None
@@ -47,7 +49,7 @@ class _Consts(ctypes.Structure):
     _fields_ = [(n, ctypes.c_int32) for n in (
         "qg_shift", "q_g0", "k_rot", "drift_noise", "rest_r", "rest_g2", "rest_a2", "bias_max", "inv_g0",
         "lat_half", "pgg0", "pdd0", "g0_io", "swing_max", "swing_k")] + [("rest_time", ctypes.c_int64)] + [
-        (n, ctypes.c_int32) for n in ("dtq", "dt2q", "dthq", "krq", "kbq", "decim")]
+        (n, ctypes.c_int32) for n in ("dtq", "dt2q", "dthq", "krq", "kbq", "decim", "lite")]
 
 
 def _sources() -> list[Path]:
@@ -100,6 +102,7 @@ def _load(path: Path) -> ctypes.CDLL:
     lib.ikfq_state.argtypes = [vp, i64p]
     lib.ikfq_set_dt.argtypes = [vp, d]
     lib.ikfq_set_decimation.argtypes = [vp, ctypes.c_int32]
+    lib.ikfq_set_lite.argtypes = [vp, ctypes.c_int32]
     lib.ikfq_step.argtypes = [vp, i32p, i32p]
     lib.ctlq_step.argtypes = [vp, vp, ctypes.POINTER(ctypes.c_int16)]
     lib.ctlq_law.argtypes = [vp, vp, ctypes.c_int32, ctypes.c_int32, ctypes.POINTER(ctypes.c_int16)]
@@ -107,6 +110,9 @@ def _load(path: Path) -> ctypes.CDLL:
                                 ctypes.POINTER(ctypes.c_int32)]
     lib.ctlq_atan2.argtypes = [ctypes.c_int32, ctypes.c_int32]
     lib.ctlq_atan2.restype = ctypes.c_int32
+    lib.ctlq_angles_lite.argtypes = lib.ctlq_angles.argtypes
+    lib.ctlq_atan2_q15.argtypes = [ctypes.c_int32, ctypes.c_int32]
+    lib.ctlq_atan2_q15.restype = ctypes.c_int32
     return lib
 
 
@@ -192,12 +198,14 @@ class NativeIKFQ(QuaternionAnglesMixin):
     """ikf in fixed point, in C (firmware/board/ikf_q.c): InertialKalmanFilterQ's interface and bits."""
 
     native = True
+    lite = False
+    REFERENCE: type[InertialKalmanFilterQ] = InertialKalmanFilterQ
 
     def __init__(self, formats: Formats | None = None, lib: ctypes.CDLL | None = None, **params: float) -> None:
         self._lib = lib or library()
         if self._lib is None:
             raise RuntimeError(f"the C filter is not available: {why_not()}")
-        self.reference = InertialKalmanFilterQ(formats, **params)  # validates and holds the parameters; never run
+        self.reference = self.REFERENCE(formats, **params)  # validates and holds the parameters; never run
         self.f = self.reference.f
         p = self.reference.ref
         self._fmt = _Formats(*(getattr(self.f, n) for n in ("io", "dt", "quat", "bias", "vel", "drift", "cov")))
@@ -211,6 +219,8 @@ class NativeIKFQ(QuaternionAnglesMixin):
         self._lib.ikfq_init(self._s, ctypes.byref(self._fmt), ctypes.byref(self._par))
         if p.decimation != 1:
             self._lib.ikfq_set_decimation(self._s, p.decimation)
+        if self.lite:
+            self._lib.ikfq_set_lite(self._s, 1)
 
     def reset(self) -> None:
         self._lib.ikfq_reset(self._s)
@@ -235,7 +245,7 @@ class NativeIKFQ(QuaternionAnglesMixin):
 
     CONSTS = ("qg_shift", "q_g0", "k_rot", "drift_noise", "rest_r", "rest_g2", "rest_a2", "bias_max", "inv_g0",
               "lat_half", "pgg0", "pdd0", "g0_io", "swing_max", "swing_k", "rest_time", "dtq", "dt2q", "dthq", "krq",
-              "kbq", "decim")
+              "kbq", "decim", "lite")
 
     def consts(self, dt: float) -> dict[str, int]:
         """The integers ikfq_init and ikfq_set_dt derive (ikfq_consts_t), for a board's table: no doubles there."""
@@ -268,19 +278,28 @@ class NativeIKFQ(QuaternionAnglesMixin):
         return st["bx"] * s, st["by"] * s, st["bz"] * s
 
 
+class NativeIKFQL(NativeIKFQ):
+    """The variant cut to fit the Cortex-M0, in C (ikf_q.c with ``lite`` set): InertialKalmanFilterQL's bits."""
+
+    lite = True
+    REFERENCE = InertialKalmanFilterQL
+
+
 def python_state(f: InertialKalmanFilterQ) -> dict[str, int]:
     """The Python twin's integers in STATE_FIELDS' names."""
     out = {n: getattr(f, n) for n in STATE_FIELDS[:20] if n != "rest_t"}
     out.update(gl0=f.gl[0], gl1=f.gl[1], gl2=f.gl[2], al0=f.al[0], al1=f.al[1], al2=f.al[2], rest_t=f.rest_t,
                at_rest=int(f.at_rest), started=int(f._started))
+    out.update({n: getattr(f, n) for n in STATE_FIELDS[29:]})
     return {n: out[n] for n in STATE_FIELDS}
 
 
 def constants_c(dt: float = 0.0025) -> str:
-    """A C initializer of ikfq_consts_t for the default parameters and formats at ``dt``."""
-    c = NativeIKFQ().consts(dt)
+    """A C initializer of ikfq_consts_t for the default parameters and formats at ``dt``: ikf in fixed point as
+    make_filter gives it (the lite variant, its gravity part spread over 4 samples)."""
+    c = NativeIKFQL().consts(dt)
     body = ", ".join(f".{k} = {v}" for k, v in c.items())
-    return f"/* fcb_sim.native.constants_c(dt={dt!r}): ikf's defaults, ikf_fixed.Formats() */\n" \
+    return f"/* fcb_sim.native.constants_c(dt={dt!r}): ikf's defaults, ikf_fixed.Formats(), ikf_lite */\n" \
            f"static const ikfq_consts_t IKFQ_CONSTS = {{{body}}};"
 
 

@@ -28,6 +28,7 @@ from fcb_sim.estimation import (
     has_fixed_point,
     ikf,
     ikf_fixed,
+    ikf_lite,
     kalman,
     kalman_cov,
     make_filter,
@@ -87,6 +88,7 @@ _FIXED_OPS = {  # module: the primitives counted there, by the name the price ta
     fixed: {"smul": "mul", "mul": "mul", "sdiv": "div", "div": "div", "sqrt": "sqrt", "sadd": "sadd",
             "ssub": "sadd", "atan2_corrected": "atan2_correction"},
     ikf_fixed: {"mul": "mul", "div": "div", "sqrt": "sqrt", "_sat": "sat"},
+    ikf_lite: {"mul": "mul", "div": "div", "sqrt": "sqrt", "_sat": "sat", "qmul": "qmul"},
 }
 
 

@@ -351,7 +351,9 @@ REPORT_RAW_FILTER = "complementary"
 M0_CYCLES_FLOAT: dict[str, float] = {"add": 77, "mul": 62, "div": 83, "sqrt": 67, "sin": 584, "cos": 595,
                                      "atan2": 673, "asin": 673 + 67 + 62 + 77}
 M0_CYCLES_FIXED: dict[str, float] = {"add": 1, "mul": 40, "div": 180, "sqrt": 300, "sadd": 8, "sat": 4,
-                                     "atan2_correction": 150, "atan2": 180 + 4 * 40 + 20 + 150, "asin": 1000}
+                                     "atan2_correction": 150, "atan2": 180 + 4 * 40 + 20 + 150, "asin": 1000,
+                                     "qmul": 12}
+# "qmul": ikf_lite's truncated Q2.30 product, inlined: three MULS, four shifts, two halves, two additions [ASSUMED]
 # Operations per sample, update and the angles the control step reads (``python -m fcb_sim.opcount`` counts them
 # and prints this table; a test keeps the two equal).
 RAW_FILTER_OPS: dict[tuple[str, bool], dict[str, float]] = {
@@ -365,7 +367,7 @@ RAW_FILTER_OPS: dict[tuple[str, bool], dict[str, float]] = {
     ("kalman-cov", True): {"atan2_correction": 2.0, "div": 6.0, "mul": 33.0, "sadd": 35.0, "sqrt": 1.0},
     ("qgate", False): {"add": 110.0, "atan2": 4.0, "cos": 2.0, "div": 6.0, "mul": 161.0, "sin": 2.0, "sqrt": 6.0},
     ("ikf", False): {"add": 122.0, "atan2": 3.0, "cos": 2.0, "div": 5.0, "mul": 165.0, "sin": 2.0, "sqrt": 6.0},
-    ("ikf", True): {"add": 12.0, "atan2": 3.0, "div": 5.5, "mul": 167.0, "sat": 48.0, "sqrt": 4.5},
+    ("ikf", True): {"add": 12.0, "atan2": 3.0, "div": 1.2, "mul": 37.7, "qmul": 67.5, "sat": 10.8, "sqrt": 1.9},
 }
 
 
@@ -383,15 +385,20 @@ def raw_filter_us(name: str, fixed_point: bool = False) -> float:
 # ikf in Q16.16 (the update, the predicted attitude and the angles the control law reads); "control_raw" the
 # law and the mixing, Figure 14's control row. bench.profile measures them again and prints both; a test keeps
 # this table equal to a fresh emulation.
-# "filter/ikf/fixed/decimationN": the same with the gravity part every N-th sample (docs/attitude.md,
-# "Decimation"): a cheap sample and, every N-th, a full one (the p99); not the default (docs/board.md says why).
+# "filter/ikf/fixed" is the exact twin (ikf_fixed.py); "filter/ikf/fixed/decimationN" the same with the gravity
+# part every N-th sample (docs/attitude.md, "Decimation"): a cheap sample and, every N-th, a full one (the p99).
+# "filter/ikf/liteN" is the variant cut to fit (ikf_lite.py), its gravity part in four pieces spread over N
+# samples; lite4 is what ikf in fixed point runs (make_filter), so what the board charges for it.
 M0_EMULATED_US: dict[str, tuple[float, float]] = {
-    "filter/ikf/fixed": (1653.5, 1720.1),
+    "filter/ikf/fixed": (1665.8, 1733.1),
     "control_raw": (131.0, 159.6),
-    "filter/ikf/fixed/decimation4": (874.8, 1730.0),
-    "filter/ikf/fixed/decimation8": (742.5, 1730.2),
+    "filter/ikf/fixed/decimation4": (877.4, 1741.4),
+    "filter/ikf/fixed/decimation8": (743.5, 1741.8),
+    "filter/ikf/lite1": (822.4, 826.6),
+    "filter/ikf/lite4": (350.7, 392.6),
+    "filter/ikf/lite8": (272.1, 392.5),
 }
-EMULATED_FILTERS: dict[tuple[str, bool], str] = {("ikf", True): "filter/ikf/fixed"}
+EMULATED_FILTERS: dict[tuple[str, bool], str] = {("ikf", True): "filter/ikf/lite4"}
 MODEL_TOLERANCE = 0.2  # where the model and the emulation disagree by more, the model follows the emulation
 
 

@@ -177,7 +177,7 @@ def test_the_boards_filter_is_ikf_fixed_bit_for_bit_at_the_boards_dts() -> None:
     each measured dt) and ikf_fixed.py: the same integers after every sample."""
     import ctypes
 
-    from fcb_sim.estimation.ikf_fixed import InertialKalmanFilterQ
+    from fcb_sim.estimation.ikf_lite import InertialKalmanFilterQL
     from fcb_sim.native import STATE_FIELDS, python_state
 
     lib = ctypes.CDLL(str(cboard.library_path()))
@@ -186,7 +186,7 @@ def test_the_boards_filter_is_ikf_fixed_bit_for_bit_at_the_boards_dts() -> None:
     lib.ikfq_size.restype = ctypes.c_uint
     f = (ctypes.c_int64 * (lib.ikfq_size() // 8 + 4))()  # qb_ikf_t: an ikfq_t first, then the dt it was set for
     lib.qb_ikf_reset(f)
-    py = InertialKalmanFilterQ()
+    py = InertialKalmanFilterQL()  # ikf in fixed point: the variant that fits the M0
     out = (ctypes.c_int64 * len(STATE_FIELDS))()
     for i, s in enumerate(_board_filter_rows()):
         py.update(*s)
@@ -199,11 +199,11 @@ def test_the_boards_filter_is_ikf_fixed_bit_for_bit_at_the_boards_dts() -> None:
 def test_the_boards_constants_table_is_what_fcb_sim_native_prints() -> None:
     """qb_flight.c's IKF_CONSTS (ikf's defaults as integers, so the M0 links no double set-up) is still the table
     `python -m fcb_sim.native --constants 0.0025` prints."""
-    from fcb_sim.native import NativeIKFQ, library, why_not
+    from fcb_sim.native import NativeIKFQL, library, why_not
 
     if library() is None:
         pytest.skip(f"the C filter is not built here: {why_not()}")
     src = (FIRMWARE / "board" / "qb_flight.c").read_text()
     body = re.search(r"ikfq_consts_t IKF_CONSTS = \{(.*?)\};", src, re.S).group(1)
     table = {k: int(v) for k, v in re.findall(r"\.(\w+) = (-?\d+)", body)}
-    assert table == NativeIKFQ().consts(0.0025)
+    assert table == NativeIKFQL().consts(0.0025)

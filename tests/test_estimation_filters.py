@@ -152,7 +152,9 @@ def _synthetic_flight(seed: int = 1, seconds: float = 15.0):
 # complementary filter integrates tiny increments (K_acce = 0.001 is 66 LSB), so it differs most among the
 # first three; kalman-cov differs more because Q_bias dt (2.5e-6) is below the resolution, so the Q16.16
 # version never learns the bias (see kalman_cov.py).
-AGREEMENT_DEG = {"complementary": 0.1, "complementary-0.9": 0.02, "kalman": 0.02, "kalman-cov": 0.3, "ikf": 0.01}
+# ikf in fixed point is the variant that fits the M0 (its gravity part spread over 4 samples; 0.10° measured); its
+# exact twin agrees within 0.01° (tests/test_estimation_ikf.py)
+AGREEMENT_DEG = {"complementary": 0.1, "complementary-0.9": 0.02, "kalman": 0.02, "kalman-cov": 0.3, "ikf": 0.2}
 
 
 @pytest.mark.parametrize("name", [n for n in FILTERS if has_fixed_point(n)])

@@ -130,16 +130,17 @@ def test_replay_bad_options(tmp_path: Path, capsys: pytest.CaptureFixture) -> No
 # --- the board's own flash log ------------------------------------------------------------------------------
 
 
-def _raw_flight_log(tmp_path: Path, seconds: float = 12.0) -> tuple[Path, list[tuple[int, ...]]]:
+def _raw_flight_log(tmp_path: Path, seconds: float = 12.0,
+                    fixed: bool = False) -> tuple[Path, list[tuple[int, ...]]]:
     """A RAW-mode flight in the simulator, logged as the board's logging task does every control period from the
     end of CALIBRATION on (the on-board filter restarts there too), encoded into flash, downloaded and written as
-    term writes it (decode_to_rows, write_csv)."""
+    term writes it (decode_to_rows, write_csv); the board's filter in fixed point with ``fixed``."""
     from fcb_sim.flash_log import encode_log
     from fcb_sim.scenarios import Sim, _roll_stick
     from term.core.logfile import decode_to_rows, write_csv
     from term.core.protocol import Mode
 
-    sim = Sim(3)
+    sim = Sim(3, core_kw={"fixed_point": fixed})
     rows: list[tuple[int, ...]] = []
 
     def log(s: Sim) -> None:
@@ -167,8 +168,9 @@ def test_replay_the_boards_flash_log(tmp_path: Path, fixed: bool) -> None:
     0.25° RMS and 0.6° at worst while the quad swings ±13° (measured 0.15° and 0.20°). The replay sees the logged
     words (gyro to 4 LSB, accelerometer to 8, time to 32 µs), the board saw them unrounded; most of the
     difference is the log quantiser's ties-up rounding, which leaves a noisy 4-LSB word 0.5 LSB high on average:
-    a 0.03 °/s gyro bias the filter cannot learn in flight (no rest)."""
-    src, rows = _raw_flight_log(tmp_path)
+    a 0.03 °/s gyro bias the filter cannot learn in flight (no rest). In fixed point the board flies ikf's variant
+    that fits the M0 (its gravity part spread over 4 samples) and the replay runs the same."""
+    src, rows = _raw_flight_log(tmp_path, fixed=fixed)
     out = tmp_path / "out.csv"
     argv = ["replay-imu", str(src), "--out", str(out)] + (["--fixed-point"] if fixed else [])
     assert main(argv) == 0

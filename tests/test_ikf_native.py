@@ -174,8 +174,8 @@ def test_upside_down_start() -> None:
 
 
 def test_make_filter_picks_the_c_filter_and_the_reference_on_request() -> None:
-    assert isinstance(make_filter("ikf", fixed_point=True), NativeIKFQ)
-    assert type(make_filter("ikf", fixed_point=True, native=False)) is InertialKalmanFilterQ
+    assert isinstance(make_filter("ikf", fixed_point=True), NativeIKFQ)  # the lite variant (tests/test_ikf_lite.py)
+    assert isinstance(make_filter("ikf", fixed_point=True, native=False), InertialKalmanFilterQ)
     f = make_filter("ikf")
     assert isinstance(f, NativeIKF) and (f.tau, f.latency) == (4.5, 0.0025)  # the parameters read through
     assert type(make_filter("ikf", native=False)) is InertialKalmanFilter
@@ -188,7 +188,7 @@ def test_without_the_c_filter_the_python_one_runs() -> None:
             "why_not())")
     env = {**os.environ, "QUADRUPEL_PURE_PYTHON": "1"}
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, check=True)
-    assert out.stdout.strip() == "InertialKalmanFilterQ InertialKalmanFilter | QUADRUPEL_PURE_PYTHON is set"
+    assert out.stdout.strip() == "InertialKalmanFilterQL InertialKalmanFilter | QUADRUPEL_PURE_PYTHON is set"
 
 
 def test_a_filter_set_up_from_the_integers_alone_runs_the_same() -> None:
@@ -204,4 +204,5 @@ def test_a_filter_set_up_from_the_integers_alone_runs_the_same() -> None:
         g, acc = tuple(to_q(v, 16) for v in r[:3]), tuple(to_q(v, 16) for v in r[3:6])
         assert a.step_q(g, acc, r[6]) == b.step_q(g, acc, r[6])  # type: ignore[arg-type]
     assert a.state() == b.state()
-    assert ".dtq = 2684355" in constants_c(0.0025)  # 0.0025 in Q2.30
+    assert ".dtq = 10737418" in constants_c(0.0025)  # 4 x 0.0025 in Q2.30: the lite filter's gravity step
+    assert ".decim = 4, .lite = 1" in constants_c(0.0025)

@@ -117,7 +117,8 @@ def test_files_round_trip_and_diff(tmp_path: Path) -> None:
     assert text.startswith("# the report's board") and "[ctrl]\n" in text and 'attitude = "complementary"' in text
     assert load_file(path) == values
     assert [PARAMS[p].name for p in diff(values, preset_values("default"))] == [
-        "ctrl.height_d", "ctrl.height_i", "ctrl.height_p", "est.attitude", "est.height", "link.failsafe_ms",
+        "ctrl.height_d", "ctrl.height_i", "ctrl.height_p", "est.attitude", "est.fixed_point", "est.height",
+        "link.failsafe_ms",
         "link.heartbeat_ms", "link.queue_rule", "link.telemetry_hz", "log.scheme", "mode.calibration_ms",
         "mode.panic_countdown_ms", "sched.stick_reaction"]
 
@@ -237,6 +238,9 @@ def test_safe_only_parameters_are_refused_in_flight_and_gains_are_not() -> None:
 def test_the_parameters_own_rules() -> None:
     board = Board(BoardConfig(boot_hello=False))
     qgate = PARAMS[Param.ATTITUDE_FILTER].to_raw("qgate")
+    # fixed point is the default (ikf's variant that fits the M0): qgate, float only, needs it off first
+    assert cmd(board, Op.SET_PARAM, param_arg(Param.ATTITUDE_FILTER, qgate))[0] == Nak.BAD_ARGUMENT
+    assert cmd(board, Op.SET_PARAM, param_arg(Param.FIXED_POINT, 0))[0] == Nak.OK
     assert cmd(board, Op.SET_PARAM, param_arg(Param.ATTITUDE_FILTER, qgate))[0] == Nak.OK
     assert cmd(board, Op.SET_PARAM, param_arg(Param.FIXED_POINT, 1))[0] == Nak.BAD_ARGUMENT  # no fixed-point qgate
     board.log.start()

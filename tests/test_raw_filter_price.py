@@ -48,10 +48,10 @@ def test_the_report_filter_adds_nothing_and_ikf_costs_more() -> None:
     for fx in (False, True):
         assert RAW_FILTER_EXTRA_US[(REPORT_RAW_FILTER, fx)] == 0
         assert RAW_FILTER_EXTRA_US[("complementary-0.9", fx)] == 0  # the same arithmetic, another constant
-    # ikf in Q16.16: roughly 0.45-0.7 ms a sample (docs/attitude.md estimated 0.45 ms for the update alone)
-    assert 450 < raw_filter_us("ikf", True) < 750
-    # ikf in Q16.16 is charged its emulated cost (fcb_sim.m0emu: 2.5 times the priced one), float its priced one
-    assert RAW_FILTER_EXTRA_US[("ikf", True)] > 1000 and RAW_FILTER_EXTRA_US[("ikf", False)] > 400
+    # ikf in fixed point is the variant cut to fit the M0 (ikf_lite): priced 0.2-0.4 ms a sample, within 20 % of
+    # its emulated cost (fcb_sim.m0emu), so charged its price; float is priced, and costs far more
+    assert 200 < raw_filter_us("ikf", True) < 400
+    assert 100 < RAW_FILTER_EXTRA_US[("ikf", True)] < 300 and RAW_FILTER_EXTRA_US[("ikf", False)] > 1000
     with pytest.raises(KeyError):
         raw_filter_us("qgate", True)  # float only
 
@@ -62,4 +62,4 @@ def test_the_board_charges_the_filter_that_runs() -> None:
     assert report["filter"] == REPORT_RAW_FILTER and abs(report["tasks"]["sensor"]["mean_us"] - 1001) < 50
     extra = ikf_q["tasks"]["sensor"]["mean_us"] - report["tasks"]["sensor"]["mean_us"]
     assert abs(extra - RAW_FILTER_EXTRA_US[("ikf", True)]) < 30
-    assert ikf_q["cpu_load_pct"] > report["cpu_load_pct"] + 15
+    assert ikf_q["cpu_load_pct"] > report["cpu_load_pct"] + 5

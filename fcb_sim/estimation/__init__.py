@@ -8,9 +8,10 @@ then ``roll``, ``pitch``, ``yaw`` (rad, ZYX) and ``quaternion()`` (w, x, y, z, b
 The report's RAW-path filters come in float and in Q16.16 fixed point (``fixed_point=True``, libfixmath's semantics):
 ``complementary`` (K_gyro 0.999, as flown), ``complementary-0.9`` (Table 2), ``kalman`` ([13], Table 2),
 ``kalman-cov`` (TKJ with noise covariance, Table 2). Beyond the report: ``ikf`` (the default, ``BEST``;
-float and a fixed-point twin) tracks gravity with a small Kalman filter in an almost-inertial frame
-(:mod:`.ikf`, docs/attitude.md); ``qgate`` is the earlier quaternion filter with an earth-frame
-accelerometer low-pass and gate. The DMP path is :mod:`.dmp`, the height estimator :mod:`.height`.
+float, and in fixed point the variant cut to fit the Cortex-M0, :mod:`.ikf_lite`) tracks gravity with a small
+Kalman filter in an almost-inertial frame (:mod:`.ikf`, docs/attitude.md); ``qgate`` is the earlier quaternion
+filter with an earth-frame accelerometer low-pass and gate.
+The DMP path is :mod:`.dmp`, the height estimator :mod:`.height`.
 """
 
 from __future__ import annotations
@@ -22,7 +23,7 @@ from .complementary import K_GYRO_FLOWN, K_GYRO_TABLE2, ComplementaryFilter, Com
 from .dmp import quaternion_to_euler
 from .height import HeightEstimator
 from .ikf import InertialKalmanFilter
-from .ikf_fixed import InertialKalmanFilterQ
+from .ikf_lite import InertialKalmanFilterQL
 from .kalman import KalmanFilter, KalmanFilterQ16
 from .kalman_cov import KalmanCovFilter, KalmanCovFilterQ16
 from .qgate import QGateFilter
@@ -39,15 +40,16 @@ _FLOAT: dict[str, Callable[[], AttitudeFilter]] = {
 
 def _ikf(fixed_point: bool, native: bool | None) -> AttitudeFilter:
     """ikf: the C of firmware/board/ikf_f.c (doubles) or ikf_q.c (fixed point) where it builds (fcb_sim.native),
-    the same bits as the Python class, which runs otherwise or with ``native=False``."""
+    the same bits as the Python class, which runs otherwise or with ``native=False``. In fixed point it is the
+    variant that fits the Cortex-M0 (:mod:`.ikf_lite`; the exact twin is :class:`.ikf_fixed.InertialKalmanFilterQ`)."""
     if native is not False:
         from fcb_sim import native as c  # late: native imports this package's modules
 
         if c.library() is not None:
-            return c.NativeIKFQ() if fixed_point else c.NativeIKF()
+            return c.NativeIKFQL() if fixed_point else c.NativeIKF()
         if native:
             raise RuntimeError(f"the C filter is not available: {c.why_not()}")
-    return InertialKalmanFilterQ() if fixed_point else InertialKalmanFilter()
+    return InertialKalmanFilterQL() if fixed_point else InertialKalmanFilter()
 
 
 _FIXED: dict[str, Callable[[], AttitudeFilter]] = {

@@ -92,6 +92,8 @@ class Formats:
 class InertialKalmanFilterQ(QuaternionAnglesMixin):
     """:class:`~.ikf.InertialKalmanFilter` in fixed point (module docstring). Same parameters, same outputs."""
 
+    lite = False  # the variant cut to fit the Cortex-M0 is ikf_lite's subclass
+
     def __init__(self, formats: Formats | None = None, **params: float) -> None:
         self.f = formats or Formats()
         self.ref = InertialKalmanFilter(**params)  # holds the parameters (and validates them); never updated
@@ -128,6 +130,8 @@ class InertialKalmanFilterQ(QuaternionAnglesMixin):
         self.at_rest = False
         self._started = False
         self.phase = 0  # samples since the last gravity step
+        # between the pieces of a spread gravity step (ikf_lite): the sample's force and rate, and G_h
+        self.fx = self.fy = self.rate = self.gxh = self.gyh = 0
 
     # --- outputs (floats read back from the fixed-point state) ---
     def quaternion(self) -> tuple[float, float, float, float]:
@@ -253,32 +257,50 @@ class InertialKalmanFilterQ(QuaternionAnglesMixin):
 
     def _gravity(self, fx: int, fy: int, rate: int, dtq: int, dt2q: int) -> tuple[int, int]:
         """Step 3: the Kalman filter on (V, G_h, D), fed the horizontal specific force (Q.io) and the turn rate
-        (Q.io); returns G_h (Q.vel)."""
+        (Q.io); returns G_h (Q.vel). In two halves (predict, correct) that a spread filter runs apart
+        (:mod:`.ikf_lite`); between them the state holds the predicted V, G_h and covariance."""
+        self._predict(fx, fy, rate, dtq, dt2q)
+        self._correct(dtq)
+        return self.gxh, self.gyh
+
+    def _predict(self, fx: int, fy: int, rate: int, dtq: int, dt2q: int) -> None:
+        """The Kalman filter's prediction: V, G_h and the covariance carried over the step, kept in the state."""
         F = self.f
         io, vb, db, cb = F.io, F.vel, F.drift, F.cov
         e = mul(rate, dtq, io + F.dt - cb)  # radians this step, Q.cov
-        vx = _sat(self.vx + mul(fx, dtq, io + F.dt - vb))
-        vy = _sat(self.vy + mul(fy, dtq, io + F.dt - vb))
-        gxh = mul(self.dx, e, db + cb - vb)
-        gyh = mul(self.dy, e, db + cb - vb)
+        self.vx = _sat(self.vx + mul(fx, dtq, io + F.dt - vb))
+        self.vy = _sat(self.vy + mul(fy, dtq, io + F.dt - vb))
+        self.gxh = mul(self.dx, e, db + cb - vb)
+        self.gyh = mul(self.dy, e, db + cb - vb)
         pvv, pvg, pvd, pgg, pgd, pdd = self.pvv, self.pvg, self.pvd, self.pgg, self.pgd, self.pdd
         sd = F.dt  # dt is Q.dt, covariances Q.cov: (P * dt) >> dt stays Q.cov
-        a_vv = _sat(pvv - 2 * mul(pvg, dtq, sd) + mul(pgg, dt2q, sd))
-        a_vg = _sat(pvg + mul(e, pvd, cb) - mul(pgg, dtq, sd) - mul(mul(e, pgd, cb), dtq, sd))
-        a_vd = _sat(pvd - mul(pgd, dtq, sd))
+        self.pvv = _sat(pvv - 2 * mul(pvg, dtq, sd) + mul(pgg, dt2q, sd))
+        self.pvg = _sat(pvg + mul(e, pvd, cb) - mul(pgg, dtq, sd) - mul(mul(e, pgd, cb), dtq, sd))
+        self.pvd = _sat(pvd - mul(pgd, dtq, sd))
         q_dt = mul(self._q_g0, dtq, self._qg_shift + sd)  # Q.cov
         noise = _sat(q_dt + mul(mul(q_dt, self._k_rot, io), rate, io))
-        a_gg = _sat(pgg + 2 * mul(e, pgd, cb) + mul(mul(e, e, cb), pdd, cb) + noise)
-        a_gd = _sat(pgd + mul(e, pdd, cb))
-        a_dd = _sat(pdd + mul(self._drift_noise, e, cb + 16))
+        self.pgg = _sat(pgg + 2 * mul(e, pgd, cb) + mul(mul(e, e, cb), pdd, cb) + noise)
+        self.pgd = _sat(pgd + mul(e, pdd, cb))
+        self.pdd = _sat(pdd + mul(self._drift_noise, e, cb + 16))
+
+    def _correct(self, dtq: int) -> None:
+        """The Kalman filter's update with the pseudo measurement V = 0, on the predicted state."""
+        F = self.f
+        vb, db, cb, sd = F.vel, F.drift, F.cov, F.dt
+        vx, vy = self.vx, self.vy
+        a_vv, a_vg, a_vd, a_gg, a_gd, a_dd = self.pvv, self.pvg, self.pvd, self.pgg, self.pgd, self.pdd
         # gain K = dt a / (dt a_vv + r), r = 1 (rest_r at rest): dt scaled so nothing exceeds the format
         r = self._rest_r if self.at_rest else 1 << cb
         den = _sat(mul(a_vv, dtq, sd) + r)
-        kv = div(mul(a_vv, dtq, sd), den, cb)
-        kg = div(mul(a_vg, dtq, sd), den, cb)
-        kd = div(mul(a_vd, dtq, sd), den, cb)
-        gxh = _sat(gxh - mul(kg, vx, cb))
-        gyh = _sat(gyh - mul(kg, vy, cb))
+        if self.lite:  # one division (ikf_lite): 1 / den in Q8.24 (den >= rest_r), then three products
+            inv = div(1 << cb, den, 24)
+            kv, kg, kd = (mul(mul(a, dtq, sd), inv, 24) for a in (a_vv, a_vg, a_vd))
+        else:
+            kv = div(mul(a_vv, dtq, sd), den, cb)
+            kg = div(mul(a_vg, dtq, sd), den, cb)
+            kd = div(mul(a_vd, dtq, sd), den, cb)
+        self.gxh = _sat(self.gxh - mul(kg, vx, cb))
+        self.gyh = _sat(self.gyh - mul(kg, vy, cb))
         self.dx = _sat(self.dx - mul(kd, vx, cb + vb - db))
         self.dy = _sat(self.dy - mul(kd, vy, cb + vb - db))
         self.vx = _sat(vx - mul(kv, vx, cb))
@@ -289,7 +311,6 @@ class InertialKalmanFilterQ(QuaternionAnglesMixin):
         self.pgg = _sat(a_gg - mul(kg, a_vg, cb))
         self.pgd = _sat(a_gd - mul(kg, a_vd, cb))
         self.pdd = _sat(a_dd - mul(kd, a_vd, cb))
-        return gxh, gyh
 
     def _rebase(self, w: int, x: int, y: int, z: int, gxh: int, gyh: int) -> None:
         """Step 4: the swing that makes (gxh, gyh, g0) vertical, VQF's form (sqrt((1+uz)/2), uy/2c, -ux/2c, 0),

@@ -113,6 +113,46 @@ void ctlq_angles(const int32_t q[4], int32_t *phi, int32_t *theta)
     *theta = -ctlq_atan2((int32_t)s, (int32_t)cc);
 }
 
+/* --- the angles cheaply (fcb_sim/estimation/ikf_lite.py: atan2_q15, angles_lite, bit for bit) ------------- */
+
+static const int32_t ATAN_C[4] = {32744, -10533, 4804, -1282}; /* atan(t) ~ t (c1 + c3 t^2 + ...), Q15 */
+
+int32_t ctlq_atan2_q15(int32_t y, int32_t x)
+{
+    uint32_t ay = y < 0 ? 0u - (uint32_t)y : (uint32_t)y, ax = x < 0 ? 0u - (uint32_t)x : (uint32_t)x, mn, mx;
+    int32_t t, t2, p, a;
+    mn = ay <= ax ? ay : ax;
+    mx = ay <= ax ? ax : ay;
+    if (mx == 0)
+        return 0;
+    while (mx >= UINT32_C(1) << 16) {
+        mn >>= 1;
+        mx >>= 1;
+    }
+    t = (int32_t)((mn << 15) / mx); /* one 32-bit division: libgcc's __aeabi_uidiv on the M0 */
+    t2 = (t * t) >> 15;
+    p = ATAN_C[2] + ((ATAN_C[3] * t2) >> 15);
+    p = ATAN_C[1] + ((p * t2) >> 15);
+    p = ATAN_C[0] + ((p * t2) >> 15);
+    a = (p * t) >> 15;
+    if (ay > ax)
+        a = 51472 - a; /* pi/2, Q15 */
+    if (x < 0)
+        a = 102944 - a; /* pi */
+    return y < 0 ? -a : a;
+}
+
+void ctlq_angles_lite(const int32_t q[4], int32_t *phi, int32_t *theta)
+{
+    int32_t w = q[0] >> 15, x = q[1] >> 15, y = q[2] >> 15, z = q[3] >> 15, sr, cr, sp, cp;
+    sr = ((w * x) >> 14) + ((y * z) >> 14);
+    cr = 32768 - ((x * x) >> 14) - ((y * y) >> 14);
+    sp = ((w * y) >> 14) - ((x * z) >> 14);
+    cp = (int32_t)isqrt32((uint32_t)sr * (uint32_t)sr + (uint32_t)cr * (uint32_t)cr); /* cos(pitch), roll legs */
+    *phi = 2 * ctlq_atan2_q15(sr, cr);
+    *theta = -2 * ctlq_atan2_q15(sp, cp);
+}
+
 static int32_t isqrt_nr(int32_t a)
 {
     uint32_t bits = 0, v, t = (uint32_t)a;

@@ -23,6 +23,10 @@ typedef struct {
 int32_t ctlq_atan2(int32_t y, int32_t x);
 /* phi (roll) and theta (minus the z-up pitch), Q16.16 rad, from a Q2.30 quaternion (body to earth, z up). */
 void ctlq_angles(const int32_t q[4], int32_t *phi, int32_t *theta);
+/* The same from the quaternion's top 16 bits (fcb_sim/estimation/ikf_lite.py, angles_lite): an atan2 from one
+ * 32-bit division and a 7th-order polynomial (0.011 deg at most), the pitch's cosine by a 32-bit root. */
+int32_t ctlq_atan2_q15(int32_t y, int32_t x); /* any common scale in, Q15 radians out */
+void ctlq_angles_lite(const int32_t q[4], int32_t *phi, int32_t *theta);
 /* control.mix: lift Z (negative up) and moments L, M, N in ae^2 to ae1..ae4, at least idle while armed. */
 void ctlq_mix(int32_t z, int32_t l, int32_t m, int32_t n, int32_t idle, int16_t ae[4]);
 /* The control law alone (what Figure 14's control row holds): cascade, yaw rate, lift, mixing, on the angles

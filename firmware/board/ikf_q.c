@@ -13,6 +13,14 @@
 
 /* FMT(s): the filter's formats. Built with -DIKFQ_DEFAULT_FORMATS (the C board) they are ikf_fixed.Formats()'s
  * at compile time, whatever the set-up was given: every shift is then an immediate (0.4 KB less on the Cortex-M0). */
+/* LITE(s): the variant that fits the Cortex-M0 (ikfq_set_lite). Built with -DIKFQ_LITE_ONLY (the C board, which
+ * runs it alone) the exact twin's paths fold away: 2 KB less flash. */
+#ifdef IKFQ_LITE_ONLY
+#define LITE(s) 1
+#else
+#define LITE(s) ((s)->lite)
+#endif
+
 #ifdef IKFQ_DEFAULT_FORMATS
 static const ikfq_formats_t DEFAULT_FORMATS = {16, 30, 30, 24, 24, 28, 30};
 #define FMT(s) DEFAULT_FORMATS
@@ -23,6 +31,16 @@ static const ikfq_formats_t DEFAULT_FORMATS = {16, 30, 30, 24, 24, 28, 30};
 static int32_t sat(int64_t v)
 {
     return v > I32_MAX ? I32_MAX : v < I32_MIN ? I32_MIN : (int32_t)v;
+}
+
+/* v << up saturated, in 32-bit operations (a 64-bit product is a libgcc call on the M0) */
+static int32_t shl_sat(int32_t v, int up)
+{
+    if (v > (I32_MAX >> up))
+        return I32_MAX;
+    if (v < (I32_MIN >> up))
+        return I32_MIN;
+    return (int32_t)((uint32_t)v << up);
 }
 
 static uint64_t mag(int64_t v)
@@ -214,6 +232,13 @@ void ikfq_init(ikfq_t *s, const ikfq_formats_t *f, const ikfq_params_t *p)
     s->rest_tau_ = p->rest_tau;
     s->rest_bias_tau_ = p->rest_bias_tau;
     s->decim = 1;
+    s->lite = 0;
+    ikfq_reset(s);
+}
+
+void ikfq_set_lite(ikfq_t *s, int32_t on)
+{
+    s->lite = on != 0;
     ikfq_reset(s);
 }
 
@@ -249,6 +274,7 @@ void ikfq_init_q(ikfq_t *s, const ikfq_formats_t *f, const ikfq_consts_t *c)
     s->krq = c->krq;
     s->kbq = c->kbq;
     s->decim = c->decim > 1 ? c->decim : 1;
+    s->lite = c->lite != 0;
     s->dt_last = 0.0; /* ikfq_update (host) would derive them again from its dt; ikfq_step keeps these */
     s->rest_tau_ = s->rest_bias_tau_ = 0.0;
     s->from_table = 1;
@@ -279,6 +305,7 @@ void ikfq_consts(const ikfq_t *s, ikfq_consts_t *c)
     c->krq = s->krq;
     c->kbq = s->kbq;
     c->decim = s->decim;
+    c->lite = s->lite;
 }
 
 void ikfq_reset(ikfq_t *s)
@@ -299,6 +326,7 @@ void ikfq_reset(ikfq_t *s)
     s->at_rest = 0;
     s->started = 0;
     s->phase = 0;
+    s->fx = s->fy = s->rate = s->gxh = s->gyh = 0;
 }
 
 void ikfq_set_dt(ikfq_t *s, double dt)
@@ -340,6 +368,9 @@ static void rotate(const ikfq_t *s, int64_t hx, int64_t hy, int64_t hz, int32_t 
     out[3] = sat((int64_t)MUL(w, dz, qb) + MUL(x, dy, qb) - MUL(y, dx, qb) + MUL(z, c, qb));
 }
 
+static void rotate_lite(const ikfq_t *s, int32_t hx, int32_t hy, int32_t hz, int32_t out[4]);
+static void half_step(const int64_t w[3], int32_t k, int32_t h[3]);
+
 void ikfq_predicted(const ikfq_t *s, int32_t q[4])
 {
     unsigned sh = FMT(s).bias + FMT(s).dt - FMT(s).quat;
@@ -351,7 +382,13 @@ void ikfq_predicted(const ikfq_t *s, int32_t q[4])
         q[3] = s->qz;
         return;
     }
-    rotate(s, ikfq_mul(s->rx, lat, sh), ikfq_mul(s->ry, lat, sh), ikfq_mul(s->rz, lat, sh), q);
+    if (LITE(s)) {
+        const int64_t w[3] = {s->rx, s->ry, s->rz};
+        int32_t h[3];
+        half_step(w, s->lat_half, h);
+        rotate_lite(s, h[0], h[1], h[2], q);
+    } else
+        rotate(s, ikfq_mul(s->rx, lat, sh), ikfq_mul(s->ry, lat, sh), ikfq_mul(s->rz, lat, sh), q);
 }
 
 static int32_t clamp(int32_t v, int32_t m)
@@ -359,64 +396,84 @@ static int32_t clamp(int32_t v, int32_t m)
     return v > m ? m : v < -m ? -m : v;
 }
 
+/* y + k (x - y), saturated: a step of the rest low-passes and of the bias at rest */
+static int32_t lowpass(int32_t y, int64_t x, int32_t k, unsigned cb)
+{
+    return sat(y + (int64_t)ikfq_mul(k, x - y, cb));
+}
+
 /* Step 1: rest detection and the bias at rest (gyro g in Q.bias, accelerometer a in Q.io) */
 static void rest(ikfq_t *s, const int32_t g[3], const int32_t a[3])
 {
     unsigned io = FMT(s).io, cb = FMT(s).cov;
     int64_t dg = 0, da = 0;
-    int32_t m = s->bias_max;
-    int i, still;
-    for (i = 0; i < 3; i++)
-        s->gl[i] = sat(s->gl[i] + (int64_t)ikfq_mul(s->krq, (int64_t)g[i] - s->gl[i], cb));
-    for (i = 0; i < 3; i++)
-        s->al[i] = sat(s->al[i] + (int64_t)ikfq_mul(s->krq, (int64_t)a[i] - s->al[i], cb));
+    int32_t m = s->bias_max, *b[3];
+    int i, inside = 1;
+    b[0] = &s->bx;
+    b[1] = &s->by;
+    b[2] = &s->bz;
     for (i = 0; i < 3; i++) {
-        int64_t d = (int64_t)g[i] - s->gl[i], e = (int64_t)a[i] - s->al[i];
+        int64_t d, e;
+        s->gl[i] = lowpass(s->gl[i], g[i], s->krq, cb);
+        s->al[i] = lowpass(s->al[i], a[i], s->krq, cb);
+        d = (int64_t)g[i] - s->gl[i];
+        e = (int64_t)a[i] - s->al[i];
         dg += ikfq_mul(d, d, 16);
         da += ikfq_mul(e, e, io);
+        inside = inside && -m < s->gl[i] && s->gl[i] < m;
     }
-    still = sat(dg) < s->rest_g2 && sat(da) < s->rest_a2;
-    for (i = 0; i < 3; i++)
-        still = still && -m < s->gl[i] && s->gl[i] < m;
-    if (still)
+    if (sat(dg) < s->rest_g2 && sat(da) < s->rest_a2 && inside)
         s->rest_t = s->rest_t + s->dtq < s->rest_time ? s->rest_t + s->dtq : s->rest_time;
     else
         s->rest_t = 0;
     s->at_rest = s->rest_t >= s->rest_time;
-    if (s->at_rest) {
-        s->bx = sat(s->bx + (int64_t)ikfq_mul(s->kbq, (int64_t)s->gl[0] - s->bx, cb));
-        s->by = sat(s->by + (int64_t)ikfq_mul(s->kbq, (int64_t)s->gl[1] - s->by, cb));
-        s->bz = sat(s->bz + (int64_t)ikfq_mul(s->kbq, (int64_t)s->gl[2] - s->bz, cb));
-    }
+    for (i = 0; i < 3 && s->at_rest; i++)
+        *b[i] = lowpass(*b[i], s->gl[i], s->kbq, cb);
 }
 
-/* Step 3: the Kalman filter on (V, G_h, D), fed the horizontal specific force and the turn rate (Q.io) */
-static void gravity(ikfq_t *s, int32_t fx, int32_t fy, int64_t rate, int32_t *gxh_out, int32_t *gyh_out)
+/* Step 3: the Kalman filter on (V, G_h, D), fed the horizontal specific force and the turn rate (Q.io). In two
+ * halves a spread filter runs apart (ikf_lite.py): the prediction leaves V, G_h and the covariance in the state. */
+static void predict(ikfq_t *s, int32_t fx, int32_t fy, int64_t rate)
 {
     unsigned io = FMT(s).io, vb = FMT(s).vel, db = FMT(s).drift, cb = FMT(s).cov, sd = FMT(s).dt;
     int64_t dtq = s->dtq, dt2q = s->dt2q;
     int32_t e = ikfq_mul(rate, dtq, io + sd - cb);
-    int32_t vx = sat(s->vx + (int64_t)MUL(fx, dtq, io + sd - vb));
-    int32_t vy = sat(s->vy + (int64_t)MUL(fy, dtq, io + sd - vb));
-    int32_t gxh = MUL(s->dx, e, db + cb - vb), gyh = MUL(s->dy, e, db + cb - vb);
-    int32_t pvv = s->pvv, pvg = s->pvg, pvd = s->pvd, pgg = s->pgg, pgd = s->pgd, pdd = s->pdd;
-    int32_t a_vv, a_vg, a_vd, a_gg, a_gd, a_dd, q_dt, noise, r, den, kv, kg, kd;
-    a_vv = sat(pvv - 2 * (int64_t)MUL(pvg, dtq, sd) + MUL(pgg, dt2q, sd));
-    a_vg = sat((int64_t)pvg + MUL(e, pvd, cb) - MUL(pgg, dtq, sd)
-               - MUL(MUL(e, pgd, cb), dtq, sd));
-    a_vd = sat(pvd - (int64_t)MUL(pgd, dtq, sd));
+    int32_t pvv = s->pvv, pvg = s->pvg, pvd = s->pvd, pgg = s->pgg, pgd = s->pgd, pdd = s->pdd, q_dt, noise;
+    s->vx = sat(s->vx + (int64_t)MUL(fx, dtq, io + sd - vb));
+    s->vy = sat(s->vy + (int64_t)MUL(fy, dtq, io + sd - vb));
+    s->gxh = MUL(s->dx, e, db + cb - vb);
+    s->gyh = MUL(s->dy, e, db + cb - vb);
+    s->pvv = sat(pvv - 2 * (int64_t)MUL(pvg, dtq, sd) + MUL(pgg, dt2q, sd));
+    s->pvg = sat((int64_t)pvg + MUL(e, pvd, cb) - MUL(pgg, dtq, sd) - MUL(MUL(e, pgd, cb), dtq, sd));
+    s->pvd = sat(pvd - (int64_t)MUL(pgd, dtq, sd));
     q_dt = MUL(s->q_g0, dtq, (unsigned)(s->qg_shift + (int32_t)sd));
     noise = sat(q_dt + (int64_t)ikfq_mul(MUL(q_dt, s->k_rot, io), rate, io));
-    a_gg = sat(pgg + 2 * (int64_t)MUL(e, pgd, cb) + MUL(MUL(e, e, cb), pdd, cb) + noise);
-    a_gd = sat(pgd + (int64_t)MUL(e, pdd, cb));
-    a_dd = sat(pdd + (int64_t)MUL(s->drift_noise, e, cb + 16u));
+    s->pgg = sat(pgg + 2 * (int64_t)MUL(e, pgd, cb) + MUL(MUL(e, e, cb), pdd, cb) + noise);
+    s->pgd = sat(pgd + (int64_t)MUL(e, pdd, cb));
+    s->pdd = sat(pdd + (int64_t)MUL(s->drift_noise, e, cb + 16u));
+}
+
+/* ... and the update with the pseudo measurement V = 0 on the predicted state; G_h (Q.vel) left in gxh, gyh */
+static void correct(ikfq_t *s)
+{
+    unsigned vb = FMT(s).vel, db = FMT(s).drift, cb = FMT(s).cov, sd = FMT(s).dt;
+    int64_t dtq = s->dtq;
+    int32_t vx = s->vx, vy = s->vy, a_vv = s->pvv, a_vg = s->pvg, a_vd = s->pvd, a_gg = s->pgg, a_gd = s->pgd;
+    int32_t a_dd = s->pdd, r, den, kv, kg, kd;
     r = s->at_rest ? s->rest_r : (int32_t)(INT32_C(1) << cb);
     den = sat((int64_t)MUL(a_vv, dtq, sd) + r);
-    kv = ikfq_div(MUL(a_vv, dtq, sd), den, cb);
-    kg = ikfq_div(MUL(a_vg, dtq, sd), den, cb);
-    kd = ikfq_div(MUL(a_vd, dtq, sd), den, cb);
-    *gxh_out = sat(gxh - (int64_t)MUL(kg, vx, cb));
-    *gyh_out = sat(gyh - (int64_t)MUL(kg, vy, cb));
+    if (LITE(s)) { /* one division: 1 / den in Q8.24 (den >= rest_r), then three products */
+        int32_t inv = ikfq_div(INT64_C(1) << cb, den, 24);
+        kv = MUL(MUL(a_vv, dtq, sd), inv, 24);
+        kg = MUL(MUL(a_vg, dtq, sd), inv, 24);
+        kd = MUL(MUL(a_vd, dtq, sd), inv, 24);
+    } else {
+        kv = ikfq_div(MUL(a_vv, dtq, sd), den, cb);
+        kg = ikfq_div(MUL(a_vg, dtq, sd), den, cb);
+        kd = ikfq_div(MUL(a_vd, dtq, sd), den, cb);
+    }
+    s->gxh = sat(s->gxh - (int64_t)MUL(kg, vx, cb));
+    s->gyh = sat(s->gyh - (int64_t)MUL(kg, vy, cb));
     s->dx = sat(s->dx - (int64_t)MUL(kd, vx, cb + vb - db));
     s->dy = sat(s->dy - (int64_t)MUL(kd, vy, cb + vb - db));
     s->vx = sat(vx - (int64_t)MUL(kv, vx, cb));
@@ -467,6 +524,221 @@ static void rebase(ikfq_t *s, const int32_t q[4], int32_t gxh, int32_t gyh)
     s->qz = MUL(z, k, qb);
 }
 
+/* --- the variant cut to fit the Cortex-M0 (fcb_sim/estimation/ikf_lite.py says what and why) ------------------ */
+
+#define ONE30 (INT32_C(1) << 30)
+#define R28 (INT32_C(1) << 28)
+#define R30 (INT64_C(1) << 30)
+#define R27 (INT32_C(1) << 27)
+#define SIXTH_Q30 INT32_C(178956971)
+#define C24_Q30 INT32_C(44739243) /* 2^30 / 24 */
+#define C120_Q30 INT32_C(8947849) /* 2^30 / 120 */
+#define PIECES 4
+
+/* (a b) >> 30 of two Q2.30 from three 16x16 MULS, the low halves' product dropped, wrapped as ikf_lite.qmul */
+static inline __attribute__((always_inline)) int32_t qmul(int32_t a, int32_t b)
+{
+    int32_t ah = a >> 16, bh = b >> 16;
+    int32_t al = (int32_t)((uint32_t)a & 0xFFFFu), bl = (int32_t)((uint32_t)b & 0xFFFFu);
+    return (int32_t)((uint32_t)(ah * bh) * 4u + (uint32_t)((ah * bl) >> 14) + (uint32_t)((al * bh) >> 14));
+}
+
+/* The same as a call: the gravity part's pieces (once in decim samples) take it, 1.5 KB less flash than inlined */
+static __attribute__((noinline)) int32_t qmulf(int32_t a, int32_t b)
+{
+    return qmul(a, b);
+}
+
+static uint32_t isqrt32(uint32_t n) /* floor */
+{
+    uint32_t r = 0, bit = UINT32_C(1) << 30;
+    while (bit > n)
+        bit >>= 2;
+    while (bit) {
+        if (n >= r + bit) {
+            n -= r + bit;
+            r = (r >> 1) + bit;
+        } else {
+            r >>= 1;
+        }
+        bit >>= 2;
+    }
+    return r;
+}
+
+/* The half-step vector w k >> 24 (Q2.30 from a Q8.24 rate and a Q2.30 half step k): qmul(w, k << 6) while k is
+ * below 2^24 (dt under 31 ms) and |w| below 2^30 (64 rad/s), else the exact product */
+static void half_step(const int64_t w[3], int32_t k, int32_t h[3])
+{
+    int i;
+    if (k < (INT32_C(1) << 24) && -R30 < w[0] && w[0] < R30 && -R30 < w[1] && w[1] < R30 && -R30 < w[2] && w[2] < R30) {
+        for (i = 0; i < 3; i++)
+            h[i] = qmul((int32_t)w[i], k << 6);
+    } else {
+        for (i = 0; i < 3; i++)
+            h[i] = ikfq_mul(w[i], k, 24);
+    }
+}
+
+/* a (x) b, each term a qmul, the sums in 32 bits (wrapped, as ikf_lite.qprod: of unit quaternions and steps they
+ * stay below 1.01 * 2^30): the strapdown's, the prediction's and the rebase's product, one copy of its 16 inlined
+ * products (the board's flash goal) */
+static __attribute__((noinline)) void qprod(const int32_t a[4], const int32_t b[4], int32_t out[4])
+{
+    out[0] = (int32_t)((uint32_t)qmul(a[0], b[0]) - (uint32_t)qmul(a[1], b[1]) - (uint32_t)qmul(a[2], b[2])
+                       - (uint32_t)qmul(a[3], b[3]));
+    out[1] = (int32_t)((uint32_t)qmul(a[0], b[1]) + (uint32_t)qmul(a[1], b[0]) + (uint32_t)qmul(a[2], b[3])
+                       - (uint32_t)qmul(a[3], b[2]));
+    out[2] = (int32_t)((uint32_t)qmul(a[0], b[2]) - (uint32_t)qmul(a[1], b[3]) + (uint32_t)qmul(a[2], b[0])
+                       + (uint32_t)qmul(a[3], b[1]));
+    out[3] = (int32_t)((uint32_t)qmul(a[0], b[3]) + (uint32_t)qmul(a[1], b[2]) - (uint32_t)qmul(a[2], b[1])
+                       + (uint32_t)qmul(a[3], b[0]));
+}
+
+/* q (x) (cos h, sin h * axis) by the 2nd-order series; a half step over 0.25 rad is clipped as rotate() does */
+static void rotate_lite(const ikfq_t *s, int32_t hx, int32_t hy, int32_t hz, int32_t out[4])
+{
+    const int32_t q[4] = {s->qw, s->qx, s->qy, s->qz};
+    int32_t h2, sn, r[4];
+    if (-R28 < hx && hx < R28 && -R28 < hy && hy < R28 && -R28 < hz && hz < R28)
+        h2 = qmulf(hx, hx) + qmulf(hy, hy) + qmulf(hz, hz);
+    else
+        h2 = ONE30;
+    if (h2 > ONE30 >> 4) {
+        int64_t e2 = (int64_t)MUL(hx, hx, 30) + MUL(hy, hy, 30) + MUL(hz, hz, 30);
+        int32_t k = ikfq_div(ONE30 >> 2, ikfq_sqrt(e2, 30), 30);
+        hx = MUL(hx, k, 30);
+        hy = MUL(hy, k, 30);
+        hz = MUL(hz, k, 30);
+        h2 = ONE30 >> 4;
+    }
+    r[0] = ONE30 - (h2 >> 1);
+    sn = ONE30 - qmulf(h2, SIXTH_Q30);
+    if (h2 > ONE30 >> 8) { /* a half step over 0.0625 rad (80 rad/s at 400 Hz, or a long dt): 4th order too */
+        int32_t h4 = qmulf(h2, h2);
+        r[0] += qmulf(h4, C24_Q30);
+        sn += qmulf(h4, C120_Q30);
+    }
+    r[1] = qmulf(hx, sn);
+    r[2] = qmulf(hy, sn);
+    r[3] = qmulf(hz, sn);
+    qprod(q, r, out);
+}
+
+/* The turn rate (a 32-bit root), and apart (the next piece) the horizontal specific force in the earth frame:
+ * what the prediction takes */
+static void rate_lite(ikfq_t *s, int64_t wx, int64_t wy, int64_t wz)
+{
+    unsigned io = FMT(s).io, bb = FMT(s).bias;
+    int32_t r2 = sat((int64_t)ikfq_mul(wx, wx, 2 * bb - io) + ikfq_mul(wy, wy, 2 * bb - io)
+                     + ikfq_mul(wz, wz, 2 * bb - io));
+    s->rate = (int32_t)(isqrt32((uint32_t)r2) << 8);
+}
+
+static void force_lite(ikfq_t *s, const int32_t a[3])
+{
+    const int32_t q[4] = {s->qw, s->qx, s->qy, s->qz};
+    const int32_t qc[4] = {s->qw, (int32_t)(0u - (uint32_t)s->qx), (int32_t)(0u - (uint32_t)s->qy),
+                           (int32_t)(0u - (uint32_t)s->qz)};
+    int32_t v[4], p[4], e[4], i;
+    v[0] = 0;
+    for (i = 0; i < 3; i++) /* 2048 m/s^2 (no sensor reads more): the sums stay far from 2^31 */
+        v[1 + i] = clamp(a[i], R27 - 1);
+    qprod(q, v, p); /* q (x) (0, a) (x) q*: the specific force in the earth frame, by the product's one copy */
+    qprod(p, qc, e);
+    s->fx = e[1];
+    s->fy = e[2];
+}
+
+/* q turned by the 2nd-order swing (1 - |u|^2/8, uy/2, -ux/2, 0), then the Newton normalisation */
+static void rebase_lite(ikfq_t *s)
+{
+    unsigned vb = FMT(s).vel;
+    int32_t ux = clamp(MUL(s->gxh, s->inv_g0, vb), ONE30 - 1), uy = clamp(MUL(s->gyh, s->inv_g0, vb), ONE30 - 1);
+    int32_t c[4], q[4] = {s->qw, s->qx, s->qy, s->qz}, o[4], w, x, y, z, k, passes;
+    int64_t uh2 = (int64_t)qmulf(ux, ux) + qmulf(uy, uy), n2;
+    if (uh2 > s->swing_max) { /* at most a 64 degree step (never in use) */
+        int32_t kk = ikfq_div(s->swing_k, ikfq_sqrt(uh2, 30), 30);
+        ux = MUL(ux, kk, 30);
+        uy = MUL(uy, kk, 30);
+        uh2 = s->swing_max;
+    }
+    c[0] = ONE30 - (int32_t)(uh2 >> 3);
+    c[1] = uy >> 1;
+    c[2] = -(ux >> 1);
+    c[3] = 0;
+    qprod(c, q, o); /* c (x) q: the swing in the earth frame */
+    w = o[0];
+    x = o[1];
+    y = o[2];
+    z = o[3];
+    n2 = (int64_t)qmulf(w, w) + qmulf(x, x) + qmulf(y, y) + qmulf(z, z);
+    if (n2 <= 0) { /* never in use: a lost attitude starts level */
+        s->qw = ONE30;
+        s->qx = s->qy = s->qz = 0;
+        return;
+    }
+    /* Newton steps of 1 / sqrt(n2) from 1, n2 held within [1/2, 3/2]: one (n2 is 1 within 1e-6), two after a
+     * swing clipped at 64 deg (n2 1.01 from the 2nd-order swing) or a wilder norm */
+    passes = n2 - ONE30 > ONE30 >> 12 || ONE30 - n2 > ONE30 >> 12 ? 2 : 1;
+    while (passes--) {
+        n2 = n2 < ONE30 >> 1 ? ONE30 >> 1 : n2 > ONE30 + (ONE30 >> 1) ? ONE30 + (ONE30 >> 1) : n2;
+        k = (int32_t)((3 * (int64_t)ONE30 - n2) >> 1);
+        w = qmulf(w, k);
+        x = qmulf(x, k);
+        y = qmulf(y, k);
+        z = qmulf(z, k);
+        n2 = (int64_t)qmulf(w, w) + qmulf(x, x) + qmulf(y, y) + qmulf(z, z);
+    }
+    s->qw = w;
+    s->qx = x;
+    s->qy = y;
+    s->qz = z;
+}
+
+/* One sample of the lite variant: the strapdown every sample, the gravity part's piece p at phase p decim / 4 */
+static void step_lite(ikfq_t *s, const int32_t g[3], const int32_t a[3])
+{
+    int32_t n = s->decim, ph = s->phase, q[4];
+    int here0 = 0 == ph, here1 = (1 * n) / PIECES == ph, here2 = (2 * n) / PIECES == ph;
+    int here3 = (3 * n) / PIECES == ph;
+    int64_t wx, wy, wz;
+    if (here0)
+        rest(s, g, a); /* 1. */
+    wx = (int64_t)g[0] - s->bx;
+    wy = (int64_t)g[1] - s->by;
+    wz = (int64_t)g[2] - s->bz;
+    s->rx = (int32_t)wx;
+    s->ry = (int32_t)wy;
+    s->rz = (int32_t)wz;
+    {
+        const int64_t w[3] = {wx, wy, wz};
+        int32_t h[3];
+        half_step(w, s->dthq, h);
+        rotate_lite(s, h[0], h[1], h[2], q);
+    }
+    s->qw = q[0];
+    s->qx = q[1];
+    s->qy = q[2];
+    s->qz = q[3];
+    s->phase = ph + 1 >= n ? 0 : ph + 1;
+    if (here0) {
+        rate_lite(s, wx, wy, wz);
+        s->bx = clamp(s->bx, s->bias_max);
+        s->by = clamp(s->by, s->bias_max);
+        s->bz = clamp(s->bz, s->bias_max);
+    }
+    if (here1) {
+        force_lite(s, a);
+        predict(s, s->fx, s->fy, s->rate); /* 3. */
+    }
+    if (here2)
+        correct(s);
+    if (here3)
+        rebase_lite(s); /* 4. */
+}
+
+
 static void start(ikfq_t *s, const int32_t g[3], const int32_t a[3])
 {
     unsigned io = FMT(s).io, qb = FMT(s).quat;
@@ -501,14 +773,18 @@ void ikfq_step(ikfq_t *s, const int32_t gq[3], const int32_t a[3])
     const ikfq_formats_t *f = &FMT(s);
     unsigned io = f->io, qb = f->quat, bb = f->bias, sh = f->bias + f->dt - f->quat;
     int up = (int)bb - (int)io, i, last = s->phase + 1 >= s->decim;
-    int32_t g[3], q[4], fx, fy, gxh, gyh;
+    int32_t g[3], q[4], fx, fy;
     int64_t wx, wy, wz, rate, one = INT64_C(1) << qb, r00, r01, r02, r10, r11, r12;
     if (!s->started) {
         start(s, gq, a);
         return;
     }
     for (i = 0; i < 3; i++) /* Q8.24 holds 128 rad/s */
-        g[i] = up >= 0 ? sat((int64_t)gq[i] * ((int64_t)1 << up)) : gq[i] >> -up;
+        g[i] = up >= 0 ? shl_sat(gq[i], up) : gq[i] >> -up;
+    if (LITE(s)) {
+        step_lite(s, g, a);
+        return;
+    }
     if (last) /* the gravity part in this sample: every decim-th */
         rest(s, g, a); /* 1. */
     /* 2. strapdown */
@@ -539,8 +815,9 @@ void ikfq_step(ikfq_t *s, const int32_t gq[3], const int32_t a[3])
     r12 = 2 * ((int64_t)MUL(q[2], q[3], qb) - MUL(q[0], q[1], qb));
     fx = sat((int64_t)ikfq_mul(r00, a[0], qb) + ikfq_mul(r01, a[1], qb) + ikfq_mul(r02, a[2], qb));
     fy = sat((int64_t)ikfq_mul(r10, a[0], qb) + ikfq_mul(r11, a[1], qb) + ikfq_mul(r12, a[2], qb));
-    gravity(s, fx, fy, rate, &gxh, &gyh);
-    rebase(s, q, gxh, gyh); /* 4. */
+    predict(s, fx, fy, rate);
+    correct(s);
+    rebase(s, q, s->gxh, s->gyh); /* 4. */
     s->bx = clamp(s->bx, s->bias_max);
     s->by = clamp(s->by, s->bias_max);
     s->bz = clamp(s->bz, s->bias_max);
@@ -576,7 +853,7 @@ void ikfq_update_q(ikfq_t *s, double gx, double gy, double gz, double ax, double
     q[3] = p[3] * k;
 }
 
-int ikfq_state(const ikfq_t *s, int64_t out[29])
+int ikfq_state(const ikfq_t *s, int64_t out[IKFQ_STATE_N])
 {
     const int32_t v[20] = {s->qw, s->qx, s->qy, s->qz, s->vx, s->vy, s->dx, s->dy, s->pvv, s->pvg, s->pvd, s->pgg,
                            s->pgd, s->pdd, s->bx, s->by, s->bz, 0, 0, 0};
@@ -593,7 +870,13 @@ int ikfq_state(const ikfq_t *s, int64_t out[29])
     out[26] = s->rest_t;
     out[27] = s->at_rest;
     out[28] = s->started;
-    return 29;
+    out[29] = s->phase;
+    out[30] = s->fx;
+    out[31] = s->fy;
+    out[32] = s->rate;
+    out[33] = s->gxh;
+    out[34] = s->gyh;
+    return IKFQ_STATE_N;
 }
 
 unsigned ikfq_size(void)

@@ -1,5 +1,7 @@
 /* The RAW path's attitude filter ("ikf") in 32-bit fixed point: the C of fcb_sim/estimation/ikf_fixed.py,
- * bit-exact with it (tests/test_ikf_native.py feeds both the same BROAD samples and requires identical states).
+ * bit-exact with it (tests/test_ikf_native.py feeds both the same BROAD samples and requires identical states), and
+ * with ikfq_set_lite (or the table's lite) of ikf_lite.py, the variant cut to fit the Cortex-M0 that the default
+ * board runs (tests/test_ikf_lite.py; docs/attitude.md, "The variant that fits the chip").
  *
  * C99, no dynamic memory, no floating point in the per-sample step (ikfq_step, ikfq_predicted): the board runs
  * those at 400 Hz. ikfq_init and ikfq_set_dt turn the float parameters into Q constants once (doubles, as the
@@ -41,6 +43,9 @@ typedef struct {
     /* the gravity part (rest, Kalman, rebase) runs every decim-th sample, the strapdown every one (ikfq_set_decimation;
      * docs/attitude.md, "Decimation"): dtq, dt2q, krq and kbq are then of decim * dt, dthq of dt */
     int32_t decim, phase;
+    /* the variant cut to fit the Cortex-M0 (ikfq_set_lite; fcb_sim/estimation/ikf_lite.py): its gravity part in
+     * four pieces over the decim samples, and what passes between them (also G_h, kept by the exact one too) */
+    int32_t lite, fx, fy, rate, gxh, gyh;
 } ikfq_t;
 
 /* The defaults of ikf_fixed.Formats and of ikf.InertialKalmanFilter's parameters. */
@@ -57,6 +62,7 @@ typedef struct {
     int64_t rest_time;
     int32_t dtq, dt2q, dthq, krq, kbq;
     int32_t decim; /* 0 (left out of an initializer) is 1 */
+    int32_t lite;  /* 1: the variant that fits the M0 (ikfq_set_lite) */
 } ikfq_consts_t;
 
 void ikfq_init_q(ikfq_t *s, const ikfq_formats_t *f, const ikfq_consts_t *c);
@@ -65,6 +71,9 @@ void ikfq_reset(ikfq_t *s);
 void ikfq_set_dt(ikfq_t *s, double dt);
 /* After ikfq_init: the gravity part every n-th sample (1, the default: every sample); resets the filter. */
 void ikfq_set_decimation(ikfq_t *s, int32_t n);
+/* After ikfq_init (and ikfq_set_decimation): 1 for the variant cut to fit the Cortex-M0 (ikf_lite.py: cheaper
+ * products and series, the gravity part spread over decim samples), 0 for the exact twin; resets the filter. */
+void ikfq_set_lite(ikfq_t *s, int32_t on);
 
 /* One sample: gyro (rad/s) and specific force (m/s^2) in Q.io, chip frame z up; dt set by ikfq_set_dt. */
 void ikfq_step(ikfq_t *s, const int32_t g[3], const int32_t a[3]);
@@ -78,8 +87,10 @@ void ikfq_update_q(ikfq_t *s, double gx, double gy, double gz, double ax, double
                    double q[4]);
 
 /* The state in a fixed order, for the tests and the Python wrapper (fcb_sim/native.py): qw qx qy qz vx vy dx
- * dy pvv pvg pvd pgg pgd pdd bx by bz rx ry rz gl[3] al[3] rest_t at_rest started. Returns the count, 29. */
-int ikfq_state(const ikfq_t *s, int64_t out[29]);
+ * dy pvv pvg pvd pgg pgd pdd bx by bz rx ry rz gl[3] al[3] rest_t at_rest started phase fx fy rate gxh gyh.
+ * Returns the count, IKFQ_STATE_N. */
+#define IKFQ_STATE_N 35
+int ikfq_state(const ikfq_t *s, int64_t out[IKFQ_STATE_N]);
 unsigned ikfq_size(void);
 
 /* Q arithmetic (exposed for the tests): rounded half away from zero, saturated to int32. */

@@ -37,13 +37,15 @@
 /* --- the RAW path's attitude filter: ikf_q.c, set up from integers -------------------------------------- */
 
 /* ikf's default parameters in ikf_fixed.Formats(), from `python -m fcb_sim.native --constants 0.0025`
- * (tests/test_cboard.py checks they are still what it prints). Integers: the M0 links no double set-up. */
+ * (tests/test_cboard.py checks they are still what it prints). Integers: the M0 links no double set-up. The
+ * variant that fits the Cortex-M0 (ikf_lite.py: lite, its gravity part spread over decim = 4 samples). */
 static const ikfq_formats_t IKF_FORMATS = {16, 30, 30, 24, 24, 28, 30};
 static const ikfq_consts_t IKF_CONSTS = {
     .qg_shift = 5, .q_g0 = 335165867, .k_rot = 32768, .drift_noise = 70368744, .rest_r = 10737418,
     .rest_g2 = 5233287, .rest_a2 = 16384, .bias_max = 1464088, .inv_g0 = 109453805, .lat_half = 1342177,
     .pgg0 = 107374182, .pdd0 = 1073742, .g0_io = 642908, .swing_max = 869730877, .swing_k = 966367641,
-    .rest_time = 1610612736, .dtq = 2684355, .dt2q = 6711, .dthq = 1342177, .krq = 5341999, .kbq = 1340502, .decim = 1};
+    .rest_time = 1610612736, .dtq = 10737418, .dt2q = 107374, .dthq = 1342177, .krq = 21053761, .kbq = 5341999,
+    .decim = 4, .lite = 1};
 /* ikf's rest_tau and rest_bias_tau (s): the table holds them only as krq and kbq at its own dt */
 #define IKF_REST_TAU 0.5
 #define IKF_REST_BIAS_TAU 2.0
@@ -70,14 +72,15 @@ void qb_ikf_reset(qb_ikf_t *f)
 static void ikf_set_dt(qb_ikf_t *f, qb_real dt)
 {
     const int sd = IKF_FORMATS.dt, cb = IKF_FORMATS.cov;
+    const qb_real dn = f->q.decim * dt; /* the gravity part's step, as ikfq_set_dt */
     if (f->dt == dt)
         return;
     f->dt = dt;
-    f->q.dtq = ikf_to_q(dt, sd);
-    f->q.dt2q = ikf_to_q(dt * dt, sd);
+    f->q.dtq = ikf_to_q(dn, sd);
+    f->q.dt2q = ikf_to_q(dn * dn, sd);
     f->q.dthq = ikf_to_q(0.5 * dt, sd);
-    f->q.krq = ikf_to_q(dt / (IKF_REST_TAU + dt), cb);
-    f->q.kbq = ikf_to_q(dt / (IKF_REST_BIAS_TAU + dt), cb);
+    f->q.krq = ikf_to_q(dn / (IKF_REST_TAU + dn), cb);
+    f->q.kbq = ikf_to_q(dn / (IKF_REST_BIAS_TAU + dn), cb);
 }
 
 void qb_ikf_update(qb_ikf_t *f, qb_real gx, qb_real gy, qb_real gz, qb_real ax, qb_real ay, qb_real az, qb_real dt)

@@ -65,7 +65,7 @@ const qb_param_spec_t QB_PARAMS[QB_PARAM_COUNT] = {
     {11, QB_KIND_FLOAT, 1, 0, 0, 10000, 1000, 0.1, 0.0}, /* ctrl.height_i */
     {12, QB_KIND_ENUM, 0, 0, 0, 4, 4, 1.0, 0.0}, /* est.attitude */
     {13, QB_KIND_FLOAT, 0, 0, 50000, 99999, 99900, 1e-05, 0.0}, /* est.k_gyro */
-    {14, QB_KIND_BOOL, 0, 0, 0, 1, 0, 1.0, 0.0}, /* est.fixed_point */
+    {14, QB_KIND_BOOL, 0, 0, 0, 1, 1, 1.0, 0.0}, /* est.fixed_point */
     {15, QB_KIND_ENUM, 0, 0, 0, 1, 1, 1.0, 0.0}, /* est.height */
     {16, QB_KIND_BOOL, 0, 0, 0, 1, 1, 1.0, 0.0}, /* sched.stick_reaction */
     {17, QB_KIND_ENUM, 0, 0, 0, 1, 0, 1.0, 0.0}, /* link.queue_rule */

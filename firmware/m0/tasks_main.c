@@ -14,7 +14,7 @@ ikfq_t tm_filter;
 ikfq_formats_t tm_formats;
 ikfq_consts_t tm_consts;
 int32_t tm_g[3], tm_a[3], tm_q[4], tm_angles[2];
-int64_t tm_state[29];
+int64_t tm_state[IKFQ_STATE_N];
 ctlq_gains_t tm_gains;
 ctlq_in_t tm_in;
 int16_t tm_ae[4];
@@ -30,7 +30,10 @@ void tm_filter_step(void)
 {
     ikfq_step(&tm_filter, tm_g, tm_a);
     ikfq_predicted(&tm_filter, tm_q);
-    ctlq_angles(tm_q, &tm_angles[0], &tm_angles[1]);
+    if (tm_filter.lite) /* the variant that fits reads its angles cheaply too */
+        ctlq_angles_lite(tm_q, &tm_angles[0], &tm_angles[1]);
+    else
+        ctlq_angles(tm_q, &tm_angles[0], &tm_angles[1]);
 }
 
 void tm_filter_export(void)

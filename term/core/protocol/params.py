@@ -212,8 +212,8 @@ PARAMS: dict[Param, ParamSpec] = {p.param: p for p in (
        in_flight=False),
     _p(Param.K_GYRO, "est.k_gyro", "float", "", 0.999, "the complementary filter's K_gyro (report: 0.999 flown, "
        "0.9 in Table 2)", lo=0.5, hi=0.99999, scale=0.00001, in_flight=False),
-    _p(Param.FIXED_POINT, "est.fixed_point", "bool", "", False, "RAW filter in Q16.16 fixed point (qgate has "
-       "none)", in_flight=False),
+    _p(Param.FIXED_POINT, "est.fixed_point", "bool", "", True, "RAW filter in fixed point: ikf's variant that "
+       "fits the Cortex-M0, the report's filters in Q16.16 (qgate has none)", in_flight=False),
     _p(Param.HEIGHT_ESTIMATOR, "est.height", "enum", "", "kalman", "height estimator: complementary (the "
        "report's Figure 10) or kalman (robust to the barometer's spikes)", choices=HEIGHT_ESTIMATORS,
        in_flight=False),
