@@ -333,17 +333,19 @@ static int on_filter(const qb_flight_t *fc, uint8_t mode)
     return mode == QP_MODE_RAW || (mode == QP_MODE_HEIGHT && fc->height_raw);
 }
 
-static void attitude(const qb_flight_t *fc, uint8_t mode, qb_real *phi, qb_real *theta)
+/* The angles shown and flown on: the on-board filter's (`filter`) or the DMP's. */
+static void follow(qb_flight_t *fc, int filter)
 {
-    if (on_filter(fc, mode)) {
+    if (filter) {
         qb_real e[3];
         qb_ikf_angles(&fc->ikf, e);
-        *phi = e[0];
-        *theta = -e[1];
+        fc->phi = e[0];
+        fc->theta = -e[1];
     } else {
-        *phi = fc->dmp_phi;
-        *theta = fc->dmp_theta;
+        fc->phi = fc->dmp_phi;
+        fc->theta = fc->dmp_theta;
     }
+    fc->psi_raw = (uint8_t)filter;
 }
 
 static qb_real panic_descent_rate(qb_real height_m)
@@ -376,10 +378,9 @@ static void panic_motors(qb_flight_t *fc, qb_real scale, qb_real dt, uint16_t ou
     level = (int32_t)(fc->panic_level * scale);
     if (fc->calibrated && level > 0) {
         const qb_gains_t *g = &fc->g;
-        qb_real phi, theta, lm, mm;
-        attitude(fc, fc->mode, &phi, &theta);
-        lm = g->p2 * (g->p1 * (0.0 - phi * ANGLE_LSB_PER_RAD) - fc->sp);
-        mm = g->p2 * (g->p1 * (0.0 - theta * ANGLE_LSB_PER_RAD) - fc->sq);
+        qb_real lm, mm; /* levelled on the DMP's angles (PANIC's sensor path), as the Python board */
+        lm = g->p2 * (g->p1 * (0.0 - fc->dmp_phi * ANGLE_LSB_PER_RAD) - fc->sp);
+        mm = g->p2 * (g->p1 * (0.0 - fc->dmp_theta * ANGLE_LSB_PER_RAD) - fc->sq);
         qb_real nm = g->yaw_p * (0.0 - fc->sr);
         qb_mix(-4 * level * level, lm, mm, nm, 0, out);
         return;
@@ -416,23 +417,6 @@ static qb_real height_z(qb_flight_t *fc, int32_t lift, qb_real dt)
     return z;
 }
 
-/* No attitude loop runs (SAFE, CALIBRATION, PANIC): the angles shown follow the sensor path that runs, the DMP's
- * or, without it (RAW's path), the filter's, so a flight that ended tilted is not shown tilted on the pad. */
-static void follow_sensors(qb_flight_t *fc)
-{
-    if (fc->have_dmp) {
-        fc->phi = fc->dmp_phi;
-        fc->theta = fc->dmp_theta;
-        fc->psi_raw = 0;
-    } else {
-        qb_real e[3];
-        qb_ikf_angles(&fc->ikf, e);
-        fc->phi = e[0];
-        fc->theta = -e[1];
-        fc->psi_raw = 1;
-    }
-}
-
 void qb_flight_control(qb_flight_t *fc, uint8_t mode, const int32_t sticks[4], qb_real dt, uint16_t out[4])
 {
     const qb_gains_t *g = &fc->g;
@@ -440,29 +424,27 @@ void qb_flight_control(qb_flight_t *fc, uint8_t mode, const int32_t sticks[4], q
     if (mode != fc->mode)
         qb_flight_enter_mode(fc, mode, lift);
     if (mode == QP_MODE_FULL || mode == QP_MODE_HEIGHT || mode == QP_MODE_RAW) {
-        qb_real phi, theta, lm, mm, nm, z;
-        attitude(fc, mode, &phi, &theta);
-        fc->phi = phi;
-        fc->theta = theta;
-        fc->psi_raw = (uint8_t)on_filter(fc, mode);
-        lm = g->p2 * (g->p1 * ((roll >> STICK_ANGLE_SHIFT) - phi * ANGLE_LSB_PER_RAD) - fc->sp);
-        mm = g->p2 * (g->p1 * ((pitch >> STICK_ANGLE_SHIFT) - theta * ANGLE_LSB_PER_RAD) - fc->sq);
+        qb_real lm, mm, nm, z;
+        follow(fc, on_filter(fc, mode));
+        lm = g->p2 * (g->p1 * ((roll >> STICK_ANGLE_SHIFT) - fc->phi * ANGLE_LSB_PER_RAD) - fc->sp);
+        mm = g->p2 * (g->p1 * ((pitch >> STICK_ANGLE_SHIFT) - fc->theta * ANGLE_LSB_PER_RAD) - fc->sq);
         nm = g->yaw_p * ((yaw >> STICK_YAW_SHIFT) - fc->sr);
         z = mode == QP_MODE_HEIGHT ? height_z(fc, lift, dt) : lift_to_z(lift);
         qb_mix((int32_t)z, lm, mm, nm, 1, out);
     } else if (mode == QP_MODE_MANUAL || mode == QP_MODE_YAW) {
         qb_real nm;
-        fc->phi = fc->dmp_phi;
-        fc->theta = fc->dmp_theta;
-        fc->psi_raw = 0;
+        follow(fc, 0);
         nm = mode == QP_MODE_YAW ? g->yaw_p * ((yaw >> STICK_YAW_SHIFT) - fc->sr) : (qb_real)yaw * MANUAL_N_GAIN;
         qb_mix(lift_to_z(lift), (qb_real)roll * MANUAL_LM_GAIN, (qb_real)pitch * MANUAL_LM_GAIN, nm, 1, out);
-    } else if (mode == QP_MODE_PANIC) {
-        follow_sensors(fc);
-        panic_motors(fc, fc->panic_scale, dt, out);
     } else {
-        follow_sensors(fc);
-        out[0] = out[1] = out[2] = out[3] = 0;
+        /* No attitude loop runs (SAFE, CALIBRATION, PANIC): the angles shown follow the sensor path that runs, the
+         * DMP's or, without it (RAW's path), the filter's, so a flight that ended tilted is not shown tilted on the
+         * pad. */
+        follow(fc, !fc->have_dmp);
+        if (mode == QP_MODE_PANIC)
+            panic_motors(fc, fc->panic_scale, dt, out);
+        else
+            out[0] = out[1] = out[2] = out[3] = 0;
     }
     memcpy(fc->ae, out, sizeof fc->ae);
     fc->hest.motors_off = !(out[0] || out[1] || out[2] || out[3]);
