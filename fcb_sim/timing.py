@@ -394,9 +394,9 @@ M0_EMULATED_US: dict[str, tuple[float, float]] = {
     "control_raw": (131.0, 159.6),
     "filter/ikf/fixed/decimation4": (877.4, 1741.4),
     "filter/ikf/fixed/decimation8": (743.5, 1741.8),
-    "filter/ikf/lite1": (822.4, 826.6),
-    "filter/ikf/lite4": (350.7, 392.6),
-    "filter/ikf/lite8": (272.1, 392.5),
+    "filter/ikf/lite1": (821.5, 825.7),
+    "filter/ikf/lite4": (350.4, 392.6),
+    "filter/ikf/lite8": (272.0, 392.5),
 }
 EMULATED_FILTERS: dict[tuple[str, bool], str] = {("ikf", True): "filter/ikf/lite4"}
 MODEL_TOLERANCE = 0.2  # where the model and the emulation disagree by more, the model follows the emulation

@@ -80,23 +80,6 @@ int32_t ctlq_atan2(int32_t y, int32_t x)
     return wrap32(a < 0 ? a - c : a + c);
 }
 
-static uint32_t isqrt32(uint32_t n)
-{
-    uint32_t r = 0, bit = UINT32_C(1) << 30;
-    while (bit > n)
-        bit >>= 2;
-    while (bit) {
-        if (n >= r + bit) {
-            n -= r + bit;
-            r = (r >> 1) + bit;
-        } else {
-            r >>= 1;
-        }
-        bit >>= 2;
-    }
-    return r;
-}
-
 void ctlq_angles(const int32_t q[4], int32_t *phi, int32_t *theta)
 {
     /* Q2.30 products to Q16.16: >> 44 of the 64-bit product, with the factor 2 of the formulas: >> 43 */
@@ -109,7 +92,7 @@ void ctlq_angles(const int32_t q[4], int32_t *phi, int32_t *theta)
         s = FIX_ONE;
     if (s < -FIX_ONE)
         s = -FIX_ONE;
-    cc = isqrt32((uint32_t)(((int64_t)FIX_ONE * FIX_ONE - s * s))); /* cos(pitch), Q16.16 */
+    cc = ikfq_isqrt32((uint32_t)(((int64_t)FIX_ONE * FIX_ONE - s * s))); /* cos(pitch), Q16.16 */
     *theta = -ctlq_atan2((int32_t)s, (int32_t)cc);
 }
 
@@ -148,7 +131,7 @@ void ctlq_angles_lite(const int32_t q[4], int32_t *phi, int32_t *theta)
     sr = ((w * x) >> 14) + ((y * z) >> 14);
     cr = 32768 - ((x * x) >> 14) - ((y * y) >> 14);
     sp = ((w * y) >> 14) - ((x * z) >> 14);
-    cp = (int32_t)isqrt32((uint32_t)sr * (uint32_t)sr + (uint32_t)cr * (uint32_t)cr); /* cos(pitch), roll legs */
+    cp = (int32_t)ikfq_isqrt32((uint32_t)sr * (uint32_t)sr + (uint32_t)cr * (uint32_t)cr); /* cos(pitch), roll legs */
     *phi = 2 * ctlq_atan2_q15(sr, cr);
     *theta = -2 * ctlq_atan2_q15(sp, cp);
 }

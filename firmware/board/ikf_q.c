@@ -549,7 +549,7 @@ static __attribute__((noinline)) int32_t qmulf(int32_t a, int32_t b)
     return qmul(a, b);
 }
 
-static uint32_t isqrt32(uint32_t n) /* floor */
+uint32_t ikfq_isqrt32(uint32_t n) /* floor; ctl_q.c's angles use it too */
 {
     uint32_t r = 0, bit = UINT32_C(1) << 30;
     while (bit > n)
@@ -632,7 +632,7 @@ static void rate_lite(ikfq_t *s, int64_t wx, int64_t wy, int64_t wz)
     unsigned io = FMT(s).io, bb = FMT(s).bias;
     int32_t r2 = sat((int64_t)ikfq_mul(wx, wx, 2 * bb - io) + ikfq_mul(wy, wy, 2 * bb - io)
                      + ikfq_mul(wz, wz, 2 * bb - io));
-    s->rate = (int32_t)(isqrt32((uint32_t)r2) << 8);
+    s->rate = (int32_t)(ikfq_isqrt32((uint32_t)r2) << 8);
 }
 
 static void force_lite(ikfq_t *s, const int32_t a[3])

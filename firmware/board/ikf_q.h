@@ -48,6 +48,9 @@ typedef struct {
     int32_t lite, fx, fy, rate, gxh, gyh;
 } ikfq_t;
 
+/* floor(sqrt(n)), bit by bit: exact, no division (the filter's turn rate, the control's cos(pitch)) */
+uint32_t ikfq_isqrt32(uint32_t n);
+
 /* The defaults of ikf_fixed.Formats and of ikf.InertialKalmanFilter's parameters. */
 void ikfq_default_formats(ikfq_formats_t *f);
 void ikfq_default_params(ikfq_params_t *p);
