@@ -251,3 +251,36 @@ async def test_a_simulator_starved_at_start_up_is_no_lost_link() -> None:
         os.kill(sim.proc.pid, signal.SIGCONT)
         await conn.stop()
         sim.stop()
+
+
+async def test_a_stall_of_the_terminal_is_left_out_whole(pty_pair: tuple[int, str]) -> None:
+    """Issue 21 (bench.contention at 4 busy processes per core: LINK LOST from the terminal while frames waited in the
+    OS). The terminal's process gets no CPU for 0.7 s: its clock jumps while its loop does not run. The whole stall
+    is the terminal's own, not the board's silence, whichever task runs first afterwards (the reader, with the
+    frames that waited): the timer used to count only the part past its own deadline, and the reader none."""
+    master, path = pty_pair
+    board = ScriptedBoard(heartbeat_period=0.02, start=time.monotonic())
+    peer = PtyBoard(master, board, time.monotonic)
+    await peer.start()
+    offset = [0.0]
+
+    def clock() -> float:
+        return time.monotonic() + offset[0]
+
+    events = Events()
+    # the radio's policy: no stick, so no timer deadline but the loss's while frames keep coming
+    session = LinkSession(clock(), link_timeout=0.5, change_only=True)
+    conn = Connection(SerialTransport(path), session, clock, on_event=events)
+    try:
+        await conn.start()
+        await peer.wait_for(lambda: len(board.hb_acks) >= 3)
+        offset[0] += 0.7  # the stall, as the terminal's clock sees it
+        acked = len(board.hb_acks)
+        await peer.wait_for(lambda: len(board.hb_acks) >= acked + 5)
+        from term.core.link import LinkLost
+
+        assert not events.of(LinkLost)
+        assert not conn.stats.lost
+    finally:
+        await conn.stop()
+        await peer.stop()
