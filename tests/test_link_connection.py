@@ -85,7 +85,7 @@ async def test_heartbeats_are_answered_with_no_timer_due(pty_pair: tuple[int, st
         enc = Encoder()
         for k in range(3):
             peer._write(enc.encode(Heartbeat(k, 1000 * k)))
-            await peer.wait_for(lambda k=k: len(board.hb_acks) == k + 1, timeout=2.0)
+            await peer.wait_for(lambda k=k: len(board.hb_acks) == k + 1, timeout=20.0)
         assert [a.counter for a in board.hb_acks] == [0, 1, 2]
     finally:
         await conn.stop()
