@@ -445,12 +445,34 @@ def test_link_lost_after_timeout_then_restored() -> None:
 
 
 def test_no_board_at_all_is_a_lost_link() -> None:
-    s = LinkSession(10.0, link_timeout=1.0)
-    assert s.poll(10.99) == []
-    assert of(s.poll(11.0), LinkLost)
+    """A board that never answers is lost once the start-up grace is over, and the event says it never spoke."""
+    s = LinkSession(10.0, link_timeout=1.0, connect_timeout=3.0)
+    assert s.next_deadline() == pytest.approx(13.0)
+    assert s.poll(12.99) == []
+    assert of(s.poll(13.0), LinkLost) == [LinkLost(pytest.approx(3.0), never_heard=True)]
 
 
-@pytest.mark.parametrize("option", ["link_timeout", "command_timeout", "joystick_rate", "keepalive", "stats_window"])
+def test_the_loss_clock_starts_at_the_boards_first_frame() -> None:
+    """Issue 21: term --sim on a busy machine said LINK LOST 0.8 s into start-up, while the simulator's own process
+    got no CPU (its first frame came late). Before the board's first frame the link is still being made: the
+    start-up grace (``connect_timeout``) applies; from that frame on the link timeout does, as before."""
+    s = LinkSession(0.0, link_timeout=0.5, connect_timeout=3.0)
+    assert s.poll(0.8) == []
+    s.receive(Board()(Heartbeat(0, 0)), 0.8)
+    s.data_to_send(0.8)
+    assert s.next_deadline() == pytest.approx(1.3)
+    assert s.poll(1.29) == []
+    assert of(s.poll(1.3), LinkLost) == [LinkLost(pytest.approx(0.5))]
+
+
+def test_the_start_up_grace_is_never_shorter_than_the_link_timeout() -> None:
+    s = LinkSession(0.0, link_timeout=5.0, connect_timeout=3.0)
+    assert s.poll(4.99) == []
+    assert of(s.poll(5.0), LinkLost)
+
+
+@pytest.mark.parametrize("option", ["link_timeout", "connect_timeout", "command_timeout", "joystick_rate", "keepalive",
+                                    "stats_window"])
 @pytest.mark.parametrize("value", [math.nan, math.inf, -math.inf, 0.0, -1.0, "1", None, True])
 def test_a_timer_option_that_is_not_a_finite_positive_number_is_refused_in_one_line(option: str, value: object) -> None:
     # nan passed the old "<= 0" test: a link timeout that never fires, and the terminal spun on it

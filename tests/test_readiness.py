@@ -130,6 +130,15 @@ def test_link_lost_and_waiting() -> None:
     assert next_step(checks(m, NOW, KEYMAP)).item == "link"  # the link before anything else
 
 
+def test_a_board_that_never_answered_is_named_so() -> None:
+    """Issue 21: the start-up grace ran out without one frame: the pilot is told what to check, not 'for 3.0 s'."""
+    m = Model(start=0.0)
+    m.apply(LinkLost(3.0, never_heard=True), 3.0)
+    assert m.link_lost and m.events[-1].severity == "error"
+    assert m.events[-1].text == ("LINK LOST: no answer from the board in 3.0 s since the link opened (is it on, and "
+                                 "on this port?)")
+
+
 @pytest.mark.parametrize("v, state", [(12.4, "ok"), (10.9, "info"), (10.3, "todo")])
 def test_battery_levels(v: float, state: str) -> None:
     m = good_model()

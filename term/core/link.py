@@ -14,7 +14,8 @@ A ``LinkSession`` knows the protocol's rules for talking to a board and nothing 
   ``joystick_rate`` times per second, and with ``change_only`` (BLE, and the serial ``stream`` policy) only when
   the value changed, plus a keep-alive every ``keepalive`` seconds, which never delays the next change;
 - it keeps the statistics a pilot needs to trust the link (``stats_at(now)`` / ``stats``), declares the link
-  lost after ``link_timeout`` seconds without a valid frame and restored at the next one; time the caller says
+  lost after ``link_timeout`` seconds without a valid frame and restored at the next one (before the board's first
+  frame the link is still being made: the start-up grace ``connect_timeout`` applies); time the caller says
   it could not run (``starved``: its process got no CPU) is not the board's silence, so a starved terminal does
   not call a loss for frames that waited in the OS;
 - it sends a ``Hello`` at connect and reports a board that speaks another protocol version.
@@ -55,6 +56,9 @@ from term.core.protocol import (
 RTT_SAMPLES = 200  # RTT mean and p95 are over the last this many samples
 _EPS = 1e-9  # s: float slack for schedules computed by repeated addition
 HB_DELAY_WINDOW = 10.0  # s: the baseline (smallest) heartbeat delay is taken over this window
+# s a board may take to say its first word: a Hello is answered in milliseconds, but a board the port's open resets
+# boots for a second or two, and a simulator on a busy laptop was seen without CPU for 0.8 s at start-up (issue 21)
+CONNECT_TIMEOUT_S = 3.0
 
 
 # --- events -------------------------------------------------------------------------------------------------
@@ -89,6 +93,7 @@ class CommandFailed:
 @dataclass(frozen=True, slots=True)
 class LinkLost:
     silent_s: float = 0.0  # how long nothing valid arrived when the loss was declared
+    never_heard: bool = False  # not one frame since the link opened (the start-up grace ran out)
 
 
 @dataclass(frozen=True, slots=True)
@@ -189,6 +194,7 @@ class LinkSession:
         now: float,
         *,
         link_timeout: float = 1.0,
+        connect_timeout: float = CONNECT_TIMEOUT_S,
         command_timeout: float = 0.25,
         command_retries: int = 3,
         joystick_rate: float = 100.0,
@@ -197,7 +203,8 @@ class LinkSession:
         stats_window: float = 2.0,
         max_queued: int = 32,
     ) -> None:
-        for name, value in (("link_timeout", link_timeout), ("command_timeout", command_timeout),
+        for name, value in (("link_timeout", link_timeout), ("connect_timeout", connect_timeout),
+                            ("command_timeout", command_timeout),
                             ("joystick_rate", joystick_rate), ("keepalive", keepalive), ("stats_window", stats_window)):
             # (a nan passes a "<= 0" test and a timer that never fires spins the terminal; inf never fires at all)
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0 < value < math.inf:
@@ -207,6 +214,7 @@ class LinkSession:
         if not 0 < max_queued < 255:
             raise ValueError("max_queued must be in 1..254 (command ids are 8-bit)")
         self.link_timeout = link_timeout
+        self.connect_timeout = connect_timeout
         self.command_timeout = command_timeout
         self.command_retries = command_retries
         self.joystick_interval = 1.0 / joystick_rate
@@ -403,7 +411,7 @@ class LinkSession:
         deadlines = [p.last_sent + self.command_timeout for p in self._inflight.values()]
         if not self._lost:
             start = self._silence_start()
-            deadlines.append(start + self.link_timeout + self._deaf_since(start, None))
+            deadlines.append(start + self._loss_timeout() + self._deaf_since(start, None))
         js = self._joystick_deadline()
         if js is not None:
             deadlines.append(js)
@@ -469,6 +477,12 @@ class LinkSession:
         self._seq.add(now, ok, missing)
         self._missing_total += missing
 
+    def _loss_timeout(self) -> float:
+        """The silence that is a lost link: the link timeout once the board has spoken, the start-up grace before."""
+        if self._last_frame is None:
+            return max(self.link_timeout, self.connect_timeout)
+        return self.link_timeout
+
     def _silence_start(self) -> float:
         return self._start if self._last_frame is None else self._last_frame
 
@@ -507,11 +521,11 @@ class LinkSession:
 
     def _check_timers(self, now: float, events: list[LinkEvent]) -> None:
         silent = self._silent(now)
-        if not self._lost and silent >= self.link_timeout:
+        if not self._lost and silent >= self._loss_timeout():
             self._lost = True
             self._lost_since = self._silence_start()
             self.decoder.reset_sequence()  # frames missed while silent are not countable modulo 256
-            events.append(LinkLost(silent))
+            events.append(LinkLost(silent, never_heard=self._last_frame is None))
             self._cancel_all(f"link lost: nothing from the board for {silent:.1f} s", events)
             return
         expired = [

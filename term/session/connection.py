@@ -7,6 +7,10 @@ Two tasks share one session (single-threaded, so no locking of the session itsel
 - the timer task sleeps until ``session.next_deadline()`` (or until woken by a new command or stick value),
   then runs ``poll`` and writes what is due.
 
+A stall of this process (a busy laptop: no CPU for a while) is not the board's silence: the timer wakes at least
+every ``TICK_S``, so a gap between two runs of either task longer than that plus ``STARVED_S`` is time the link
+could not listen, told to the session (``LinkSession.starved``) before the frames that waited are read.
+
 Events go to the ``on_event`` callback, or, without one, into ``events`` (an asyncio.Queue). A transport that
 dies ends the connection with one ``TransportFailed`` event carrying the transport's one-line message; so does
 any exception in the pump (a bug, or a front end's reaction that raised): it is logged with its traceback and
@@ -29,7 +33,8 @@ from term.core.protocol import Joystick, Op
 from term.transports.base import Transport, TransportClosed, TransportError
 
 log = logging.getLogger("term.link")
-STARVED_S = 0.05  # a timer this late means this process got no CPU meanwhile (the session leaves that time out)
+STARVED_S = 0.05  # a run this late means this process got no CPU meanwhile (the session leaves that time out)
+TICK_S = 0.02  # the timer wakes at least this often, so a stall is measured whole, not only past a deadline
 
 
 @dataclass(frozen=True, slots=True)
@@ -70,6 +75,7 @@ class Connection:
         self._tasks: list[asyncio.Task[None]] = []
         self._done = asyncio.Event()
         self._running = False
+        self._last_run: float | None = None  # when a pump task last ran (the stall meter)
 
     # --- life cycle -----------------------------------------------------------------------------------------
 
@@ -82,6 +88,7 @@ class Connection:
         try:
             with self._lock:
                 hello = self.session.hello()
+                self._last_run = self.clock()
             await self._write(hello)
         except BaseException:
             self._running = False
@@ -167,7 +174,9 @@ class Connection:
             while True:
                 data = await self.transport.read()
                 with self._lock:
-                    events = session.receive(data, self.clock())
+                    now = self.clock()
+                    self._ran(now)  # a stall just ended: said before the frames that waited are read
+                    events = session.receive(data, now)
                 await self._flush()  # heartbeat ACKs leave now, in this step
                 self._deliver(events)
                 self._wake.set()  # deadlines may have moved (an Ack removed a retry)
@@ -184,22 +193,19 @@ class Connection:
         try:
             while True:
                 with self._lock:
-                    events = session.poll(self.clock())
+                    now = self.clock()
+                    self._ran(now)
+                    events = session.poll(now)
                 await self._flush()
                 self._deliver(events)
                 with self._lock:
-                    due = session.next_deadline()
-                    delay = due - self.clock()
+                    delay = session.next_deadline() - self.clock()
                 if delay > 0:
                     self._wake.clear()
                     # asyncio.timeout, not wait_for: 3.11's wait_for can swallow the cancel that stop() sends.
                     with contextlib.suppress(TimeoutError):
-                        async with asyncio.timeout(min(delay, 3600.0)):
+                        async with asyncio.timeout(min(delay, TICK_S)):
                             await self._wake.wait()
-                    now = self.clock()
-                    if now - due > STARVED_S:  # we could not run (no CPU): not the board's silence
-                        with self._lock:
-                            session.starved(due, now)
         except TransportClosed as exc:
             if self._running:  # closed under us, not by stop(): the link is gone all the same
                 await self._fail(exc)
@@ -207,6 +213,14 @@ class Connection:
             await self._fail(exc)
         except Exception as exc:  # a bug (e.g. in on_event): the link is lost all the same, and says why
             await self._crashed(exc)
+
+    def _ran(self, now: float) -> None:
+        """A pump task runs at ``now`` (the session's lock held). The timer runs at least every TICK_S: a gap
+        much longer than that is time this process got no CPU, which the session leaves out of the silence."""
+        last = self._last_run
+        if last is not None and now - last > TICK_S + STARVED_S:
+            self.session.starved(last + TICK_S, now)
+        self._last_run = now if last is None else max(last, now)
 
     async def _flush(self) -> None:
         async with self._write_lock:  # take the bytes and write them as one step, so order is kept

@@ -407,6 +407,9 @@ class Model:
         elif self.primary_ble and not self.heard:
             self.note(now, "info", "link", "nothing over BLE yet: the board talks here after the handover "
                       "(key 8 on the cable terminal, in SAFE)")
+        elif event.never_heard:
+            self.note(now, "error", "link", f"LINK LOST: no answer from the board in {event.silent_s:.1f} s since the "
+                      "link opened (is it on, and on this port?)")
         else:
             self.note(now, "error", "link", f"LINK LOST: nothing from the board for {event.silent_s:.1f} s")
 
