@@ -238,7 +238,6 @@ LIFT_FINE_TO = 19661  # 60 %
 LIFT_FINE_DIVISOR = 4
 
 
-
 def lift_trim_after(trim: int, steps: int, lift_step: int, joystick_lift: int = 0) -> int:
     """The lift trim after ``steps`` presses of a (positive) or z (negative), each moving the lift (``joystick_lift``
     plus the trim) by ``lift_step``, or by ``max(1, lift_step // LIFT_FINE_DIVISOR)`` while the press starts and
