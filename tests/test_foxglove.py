@@ -18,7 +18,7 @@ from pathlib import Path
 import pytest
 from mcap.reader import make_reader
 
-from term.core.protocol import SPEC_OF, Attitude, Decoder, Encoder, Mode
+from term.core.protocol import SPEC_OF, Attitude, Decoder, Mode
 from term.data.channels import (
     CRAFT,
     ROOM,
@@ -155,15 +155,16 @@ async def until(pilot: object, cond: Callable[[], bool], timeout: float = 20.0) 
 
 
 def tap_threads(live: object) -> list[int]:
-    """The threads ``live``'s byte taps are called on, from now on, one entry a call."""
+    """The threads ``live`` is handed the link's packets on (before the app is made: it takes ``link_packet``),
+    one entry a packet."""
     threads: list[int] = []
-    received = live.received  # type: ignore[attr-defined]
+    link_packet = live.link_packet  # type: ignore[attr-defined]
 
     def counted(*args: object) -> None:
         threads.append(threading.get_ident())
-        received(*args)
+        link_packet(*args)
 
-    live.received = counted  # type: ignore[attr-defined]
+    live.link_packet = counted  # type: ignore[attr-defined]
     return threads
 
 
@@ -191,22 +192,22 @@ async def test_a_client_subscribed_during_a_sim_flight_gets_the_attitude_as_the_
         cable = RecordingTransport(SerialTransport(port), (rec, live), CABLE, time.monotonic)
         instructor = InstructorClient(sim.instructor_address)
         await instructor.open()
+        tapped = tap_threads(live)
         app = TermApp(cable, joystick=False, recorder=rec, instructor=instructor, live=live,
                       log_directory=tmp_path / "logs")
         client = Client(live.url, ("/cable/rx/Attitude", "/cable/pose", "/truth/pose", "/truth", "/events",
                                   "/cable/stats"))
         stop = asyncio.Event()
-        tapped = tap_threads(live)
         async with app.run_test(size=(120, 44)) as pilot:
             m = app.model
             await until(pilot, lambda: m.mode == Mode.SAFE and m.link is not None)
-            # The live server is fed on the link's thread as the bytes are read, never through the display's loop:
-            # with the display held (a slow render), it still gets them.
+            # The live server is fed on the link's thread as the packets are decoded, never through the display's
+            # loop: with the display held (a slow render), it still gets them.
             display = threading.get_ident()
             n, deadline = len(tapped), time.monotonic() + 5.0
             while len(tapped) == n and time.monotonic() < deadline:
                 threading.Event().wait(0.01)  # the display's thread held on purpose
-            assert len(tapped) > n, "the live server got no bytes while the display was busy"
+            assert len(tapped) > n, "the live server got no packets while the display was busy"
             assert display not in set(tapped)
             task = asyncio.create_task(client.run(stop))
             await until(pilot, lambda: len(client.on("/cable/pose")) > 20 and len(client.on("/truth/pose")) > 5)
@@ -294,8 +295,7 @@ def test_live_parameters_are_the_boards_read_only() -> None:
     live = LiveServer("127.0.0.1", 0, t0=0.0, start_ns=WALL)
     try:
         spec = PARAMS[Param.TELEMETRY_HZ] if hasattr(Param, "TELEMETRY_HZ") else next(iter(PARAMS.values()))
-        enc = Encoder()
-        live.received("cable", enc.encode(ParamValue(int(spec.param), spec.to_raw(spec.default), 0, 1)), 0.0)
+        live.link_packet("cable", ParamValue(int(spec.param), spec.to_raw(spec.default), 0, 1))
         deadline = time.monotonic() + 5
         while spec.name not in live._params.values and time.monotonic() < deadline:
             time.sleep(0.01)

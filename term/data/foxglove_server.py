@@ -4,15 +4,18 @@ package, the optional extra ``foxglove``), on the channels ``term export`` write
 Contract:
 
 - ``LiveServer(host, port, t0=, start_ns=)`` starts the SDK's server (loopback unless a host is given) in a context
-  of its own. It is fed like the recording: ``received``/``sent`` (a link's bytes and the caller's monotonic
-  ``now``; ``RecordingTransport`` taps them at the transports, on the link's thread: ``thread_safe`` tells
-  ``post_taps`` not to route them through the display), ``packet`` (a replay's decoded packets), ``event`` (an
-  events-panel line), ``station_event`` (the link statistics), ``truth`` (the simulator's). Each call decodes and
-  converts (``Channels``) on the caller's thread what a client subscribed to (and the parameters, always), and
-  hands each message to the SDK's ``log``, which never blocks: the SDK's own threads send it, and a
-  slow client loses its oldest messages (the SDK's backlog), never the flight's. No hop through a thread of our
-  own: a hop is a wake-up that a busy machine delays by tens of ms (bench.foxglove), and the link's thread is
-  awake with the bytes already. A conversion that fails costs that message (``errors`` counts), never the link.
+  of its own. It is fed on the link's thread as the link works, never through the display (so a slow screen
+  delays nothing served): ``link_packet`` (each packet a link received, as its session decoded it: the station's
+  ``on_packet``), ``received``/``sent`` (a link's bytes and the caller's monotonic ``now``, tapped at the
+  transports by ``RecordingTransport``: a read only stamps the time of the packets decoded from it, a write's
+  bytes are decoded here; ``thread_safe`` tells ``post_taps`` to call them on the link's thread). From the
+  display's thread: ``packet`` (a replay's decoded packets), ``event`` (an events-panel line), ``station_event``
+  (the link statistics), ``truth`` (the simulator's). Each call converts (``Channels``) on the caller's thread
+  what a client subscribed to (and the parameters, always), and hands each message to the SDK's ``log``, which
+  never blocks: the SDK's own thread sends it, and a slow client loses its oldest messages (the SDK's backlog),
+  never the flight's. No hop through a thread of our own: a hop is a wake-up that a busy machine delays by tens
+  of ms (bench.foxglove), and the link's thread is awake with the packets already. A conversion that fails costs
+  that message (``errors`` counts), never the link.
 - Times: ``log_time`` is the time the bytes crossed the link, on the recording's clock (``start_ns`` plus the
   monotonic time since ``t0``, µs resolution, as ``SessionRecorder`` stamps them): a live message and the same
   message in the recording carry the same time.
@@ -24,10 +27,13 @@ Contract:
 
 from __future__ import annotations
 
+import asyncio
 import contextlib
 import dataclasses
 import json
+import os
 import threading
+import time
 from typing import Any
 
 from term.core.protocol import Decoder
@@ -37,6 +43,9 @@ from term.data.export import DecodedFrame
 from term.data.recording import LoggedEvent
 
 DEFAULT_HOST = "127.0.0.1"  # loopback: a flight's data leaves the machine only when the pilot names a host
+# The SDK's runtime (tokio) starts a worker thread per core; one is plenty for a few hundred small messages a second,
+# and two waking each other for every message cost more than the sending (bench.foxglove: 2.0 -> 1.2 % of a core).
+SDK_WORKER_THREADS = "1"
 INSTALL_HINT = "live Foxglove needs the SDK: pip install 'quadrupel[foxglove]' (or: pip install foxglove-sdk)"
 
 
@@ -88,6 +97,7 @@ class LiveServer:
     thread_safe = True  # its taps never block: the link's thread calls them as bytes pass (link_thread.post_taps)
 
     def __init__(self, host: str, port: int, *, t0: float, start_ns: int, name: str = "quadrupel term") -> None:
+        os.environ.setdefault("TOKIO_WORKER_THREADS", SDK_WORKER_THREADS)  # (read when the SDK's runtime starts)
         try:
             import foxglove
             from foxglove.websocket import Capability
@@ -106,7 +116,10 @@ class LiveServer:
         self.host = host
         self.port = self._server.port
         self._channels: dict[str, tuple[Any, bool]] = {}
-        self._decoders: dict[tuple[str, str], Decoder] = {}  # each link and direction's (one thread each)
+        self._decoders: dict[str, Decoder] = {}  # each link's written bytes' (one thread each)
+        self._read_at: dict[str, float] = {}  # each link's last read: the time of the packets decoded from it
+        self._batch: list[Any] = []  # the link thread's messages of this step of its loop (``_queue``)
+        self._flush_due = False
         self._lock = threading.Lock()  # the channels are made once, whichever thread asks first
         self._maker = Channels()  # (its state is per link and direction: each is fed from one thread)
         self.published = 0  # messages handed to the SDK (a client subscribed to their channel; about: not locked)
@@ -124,12 +137,24 @@ class LiveServer:
         return self.start_ns + round((now - self.t0) * 1e6) * 1000  # µs resolution, as the recording stamps
 
     def received(self, link: str, data: bytes, now: float) -> None:
-        if data and not self._closed:
-            self._bytes(link, "rx", data, now)
+        """A read off ``link``: its time only (its packets come decoded by the link's session: ``link_packet``)."""
+        self._read_at[link] = now
+
+    def link_packet(self, link: str, pkt: Any) -> None:
+        """A packet ``link``'s session decoded from the last read (the hot path: every packet the board sends)."""
+        if self._closed:
+            return
+        now = self._read_at.get(link)
+        try:
+            self._queue(self._maker.frame(self.t_ns(time.monotonic() if now is None else now), link, "rx", pkt,
+                                          self._wanted))
+        except Exception:  # one bad packet costs that packet, never the link
+            self.errors += 1
 
     def sent(self, link: str, data: bytes, now: float) -> None:
+        """A write to ``link``: its packets, decoded from the bytes (what left, even when a write was held back)."""
         if data and not self._closed:
-            self._bytes(link, "tx", data, now)
+            self._bytes(link, data, now)
 
     def packet(self, link: str, direction: str, pkt: Any, now: float) -> None:
         self._serve(DecodedFrame(self.t_ns(now), link, direction, pkt))
@@ -159,16 +184,40 @@ class LiveServer:
         except Exception:  # one bad item costs that item, never the link or the screen
             self.errors += 1
 
-    def _bytes(self, link: str, direction: str, data: bytes, now: float) -> None:
-        """A link's bytes (the hot path: every read and write): decoded, each packet to its channels."""
+    def _bytes(self, link: str, data: bytes, now: float) -> None:
+        """A link's written bytes: decoded, each packet to its channels."""
         t_ns = self.t_ns(now)
-        key = (link, direction)
-        dec = self._decoders.get(key) or self._decoders.setdefault(key, Decoder())
+        dec = self._decoders.get(link) or self._decoders.setdefault(link, Decoder())
         frame, want = self._maker.frame, self._wanted
         try:
             for pkt in dec.feed(data):
-                self._publish(frame(t_ns, link, direction, pkt, want), wanted=True)
+                self._queue(frame(t_ns, link, "tx", pkt, want))
         except Exception:  # one bad packet costs that chunk's rest, never the link
+            self.errors += 1
+
+    def _queue(self, messages: list[Any]) -> None:
+        """The link thread's messages, handed to the SDK together at the end of this step of its loop (a read and
+        its packets, a write): the SDK wakes its sender once for them all, not once a message, which is most of
+        the serving's cost (bench.foxglove). Without a running loop here, at once."""
+        if not messages:
+            return
+        self._batch += messages
+        if self._flush_due:
+            return
+        try:
+            asyncio.get_running_loop().call_soon(self._flush)
+            self._flush_due = True
+        except RuntimeError:  # (no loop: a caller of its own)
+            self._flush()
+
+    def _flush(self) -> None:
+        self._flush_due = False
+        batch, self._batch = self._batch, []
+        if self._closed:
+            return
+        try:
+            self._publish(batch, wanted=True)
+        except Exception:  # (a bad message costs the rest of its batch: counted)
             self.errors += 1
 
     def _wanted(self, spec: ChannelSpec) -> bool:

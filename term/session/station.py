@@ -48,7 +48,7 @@ from term.core.events import (
     StatsSample,
     StickSet,
 )
-from term.core.link import LinkSession, VersionMismatch
+from term.core.link import LinkSession, PacketReceived, VersionMismatch
 from term.core.protocol import Button, Joystick, Mode, Op
 from term.input.keymap import ZERO_TRIM_STEPS
 from term.input.mapping import leave_safe_refusal
@@ -154,6 +154,8 @@ class StationLink:
             if st.running:
                 self.keep_up(immediate=False)
             return
+        if st.on_packet is not None and type(ev) is PacketReceived:
+            st.on_packet(self.role, ev.packet)  # here, on the link's thread: never behind the display
         st.emit(FromLink(self.role, ev))
         if type(ev) is VersionMismatch:
             st.emit(Fatal(f"board speaks protocol v{ev.board_version}, this terminal v{ev.our_version}: "
@@ -188,18 +190,22 @@ class Station:
         sleep: Callable[[float], Awaitable[None]] = asyncio.sleep,
         on_event: Callable[[StationEvent], None] | None = None,
         runner: LinkThread | None = None,
+        on_packet: Callable[[str, Any], None] | None = None,
     ) -> None:
         """``model`` is kept up to date and read for the guards; ``cable``: the board's link (BLE alone when
         ``model.primary_ble``); ``radio``: BLE beside it, for the handover. ``runner``: the link's own thread
         (term/session/link_thread.py): the links are opened and pumped there, their events come back to the
         caller's loop (the model changes only there), and the display's watchdog gates their writes; without
-        it everything runs on the caller's loop."""
+        it everything runs on the caller's loop. ``on_packet(link, packet)``: every packet a link receives, as its
+        session decodes it, on the link's thread (the live Foxglove server: served without waiting for the
+        display, and without decoding the bytes a second time); it must not block."""
         self.model = model
         self.runner = runner
         self._door: FrontDoor | None = None
         self.clock = clock
         self.sleep = sleep
         self.on_event = on_event
+        self.on_packet = on_packet
         self.running = False
         self._fire_down = False
         self._zero_asked = -1e9  # when a lift-trim-to-zero was first asked for in flight

@@ -179,7 +179,8 @@ class TermApp(App[int]):
             link_thread = bool(links) and all(movable(t) for t in links)
         station = Station(model, cable=transport, radio=radio, cable_session=cable_session,
                           radio_session={"link_timeout": self.config.link_timeout}, clock=clock,
-                          on_event=self._on_station_event, runner=LinkThread() if link_thread else None)
+                          on_event=self._on_station_event, runner=LinkThread() if link_thread else None,
+                          on_packet=None if self.live is None or replay is not None else self.live.link_packet)
         for t in links:  # the recording's taps write on this thread, never on the link's
             post_taps(t, station.post)
         return station
