@@ -287,6 +287,29 @@ def test_the_address_and_a_missing_sdk_are_one_line() -> None:
         first.close()
 
 
+@pytest.mark.skipif(not Path("/proc/self/task").is_dir(), reason="threads are counted in Linux's /proc")
+def test_the_sdk_sends_from_one_thread_unless_told_otherwise() -> None:
+    """Its default, a thread per core, woke two threads for every message (bench.foxglove); a user's own
+    TOKIO_WORKER_THREADS is kept. In a process of its own: the SDK's runtime starts once a process."""
+    import os
+    import subprocess
+    import sys
+
+    probe = ("import os, time\n"
+             "from term.data.foxglove_server import LiveServer\n"
+             "live = LiveServer('127.0.0.1', 0, t0=0.0, start_ns=0)\n"
+             "time.sleep(0.3)\n"
+             "names = [open(f'/proc/self/task/{t}/comm').read().strip() for t in os.listdir('/proc/self/task')]\n"
+             "print(sum(n.startswith('tokio') for n in names))\n"
+             "live.close()\n")
+    env = {k: v for k, v in os.environ.items() if k != "TOKIO_WORKER_THREADS"}
+    for setting, workers in ((None, "1"), ("3", "3")):
+        if setting is not None:
+            env["TOKIO_WORKER_THREADS"] = setting
+        out = subprocess.run([sys.executable, "-c", probe], env=env, capture_output=True, text=True, timeout=60)
+        assert out.stdout.strip() == workers, out.stderr[-2000:]
+
+
 def test_live_parameters_are_the_boards_read_only() -> None:
     from term.core.protocol import ParamValue
     from term.core.protocol.params import PARAMS, Param
