@@ -583,7 +583,7 @@ async def _run_app(transport: Any, cfg: Any, args: argparse.Namespace, radio: An
 
 def _tapped(transport: Any, radio: Any, sinks: tuple[Any, ...]) -> tuple[Any, Any]:
     """Every byte both ways on both links, tapped at the transports for the sinks (term/data/recording.py): the
-    live server gets the same bytes with the same times as the recording."""
+    live server has the same times as the recording (and the same bytes: what it reads is decoded by the links)."""
     if not sinks:
         return transport, radio
     import time

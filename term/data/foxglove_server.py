@@ -152,7 +152,8 @@ class LiveServer:
             self.errors += 1
 
     def sent(self, link: str, data: bytes, now: float) -> None:
-        """A write to ``link``: its packets, decoded from the bytes (what left, even when a write was held back)."""
+        """A write to ``link``: its packets, decoded from the bytes (what left: a write the display's watchdog
+        holds back never comes here)."""
         if data and not self._closed:
             self._bytes(link, data, now)
 

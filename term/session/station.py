@@ -198,7 +198,7 @@ class Station:
         caller's loop (the model changes only there), and the display's watchdog gates their writes; without
         it everything runs on the caller's loop. ``on_packet(link, packet)``: every packet a link receives, as its
         session decodes it, on the link's thread (the live Foxglove server: served without waiting for the
-        display, and without decoding the bytes a second time); it must not block."""
+        display, and without decoding the bytes a second time); it must neither block nor raise."""
         self.model = model
         self.runner = runner
         self._door: FrontDoor | None = None

@@ -123,7 +123,8 @@ class TermApp(App[int]):
         instructor channel (term --sim): the room view, the lessons (``lesson``: start that one; ``demo``: the
         autopilot's tour; ``lessons_dirs``: a teacher's lessons beside the built-in ones),
         term/ui/controllers/lessons.py. ``live``: the live Foxglove server (term/data/foxglove_server.py), fed the
-        events, the link statistics, the truth and, in a replay, the packets (its link bytes come from the taps).
+        events, the link statistics, the truth and, in a replay, the packets; flying, the station hands it each
+        packet the links decode, on the link's thread (the taps give it the reads' times and the bytes written).
         ``link_thread``: run the links on their own thread (term/session/link_thread.py); by default they do
         whenever the transports are real ones (serial, BLE)."""
         super().__init__()
