@@ -273,9 +273,10 @@ def test_the_address_and_a_missing_sdk_are_one_line() -> None:
     assert parse_address("8765") == ("127.0.0.1", 8765)
     assert parse_address("0.0.0.0:9000") == ("0.0.0.0", 9000)
     assert parse_address("[::1]:9000") == ("::1", 9000)
-    for bad in ("", "host:", "99999", "x:-1", "nan"):
-        with pytest.raises(FoxgloveError, match="--foxglove"):
+    for bad in ("", "host:", "99999", "x:-1", "nan", "1e308", "9" * 400, "h" * 400 + ":1" + "0" * 400, "\x00"):
+        with pytest.raises(FoxgloveError, match="--foxglove") as exc:
             parse_address(bad)
+        assert len(str(exc.value)) < 160, "the one line names the input, cut short"
     from term.data.foxglove_server import LiveServer
 
     first = LiveServer("127.0.0.1", 0, t0=0.0, start_ns=WALL)
@@ -283,6 +284,9 @@ def test_the_address_and_a_missing_sdk_are_one_line() -> None:
         with pytest.raises(FoxgloveError, match=f"cannot serve Foxglove on 127.0.0.1:{first.port}") as exc:
             LiveServer("127.0.0.1", first.port, t0=0.0, start_ns=WALL)  # the port is taken
         assert "\n" not in str(exc.value)
+        with pytest.raises(FoxgloveError, match="cannot serve Foxglove on h+[.][.][.] [(]400 characters[)]") as exc:
+            LiveServer("h" * 400, 8765, t0=0.0, start_ns=WALL)  # (no such host: a name too long to look up)
+        assert "\n" not in str(exc.value) and len(str(exc.value)) <= 300
     finally:
         first.close()
 

@@ -57,12 +57,13 @@ def parse_address(text: str) -> tuple[str, int]:
     """``[HOST:]PORT`` to (host, port); host defaults to loopback. FoxgloveError with one line if malformed."""
     host, sep, port_text = text.rpartition(":")
     host = host.strip("[]") if sep else DEFAULT_HOST
+    shown = repr(text) if len(text) <= 60 else f"{text[:40]!r}... ({len(text)} characters)"  # the line stays one
     try:
         port = int(port_text)
     except ValueError:
-        raise FoxgloveError(f"--foxglove takes [HOST:]PORT, e.g. 8765 or 0.0.0.0:8765; got {text!r}") from None
+        raise FoxgloveError(f"--foxglove takes [HOST:]PORT, e.g. 8765 or 0.0.0.0:8765; got {shown}") from None
     if not 0 <= port <= 65535 or not host:
-        raise FoxgloveError(f"--foxglove: port 0..65535 and a host, e.g. 127.0.0.1:8765; got {text!r}")
+        raise FoxgloveError(f"--foxglove: port 0..65535 and a host, e.g. 127.0.0.1:8765; got {shown}")
     return host, port
 
 
@@ -112,7 +113,8 @@ class LiveServer:
                                                  capabilities=[Capability.Parameters],
                                                  server_listener=self._params)
         except Exception as exc:  # the SDK's own error (an address in use, a host not here): one line
-            raise FoxgloveError(f"cannot serve Foxglove on {host}:{port}: {exc}") from None
+            where = host if len(host) <= 60 else f"{host[:40]}... ({len(host)} characters)"
+            raise FoxgloveError(f"cannot serve Foxglove on {where}:{port}: {exc}".splitlines()[0][:300]) from None
         self.host = host
         self.port = self._server.port
         self._channels: dict[str, tuple[Any, bool]] = {}
