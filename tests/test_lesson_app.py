@@ -220,6 +220,9 @@ async def test_show_me_stopped_in_flight_leaves_no_lift_behind_once_in_safe() ->
         await until(pilot, lambda: app.model.mode == Mode.MANUAL and app.model.stick.lift > 0, timeout=30)
         app.lessons.stop_lesson()
         m = app.model
+        said = m.events[-1]  # in the air, loudly: who flies now, on which lift, and the way down
+        assert said.severity == "warning" and "YOU FLY NOW (MANUAL, on the autopilot's lift)" in said.text
+        assert "z lowers the lift" in said.text and "1 is PANIC" in said.text
         # The lift stays while the board flies (the pilot has to bring it down) and goes once it is out of the flight
         # modes; roll, pitch and yaw go at once. Unflown in MANUAL the craft may tip over and PANIC before the next
         # tick on a busy machine (make test-busy): either way the stick has to follow the board's mode.

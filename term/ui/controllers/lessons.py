@@ -30,7 +30,7 @@ from textual.app import SystemCommand
 from textual.screen import Screen
 
 from term.core.events import StationEvent, StickSet
-from term.core.protocol import FLIGHT_MODES, INSTRUCTOR_TRUTH_HZ, STICK_NEUTRAL, Joystick, Op
+from term.core.protocol import FLIGHT_MODES, INSTRUCTOR_TRUTH_HZ, STICK_NEUTRAL, Joystick, Mode, Op
 from term.input.keymap import Action, KeyBinding, action_by_name
 from term.lessons.autopilot import COMMANDS, Press, Stick
 from term.lessons.driver import LessonDriver
@@ -39,7 +39,7 @@ from term.lessons.instructor import InstructorClient, Refused, Truth
 from term.lessons.progress import Progress, load
 from term.lessons.room import Room
 from term.lessons.spec import DEMO, Lesson, LessonError, load_lessons, load_script
-from term.session.model import Model
+from term.session.model import Model, mode_name
 from term.session.station import Station
 from term.ui.widgets.lesson import SummaryScreen
 
@@ -155,9 +155,22 @@ class LessonController:
         self.tick()
 
     def stop_lesson(self) -> None:
+        was_flying = self.driver.flying
         result = self.driver.stop(self.model, self.clock())
-        if result is None:
+        if result is None and not was_flying:
             self.station.note("info", "lesson", "nothing to stop")
+        if was_flying:
+            self._handed_over("autopilot stopped")
+
+    def _handed_over(self, what: str, loud: bool = True) -> None:
+        """The autopilot let go: in the air the pilot flies now, on the lift it left (which stays until the board
+        is out of the flight modes: ``leftover_stick``), and is told so loudly, with the way down."""
+        mode = self.model.mode
+        if loud and mode in FLIGHT_MODES:
+            self.station.note("warning", "lesson", f"{what}: YOU FLY NOW ({mode_name(mode)}, on the autopilot's "
+                              "lift): z lowers the lift to land, 1 is PANIC (it lands by itself)")
+        else:
+            self.station.note("info", "lesson", f"{what}: you have control")
 
     # --- events and the tick ------------------------------------------------------------------------------
 
@@ -170,11 +183,12 @@ class LessonController:
         """A key map action is being performed: the pilot's own (a key, the palette, the phone) if the autopilot
         is not the one pressing; a board command of the pilot's takes control (looking at a screen does not)."""
         if action.op is not None and not self._autopilot_acting:
-            self._take_over()
+            self._take_over(landing=action.op == Op.MODE and action.arg in (Mode.PANIC, Mode.SAFE))
 
-    def _take_over(self) -> None:
+    def _take_over(self, landing: bool = False) -> None:
+        """``landing``: the pilot's key is PANIC or SAFE, the way down already (nothing to tell but who flies)."""
         if self.driver.pilot_acted(self.clock()):
-            self.station.note("info", "lesson", "autopilot off: you have control")
+            self._handed_over("autopilot off", loud=not landing)
 
     def _moved(self, stick: Joystick) -> bool:
         """A stick of the pilot's, not the autopilot's: an axis away from the autopilot's by more than the neutral
