@@ -163,8 +163,8 @@ class LessonController:
             self._handed_over("autopilot stopped")
 
     def _handed_over(self, what: str, loud: bool = True) -> None:
-        """The autopilot let go: in the air the pilot flies now, on the lift it left (which stays until the board
-        is out of the flight modes: ``leftover_stick``), and is told so loudly, with the way down."""
+        """The autopilot let go: in the air (``loud``) the pilot flies now, on the lift it left (which stays until
+        the board is out of the flight modes: ``leftover_stick``), and is told so loudly, with the way down."""
         mode = self.model.mode
         if loud and mode in FLIGHT_MODES:
             self.station.note("warning", "lesson", f"{what}: YOU FLY NOW ({mode_name(mode)}, on the autopilot's "
@@ -177,18 +177,18 @@ class LessonController:
     def on_station_event(self, ev: StationEvent) -> None:
         self.driver.event(ev, self.model, self.clock())
         if type(ev) is StickSet and not self._autopilot_acting and self._moved(ev.stick):
-            self._take_over()
+            self._take_over(loud=False)  # (the pilot's own stick has the lift now)
 
     def on_action(self, action: Action) -> None:
         """A key map action is being performed: the pilot's own (a key, the palette, the phone) if the autopilot
         is not the one pressing; a board command of the pilot's takes control (looking at a screen does not)."""
         if action.op is not None and not self._autopilot_acting:
-            self._take_over(landing=action.op == Op.MODE and action.arg in (Mode.PANIC, Mode.SAFE))
+            # (PANIC or SAFE is the way down already: nothing to tell but who flies)
+            self._take_over(loud=not (action.op == Op.MODE and action.arg in (Mode.PANIC, Mode.SAFE)))
 
-    def _take_over(self, landing: bool = False) -> None:
-        """``landing``: the pilot's key is PANIC or SAFE, the way down already (nothing to tell but who flies)."""
+    def _take_over(self, loud: bool) -> None:
         if self.driver.pilot_acted(self.clock()):
-            self._handed_over("autopilot off", loud=not landing)
+            self._handed_over("autopilot off", loud=loud)
 
     def _moved(self, stick: Joystick) -> bool:
         """A stick of the pilot's, not the autopilot's: an axis away from the autopilot's by more than the neutral
