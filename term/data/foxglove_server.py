@@ -57,7 +57,7 @@ def parse_address(text: str) -> tuple[str, int]:
     """``[HOST:]PORT`` to (host, port); host defaults to loopback. FoxgloveError with one line if malformed."""
     host, sep, port_text = text.rpartition(":")
     host = host.strip("[]") if sep else DEFAULT_HOST
-    shown = repr(text) if len(text) <= 60 else f"{text[:40]!r}... ({len(text)} characters)"  # the line stays one
+    shown = _shown(text)
     try:
         port = int(port_text)
     except ValueError:
@@ -65,6 +65,16 @@ def parse_address(text: str) -> tuple[str, int]:
     if not 0 <= port <= 65535 or not host:
         raise FoxgloveError(f"--foxglove: port 0..65535 and a host, e.g. 127.0.0.1:8765; got {shown}")
     return host, port
+
+
+def _shown(text: str, quoted: bool = True) -> str:
+    """``text`` for an error line (``quoted``: as its repr), or, if long (a hostile address), its first 40
+    characters and its length: the message stays one short line."""
+    if len(text) > 60:
+        text, more = text[:40], f"... ({len(text)} characters)"
+    else:
+        more = ""
+    return (repr(text) if quoted else text) + more
 
 
 class _Params:
@@ -113,8 +123,8 @@ class LiveServer:
                                                  capabilities=[Capability.Parameters],
                                                  server_listener=self._params)
         except Exception as exc:  # the SDK's own error (an address in use, a host not here): one line
-            where = host if len(host) <= 60 else f"{host[:40]}... ({len(host)} characters)"
-            raise FoxgloveError(f"cannot serve Foxglove on {where}:{port}: {exc}".splitlines()[0][:300]) from None
+            line = f"cannot serve Foxglove on {_shown(host, quoted=False)}:{port}: {exc}".splitlines()[0]
+            raise FoxgloveError(line[:300]) from None
         self.host = host
         self.port = self._server.port
         self._channels: dict[str, tuple[Any, bool]] = {}
