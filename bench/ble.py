@@ -15,7 +15,7 @@ Two measurements:
   phone-side controller on 127.0.0.1) and the terminal's ``Connection(BleTransport(..., hci=...),
   LinkSession(change_only=True))`` through our bleak backend: writes per second still and moving, notification
   fill and size as received, heartbeat round trip.
-- **board** (real time): the real ``fcb_sim.board.Board`` paced to the wall clock behind the radio, the
+- **board** (real time): the real ``fcb_sim.board.board.Board`` paced to the wall clock behind the radio, the
   terminal's ``Connection`` in front: the board's own fill and airtime with Compact2 and without it, and the
   stick-to-motor latency over BLE in MANUAL.
 - **app** (real time): the same board, but in front of it term's own app (``TermApp``, Textual running
@@ -37,7 +37,8 @@ import statistics
 import time
 from dataclasses import dataclass, field
 
-from fcb_sim.wireless import NOTIFY_PAYLOAD, WirelessLink, start_radio
+from fcb_sim.board.wireless import NOTIFY_PAYLOAD, WirelessLink
+from fcb_sim.hosts.radio import start_radio
 from term.core.link import LinkSession
 from term.core.protocol import (
     Ack,
@@ -258,11 +259,11 @@ async def radio_run(seconds: float) -> dict:
 
 
 async def board_run(seconds: float, steps: int = 20) -> dict:
-    """The real board (``fcb_sim.board``) paced to the wall clock behind the radio, the terminal's BLE path in
+    """The real board (``fcb_sim.board.board``) paced to the wall clock behind the radio, the terminal's BLE path in
     front: handover over the cable, then the board's own BLE output (fill, rates, airtime) with the stick still,
     with Compact2 and then without it, and the stick-to-motor latency over BLE in MANUAL (lift steps; from
     ``set_joystick`` to the board's motor command changing)."""
-    from fcb_sim.board import Board, BoardConfig
+    from fcb_sim.board.board import Board, BoardConfig
     from term.session.connection import Connection
     from term.transports.ble import BleTransport
 
@@ -339,7 +340,7 @@ async def board_run(seconds: float, steps: int = 20) -> dict:
 async def app_run(steps: int = 20) -> dict:
     """Stick-to-motor latency over BLE through term's own app: ``TermApp`` with a cable and a radio to the real
     board (paced to the wall clock in this process), handed over with key 8, flown in MANUAL over BLE."""
-    from fcb_sim.board import Board, BoardConfig
+    from fcb_sim.board.board import Board, BoardConfig
     from term.transports.ble import BleTransport
     from term.transports.loopback import loopback_pair
     from term.ui.app import TermApp

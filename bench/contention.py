@@ -55,8 +55,8 @@ def _pct(xs: list[float], q: float) -> float | None:
 def board_main(seed: int, radio: bool) -> int:
     """``fcb-sim serve --pty`` with reports: each new lift it decodes (``js T LIFT``), each failsafe event (``ev T
     NAME ARG``), and at its end the gaps between valid frames (``gaps JSON``, ms on the board's clock)."""
-    from fcb_sim import serve
-    from fcb_sim.board import Board
+    from fcb_sim.board.board import Board
+    from fcb_sim.hosts import serve
     from term.core.protocol import EventCode, Joystick
 
     gaps: list[float] = []

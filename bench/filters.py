@@ -184,7 +184,7 @@ def score_fixed_held_out(path: Path, tau: float, k_rot: float, latency: float) -
 def _fixed_variants(**params: float) -> dict[str, object]:
     """ikf in fixed point beside the default's (the lite variant, N = 4): the exact twin (docs/attitude.md, "Fixed
     point") and the lite one with its gravity part over 1 and 8 samples ("The variant that fits the chip")."""
-    from fcb_sim import native
+    from fcb_sim.estimation import native
     from fcb_sim.estimation.ikf_fixed import InertialKalmanFilterQ
     from fcb_sim.estimation.ikf_lite import InertialKalmanFilterQL
 
@@ -231,7 +231,7 @@ def leave_one_out(grid: np.ndarray) -> tuple[list[int], np.ndarray]:
 def _fixed_vs_float(summary: dict[str, dict[str, float]]) -> dict[str, object]:
     """The default board flies ikf in fixed point (issue 27): its mean error beside the float filter's, and whether it
     stays within 0.05 deg of it; which implementation ran (the C of firmware/board/ikf_q.c, or the Python twin)."""
-    from fcb_sim.native import why_not
+    from fcb_sim.estimation.native import why_not
 
     fixed, flt = summary.get(f"{BEST}/fixed"), summary.get(BEST)
     if fixed is None or flt is None:

@@ -15,7 +15,7 @@ line (the last); a missing compiler is one line before it, and its figures are n
   firmware board-m0`: -Os, float, --gc-sections; no vector table or startup code, which add about 200 B), flash
   (text + data) and RAM (data + bss; the stack comes on top) beside the report's firmware; goal < 32 KB flash,
   < 8 KB RAM. ``flight_*``: the C board (double, and float as the M0 computes) and the Python board flown in the
-  same run, each a whole board over its UART by the scenarios' pilot (fcb_sim.cboard.fly_board): hover in FULL,
+  same run, each a whole board over its UART by the scenarios' pilot (fcb_sim.hosts.cboard.fly_board): hover in FULL,
   HEIGHT hold, seeds 1-8, 15 s, figures from 6 s on against the truth: mean attitude rms (deg) and height rms
   (m), and the C board's over the Python board's (goal: within 10 %). Also hover in RAW, for information: the C
   board's fixed-point ikf beside the Python board's float one, which pays the cost model's read and filter time
@@ -151,7 +151,7 @@ def cboard_m0_sizes() -> dict[str, Any]:
 
 def flights(seeds: int = 8, duration: float = 15.0) -> dict[str, Any]:
     """The boards flown side by side (module docstring): mean figures per board and scenario, and the ratios."""
-    from fcb_sim.cboard import fly_board
+    from fcb_sim.hosts.cboard import fly_board
 
     out: dict[str, Any] = {"flight_seeds": seeds, "flight_duration_s": duration}
     for scenario, key in (("hover", "full"), ("height-hold", "height"), ("raw-hover", "raw")):

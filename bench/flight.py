@@ -34,13 +34,13 @@ import json
 import statistics
 import time
 
-from fcb_sim import constants as P
+from fcb_sim.board.flight import FlightCore
+from fcb_sim.board.param_bindings import preset_core
 from fcb_sim.estimation import BEST
 from fcb_sim.estimation.height import HEIGHT_BEST, make_height_estimator
-from fcb_sim.flight import FlightCore
-from fcb_sim.param_bindings import preset_core
-from fcb_sim.scenarios import Sim, fly_core, height_profile, hover, raw_hover, raw_throw, throw
-from fcb_sim.scenarios import height_hold as height_hold_scenario
+from fcb_sim.lab.scenarios import Sim, fly_core, height_profile, hover, raw_hover, raw_throw, throw
+from fcb_sim.lab.scenarios import height_hold as height_hold_scenario
+from fcb_sim.world import constants as P
 from term.core.protocol import Mode
 
 GOAL_HEIGHT_M = 0.10

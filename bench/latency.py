@@ -1,13 +1,13 @@
 """Stick-to-motor latency: from a joystick event in term to the board's motor command changing.
 
-The board runs in real time in a child process (fcb_sim.serve's PtyServer behind a real pseudo-terminal, paced
+The board runs in real time in a child process (fcb_sim.hosts.serve's PtyServer behind a real pseudo-terminal, paced
 to the wall clock, 115200 baud on its UART model both ways); the terminal side is term's own link (LinkSession and
 Connection over the SerialTransport) in this process. The board is calibrated and put in MANUAL (motors follow
 the lift stick directly, so every motor change is caused by a stick change), then the lift stick alternates
 between two levels at random moments. For each change, latency = (the wall time at which the board's motor
 command changed, as the child reports it) - (the moment term got the stick value). Both sides read
 CLOCK_MONOTONIC, which the two processes share. The board changes the motors in the parse task that decodes a
-new stick value (fcb_sim/board.py, "Sticks to motors"); ``by_parse_pct`` says how often it did.
+new stick value (fcb_sim/board/board.py, "Sticks to motors"); ``by_parse_pct`` says how often it did.
 
     python -m bench.latency [--events 120] [--policy stream|on-change|fixed-rate] [--raw] [--seed 1]
                             [--no-report-board]
@@ -44,7 +44,7 @@ LIFTS = (8000, 12000)  # two lift levels, both above idle in MANUAL
 
 
 def board_main(seed: int, preset: str = "default") -> int:
-    from fcb_sim.serve import PtyServer, event_loop, make_board
+    from fcb_sim.hosts.serve import PtyServer, event_loop, make_board
     from term.core.protocol import Decoder, Joystick
 
     class Reporting(PtyServer):

@@ -8,7 +8,7 @@ Data:
 - a simulated flight: the board in RAW mode at 400 Hz (take-off, roll and pitch steps, yaw, landing) with
   logging on, the records captured as the board logs them.
 
-Codecs, all on the same records (fcb_sim.flash_log.LOG_VARS):
+Codecs, all on the same records (fcb_sim.board.flash_log.LOG_VARS):
 - ``delta8``: the report's one-byte scaled deltas with the error term, at the board's scales;
 - ``rice``: predictor plus adaptive Rice code at the same scales (so the same error bound, scale/2, always);
 - ``delta8-wide`` and ``rice-wide``: both at scales widened per variable until the report's byte never
@@ -34,7 +34,7 @@ import time
 import zlib
 from pathlib import Path
 
-from fcb_sim.flash_log import FLASH_BYTES, LOG_VARS, LogVar, encode_log
+from fcb_sim.board.flash_log import FLASH_BYTES, LOG_VARS, LogVar, encode_log
 from term.core.logformat import decode_log
 
 BROAD_DIR = Path(os.environ.get("BROAD_DIR", "/work/shared/data/broad"))
@@ -71,9 +71,9 @@ def broad_rows(path: Path, limit: int) -> list[tuple[int, ...]]:
 
 def simulated_rows(seconds: float = 20.0, seed: int = 1) -> list[tuple[int, ...]]:
     """A RAW-mode flight through the board's own bytes, the records captured as the board logs them."""
-    from fcb_sim import control as C
-    from fcb_sim.board import Board, BoardConfig
-    from fcb_sim.profile import BytePilot
+    from fcb_sim.board import control as C
+    from fcb_sim.board.board import Board, BoardConfig
+    from fcb_sim.lab.profile import BytePilot
     from term.core.protocol import Joystick, Mode, Op
 
     board = Board(BoardConfig(seed=seed))

@@ -19,7 +19,7 @@ import time
 
 import serial
 
-from fcb_sim.serve import ThreadedServer, make_board
+from fcb_sim.hosts.serve import ThreadedServer, make_board
 from term.core.protocol import Decoder, Encoder, Heartbeat, HeartbeatAck, Joystick
 
 

@@ -1,4 +1,4 @@
-"""The board's task profile with the cycle-cost and interference model (fcb_sim/timing.py), both schedulers,
+"""The board's task profile with the cycle-cost and interference model (fcb_sim/board/timing.py), both schedulers,
 beside the report's figures (Figure 14, section 4.2). Prints tables and one JSON line.
 
 The case the report found wanting is the RAW path at 400 Hz: a control period of at least WCET99 = 2987 µs in
@@ -11,7 +11,7 @@ Runs, each `--seconds` of board time:
   telemetry runs, 1.9 s apart), instead of our 50 Hz;
 - "ikf": RAW with ikf instead of the report's filter (the report's complementary filter runs in the rest), in
   float and in fixed point (the lite variant that fits the M0, the default), both schedulers: its cost beyond the
-  report's filter, priced from its counted operations or executed (fcb_sim/timing.py RAW_FILTER_EXTRA_US;
+  report's filter, priced from its counted operations or executed (fcb_sim/board/timing.py RAW_FILTER_EXTRA_US;
   docs/board.md, "The RAW filter's price"), added to every sensor read; then each sample charged its own
   emulated cost, the lite variant's and the exact twin's decimated ones;
 - "residual" (a diagnostic, not the model): the report's sensor-read period jitters more (sigma 193 µs for the
@@ -21,9 +21,9 @@ Runs, each `--seconds` of board time:
   shows what the control period and the miss rates then come to.
 
 Then, per task, the report's Figure 14 time, the cost model's and the emulated one: the task bodies of
-firmware/board built for the Cortex-M0 and executed under unicorn on recorded BROAD data (fcb_sim.m0emu; cycles
+firmware/board built for the Cortex-M0 and executed under unicorn on recorded BROAD data (fcb_sim.hosts.m0emu; cycles
 by the Cortex-M0 TRM at 16 MHz), and what the board charges (the model, or the emulation where the two are more
-than 20 % apart). Without unicorn or arm-none-eabi-gcc the stored figures (fcb_sim.timing.M0_EMULATED_US) are
+than 20 % apart). Without unicorn or arm-none-eabi-gcc the stored figures (fcb_sim.board.timing.M0_EMULATED_US) are
 printed, with the reason. Last, why the main table's RAW round-robin misses are not the report's 2.1 %.
 
 Run: `python -m bench.profile [--seconds S] [--seed N] [--stored]` (default 20 simulated seconds per run).
@@ -36,8 +36,7 @@ import json
 import time
 from typing import Any
 
-from fcb_sim.profile import run_profile
-from fcb_sim.timing import (
+from fcb_sim.board.timing import (
     COSTS,
     EMULATED_FILTERS,
     FIGURE14,
@@ -49,6 +48,7 @@ from fcb_sim.timing import (
     raw_filter_us,
     residual_jitter_us,
 )
+from fcb_sim.lab.profile import run_profile
 
 REPORT_SENSOR_PERIOD_SD = {"raw": FIGURE14["sensor_raw"][5], "dmp": FIGURE14["sensor_dmp"][5]}
 
@@ -107,7 +107,7 @@ def print_tasks(name: str, out: dict[str, Any]) -> None:
 
 def print_filters(runs: dict[str, dict[str, Any]], failed: dict[str, str]) -> None:
     """The RAW path's misses with ikf beside the report's filter (float, as Figure 14's 'MPU RAW - float' row)."""
-    print("\nRAW path by filter (charged per sample, fcb_sim/timing.py: priced, or executed on the M0; the report's "
+    print("\nRAW path by filter (charged per sample, board/timing.py: priced, or executed on the M0; the report's "
           f"{REPORT_RAW_FILTER} filter {raw_filter_us(REPORT_RAW_FILTER):.0f} µs float, "
           f"{raw_filter_us(REPORT_RAW_FILTER, True):.0f} µs Q16.16, is inside Figure 14's sensor row)")
     rows = (("report's filter (float)", "", REPORT_RAW_FILTER, False),
@@ -130,9 +130,9 @@ def print_filters(runs: dict[str, dict[str, Any]], failed: dict[str, str]) -> No
 
 
 def emulation(run_it: bool) -> dict[str, Any]:
-    """The task bodies on the emulated Cortex-M0 (fcb_sim.m0emu): measured now when it can be (and checked equal
+    """The task bodies on the emulated Cortex-M0 (fcb_sim.hosts.m0emu): measured now when it can be (and checked equal
     to the host build's outputs), else timing.M0_EMULATED_US, the stored figures, with the reason."""
-    from fcb_sim import m0emu
+    from fcb_sim.hosts import m0emu
 
     why = "--stored" if not run_it else m0emu.available()
     if why is None:
@@ -186,8 +186,8 @@ def cost_table(emu: dict[str, Any]) -> list[dict[str, Any]]:
 
 
 def print_cost_table(rows: list[dict[str, Any]], emu: dict[str, Any]) -> None:
-    src = ("measured now on the emulated Cortex-M0 (fcb_sim.m0emu), outputs equal to the host build's"
-           if emu["ran"] else f"stored (fcb_sim.timing.M0_EMULATED_US): {emu['why_not']}")
+    src = ("measured now on the emulated Cortex-M0 (fcb_sim.hosts.m0emu), outputs equal to the host build's"
+           if emu["ran"] else f"stored (fcb_sim.board.timing.M0_EMULATED_US): {emu['why_not']}")
     print(f"\nper task, µs a run: the report's Figure 14, the cost model, the emulated cycles at 16 MHz ({src})")
     print(f"  {'task':58s} {'Fig. 14':>8s} {'model':>8s} {'emulated':>9s} {'charged':>8s}")
 
@@ -222,9 +222,9 @@ class _PerSample(dict):
 def decimated(emu: dict[str, Any], seconds: float, seed: int) -> dict[str, dict[str, Any]]:
     """ikf in fixed point on the RAW path, each sample charged its own emulated cost (round robin and priority) and,
     beside it, every sample charged the mean: the lite variant with its gravity part spread over N samples
-    (fcb_sim.m0emu.LITE), and the exact twin with it every N-th sample (DECIMATIONS). Needs the emulation."""
-    from fcb_sim import board as board_module
-    from fcb_sim import m0emu
+    (fcb_sim.hosts.m0emu.LITE), and the exact twin with it every N-th sample (DECIMATIONS). Needs the emulation."""
+    from fcb_sim.board import board as board_module
+    from fcb_sim.hosts import m0emu
 
     if not emu["ran"]:
         return {}

@@ -6,7 +6,7 @@ the barometer at 20 Hz, hovering at 1 m after a real take-off. The factor is sim
 this process (``time.process_time``: what one core delivers), taken as the best of five equal pieces of the
 flight (the least disturbed by other processes sharing the cores, as timeit's minimum); the median piece and the
 wall-clock factor are printed beside it. Goal: >= 100x. The RAW filter ikf runs in C (firmware/board/ikf_f.c,
-ikf_q.c through fcb_sim.native; the same bits as the Python classes) where a C compiler builds it, else in
+ikf_q.c through fcb_sim.estimation.native; the same bits as the Python classes) where a C compiler builds it, else in
 Python: ``filter_impl`` says which ran, ``c_unavailable_because`` why not (QUADRUPEL_PURE_PYTHON=1 asks for it).
 
 Also printed: the cost of each part in microseconds per call and its share of one simulated second.
@@ -25,11 +25,11 @@ import platform
 import statistics
 import time
 
+from fcb_sim.board.flight import FlightCore
 from fcb_sim.estimation import BEST, FILTERS, make_filter
-from fcb_sim.flight import FlightCore
-from fcb_sim.native import why_not
-from fcb_sim.physics import World
-from fcb_sim.scenarios import Sim
+from fcb_sim.estimation.native import why_not
+from fcb_sim.lab.scenarios import Sim
+from fcb_sim.world.physics import World
 from term.core.protocol import PARAMS, Mode, Param
 
 DEFAULT_FIXED_POINT = bool(PARAMS[Param.FIXED_POINT].default)  # the default board's RAW filter arithmetic

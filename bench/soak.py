@@ -39,7 +39,7 @@ from collections import Counter
 from dataclasses import dataclass, field
 from typing import Any
 
-from fcb_sim.control import z_to_lift
+from fcb_sim.board.control import z_to_lift
 from term.core.events import FromLink, LinkDown, NotSent
 from term.core.link import CommandAcked, CommandFailed, LinkLost, PacketReceived
 from term.core.protocol import (

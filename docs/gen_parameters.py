@@ -67,8 +67,8 @@ What `report` stands for:
   and the report's loops used its rates as they came, while the lab template's pitch angle is nose-up positive;
   so pitch's angle term and rate term had opposite conventions (one sign of P2 un-damps, the other diverges
   slowly: the "twitching"), roll's did not, and yaw's rate is about z up. Here the flight core turns the chip's
-  axes into the body's (FRD: x forward, y right, z down) where the samples enter (`fcb_sim/flight.py`,
-  `imu_sample`: the chip's y and z rates change sign; the derivation is in `fcb_sim/control.py`'s docstring), so
+  axes into the body's (FRD: x forward, y right, z down) where the samples enter (`fcb_sim/board/flight.py`,
+  `imu_sample`: the chip's y and z rates change sign; the derivation is in `fcb_sim/board/control.py`'s docstring), so
   every loop has one form and every gain is a positive magnitude: 800, 0.4 and 111. A negative gain is refused
   (out of range) rather than flown.
 - **The complementary filter with K_gyro 0.999** (the report's eq. 1; Table 2's 0.9 was unstable on the craft),

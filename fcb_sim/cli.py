@@ -17,9 +17,9 @@ from collections.abc import Callable, Sequence
 from typing import Any, NoReturn
 
 from fcb_sim.errors import EXIT_INTERRUPTED, EXIT_USAGE, UsageError
-from fcb_sim.estimation.replay import cmd_replay
-from fcb_sim.profile import cmd_profile
-from fcb_sim.scenarios import cmd_run
+from fcb_sim.lab.profile import cmd_profile
+from fcb_sim.lab.replay_imu import cmd_replay
+from fcb_sim.lab.scenarios import cmd_run
 from term.core.protocol.numbers import cli_float, cli_int
 
 
@@ -75,7 +75,7 @@ def _add_global(p: argparse.ArgumentParser, version: Callable[[], str], command:
 
 
 def _add_run(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
-    """run: headless scenarios (owner: fcb_sim/scenarios.py)."""
+    """run: headless scenarios (owner: fcb_sim/lab/scenarios.py)."""
     run = sub.add_parser("run", help="fly a scripted scenario as fast as possible and print metrics")
     run.add_argument("--scenario", default="hover", help="scenario name (see --list)")
     run.add_argument("--duration", type=cli_float, default=10.0, help="simulated seconds (default 10)")
@@ -87,12 +87,12 @@ def _add_run(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     run.add_argument("--fixed-point", action="store_true", help="RAW-mode scenarios: the Q16.16 filter variant")
     run.add_argument("--board", choices=["core", "python", "c", "c-float"], default="core",
                      help="core: the flight core alone (default); python or c: the whole board over its UART, "
-                     "scenarios hover and height-hold (fcb_sim/cboard.py)")
+                     "scenarios hover and height-hold (fcb_sim/hosts/cboard.py)")
     run.set_defaults(handler=_cmd_run)
 
 
 def _add_replay_imu(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
-    """replay-imu: RAW-path filters over recorded data (owner: fcb_sim/estimation/replay.py)."""
+    """replay-imu: RAW-path filters over recorded data (owner: fcb_sim/lab/replay_imu.py)."""
     rep = sub.add_parser("replay-imu", help="run an attitude filter over recorded IMU data (CSV)")
     rep.add_argument("input", nargs="?", help="CSV or CSV.gz with columns t, gx gy gz (rad/s), ax ay az (m/s²), "
                      "or the board's flash log as term writes it (t_us, sp sq sr, sax say saz)")
@@ -104,7 +104,7 @@ def _add_replay_imu(sub: argparse._SubParsersAction[argparse.ArgumentParser]) ->
 
 
 def _add_profile(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
-    """profile: the board's task timing (owner: fcb_sim/profile.py)."""
+    """profile: the board's task timing (owner: fcb_sim/lab/profile.py)."""
     prof = sub.add_parser("profile", help="profile the firmware loop with the Cortex-M0 cycle-cost model")
     prof.add_argument("--mode", choices=["raw", "dmp"], default="raw", help="sensor path (default raw)")
     prof.add_argument("--scheduler", choices=["round-robin", "priority"], default="round-robin")
@@ -117,7 +117,7 @@ def _add_profile(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> No
 
 
 def _add_serve(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
-    """serve: the board in real time behind a pseudo-terminal (owner: fcb_sim/serve.py)."""
+    """serve: the board in real time behind a pseudo-terminal (owner: fcb_sim/hosts/serve.py)."""
     from term.core.protocol import PRESETS
 
     serve = sub.add_parser("serve", help="run the board in real time behind a pseudo-terminal")
@@ -133,7 +133,7 @@ def _add_serve(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
     serve.add_argument("--ble-hci", default=None, metavar="TRANSPORT",
                        help="also expose the board's BLE radio, e.g. tcp-server:127.0.0.1:PORT")
     serve.add_argument("--instructor", default=None, metavar="TRANSPORT",
-                       help="the truth and the lessons' situations for term --sim (fcb_sim/instructor.py), e.g. "
+                       help="the truth and the lessons' situations for term --sim (fcb_sim/hosts/instructor.py), e.g. "
                        "tcp-server:127.0.0.1:0 (loopback only; the address printed carries the token)")
     serve.add_argument("--instructor-public", action="store_true",
                        help="let --instructor listen beyond loopback (warned about: it can cut cables and motors)")
@@ -141,10 +141,10 @@ def _add_serve(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
-    """run: the flight core's scenarios, or a whole board (python or c) over its UART (fcb_sim/cboard.py)."""
+    """run: the flight core's scenarios, or a whole board (python or c) over its UART (fcb_sim/hosts/cboard.py)."""
     if getattr(args, "board", "core") == "core" or args.list:
         return cmd_run(args)
-    from fcb_sim.cboard import cmd_run_board
+    from fcb_sim.hosts.cboard import cmd_run_board
 
     return cmd_run_board(args)
 
@@ -162,7 +162,7 @@ def _cmd_serve(args: argparse.Namespace) -> int:
     """serve imports termios (POSIX): imported only here, so the other subcommands run on Windows too."""
     if not hasattr(os, "openpty"):
         raise UsageError("serve needs pseudo-terminals (Linux or macOS); this system has none")
-    from fcb_sim.serve import cmd_serve
+    from fcb_sim.hosts.serve import cmd_serve
 
     return cmd_serve(args)
 

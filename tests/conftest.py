@@ -1,6 +1,6 @@
 """Shared fixtures: a real pseudo-terminal pair, and a small scripted board peer speaking term.core.protocol.
 
-The scripted board is not the simulated board (fcb_sim.board): it is the least that exercises the link: it
+The scripted board is not the simulated board (fcb_sim.board.board): it is the least that exercises the link: it
 sends heartbeats, answers Hello with Hello and every Command with an Ack (or a chosen NAK), executing a retried
 command only once (it remembers only its last command, as the firmware does), and it can stream numbered
 filler frames so loss can be counted.
@@ -34,9 +34,9 @@ from term.core.protocol import (
 
 @pytest.fixture(autouse=True, scope="session")
 def _the_c_filter_built_first() -> None:
-    """The simulator's RAW filter is C built on first use (fcb_sim.native): built here, before any test starts a
-    simulator whose link would time out while it compiles. Without a compiler the Python filter runs."""
-    from fcb_sim.native import library
+    """The simulator's RAW filter is C built on first use (fcb_sim.estimation.native): built here, before any test
+    starts a simulator whose link would time out while it compiles. Without a compiler the Python filter runs."""
+    from fcb_sim.estimation.native import library
 
     library()
 

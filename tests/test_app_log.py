@@ -14,9 +14,9 @@ from pathlib import Path
 
 import pytest
 
-from fcb_sim.board import Board, BoardConfig
-from fcb_sim.flash_log import encode_log
-from fcb_sim.physics import World
+from fcb_sim.board.board import Board, BoardConfig
+from fcb_sim.board.flash_log import encode_log
+from fcb_sim.world.physics import World
 from term.core.logfile import LogDownload, decode_to_rows
 from term.core.logformat import decode_log
 from term.core.protocol import SPEC_OF, LogChunk, LogState, LogStatus, Mode, cobs_decode

@@ -20,8 +20,8 @@ SIZE = (120, 44)
 def seeded_flight(seed: int = 1, seconds: float = 5.0) -> tuple[Model, float]:
     """Fly the seeded board through a LinkSession on a simulated clock: calibrate, FULL, lift off with some
     roll, one refused command; returns the model the screen renders and the end time."""
-    from fcb_sim.board import Board, BoardConfig
-    from fcb_sim.physics import World
+    from fcb_sim.board.board import Board, BoardConfig
+    from fcb_sim.world.physics import World
 
     board = Board(BoardConfig(seed=seed), world=World(seed))
     session = LinkSession(0.0)
@@ -84,7 +84,7 @@ def test_the_seeded_flight_is_what_the_screen_claims(flight: tuple[Model, float]
 
 
 def test_profile_task_names_match_the_board() -> None:
-    from fcb_sim.scheduler import TASKS
+    from fcb_sim.board.scheduler import TASKS
     from term.ui.widgets.profile import TASK_NAMES
 
     assert tuple(TASK_NAMES[i] for i in range(len(TASK_NAMES))) == TASKS

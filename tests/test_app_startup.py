@@ -18,7 +18,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-from fcb_sim.board import Board, BoardConfig
+from fcb_sim.board.board import Board, BoardConfig
 from term.core.events import CABLE, FromLink
 from term.core.link import PacketReceived
 from term.core.protocol import PROTOCOL_VERSION, Decoder, Encoder, Event, EventCode, Hello, Mode, Role

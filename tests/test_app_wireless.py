@@ -226,8 +226,8 @@ def seeded_handover(seed: int = 1, seconds: float = 3.0) -> Model:
     """The sans-IO board with a cable session and a radio session on a simulated clock: connect the radio at
     0.2 s, key 8 over the cable at 0.5 s, the radio answers and carries control (STARTED), MANUAL over BLE at
     1.2 s, then lift with a little roll. Returns the model the screen renders."""
-    from fcb_sim.board import Board, BoardConfig
-    from fcb_sim.physics import World
+    from fcb_sim.board.board import Board, BoardConfig
+    from fcb_sim.world.physics import World
     from term.session.station import RADIO_SESSION
 
     board = Board(BoardConfig(seed=seed), world=World(seed))
@@ -370,8 +370,8 @@ async def test_no_stale_figure_goes_unmarked_through_a_handover() -> None:
     fresh over BLE."""
     import time
 
-    from fcb_sim.board import Board, BoardConfig
-    from fcb_sim.physics import World
+    from fcb_sim.board.board import Board, BoardConfig
+    from fcb_sim.world.physics import World
 
     cable, radio = loopback_pair(), loopback_pair()
     radio.a.name = "BLE loopback"

@@ -12,9 +12,9 @@ import shutil
 
 import pytest
 
-from fcb_sim.board import Board
-from fcb_sim.parts import BoardConfig
-from fcb_sim.physics import World
+from fcb_sim.board.board import Board
+from fcb_sim.board.parts import BoardConfig
+from fcb_sim.world.physics import World
 from term.core.link import LinkSession
 from term.core.protocol import Joystick, Mode, Op, scaled
 from term.session.model import Model
@@ -26,7 +26,7 @@ def _board(kind: str, seed: int) -> Board:
     if kind == "c":
         if shutil.which("cc") is None or shutil.which("make") is None:
             pytest.skip("no C compiler (cc) or make")
-        from fcb_sim.cboard import CBoard
+        from fcb_sim.hosts.cboard import CBoard
 
         return CBoard(BoardConfig(seed=seed), world=World(seed))  # type: ignore[return-value]
     return Board(BoardConfig(seed=seed), world=World(seed))

@@ -8,7 +8,8 @@ import asyncio
 
 import pytest
 
-from fcb_sim.wireless import WirelessLink, start_radio
+from fcb_sim.board.wireless import WirelessLink
+from fcb_sim.hosts.radio import start_radio
 from term.core.protocol import (
     Ack,
     Compact,
@@ -151,7 +152,8 @@ async def test_the_simulator_going_away_is_a_lost_connection(board) -> None:
 
 RADIO_PROCESS = """
 import asyncio, sys
-from fcb_sim.wireless import WirelessLink, start_radio
+from fcb_sim.board.wireless import WirelessLink
+from fcb_sim.hosts.radio import start_radio
 from term.core.protocol import Heartbeat
 
 async def main():

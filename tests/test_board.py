@@ -10,11 +10,11 @@ from hypothesis import HealthCheck, event, settings
 from hypothesis import strategies as st
 from hypothesis.stateful import RuleBasedStateMachine, invariant, rule
 
-from fcb_sim import control as C
-from fcb_sim.board import Board, BoardConfig
-from fcb_sim.modes import FLIGHT_MODES, LIFT_ZERO, STICK_NEUTRAL, ModeChange
-from fcb_sim.scheduler import TASKS
-from fcb_sim.timing import (
+from fcb_sim.board import control as C
+from fcb_sim.board.board import Board, BoardConfig
+from fcb_sim.board.modes import FLIGHT_MODES, LIFT_ZERO, STICK_NEUTRAL, ModeChange
+from fcb_sim.board.scheduler import TASKS
+from fcb_sim.board.timing import (
     COSTS,
     PARSE_US_BASE,
     PARSE_US_PER_BYTE,
@@ -553,7 +553,7 @@ def test_the_terminals_link_session_flies_the_board() -> None:
 
 
 def test_a_flat_battery_sags_under_load_and_panics() -> None:
-    from fcb_sim.serve import make_board
+    from fcb_sim.hosts.serve import make_board
 
     b = make_board(seed=3, scenario="low-battery")
     pc = Pc(b)

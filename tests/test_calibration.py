@@ -1,14 +1,14 @@
-"""The one calibration (fcb_sim/calibration.py): unbounded integer sums, rounded means, the means the flight core
+"""The one calibration (fcb_sim/board/calibration.py): unbounded integer sums, rounded means, the means the flight core
 applies; the board's and the scenarios' CALIBRATION both go through it."""
 
 from __future__ import annotations
 
 import pytest
 
-from fcb_sim import constants as P
-from fcb_sim.calibration import DMP_ANGLE_LSB, CalibrationSums
+from fcb_sim.board.calibration import DMP_ANGLE_LSB, CalibrationSums
 from fcb_sim.estimation import quaternion_to_euler
-from fcb_sim.physics import World
+from fcb_sim.world import constants as P
+from fcb_sim.world.physics import World
 
 
 def test_calibration_sums_are_unbounded_and_means_rounded() -> None:

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import pytest
 
-from fcb_sim import cboard
+from fcb_sim.hosts import cboard
 from tests.support.firmware import NO_ARM, SAN_ENV
 
 FIRMWARE = Path(cboard.__file__).resolve().parent.parent / "firmware"
@@ -141,7 +141,7 @@ def test_the_instructor_channel_acts_on_the_c_boards_world_and_cable() -> None:
 def test_a_flood_is_dropped_counted_and_said_once() -> None:
     """10 KB at once into the C board's 4 KB receive queue: the rest is dropped, counted, and said in one event
     OVERFLOW (a flood is one event a heartbeat period); the board parses on and answers the retried command."""
-    from fcb_sim.parts import BoardConfig
+    from fcb_sim.board.parts import BoardConfig
     from term.core.protocol import Ack, Command, Decoder, Event, EventCode, Op, encode
 
     board = cboard.CBoard(BoardConfig(seed=2))
@@ -178,7 +178,7 @@ def test_the_boards_filter_is_ikf_fixed_bit_for_bit_at_the_boards_dts() -> None:
     import ctypes
 
     from fcb_sim.estimation.ikf_lite import InertialKalmanFilterQL
-    from fcb_sim.native import STATE_FIELDS, python_state
+    from fcb_sim.estimation.native import STATE_FIELDS, python_state
 
     lib = ctypes.CDLL(str(cboard.library_path()))
     dbl = ctypes.c_double
@@ -198,8 +198,8 @@ def test_the_boards_filter_is_ikf_fixed_bit_for_bit_at_the_boards_dts() -> None:
 
 def test_the_boards_constants_table_is_what_fcb_sim_native_prints() -> None:
     """qb_flight.c's IKF_CONSTS (ikf's defaults as integers, so the M0 links no double set-up) is still the table
-    `python -m fcb_sim.native --constants 0.0025` prints."""
-    from fcb_sim.native import NativeIKFQL, library, why_not
+    `python -m fcb_sim.estimation.native --constants 0.0025` prints."""
+    from fcb_sim.estimation.native import NativeIKFQL, library, why_not
 
     if library() is None:
         pytest.skip(f"the C filter is not built here: {why_not()}")

@@ -26,9 +26,9 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from fcb_sim import board as board_module
-from fcb_sim.board import Board
-from fcb_sim.parts import BoardConfig
+from fcb_sim.board import board as board_module
+from fcb_sim.board.board import Board
+from fcb_sim.board.parts import BoardConfig
 from term.core.protocol import PARAMS, Ack, Command, Decoder, Event, EventCode, Joystick, Mode, Op, Param, encode
 
 pytestmark = pytest.mark.skipif(shutil.which("cc") is None or shutil.which("make") is None,
@@ -91,7 +91,7 @@ class Pair:
     """A Python board and a C board on twin scripted worlds, stepped and compared control step by control step."""
 
     def __init__(self, seed: int = 3) -> None:
-        from fcb_sim.cboard import CBoard
+        from fcb_sim.hosts.cboard import CBoard
 
         # the RAW path's filter in fixed point: the C board has ikf's fixed-point twin
         cfg = BoardConfig(seed=seed, softdevice=False, fixed_point=True)
@@ -127,7 +127,7 @@ class Pair:
         self.send(Command(self.cmd_id, op, arg))
 
     def starve(self, us: int) -> None:
-        """The simulator's process got no CPU for ``us``: both boards are told (fcb_sim/serve.py's catch-up)."""
+        """The simulator's process got no CPU for ``us``: both boards are told (fcb_sim/hosts/serve.py's catch-up)."""
         until = self.py.now + us
         self.py.starved(until)
         self.c.starved(until)
@@ -173,7 +173,7 @@ class Pair:
 
 @pytest.fixture(autouse=True)
 def _no_filter_cost(monkeypatch: pytest.MonkeyPatch) -> None:
-    """The RAW filter's price (fcb_sim.timing.RAW_FILTER_EXTRA_US) is part of the cost model: off here too."""
+    """The RAW filter's price (fcb_sim.board.timing.RAW_FILTER_EXTRA_US) is part of the cost model: off here too."""
     monkeypatch.setattr(board_module, "RAW_FILTER_EXTRA_US", defaultdict(int))
 
 

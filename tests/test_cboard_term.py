@@ -10,7 +10,7 @@ import shutil
 
 import pytest
 
-from fcb_sim.cboard import library_path
+from fcb_sim.hosts.cboard import library_path
 from term.core.protocol import LIFT_ZERO, NAK_TEXT, PROTOCOL_VERSION, Mode, Nak, Role
 from term.session.sim import SimBoard
 from term.transports.serial import SerialTransport

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from fcb_sim.flash_log import LOG_VARS, encode_log
+from fcb_sim.board.flash_log import LOG_VARS, encode_log
 from term.cli.main import main
 from term.core.logfile import decode_to_rows, write_csv
 from term.core.protocol import PROTOCOL_VERSION

@@ -102,7 +102,7 @@ def test_the_choices_completion_offers() -> None:
 
 
 def test_the_simulators_scenarios_are_the_protocols() -> None:
-    from fcb_sim.serve import SCENARIOS
+    from fcb_sim.hosts.serve import SCENARIOS
 
     assert tuple(SCENARIOS) == SIM_SCENARIOS
 

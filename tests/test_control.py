@@ -6,10 +6,10 @@ import math
 
 import pytest
 
-from fcb_sim import constants as P
-from fcb_sim import control as C
-from fcb_sim.physics import World
-from fcb_sim.scenarios import run_scenario
+from fcb_sim.board import control as C
+from fcb_sim.lab.scenarios import run_scenario
+from fcb_sim.world import constants as P
+from fcb_sim.world.physics import World
 
 
 def test_isqrt_max_error_is_1_over_0_to_1e6():

@@ -8,11 +8,11 @@ from typing import Any
 
 import pytest
 
-from fcb_sim import constants as P
-from fcb_sim.board import Board, BoardConfig
-from fcb_sim.modes import ModeConfig, ModeMachine
-from fcb_sim.physics import World
-from fcb_sim.scenarios import panic_high
+from fcb_sim.board.board import Board, BoardConfig
+from fcb_sim.board.modes import ModeConfig, ModeMachine
+from fcb_sim.lab.scenarios import panic_high
+from fcb_sim.world import constants as P
+from fcb_sim.world.physics import World
 from term.core.protocol import (
     Command,
     Decoder,

@@ -6,7 +6,7 @@ own start of it is in tests/test_lesson_app.py."""
 
 from __future__ import annotations
 
-from fcb_sim.modes import Mode
+from fcb_sim.board.modes import Mode
 from term.core.protocol import WirelessState
 from tests.support.lessons_rig import Rig
 

@@ -18,7 +18,7 @@ from fcb_sim.estimation.height import (
     make_height_estimator,
     pa_per_metre,
 )
-from fcb_sim.scenarios import run_scenario
+from fcb_sim.lab.scenarios import run_scenario
 
 DT = 0.0025
 P0 = 101325.0

@@ -395,7 +395,7 @@ def test_raw_path_holds_attitude_with_the_stick_thrown_side_to_side(fixed: bool)
     """The raw-throw scenario (RAW, roll stick +-20° reversing every 0.6 s): the on-board filter's attitude
     against the simulator's truth stays under 1° RMS (measured 0.64°, 0.67° fixed point; the DMP in the same
     flight, FULL, 1.7°)."""
-    from fcb_sim.scenarios import run_scenario
+    from fcb_sim.lab.scenarios import run_scenario
 
     m = run_scenario("raw-throw", 20.0, seed=1, fixed_point=fixed)
     assert m["attitude_max_deg"] > 15.0  # it did swing

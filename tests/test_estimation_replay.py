@@ -135,8 +135,8 @@ def _raw_flight_log(tmp_path: Path, seconds: float = 12.0,
     """A RAW-mode flight in the simulator, logged as the board's logging task does every control period from the
     end of CALIBRATION on (the on-board filter restarts there too), encoded into flash, downloaded and written as
     term writes it (decode_to_rows, write_csv); the board's filter in fixed point with ``fixed``."""
-    from fcb_sim.flash_log import encode_log
-    from fcb_sim.scenarios import Sim, _roll_stick
+    from fcb_sim.board.flash_log import encode_log
+    from fcb_sim.lab.scenarios import Sim, _roll_stick
     from term.core.logfile import decode_to_rows, write_csv
     from term.core.protocol import Mode
 

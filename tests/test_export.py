@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 from mcap.reader import make_reader
 
-from fcb_sim.flash_log import LOG_VARS, encode_log
+from fcb_sim.board.flash_log import LOG_VARS, encode_log
 from term.core.events import LinkDown
 from term.core.logfile import decode_to_rows, write_csv
 from term.core.protocol import (

@@ -7,9 +7,9 @@ descent (LINK_TIMEOUT). The report's preset keeps the report's immediate PANIC. 
 
 from __future__ import annotations
 
-from fcb_sim.board import Board, BoardConfig
-from fcb_sim.modes import ModeConfig, ModeMachine
-from fcb_sim.param_bindings import get_raw
+from fcb_sim.board.board import Board, BoardConfig
+from fcb_sim.board.modes import ModeConfig, ModeMachine
+from fcb_sim.board.param_bindings import get_raw
 from term.core.protocol import PARAMS, Event, EventCode, Joystick, Mode, Nak, Op, Param, nak_text, param_arg
 from tests.test_board import HOVER_LIFT, Pc
 
@@ -115,7 +115,7 @@ def test_the_terminal_says_what_the_board_does() -> None:
     assert "250 ms behind real time" in event_text(EventCode.SIM_LAG, 250)[1]
 
 
-# --- a starved simulator keeps the link's time honest (fcb_sim/serve.py) -------------------------------------------
+# --- a starved simulator keeps the link's time honest (fcb_sim/hosts/serve.py) ----------------------------------------
 
 
 def test_a_starved_simulator_does_not_count_its_own_stall_as_link_silence() -> None:
@@ -125,7 +125,7 @@ def test_a_starved_simulator_does_not_count_its_own_stall_as_link_silence() -> N
     import os
     import select
 
-    from fcb_sim.serve import PtyServer
+    from fcb_sim.hosts.serve import PtyServer
     from term.core.protocol import Decoder, Encoder
 
     b, pc = flying(preset="report", link_timeout_s=0.2)  # the report's board: 0.2 s of silence is PANIC at once

@@ -10,7 +10,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from fcb_sim.flash_log import LOG_VARS, FlashLog, LogVar, encode_log
+from fcb_sim.board.flash_log import LOG_VARS, FlashLog, LogVar, encode_log
 from term.core.logfile import LogDownload, decode_to_rows, write_csv
 from term.core.logformat import SCHEME_DELTA8, SCHEME_RICE, decode_log
 from term.core.protocol import LogChunk, LogState, LogStatus, Nak

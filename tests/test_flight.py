@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import pytest
 
-from fcb_sim import constants as P
-from fcb_sim.flight import Calibration, FlightCore
-from fcb_sim.scenarios import run_scenario
+from fcb_sim.board.flight import Calibration, FlightCore
+from fcb_sim.lab.scenarios import run_scenario
+from fcb_sim.world import constants as P
 from term.core.protocol import Mode
 
 

@@ -189,8 +189,8 @@ def test_lift_trims_flown_over_ble_are_shown_as_the_board_has_them() -> None:
     (trim +0) and motors 0, unmarked. The board reports each new trim in its Ack; the model shows that (fresh),
     what the second BLE frame carries (motors, height: Compact2) is fresh and the board's, and what BLE does not
     carry (rates, pressure) is not shown as a number."""
-    from fcb_sim.board import Board, BoardConfig
-    from fcb_sim.physics import World
+    from fcb_sim.board.board import Board, BoardConfig
+    from fcb_sim.world.physics import World
     from term.core.link import LinkSession
     from term.session.station import RADIO_SESSION
 

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import pytest
 
-from fcb_sim import control as C
-from fcb_sim.flight import HEIGHT_I, Calibration, FlightCore
-from fcb_sim.scenarios import Sim, height_hold
+from fcb_sim.board import control as C
+from fcb_sim.board.flight import HEIGHT_I, Calibration, FlightCore
+from fcb_sim.lab.scenarios import Sim, height_hold
 from term.core.protocol import Mode
 
 

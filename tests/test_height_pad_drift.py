@@ -16,8 +16,8 @@ from __future__ import annotations
 
 import statistics
 
-from fcb_sim.board import Board, BoardConfig
-from fcb_sim.physics import World
+from fcb_sim.board.board import Board, BoardConfig
+from fcb_sim.world.physics import World
 from term.core.link import LinkSession
 from term.core.protocol import Joystick, Mode, Op, scaled
 from term.session.model import Model

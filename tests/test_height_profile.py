@@ -9,9 +9,9 @@ import math
 
 import pytest
 
-from fcb_sim import constants as P
 from fcb_sim.estimation.height import GROUND_REST_S, HeightKalman
-from fcb_sim.scenarios import height_profile
+from fcb_sim.lab.scenarios import height_profile
+from fcb_sim.world import constants as P
 
 
 @pytest.mark.parametrize("seed", [1, 2])

@@ -18,10 +18,10 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from fcb_sim.board import Board, BoardConfig
+from fcb_sim.board.board import Board, BoardConfig
 from fcb_sim.errors import UsageError
-from fcb_sim.instructor import MAX_OUTAGE_S, Instructor, InstructorServer
-from fcb_sim.physics import World
+from fcb_sim.hosts.instructor import MAX_OUTAGE_S, Instructor, InstructorServer
+from fcb_sim.world.physics import World
 from term.lessons.instructor import InstructorClient, parse_address
 
 

@@ -12,9 +12,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from fcb_sim.board import Board, BoardConfig
-from fcb_sim.commands import execute
-from fcb_sim.param_bindings import get_value
+from fcb_sim.board.board import Board, BoardConfig
+from fcb_sim.board.commands import execute
+from fcb_sim.board.param_bindings import get_value
 from term.core.protocol import GAIN_OPS, PARAM_BY_NAME, PARAMS, Command, Nak, Op, Param, param_arg
 from term.session.param_client import ParamError, load_file, parse_text
 
@@ -194,7 +194,7 @@ def test_any_option_text_is_a_number_or_argparses_one_line(text: str) -> None:
 
 
 def test_the_flight_cores_own_gain_step_keeps_the_tables_range_too() -> None:
-    from fcb_sim.flight import FlightCore
+    from fcb_sim.board.flight import FlightCore
 
     core = FlightCore()
     assert core.adjust_gain("p2", 1_000_000) == PARAMS[Param.P2].hi

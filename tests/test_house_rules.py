@@ -131,7 +131,7 @@ def test_rules_can_fail() -> None:
 
 
 def _module_name(path: Path) -> str:
-    rel = path.relative_to(ROOT).with_suffix("")
+    rel = (path.relative_to(ROOT) if path.is_relative_to(ROOT) else Path(path.name)).with_suffix("")
     parts = rel.parts[:-1] if rel.name == "__init__" else rel.parts
     return ".".join(parts)
 
@@ -251,9 +251,12 @@ def _import_graph(tree: str) -> dict[str, set[str]]:
             # `from term.ui.widgets import x` names a module or an attribute: keep what is a module of ours
             while m and m not in mods:
                 m = m.rpartition(".")[0]
-            # a package's __init__ is not a dependency of its own modules' imports of siblings
-            if m and m != name and not name.startswith(m + "."):
-                deps.add(m)
+            # importing a.b.c runs a/__init__ and a/b/__init__ first: each is a dependency too, except a package's
+            # own __init__ for its modules' imports of siblings (it is already loading)
+            while m:
+                if m in mods and m != name and not name.startswith(m + "."):
+                    deps.add(m)
+                m = m.rpartition(".")[0]
         graph[name] = deps
     return graph
 
@@ -264,6 +267,14 @@ def test_no_import_cycles(tree: str) -> None:
     assert not cycles, "import cycles:\n" + "\n".join(" <-> ".join(c) for c in cycles)
 
 
+def test_an_import_of_a_module_depends_on_its_packages() -> None:
+    """The cycle issue 32 found: estimation/__init__ imported a module outside the package inside a function, and
+    that module imported estimation.base, which runs estimation/__init__ again."""
+    graph = _import_graph("fcb_sim")
+    assert "fcb_sim.estimation" in graph["fcb_sim.hosts.m0emu"]  # it imports fcb_sim.estimation.ikf_fixed
+    assert "fcb_sim.estimation" not in graph["fcb_sim.estimation.ikf"]  # a sibling's import: the package is loading
+
+
 def test_cycle_finder_can_fail() -> None:
     assert _cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c"]]
     assert _cycles({"a": {"b"}, "b": set()}) == []
@@ -271,9 +282,12 @@ def test_cycle_finder_can_fail() -> None:
 
 # --- floors -------------------------------------------------------------------------------------------------
 
-# term's packages, bottom up (docs/architecture.md draws them): a module imports only its own floor and below.
+# Each program's packages, bottom up (docs/architecture.md draws them): a module imports only its own floor and
+# below. Packages on one floor do not import each other's modules more than the graph needs (no cycle).
 FLOORS = {"term.core": 1, "term.transports": 2, "term.input": 2, "term.session": 3, "term.data": 4,
-          "term.lessons": 5, "term.ui": 6, "term.cli": 7, "term.__main__": 7}
+          "term.lessons": 5, "term.ui": 6, "term.cli": 7, "term.__main__": 7,
+          "fcb_sim.errors": 0, "fcb_sim.world": 1, "fcb_sim.estimation": 1, "fcb_sim.board": 2, "fcb_sim.hosts": 3,
+          "fcb_sim.lab": 4, "fcb_sim.cli": 5, "fcb_sim.__main__": 5}
 
 
 def _floor(module: str) -> int | None:
@@ -294,16 +308,56 @@ def _up_imports(graph: dict[str, set[str]]) -> list[str]:
     return bad
 
 
-def test_every_term_module_has_a_floor() -> None:
-    homeless = [m for m in _all_modules("term") if m != "term" and _floor(m) is None]
+@pytest.mark.parametrize("tree", ("term", "fcb_sim"))
+def test_every_module_has_a_floor(tree: str) -> None:
+    homeless = [m for m in _all_modules(tree) if m != tree and _floor(m) is None]
     assert not homeless, f"modules outside the floors (put them in a floor's package): {homeless}"
 
 
-def test_no_import_goes_up_a_floor() -> None:
-    bad = _up_imports(_import_graph("term"))
+@pytest.mark.parametrize("tree", ("term", "fcb_sim"))
+def test_no_import_goes_up_a_floor(tree: str) -> None:
+    bad = _up_imports(_import_graph(tree))
     assert not bad, "an import up a floor (move the code down, or pass it in):\n" + "\n".join(bad)
 
 
-def test_floor_check_can_fail() -> None:
-    assert _up_imports({"term.core.freshness": {"term.session.model"}, "term.session.model": {"term.core.link"}}) == [
-        "term.core.freshness (floor 1) imports term.session.model (floor 3)"]
+# --- the one seam from term to fcb_sim ----------------------------------------------------------------------
+
+SIM_SEAM = "term.session.sim"  # the simulator launcher: the only module of term that knows fcb_sim
+_CODE_IN_STRING = re.compile(r"\b(from|import)\s+fcb_sim\b")
+
+
+def _docstrings(tree: ast.AST) -> set[int]:
+    out = set()
+    for node in ast.walk(tree):
+        if isinstance(node, (ast.Module, ast.ClassDef, ast.FunctionDef, ast.AsyncFunctionDef)) and node.body:
+            first = node.body[0]
+            if isinstance(first, ast.Expr) and isinstance(first.value, ast.Constant):
+                out.add(id(first.value))
+    return out
+
+
+def _reaches_fcb_sim(path: Path) -> list[str]:
+    """The imports of fcb_sim in a module of term, and the fcb_sim imports inside its string literals (the code a
+    child process is started with, ``python -c "from fcb_sim ..."``, which no import statement shows)."""
+    found = sorted(m for m in _imports(path) if m.split(".")[0] == "fcb_sim")
+    tree = ast.parse(path.read_text(encoding="utf-8"))
+    prose = _docstrings(tree)
+    for node in ast.walk(tree):
+        if (isinstance(node, ast.Constant) and isinstance(node.value, str) and id(node) not in prose
+                and _CODE_IN_STRING.search(node.value)):
+            found.append(f"code in a string: {node.value[:60]!r}")
+    return found
+
+
+def test_term_reaches_fcb_sim_only_through_the_simulator_launcher() -> None:
+    mods = _all_modules("term")
+    bad = [f"{name}: {', '.join(found)}" for name, path in mods.items()
+           if name != SIM_SEAM and (found := _reaches_fcb_sim(path))]
+    assert not bad, f"only {SIM_SEAM} may reach fcb_sim:\n" + "\n".join(bad)
+    assert _reaches_fcb_sim(mods[SIM_SEAM]), "the seam is where term starts the simulator"
+
+
+def test_seam_check_can_fail(tmp_path: Path) -> None:
+    code = tmp_path / "m.py"
+    code.write_text('"""from fcb_sim import x is prose here."""\ncmd = ["-c", "from fcb_sim.cli import main"]\n')
+    assert _reaches_fcb_sim(code) == ["code in a string: 'from fcb_sim.cli import main'"]

@@ -25,7 +25,7 @@ from fcb_sim.estimation.ikf_lite import (
     qmul,
     worst_atan_error_deg,
 )
-from fcb_sim.native import NativeIKFQL, library, python_state, why_not
+from fcb_sim.estimation.native import NativeIKFQL, library, python_state, why_not
 from tests.test_ikf_native import EXCERPT, _rows, _sample
 
 

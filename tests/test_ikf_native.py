@@ -1,4 +1,4 @@
-"""ikf in C (firmware/board/ikf_q.c in fixed point, ikf_f.c in doubles, through fcb_sim.native) against the
+"""ikf in C (firmware/board/ikf_q.c in fixed point, ikf_f.c in doubles, through fcb_sim.estimation.native) against the
 Python classes they translate (fcb_sim/estimation/ikf_fixed.py, ikf.py: the references): fed the same samples,
 every integer (every double) of the state is the same after every sample checked, on recorded BROAD data and on
 the worst inputs a sample can carry."""
@@ -20,7 +20,7 @@ from hypothesis import strategies as st
 from fcb_sim.estimation import make_filter
 from fcb_sim.estimation.ikf import InertialKalmanFilter
 from fcb_sim.estimation.ikf_fixed import Formats, InertialKalmanFilterQ
-from fcb_sim.native import NativeIKF, NativeIKFQ, library, python_state, why_not
+from fcb_sim.estimation.native import NativeIKF, NativeIKFQ, library, python_state, why_not
 
 EXCERPT = Path(__file__).parent / "data" / "broad_07_fast_rotation_excerpt.csv.gz"
 BROAD = Path(__file__).resolve().parents[2] / "shared" / "data" / "broad"
@@ -183,7 +183,7 @@ def test_make_filter_picks_the_c_filter_and_the_reference_on_request() -> None:
 
 def test_without_the_c_filter_the_python_one_runs() -> None:
     """QUADRUPEL_PURE_PYTHON (as a machine without a compiler): the Python twin, and why."""
-    code = ("from fcb_sim.estimation import make_filter; from fcb_sim.native import why_not; "
+    code = ("from fcb_sim.estimation import make_filter; from fcb_sim.estimation.native import why_not; "
             "print(type(make_filter('ikf', fixed_point=True)).__name__, type(make_filter('ikf')).__name__, '|', "
             "why_not())")
     env = {**os.environ, "QUADRUPEL_PURE_PYTHON": "1"}
@@ -195,7 +195,7 @@ def test_a_filter_set_up_from_the_integers_alone_runs_the_same() -> None:
     """ikfq_init_q with the constants ikfq_consts gives (what a board without doubles takes from a table): the same
     states as ikfq_init on the same Q.io samples."""
     from fcb_sim.estimation.ikf_fixed import to_q
-    from fcb_sim.native import constants_c
+    from fcb_sim.estimation.native import constants_c
 
     rows = _rows(EXCERPT, 3000)[2400:2700]
     a, b = NativeIKFQ(), NativeIKFQ()

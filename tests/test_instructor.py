@@ -1,6 +1,6 @@
-"""The simulator's instructor channel: situations set on the real board and world (fcb_sim/instructor.py), the truth
-as the terminal parses it (term/lessons/instructor.py), and both ends over a real TCP socket, from the child board that
-`term --sim` starts to a serial client that sees the instructor cut the cable."""
+"""The simulator's instructor channel: situations set on the real board and world (fcb_sim/hosts/instructor.py), the
+truth as the terminal parses it (term/lessons/instructor.py), and both ends over a real TCP socket, from the child
+board that `term --sim` starts to a serial client that sees the instructor cut the cable."""
 
 from __future__ import annotations
 
@@ -12,9 +12,9 @@ import time
 import pytest
 import serial
 
-from fcb_sim.board import Board, BoardConfig
-from fcb_sim.instructor import Instructor, InstructorServer
-from fcb_sim.physics import World
+from fcb_sim.board.board import Board, BoardConfig
+from fcb_sim.hosts.instructor import Instructor, InstructorServer
+from fcb_sim.world.physics import World
 from term.core.link import LinkSession
 from term.core.protocol import INSTRUCTOR_TRUTH, INSTRUCTOR_VERSION, Joystick, Mode, Op
 from term.lessons.instructor import Hello, InstructorClient, Refused, Truth, check_situation, parse_line

@@ -1,5 +1,5 @@
 """The lessons, the room view and the demo through the real app (Textual's Pilot) and real parts: the board served
-in real time on a pseudo-terminal (fcb_sim.serve's ThreadedServer, in this process so the test can read the
+in real time on a pseudo-terminal (fcb_sim.hosts.serve's ThreadedServer, in this process so the test can read the
 world the simulator flies) with its instructor channel on a local TCP port, and term's SerialTransport,
 InstructorClient and TermApp, as `term --sim` wires them. The command line's checks of --lesson and --demo come
 last."""
@@ -15,8 +15,8 @@ from pathlib import Path
 
 import pytest
 
-from fcb_sim.instructor import Instructor, InstructorServer
-from fcb_sim.serve import ThreadedServer, make_board
+from fcb_sim.hosts.instructor import Instructor, InstructorServer
+from fcb_sim.hosts.serve import ThreadedServer, make_board
 from term.cli.main import main
 from term.core.protocol import FLIGHT_MODES, EventCode, Joystick, Mode
 from term.lessons.instructor import InstructorClient

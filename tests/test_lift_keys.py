@@ -11,8 +11,8 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from fcb_sim.board import Board
-from fcb_sim.parts import BoardConfig
+from fcb_sim.board.board import Board
+from fcb_sim.board.parts import BoardConfig
 from term.core.protocol import (
     LIFT_FINE_DIVISOR,
     LIFT_FINE_FROM,
@@ -84,7 +84,7 @@ def test_both_boards_step_the_lift_trim_by_the_protocols_rule(kind: str) -> None
     if kind == "c":
         if shutil.which("cc") is None or shutil.which("make") is None:
             pytest.skip("no C compiler (cc) or make")
-        from fcb_sim.cboard import CBoard
+        from fcb_sim.hosts.cboard import CBoard
 
         board: object = CBoard(BoardConfig(seed=4))
     else:

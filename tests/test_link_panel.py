@@ -8,8 +8,8 @@ import asyncio
 
 import pytest
 
-from fcb_sim.board import BOARD_VERSION, Board, BoardConfig
-from fcb_sim.serve import ThreadedServer
+from fcb_sim.board.board import BOARD_VERSION, Board, BoardConfig
+from fcb_sim.hosts.serve import ThreadedServer
 from term.core.protocol import PROTOCOL_VERSION
 from term.transports.serial import SerialTransport
 from term.ui.app import TermApp

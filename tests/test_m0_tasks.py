@@ -1,13 +1,13 @@
 """The task bodies built for the Cortex-M0 (arm-none-eabi-gcc -mcpu=cortex-m0 -mthumb -Os) and executed under
-unicorn (fcb_sim.m0emu) give the same outputs as the host build on the same recorded inputs; the cycle table
+unicorn (fcb_sim.hosts.m0emu) give the same outputs as the host build on the same recorded inputs; the cycle table
 follows the Cortex-M0 TRM. Skipped, with the reason, where arm-none-eabi-gcc or unicorn is absent."""
 
 from __future__ import annotations
 
 import pytest
 
-from fcb_sim import m0emu
-from fcb_sim.native import library, why_not
+from fcb_sim.estimation.native import library, why_not
+from fcb_sim.hosts import m0emu
 from tests.test_ikf_native import EXCERPT, _rows
 
 
@@ -67,11 +67,11 @@ def test_the_cycle_table() -> None:
 
 
 def test_the_timing_table_is_what_the_m0_runs() -> None:
-    """fcb_sim.timing.M0_EMULATED_US is a fresh emulation's figures (regenerate them with bench.profile)."""
+    """fcb_sim.board.timing.M0_EMULATED_US is a fresh emulation's figures (regenerate them with bench.profile)."""
     why = m0emu.available()
     if why:
         pytest.skip(why)
-    from fcb_sim.timing import M0_EMULATED_US
+    from fcb_sim.board.timing import M0_EMULATED_US
 
     table, run = m0emu.emulated_table()
     assert run.mismatches == []
@@ -79,7 +79,7 @@ def test_the_timing_table_is_what_the_m0_runs() -> None:
 
 
 def test_the_model_follows_the_emulation_where_they_disagree() -> None:
-    from fcb_sim.timing import (
+    from fcb_sim.board.timing import (
         EMULATED_FILTERS,
         FIGURE14,
         M0_EMULATED_US,

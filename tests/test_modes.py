@@ -7,7 +7,7 @@ import pathlib
 
 import pytest
 
-from fcb_sim.modes import (
+from fcb_sim.board.modes import (
     FLIGHT_MODES,
     LIFT_ZERO,
     STICK_NEUTRAL,
@@ -218,7 +218,7 @@ def test_every_flight_mode_has_a_way_to_panic_and_to_safe() -> None:
 
 
 def test_mode_doc_is_generated_from_the_table() -> None:
-    assert DOC.read_text() == modes_doc(), "docs/modes.md is stale: run python -m fcb_sim.modes"
+    assert DOC.read_text() == modes_doc(), "docs/modes.md is stale: run python -m fcb_sim.board.modes"
     for t in TRANSITIONS:
         assert f"{t.source.name} --> {t.target.name}" in mermaid()
 

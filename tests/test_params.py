@@ -1,7 +1,7 @@
 """The parameter table (term/core/protocol/ PARAMS), its wire packing, the terminal's parsing and files
 (term/session/param_client.py),
-and the board's side (fcb_sim/param_bindings.py, the SET_PARAM / PARAM_GET / PARAM_LIST handlers): the board starts
-from the table's defaults, refuses with the right reason, reports every change as an event."""
+and the board's side (fcb_sim/board/param_bindings.py, the SET_PARAM / PARAM_GET / PARAM_LIST handlers): the board
+starts from the table's defaults, refuses with the right reason, reports every change as an event."""
 
 from __future__ import annotations
 
@@ -12,11 +12,11 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from fcb_sim.board import Board, BoardConfig
-from fcb_sim.commands import execute
+from fcb_sim.board.board import Board, BoardConfig
+from fcb_sim.board.commands import execute
+from fcb_sim.board.param_bindings import BINDINGS, build_filter, get_value, preset_core
+from fcb_sim.board.uart import Uart
 from fcb_sim.estimation.height import make_height_estimator
-from fcb_sim.param_bindings import BINDINGS, build_filter, get_value, preset_core
-from fcb_sim.uart import Uart
 from term.core.protocol import (
     ATTITUDE_FILTERS,
     HEIGHT_ESTIMATORS,
@@ -290,8 +290,8 @@ def test_the_gain_map_is_the_protocols() -> None:
     parameter bindings all follow it (issue 20)."""
     from dataclasses import fields
 
-    from fcb_sim.commands import COMMANDS, GAIN_NAMES
-    from fcb_sim.constants import GAIN_PARAMS, Gains
+    from fcb_sim.board.commands import COMMANDS, GAIN_NAMES
+    from fcb_sim.world.constants import GAIN_PARAMS, Gains
     from term.core.protocol import GAIN_OPS, STEP_OPS
 
     assert set(GAIN_PARAMS) == {f.name for f in fields(Gains)}

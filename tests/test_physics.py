@@ -6,8 +6,8 @@ import math
 
 import pytest
 
-from fcb_sim import constants as P
-from fcb_sim.physics import World
+from fcb_sim.world import constants as P
+from fcb_sim.world.physics import World
 
 
 def test_ae_400_hovers_at_the_reference_voltage():

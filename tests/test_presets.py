@@ -1,14 +1,14 @@
-"""The report's board flies (issue 13): the "report" preset's flight core (fcb_sim.param_bindings.preset_core: Table 1,
-the complementary filter with K_gyro 0.999, the Figure 10 height estimator on its PD gains) closes the HEIGHT loop on
-the Figure 10 estimator and hovers in RAW on the report's filter. The figures beside the default preset's are
+"""The report's board flies (issue 13): the "report" preset's flight core (fcb_sim.board.param_bindings.preset_core:
+Table 1, the complementary filter with K_gyro 0.999, the Figure 10 height estimator on its PD gains) closes the HEIGHT
+loop on the Figure 10 estimator and hovers in RAW on the report's filter. The figures beside the default preset's are
 bench.flight's (report_*); here each flight must hold, with the parts the preset names really in the loop."""
 
 from __future__ import annotations
 
+from fcb_sim.board.param_bindings import preset_core
 from fcb_sim.estimation.complementary import ComplementaryFilter
 from fcb_sim.estimation.height import HeightEstimator, HeightKalman
-from fcb_sim.param_bindings import preset_core
-from fcb_sim.scenarios import Sim, fly_core, height_hold
+from fcb_sim.lab.scenarios import Sim, fly_core, height_hold
 from term.core.protocol import Mode
 
 

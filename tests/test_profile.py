@@ -1,13 +1,13 @@
-"""The profiling bench (fcb_sim/profile.py): the report's profile (4.2) through the board's bytes, beside its
+"""The profiling bench (fcb_sim/lab/profile.py): the report's profile (4.2) through the board's bytes, beside its
 Figure 14 figures and deadline misses; the stick recomputes in the profile; `fcb-sim profile`'s errors."""
 
 from __future__ import annotations
 
 import pytest
 
+from fcb_sim.board.timing import COSTS, residual_jitter_us
 from fcb_sim.cli import main
-from fcb_sim.profile import run_profile
-from fcb_sim.timing import COSTS, residual_jitter_us
+from fcb_sim.lab.profile import run_profile
 
 
 def test_profile_round_robin_misses_priority_fixes_them_dmp_far_fewer() -> None:

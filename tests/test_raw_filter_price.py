@@ -1,5 +1,5 @@
-"""The RAW filter's price in the board's cost model (fcb_sim/timing.py, fcb_sim/opcount.py; docs/board.md, "The
-RAW filter's price"): the table is what the filters count, the report's filter adds nothing, and the board charges
+"""The RAW filter's price in the board's cost model (fcb_sim/board/timing.py, fcb_sim/lab/opcount.py; docs/board.md,
+"The RAW filter's price"): the table is what the filters count, the report's filter adds nothing, and the board charges
 the filter that runs."""
 
 from __future__ import annotations
@@ -8,10 +8,10 @@ import math
 
 import pytest
 
-from fcb_sim import opcount
+from fcb_sim.board.timing import RAW_FILTER_EXTRA_US, RAW_FILTER_OPS, REPORT_RAW_FILTER, raw_filter_us
 from fcb_sim.estimation import FILTERS, fixed, has_fixed_point, ikf, ikf_fixed
-from fcb_sim.profile import run_profile
-from fcb_sim.timing import RAW_FILTER_EXTRA_US, RAW_FILTER_OPS, REPORT_RAW_FILTER, raw_filter_us
+from fcb_sim.lab import opcount
+from fcb_sim.lab.profile import run_profile
 
 
 def test_the_price_table_is_what_the_filters_count() -> None:
@@ -49,7 +49,7 @@ def test_the_report_filter_adds_nothing_and_ikf_costs_more() -> None:
         assert RAW_FILTER_EXTRA_US[(REPORT_RAW_FILTER, fx)] == 0
         assert RAW_FILTER_EXTRA_US[("complementary-0.9", fx)] == 0  # the same arithmetic, another constant
     # ikf in fixed point is the variant cut to fit the M0 (ikf_lite): priced 0.2-0.4 ms a sample, within 20 % of
-    # its emulated cost (fcb_sim.m0emu), so charged its price; float is priced, and costs far more
+    # its emulated cost (fcb_sim.hosts.m0emu), so charged its price; float is priced, and costs far more
     assert 200 < raw_filter_us("ikf", True) < 400
     assert 100 < RAW_FILTER_EXTRA_US[("ikf", True)] < 300 and RAW_FILTER_EXTRA_US[("ikf", False)] > 1000
     with pytest.raises(KeyError):

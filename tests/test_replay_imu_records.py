@@ -10,9 +10,9 @@ from pathlib import Path
 
 import pytest
 
+from fcb_sim.board.telemetry import i16
 from fcb_sim.cli import main
-from fcb_sim.estimation.replay import EXPORT, FLASH_LOG
-from fcb_sim.telemetry import i16
+from fcb_sim.lab.replay_imu import EXPORT, FLASH_LOG
 from term.core.protocol import Attitude, Encoder, Joystick, Mode, Motion, field_spec
 from term.data.export import column_name, export
 from term.data.recording import SessionRecorder
@@ -54,7 +54,7 @@ def _recorded_flight(directory: Path, seconds: float = 10.0, gap: tuple[float, f
     task builds them) is recorded as term records a session: the cable's bytes with the time they were read (every
     fifth pair read together with the next), the sticks going out, and the radio's Compact beside. Returns the
     recording and the board's own (t, phi, theta) in degrees at each Attitude."""
-    from fcb_sim.scenarios import Sim, _roll_stick
+    from fcb_sim.lab.scenarios import Sim, _roll_stick
     from term.core.protocol import Compact
 
     sim = Sim(3)

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import statistics
 
-from fcb_sim.board import Board, BoardConfig
+from fcb_sim.board.board import Board, BoardConfig
 from term.core.protocol import (
     REPORT_PANIC_COUNTDOWN_MS,
     SCHEME_DELTA8,

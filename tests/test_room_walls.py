@@ -8,9 +8,9 @@ import dataclasses
 
 import pytest
 
-from fcb_sim import constants as P
-from fcb_sim.physics import World
-from fcb_sim.serve import make_board
+from fcb_sim.hosts.serve import make_board
+from fcb_sim.world import constants as P
+from fcb_sim.world.physics import World
 from term.core.protocol import ROOM_CEILING_M, ROOM_HALF_M
 from term.lessons.instructor import Truth
 from term.lessons.room import Room, SideView, TopView

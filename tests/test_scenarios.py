@@ -8,7 +8,7 @@ import math
 import pytest
 
 from fcb_sim.cli import main
-from fcb_sim.scenarios import SCENARIOS, run_scenario
+from fcb_sim.lab.scenarios import SCENARIOS, run_scenario
 
 _TIMING = {"wall_seconds", "realtime_factor"}
 

@@ -7,9 +7,9 @@ import statistics
 
 import pytest
 
-from fcb_sim import constants as P
 from fcb_sim.estimation import quaternion_to_euler
-from fcb_sim.physics import World
+from fcb_sim.world import constants as P
+from fcb_sim.world.physics import World
 
 
 def _mean_imu(w: World, n: int = 400) -> list[float]:

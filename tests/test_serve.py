@@ -15,8 +15,8 @@ from typing import Any
 import pytest
 import serial
 
-from fcb_sim import control as C
-from fcb_sim.serve import ThreadedServer, make_board
+from fcb_sim.board import control as C
+from fcb_sim.hosts.serve import ThreadedServer, make_board
 from term.core.protocol import (
     PROTOCOL_VERSION,
     Ack,

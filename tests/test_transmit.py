@@ -10,10 +10,10 @@ from typing import Any
 
 import serial
 
-from fcb_sim.board import Board, BoardConfig
-from fcb_sim.serve import ThreadedServer, make_board
-from fcb_sim.transmit import ANSWER_BUDGET
-from fcb_sim.uart import UART_US_PER_BYTE
+from fcb_sim.board.board import Board, BoardConfig
+from fcb_sim.board.transmit import ANSWER_BUDGET
+from fcb_sim.board.uart import UART_US_PER_BYTE
+from fcb_sim.hosts.serve import ThreadedServer, make_board
 from term.core.protocol import (
     Ack,
     Attitude,

@@ -9,7 +9,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from fcb_sim.wireless import (
+from fcb_sim.board.wireless import (
     COMPACT2_PER_HEARTBEAT,
     COMPACT_PER_HEARTBEAT,
     NOTIFY_PAYLOAD,
@@ -19,8 +19,8 @@ from fcb_sim.wireless import (
     WirelessLink,
     board_name,
     compacts_per_heartbeat,
-    start_radio,
 )
+from fcb_sim.hosts.radio import start_radio
 from term.core.protocol import (
     Ack,
     Attitude,
@@ -198,7 +198,7 @@ def test_the_board_sends_compact2_over_ble_with_its_own_figures() -> None:
     """The real board handed over to BLE and flown in MANUAL from the phone's session: Compact2 at 10 Hz beside
     40 Hz of Compact, its figures the board's own, every notification at most 20 bytes, the mean fill at least
     90 % (the issue's goal)."""
-    from fcb_sim.board import Board, BoardConfig
+    from fcb_sim.board.board import Board, BoardConfig
     from term.core.link import LinkSession, PacketReceived
     from term.session.station import RADIO_SESSION
 

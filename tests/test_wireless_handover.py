@@ -10,8 +10,8 @@ import time
 
 import pytest
 
-from fcb_sim.board import Board, BoardConfig
-from fcb_sim.wireless import start_radio
+from fcb_sim.board.board import Board, BoardConfig
+from fcb_sim.hosts.radio import start_radio
 from term.core.link import LinkSession, PacketReceived
 from term.core.protocol import Ack, Attitude, Compact, Joystick, Mode, Op, WirelessState
 from term.session.connection import Connection

@@ -39,11 +39,12 @@ _FLOAT: dict[str, Callable[[], AttitudeFilter]] = {
 
 
 def _ikf(fixed_point: bool, native: bool | None) -> AttitudeFilter:
-    """ikf: the C of firmware/board/ikf_f.c (doubles) or ikf_q.c (fixed point) where it builds (fcb_sim.native),
-    the same bits as the Python class, which runs otherwise or with ``native=False``. In fixed point it is the
-    variant that fits the Cortex-M0 (:mod:`.ikf_lite`; the exact twin is :class:`.ikf_fixed.InertialKalmanFilterQ`)."""
+    """ikf: the C of firmware/board/ikf_f.c (doubles) or ikf_q.c (fixed point) where it builds
+    (fcb_sim.estimation.native), the same bits as the Python class, which runs otherwise or with ``native=False``. In
+    fixed point it is the variant that fits the Cortex-M0 (:mod:`.ikf_lite`; the exact twin is
+    :class:`.ikf_fixed.InertialKalmanFilterQ`)."""
     if native is not False:
-        from fcb_sim import native as c  # late: native imports this package's modules
+        from . import native as c  # late: the C twin is built on first use, not when a filter module is imported
 
         if c.library() is not None:
             return c.NativeIKFQL() if fixed_point else c.NativeIKF()

@@ -491,7 +491,7 @@ HEIGHT_BEST = "kalman"
 
 def make_height_estimator(name: str = HEIGHT_BEST, **kw: float | bool) -> HeightEstimator | HeightKalman:
     """``"kalman"``: the robust HeightKalman (the board's default); ``"complementary"``: the report's Figure 10
-    as HEIGHT flies it (without the baro high-pass, see fcb_sim/flight.py). Keyword arguments go to the class."""
+    as HEIGHT flies it (without the baro high-pass, see fcb_sim/board/flight.py). Keyword arguments go to the class."""
     if name == "kalman":
         return HeightKalman(**kw)
     if name == "complementary":

@@ -21,7 +21,7 @@ Parameters: tau, k_rot and latency chosen on the 17 BROAD trials and scored leav
 docs/board.md, "The RAW filter's price"; the fixed-point twin is :mod:`.ikf_fixed`. Non-finite samples, dt <= 0
 and samples no sensor gives (RATE_MAX, ACC_MAX, DT_MAX) are skipped; an all-zero accelerometer carries no
 gravity and leaves the estimate coasting on the gyro. The simulator runs its C translation, firmware/board/ikf_f.c
-(fcb_sim.native: the same doubles).
+(fcb_sim.estimation.native: the same doubles).
 """
 
 from __future__ import annotations

@@ -1,8 +1,8 @@
 /* The RAW path's control step in integers, as the board runs it at 400 Hz after the filter: the angles read
  * from ikf_q's quaternion (libfixmath's fix16_atan2 with the report's piecewise-linear correction, section 3.10,
- * as fcb_sim/estimation/fixed.py, its products saturating), the cascaded P controllers of fcb_sim/control.py with Q16.16 gains, and the
+ * as fcb_sim/estimation/fixed.py, its products saturating), the cascaded P controllers of fcb_sim/board/control.py with Q16.16 gains, and the
  * mixing with the appendix's integer square root (control.isqrt_nr). C99, no dynamic memory, no floating point.
- * Measured on the Cortex-M0 by bench.profile (fcb_sim/m0emu.py); docs/board.md, "Cycles from execution".
+ * Measured on the Cortex-M0 by bench.profile (fcb_sim/hosts/m0emu.py); docs/board.md, "Cycles from execution".
  */
 #ifndef CTL_Q_H
 #define CTL_Q_H

@@ -2,7 +2,7 @@
  *
  * The core (firmware/board/qb_*.c) calls only these functions; a backend implements them:
  *   - hal_host.c: the host backend. Time, sensors and motors come from and go to fcb_sim's physics through
- *     callbacks (fcb_sim/cboard.py drives it in lockstep over ctypes); the UART is two byte queues.
+ *     callbacks (fcb_sim/hosts/cboard.py drives it in lockstep over ctypes); the UART is two byte queues.
  *   - hal_m0.c: the Cortex-M0 backend (nRF51822): links for the size figures; the register-level parts are
  *     marked TODO where a team's own drivers go.
  * A team that writes its own board keeps this interface and swaps either side (docs/firmware.md).

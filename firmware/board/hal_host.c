@@ -1,5 +1,5 @@
 /* hal_host.c: the host backend of hal.h. The board runs in LOCKSTEP with a simulator that owns the clock:
- * fcb_sim/cboard.py loads this as a shared library (ctypes) and calls qbh_advance(until_us), which runs every
+ * fcb_sim/hosts/cboard.py loads this as a shared library (ctypes) and calls qbh_advance(until_us), which runs every
  * task due before that board time, each at the instant its timer expires. The sensors and motors are callbacks
  * into the simulator (given the board time, so the physics advances to it first); the UART is two byte queues
  * the simulator fills and drains. Nothing here reads a wall clock: the same inputs give the same flight.
@@ -38,7 +38,7 @@ typedef struct qbh {
     size_t tx_len;
 } qbh_t;
 
-/* Exported for ctypes (fcb_sim/cboard.py); declared here, not in a header: nothing else calls them. */
+/* Exported for ctypes (fcb_sim/hosts/cboard.py); declared here, not in a header: nothing else calls them. */
 size_t qbh_size(void);
 void qbh_set_callbacks(qbh_t *h, qbh_imu_fn imu, qbh_dmp_fn dmp, qbh_baro_fn baro, qbh_battery_fn battery,
                        qbh_motors_fn motors, qbh_impact_fn impact);
@@ -266,7 +266,7 @@ int qbh_set_param(qbh_t *h, int id, int32_t raw)
     return qb_param_set(&h->board, id, raw, 0);
 }
 
-/* The driver could not run the board until ``until_us`` (fcb_sim/serve.py's starved wake-up). */
+/* The driver could not run the board until ``until_us`` (fcb_sim/hosts/serve.py's starved wake-up). */
 void qbh_starved(qbh_t *h, uint64_t until_us, int slip)
 {
     cur = h;

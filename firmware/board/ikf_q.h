@@ -58,7 +58,7 @@ void ikfq_default_params(ikfq_params_t *p);
 void ikfq_init(ikfq_t *s, const ikfq_formats_t *f, const ikfq_params_t *p);
 
 /* What ikfq_init and ikfq_set_dt derive from the parameters and dt, as integers: a board with a fixed dt takes
- * them from a table (`python -m fcb_sim.native --constants` prints one) and links no double arithmetic. */
+ * them from a table (`python -m fcb_sim.estimation.native --constants` prints one) and links no double arithmetic. */
 typedef struct {
     int32_t qg_shift, q_g0, k_rot, drift_noise, rest_r, rest_g2, rest_a2, bias_max, inv_g0, lat_half;
     int32_t pgg0, pdd0, g0_io, swing_max, swing_k;
@@ -89,7 +89,7 @@ void ikfq_update(ikfq_t *s, double gx, double gy, double gz, double ax, double a
 void ikfq_update_q(ikfq_t *s, double gx, double gy, double gz, double ax, double ay, double az, double dt,
                    double q[4]);
 
-/* The state in a fixed order, for the tests and the Python wrapper (fcb_sim/native.py): qw qx qy qz vx vy dx
+/* The state in a fixed order, for the tests and the Python wrapper (fcb_sim/estimation/native.py): qw qx qy qz vx vy dx
  * dy pvv pvg pvd pgg pgd pdd bx by bz rx ry rz gl[3] al[3] rest_t at_rest started phase fx fy rate gxh gyh.
  * Returns the count, IKFQ_STATE_N. */
 #define IKFQ_STATE_N 35

@@ -1,4 +1,4 @@
-/* qb_board.c: the main loop, its tasks, commands and telemetry: fcb_sim/board.py, scheduler.py, commands.py
+/* qb_board.c: the main loop, its tasks, commands and telemetry: fcb_sim/board/board.py, scheduler.py, commands.py
  * and telemetry.py in C (qb_board.h says what is in and what is not yet). Tasks take no board time here: the
  * host backend runs them at the instant their timer expires (lockstep with the physics). */
 #include <math.h>
@@ -30,7 +30,7 @@ static qb_real now_s(const qb_board_t *b)
     return us_to_s(b->now);
 }
 
-/* --- timers on the 32768 Hz RTC (fcb_sim/timing.py: rtc_ticks, rtc_us, us_to_ticks) ----------------------- */
+/* --- timers on the 32768 Hz RTC (fcb_sim/board/timing.py: rtc_ticks, rtc_us, us_to_ticks) ----------------------- */
 
 static uint64_t rtc_ticks(uint32_t period_us)
 {
@@ -137,7 +137,7 @@ static void set_motors(qb_board_t *b, const uint16_t ae[4])
     hal_motors_set(ae);
 }
 
-/* The board's listener on the mode machine (fcb_sim.board.Board._on_mode_change). */
+/* The board's listener on the mode machine (fcb_sim.board.board.Board._on_mode_change). */
 static void on_mode_change(void *ctx, uint8_t old_mode, uint8_t new_mode)
 {
     qb_board_t *b = ctx;
@@ -389,7 +389,7 @@ static void task_telemetry(qb_board_t *b)
     }
 }
 
-/* --- commands (fcb_sim/commands.py) ------------------------------------------------------------------------- */
+/* --- commands (fcb_sim/board/commands.py) ------------------------------------------------------------------------- */
 
 typedef struct {
     uint8_t status;

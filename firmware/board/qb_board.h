@@ -1,20 +1,20 @@
-/* qb_board.h: the Quadrupel board's core in C99, the twin of fcb_sim's Python board (fcb_sim/board.py).
+/* qb_board.h: the Quadrupel board's core in C99, the twin of fcb_sim's Python board (fcb_sim/board/board.py).
  *
  * No dynamic memory: all state is one qb_board_t the caller owns (a static on the M0). No hardware: every read
  * and write goes through hal.h. The parts, each mirroring its Python module:
- *   - the loop (qb_board.c, fcb_sim/board.py, scheduler.py): timers on the 32768 Hz RTC set flags; one pass of
+ *   - the loop (qb_board.c, fcb_sim/board/board.py, scheduler.py): timers on the 32768 Hz RTC set flags; one pass of
  *     qb_poll() runs the flagged tasks in the report's round-robin order (parse, baro, telemetry, heartbeat,
  *     sensor, control); the sensor at 200 Hz (DMP path) or 400 Hz (RAW path), barometer and battery at 20 Hz,
  *     telemetry at link.telemetry_hz, heartbeat and the safety monitor at 10 Hz;
- *   - the mode machine with its guards and NAK reasons (qb_modes.c, fcb_sim/modes.py);
- *   - calibration sums and means (qb_modes.c, fcb_sim/calibration.py);
+ *   - the mode machine with its guards and NAK reasons (qb_modes.c, fcb_sim/board/modes.py);
+ *   - calibration sums and means (qb_modes.c, fcb_sim/board/calibration.py);
  *   - the flight core: cascaded P roll/pitch, yaw P, HEIGHT's PID on the height estimate, PANIC's descent,
- *     mixing with the integer square root (qb_flight.c, fcb_sim/flight.py, control.py);
+ *     mixing with the integer square root (qb_flight.c, fcb_sim/board/flight.py, control.py);
  *   - the height estimator, HeightKalman (qb_height.c, fcb_sim/estimation/height.py);
  *   - the RAW path's attitude filter, ikf's fixed-point twin (ikf_q.c, fcb_sim/estimation/ikf_fixed.py; the
  *     board's set-up and dt in qb_flight.c);
  *   - commands, telemetry, heartbeats, the link-loss failsafe, the parameter table generated from term's
- *     (qb_board.c, qb_params.c, qb_params.h; fcb_sim/commands.py, telemetry.py, paramtable.py).
+ *     (qb_board.c, qb_params.c, qb_params.h; fcb_sim/board/commands.py, telemetry.py, paramtable.py).
  * Not yet: the flash log (LOG_* commands answer NOT_IMPLEMENTED), the BLE handover, the task profile, RAW filters
  * other than ikf (and ikf in float: the C board's is always the fixed-point twin), the report preset's
  * complementary height estimator. docs/firmware.md keeps this list.
@@ -41,7 +41,7 @@ typedef QB_REAL qb_real; /* qb_params.h: float with QB_FLOAT, else double */
 #define QB_VERSION_MAJOR 0
 #define QB_VERSION_MINOR 2
 
-/* Tasks, in the Profile packet's order (fcb_sim.scheduler.TASKS). */
+/* Tasks, in the Profile packet's order (fcb_sim.board.scheduler.TASKS). */
 enum qb_task { QB_T_PARSE, QB_T_SENSOR, QB_T_CONTROL, QB_T_BARO, QB_T_TELEMETRY, QB_T_HEARTBEAT, QB_T_LOGGING,
                QB_TASKS };
 enum qb_timer { QB_TM_SENSOR, QB_TM_BARO, QB_TM_TELEMETRY, QB_TM_HEARTBEAT, QB_TIMERS };
@@ -67,7 +67,7 @@ typedef struct {
 } qb_event_t;
 
 typedef struct {
-    /* config (fcb_sim.modes.ModeConfig) */
+    /* config (fcb_sim.board.modes.ModeConfig) */
     qb_real link_timeout_s;
     qb_real link_failsafe_s; /* stage 1's guard time; 0: PANIC at once (the report's) */
     int32_t panic_level;
@@ -256,7 +256,7 @@ void qb_poll(qb_board_t *b);
 uint64_t qb_next_event_us(const qb_board_t *b);
 /* A simulator's driver could not run the board from now until ``until_us`` (its process got no CPU): that time is
  * not the PC's silence (``slip``: the board's clock skips it instead), and a lag of 100 ms or more is said as event
- * SIM_LAG, at most once a second (fcb_sim/linktimer.py). A real board never calls it. */
+ * SIM_LAG, at most once a second (fcb_sim/board/linktimer.py). A real board never calls it. */
 void qb_starved(qb_board_t *b, uint64_t until_us, int slip);
 /* Board time since the last valid frame, less the time the board could not listen; 0 before the first. */
 uint64_t qb_link_silent_us(qb_board_t *b);

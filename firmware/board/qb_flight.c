@@ -1,4 +1,4 @@
-/* qb_flight.c: the flight core, fcb_sim/flight.py and control.py in C. Calibrated samples and sticks in, motor
+/* qb_flight.c: the flight core, fcb_sim/board/flight.py and control.py in C. Calibrated samples and sticks in, motor
  * commands out; the chip's axes are mapped to the body's once, where samples enter (p = gx, q = -gy, r = -gz).
  * Units: angles 10430 LSB per rad, rates in raw gyro LSB, lift and moments in ae^2 (control.py explains them). */
 #include <math.h>
@@ -36,7 +36,7 @@
 
 /* --- the RAW path's attitude filter: ikf_q.c, set up from integers -------------------------------------- */
 
-/* ikf's default parameters in ikf_fixed.Formats(), from `python -m fcb_sim.native --constants 0.0025`
+/* ikf's default parameters in ikf_fixed.Formats(), from `python -m fcb_sim.estimation.native --constants 0.0025`
  * (tests/test_cboard.py checks they are still what it prints). Integers: the M0 links no double set-up. The
  * variant that fits the Cortex-M0 (ikf_lite.py: lite, its gravity part spread over decim = 4 samples). */
 static const ikfq_formats_t IKF_FORMATS = {16, 30, 30, 24, 24, 28, 30};

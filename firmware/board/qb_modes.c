@@ -1,4 +1,4 @@
-/* qb_modes.c: the mode state machine with its guards, and the calibration sums: fcb_sim/modes.py and
+/* qb_modes.c: the mode state machine with its guards, and the calibration sums: fcb_sim/board/modes.py and
  * calibration.py in C. The same table of transitions, the same guards in the same order, so the same NAK reason
  * for the same refusal; the same events in the same order. */
 #include <math.h>
@@ -14,7 +14,7 @@
 #define LOW_BATTERY_HOLD_S 0.2 /* term.protocol.LOW_BATTERY_HOLD_S */
 #define TRIM_LIMIT 8192
 
-/* Guards, evaluated in ascending bit order (the order of fcb_sim.modes._ARM and the rows). */
+/* Guards, evaluated in ascending bit order (the order of fcb_sim.board.modes._ARM and the rows). */
 enum { G_ZERO_LIFT = 1, G_NEUTRAL = 2, G_NO_CRASH = 4, G_BATTERY = 8, G_CALIBRATED = 16, G_FROM_BASE = 32,
        G_PANIC_DONE = 64, G_CAL_TIME = 128 };
 enum { TRIG_REQUEST, TRIG_AUTO };
@@ -147,7 +147,7 @@ int qb_modes_motors_enabled(const qb_modes_t *m)
     return m->mode != QP_MODE_SAFE && m->mode != QP_MODE_CALIBRATION;
 }
 
-/* --- calibration sums (fcb_sim/calibration.py) ------------------------------------------------------------ */
+/* --- calibration sums (fcb_sim/board/calibration.py) ------------------------------------------------------------ */
 
 void qb_modes_cal_add(qb_modes_t *m, int var, int32_t v)
 {
@@ -409,7 +409,7 @@ void qb_modes_link_back(qb_modes_t *m, qb_real now)
     }
 }
 
-/* The two-stage link failsafe (docs/modes.md; fcb_sim.modes.ModeMachine._link): stage 1 after link.timeout_ms of
+/* The two-stage link failsafe (docs/modes.md; fcb_sim.board.modes.ModeMachine._link): stage 1 after link.timeout_ms of
  * silence in a flight mode holds level with the lift it had (LINK_LOST); a frame back within link.failsafe_ms
  * gives control back (qb_modes_link_back); else stage 2, the PANIC (LINK_TIMEOUT). Returns whether to PANIC. */
 static int link_failsafe(qb_modes_t *m, qb_real now, qb_real silent)

@@ -1,4 +1,4 @@
-/* The task bodies for the Cortex-M0 emulator (fcb_sim/m0emu.py, bench.profile): the filter step and the control
+/* The task bodies for the Cortex-M0 emulator (fcb_sim/hosts/m0emu.py, bench.profile): the filter step and the control
  * step on buffers the emulator fills, with entry points it calls one at a time. Timing counts the tm_*_step
  * calls only; tm_filter_init and tm_filter_export run outside it. Not the board's main: there is none here. */
 #include "ctl_q.h"

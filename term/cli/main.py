@@ -396,7 +396,7 @@ def _check_c_board(args: argparse.Namespace) -> None:
         raise UsageError("--board needs --sim")
     if args.preset not in (None, "default"):
         raise UsageError(f"--board c has the default preset only (docs/firmware.md), not {args.preset!r}")
-    from fcb_sim.cboard import CBoardUnavailable, library_path
+    from fcb_sim.hosts.cboard import CBoardUnavailable, library_path
 
     try:
         library_path()

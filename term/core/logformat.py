@@ -1,7 +1,7 @@
 """The flash-log payload codec: what ``LogChunk`` packets carry (docs/flash_log.md).
 
 The board's flash log is a sequence of self-describing segments of compressed records. Both ends need the
-format: the board's encoder (``fcb_sim.flash_log``) mirrors the decoder state machines here, and the terminal
+format: the board's encoder (``fcb_sim.board.flash_log``) mirrors the decoder state machines here, and the terminal
 decodes downloads with ``decode_log``. Pure: standard library only, bytes in and rows out.
 
 A segment is ``LOG_HEADER`` (magic ``QL``, format version, scheme, variable count, record count, data length),

@@ -1,6 +1,6 @@
 """The terminal's end of the simulator's instructor channel (term --sim only): the truth in, situations out.
 
-The simulated board (``fcb-sim serve --instructor``, fcb_sim/instructor.py) knows where the craft really is and
+The simulated board (``fcb-sim serve --instructor``, fcb_sim/hosts/instructor.py) knows where the craft really is and
 can set up a situation (wind, a failing battery, a stuck motor, a cable or radio cut); a real board can do
 neither, so this channel runs beside the board's link, never on it (a lesson that cuts the link still sees the
 craft). One JSON object per line each way; the vocabulary (``INSTRUCTOR_*``) is in term/core/protocol/.

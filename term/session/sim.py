@@ -60,7 +60,7 @@ class SimBoard:
             self.cmd += ["--link-timeout", str(link_timeout)]
         if radio:
             self.cmd += ["--ble-hci", "tcp-server:127.0.0.1:0"]
-        if instructor:  # the truth and the lessons' situations (fcb_sim/instructor.py, term/lessons/instructor.py)
+        if instructor:  # the truth and the lessons' situations (fcb_sim/hosts/instructor.py, lessons/instructor.py)
             self.cmd += ["--instructor", "tcp-server:127.0.0.1:0"]
         self.instructor = instructor
         self.instructor_address = ""

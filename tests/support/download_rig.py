@@ -5,8 +5,8 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
-from fcb_sim.board import Board, BoardConfig
-from fcb_sim.physics import World
+from fcb_sim.board.board import Board, BoardConfig
+from fcb_sim.world.physics import World
 from term.core.link import LinkSession, PacketReceived
 from term.core.protocol import SPEC_OF, Joystick, LogChunk, LogStatus, Op, cobs_decode
 from term.session.download import RUNNING, LogDownloader

@@ -3,8 +3,8 @@ tests/test_keyboard_flight.py uses it)."""
 
 from __future__ import annotations
 
-from fcb_sim.board import Board, BoardConfig
-from fcb_sim.physics import World
+from fcb_sim.board.board import Board, BoardConfig
+from fcb_sim.world.physics import World
 from term.core.link import LinkSession
 from term.core.protocol import LIFT_FINE_DIVISOR, LIFT_FINE_FROM, LIFT_FINE_TO, Joystick, Mode, Op, scaled
 from term.session.model import Model

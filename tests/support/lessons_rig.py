@@ -6,9 +6,9 @@ from __future__ import annotations
 
 from typing import Any
 
-from fcb_sim.board import Board, BoardConfig
-from fcb_sim.instructor import Instructor
-from fcb_sim.physics import World
+from fcb_sim.board.board import Board, BoardConfig
+from fcb_sim.hosts.instructor import Instructor
+from fcb_sim.world.physics import World
 from term.core.events import CABLE, RADIO, FromLink, LinkDown, LinkUp, StationEvent
 from term.core.link import LinkSession, LinkStats, PacketReceived
 from term.core.protocol import INSTRUCTOR_TRUTH_HZ, Event, Joystick, LogChunk, LogStatus

@@ -8,7 +8,7 @@ from typing import Any
 from term.core.protocol.numbers import NumberError, check_number, finite, shown_text
 
 # --- the simulator's instructor channel (term --sim only) -----------------------------------------------------
-# Beside the board's link, never on it: a real board has no truth and takes no situations. fcb_sim/instructor.py
+# Beside the board's link, never on it: a real board has no truth and takes no situations. fcb_sim/hosts/instructor.py
 # serves it (`fcb-sim serve --instructor tcp-server:HOST:PORT`), term/lessons/instructor.py reads it; one JSON object
 # per
 # line each way. The simulator says {"kind": "hello", "version", "hz"}, then a {"kind": "truth", ...} line with the
@@ -20,13 +20,13 @@ from term.core.protocol.numbers import NumberError, check_number, finite, shown_
 # at a time: a second is refused. Cable and radio cuts add up to at most INSTRUCTOR_MAX_OUTAGE_S per attempt (a
 # reset starts the next one).
 
-# The simulator's starting worlds (`term --sim --scenario NAME` passes NAME to `fcb-sim serve`; fcb_sim/serve.py
+# The simulator's starting worlds (`term --sim --scenario NAME` passes NAME to `fcb-sim serve`; fcb_sim/hosts/serve.py
 # SCENARIOS describes each): both programs name them, and term offers them to shell completion.
 SIM_SCENARIOS = ("bench", "breeze", "gusty", "low-battery", "no-spikes")
 
 INSTRUCTOR_VERSION = 2
 # The room term --sim flies in (the lab): walls ROOM_HALF_M from the pad on every side (a 6 m room), the ceiling
-# ROOM_CEILING_M above the floor. The simulator's world meets them as it meets the floor (fcb_sim/physics.py); the
+# ROOM_CEILING_M above the floor. The simulator's world meets them as it meets the floor (fcb_sim/world/physics.py); the
 # room view draws them (term/lessons/room.py).
 ROOM_HALF_M = 3.0
 ROOM_CEILING_M = 3.0

@@ -272,7 +272,8 @@ def param_split(arg: int) -> tuple[int, int]:
 
 
 # The report starts a countdown on entering PANIC (section 3.2) but gives no length; 3.5 s is the fixed-level time
-# this project's board held before the rate-bounded descent (fcb_sim/flight.py, issue 10.4; DESIGN: "a few seconds").
+# this project's board held before the rate-bounded descent (fcb_sim/board/flight.py, issue 10.4; DESIGN: "a few
+# seconds").
 REPORT_PANIC_COUNTDOWN_MS = 3500
 
 # Presets: whole sets of values by name (a value per parameter it changes; the rest keep their defaults).

@@ -8,7 +8,7 @@ from rich.table import Table
 from term.session.model import Model
 from term.ui.widgets.base import ModelView
 
-# Names of the board's tasks in Profile.task order (fcb_sim/board.py TASKS, which term may not import; a test
+# Names of the board's tasks in Profile.task order (fcb_sim/board/board.py TASKS, which term may not import; a test
 # keeps the two equal); unknown ids show their number.
 TASK_NAMES: dict[int, str] = dict(enumerate(("parse", "sensor", "control", "baro", "telemetry", "heartbeat",
                                              "logging")))

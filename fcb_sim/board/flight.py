@@ -1,7 +1,7 @@
 """The firmware's control step: calibrated sensor samples and sticks in, motor commands out.
 
 ``FlightCore`` is sans-IO and clock-free: the caller passes samples and time steps. The board's tasks call it
-(fcb_sim/board.py); the headless scenarios call it directly (fcb_sim/scenarios.py).
+(fcb_sim/board/board.py); the headless scenarios call it directly (fcb_sim/lab/scenarios.py).
 
 API for the board::
 
@@ -29,11 +29,11 @@ from __future__ import annotations
 
 from dataclasses import replace
 
-from fcb_sim import constants as P
-from fcb_sim import control as C
-from fcb_sim.calibration import Calibration
+from fcb_sim.board import control as C
+from fcb_sim.board.calibration import Calibration
 from fcb_sim.estimation import BEST, HeightEstimator, make_filter, quaternion_to_euler
 from fcb_sim.estimation.height import HEIGHT_BEST, HeightKalman, make_height_estimator
+from fcb_sim.world import constants as P
 from term.core.protocol import PARAMS, STICK_MAX, Mode, Param
 
 HEIGHT_STICK_RATE = 0.5  # m/s of set-point change at full lift deflection away from the entry position

@@ -35,9 +35,9 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
-from fcb_sim.board import Board, BoardConfig
+from fcb_sim.board.board import Board, BoardConfig
 from fcb_sim.errors import UsageError
-from fcb_sim.physics import World
+from fcb_sim.world.physics import World
 from term.core.protocol import ROOM_CEILING_M, ROOM_HALF_M
 
 READ_BYTES = 4096  # per wake-up
@@ -69,7 +69,7 @@ SCENARIOS: dict[str, ServeScenario] = {
 def make_board(seed: int = 1, scenario: str = "bench", link_timeout: float = 0.5, board: str = "python",
                **config: Any) -> Board:
     """A board in its world for a serve scenario; UsageError for an unknown scenario or a bad timeout. ``board``
-    "c" is the C board (firmware/board/, fcb_sim/cboard.py) in the same world."""
+    "c" is the C board (firmware/board/, fcb_sim/hosts/cboard.py) in the same world."""
     sc = SCENARIOS.get(scenario)
     if sc is None:
         raise UsageError(f"unknown scenario {scenario!r}; choose one of: {', '.join(SCENARIOS)}")
@@ -79,7 +79,7 @@ def make_board(seed: int = 1, scenario: str = "bench", link_timeout: float = 0.5
     if sc.wind != (0.0, 0.0, 0.0) or sc.gust_std:
         world.set_wind(*sc.wind, gust_std=sc.gust_std)
     if board == "c":
-        from fcb_sim.cboard import CBoard
+        from fcb_sim.hosts.cboard import CBoard
 
         return CBoard(BoardConfig(seed=seed, link_timeout_s=link_timeout, **config), world=world)  # type: ignore
     return Board(BoardConfig(seed=seed, link_timeout_s=link_timeout, **config), world=world)
@@ -129,7 +129,7 @@ class PtyServer:
         self._stop: asyncio.Event | None = None
         self._t0 = clock() - board.now / 1e6
         self.closed = False
-        self.cable_open: Callable[[], bool] | None = None  # the instructor's cable cuts (fcb_sim/instructor.py)
+        self.cable_open: Callable[[], bool] | None = None  # the instructor's cable cuts (fcb_sim/hosts/instructor.py)
 
     # --- the loop -----------------------------------------------------------------------------------------
 
@@ -184,7 +184,7 @@ class PtyServer:
     def _catch_up(self) -> None:
         """Bring the board to the wall clock's present; a starved wake-up is not link silence (module docstring)."""
         board = self.board
-        # the C board (fcb_sim/cboard.py) has no link-timer credit yet: it counts a stall as silence, unreported
+        # the C board (fcb_sim/hosts/cboard.py) has no link-timer credit yet: it counts a stall as silence, unreported
         starved = getattr(board, "starved", None)
         wall = self._wall_us()
         if wall - board.now > MAX_LAG_S * 1e6:
@@ -318,14 +318,14 @@ async def _serve_main(args: Any) -> int:
     try:
         print(f"pty: {server.path}", flush=True)
         if getattr(args, "ble_hci", None):
-            from fcb_sim.wireless import start_radio
+            from fcb_sim.hosts.radio import start_radio
 
             radio = await start_radio(board.wireless, board_id=board.config.board_id, hci=args.ble_hci,
                                       on_data=board.ble_data, on_disconnect=board.ble_lost)
             spec = getattr(getattr(radio, "hci", None), "client_spec", None)
             print(f"ble: {radio.name} {radio.address}" + (f" hci {spec}" if spec else ""), flush=True)
-        if getattr(args, "instructor", None):  # term --sim's truth and situations (fcb_sim/instructor.py)
-            from fcb_sim.instructor import Instructor, InstructorServer
+        if getattr(args, "instructor", None):  # term --sim's truth and situations (fcb_sim/hosts/instructor.py)
+            from fcb_sim.hosts.instructor import Instructor, InstructorServer
 
             instructor = InstructorServer(Instructor(board), radio=radio)
             address = await instructor.start(args.instructor, public=getattr(args, "instructor_public", False))

@@ -30,7 +30,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-FIRMWARE = Path(__file__).resolve().parent.parent / "firmware"
+FIRMWARE = Path(__file__).resolve().parents[2] / "firmware"
 ELF = "m0/tasks.elf"
 CPU_HZ = 16_000_000
 STACK_TOP = 0x2000_8000
@@ -229,7 +229,7 @@ class M0Tasks:
 
 # --- the tasks on recorded data, beside the host build ------------------------------------------------------
 
-GAINS_Q16 = (26214, 111 << 16, 800 << 16)  # P1 0.4, P2 111, yaw P 800 (Table 1, fcb_sim.constants.Gains)
+GAINS_Q16 = (26214, 111 << 16, 800 << 16)  # P1 0.4, P2 111, yaw P 800 (Table 1, fcb_sim.world.constants.Gains)
 
 
 @dataclass
@@ -266,13 +266,13 @@ def run_tasks(samples: list[tuple[float, ...]], seed: int = 1, elf: Path | None 
     import ctypes
     import random
 
-    from fcb_sim.constants import RATE_LSB_PER_RAD_S
     from fcb_sim.estimation.ikf_fixed import to_q
-    from fcb_sim.native import STATE_FIELDS, NativeIKFQ, NativeIKFQL, library
+    from fcb_sim.estimation.native import STATE_FIELDS, NativeIKFQ, NativeIKFQL, library
+    from fcb_sim.world.constants import RATE_LSB_PER_RAD_S
 
     lib = library()
     if lib is None:
-        raise RuntimeError("the host build of firmware/board is not available (fcb_sim.native.why_not())")
+        raise RuntimeError("the host build of firmware/board is not available (fcb_sim.estimation.native.why_not())")
     m0 = M0Tasks(elf)
     host = (NativeIKFQL if lite else NativeIKFQ)(decimation=decimation)
     angles = lib.ctlq_angles_lite if lite else lib.ctlq_angles
@@ -332,7 +332,7 @@ def run_tasks(samples: list[tuple[float, ...]], seed: int = 1, elf: Path | None 
 
 
 def _consts_struct(consts: dict[str, int]) -> Any:
-    from fcb_sim.native import _Consts
+    from fcb_sim.estimation.native import _Consts
 
     return _Consts(**consts)
 
@@ -343,7 +343,7 @@ def _same_constants(a: bytes, b: bytes) -> bool:
     return a[8:80] == b[8:80] and a[104:124] == b[104:124]
 
 
-EXCERPT = Path(__file__).resolve().parent.parent / "tests" / "data" / "broad_07_fast_rotation_excerpt.csv.gz"
+EXCERPT = Path(__file__).resolve().parents[2] / "tests" / "data" / "broad_07_fast_rotation_excerpt.csv.gz"
 EXCERPT_ROWS = (2450, 2850)  # fast hand-held rotation (the excerpt is 8.5 s still, then moving)
 
 
@@ -371,7 +371,7 @@ LITE = (1, 4, 8)  # the variant cut to fit (ikf_lite), its gravity part spread o
 
 def emulated_table(samples: list[tuple[float, ...]] | None = None) -> tuple[dict[str, tuple[float, float]],
                                                                               TaskCycles]:
-    """fcb_sim.timing.M0_EMULATED_US measured again: (mean, p99) µs of each task, the decimated filters too
+    """fcb_sim.board.timing.M0_EMULATED_US measured again: (mean, p99) µs of each task, the decimated filters too
     ("filter/ikf/fixed/decimation4": the gravity part every 4th sample) and the lite ones ("filter/ikf/lite4": the
     variant that fits, its gravity part spread over 4 samples); and the exact twin's run itself (the other runs'
     mismatches are added to it)."""

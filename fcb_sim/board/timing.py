@@ -1,13 +1,13 @@
 """The board's timing model: what each task costs on the Cortex-M0, when the timers tick, and the interrupts
-that take the CPU from the main loop (report sections 4.2 and 5, Figure 14). ``fcb_sim.board`` runs the loop;
+that take the CPU from the main loop (report sections 4.2 and 5, Figure 14). ``fcb_sim.board.board`` runs the loop;
 how the model was built and what it leaves out: docs/board.md, "The timing model".
 
 - Task durations (``COSTS``): every run of a task costs a draw from a distribution fitted to the report's Figure 14
   row for it (mean, sigma, p99, p99.9): a log-normal body and, with a small probability, a slower run (``Cost``;
-  ``fit_cost`` fits them, ``python -m fcb_sim.timing`` refits and prints the table). The rows are wall-clock times
+  ``fit_cost`` fits them, ``python -m fcb_sim.board.timing`` refits and prints the table). The rows are wall-clock times
   on the board, so they already hold the interrupts that hit a task while it ran.
 - The RAW filter (``RAW_FILTER_EXTRA_US``): the RAW rows hold the report's filter; a board running another one pays
-  the difference of the two filters' prices, their counted operations (``fcb_sim.opcount``) times cycles on the
+  the difference of the two filters' prices, their counted operations (``fcb_sim.lab.opcount``) times cycles on the
   M0 (qfplib's measured float cycles; libfixmath-style fixed point, [ASSUMED]): docs/board.md, "The RAW filter's
   price".
 - Timers (``rtc_ticks``): the app_timer on the 32768 Hz RTC1, so a period is a whole number of 30.5 µs ticks and
@@ -354,7 +354,7 @@ M0_CYCLES_FIXED: dict[str, float] = {"add": 1, "mul": 40, "div": 180, "sqrt": 30
                                      "atan2_correction": 150, "atan2": 180 + 4 * 40 + 20 + 150, "asin": 1000,
                                      "qmul": 12}
 # "qmul": ikf_lite's truncated Q2.30 product, inlined: three MULS, four shifts, two halves, two additions [ASSUMED]
-# Operations per sample, update and the angles the control step reads (``python -m fcb_sim.opcount`` counts them
+# Operations per sample, update and the angles the control step reads (``python -m fcb_sim.lab.opcount`` counts them
 # and prints this table; a test keeps the two equal).
 RAW_FILTER_OPS: dict[tuple[str, bool], dict[str, float]] = {
     ("complementary", False): {"add": 8.0, "atan2": 2.0, "mul": 7.0, "sqrt": 1.0},
@@ -378,7 +378,7 @@ def raw_filter_us(name: str, fixed_point: bool = False) -> float:
     return sum(n * cycles[op] for op, n in RAW_FILTER_OPS[(name, fixed_point)].items()) * 1e6 / CPU_HZ
 
 
-# Cycles from execution (fcb_sim.m0emu; docs/board.md, "Cycles from execution"): the task bodies of
+# Cycles from execution (fcb_sim.hosts.m0emu; docs/board.md, "Cycles from execution"): the task bodies of
 # firmware/board (ikf_q.c, ctl_q.c) built with arm-none-eabi-gcc -mcpu=cortex-m0 -mthumb -Os and executed under an
 # emulated Cortex-M0 on BROAD trial 07's excerpt (tests/data: rows 2450-2849, fast hand-held rotation), cycles by
 # the Cortex-M0 TRM's table, at CPU_HZ: mean and p99 in µs. "filter/ikf/fixed" is what RAW_FILTER_OPS prices for

@@ -1,6 +1,6 @@
 """The board's keyboard commands: one handler per ``Op`` in a table (``COMMANDS``), like ``modes.TRANSITIONS``.
 
-A handler takes the board's parts (``fcb_sim.parts.BoardParts``: what it acts on, the clock, the event emitter)
+A handler takes the board's parts (``fcb_sim.board.parts.BoardParts``: what it acts on, the clock, the event emitter)
 and the command's ``arg`` and returns ``(status, value, after)``: the ``Nak`` (OK when
 accepted), the value the ``Ack`` carries (the new mode, trim, gain in milli-units, bytes of log, ...) and an
 optional action run after the Ack is queued (packets that must follow it: a log status, the profile, a handover
@@ -8,13 +8,13 @@ stopped after its Ack went over the cable). A handler refuses with a reason, nev
 
 ``CommandDesk`` executes each command once: a repeat of the last command (same id, op and arg) within
 ``COMMAND_DEDUPE_US`` is a retry whose first answer was lost, and it is answered again without being redone.
-A command that finds no room for its Ack on the link (the transmit side's answer budget, fcb_sim/transmit.py)
+A command that finds no room for its Ack on the link (the transmit side's answer budget, fcb_sim/board/transmit.py)
 is shed: not done, not answered, counted; the terminal retries it. A handler that raises is a bug: the command
 is refused (BAD_ARGUMENT) and the board keeps flying.
 
 The parameters (``SET_PARAM``, ``PARAM_GET``, ``PARAM_LIST``) are the protocol's table (``term.core.protocol.PARAMS``)
-bound to the board in ``fcb_sim.param_bindings``; every change, by ``SET_PARAM`` or by a gain key, is reported after
-its Ack as ``EventCode.PARAM_CHANGED`` (the terminal's parameter screen and files follow the board's events).
+bound to the board in ``fcb_sim.board.param_bindings``; every change, by ``SET_PARAM`` or by a gain key, is reported
+after its Ack as ``EventCode.PARAM_CHANGED`` (the terminal's parameter screen and files follow the board's events).
 """
 
 from __future__ import annotations
@@ -22,10 +22,10 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any
 
-from fcb_sim import param_bindings
-from fcb_sim.constants import GAIN_PARAMS
-from fcb_sim.parts import BoardParts
-from fcb_sim.scheduler import TASKS
+from fcb_sim.board import param_bindings
+from fcb_sim.board.parts import BoardParts
+from fcb_sim.board.scheduler import TASKS
+from fcb_sim.world.constants import GAIN_PARAMS
 from term.core.protocol import (
     GAIN_OPS,
     PARAMS,

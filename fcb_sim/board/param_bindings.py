@@ -1,8 +1,8 @@
 """The board's parameters: each row of the protocol's table (``term.core.protocol.PARAMS``) bound to where the board
-keeps it (its parts, ``fcb_sim.parts.BoardParts``), read and written in the table's units. The table is the one source
-of truth: its defaults are the board's (``BoardConfig``, ``constants.Gains``, ``ModeConfig``'s trim steps come from
-it; a test checks a fresh board reads them back), its ranges are what ``set_value`` accepts, its ``in_flight`` says what
-may change outside SAFE.
+keeps it (its parts, ``fcb_sim.board.parts.BoardParts``), read and written in the table's units. The table is the one
+source of truth: its defaults are the board's (``BoardConfig``, ``constants.Gains``, ``ModeConfig``'s trim steps come
+from it; a test checks a fresh board reads them back), its ranges are what ``set_value`` accepts, its ``in_flight``
+says what may change outside SAFE.
 
 - ``get_raw(parts, param)`` / ``get_value``: the value in force;
 - ``set_raw(parts, param, raw)``: the guards in order (unknown id: ``Nak.UNKNOWN_PARAM``; out of the table's range:
@@ -19,13 +19,13 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping
 
-from fcb_sim import constants as P
+from fcb_sim.board.flash_log import FlashLog
+from fcb_sim.board.flight import FlightCore
+from fcb_sim.board.parts import BoardParts
 from fcb_sim.estimation import has_fixed_point, make_filter
 from fcb_sim.estimation.complementary import ComplementaryFilter, ComplementaryFilterQ16
 from fcb_sim.estimation.height import make_height_estimator
-from fcb_sim.flash_log import FlashLog
-from fcb_sim.flight import FlightCore
-from fcb_sim.parts import BoardParts
+from fcb_sim.world import constants as P
 from term.core.protocol import PARAMS, Mode, Nak, Param, preset_values
 
 Value = float | str | bool

@@ -15,12 +15,12 @@ import math
 import random
 from typing import Any
 
-from fcb_sim.board import Board, BoardConfig
+from fcb_sim.board.board import Board, BoardConfig
+from fcb_sim.board.flash_log import FLASH_BYTES
+from fcb_sim.board.flight import FlightCore
+from fcb_sim.board.timing import REPORT_RAW_FILTER
 from fcb_sim.errors import UsageError
-from fcb_sim.flash_log import FLASH_BYTES
-from fcb_sim.flight import FlightCore
-from fcb_sim.physics import World
-from fcb_sim.timing import REPORT_RAW_FILTER
+from fcb_sim.world.physics import World
 from term.core.protocol import (
     FLIGHT_MODES,
     STICK_MAX,
@@ -89,7 +89,7 @@ def run_profile(path: str = "raw", scheduler: str = "round-robin", seconds: floa
     """Profile as the report did (4.2): calibrate, enter FULL (DMP path) or RAW, random sticks from the PC,
     logging on; the props are off (motors held at zero in the world, so random sticks cannot crash it). The RAW
     path runs ``filter_name`` (default the report's, whose cost is in Figure 14's rows; another is priced by
-    fcb_sim.timing.RAW_FILTER_EXTRA_US), in fixed point with ``fixed_point``."""
+    fcb_sim.board.timing.RAW_FILTER_EXTRA_US), in fixed point with ``fixed_point``."""
     world = World(seed)
     for i in range(1, 5):
         world.stick_motor(i, 0)  # on the bench without propellers, as a profiling run is done

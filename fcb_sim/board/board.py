@@ -1,6 +1,6 @@
 """The firmware's main loop as a sans-IO object with a microsecond clock (report Figure 2, sections 4.2 and 5).
 
-Timer interrupts set flags (``fcb_sim.scheduler``); the main loop runs the flagged tasks, each a method in the
+Timer interrupts set flags (``fcb_sim.board.scheduler``); the main loop runs the flagged tasks, each a method in the
 task table, in the order the scheduler picks (round robin, the report's, or priority, its proposed fix). Tasks
 (``TASKS``, the order of the Profile packet's ``task`` ids):
 
@@ -16,19 +16,19 @@ task table, in the order the scheduler picks (round robin, the report's, or prio
   stages, battery, tilt -> PANIC; docs/modes.md);
 - ``logging``: one flash-log record per control step while logging is on.
 
-The board's clock advances as the real board's would (the Figure 14 cost model, ``fcb_sim/timing.py``), and the
-world's physics advances with it. Commands are a table (``fcb_sim.commands``); the UART is a wire model
-(``fcb_sim.uart``); the profiling bench is ``fcb_sim.profile``. How the model was derived, what it explains and
-what it does not: docs/board.md.
+The board's clock advances as the real board's would (the Figure 14 cost model, ``fcb_sim/board/timing.py``), and the
+world's physics advances with it. Commands are a table (``fcb_sim.board.commands``); the UART is a wire model
+(``fcb_sim.board.uart``); the profiling bench is ``fcb_sim.lab.profile``. How the model was derived, what it explains
+and what it does not: docs/board.md.
 
 Sans-IO contract: ``uart_receive(data)`` (bytes arrive now), ``advance(until_us)``, ``uart_transmit() -> bytes``
 (what has left the UART at the protocol's BAUD_RATE by now); ``next_event_us()`` tells a real-time driver when to
 call again.
-BLE goes through ``board.wireless`` (a ``fcb_sim.wireless.WirelessLink``): every packet the board sends is offered
+BLE goes through ``board.wireless`` (a ``fcb_sim.board.wireless.WirelessLink``): every packet the board sends is offered
 to it. Without a radio, ``ble_connected()``, ``ble_disconnected()`` and ``ble_receive(data)`` drive the link; with
 ``wireless.BoardRadio`` its ``on_data`` is ``board.ble_data`` and its ``on_disconnect`` is ``board.ble_lost``
 (PANIC if the board was flown over BLE). ``status()`` and ``profile()`` report (``prof`` holds the measurements);
-the same loop runs as fast as possible (tests, ``fcb-sim profile``) or paced to the wall clock (fcb_sim/serve.py).
+the same loop runs as fast as possible (tests, ``fcb-sim profile``) or paced to the wall clock (fcb_sim/hosts/serve.py).
 """
 
 from __future__ import annotations
@@ -37,25 +37,24 @@ import random
 from collections.abc import Callable
 from typing import Any
 
-from fcb_sim import telemetry as tm
-from fcb_sim.calibration import CALIBRATED_VARS
-from fcb_sim.commands import CommandDesk
-from fcb_sim.flash_log import FLASH_US_PER_BYTE, Download, FlashLog, LogVar
-from fcb_sim.flight import FlightCore
-from fcb_sim.linktimer import LinkTimer
-from fcb_sim.modes import FLIGHT_MODES, ModeChange, ModeConfig, ModeMachine
-from fcb_sim.param_bindings import apply_values
-from fcb_sim.parts import BoardConfig, BoardParts
-from fcb_sim.physics import World
-from fcb_sim.scheduler import (
+from fcb_sim.board import telemetry as tm
+from fcb_sim.board.calibration import CALIBRATED_VARS
+from fcb_sim.board.commands import CommandDesk
+from fcb_sim.board.flash_log import FLASH_US_PER_BYTE, Download, FlashLog, LogVar
+from fcb_sim.board.flight import FlightCore
+from fcb_sim.board.linktimer import LinkTimer
+from fcb_sim.board.modes import FLIGHT_MODES, ModeChange, ModeConfig, ModeMachine
+from fcb_sim.board.param_bindings import apply_values
+from fcb_sim.board.parts import BoardConfig, BoardParts
+from fcb_sim.board.scheduler import (
     HEARTBEAT_PERIOD_US,
     PARSE_MAX_BYTES,
     TASKS,
     Scheduler,
     timer_period,
 )
-from fcb_sim.telemetry import Telemetry
-from fcb_sim.timing import (
+from fcb_sim.board.telemetry import Telemetry
+from fcb_sim.board.timing import (
     COSTS,
     DOWNLOAD_US_PER_CHUNK,
     PARSE_US_BASE,
@@ -67,9 +66,10 @@ from fcb_sim.timing import (
     Interference,
     Profiler,
 )
-from fcb_sim.transmit import Transmitter
-from fcb_sim.uart import RX_QUEUE_BYTES, Uart
-from fcb_sim.wireless import WirelessLink
+from fcb_sim.board.transmit import Transmitter
+from fcb_sim.board.uart import RX_QUEUE_BYTES, Uart
+from fcb_sim.board.wireless import WirelessLink
+from fcb_sim.world.physics import World
 from term.core.logformat import SCHEME_RICE
 from term.core.protocol import (
     PARAMS,
@@ -181,12 +181,12 @@ class Board:
         self._overflow_report_at = 0
         self._crashes_seen = len(self.world.crashes)
         self.on_task: Any = None  # optional callback(name, start_us, duration_us) after every task run
-        # what the handlers act on (fcb_sim/parts.py): commands, parameters, telemetry
+        # what the handlers act on (fcb_sim/board/parts.py): commands, parameters, telemetry
         self.parts = BoardParts(cfg, self.core, self.modes, log, self.download, self.tx, self.wireless, self.prof,
                                 self.sched, self.uart, lambda: self.now)
         self.event = self.parts.event
         self.parts.apply_queue_rule()
-        apply_values(self.parts, PRESETS[cfg.preset])  # the preset over the defaults (fcb_sim/param_bindings.py)
+        apply_values(self.parts, PRESETS[cfg.preset])  # the preset over the defaults (fcb_sim/board/param_bindings.py)
         if cfg.boot_hello:
             self._hello()
             self.event(EventCode.BOOT, PROTOCOL_VERSION)
@@ -227,7 +227,7 @@ class Board:
         """What the phone wrote (through the WirelessLink: ignored before the handover)."""
         self.ble_data(self.wireless.ble_receive(data))
 
-    # The radio (fcb_sim.wireless.BoardRadio) drives the WirelessLink itself and calls these two:
+    # The radio (fcb_sim.board.wireless.BoardRadio) drives the WirelessLink itself and calls these two:
 
     def ble_data(self, data: bytes) -> None:
         """Parser bytes from BLE that already went through ``wireless.ble_receive`` (the radio's ``on_data``)."""
@@ -247,7 +247,7 @@ class Board:
 
     def starved(self, until_us: int, *, slip: bool = False) -> None:
         """The real-time driver could not run the board from now until ``until_us``: not the PC's silence, and
-        said as SIM_LAG (fcb_sim/linktimer.py)."""
+        said as SIM_LAG (fcb_sim/board/linktimer.py)."""
         lag_ms = self.link.starved(self.now, until_us, slip=slip)
         if lag_ms is not None:
             self.event(EventCode.SIM_LAG, lag_ms)
@@ -533,7 +533,7 @@ class Board:
         return tm.status(self.parts, self.readings())
 
     def send(self, pkt: Any) -> None:
-        """A packet to the PC, through the transmit side (fcb_sim/transmit.py)."""
+        """A packet to the PC, through the transmit side (fcb_sim/board/transmit.py)."""
         self.tx.send(pkt, self.now)
 
     def _hello(self) -> None:

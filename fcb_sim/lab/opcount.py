@@ -1,5 +1,5 @@
 """Counts the arithmetic one RAW-path attitude filter does per sample, the basis of its price in the board's cost
-model (``fcb_sim.timing.RAW_FILTER_OPS``; docs/board.md, "The RAW filter's price").
+model (``fcb_sim.board.timing.RAW_FILTER_OPS``; docs/board.md, "The RAW filter's price").
 
 ``count_ops(name, fixed_point)`` runs the filter on a deterministic stream of tilting, turning samples and returns
 the mean number of each operation per sample: the ``update`` and, for a filter whose state is a quaternion (ikf,
@@ -8,7 +8,7 @@ pitch by eq. 5). Float filters are counted by running them on a ``float`` subcla
 (operations between constants alone are not counted: the board's compiler folds them) and through a counting
 stand-in for ``math``; fixed-point filters by wrapping their primitives (``fixed.smul``, ``ikf_fixed.mul``, ...).
 Additions are counted for float (soft-float calls on the board) and not for fixed point (one instruction), except
-the saturating ones. Run ``python -m fcb_sim.opcount`` to print the table; a test keeps timing's copy equal to it.
+the saturating ones. Run ``python -m fcb_sim.lab.opcount`` to print the table; a test keeps timing's copy equal to it.
 """
 
 from __future__ import annotations

@@ -1,13 +1,13 @@
 """What the board's handlers act on: its start-up settings (``BoardConfig``) and its parts (``BoardParts``).
 
-The command handlers (fcb_sim/commands.py), the parameter bindings (fcb_sim/param_bindings.py) and the telemetry
-builders (fcb_sim/telemetry.py) get a ``BoardParts``, never the whole ``Board``: the mode machine, the flight core,
-the flash log and its download, the transmit side, the BLE link, the profiler, the scheduler and the UART, the
-board's clock, and an event emitter. The Board builds one and owns it; it is the only place a part is replaced
+The command handlers (fcb_sim/board/commands.py), the parameter bindings (fcb_sim/board/param_bindings.py) and the
+telemetry builders (fcb_sim/board/telemetry.py) get a ``BoardParts``, never the whole ``Board``: the mode machine, the
+flight core, the flash log and its download, the transmit side, the BLE link, the profiler, the scheduler and the UART,
+the board's clock, and an event emitter. The Board builds one and owns it; it is the only place a part is replaced
 (a new log scheme builds a new ``FlashLog``), so the Board reads its log from here.
 
 This module imports no board module but the flash log's size at run time (the parts' types only for the
-checker), so nothing circles back to fcb_sim/board.py.
+checker), so nothing circles back to fcb_sim/board/board.py.
 """
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
-from fcb_sim.flash_log import FLASH_BYTES
+from fcb_sim.board.flash_log import FLASH_BYTES
 from term.core.protocol import (
     PARAMS,
     PRESETS,
@@ -30,14 +30,14 @@ from term.core.protocol import (
 )
 
 if TYPE_CHECKING:
-    from fcb_sim.flash_log import Download, FlashLog
-    from fcb_sim.flight import FlightCore
-    from fcb_sim.modes import ModeMachine
-    from fcb_sim.scheduler import Scheduler
-    from fcb_sim.timing import Profiler
-    from fcb_sim.transmit import Transmitter
-    from fcb_sim.uart import Uart
-    from fcb_sim.wireless import WirelessLink
+    from fcb_sim.board.flash_log import Download, FlashLog
+    from fcb_sim.board.flight import FlightCore
+    from fcb_sim.board.modes import ModeMachine
+    from fcb_sim.board.scheduler import Scheduler
+    from fcb_sim.board.timing import Profiler
+    from fcb_sim.board.transmit import Transmitter
+    from fcb_sim.board.uart import Uart
+    from fcb_sim.board.wireless import WirelessLink
 
 
 def _default(param: Param) -> Any:
@@ -104,7 +104,7 @@ class BoardParts:
         return self.clock()
 
     def send(self, pkt: Any) -> None:
-        """A packet to the PC, through the transmit side (fcb_sim/transmit.py)."""
+        """A packet to the PC, through the transmit side (fcb_sim/board/transmit.py)."""
         self.tx.send(pkt, self.clock())
 
     def event(self, code: EventCode, arg: int) -> None:

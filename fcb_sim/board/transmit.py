@@ -23,9 +23,9 @@ from __future__ import annotations
 from collections import deque
 from typing import Any
 
-from fcb_sim.timing import UART_US_PER_BYTE
-from fcb_sim.uart import TX_BUFFER_BYTES, Uart
-from fcb_sim.wireless import ANSWER_BUDGET, WirelessLink
+from fcb_sim.board.timing import UART_US_PER_BYTE
+from fcb_sim.board.uart import TX_BUFFER_BYTES, Uart
+from fcb_sim.board.wireless import ANSWER_BUDGET, WirelessLink
 from term.core.protocol import (
     MAX_FRAME,
     SPEC_OF,

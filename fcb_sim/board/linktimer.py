@@ -2,7 +2,7 @@
 
 Sans-IO: the board passes its clock in. ``heard(now)`` at every valid frame; ``silent_us(now)`` is board time since
 the last one, less the time the board could not listen. ``starved(now, until, slip=...)``: the real-time driver
-(fcb_sim/serve.py) could not run the board from ``now`` to ``until`` (its process got no CPU): the PC's frames of
+(fcb_sim/hosts/serve.py) could not run the board from ``now`` to ``until`` (its process got no CPU): the PC's frames of
 that time waited in its input, so that time is not the PC's silence. It returns the lag to report (ms, event
 SIM_LAG: the largest since the last report, from 100 ms, at most once a second), or None. docs/board.md, "A starved
 simulator and the link's time".

@@ -18,8 +18,8 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
-from fcb_sim import constants as P
 from fcb_sim.estimation import quaternion_to_euler
+from fcb_sim.world import constants as P
 
 CALIBRATED_VARS = ("gx", "gy", "gz", "ax", "ay", "az", "dmp_phi", "dmp_theta", "pressure")
 DMP_ANGLE_LSB = P.ANGLE_LSB_PER_RAD  # DMP angles are summed as int16 angles of the lab's template

@@ -2,7 +2,7 @@
 
 Timer interrupts only set flags; the loop sees a flag when it next tests it. A tick that comes while its flag
 is still set is lost (``ticks_lost``); ticks are never queued. The periodic tasks run from app timers on the
-32768 Hz RTC, whose periods are whole ticks (fcb_sim/timing.py), started at unrelated phases.
+32768 Hz RTC, whose periods are whole ticks (fcb_sim/board/timing.py), started at unrelated phases.
 
 - ``round-robin`` (the report's design): every pass runs each flagged task once, in ``ROUND_ROBIN_ORDER``.
 - ``priority`` (the report's proposed fix, 6.1): the most important flagged task first (``PRIORITY_ORDER``);
@@ -18,7 +18,7 @@ from __future__ import annotations
 import random
 from collections.abc import Callable
 
-from fcb_sim.timing import (
+from fcb_sim.board.timing import (
     APP_TIMER_EXTRA_US,
     APP_TIMER_ISR_US,
     PARSE_US_BASE,

@@ -22,13 +22,13 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
-from fcb_sim import constants as P
-from fcb_sim import control as C
-from fcb_sim.calibration import CalibrationSums
+from fcb_sim.board import control as C
+from fcb_sim.board.calibration import CalibrationSums
+from fcb_sim.board.flight import FlightCore
 from fcb_sim.errors import UsageError
 from fcb_sim.estimation import BEST, FILTERS, has_fixed_point
-from fcb_sim.flight import FlightCore
-from fcb_sim.physics import World
+from fcb_sim.world import constants as P
+from fcb_sim.world.physics import World
 from term.core.protocol import STICK_MAX, Mode
 
 CONTROL_HZ = 400.0
@@ -206,7 +206,7 @@ def _hover(seed: int, duration: float, mode: int = Mode.FULL, **core_kw: object)
 
 def fly_core(seed: int, duration: float, core: FlightCore, mode: int = Mode.FULL) -> dict:
     """The flight of ``hover`` (``raw_hover`` with ``mode`` RAW) on a prepared flight core: another preset's
-    (fcb_sim.param_bindings.preset_core), for bench.flight's report-against-default figures."""
+    (fcb_sim.board.param_bindings.preset_core), for bench.flight's report-against-default figures."""
     sim, rec = _take_off(Sim(seed, core=core), mode)
     sim.run_until(duration)
     return rec.metrics()

@@ -32,8 +32,8 @@ import math
 import random
 from typing import NamedTuple
 
-from fcb_sim import constants as P
-from fcb_sim.sensors import BatteryAdc, Dmp, Mpu6050, Ms5611, NoiseTable
+from fcb_sim.world import constants as P
+from fcb_sim.world.sensors import BatteryAdc, Dmp, Mpu6050, Ms5611, NoiseTable
 
 SLOW_EVERY = 10  # physics steps between updates of the slow parts (battery, wind, pushes)
 

@@ -44,11 +44,10 @@ import time
 from collections.abc import Iterator
 from typing import IO
 
-from fcb_sim import constants as P
 from fcb_sim.errors import UsageError
+from fcb_sim.estimation import BEST, DESCRIPTIONS, FILTERS, has_fixed_point, make_filter
+from fcb_sim.world import constants as P
 from term.core.protocol import column_scale
-
-from . import BEST, DESCRIPTIONS, FILTERS, has_fixed_point, make_filter
 
 REQUIRED = ("t", "gx", "gy", "gz", "ax", "ay", "az")
 FLASH_LOG = ("t_us", "sp", "sq", "sr", "sax", "say", "saz")  # the board's flash log (term's CSV of a download)

@@ -4,9 +4,9 @@ Over the UART: Attitude and Motion at every telemetry run (50 Hz by default, ``P
 20 Hz, Status and Gains at 5 Hz, each field in the protocol's units (int16 fields clipped to their range, where
 ``term.core.protocol.saturated`` recognises them). Over BLE (the handover STARTED): the phone's Compact packet and, at a
 lower rate, Compact2 (the rest of the flight screen: motors, height, vz, set point, flags, lift trim); the link
-decides how many of each (fcb_sim/wireless.py). ``Telemetry.packets(parts, readings)`` gives the UART packets due
+decides how many of each (fcb_sim/board/wireless.py). ``Telemetry.packets(parts, readings)`` gives the UART packets due
 now; ``status``, ``compact`` and ``compact2`` build one packet each. Each takes the board's parts
-(``fcb_sim.parts.BoardParts``) and what its tasks last measured and commanded (``Readings``), never the Board.
+(``fcb_sim.board.parts.BoardParts``) and what its tasks last measured and commanded (``Readings``), never the Board.
 Sans-IO: the board's clock decides what is due.
 """
 
@@ -14,7 +14,7 @@ from __future__ import annotations
 
 from typing import Any, NamedTuple
 
-from fcb_sim.parts import BoardParts
+from fcb_sim.board.parts import BoardParts
 from term.core.protocol import (
     Attitude,
     Compact,

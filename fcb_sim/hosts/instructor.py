@@ -42,8 +42,8 @@ import sys
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
-from fcb_sim import constants as P
 from fcb_sim.errors import UsageError, parse_tcp_server
+from fcb_sim.world import constants as P
 from term.core.protocol import (
     INSTRUCTOR_AUTH,
     INSTRUCTOR_MAX_CUT_S,
@@ -58,7 +58,7 @@ from term.core.protocol import (
 from term.core.protocol.numbers import check_number, finite, shown_text
 
 if TYPE_CHECKING:
-    from fcb_sim.board import Board
+    from fcb_sim.board.board import Board
 
 log = logging.getLogger(__name__)
 

@@ -22,7 +22,7 @@ import math
 import random
 from collections import deque
 
-from fcb_sim import constants as P
+from fcb_sim.world import constants as P
 
 _TABLE_BITS = 15
 

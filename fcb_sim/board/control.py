@@ -32,7 +32,7 @@ positive L/M/N spin the quadrotor positively about x/y/z (tests/test_control.py 
 
 from __future__ import annotations
 
-from fcb_sim import constants as P
+from fcb_sim.world import constants as P
 from term.core.protocol import STICK_MAX
 
 ANGLE_LSB_PER_RAD = P.ANGLE_LSB_PER_RAD

@@ -27,14 +27,14 @@ import time
 from pathlib import Path
 from typing import Any
 
+from fcb_sim.board.parts import BoardConfig
+from fcb_sim.board.timing import rtc_ticks
+from fcb_sim.board.wireless import WirelessLink
 from fcb_sim.errors import UsageError
-from fcb_sim.parts import BoardConfig
-from fcb_sim.physics import World
-from fcb_sim.timing import rtc_ticks
-from fcb_sim.wireless import WirelessLink
+from fcb_sim.world.physics import World
 from term.core.protocol import PARAMS, Mode, Param
 
-FIRMWARE = Path(__file__).resolve().parent.parent / "firmware"
+FIRMWARE = Path(__file__).resolve().parents[2] / "firmware"
 LIBRARY = "libqb_host.so"
 NO_CC = "the C board needs a C compiler and make: install them (Debian/Ubuntu: apt-get install gcc make)"
 _BUILD_LOCK = threading.Lock()
@@ -188,7 +188,7 @@ class CBoard:
             return max(1, round(crashes[self._crashes_seen - 1].speed * 1000))
         return 0
 
-    # --- the outside world's calls (fcb_sim.board.Board's) ----------------------------------------------------
+    # --- the outside world's calls (fcb_sim.board.board.Board's) ----------------------------------------------------
 
     @property
     def now(self) -> int:
@@ -250,9 +250,9 @@ _CALIBRATE_AT_US, _ARM_AT_US, _HEIGHT_AT_US, _MEASURE_FROM_US = 200_000, 1_500_0
 
 
 def _pilot_lift(world: World, target_m: float) -> int:
-    """The scenarios' pilot (fcb_sim/scenarios.py): a lift stick that flies the true height to ``target_m``."""
-    from fcb_sim import constants as P
-    from fcb_sim import control as C
+    """The scenarios' pilot (fcb_sim/lab/scenarios.py): a lift stick that flies the true height to ``target_m``."""
+    from fcb_sim.board import control as C
+    from fcb_sim.world import constants as P
 
     tr = world.truth
     a = max(-4.0, min(4.0, 2.0 * (target_m - tr.h) + 2.5 * tr.vd))
@@ -266,7 +266,7 @@ def fly_board(kind: str, scenario: str = "hover", seed: int = 1, duration: float
     on-board filter) instead of FULL. Metrics from 6 s on, on the truth:
     ``attitude_rms_deg`` (tilt), ``height_rms_m`` (against 1 m, or the height HEIGHT was entered at), the final
     mode, and the wall time."""
-    from fcb_sim.board import Board
+    from fcb_sim.board.board import Board
     from term.core.protocol import Command, Decoder, Joystick, Op, encode
 
     if scenario not in BOARD_SCENARIOS:

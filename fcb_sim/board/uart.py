@@ -21,7 +21,7 @@ from __future__ import annotations
 import math
 from collections import deque
 
-from fcb_sim.timing import UART_US_PER_BYTE
+from fcb_sim.board.timing import UART_US_PER_BYTE
 
 RX_QUEUE_BYTES = 1024  # bounded: a flood is dropped and counted, it never stalls the loop
 TX_BUFFER_BYTES = 1024  # what the transmit side may have queued at once

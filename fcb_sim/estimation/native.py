@@ -25,7 +25,7 @@ from fcb_sim.estimation.ikf import InertialKalmanFilter
 from fcb_sim.estimation.ikf_fixed import Formats, InertialKalmanFilterQ
 from fcb_sim.estimation.ikf_lite import InertialKalmanFilterQL
 
-FIRMWARE = Path(__file__).resolve().parent.parent / "firmware"
+FIRMWARE = Path(__file__).resolve().parents[2] / "firmware"
 LIBRARY = "libikfq.so"
 STATE_FIELDS = ("qw", "qx", "qy", "qz", "vx", "vy", "dx", "dy", "pvv", "pvg", "pvd", "pgg", "pgd", "pdd", "bx", "by",
                 "bz", "rx", "ry", "rz", "gl0", "gl1", "gl2", "al0", "al1", "al2", "rest_t", "at_rest", "started",
@@ -259,7 +259,7 @@ class NativeIKFQ(QuaternionAnglesMixin):
         self._lib.ikfq_init_q(self._s, ctypes.byref(self._fmt), ctypes.byref(_Consts(**consts)))
 
     def raw_state(self) -> bytes:
-        """The C struct's bytes (its layout is the M0 build's too: fcb_sim.m0emu starts from it)."""
+        """The C struct's bytes (its layout is the M0 build's too: fcb_sim.hosts.m0emu starts from it)."""
         return bytes(self._buf)
 
     def state(self) -> dict[str, int]:
@@ -299,7 +299,7 @@ def constants_c(dt: float = 0.0025) -> str:
     make_filter gives it (the lite variant, its gravity part spread over 4 samples)."""
     c = NativeIKFQL().consts(dt)
     body = ", ".join(f".{k} = {v}" for k, v in c.items())
-    return f"/* fcb_sim.native.constants_c(dt={dt!r}): ikf's defaults, ikf_fixed.Formats(), ikf_lite */\n" \
+    return f"/* fcb_sim.estimation.native.constants_c(dt={dt!r}): ikf's defaults, ikf_fixed.Formats(), ikf_lite */\n" \
            f"static const ikfq_consts_t IKFQ_CONSTS = {{{body}}};"
 
 
