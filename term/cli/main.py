@@ -396,12 +396,11 @@ def _check_c_board(args: argparse.Namespace) -> None:
         raise UsageError("--board needs --sim")
     if args.preset not in (None, "default"):
         raise UsageError(f"--board c has the default preset only (docs/firmware.md), not {args.preset!r}")
-    from fcb_sim.hosts.cboard import CBoardUnavailable, library_path
+    from term.session.sim import c_board_problem
 
-    try:
-        library_path()
-    except CBoardUnavailable as exc:
-        raise UsageError(str(exc)) from None
+    problem = c_board_problem()
+    if problem:
+        raise UsageError(problem)
 
 
 def _cable(args: argparse.Namespace, cfg: Config) -> str | None:

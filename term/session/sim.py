@@ -41,6 +41,27 @@ def _die_with_parent() -> None:
     os.setsid()  # its own session: the terminal's Ctrl+C or SIGHUP goes to term, which stops it in order
 
 
+def child_main() -> None:
+    """The child's entry: fcb-sim's command line (its arguments after ``-c``), then out without the interpreter's
+    teardown (term/session/quick_exit.py): ``stop()`` waits for the child's exit. This module is the one seam
+    between the programs: no other module of term imports fcb_sim."""
+    from fcb_sim.cli import main
+    from term.session.quick_exit import exit_now
+
+    exit_now(main(sys.argv[1:]))
+
+
+def c_board_problem() -> str | None:
+    """Why ``--board c`` cannot fly here, in one line (no C compiler, no sources), or None once it is built."""
+    from fcb_sim.hosts.cboard import CBoardUnavailable, library_path
+
+    try:
+        library_path()
+    except CBoardUnavailable as exc:
+        return str(exc)
+    return None
+
+
 class SimBoard:
     """`fcb-sim serve --pty` in a child process; ``start()`` returns the pty path it printed first. With
     ``radio`` the board's BLE radio is on the air too (``--ble-hci`` on a free local port): ``ble_address`` and
@@ -49,10 +70,7 @@ class SimBoard:
 
     def __init__(self, *, seed: int = 1, scenario: str | None = None, link_timeout: float | None = None,
                  extra: Sequence[str] = (), radio: bool = False, log: bool = False, instructor: bool = False) -> None:
-        # Through fcb_sim.cli.main (not "-m fcb_sim.cli", where its UsageError would be __main__'s, uncaught), and
-        # out without the interpreter's teardown (term/session/quick_exit.py): stop() waits for the child's exit.
-        self.cmd = [sys.executable, "-c", "from fcb_sim.cli import main; "
-                    "from term.session.quick_exit import exit_now; exit_now(main())",
+        self.cmd = [sys.executable, "-c", "from term.session.sim import child_main; child_main()",
                     "serve", "--pty", "--seed", str(seed)]
         if scenario:
             self.cmd += ["--scenario", scenario]
