@@ -9,9 +9,20 @@ import pytest
 from bleak import BleakClient, BleakScanner
 from bleak.exc import BleakDeviceNotFoundError, BleakError
 
-from fcb_sim.board.wireless import NUS_RX, NUS_SERVICE, NUS_TX, WirelessLink
+from fcb_sim.board.wireless import WirelessLink
 from fcb_sim.hosts.radio import start_radio
-from term.core.protocol import Ack, Compact, Decoder, Encoder, Heartbeat, HeartbeatAck, WirelessState
+from term.core.protocol import (
+    NUS_RX,
+    NUS_SERVICE,
+    NUS_TX,
+    Ack,
+    Compact,
+    Decoder,
+    Encoder,
+    Heartbeat,
+    HeartbeatAck,
+    WirelessState,
+)
 from term.transports.bumble_backend import BumbleClient, BumbleHost, BumbleScanner
 
 

@@ -17,7 +17,7 @@ import pytest
 from fcb_sim.hosts import cboard
 from tests.support.firmware import NO_ARM, SAN_ENV
 
-FIRMWARE = Path(cboard.__file__).resolve().parent.parent / "firmware"
+FIRMWARE = cboard.FIRMWARE
 HAVE_CC = shutil.which("cc") is not None and shutil.which("make") is not None
 needs_cc = pytest.mark.skipif(not HAVE_CC, reason="no C compiler (cc) or make: the C board's tests are skipped")
 M0_FLASH_GOAL, M0_RAM_GOAL = 32 * 1024, 8 * 1024

@@ -13,15 +13,15 @@ from fcb_sim.board.wireless import (
     COMPACT2_PER_HEARTBEAT,
     COMPACT_PER_HEARTBEAT,
     NOTIFY_PAYLOAD,
-    NUS_RX,
-    NUS_SERVICE,
-    NUS_TX,
     WirelessLink,
     board_name,
     compacts_per_heartbeat,
 )
 from fcb_sim.hosts.radio import start_radio
 from term.core.protocol import (
+    NUS_RX,
+    NUS_SERVICE,
+    NUS_TX,
     Ack,
     Attitude,
     Compact,
