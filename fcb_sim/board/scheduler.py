@@ -28,8 +28,9 @@ from fcb_sim.board.timing import (
     rtc_us,
     us_to_ticks,
 )
+from term.core.protocol import BOARD_TASKS
 
-TASKS = ("parse", "sensor", "control", "baro", "telemetry", "heartbeat", "logging")  # the Profile packet's ids
+TASKS = BOARD_TASKS  # the Profile packet's ids
 ROUND_ROBIN_ORDER = ("parse", "baro", "telemetry", "heartbeat", "sensor", "control", "logging")
 PRIORITY_ORDER = ("control", "sensor", "logging", "parse", "heartbeat", "baro", "telemetry")
 CHAIN = frozenset({"control", "sensor", "logging"})  # never held back by the slack rule

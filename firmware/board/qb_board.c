@@ -10,9 +10,6 @@
 static const uint8_t RR_ORDER[] = {QB_T_PARSE, QB_T_BARO, QB_T_TELEMETRY, QB_T_HEARTBEAT, QB_T_SENSOR,
                                    QB_T_CONTROL, QB_T_LOGGING};
 #define RR_N (sizeof RR_ORDER / sizeof RR_ORDER[0])
-#define HEIGHT_PERIOD_US 50000u
-#define STATUS_PERIOD_US 200000u
-#define DMP_ANGLE_LSB 10430.0
 
 /* Microseconds to seconds. In float (the M0) by whole seconds and the rest: a 64-bit integer to float conversion
  * would link the soft double routines, and a float of the whole count would lose the microseconds. */

@@ -14,7 +14,7 @@
  *   - the RAW path's attitude filter, ikf's fixed-point twin (ikf_q.c, fcb_sim/estimation/ikf_fixed.py; the
  *     board's set-up and dt in qb_flight.c);
  *   - commands, telemetry, heartbeats, the link-loss failsafe, the parameter table generated from term's
- *     (qb_board.c, qb_params.c, qb_params.h; fcb_sim/board/commands.py, telemetry.py, paramtable.py).
+ *     (qb_board.c, qb_params.c, qb_params.h; fcb_sim/board/commands.py, telemetry.py, param_bindings.py).
  * Not yet: the flash log (LOG_* commands answer NOT_IMPLEMENTED), the BLE handover, the task profile, RAW filters
  * other than ikf (and ikf in float: the C board's is always the fixed-point twin), the report preset's
  * complementary height estimator. docs/firmware.md keeps this list.
@@ -28,6 +28,7 @@
 #include <stdint.h>
 
 #include "ikf_q.h"
+#include "qb_consts.h"
 #include "qb_params.h"
 #include "qp_protocol.h"
 
@@ -41,18 +42,9 @@ typedef QB_REAL qb_real; /* qb_params.h: float with QB_FLOAT, else double */
 #define QB_VERSION_MAJOR 0
 #define QB_VERSION_MINOR 2
 
-/* Tasks, in the Profile packet's order (fcb_sim.board.scheduler.TASKS). */
-enum qb_task { QB_T_PARSE, QB_T_SENSOR, QB_T_CONTROL, QB_T_BARO, QB_T_TELEMETRY, QB_T_HEARTBEAT, QB_T_LOGGING,
-               QB_TASKS };
+/* The tasks (enum qb_task), the loop's periods and the flight's constants: qb_consts.h, generated. */
 enum qb_timer { QB_TM_SENSOR, QB_TM_BARO, QB_TM_TELEMETRY, QB_TM_HEARTBEAT, QB_TIMERS };
 
-#define QB_RTC_HZ 32768u
-#define QB_BARO_PERIOD_US 50000u
-#define QB_HEARTBEAT_PERIOD_US 100000u
-#define QB_SENSOR_DMP_US 5000u
-#define QB_SENSOR_RAW_US 2500u
-#define QB_PARSE_MAX_BYTES 64u
-#define QB_DEDUPE_US 2000000u
 #define QB_EVENTS 16
 #define QB_DEAF_SPANS 8
 
@@ -263,7 +255,7 @@ uint64_t qb_link_silent_us(qb_board_t *b);
 /* Feed received bytes to the parser at once (the host backend's UART interrupt; qb_poll reads the HAL too). */
 void qb_receive(qb_board_t *b, const uint8_t *data, size_t len);
 
-/* Parameters (qb_params.c): the raw value in force, and a change with the guards of fcb_sim/paramtable.py. */
+/* Parameters (qb_params.c): the raw value in force, and a change with the guards of fcb_sim/board/param_bindings.py. */
 int32_t qb_param_get(const qb_board_t *b, int id);
 uint8_t qb_param_set(qb_board_t *b, int id, int32_t raw, int mode_guard);
 const qb_param_spec_t *qb_param_spec(int id);

@@ -6,34 +6,6 @@
 
 #include "qb_board.h"
 
-#define ANGLE_LSB_PER_RAD 10430.0
-#define ACC_LSB_PER_G 16384.0
-#define ACC_LSB_PER_MS2 (ACC_LSB_PER_G / 9.80665)
-#define STICK_ANGLE_SHIFT 3
-#define STICK_YAW_SHIFT 4
-#define LIFT_AE_MAX 800
-#define MANUAL_LM_GAIN 2
-#define MANUAL_N_GAIN 4
-#define AE_MAX 1000
-#define AE_IDLE 150
-#define PANIC_AE 370
-#define HEIGHT_STICK_RATE 0.5
-#define HEIGHT_STICK_DEADBAND 1500
-#define HEIGHT_I_LIMIT 100000.0
-#define PANIC_SLOW_M_S 1.0
-#define PANIC_FAST_M_S 3.0
-#define PANIC_SLOW_BELOW_M 10.0
-#define PANIC_FAST_ABOVE_M 40.0
-#define PANIC_KP 60.0
-#define PANIC_KI 60.0
-#define PANIC_MAX_AE 700.0
-#define PANIC_MIN_FRAC 0.4
-#define PANIC_LAND_FRAC 0.6
-#define PANIC_LAND_VZ 0.3
-#define PANIC_LAND_S 0.5
-#define ASIN_FALLBACK 0.99
-#define RAD_S_PER_LSB (1.0 / (16.4 * 180.0 / 3.141592653589793)) /* 1 / (GYRO_LSB_PER_DPS * 180 / pi) */
-
 /* --- the RAW path's attitude filter: ikf_q.c, set up from integers -------------------------------------- */
 
 /* ikf's default parameters in ikf_fixed.Formats(), from `python -m fcb_sim.estimation.native --constants 0.0025`
@@ -46,10 +18,6 @@ static const ikfq_consts_t IKF_CONSTS = {
     .pgg0 = 107374182, .pdd0 = 1073742, .g0_io = 642908, .swing_max = 869730877, .swing_k = 966367641,
     .rest_time = 1610612736, .dtq = 10737418, .dt2q = 107374, .dthq = 1342177, .krq = 21053761, .kbq = 5341999,
     .decim = 4, .lite = 1};
-/* ikf's rest_tau and rest_bias_tau (s): the table holds them only as krq and kbq at its own dt */
-#define IKF_REST_TAU 0.5
-#define IKF_REST_BIAS_TAU 2.0
-
 /* ikfq_to_q in qb_real: the same bits in double (host); float on the M0, where a double would link soft double */
 static int32_t ikf_to_q(qb_real x, int frac)
 {

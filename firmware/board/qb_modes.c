@@ -6,14 +6,6 @@
 
 #include "qb_board.h"
 
-#define PANIC_RAMP_S 1.5
-#define PANIC_TIMEOUT_S 300.0
-#define CALIBRATION_S 1.0
-#define CALIBRATION_MIN_SAMPLES 50u
-#define TILT_LIMIT_CDEG 5000
-#define LOW_BATTERY_HOLD_S 0.2 /* term.protocol.LOW_BATTERY_HOLD_S */
-#define TRIM_LIMIT 8192
-
 /* Guards, evaluated in ascending bit order (the order of fcb_sim.board.modes._ARM and the rows). */
 enum { G_ZERO_LIFT = 1, G_NEUTRAL = 2, G_NO_CRASH = 4, G_BATTERY = 8, G_CALIBRATED = 16, G_FROM_BASE = 32,
        G_PANIC_DONE = 64, G_CAL_TIME = 128 };

@@ -1,5 +1,5 @@
 /* qb_params.c: the parameter table (qb_params.h, generated from term.protocol.PARAMS) bound to where the board
- * keeps each value: fcb_sim/paramtable.py in C. The guards in order: unknown id (UNKNOWN_PARAM), outside the
+ * keeps each value: fcb_sim/board/param_bindings.py in C. The guards in order: unknown id (UNKNOWN_PARAM), outside the
  * table's raw range (OUT_OF_RANGE), a SAFE-only parameter outside SAFE (NOT_IN_SAFE), the parameter's own rule;
  * values this board cannot run yet are refused with NOT_IMPLEMENTED (qb_board.h lists them). */
 #define QB_PARAMS_TABLE /* the table's one definition */

@@ -41,6 +41,7 @@ from term.core.protocol.facts import (  # noqa: F401
     BATTERY_WARN,
     BAUD_RATE,
     BOARD_NAME_PREFIX,
+    BOARD_TASKS,
     BOARD_TO_PC,
     BOTH,
     CRC_INIT,

@@ -282,6 +282,10 @@ BATTERY_WARN = 1110  # 11.1 V: nominal; time to land
 BATTERY_FULL = 1260  # 12.6 V: fully charged
 LOW_BATTERY_HOLD_S = 0.2  # the voltage must stay low this long (sag under a motor step is not a flat battery)
 
+# The board's tasks, in the order of the Profile packet's ``task`` ids (the board's task table, the terminal's
+# profile screen and the C board's enum qb_task all read this).
+BOARD_TASKS = ("parse", "sensor", "control", "baro", "telemetry", "heartbeat", "logging")
+
 # Raw MPU6050 scales at the board's full-scale settings, as the Attitude and Motion fields carry them.
 GYRO_LSB_PER_DPS = 16.4  # FS_SEL = 3, +-2000 °/s
 ACC_LSB_PER_G = 16384  # AFS_SEL = 0, +-2 g

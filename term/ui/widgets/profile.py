@@ -5,13 +5,12 @@ from __future__ import annotations
 from rich.console import RenderableType
 from rich.table import Table
 
+from term.core.protocol import BOARD_TASKS
 from term.session.model import Model
 from term.ui.widgets.base import ModelView
 
-# Names of the board's tasks in Profile.task order (fcb_sim/board/board.py TASKS, which term may not import; a test
-# keeps the two equal); unknown ids show their number.
-TASK_NAMES: dict[int, str] = dict(enumerate(("parse", "sensor", "control", "baro", "telemetry", "heartbeat",
-                                             "logging")))
+# Names of the board's tasks in Profile.task order (the protocol's BOARD_TASKS); unknown ids show their number.
+TASK_NAMES: dict[int, str] = dict(enumerate(BOARD_TASKS))
 
 
 class ProfileTable(ModelView):
