@@ -20,6 +20,7 @@ from fcb_sim.errors import EXIT_INTERRUPTED, EXIT_USAGE, UsageError
 from fcb_sim.lab.profile import cmd_profile
 from fcb_sim.lab.replay_imu import cmd_replay
 from fcb_sim.lab.scenarios import cmd_run
+from term.core.protocol import LINK_TIMEOUT_S
 from term.core.protocol.numbers import cli_float, cli_int
 
 
@@ -124,7 +125,8 @@ def _add_serve(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
     serve.add_argument("--pty", action="store_true", help="expose the UART on a fresh pseudo-terminal")
     serve.add_argument("--seed", type=cli_int, default=1)
     serve.add_argument("--scenario", default="bench", help="initial conditions and disturbances")
-    serve.add_argument("--link-timeout", type=cli_float, default=0.5, help="seconds of silence before PANIC")
+    serve.add_argument("--link-timeout", type=cli_float, default=LINK_TIMEOUT_S,
+                       help="seconds of link silence before the failsafe (link.timeout_ms)")
     serve.add_argument("--preset", default="default", choices=sorted(PRESETS),
                        help="the board's parameters: default (the team's best) or report (the lab report's board: "
                        "Table 1, the complementary filter, the Figure 10 height estimator); docs/parameters.md")

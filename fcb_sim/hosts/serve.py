@@ -38,7 +38,7 @@ from typing import Any
 from fcb_sim.board.board import Board, BoardConfig
 from fcb_sim.errors import UsageError
 from fcb_sim.world.physics import World
-from term.core.protocol import ROOM_CEILING_M, ROOM_HALF_M
+from term.core.protocol import LINK_TIMEOUT_RANGE_S, LINK_TIMEOUT_S, ROOM_CEILING_M, ROOM_HALF_M
 
 READ_BYTES = 4096  # per wake-up
 PENDING_TX_LIMIT = 16384  # bytes kept for a client that does not read; older ones are dropped
@@ -66,15 +66,21 @@ SCENARIOS: dict[str, ServeScenario] = {
 }
 
 
-def make_board(seed: int = 1, scenario: str = "bench", link_timeout: float = 0.5, board: str = "python",
+def check_link_timeout(seconds: float) -> None:
+    """--link-timeout within the board's link.timeout_ms range (nan is outside it), else a UsageError."""
+    lo, hi = LINK_TIMEOUT_RANGE_S
+    if not (lo <= seconds <= hi):
+        raise UsageError(f"--link-timeout must be between {lo:g} and {hi:g} s, got {seconds:g}")
+
+
+def make_board(seed: int = 1, scenario: str = "bench", link_timeout: float = LINK_TIMEOUT_S, board: str = "python",
                **config: Any) -> Board:
     """A board in its world for a serve scenario; UsageError for an unknown scenario or a bad timeout. ``board``
     "c" is the C board (firmware/board/, fcb_sim/hosts/cboard.py) in the same world."""
     sc = SCENARIOS.get(scenario)
     if sc is None:
         raise UsageError(f"unknown scenario {scenario!r}; choose one of: {', '.join(SCENARIOS)}")
-    if not (0.05 <= link_timeout <= 60.0):
-        raise UsageError(f"--link-timeout must be between 0.05 and 60 s, got {link_timeout:g}")
+    check_link_timeout(link_timeout)
     world = World(seed, room=(ROOM_HALF_M, ROOM_CEILING_M), **sc.world)  # the lab's walls, as term --sim draws them
     if sc.wind != (0.0, 0.0, 0.0) or sc.gust_std:
         world.set_wind(*sc.wind, gust_std=sc.gust_std)
@@ -354,8 +360,7 @@ def cmd_serve(args: Any) -> int:
         raise UsageError("say where to serve the board: --pty (a fresh pseudo-terminal)")
     if args.scenario not in SCENARIOS:
         raise UsageError(f"unknown scenario {args.scenario!r}; choose one of: {', '.join(SCENARIOS)}")
-    if not (0.05 <= args.link_timeout <= 60.0):
-        raise UsageError(f"--link-timeout must be between 0.05 and 60 s, got {args.link_timeout:g}")
+    check_link_timeout(args.link_timeout)
     # SIGTERM before the loop's own handler is in place (starting the radio, the instructor) ends us as Ctrl+C
     # does: cleanly, status 0; the loop then sets its stop event for either signal.
     previous = signal.signal(signal.SIGTERM, _interrupt)

@@ -35,6 +35,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from term.core.protocol import (
+    LINK_TIMEOUT_S,
     NAK_TEXT,
     PROTOCOL_VERSION,
     STEP_OPS,
@@ -193,7 +194,7 @@ class LinkSession:
         self,
         now: float,
         *,
-        link_timeout: float = 1.0,
+        link_timeout: float = LINK_TIMEOUT_S,
         connect_timeout: float = CONNECT_TIMEOUT_S,
         command_timeout: float = 0.25,
         command_retries: int = 3,

@@ -52,7 +52,7 @@ from pathlib import Path
 from typing import Any
 
 from term.core.logfile import check_directory
-from term.core.protocol import BAUD_RATE
+from term.core.protocol import BAUD_RATE, LINK_TIMEOUT_RANGE_S, LINK_TIMEOUT_S
 from term.core.schema import Flag, ListOf, Number, OneOf, SchemaError, Table, TableOf, Text, nearest, one_line, shown
 from term.core.userfile import UserFileError, read_user_text, read_user_toml
 from term.input.keymap import KeyBinding, KeymapError, build_keymap
@@ -107,7 +107,7 @@ JOYSTICK_POLICIES: dict[str, dict[str, float | bool]] = {
 
 # Ranges of the numbers a user may set (the config file and the same options on the command line).
 BAUD = Number(50, 4_000_000, integer=True, unit="baud")  # up to Linux's highest standard rate, B4000000
-LINK_TIMEOUT = Number(0.05, 60.0, unit="s")  # as fcb-sim serve --link-timeout: nan would never time out
+LINK_TIMEOUT = Number(*LINK_TIMEOUT_RANGE_S, unit="s")  # the board's link.timeout_ms range: nan would never time out
 PLOT_WINDOW = Number(1.0, 60.0, unit="s")  # the model keeps 60 s of each series (term/session/model.py HISTORY)
 
 
@@ -119,7 +119,7 @@ class ConfigError(ValueError):
 class Config:
     port: str | None = None
     baud: int = BAUD_RATE
-    link_timeout: float = 0.5  # as the board's: LINK LOST shows no later than the board's own PANIC
+    link_timeout: float = LINK_TIMEOUT_S  # the board's default: LINK LOST shows no later than its own stage 1
     joystick_policy: str = "stream"
     keymap: tuple[KeyBinding, ...] = field(default_factory=build_keymap)
     key_preset: str = "lab"

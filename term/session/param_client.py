@@ -222,7 +222,7 @@ async def run_command(transport: Any, action: str, words: list[str], out: Any = 
 
     request = _request(action, words)  # bad input is refused before the link is opened
     loop = asyncio.get_running_loop()
-    conn = Connection(transport, LinkSession(loop.time(), link_timeout=2.0), loop.time)
+    conn = Connection(transport, LinkSession(loop.time()), loop.time)
     try:
         await conn.start()
     except Exception as exc:  # TransportError: one line

@@ -146,7 +146,10 @@ from term.core.protocol.packets import (  # noqa: F401
 from term.core.protocol.params import (  # noqa: F401
     ATTITUDE_FILTERS,
     GAIN_OPS,
+    HEARTBEAT_S,
     HEIGHT_ESTIMATORS,
+    LINK_TIMEOUT_RANGE_S,
+    LINK_TIMEOUT_S,
     PARAM_BY_NAME,
     PARAM_RAW_BITS,
     PARAMS,

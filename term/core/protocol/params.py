@@ -250,6 +250,13 @@ PARAMS: dict[Param, ParamSpec] = {p.param: p for p in (
        "report's countdown, section 3.2)", lo=0, hi=60000, in_flight=False),
 )}
 PARAM_BY_NAME: dict[str, ParamSpec] = {p.name: p for p in PARAMS.values()}
+
+# The link's timings in seconds, from the table (the board's link.timeout_ms and link.heartbeat_ms): the terminal's
+# LINK LOST, `fcb-sim serve --link-timeout` and the config file's link_timeout take their default and range here.
+LINK_TIMEOUT_S: float = PARAMS[Param.LINK_TIMEOUT_MS].default / 1000
+LINK_TIMEOUT_RANGE_S: tuple[float, float] = (PARAMS[Param.LINK_TIMEOUT_MS].lo / 1000,
+                                             PARAMS[Param.LINK_TIMEOUT_MS].hi / 1000)
+HEARTBEAT_S: float = PARAMS[Param.HEARTBEAT_MS].default / 1000
 # The gain keys (u/j, i/k, o/l, t/g, y/h) step these parameters by their ``step``.
 GAIN_OPS: dict[int, Param] = {Op.GAIN_YAW_P: Param.YAW_P, Op.GAIN_P1: Param.P1, Op.GAIN_P2: Param.P2,
                               Op.GAIN_HEIGHT_P: Param.HEIGHT_P, Op.GAIN_HEIGHT_D: Param.HEIGHT_D}
