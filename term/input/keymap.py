@@ -15,7 +15,7 @@ from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, replace
 from functools import cache
 
-from term.core.protocol import Mode, Op
+from term.core.protocol import MODE_TABLE, ModeSpec, Op
 from term.core.schema import nearest, shown
 
 
@@ -37,8 +37,8 @@ class KeyBinding:
     action: Action
 
 
-def _mode(mode: Mode, keys: tuple[str, ...], text: str) -> KeyBinding:
-    return KeyBinding(keys, Action(f"mode_{mode.name.lower()}", text, "Modes", Op.MODE, int(mode)))
+def _mode(spec: ModeSpec) -> KeyBinding:
+    return KeyBinding(spec.keys, Action(spec.action, spec.help, "Modes", Op.MODE, int(spec.mode)))
 
 
 def _step(name: str, key: str, text: str, group: str, op: Op, arg: int) -> KeyBinding:
@@ -54,14 +54,7 @@ ZERO_TRIM_STEPS = -32767
 
 
 DEFAULT_KEYMAP: tuple[KeyBinding, ...] = (
-    _mode(Mode.SAFE, ("0",), "SAFE: motors off"),
-    _mode(Mode.PANIC, ("1", "escape"), "PANIC: controlled descent, then SAFE"),
-    _mode(Mode.MANUAL, ("2",), "MANUAL: sticks straight to the motors"),
-    _mode(Mode.CALIBRATION, ("3",), "CALIBRATION: zero the sensors (board level, still)"),
-    _mode(Mode.YAW, ("4",), "YAW control"),
-    _mode(Mode.FULL, ("5",), "FULL control (roll, pitch, yaw)"),
-    _mode(Mode.RAW, ("6",), "RAW: unfiltered sensors, on-board filter"),
-    _mode(Mode.HEIGHT, ("7",), "HEIGHT hold"),
+    *(_mode(spec) for spec in MODE_TABLE.values() if spec.keys),  # the mode table's keys (protocol/modes.py)
     KeyBinding(("8",), Action("wireless", "WIRELESS handover to BLE (in SAFE)", "Modes", Op.WIRELESS, 1)),
     KeyBinding(("c",), Action("ack_crash", "crash seen: the board may leave SAFE again", "Modes", Op.ACK_CRASH)),
     _step("lift_up", "a", "lift up (1 %; ¼ % near hover)", "Trims", Op.TRIM_LIFT, +1),

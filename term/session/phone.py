@@ -25,7 +25,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from term.core.freshness import Reading
-from term.core.protocol import Joystick, Mode, Op, WirelessState
+from term.core.protocol import MODE_TABLE, Joystick, Mode, Op, WirelessState
 from term.input.mapping import FULL
 from term.session.model import Model, battery_level, mode_name, rtt_text
 
@@ -55,10 +55,7 @@ class SendCommand:
 
 Request = SetAxes | RunAction | SendCommand
 
-MODE_BUTTONS = (  # (label, key-map action)
-    ("SAFE", "mode_safe"), ("MANUAL", "mode_manual"), ("CALIB", "mode_calibration"), ("YAW", "mode_yaw"),
-    ("FULL", "mode_full"), ("RAW", "mode_raw"), ("HEIGHT", "mode_height"),
-)
+MODE_BUTTONS = tuple((s.label, s.action) for s in MODE_TABLE.values() if s.phone)  # (label, key-map action)
 TRIM_BUTTONS = (  # (label, key-map action): the same actions as the keys, so trims step alike
     ("roll ◀", "roll_up"), ("roll ▶", "roll_down"),
     ("pitch ▲", "pitch_down"), ("pitch ▼", "pitch_up"),

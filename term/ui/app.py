@@ -36,7 +36,7 @@ from textual.screen import ModalScreen, Screen
 
 from term.core.errors import EXIT_USAGE
 from term.core.events import EventsCleared, Fatal, FromLink, NotSent, StationEvent
-from term.core.protocol import FLIGHT_MODES, Joystick, Mode, Op
+from term.core.protocol import FLIGHT_MODES, MODE_TABLE, Joystick, Mode, Op
 from term.data.recording import SessionRecorder
 from term.data.replay import Replay
 from term.input.joystick import JoystickPoller
@@ -80,9 +80,9 @@ from term.ui.widgets.lesson import LessonBar
 from term.ui.widgets.plots import LivePlot
 
 # The footer: the mode keys with PANIC first, then the screens; each with a short label (the help has the long one).
-FOOTER_LABELS = {
-    "mode_panic": "PANIC", "mode_safe": "SAFE", "mode_calibration": "CALIB", "mode_manual": "MANUAL",
-    "mode_yaw": "YAW", "mode_full": "FULL", "mode_raw": "RAW", "mode_height": "HEIGHT", "help": "help",
+FOOTER_LABELS = {  # the mode table's labels (PANIC, then the ground's modes, then the flight modes), the screens
+    **{s.action: s.label for s in sorted(MODE_TABLE.values(), key=lambda s: (s.flight, s.mode != Mode.PANIC, s.mode))
+       if s.keys}, "help": "help",
     "show_plots": "plots", "show_flight": "flight", "show_profile": "profile", "show_wireless": "wireless",
     "log_download": "log",
 }

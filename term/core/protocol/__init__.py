@@ -19,17 +19,18 @@ never with a retyped factor. ``field_limits`` and ``saturated`` tell a value pin
 from a true one.
 
 The shared facts (one home each; a test fails on a copy elsewhere): ``Role``, the Nordic UART Service UUIDs and
-``BOARD_NAME_PREFIX``, ``FLIGHT_MODES``, the stick guards ``LIFT_ZERO`` and ``STICK_NEUTRAL``, the lift keys'
-fine band near hover (``LIFT_FINE_FROM``, ``LIFT_FINE_TO``, ``LIFT_FINE_DIVISOR``, ``lift_trim_after``), the battery
-thresholds, the board's parameter table (``Param``, ``PARAMS``: name, type, unit, range, default, in flight or not;
-``PRESETS``; ``param_arg``/``param_split``; docs/parameters.md is generated from it). The flash-log payload codec
-lives in ``term.core.logformat``.
+``BOARD_NAME_PREFIX``, the mode table (``MODE_TABLE``, ``FLIGHT_MODES``), the stick guards ``LIFT_ZERO`` and
+``STICK_NEUTRAL``, the lift keys' fine band near hover (``LIFT_FINE_FROM``, ``LIFT_FINE_TO``, ``LIFT_FINE_DIVISOR``,
+``lift_trim_after``), the battery thresholds, the board's parameter table (``Param``, ``PARAMS``: name, type, unit,
+range, default, in flight or not; ``PRESETS``; ``param_arg``/``param_split``; docs/parameters.md is generated from it).
+The flash-log payload codec lives in ``term.core.logformat``.
 
 The package's modules, each importable alone: ``facts`` (the version, frame sizes, enumerations and shared facts),
-``params`` (the parameter table and the presets), ``packets`` (the packet table, the packet classes and their
-scales), ``framing`` (COBS, CRC, the encoder and the streaming decoder) and ``instructor`` (the simulator's
-instructor vocabulary). Every public name is also here, so ``from term.core.protocol import Mode`` reads as the
-one protocol it is. The tables' Markdown is written by docs/protocol_tables.py.
+``modes`` (the mode table: keys, labels, colours, the phone's buttons, FLIGHT_MODES), ``params`` (the parameter table
+and the presets), ``packets`` (the packet table, the packet classes and their scales), ``framing`` (COBS, CRC, the
+encoder and the streaming decoder) and ``instructor`` (the simulator's instructor vocabulary). Every public name is
+also here, so ``from term.core.protocol import Mode`` reads as the one protocol it is. The tables' Markdown is written
+by docs/protocol_tables.py.
 """
 
 from __future__ import annotations
@@ -46,7 +47,6 @@ from term.core.protocol.facts import (  # noqa: F401
     BOTH,
     CRC_INIT,
     DELIMITER,
-    FLIGHT_MODES,
     GYRO_LSB_PER_DPS,
     LIFT_FINE_DIVISOR,
     LIFT_FINE_FROM,
@@ -107,6 +107,7 @@ from term.core.protocol.instructor import (  # noqa: F401
     SIM_SCENARIOS,
     situation_problem,
 )
+from term.core.protocol.modes import FLIGHT_MODES, MODE_TABLE, ModeSpec  # noqa: F401
 from term.core.protocol.packets import (  # noqa: F401
     EVENT_ARG_SCALE,
     LOG_CHUNK_BYTES,

@@ -220,8 +220,7 @@ NUS_RX = "6e400002-b5a3-f393-e0a9-e50e24dcca9e"  # write / write without respons
 NUS_TX = "6e400003-b5a3-f393-e0a9-e50e24dcca9e"  # notify only: board to terminal
 BOARD_NAME_PREFIX = "Quadrupel"
 
-# Modes in which the motors may turn under the flight core (PANIC drives them too, from its own profile).
-FLIGHT_MODES = frozenset({Mode.MANUAL, Mode.YAW, Mode.FULL, Mode.RAW, Mode.HEIGHT})
+# FLIGHT_MODES, the modes the flight core drives the motors in, is a column of the mode table (modes.py).
 
 # Stick guards for leaving SAFE, in stick units (Joystick and Status trims): the board refuses with a Nak and
 # the terminal, which checks first to name the fix at once, uses the same numbers.

@@ -5,21 +5,11 @@ from __future__ import annotations
 from rich.console import RenderableType
 from rich.text import Text
 
-from term.core.protocol import EventCode, Flag, Mode
+from term.core.protocol import MODE_TABLE, EventCode, Flag, Mode
 from term.session.model import Model, mode_name
 from term.ui.widgets.base import ModelView
 
-STYLE = {
-    Mode.SAFE: "bold black on green",
-    Mode.PANIC: "bold blink white on red",
-    Mode.MANUAL: "bold black on yellow",
-    Mode.CALIBRATION: "bold black on cyan",
-    Mode.YAW: "bold white on blue",
-    Mode.FULL: "bold white on blue",
-    Mode.RAW: "bold white on magenta",
-    Mode.HEIGHT: "bold white on dark_blue",
-    Mode.WIRELESS: "bold black on bright_cyan",
-}
+STYLE = {mode: spec.style for mode, spec in MODE_TABLE.items()}  # the mode table's colours
 
 
 SIM_LAG_SHOWN_S = 3.0  # the simulator says it is behind at most once a second while it is: shown this long
