@@ -34,6 +34,8 @@ from collections import deque
 from collections.abc import Callable, Coroutine
 from typing import Any, TypeVar
 
+from term.transports.base import Transport
+
 T = TypeVar("T")
 FREEZE_S = 1.5  # a display frozen this long stops the link's writes: the board fails safe rather than fly blind
 log = logging.getLogger("term.link")
@@ -241,20 +243,13 @@ def post_taps(transport: object | None, post: Callable[..., None]) -> None:
             t.sinks = posted  # type: ignore[attr-defined]
 
 
-_MOVABLE = ("SerialTransport", "BleTransport")  # opened and used on whichever loop calls them
+def movable(transport: Transport | None) -> bool:
+    """True if ``transport`` (through its taps and fault injectors) may live on the link's thread: the pipe under
+    them says so (``Transport.movable``: serial and BLE may; a loopback pair shares asyncio queues with a peer on
+    the caller's loop and may not)."""
+    return transport is not None and transport.innermost.movable
 
 
-def movable(transport: object | None) -> bool:
-    """True if ``transport`` (through its taps and fault injectors) may live on the link's thread: the real ones
-    (serial, BLE) may; a loopback pair shares asyncio queues with a peer on the caller's loop and may not."""
-    chain = _chain(transport)
-    return bool(chain) and type(chain[-1]).__name__ in _MOVABLE
-
-
-def is_open(transport: object | None) -> bool:
-    """Whether ``transport`` (through its taps) is open already: BLE says so (``is_open``), serial has its port."""
-    chain = _chain(transport)
-    if not chain:
-        return False
-    inner = chain[-1]
-    return bool(getattr(inner, "is_open", False)) or getattr(inner, "_serial", None) is not None
+def is_open(transport: Transport | None) -> bool:
+    """Whether ``transport`` (through its taps) is open already."""
+    return transport is not None and transport.innermost.is_open

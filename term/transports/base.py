@@ -19,9 +19,31 @@ class TransportClosed(TransportError):
 
 
 class Transport(abc.ABC):
-    """A bidirectional byte pipe. Methods are coroutines; none of them blocks the event loop."""
+    """A bidirectional byte pipe. Methods are coroutines; none of them blocks the event loop.
+
+    What a transport can do is said by its attributes, never guessed from its class: ``movable`` (it may be opened
+    and used on whichever event loop calls it, so the link's own thread can own it: serial and BLE; a loopback
+    pair shares queues with its peer on the caller's loop and may not), ``is_open``, ``address`` (what the user
+    named: the port, the BLE address) and ``inner`` (a wrapper's transport: a recording tap, a fault proxy;
+    ``innermost`` follows them to the pipe itself)."""
 
     name: str = "transport"
+    address: str = ""
+    movable: bool = False
+    inner: Transport | None = None
+
+    @property
+    def is_open(self) -> bool:
+        """Whether ``open()`` succeeded and the link has not been closed since."""
+        return False
+
+    @property
+    def innermost(self) -> Transport:
+        """The byte pipe under every wrapper (this transport itself when it wraps none)."""
+        t: Transport = self
+        while t.inner is not None:
+            t = t.inner
+        return t
 
     @abc.abstractmethod
     async def open(self) -> None:

@@ -85,6 +85,8 @@ def _adapter_error(exc: BaseException, hci: str | None) -> TransportError:
 class BleTransport(Transport):
     """``BleTransport("F0:5A:00:00:00:01")`` (platform stack) or ``BleTransport(addr, hci="tcp-client:...")``."""
 
+    movable = True  # bleak's client is made in open(), on the loop that opens it
+
     def __init__(self, address: str, hci: str | None = None, *, timeout: float = 10.0) -> None:
         self.address = address
         self.hci = hci

@@ -176,6 +176,10 @@ class LoopbackTransport(Transport):
         self._opened = False
         self._closed = False
 
+    @property
+    def is_open(self) -> bool:
+        return self._opened and not self._closed
+
     async def open(self) -> None:
         self._opened = True
         self._closed = False

@@ -64,9 +64,11 @@ class SerialTransport(Transport):
     """``SerialTransport("/dev/ttyUSB0")``: 8N1 at ``baud``, exclusive access, no flow control. ``frame_end`` and
     ``hold``: reads end at a frame end where they can (module docstring)."""
 
+    movable = True  # pyserial's port and the reader thread work with whichever loop opens them
+
     def __init__(self, port: str, baud: int = BAUD_RATE, *, write_timeout: float = 1.0,
                  frame_end: bytes | None = b"\x00", hold: float = 0.01) -> None:
-        self.port = port
+        self.port = self.address = port
         self.baud = baud
         self.write_timeout = write_timeout
         self.frame_end = frame_end
@@ -97,6 +99,10 @@ class SerialTransport(Transport):
         self._fd = _nonblocking_fd(self._serial)
         self._thread = threading.Thread(target=self._reader, name=f"serial-reader {self.port}", daemon=True)
         self._thread.start()
+
+    @property
+    def is_open(self) -> bool:
+        return self._serial is not None
 
     def _open_port(self) -> serial.Serial:
         return serial.Serial(
