@@ -9,7 +9,7 @@ done or fails (its deadline: 20 s without anything new).
 
 Per damage rate: downloads done and byte-identical, failed (cleanly, with a resume point), mean and worst time to
 finish in simulated seconds, commands sent. One more row drops every LogStatus frame (the size and the CRC-32):
-those must fail, with the reason. ``Rig`` is also the harness of tests/test_download.py.
+those must fail, with the reason. ``Rig`` is also the harness of tests/session/test_download.py.
 
 ``python -m bench.download [--seeds 20] [--record 1.0] [--rates 0,0.02,0.05,0.1]``; one JSON object on the last
 line.

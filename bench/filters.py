@@ -45,6 +45,7 @@ import numpy as np
 
 from fcb_sim.estimation import BEST, DESCRIPTIONS, FILTERS, has_fixed_point, make_filter
 from fcb_sim.estimation.ikf import InertialKalmanFilter
+from tests.support.scoring import leave_one_out
 
 DEFAULT_DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "broad"
 GRID_TAU = (3.5, 4.5, 5.5)
@@ -214,18 +215,6 @@ def format_study(trial: dict[str, np.ndarray], q_float: np.ndarray | None) -> di
         cases[f"{group}-q16"] = Formats(**{group: 16})
     return {name: _rms_angle(q_float, run_filter(InertialKalmanFilterQ(f), trial)[0], trial)
             for name, f in cases.items()}
-
-
-def leave_one_out(grid: np.ndarray) -> tuple[list[int], np.ndarray]:
-    """grid: (trials, points) scores. For each trial the point best on the others, and its score there."""
-    n = grid.shape[0]
-    picks, scores = [], np.empty(n)
-    for i in range(n):
-        others = np.delete(grid, i, axis=0).mean(axis=0)
-        j = int(np.argmin(others))
-        picks.append(j)
-        scores[i] = grid[i, j]
-    return picks, scores
 
 
 def _fixed_vs_float(summary: dict[str, dict[str, float]]) -> dict[str, object]:

@@ -1,5 +1,5 @@
 """Every lesson flown by its autopilot ("show me") on the simulated board, on a simulated clock: score, simulated
-and wall seconds. ``Rig`` is also the harness of tests/test_lessons.py and tests/test_demo.py.
+and wall seconds. ``Rig`` is also the harness of tests/lessons/test_lessons.py and tests/lessons/test_demo.py.
 
 The rig is the terminal's side as the app wires it, minus the screen: term's ``Station`` (its guards and routing),
 ``Model`` and ``LessonDriver`` (observer, attempt, autopilot), and a ``LinkSession`` per link; and the board's side:

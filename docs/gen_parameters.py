@@ -1,5 +1,5 @@
 """Generate docs/parameters.md from the parameter table in term/core/protocol/ (``PARAMS``, ``PRESETS``), the one
-source of truth; tests/test_params_docs.py fails when the file is out of date. Run:
+source of truth; tests/core/test_params_docs.py fails when the file is out of date. Run:
 `.venv/bin/python docs/gen_parameters.py`.
 """
 

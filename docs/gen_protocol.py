@@ -1,6 +1,6 @@
 """Regenerate the packet tables in docs/protocol.md and the test vectors in tests/vectors/protocol.json.
 
-Both come from the packet table in term/core/protocol/, the one source of truth; tests/test_protocol_docs.py fails
+Both come from the packet table in term/core/protocol/, the one source of truth; tests/core/test_protocol_docs.py fails
 when either file is out of date. Run: `.venv/bin/python docs/gen_protocol.py`.
 """
 
@@ -67,7 +67,7 @@ def vectors_json() -> str:
 def generated_markdown() -> str:
     parts = ["## Shared facts", "",
              "The numbers both ends need, from `term/core/protocol/` (the one home of each;",
-             "`tests/test_house_rules.py` fails on a copy elsewhere).", "", tables.facts_markdown(),
+             "`tests/house/test_house_rules.py` fails on a copy elsewhere).", "", tables.facts_markdown(),
              "## Parameters", "",
              "One table (`PARAMS` in `term/core/protocol/`; with the presets and what each one does in",
              "`docs/parameters.md`). Each parameter has an id (1..127) and a raw value, a signed integer: a number",

@@ -4,7 +4,7 @@ parameter table (firmware/board/qb_params.h) and constants (firmware/board/qb_co
 
 The fixed parts of the C code (CRC, COBS, the streaming decoder) are C in firmware/templates/; the parts that
 follow the table (constants, enumerations, packet structs, encoders, the unpack switch, the CRC table) are
-written here. tests/test_firmware.py fails when a generated file is out of date.
+written here. tests/firmware/test_firmware.py fails when a generated file is out of date.
 
 Run: `.venv/bin/python firmware/gen_c.py` (`--check`: exit 1, writing nothing, if a file would change).
 """
@@ -456,7 +456,7 @@ def board_value(module: str, expr: str) -> object:
     """The value of ``expr`` in the namespace of ``module`` (a name, an index or a default of a dataclass)."""
     import importlib
 
-    return eval(expr, vars(importlib.import_module(module)))  # noqa: S307: our own table, not input
+    return eval(expr, vars(importlib.import_module(module)))  # our own table, not input
 
 
 def _c_literal(kind: str, value: object) -> str:

@@ -4,7 +4,7 @@
  * or firmware/templates/, then run `.venv/bin/python firmware/gen_c.py`.
  *
  * The byte-level specification is docs/protocol.md; this is the same protocol, checked against the Python codec
- * (term/core/protocol/) byte for byte and frame for frame by tests/test_firmware.py.
+ * (term/core/protocol/) byte for byte and frame for frame by tests/firmware/test_firmware.py.
  *
  * A frame on the wire is COBS(type | seq | body | crc16) 0x00, at most QP_MAX_FRAME (20) bytes: one BLE
  * notification. The body is little-endian; the CRC is CRC-16/CCITT-FALSE, big-endian, over type, seq and body.

@@ -27,7 +27,7 @@ word (z up: a nose-right turn reads negative). The fix is to map the chip's axes
 samples enter (flight.py): ``p = gx, q = -gy, r = -gz``, and the z-up estimators' angles as ``phi = roll,
 theta = -pitch, psi = -yaw`` (docs/architecture.md). Then every loop has the same form and every gain is
 positive: a positive angle error asks for a positive rate, a positive rate error for a positive moment, and
-positive L/M/N spin the quadrotor positively about x/y/z (tests/test_control.py checks the motor differentials).
+positive L/M/N spin the quadrotor positively about x/y/z (tests/board/test_control.py checks the motor differentials).
 """
 
 from __future__ import annotations

@@ -380,7 +380,7 @@ def raw_filter_us(name: str, fixed_point: bool = False) -> float:
 
 # Cycles from execution (fcb_sim.hosts.m0emu; docs/board.md, "Cycles from execution"): the task bodies of
 # firmware/board (ikf_q.c, ctl_q.c) built with arm-none-eabi-gcc -mcpu=cortex-m0 -mthumb -Os and executed under an
-# emulated Cortex-M0 on BROAD trial 07's excerpt (tests/data: rows 2450-2849, fast hand-held rotation), cycles by
+# emulated Cortex-M0 on BROAD trial 07's excerpt (tests/fixtures: rows 2450-2849, fast hand-held rotation), cycles by
 # the Cortex-M0 TRM's table, at CPU_HZ: mean and p99 in µs. "filter/ikf/fixed" is what RAW_FILTER_OPS prices for
 # ikf in Q16.16 (the update, the predicted attitude and the angles the control law reads); "control_raw" the
 # law and the mixing, Figure 14's control row. bench.profile measures them again and prints both; a test keeps

@@ -32,7 +32,8 @@ from fcb_sim.estimation.base import QuaternionAnglesMixin, quat_step
 
 G0 = 9.81
 # Samples no sensor gives are skipped like non-finite ones: finite but huge, they made sin() raise, a division by
-# zero, or a NaN state (found by tests/test_ikf_native.py's property). The MPU6050 reads 35 rad/s and 157 m/s² at most.
+# zero, or a NaN state (found by tests/estimation/test_ikf_native.py's property). The MPU6050 reads 35 rad/s and 157
+# m/s² at most.
 RATE_MAX = 1e4  # |gx| + |gy| + |gz|, rad/s
 ACC_MAX = 1e5  # |ax| + |ay| + |az|, m/s²
 DT_MAX = 60.0  # s

@@ -33,8 +33,8 @@ The angles the control law reads come from ``angles_lite`` (ctl_q.c's ``ctlq_ang
 ``ATAN_COEFFS``), a 32-bit square root for the pitch's cosine (from the roll's two legs: sqrt(1 - sin²) lost
 0.1° near ±90°).
 
-Bit for bit firmware/board/ikf_q.c with ``lite`` set (tests/test_ikf_lite.py); N (``decimation``) is 4 by default
-(``LITE_DECIMATION``). Accuracy on the BROAD trials: bench.filters, docs/attitude.md ("The variant that fits").
+Bit for bit firmware/board/ikf_q.c with ``lite`` set (tests/estimation/test_ikf_lite.py); N (``decimation``) is 4 by
+default (``LITE_DECIMATION``). Accuracy on the BROAD trials: bench.filters, docs/attitude.md ("The variant that fits").
 """
 
 from __future__ import annotations

@@ -6,8 +6,8 @@ firmware/build/libikfq.so, rebuilt when a source is newer), or None where it can
 make: the pure-Python filter runs, and ``why_not()`` says why in one line; ``QUADRUPEL_PURE_PYTHON=1`` asks
 for the Python path on purpose). ``NativeIKF`` is :class:`~fcb_sim.estimation.ikf.InertialKalmanFilter` in C
 (the same doubles), ``NativeIKFQ`` :class:`~fcb_sim.estimation.ikf_fixed.InertialKalmanFilterQ` (the same
-integers, formats too): tests/test_ikf_native.py feeds both sides the same samples. The Python classes stay the
-references the C is tested against.
+integers, formats too): tests/estimation/test_ikf_native.py feeds both sides the same samples. The Python classes stay
+the references the C is tested against.
 """
 
 from __future__ import annotations

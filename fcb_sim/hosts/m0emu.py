@@ -343,7 +343,7 @@ def _same_constants(a: bytes, b: bytes) -> bool:
     return a[8:80] == b[8:80] and a[104:124] == b[104:124]
 
 
-EXCERPT = Path(__file__).resolve().parents[2] / "tests" / "data" / "broad_07_fast_rotation_excerpt.csv.gz"
+EXCERPT = Path(__file__).resolve().parents[2] / "tests" / "fixtures" / "broad_07_fast_rotation_excerpt.csv.gz"
 EXCERPT_ROWS = (2450, 2850)  # fast hand-held rotation (the excerpt is 8.5 s still, then moving)
 
 

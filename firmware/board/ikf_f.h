@@ -1,5 +1,5 @@
 /* The RAW path's attitude filter ("ikf") in double precision: the C of fcb_sim/estimation/ikf.py, operation for
- * operation, so the same IEEE doubles come out (tests/test_ikf_native.py; built with -ffp-contract=off, no
+ * operation, so the same IEEE doubles come out (tests/estimation/test_ikf_native.py; built with -ffp-contract=off, no
  * fused multiply-adds). It is the simulator's hot path (fcb_sim.estimation.native), not board code: the board has no FPU
  * (docs/board.md, "Cycles from execution"). Same parameters as the Python class; q_g0 is (sqrt(2) / tau)^4.
  */

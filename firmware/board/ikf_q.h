@@ -1,7 +1,7 @@
 /* The RAW path's attitude filter ("ikf") in 32-bit fixed point: the C of fcb_sim/estimation/ikf_fixed.py,
- * bit-exact with it (tests/test_ikf_native.py feeds both the same BROAD samples and requires identical states), and
+ * bit-exact with it (tests/estimation/test_ikf_native.py feeds both the same BROAD samples and requires identical states), and
  * with ikfq_set_lite (or the table's lite) of ikf_lite.py, the variant cut to fit the Cortex-M0 that the default
- * board runs (tests/test_ikf_lite.py; docs/attitude.md, "The variant that fits the chip").
+ * board runs (tests/estimation/test_ikf_lite.py; docs/attitude.md, "The variant that fits the chip").
  *
  * C99, no dynamic memory, no floating point in the per-sample step (ikfq_step, ikfq_predicted): the board runs
  * those at 400 Hz. ikfq_init and ikfq_set_dt turn the float parameters into Q constants once (doubles, as the

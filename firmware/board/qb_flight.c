@@ -9,7 +9,7 @@
 /* --- the RAW path's attitude filter: ikf_q.c, set up from integers -------------------------------------- */
 
 /* ikf's default parameters in ikf_fixed.Formats(), from `python -m fcb_sim.estimation.native --constants 0.0025`
- * (tests/test_cboard.py checks they are still what it prints). Integers: the M0 links no double set-up. The
+ * (tests/firmware/test_cboard.py checks they are still what it prints). Integers: the M0 links no double set-up. The
  * variant that fits the Cortex-M0 (ikf_lite.py: lite, its gravity part spread over decim = 4 samples). */
 static const ikfq_formats_t IKF_FORMATS = {16, 30, 30, 24, 24, 28, 30};
 static const ikfq_consts_t IKF_CONSTS = {

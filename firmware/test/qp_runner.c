@@ -1,5 +1,5 @@
 /* qp_runner: the C codec behind a line protocol on stdin/stdout, so Python tests can drive it over pipes and
- * compare it with term.core.protocol (tests/test_firmware.py) and bench/firmware.py can time it. Host only.
+ * compare it with term.core.protocol (tests/firmware/test_firmware.py) and bench/firmware.py can time it. Host only.
  *
  * Commands, one per line (HEX: bytes in hex; every answer ends with a line of its own):
  *   feed HEX               decode one slice     -> "pkt SEQ Name field=value ..." per packet, then "end STATS"

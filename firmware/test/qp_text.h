@@ -1,5 +1,5 @@
 /* qp_text.h: packets as text lines and back, for the C test runner (host only). The code is generated from the
- * packet table (qp_text.c, by firmware/gen_c.py); tests/test_firmware.py reads what it prints. */
+ * packet table (qp_text.c, by firmware/gen_c.py); tests/firmware/test_firmware.py reads what it prints. */
 #ifndef QP_TEXT_H
 #define QP_TEXT_H
 

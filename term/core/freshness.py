@@ -18,8 +18,8 @@ a ``Reading`` (``read(model, name, now)``):
 - its **bound**: a value at its field's encoding limit (the board clips there) is ">" or "<" that limit, never a
   plain number; "?" for a value that is not a number.
 
-No Textual, no clock reads. Tests: tests/test_freshness.py (property test over every field's range) and the
-handover test in tests/test_app_wireless.py.
+No Textual, no clock reads. Tests: tests/core/test_freshness.py (property test over every field's range) and the
+handover test in tests/ui/test_app_wireless.py.
 """
 
 from __future__ import annotations

@@ -29,7 +29,7 @@ The policy (``LogDownloader``; it is a ``LogDownload``, so the model feeds it pa
   at once, an empty log ends it as ``empty``. ``resume(now)`` (F5 again) carries on from the chunks it has.
 
 Time is in seconds on any monotonic clock, passed in. Tests drive it, the real board and a lossy byte proxy on
-a simulated clock (tests/test_download.py).
+a simulated clock (tests/session/test_download.py).
 """
 
 from __future__ import annotations

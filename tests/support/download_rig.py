@@ -1,5 +1,5 @@
 """The log download's rig: the real board and the terminal's side joined by a byte proxy in each direction, on one
-simulated clock (bench/download.py describes it; tests/test_download.py uses it)."""
+simulated clock (bench/download.py describes it; tests/session/test_download.py uses it)."""
 
 from __future__ import annotations
 

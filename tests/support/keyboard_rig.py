@@ -1,5 +1,5 @@
 """A keyboard pilot hovering in FULL on the simulated board (bench/keyboard.py describes it and gives the figures;
-tests/test_keyboard_flight.py uses it)."""
+tests/ui/test_keyboard_flight.py uses it)."""
 
 from __future__ import annotations
 

@@ -1,6 +1,6 @@
 """The lessons' rig: the terminal's side as the app wires it, minus the screen, and the simulated board with its
-instructor, on one simulated clock (bench/lessons.py describes it; tests/test_lessons.py and tests/test_demo.py use
-it)."""
+instructor, on one simulated clock (bench/lessons.py describes it; tests/lessons/test_lessons.py and
+tests/lessons/test_demo.py use it)."""
 
 from __future__ import annotations
 
