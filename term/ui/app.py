@@ -1,8 +1,7 @@
 """The Textual app: composes the station (the links), the model (what the screen shows) and the screens.
 
 - The ``Station`` (``term.session.station``) keeps the cable and the radio up, routes commands and sticks, and guards
-  what
-  is sent; every event of it updates the ``Model`` in one place (``Model.apply``). The app only reacts to a few
+  what is sent; every event of it updates the ``Model`` in one place (``Model.apply``). The app only reacts to a few
   (a toast for a refused command, exiting on ``Fatal``). Heartbeat ACKs are written by the connections
   themselves, never waiting for the screen.
 - The screen is redrawn from the model at a steady rate (``render_hz``), never per byte; the same tick samples the
@@ -13,9 +12,10 @@
   board command (``Station.send``) or a local action, dispatched through a table of callables (``local``).
 - The wireless screen is a view of the headless ``Phone`` (``term.session.phone``); its controls post ``PhoneRequest``
   messages up, which the app carries out as the keys would. The joystick poller is read at ``joystick_hz``.
-- The log download (``LogDownloads``, mixed in; its policy is ``term.session.download``) is driven from the render
-  tick and
-  from the link events that concern it.
+- The app owns controllers, one job each (``term/ui/controllers/``): the log download (``DownloadController``; its
+  policy is ``term.session.download``), driven from the render tick and the link events that concern it; the
+  parameters (``ParamsController``), the lessons (``LessonController``), the joystick, the replay and the
+  session's outputs (recording, live servers).
 
 The routing rules, the reconnect policy and the model's two-link rules: docs/architecture.md and docs/wireless.md.
 """
