@@ -29,7 +29,7 @@ from dataclasses import dataclass
 from functools import cache
 from typing import Any, Protocol
 
-from term.core.protocol import TELEMETRY, Attitude, Compact, Compact2, Gains, Height, Motion, Op, Status, field_spec
+from term.core.protocol import SPEC_OF, TELEMETRY, Compact, Compact2, Op, field_spec
 
 spec_of = cache(field_spec)  # the table's entry of (packet class, field): looked up for every figure drawn
 
@@ -38,19 +38,21 @@ STALE_FLOOR_S = 0.5  # ... and never younger than this (render ticks, BLE batchi
 FIRST_PERIOD_S = 0.25  # the period assumed until a packet kind has arrived twice
 PERIOD_GAIN = 0.2  # smoothing of the period estimate
 
-# Displayed figure -> the packet kinds that carry it (the field has the same name in each).
-SOURCES: dict[str, tuple[type, ...]] = {
-    **{n: (Attitude, Compact) for n in ("phi", "theta", "psi", "mode")},
-    **{n: (Attitude,) for n in ("sp", "sq", "sr")},
-    **{n: (Motion,) for n in ("sax", "say", "saz")},
-    **{n: (Motion, Compact2) for n in ("ae1", "ae2", "ae3", "ae4")},
-    **{n: (Height,) for n in ("pressure", "temperature")},
-    **{n: (Height, Compact2) for n in ("height", "setpoint", "vz")},
-    "battery": (Height, Compact),
-    **{n: (Status, Compact2) for n in ("flags", "trim_lift")},
-    **{n: (Status,) for n in ("trim_roll", "trim_pitch", "trim_yaw", "cpu_load", "log_fill")},
-    **{n: (Gains,) for n in ("yaw_p", "p1", "p2", "height_p", "height_d")},
-}
+# Displayed figure -> the packet kinds that carry it (the field has the same name in each): every field of the
+# cable's telemetry packets and of the phone's two, read from the packet table, the cable's kinds first. A new
+# field in one of these packets is a figure the model can read, with no list to extend here.
+CARRIERS: tuple[type, ...] = (*TELEMETRY, Compact, Compact2)
+
+
+def _sources() -> dict[str, tuple[type, ...]]:
+    out: dict[str, tuple[type, ...]] = {}
+    for kind in CARRIERS:
+        for spec in SPEC_OF[kind].fields:
+            out[spec.name] = (*out.get(spec.name, ()), kind)
+    return out
+
+
+SOURCES = _sources()
 # A trim command's Ack carries the trim's new value (stick units): a second source of the trim, on either link.
 TRIM_OPS: dict[int, str] = {Op.TRIM_ROLL: "trim_roll", Op.TRIM_PITCH: "trim_pitch", Op.TRIM_YAW: "trim_yaw",
                             Op.TRIM_LIFT: "trim_lift"}
