@@ -42,6 +42,7 @@ from term.core.protocol import (
     encode,
     field_scale,
 )
+from tests.support.waits import until
 
 S = WirelessState
 HB = Heartbeat(1, 100)
@@ -359,13 +360,6 @@ class Phone:
 
     async def write(self, data: bytes) -> None:
         await self.peer.write_value(self.rx, data, with_response=False)
-
-
-async def until(condition, timeout: float = 20.0) -> None:
-    """Wait (bounded) for something the stack does asynchronously."""
-    async with asyncio.timeout(timeout):
-        while not condition():
-            await asyncio.sleep(0.001)
 
 
 async def test_nus_peripheral_handover_over_bumble() -> None:

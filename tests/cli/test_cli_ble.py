@@ -4,16 +4,16 @@ waits for the handover, and, when the radio goes away, says so and reconnects by
 
 from __future__ import annotations
 
-import asyncio
 import socket
 import subprocess
 import sys
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 
 import pytest
 
 from term.cli.main import main
 from term.session.sim import SimBoard
+from tests.support.waits import until
 
 
 @pytest.fixture(autouse=True)
@@ -118,20 +118,15 @@ async def test_ble_alone_waits_for_the_handover_and_reconnects_a_lost_radio() ->
         async with app.run_test(size=(100, 32)) as pilot:
             m = app.model
 
-            async def until(cond: Callable[[], bool], timeout: float = 30.0) -> None:
-                async with asyncio.timeout(timeout):
-                    while not cond():
-                        await pilot.pause(0.02)
-
             assert isinstance(app.screen, WirelessScreen)
-            await until(lambda: m.link_lost)  # silent: the board talks over BLE only after the handover
+            await until(pilot, lambda: m.link_lost)  # silent: the board talks over BLE only after the handover
             assert not m.control_lost and "waiting for the handover" in m.events[-1].text + str(
                 app.screen.query_one("#w-telemetry").render())
             hci = transport._client._backend._host.transport  # the radio dies (on the link's thread, where it runs)
             await app.station.runner.run(hci.close()) if app.station.runner is not None else await hci.close()
-            await until(lambda: any(e.text.startswith("LINK LOST: BLE connection") for e in m.events))
+            await until(pilot, lambda: any(e.text.startswith("LINK LOST: BLE connection") for e in m.events))
             assert app.connection is None
-            await until(lambda: any(e.text.startswith("reconnected to BLE") for e in m.events))
+            await until(pilot, lambda: any(e.text.startswith("reconnected to BLE") for e in m.events))
             assert app.connection is not None
         await transport.close()
     finally:

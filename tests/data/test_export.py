@@ -24,6 +24,7 @@ from term.core.protocol import (
 from term.data.export import ExportError, all_packet_schemas, export, packet_columns, packet_record
 from term.data.recording import LinkBytes, SessionRecorder, StationRecord, iter_file
 from tests.support.recording_rig import WALL, flash_log_csv, record
+from tests.support.waits import until
 
 
 def test_columns_are_named_and_scaled_from_the_packet_table() -> None:
@@ -227,11 +228,9 @@ async def test_a_flight_with_a_handover_is_recorded_whole_and_agrees_with_the_fl
     """The simulator flown through TermApp (cable, handover to BLE, back to the cable) with the recording on, then:
     the session file read with the mcap package holds every frame each link decoded, in order; the export has
     plausible values in the table's units; its CSV agrees with the board's own flash log of the same flight."""
-    import asyncio
     import bisect
     import contextlib
     import time
-    from collections.abc import Callable
 
     from term.core.events import CABLE, RADIO, FromLink
     from term.core.link import PacketReceived
@@ -263,37 +262,32 @@ async def test_a_flight_with_a_handover_is_recorded_whole_and_agrees_with_the_fl
         async with app.run_test(size=(120, 44)) as pilot:
             m = app.model
 
-            async def until(cond: Callable[[], bool], timeout: float = 30.0) -> None:
-                async with asyncio.timeout(timeout):
-                    while not cond():
-                        await pilot.pause(0.02)
-
             async def fly(seconds: float) -> None:
                 app.simulate_key("2")
-                await until(lambda: m.mode == Mode.MANUAL)
+                await until(pilot, lambda: m.mode == Mode.MANUAL)
                 app.set_stick(Joystick(2000, -1500, 0, 9000, 0))
                 await pilot.pause(seconds)
                 app.set_stick(Joystick(0, 0, 0, 0, 0))
                 for _ in range(20):  # SAFE needs the lift at zero: the board may not have the zero stick yet
                     app.simulate_key("0")
                     with contextlib.suppress(TimeoutError):
-                        await until(lambda: m.mode == Mode.SAFE, 2.0)
+                        await until(pilot, lambda: m.mode == Mode.SAFE, 2.0)
                         break
                 assert m.mode == Mode.SAFE, [e.text for e in m.events][-8:]
 
-            await until(lambda: m.mode == Mode.SAFE and m.radio_up and m.link is not None)
+            await until(pilot, lambda: m.mode == Mode.SAFE and m.radio_up and m.link is not None)
             app.simulate_key("f2")  # the flash log records
-            await until(lambda: m.status is not None and bool(m.status.flags & 4))
+            await until(pilot, lambda: m.status is not None and bool(m.status.flags & 4))
             await fly(1.5)  # over the cable
             app.simulate_key("8")  # the handover
-            await until(lambda: m.over_ble)
+            await until(pilot, lambda: m.over_ble)
             await fly(1.5)  # over BLE
             app.send(Op.WIRELESS, 0)  # control back to the cable
-            await until(lambda: not m.over_ble and m.wireless == 0 and not m.link_lost)
+            await until(pilot, lambda: not m.over_ble and m.wireless == 0 and not m.link_lost)
             app.simulate_key("f3")
-            await until(lambda: m.status is not None and not m.status.flags & 4)
+            await until(pilot, lambda: m.status is not None and not m.status.flags & 4)
             app.simulate_key("f5")  # download the flash log to CSV
-            await until(lambda: "log saved" in m.download_note, 40.0)
+            await until(pilot, lambda: "log saved" in m.download_note, 40.0)
             app.exit()
         rec.close()
     finally:

@@ -12,7 +12,6 @@ import math
 import threading
 import time
 from collections import Counter
-from collections.abc import Callable
 from pathlib import Path
 
 import pytest
@@ -33,6 +32,7 @@ from term.data.export import ExportError, export
 from term.data.recording import LinkBytes, StationRecord, TruthSample, iter_file
 from tests.support.paths import DOCS
 from tests.support.recording_rig import WALL, record
+from tests.support.waits import until
 
 foxglove = pytest.importorskip("foxglove", reason="the foxglove extra (foxglove-sdk) is not installed")
 
@@ -147,12 +147,6 @@ def test_the_csv_has_an_absolute_utc_time(tmp_path: Path) -> None:
     # WALL is 2023-11-14T22:13:20Z; the first frame was whole 0.5 ms after the session's start (its second read)
     assert rows[0]["utc"] == "2023-11-14T22:13:20.000500Z" and rows[0]["t_s"] == "0.000500"
     assert rows[-1]["utc"].startswith("2023-11-14T22:13:2") and rows[-1]["utc"].endswith("Z")
-
-
-async def until(pilot: object, cond: Callable[[], bool], timeout: float = 20.0) -> None:
-    async with asyncio.timeout(timeout):
-        while not cond():
-            await pilot.pause(0.02)  # type: ignore[attr-defined]
 
 
 def tap_threads(live: object) -> list[int]:

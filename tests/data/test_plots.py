@@ -15,7 +15,8 @@ from term.ui.app import TermApp
 from term.ui.screens.plots import PlotsScreen, SeriesChooser
 from term.ui.widgets.braille import BLANK, Canvas, nice_range, window_of
 from term.ui.widgets.plots import LivePlot
-from tests.support.app_rig import flying, sent, until
+from tests.support.app_rig import flying, sent
+from tests.support.waits import until
 
 # --- the chart ---------------------------------------------------------------------------------------------------
 

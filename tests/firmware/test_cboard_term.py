@@ -15,6 +15,7 @@ from term.core.protocol import LIFT_ZERO, NAK_TEXT, PROTOCOL_VERSION, Mode, Nak,
 from term.session.sim import SimBoard
 from term.transports.serial import SerialTransport
 from term.ui.app import TermApp
+from tests.support.waits import until
 
 pytestmark = pytest.mark.skipif(shutil.which("cc") is None or shutil.which("make") is None,
                                 reason="no C compiler (cc) or make: the C board's tests are skipped")
@@ -28,14 +29,6 @@ async def test_term_flies_the_c_board_in_the_simulator() -> None:
         app = TermApp(SerialTransport(path), joystick=False)
         async with app.run_test(size=(120, 44)) as pilot:
             m = app.model
-
-            async def until(cond, timeout: float = 30.0) -> None:  # noqa: ANN001
-                try:
-                    async with asyncio.timeout(timeout):
-                        while not cond():
-                            await pilot.pause(0.02)
-                except TimeoutError:
-                    raise AssertionError(f"waited {timeout} s; the events: {texts()}") from None
 
             def texts() -> list[str]:
                 return [e.text for e in m.events]
@@ -57,7 +50,7 @@ async def test_term_flies_the_c_board_in_the_simulator() -> None:
                         continue
                 raise AssertionError(f"key {key}: nothing happened; the events: {texts()}")
 
-            await until(lambda: m.hello is not None and m.mode == Mode.SAFE)
+            await until(pilot, lambda: m.hello is not None and m.mode == Mode.SAFE)
             assert (m.hello.protocol, m.hello.role, m.hello.major) == (PROTOCOL_VERSION, Role.BOARD, 0)
             await press("3", lambda: any("CALIBRATION → SAFE" in t for t in texts()))
             await press("2", lambda: m.mode == Mode.MANUAL)
@@ -69,7 +62,7 @@ async def test_term_flies_the_c_board_in_the_simulator() -> None:
             await press("5", lambda: m.mode == Mode.FULL)
             await press("7", lambda: m.mode == Mode.HEIGHT)
             await press("1", lambda: any("→ PANIC" in t for t in texts()))
-            await until(lambda: any("PANIC → SAFE" in t for t in texts()) and m.mode == Mode.SAFE)
+            await until(pilot, lambda: any("PANIC → SAFE" in t for t in texts()) and m.mode == Mode.SAFE)
             assert set(naks()) == {lift_nak}
             assert sum("→ PANIC" in t for t in texts()) == 1, texts()  # key 1's: no failsafe PANIC on the way
     finally:

@@ -194,7 +194,7 @@ async def test_wireless_handover_across_the_served_boards_radio() -> None:
 
         listener = asyncio.create_task(listen())
 
-        async def until(cond: Callable[[], bool], seconds: float = 5.0) -> None:
+        async def until_read(cond: Callable[[], bool], seconds: float = 5.0) -> None:
             async with asyncio.timeout(seconds):
                 while not cond():
                     cable.poll()
@@ -202,22 +202,22 @@ async def test_wireless_handover_across_the_served_boards_radio() -> None:
 
         cable.cmd_id += 1
         cable.port.write(cable.enc.encode(Command(cable.cmd_id, Op.WIRELESS, 1)))
-        await until(lambda: any(type(p) is Ack and p.op == Op.WIRELESS for p in cable.got))
+        await until_read(lambda: any(type(p) is Ack and p.op == Op.WIRELESS for p in cable.got))
         assert [p for p in cable.got if type(p) is Ack][-1].status == Nak.OK
-        await until(lambda: any(type(p) is Heartbeat for p in heard))  # STARTING: heartbeats over BLE too
+        await until_read(lambda: any(type(p) is Heartbeat for p in heard))  # STARTING: heartbeats over BLE too
         hb = next(p for p in heard if type(p) is Heartbeat)
         await phone.write(phone_enc.encode(HeartbeatAck(hb.counter, hb.board_ms)))  # -> STARTED
         # STARTED: the cable falls silent, the phone gets the compact telemetry
-        await until(lambda: any(type(p) is Compact and p.wireless == WirelessState.STARTED for p in heard))
+        await until_read(lambda: any(type(p) is Compact and p.wireless == WirelessState.STARTED for p in heard))
         await phone.write(phone_enc.encode(Joystick(0, 0, 0, 0, 0)))
         await phone.write(phone_enc.encode(Command(200, Op.MODE, Mode.MANUAL)))
-        await until(lambda: Ack(200, Op.MODE, Nak.OK, Mode.MANUAL) in heard)
+        await until_read(lambda: Ack(200, Op.MODE, Nak.OK, Mode.MANUAL) in heard)
         await phone.write(phone_enc.encode(Joystick(0, 0, 0, 6000, 0)))
         await asyncio.sleep(0.3)
         listener.cancel()
         await phone.close()  # the phone goes away while the board flies over it
         n = len(cable.got)
-        await until(lambda: any(type(p) is Attitude and p.mode == Mode.PANIC for p in cable.got[n:]), 10.0)
+        await until_read(lambda: any(type(p) is Attitude and p.mode == Mode.PANIC for p in cable.got[n:]), 10.0)
         cable.port.close()
     finally:
         proc.terminate()

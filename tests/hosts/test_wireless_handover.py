@@ -16,14 +16,9 @@ from term.core.link import LinkSession, PacketReceived
 from term.core.protocol import Ack, Attitude, Compact, Joystick, Mode, Op, WirelessState
 from term.session.connection import Connection
 from term.transports.ble import BleTransport
+from tests.support.waits import until
 
 S = WirelessState
-
-
-async def until(condition, timeout: float = 20.0) -> None:
-    async with asyncio.timeout(timeout):
-        while not condition():
-            await asyncio.sleep(0.002)
 
 
 class Bench:

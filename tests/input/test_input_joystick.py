@@ -80,7 +80,8 @@ def test_a_flight_stick_is_read_raw(poller: JoystickPoller) -> None:
 async def test_the_app_flies_the_stick(scripted_board) -> None:  # noqa: ANN001
     from term.transports.loopback import loopback_pair
     from term.ui.app import TermApp
-    from tests.support.app_rig import LoopBoard, until
+    from tests.support.app_rig import LoopBoard, sent_before_marker
+    from tests.support.waits import until
 
     pair = loopback_pair()
     board = scripted_board(start=time.monotonic())
@@ -96,9 +97,9 @@ async def test_the_app_flies_the_stick(scripted_board) -> None:  # noqa: ANN001
             stick.set(0.0, 0.0, 0.0, 0.0)  # throttle lever half way
             await until(pilot, lambda: board.joysticks and board.joysticks[-1].lift > FULL // 3)
             await pilot.press("2")
-            await pilot.pause(0.05)
-            assert "throttle is up" in app.model.events[-1].text
-            assert not any(c.op == Op.MODE and c.arg == Mode.MANUAL for c in board.executed)
+            await until(pilot, lambda: "throttle is up" in app.model.events[-1].text)
+            before = await sent_before_marker(pilot, app, board)
+            assert (Op.MODE, Mode.MANUAL) not in before, before
             stick.set(0.0, 0.0, 0.0, 1.0, fire=True)
             await until(pilot, lambda: any(c.op == Op.MODE and c.arg == Mode.PANIC for c in board.executed))
             app.model.mode = Mode.FULL  # as if flying: pulling the stick out is PANIC

@@ -10,7 +10,7 @@ import asyncio
 import contextlib
 import json
 import math
-from collections.abc import AsyncIterator, Callable
+from collections.abc import AsyncIterator
 from pathlib import Path
 
 import pytest
@@ -28,6 +28,7 @@ from term.transports.serial import SerialTransport
 from term.ui.app import TermApp
 from term.ui.widgets.lesson import LessonBar, SummaryScreen
 from term.ui.widgets.room import NO_ROOM, RoomView
+from tests.support.waits import until
 
 SIZE = (120, 44)
 
@@ -54,12 +55,6 @@ async def sim_app(seed: int = 3, **app_kw: object) -> AsyncIterator[tuple[TermAp
         await client.close()
         asyncio.run_coroutine_threadsafe(server.close(), loop).result(5)
         served.stop()
-
-
-async def until(pilot: object, cond: Callable[[], bool], timeout: float = 20.0) -> None:
-    async with asyncio.timeout(timeout):
-        while not cond():
-            await pilot.pause(0.05)  # type: ignore[attr-defined]
 
 
 def craft_cell(view: RoomView, glyphs: str, first_col: int, cols: int) -> tuple[int, int] | None:

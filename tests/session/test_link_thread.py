@@ -26,12 +26,7 @@ from term.session.station import Station
 from term.transports.loopback import FaultyTransport, loopback_pair
 from term.transports.serial import SerialTransport
 from tests.conftest import PtyBoard
-
-
-async def until(cond: Callable[[], bool], timeout: float = 30.0) -> None:
-    async with asyncio.timeout(timeout):
-        while not cond():
-            await asyncio.sleep(0.01)
+from tests.support.waits import until
 
 
 @asynccontextmanager

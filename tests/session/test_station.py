@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import asyncio
 import time
-from collections.abc import Callable
 
 import pytest
 
@@ -19,12 +18,7 @@ from term.session.station import BLE_BACKOFF_S, RECONNECT_S, Station
 from term.transports.loopback import loopback_pair
 from term.transports.serial import SerialTransport
 from tests.support.app_rig import LoopBoard, sent
-
-
-async def until(cond: Callable[[], bool], timeout: float = 20.0) -> None:
-    async with asyncio.timeout(timeout):
-        while not cond():
-            await asyncio.sleep(0.005)
+from tests.support.waits import until
 
 
 class Recorder:

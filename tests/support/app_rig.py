@@ -25,6 +25,7 @@ from term.transports.base import TransportClosed, TransportError
 from term.transports.loopback import loopback_pair
 from term.transports.serial import SerialTransport
 from term.ui.app import TermApp
+from tests.support.waits import until
 
 
 def seeded_handover(seed: int = 1, seconds: float = 3.0) -> Model:
@@ -141,12 +142,7 @@ async def served(config: Config | None = None, preset: str | None = None) -> Asy
         app = TermApp(SerialTransport(port), joystick=False, config=config)
         async with app.run_test(size=(120, 44)) as pilot:
 
-            async def until(cond: Callable[[], bool], timeout: float = 30.0) -> None:
-                async with asyncio.timeout(timeout):
-                    while not cond():
-                        await pilot.pause(0.02)
-
-            await until(lambda: len(app.model.params) == len(PARAMS))  # listed when the board said Hello
+            await until(pilot, lambda: len(app.model.params) == len(PARAMS))  # listed when the board said Hello
             yield app, pilot, until
     finally:
         sim.stop()
@@ -202,13 +198,6 @@ class LoopBoard:
         for t in self.tasks:
             with contextlib.suppress(asyncio.CancelledError):
                 await t
-
-
-async def until(pilot, cond: Callable[[], bool], timeout: float = 20.0) -> None:  # noqa: ANN001
-    """Wait for ``cond``; the bound only ends a test that would hang (a busy machine is slow, not wrong)."""
-    async with asyncio.timeout(timeout):
-        while not cond():
-            await pilot.pause(0.01)
 
 
 @contextlib.asynccontextmanager

@@ -3,8 +3,6 @@ the simulator's second controller served as an HCI transport over TCP on 127.0.0
 
 from __future__ import annotations
 
-import asyncio
-
 import pytest
 from bleak import BleakClient, BleakScanner
 from bleak.exc import BleakDeviceNotFoundError, BleakError
@@ -24,12 +22,7 @@ from term.core.protocol import (
     WirelessState,
 )
 from term.transports.bumble_backend import BumbleClient, BumbleHost, BumbleScanner
-
-
-async def until(condition, timeout: float = 20.0) -> None:
-    async with asyncio.timeout(timeout):
-        while not condition():
-            await asyncio.sleep(0.001)
+from tests.support.waits import until
 
 
 @pytest.fixture

@@ -23,12 +23,7 @@ from term.core.protocol import (
 )
 from term.transports.base import TransportClosed, TransportError
 from term.transports.ble import BleTransport, scan
-
-
-async def until(condition, timeout: float = 20.0) -> None:
-    async with asyncio.timeout(timeout):
-        while not condition():
-            await asyncio.sleep(0.001)
+from tests.support.waits import until
 
 
 @pytest.fixture

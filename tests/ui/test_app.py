@@ -36,7 +36,8 @@ from term.ui.screens.plots import PlotsScreen
 from term.ui.screens.profile import ProfileScreen
 from term.ui.widgets.base import ModelView
 from term.ui.widgets.profile import ProfileTable
-from tests.support.app_rig import flying, sent, sent_before_marker, until
+from tests.support.app_rig import flying, sent, sent_before_marker
+from tests.support.waits import until
 
 
 async def test_a_check_that_nothing_was_sent_can_fail(scripted_board) -> None:  # noqa: ANN001

@@ -7,13 +7,12 @@ own loop runs late, and a pilot on the wall clock then climbed for less of the b
 
 from __future__ import annotations
 
-import asyncio
-
 from term.core.events import FromLink
 from term.core.protocol import Heartbeat, Joystick, Mode, scaled
 from term.session.sim import SimBoard
 from term.transports.serial import SerialTransport
 from term.ui.app import TermApp
+from tests.support.waits import until
 
 
 async def test_take_off_hover_in_full_and_land() -> None:
@@ -33,21 +32,16 @@ async def test_take_off_hover_in_full_and_land() -> None:
 
             app.station.on_event = tap
 
-            async def until(cond, timeout: float = 30.0) -> None:  # noqa: ANN001
-                async with asyncio.timeout(timeout):
-                    while not cond():
-                        await pilot.pause(0.02)
-
-            await until(lambda: m.mode == Mode.SAFE and m.height is not None)
+            await until(pilot, lambda: m.mode == Mode.SAFE and m.height is not None)
             # Keys through simulate_key (a real key event): pilot.press would wait for the app to go idle, which a
             # board streaming telemetry delays by seconds.
             app.simulate_key("5")  # not calibrated yet: the board refuses, and the screen says why
-            await until(lambda: any(e.source == "nak" and "not calibrated" in e.text for e in m.events))
+            await until(pilot, lambda: any(e.source == "nak" and "not calibrated" in e.text for e in m.events))
             app.simulate_key("3")
-            await until(lambda: any("calibration done" in e.text for e in m.events))
-            await until(lambda: m.mode == Mode.SAFE)
+            await until(pilot, lambda: any("calibration done" in e.text for e in m.events))
+            await until(pilot, lambda: m.mode == Mode.SAFE)
             app.simulate_key("5")
-            await until(lambda: m.mode == Mode.FULL)
+            await until(pilot, lambda: m.mode == Mode.FULL)
 
             base, target = 15000.0, 0.5
             heights: list[tuple[float, float]] = []
@@ -71,9 +65,9 @@ async def test_take_off_hover_in_full_and_land() -> None:
             assert sum(hover) / len(hover) > 0.2 and max(hover) < 1.5, hover
             assert worst_tilt < 5.0
             app.set_stick(Joystick(0, 0, 0, 0, 0))
-            await until(lambda: m.motion.ae1 <= 200 and m.height.height < 150)  # on the floor, at idle
+            await until(pilot, lambda: m.motion.ae1 <= 200 and m.height.height < 150)  # on the floor, at idle
             app.simulate_key("0")
-            await until(lambda: m.mode == Mode.SAFE and m.motion.ae1 == 0)
+            await until(pilot, lambda: m.mode == Mode.SAFE and m.motion.ae1 == 0)
             assert not [e for e in m.events if e.source == "link" and e.severity == "error"]
             assert m.link is not None and m.link.frames_bad <= 1  # at most the half frame met at connect
     finally:

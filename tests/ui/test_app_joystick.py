@@ -11,8 +11,9 @@ from term.session.config import Config, load_config
 from term.transports.loopback import loopback_pair
 from term.ui.app import TermApp
 from term.ui.screens.joystick import JoystickScreen
-from tests.support.app_rig import LoopBoard, until
+from tests.support.app_rig import LoopBoard
 from tests.support.joystick_rig import VirtualStick
+from tests.support.waits import until
 
 
 async def test_the_joystick_screen_edits_and_saves_the_mapping(scripted_board, tmp_path: Path) -> None:  # noqa: ANN001

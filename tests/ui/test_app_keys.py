@@ -21,7 +21,8 @@ from term.ui.app import TermApp
 from term.ui.screens.dirprompt import DirectoryPrompt
 from term.ui.screens.flight import FlightScreen
 from term.ui.screens.params import ParamsScreen, ParamTable
-from tests.support.app_rig import attitude, flying, sent, until
+from tests.support.app_rig import attitude, flying, sent, sent_before_marker
+from tests.support.waits import until
 
 GAIN_OPS = {Op.GAIN_P1, Op.GAIN_P2, Op.GAIN_YAW_P, Op.GAIN_HEIGHT_P, Op.GAIN_HEIGHT_D}
 
@@ -45,8 +46,8 @@ async def test_fast_typing_after_slash_goes_into_the_search_box_not_to_the_gains
         burst(app, "/timeout")
         search = app.screen.query_one("#param-search", Input)
         await until(pilot, lambda: search.value == "timeout")
-        await pilot.pause(0.2)
-        assert not [op for op, _ in sent(board) if op in GAIN_OPS | {Op.TRIM_YAW, Op.TRIM_LIFT}], sent(board)
+        before = await sent_before_marker(pilot, app, board)
+        assert not [op for op, _ in before if op in GAIN_OPS | {Op.TRIM_YAW, Op.TRIM_LIFT}], before
 
 
 async def test_fast_typing_after_enter_goes_into_the_edit_line(scripted_board) -> None:  # noqa: ANN001
@@ -59,8 +60,8 @@ async def test_fast_typing_after_enter_goes_into_the_edit_line(scripted_board) -
         burst(app, "rice")
         edit = app.screen.query_one("#param-edit", Input)
         await until(pilot, lambda: edit.value.endswith("rice"))
-        await pilot.pause(0.2)
-        assert not [op for op, _ in sent(board) if op != Op.PARAM_LIST], sent(board)
+        before = await sent_before_marker(pilot, app, board)
+        assert not before, before
 
 
 async def test_in_flight_the_search_box_gives_way_to_panic_safe_and_the_screen_keys(scripted_board) -> None:  # noqa: ANN001
@@ -94,8 +95,8 @@ async def test_in_safe_the_search_box_takes_digits_and_escape_leaves_it(scripted
         assert search.value == "yaw10"
         await pilot.press("escape")
         await until(pilot, lambda: app.focused is not search)
-        await pilot.pause(0.1)
-        assert not [op for op, _ in sent(board) if op != Op.PARAM_LIST], sent(board)
+        before = await sent_before_marker(pilot, app, board)
+        assert not before, before
         assert isinstance(app.screen, ParamsScreen)
 
 
@@ -208,8 +209,7 @@ async def test_the_palette_opened_and_typed_into_at_once_never_flies(scripted_bo
         app.post_message(events.Key("ctrl+p", None))
         burst(app, "quit")
         await until(pilot, lambda: isinstance(app.screen, CommandPalette))
-        await pilot.pause(0.3)
-        assert not sent(board)
+        assert not await sent_before_marker(pilot, app, board)
 
 
 # --- a dialog over a live screen keeps the figures behind it live -------------------------------------------------

@@ -22,6 +22,7 @@ from term.core.logformat import decode_log
 from term.core.protocol import SPEC_OF, LogChunk, LogState, LogStatus, Mode, cobs_decode
 from term.transports.loopback import Faults, loopback_pair
 from term.ui.app import TermApp
+from tests.support.waits import until
 
 
 class RealTimeBoard:
@@ -80,27 +81,22 @@ async def test_log_record_download_as_csv_and_reset(tmp_path: Path) -> None:
         async with app.run_test(size=(120, 44)) as pilot:
             m = app.model
 
-            async def until(cond, timeout: float = 30.0) -> None:  # noqa: ANN001
-                async with asyncio.timeout(timeout):
-                    while not cond():
-                        await pilot.pause(0.02)
-
-            await until(lambda: m.mode == Mode.SAFE)
+            await until(pilot, lambda: m.mode == Mode.SAFE)
             # Keys through simulate_key: pilot.press waits for the app to go idle, which a streaming board delays.
             app.simulate_key("f5")  # nothing logged yet: the board says so
-            await until(lambda: any("log is empty" in e.text for e in m.events))
-            await until(lambda: m.download is None and "empty" in m.download_note)
+            await until(pilot, lambda: any("log is empty" in e.text for e in m.events))
+            await until(pilot, lambda: m.download is None and "empty" in m.download_note)
             assert not list(tmp_path.iterdir())
             app.simulate_key("f2")
-            await until(lambda: board.log.recording)
+            await until(pilot, lambda: board.log.recording)
             await pilot.pause(0.8)
             app.simulate_key("f3")
-            await until(lambda: not board.log.recording)
+            await until(pilot, lambda: not board.log.recording)
             records = board.log.records
             assert records > 200
 
             app.simulate_key("f5")  # not pilot.press: that one waits for the app to go idle, after the download
-            await until(lambda: m.download is not None)
+            await until(pilot, lambda: m.download is not None)
             seen_progress = False
             async with asyncio.timeout(20):
                 while not m.download_note.startswith(("log saved", "log download")):
@@ -121,15 +117,15 @@ async def test_log_record_download_as_csv_and_reset(tmp_path: Path) -> None:
             truth = decode_log(board.log.contents()[: board.log.used])[0].rows
             assert [int(v) for v in rows[-1][1:]] == list(truth[-1])
 
-            await until(lambda: board.download_next is None)  # a resumed pass may still be on its way
+            await until(pilot, lambda: board.download_next is None)  # a resumed pass may still be on its way
             app.simulate_key("f4")  # erase: it asks first, "keep it" has the focus
             from term.ui.screens.confirm import ConfirmScreen
 
-            await until(lambda: isinstance(app.screen, ConfirmScreen))
+            await until(pilot, lambda: isinstance(app.screen, ConfirmScreen))
             app.simulate_key("tab")
             app.simulate_key("enter")
-            await until(lambda: board.log.used == 0)
-            await until(lambda: any(e.text.startswith("log erased: ") for e in m.events))
+            await until(pilot, lambda: board.log.used == 0)
+            await until(pilot, lambda: any(e.text.startswith("log erased: ") for e in m.events))
             assert not [e for e in m.events if e.severity == "error" and e.source != "nak"]
     finally:
         await peer.stop()
@@ -139,17 +135,12 @@ async def _recorded(pilot, app: TermApp, board: Board, seconds: float = 0.5):  #
     """Record ``seconds`` of log over the (clean) link with F2 and F3; returns ``until``."""
     m = app.model
 
-    async def until(cond, timeout: float = 30.0) -> None:  # noqa: ANN001
-        async with asyncio.timeout(timeout):
-            while not cond():
-                await pilot.pause(0.02)
-
-    await until(lambda: m.mode == Mode.SAFE)
+    await until(pilot, lambda: m.mode == Mode.SAFE)
     app.simulate_key("f2")
-    await until(lambda: board.log.recording)
+    await until(pilot, lambda: board.log.recording)
     await pilot.pause(seconds)
     app.simulate_key("f3")
-    await until(lambda: not board.log.recording and m.pending == 0)
+    await until(pilot, lambda: not board.log.recording and m.pending == 0)
     return until
 
 

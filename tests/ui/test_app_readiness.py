@@ -8,7 +8,8 @@ from term.core.protocol import Flag, Mode, Op, Status
 from term.input.keymap import build_keymap
 from term.session.config import Config
 from term.ui.screens.confirm import ConfirmScreen
-from tests.support.app_rig import attitude, flying, sent, sent_before_marker, until
+from tests.support.app_rig import attitude, flying, sent, sent_before_marker
+from tests.support.waits import until
 
 
 async def test_the_readiness_panel_shows_in_safe_and_names_the_first_step(scripted_board) -> None:  # noqa: ANN001

@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
-from collections.abc import Callable
 
 import pytest
 
@@ -28,6 +27,7 @@ from term.ui.app import TermApp
 from term.ui.screens.flight import FlightScreen
 from term.ui.screens.wireless import LiftSlider, StickPad, WirelessScreen
 from tests.support.app_rig import seeded_handover
+from tests.support.waits import until
 
 S = WirelessState
 
@@ -73,15 +73,10 @@ async def test_the_handover_through_the_app_end_to_end() -> None:
         async with app.run_test(size=(120, 44)) as pilot:
             m = app.model
 
-            async def until(cond: Callable[[], bool], timeout: float = 30.0) -> None:
-                async with asyncio.timeout(timeout):
-                    while not cond():
-                        await pilot.pause(0.02)
-
             def said(text: str) -> bool:
                 return any(text in e.text for e in m.events)
 
-            await until(lambda: m.mode == Mode.SAFE and m.radio_up and m.link is not None)
+            await until(pilot, lambda: m.mode == Mode.SAFE and m.radio_up and m.link is not None)
             assert not m.over_ble and app.control_connection() is app.connection
 
             # A connection alone changes nothing; the stick still: only keep-alives over BLE (change-only).
@@ -92,11 +87,11 @@ async def test_the_handover_through_the_app_end_to_end() -> None:
 
             # Key 8 (a real key event) in SAFE, over the cable: STARTING, then STARTED once the radio answered.
             app.simulate_key("8")
-            await until(lambda: m.over_ble)
+            await until(pilot, lambda: m.over_ble)
             assert said("wireless STARTING") and said("wireless STARTED")
             assert app.control_connection() is app.radio_connection
             # The cable falls silent: expected, and said so; no alarm.
-            await until(lambda: m.link_lost)
+            await until(pilot, lambda: m.link_lost)
             assert said("flying over BLE") and not m.control_lost
             await pilot.pause(0.1)
             banner = str(app.screen.query_one("#mode").render())
@@ -105,15 +100,15 @@ async def test_the_handover_through_the_app_end_to_end() -> None:
 
             # Fly over BLE: MANUAL goes over the radio, then the lift; the board's mode comes back in Compact.
             app.simulate_key("2")
-            await until(lambda: m.mode == Mode.MANUAL)
+            await until(pilot, lambda: m.mode == Mode.MANUAL)
             assert (Op.MODE, Mode.MANUAL) in radio.commands()
-            await until(lambda: m.compact is not None and m.compact.mode == Mode.MANUAL)
+            await until(pilot, lambda: m.compact is not None and m.compact.mode == Mode.MANUAL)
             assert m.compact.wireless == S.STARTED
             before = len(radio.joysticks())
             for i in range(1, 11):  # ten distinct stick values: ten joystick frames, no more than keep-alives
                 app.set_stick(Joystick(0, 0, 0, 8000 + 600 * i, 0))
                 await pilot.pause(0.03)
-            await until(lambda: radio.joysticks() and radio.joysticks()[-1].lift == 14000)
+            await until(pilot, lambda: radio.joysticks() and radio.joysticks()[-1].lift == 14000)
             sent = len(radio.joysticks()) - before
             assert 10 <= sent <= 12, sent
             await pilot.pause(0.3)
@@ -127,22 +122,22 @@ async def test_the_handover_through_the_app_end_to_end() -> None:
             # and the cable carries control again.
             hci = app.radio.inner._client._backend._host.transport  # (on the link's thread, where the radio runs)
             await app.station.runner.run(hci.close()) if app.station.runner is not None else await hci.close()
-            await until(lambda: said("BLE LOST"))
+            await until(pilot, lambda: said("BLE LOST"))
             assert not m.over_ble and app.control_connection() is app.connection
             assert said("PANICs (it was flying over BLE)")
-            await until(lambda: m.attitude is not None and m.attitude.mode == Mode.PANIC and not m.link_lost)
+            await until(pilot, lambda: m.attitude is not None and m.attitude.mode == Mode.PANIC and not m.link_lost)
             assert said("wireless DISCONNECTED")
-            await until(lambda: m.motion is not None and m.motion.ae1 > 0 and m.mode == Mode.PANIC)
+            await until(pilot, lambda: m.motion is not None and m.motion.ae1 > 0 and m.mode == Mode.PANIC)
             assert isinstance(m.motion, Motion)  # the full telemetry is back on the cable
             # PANIC ends in SAFE by itself; then the cable flies: MANUAL is acknowledged over the cable.
             app.set_stick(Joystick(0, 0, 0, 0, 0))
-            await until(lambda: m.mode == Mode.SAFE and m.motion.ae1 == 0, 8.0)
+            await until(pilot, lambda: m.mode == Mode.SAFE and m.motion.ae1 == 0, 8.0)
             app.simulate_key("2")
-            await until(lambda: isinstance(m.attitude, Attitude) and m.attitude.mode == Mode.MANUAL)
+            await until(pilot, lambda: isinstance(m.attitude, Attitude) and m.attitude.mode == Mode.MANUAL)
             assert radio.commands().count((Op.MODE, Mode.MANUAL)) == 1  # not over the radio this time
             app.simulate_key("0")
             # The radio came back by itself (retry with a pause), and the board is not handed over.
-            await until(lambda: m.radio_up, 10.0)
+            await until(pilot, lambda: m.radio_up, 10.0)
             assert sum("radio connected" in e.text for e in m.events) == 2 and m.wireless == S.DISCONNECTED
     finally:
         sim.stop()
@@ -154,7 +149,8 @@ async def test_the_handover_through_the_app_end_to_end() -> None:
 async def test_the_wireless_screen_controls_send_the_right_commands(scripted_board) -> None:  # noqa: ANN001
     import time
 
-    from tests.support.app_rig import LoopBoard, sent, until
+    from tests.support.app_rig import LoopBoard, sent
+    from tests.support.waits import until
 
     pair = loopback_pair()
     board = scripted_board(start=time.monotonic())
@@ -355,27 +351,21 @@ async def test_no_stale_figure_goes_unmarked_through_a_handover() -> None:
         async with app.run_test(size=(120, 44)) as pilot:
             m = app.model
 
-            async def until(cond: Callable[[], bool], timeout: float = 30.0) -> None:
-                async with asyncio.timeout(timeout):
-                    while not cond():
-                        await pilot.pause(0.03)
-                        check()
-
             async def for_s(seconds: float) -> None:
                 end = time.monotonic() + seconds
-                await until(lambda: time.monotonic() >= end)
+                await until(pilot, lambda: time.monotonic() >= end)
 
-            await until(lambda: m.mode == Mode.SAFE and m.radio_up and m.status is not None)
+            await until(pilot, lambda: m.mode == Mode.SAFE and m.radio_up and m.status is not None)
             await for_s(0.3)
             assert not [r for n in PANEL_FIELDS["#motors"] if (r := m.reading(n, app.clock())).stale]
             app.simulate_key("8")
-            await until(lambda: m.over_ble)
+            await until(pilot, lambda: m.over_ble)
             app.simulate_key("2")
-            await until(lambda: m.mode == Mode.MANUAL)
+            await until(pilot, lambda: m.mode == Mode.MANUAL)
             for _ in range(5):  # lift trims over BLE: the Acks carry the new trim
                 app.simulate_key("a")
                 await for_s(0.1)
-            await until(lambda: m.reading("trim_lift", app.clock()).value == board.modes.trims.lift > 0)
+            await until(pilot, lambda: m.reading("trim_lift", app.clock()).value == board.modes.trims.lift > 0)
             assert m.reading("trim_lift", app.clock()).source in ("Ack", "Compact2")
             await for_s(1.5)  # long enough for the cable's last telemetry to go stale
             now = app.clock()
@@ -386,8 +376,8 @@ async def test_no_stale_figure_goes_unmarked_through_a_handover() -> None:
             assert all(r.fresh and r.source == "Compact2" for r in flown), flown  # Compact2
             assert m.reading("ae1", now).value > 0 and m.reading("trim_lift", now).value == board.modes.trims.lift
             app.send(Op.WIRELESS, 0)  # hand control back to the cable, still flying
-            await until(lambda: not m.over_ble and m.reading("ae1", app.clock()).fresh, 5.0)
-            await until(lambda: m.reading("trim_lift", app.clock()).source == "Status")
+            await until(pilot, lambda: not m.over_ble and m.reading("ae1", app.clock()).fresh, 5.0)
+            await until(pilot, lambda: m.reading("trim_lift", app.clock()).source == "Status")
             await for_s(0.3)
             assert m.reading("trim_lift", app.clock()).value == board.modes.trims.lift
             assert not app.screen.query_one("#motors").border_subtitle
