@@ -4,6 +4,8 @@ the bell's alarms, the lift trim to zero (twice in flight), the help's preset la
 
 from __future__ import annotations
 
+import asyncio
+
 from term.core.protocol import Flag, Mode, Op, Status
 from term.input.keymap import build_keymap
 from term.session.config import Config
@@ -15,12 +17,13 @@ from tests.support.waits import until
 async def test_the_readiness_panel_shows_in_safe_and_names_the_first_step(scripted_board) -> None:  # noqa: ANN001
     async with flying(scripted_board) as (app, pilot, board, peer):
         panel = app.screen.query_one("#readiness")
-        await peer.send(attitude(Mode.SAFE), Status(0, 0, 0, 0, 0, 10, 0, 0))
-        await until(pilot, lambda: app.model.mode == Mode.SAFE and app.model.status is not None)
-        app.render_now()
-        await pilot.pause(0.05)
-        text = str(panel.render())
-        assert panel.display and "next: calibrate — press 3" in text and "✘ calibrated" in text
+        async with asyncio.timeout(30):  # the board's Status kept fresh: on a busy machine one alone goes stale
+            while "next: calibrate — press 3" not in (text := str(panel.render())):
+                await peer.send(attitude(Mode.SAFE), Status(0, 0, 0, 0, 0, 10, 0, 0))
+                await until(pilot, lambda: app.model.mode == Mode.SAFE and app.model.status is not None)
+                app.render_now()
+                await pilot.pause(0.05)
+        assert panel.display and "✘ calibrated" in text
         await peer.send(attitude(Mode.FULL))
         await until(pilot, lambda: app.model.mode == Mode.FULL)
         app.render_now()
