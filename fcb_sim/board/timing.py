@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import math
 import random
+from array import array
 from collections import deque
 from dataclasses import dataclass
 from statistics import NormalDist
@@ -432,11 +433,65 @@ REPORT_MISS_RATE = {"raw": 0.021, "dmp": None}  # Figure 13 shows DMP "far fewer
 REPORT_MISS_RATE_999 = {"raw": 0.0003, "dmp": None}
 
 
-class TaskStats:
-    """Per-task durations and periods: running mean and sigma (Welford) over everything, and the latest
-    ``keep`` durations for the percentiles."""
+class DurationHistogram:
+    """Task durations (integer µs) in a fixed log-linear histogram, so the percentiles cost bounded memory in a flight
+    of any length (a queue of the latest 50 000 per task grew 1.6 MB a minute until full, issue 36). Exact below
+    ``EXACT_US`` (one bin per µs: every task of the board's timing model runs shorter, so its figures are the sorted
+    list's to the µs); above, ``SUB_BINS`` bins per power of two, a percentile given as its bin's lower edge: less
+    than 1/SUB_BINS (1.6 %) under the true value. Over everything since the last reset, as the means are."""
 
-    def __init__(self, keep: int = 50_000) -> None:
+    EXACT_US = 1024
+    SUB_BITS = 6
+    SUB_BINS = 1 << SUB_BITS
+    MAX_EXP = 40  # 2**40 µs (12 days): longer durations share the last bin
+    BINS = EXACT_US + SUB_BINS * (MAX_EXP - 9)  # exponents 10..MAX_EXP
+
+    def __init__(self) -> None:
+        self.counts = array("Q", bytes(8 * self.BINS))
+        self.total = 0
+
+    @classmethod
+    def index(cls, us: int) -> int:
+        if us < cls.EXACT_US:
+            return max(0, us)
+        e = us.bit_length() - 1  # 10 and up
+        if e > cls.MAX_EXP:
+            return cls.BINS - 1
+        return cls.EXACT_US + (e - 10) * cls.SUB_BINS + ((us >> (e - cls.SUB_BITS)) & (cls.SUB_BINS - 1))
+
+    @classmethod
+    def lower(cls, i: int) -> int:
+        """The smallest duration of bin ``i``."""
+        if i < cls.EXACT_US:
+            return i
+        e, sub = divmod(i - cls.EXACT_US, cls.SUB_BINS)
+        return (cls.SUB_BINS + sub) << (e + 10 - cls.SUB_BITS)
+
+    def add(self, us: int) -> None:
+        self.counts[self.index(us)] += 1
+        self.total += 1
+
+    def __len__(self) -> int:
+        return self.total
+
+    def percentile(self, q: float) -> float:
+        """The duration of rank ``int(q * n)`` (0-based) in sorted order, as ``sorted(d)[int(q * n)]`` was."""
+        if not self.total:
+            return 0.0
+        rank = min(self.total - 1, int(q * self.total))
+        seen = 0
+        for i, c in enumerate(self.counts):
+            seen += c
+            if seen > rank:
+                return float(self.lower(i))
+        return float(self.lower(self.BINS - 1))
+
+
+class TaskStats:
+    """Per-task durations and periods: running mean and sigma (Welford) over everything, and the durations in a
+    fixed histogram for the percentiles (``DurationHistogram``): the same size after a minute as after a day."""
+
+    def __init__(self) -> None:
         self.n = 0
         self.mean = 0.0
         self.m2 = 0.0
@@ -444,7 +499,8 @@ class TaskStats:
         self.pmean = 0.0
         self.pm2 = 0.0
         self.last_start: int | None = None
-        self.durations: deque[int] = deque(maxlen=keep)
+        self.durations = DurationHistogram()
+        self.last_us = 0  # the latest duration
         self.misses = 0  # periods at least the WCET99 threshold (control only)
         self.misses999 = 0
 
@@ -453,7 +509,8 @@ class TaskStats:
         d = dur - self.mean
         self.mean += d / self.n
         self.m2 += d * (dur - self.mean)
-        self.durations.append(dur)
+        self.durations.add(int(dur))
+        self.last_us = dur
         period = None
         if self.last_start is not None:
             period = start - self.last_start
@@ -465,10 +522,7 @@ class TaskStats:
         return period
 
     def percentile(self, q: float) -> float:
-        if not self.durations:
-            return 0.0
-        data = sorted(self.durations)
-        return float(data[min(len(data) - 1, int(q * len(data)))])
+        return self.durations.percentile(q)
 
     def summary(self) -> dict[str, float]:
         sd = math.sqrt(self.m2 / (self.n - 1)) if self.n > 1 else 0.0
@@ -559,7 +613,7 @@ class Profiler:
 
     def packets(self, now: int) -> list[Profile]:
         """The Profile packets, one per task in ``tasks`` order; recomputed at most every ``PACKETS_REFRESH_US``
-        (the percentiles sort up to 50 000 durations per task: a flood of requests must not cost that each)."""
+        (a percentile walks a histogram of some 3,000 bins per task: a flood of requests must not cost that each)."""
         if self._packets is not None and now - self._packets[0] < self.PACKETS_REFRESH_US:
             return self._packets[1]
         out = []

@@ -22,7 +22,11 @@ the simulator's and its terminal's alone. It listens on loopback only (another a
 ``--instructor-public``, and is warned about), makes a random token and gives it in its address
 (``tcp-client:HOST:PORT#TOKEN``, printed for term on a pipe); a client's first line must carry it
 (``{"kind": "auth", "token": ...}``) within ``AUTH_TIMEOUT_S``, else it gets an error line and is dropped. One client
-at a time: a second is refused while the first is there. Then a hello line, and a truth line every
+at a time: a second is refused while the first is there. A flood holds no harm for the flight: connections pass the
+door of hosts/listeners.py (at most ``MAX_PENDING`` without the token, each dropped after its time, never a
+descriptor past what serve's select() watches); an address that gave a wrong token waits a delay that doubles with
+each wrong one before its next is looked at (``LoginThrottle``), and refusals are logged one line per interval.
+Then a hello line, and a truth line every
 ``1 / INSTRUCTOR_TRUTH_HZ`` s; each command line is applied and a refusal (a malformed line included: bad JSON,
 2000 nested brackets, a 400-digit number) answered with one error line, never a traceback. A radio cut disconnects
 the BLE central and stops advertising for a while. Cable and radio cuts add up to at most ``MAX_OUTAGE_S`` per
@@ -39,10 +43,12 @@ import json
 import logging
 import secrets
 import sys
+import time
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 from fcb_sim.errors import UsageError, parse_tcp_server
+from fcb_sim.hosts.listeners import Door, LoginThrottle, guarded
 from fcb_sim.world import constants as P
 from term.core.protocol import (
     INSTRUCTOR_AUTH,
@@ -256,13 +262,19 @@ def is_loopback(host: str) -> bool:
 WRITE_BACKLOG = 65536  # bytes queued for a client that does not read: truth lines are skipped beyond this
 MAX_LINE = 4096  # a command line longer than this is refused (and the client dropped)
 AUTH_TIMEOUT_S = 5.0  # a client that has not given the token by then is dropped
+MAX_PENDING = 8  # connections at once that have not given the token; the next is refused at once
 
 
 class InstructorServer:
     """The instructor channel on a local TCP port (module docstring). ``radio``: the board's ``BoardRadio``."""
 
-    def __init__(self, instructor: Instructor, *, radio: Any = None, token: str | None = None) -> None:
+    def __init__(self, instructor: Instructor, *, radio: Any = None, token: str | None = None,
+                 clock: Callable[[], float] = time.monotonic) -> None:
         self.instructor = instructor
+        # the door (hosts/listeners.py): its own clock drops a silent client a second after our AUTH_TIMEOUT_S would
+        self.door = Door("instructor", log, max_pending=MAX_PENDING, pending_timeout_s=AUTH_TIMEOUT_S + 1.0,
+                         clock=clock)
+        self.throttle = LoginThrottle(clock=clock)
         self.radio = radio
         if radio is not None:
             instructor.on_radio_cut = self._cut_radio
@@ -274,7 +286,6 @@ class InstructorServer:
         self._radio_task: asyncio.Task[None] | None = None
         self.address = ""
         self.skipped = 0  # truth lines not sent to a slow client
-        self.refused = 0  # clients turned away (no token, a wrong one, a second one)
 
     @property
     def now(self) -> float:
@@ -292,7 +303,13 @@ class InstructorServer:
             print(f"fcb-sim: warning: the instructor channel listens on {host} (--instructor-public): every "
                   "machine that can reach it and knows the token can set situations", file=sys.stderr, flush=True)
         try:
-            self._server = await asyncio.start_server(self._client, host, port, limit=MAX_LINE)
+            loop = asyncio.get_running_loop()
+
+            def stream() -> asyncio.Protocol:  # what asyncio.start_server makes, behind the door
+                return asyncio.StreamReaderProtocol(asyncio.StreamReader(limit=MAX_LINE, loop=loop), self._client,
+                                                    loop=loop)
+
+            self._server = await loop.create_server(guarded(stream, self.door, refusal=_refusal_line), host, port)
         except OSError as exc:
             raise UsageError(f"--instructor {spec}: {exc.strerror or exc}") from None
         sock = self._server.sockets[0].getsockname()
@@ -313,6 +330,11 @@ class InstructorServer:
                 self.skipped += 1
                 continue
             w.write(self.instructor.truth_line(now))
+
+    @property
+    def refused(self) -> int:
+        """Clients turned away: no token, a wrong one, a second client, too many waiting, a throttled address."""
+        return self.door.refused
 
     def _busy(self) -> bool:
         return self._writer is not None and not self._writer.is_closing()
@@ -339,12 +361,24 @@ class InstructorServer:
         if self._busy():
             self._refuse(writer, "another instructor is connected (one at a time)")
             return
+        peer = writer.get_extra_info("peername")
+        address = str(peer[0]) if isinstance(peer, tuple) and peer else "?"
+        wait = self.throttle.wait(address)
+        if wait > 0:  # this address gave a wrong token lately: its next one waits (hosts/listeners.py)
+            self._refuse(writer, f"too many wrong tokens from {address}: try again in {wait:.1f} s",
+                         summary="a throttled address")
+            return
         why = await self._auth(reader)
-        if why is None and self._busy():
-            why = "another instructor is connected (one at a time)"
+        if why is not None and why != TIMED_OUT_WHY:
+            self.throttle.failed(address)
+        elif why is None:
+            self.throttle.succeeded(address)
+            if self._busy():
+                why = "another instructor is connected (one at a time)"
         if why is not None:
             self._refuse(writer, why)
             return
+        self.door.authenticated(writer.transport)
         self._writer = writer
         writer.write((json.dumps({"kind": "hello", "version": INSTRUCTOR_VERSION,
                                   "hz": INSTRUCTOR_TRUTH_HZ}) + "\n").encode())
@@ -363,7 +397,7 @@ class InstructorServer:
         try:
             line = await asyncio.wait_for(reader.readline(), AUTH_TIMEOUT_S)
         except TimeoutError:
-            return f"no token within {AUTH_TIMEOUT_S:g} s"
+            return TIMED_OUT_WHY
         except (ValueError, asyncio.LimitOverrunError):
             return "the first line must give the token"
         msg = _json_object(line)
@@ -372,9 +406,9 @@ class InstructorServer:
             return "the first line must give this simulator's token ({\"kind\": \"auth\", \"token\": ...})"
         return None
 
-    def _refuse(self, writer: asyncio.StreamWriter, why: str) -> None:
-        self.refused += 1
-        log.warning("instructor: a client refused: %s", why)
+    def _refuse(self, writer: asyncio.StreamWriter, why: str, summary: str | None = None) -> None:
+        """Answer ``why``; counted and logged summarised under ``summary`` (default ``why``) by the door."""
+        self.door.refuse(summary or why)
         self._answer(writer, None, why)
 
     def _command(self, line: bytes) -> tuple[str | None, str | None]:
@@ -433,6 +467,15 @@ class InstructorServer:
             self._server.close()
             with contextlib.suppress(Exception):
                 await self._server.wait_closed()
+        self.door.close()
+
+
+TIMED_OUT_WHY = f"no token within {AUTH_TIMEOUT_S:g} s"
+
+
+def _refusal_line(why: str) -> bytes:
+    """The error line a client refused at the door gets (too many waiting for the token)."""
+    return (json.dumps({"kind": "error", "do": None, "why": why}) + "\n").encode()
 
 
 def _json_object(line: bytes) -> dict[str, Any] | str:

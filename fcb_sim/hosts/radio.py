@@ -14,9 +14,14 @@ from typing import Any
 
 from fcb_sim.board.wireless import ATT_MTU, WirelessLink, board_name
 from fcb_sim.errors import parse_tcp_server
+from fcb_sim.hosts.listeners import Door, guarded
 from term.core.protocol import NUS_RX, NUS_SERVICE, NUS_TX, WirelessState
 
 log = logging.getLogger(__name__)
+
+MAX_WAITING_HOSTS = 2  # HCI hosts waiting for the radio at once; the next is refused (hosts/listeners.py)
+MAX_HELD = 65536  # bytes kept for a waiting host
+HOST_WAIT_S = 30.0  # a host that has waited this long without getting the radio is dropped
 
 
 def board_address(board_id: int) -> str:
@@ -256,7 +261,9 @@ class HciTcpServer:
     time, like bumble's ``tcp-server`` transport but aware of the host. A second host waits (``hosts_waiting``;
     what it sends is kept) until the first has gone, and is then served: taking the radio from the first would
     drop its BLE connection, and a board flown over it would PANIC; a terminal that reconnects at once gets the
-    radio as soon as its old connection is closed. When the host goes away (the terminal quit or crashed), its BLE
+    radio as soon as its old connection is closed. At most ``MAX_WAITING_HOSTS`` wait, each at most ``HOST_WAIT_S``;
+the next is refused at once, and no descriptor past what serve's select() watches is kept (the door of
+hosts/listeners.py). When the host goes away (the terminal quit or crashed), its BLE
     connections are dropped as a real radio's supervision timeout would, so the board sees the disconnection; its
     scanning and advertising stop."""
 
@@ -272,6 +279,7 @@ class HciTcpServer:
         self.port = 0
         self.hosts_served = 0
         self._waiting: list[Any] = []  # hosts waiting for the radio, oldest first
+        self.door = Door(f"{name} (HCI)", log, max_pending=MAX_WAITING_HOSTS, pending_timeout_s=HOST_WAIT_S)
 
     @property
     def client_spec(self) -> str:
@@ -295,7 +303,7 @@ class HciTcpServer:
             def connection_made(self, transport: asyncio.BaseTransport) -> None:
                 self.transport = transport  # type: ignore[assignment]
                 if server._peer is not None:  # one host per controller: the next one waits its turn
-                    log.warning("%s: a second HCI host waits (one is attached)", server.controller.name)
+                    log.info("%s: a second HCI host waits (one is attached)", server.controller.name)
                     server._waiting.append(self)
                     return
                 server._attach(self.transport)  # type: ignore[arg-type]
@@ -303,8 +311,8 @@ class HciTcpServer:
             def data_received(self, data: bytes) -> None:
                 if self.transport is not None and server._peer is self.transport:
                     server._source.data_received(data)
-                elif self in server._waiting:
-                    self.held += data
+                elif self in server._waiting and len(self.held) < MAX_HELD:
+                    self.held += data  # (a host that floods while it waits loses the rest: it is no real host)
 
             def connection_lost(self, exc: Exception | None) -> None:
                 if self in server._waiting:
@@ -314,13 +322,14 @@ class HciTcpServer:
                     server._next_host()
 
         try:
-            self._server = await asyncio.get_running_loop().create_server(_Host, host, port)
+            self._server = await asyncio.get_running_loop().create_server(guarded(_Host, self.door), host, port)
         except OSError as exc:
             raise UsageError(f"cannot serve the BLE HCI on {host}:{port}: {exc.strerror or exc}") from None
         self.host = host
         self.port = self._server.sockets[0].getsockname()[1]
 
     def _attach(self, transport: asyncio.Transport) -> None:
+        self.door.authenticated(transport)  # the radio is its: no more waiting clock
         self._peer = transport
         self._source = _fresh_source(self.controller)  # a new host starts a new H4 stream
         self.hosts_served += 1
@@ -356,6 +365,7 @@ class HciTcpServer:
         if self.controller.link is not None:
             with contextlib.suppress(KeyError):
                 self.controller.link.remove_controller(self.controller)
+        self.door.close()
 
 
 def _fresh_source(controller: Any) -> Any:

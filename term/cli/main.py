@@ -120,7 +120,9 @@ def _export(a: argparse.Namespace) -> int:
     what = "frames and events" if res.kind == "session" else "records"
     cut = "" if res.complete else " (the recording was cut short: all of it that was on disk)"
     print(f"wrote {a.output}: {res.rows} {what} from {src}{cut}")
-    return 0
+    for line in res.damage:  # the rest was exported; the exit status says not all of it was readable
+        print(f"term export: damage skipped: {line}", file=sys.stderr)
+    return 1 if res.damage else 0
 
 
 def _progress_bar(what: str) -> Any:

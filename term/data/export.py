@@ -17,13 +17,19 @@ Contract (docs/recording.md shows how to open the results in Foxglove, PlotJuggl
   bare names.
 - Flash log (the CSV a download writes, board units, time ``t_us``): to CSV with ``t_s`` and the same column names
   as the session export, or to MCAP on ``/flashlog`` (``log_time`` the board's time since boot).
+- Damage: a damaged chunk or record of the recording is skipped and the rest exported (``ExportResult.damage``
+  says what was skipped, where; term export then exits 1); a recording with nothing readable after its header is an
+  ``ExportError`` naming where the damage begins. The output is written beside ``out`` (``.<name>.part``) and
+  renamed over it at the end: a failed export leaves no half file and an earlier ``out`` as it was.
 
 Bad input ends in ``ExportError`` with one line.
 """
 
 from __future__ import annotations
 
+import contextlib
 import csv
+import dataclasses
 import datetime as dt
 import importlib.util
 import io
@@ -186,6 +192,7 @@ class ExportResult:
     kind: str  # "session" or "flashlog"
     rows: int  # frames and events (session) or records (flash log) written
     complete: bool = True  # False: the recording was cut short (a crash); everything readable was written
+    damage: list[str] = dataclasses.field(default_factory=list)  # damaged parts skipped, one line a file
 
 
 Progress = Callable[[int, int | None], None]  # (items read, items in the recording or None if not known)
@@ -207,12 +214,13 @@ def export(src: Path, out: Path, fmt: str | None = None, board_units: bool = Fal
     kind = kind_of(src)
     if out.exists() and out.resolve() == src.resolve():
         raise ExportError(f"{out} is the input: choose another output")
+    part = out.with_name(f".{out.name}.part")  # written beside, renamed at the end (module docstring)
     try:
         out.parent.mkdir(parents=True, exist_ok=True)
         if fmt == "csv":
-            f = out.open("w", newline="", encoding="utf-8")
+            f = part.open("w", newline="", encoding="utf-8")
         else:
-            f = out.open("wb")
+            f = part.open("wb")
     except OSError as exc:
         raise ExportError(f"cannot write {out}: {exc.strerror or exc}") from None
     try:
@@ -224,12 +232,19 @@ def export(src: Path, out: Path, fmt: str | None = None, board_units: bool = Fal
                     n = _session_csv(src, items, f, board_units, info)
                 else:
                     n = _session_mcap(src, items, f, info, raw, library)
-                return ExportResult(kind, n, all(r.complete for r in info))
-            header, rows = read_flash_csv(src)
-            n = _flash_csv(header, rows, f, board_units) if fmt == "csv" else _flash_mcap(src, header, rows, f)
-            return ExportResult(kind, n)
+                result = ExportResult(kind, n, all(r.complete for r in info),
+                                      [r.damage_text for r in info if r.damage_text])
+            else:
+                header, rows = read_flash_csv(src)
+                n = _flash_csv(header, rows, f, board_units) if fmt == "csv" else _flash_mcap(src, header, rows, f)
+                result = ExportResult(kind, n)
+        os.replace(part, out)
+        return result
     except OSError as exc:
         raise ExportError(f"cannot write {out}: {exc.strerror or exc}") from None
+    finally:
+        with contextlib.suppress(OSError):
+            part.unlink()  # (gone already after the rename)
 
 
 def message_count(src: Path) -> int | None:

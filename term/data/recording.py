@@ -19,6 +19,12 @@ Contract (docs/recording.md has the why and the numbers):
   SIGKILL or a pulled cable loses at most the last ``flush_period``; ``read_recording`` reads such a file up to its
   last whole record (the mcap package's own readers stop with an error on it), and ``term export`` writes it out
   as a complete MCAP again.
+- Damage (a flipped byte, a bad disk block): the reader skips a chunk whose CRC or compression fails, and bytes
+  that are no record (records start again where two in a row fit), and reads on; ``Recording.damage`` lists
+  what was skipped and where (``damage_text`` in one line), ``orphans`` the messages of a channel whose record was
+  lost (a closed file's channels are read from its summary first, so that is rare). A file with nothing readable
+  after its header (the magic then noise, a header record claiming more than the file) is a RecordingError
+  naming the byte where the damage begins, never an empty recording.
 - Size bound: a file that reaches ``max_file_bytes`` is closed and the session goes on in ``<stem>.p2.mcap``,
   ``.p3``…; before each new file the oldest recordings are deleted until the directory holds at most
   ``max_total_bytes``. A disk error stops the recording (``error`` says why), never the flight.
@@ -31,20 +37,18 @@ import datetime as dt
 import json
 import os
 import re
-import struct
 import time
-import zlib
 from collections.abc import Callable, Collection, Iterator
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import IO, Any
 
-from mcap.opcode import Opcode
 from mcap.reader import make_reader
 from mcap.writer import CompressionType, Writer
 
 from term.core.protocol import PROTOCOL_VERSION
 from term.core.userfile import RECORDING_MAX_BYTES, UserFileError, open_user_file
+from term.data.mcapwalk import MAGIC, Damage, Walk, damage_text
 from term.transports.base import Transport
 
 FORMAT_VERSION = 1  # of the session layout described above
@@ -54,7 +58,6 @@ FLUSH_PERIOD_S = 1.0
 MAX_FILE_BYTES = 64 * 1024 * 1024
 MAX_TOTAL_BYTES = 1024 * 1024 * 1024
 SUFFIX = ".mcap"
-MAGIC = b"\x89MCAP0\r\n"
 _NAME = re.compile(r"^(\d{8}-\d{6})(?:-(\d+))?(?:\.p(\d+))?\.mcap$")
 
 # foxglove.Log (Foxglove's schema for log lines, JSON encoding): level 1 debug .. 5 fatal.
@@ -431,6 +434,13 @@ class Recording:
     last_ns: int | None = None
     messages: int = 0
     valid_bytes: int = 0  # the readable prefix; the rest of a cut-short file is lost
+    damage: list[Damage] = field(default_factory=list)  # the byte ranges skipped as damaged (``_records``)
+    orphans: int = 0  # messages skipped because their channel's record was in a damaged part
+
+    @property
+    def damage_text(self) -> str:
+        """The damage skipped, in one line ("" if none)."""
+        return damage_text(self.path, self.damage, self.orphans)
 
     @property
     def start_ns(self) -> int:
@@ -445,115 +455,26 @@ class Recording:
         return (self.last_ns - self.start_ns) / 1e9
 
 
-def _valid_prefix(f: IO[bytes], size: int) -> tuple[int, bool]:
-    """Walk the record headers (opcode, length): where the last whole record ends, and whether a footer is there."""
-    pos = len(MAGIC)
-    while pos + 9 <= size:
-        f.seek(pos)
-        opcode, length = struct.unpack("<BQ", f.read(9))
-        if opcode == 0 or pos + 9 + length > size:  # zeros (an unwritten tail) or a record cut short
-            break
-        pos += 9 + length
-        if opcode == Opcode.FOOTER:
-            return pos, True
-    return pos, False
-
-
-_HEAD = struct.Struct("<BQ")  # a record's opcode and length
-_INSIDE = [0]  # _walk's ``at`` inside a chunk
-CHUNK_MAX_BYTES = 64 * 1024 * 1024  # a chunk's records, decompressed (the recorder's and the exports' are ~1 MB)
-_MSG = struct.Struct("<HIQQ")  # a Message's channel id, sequence, log time, publish time
-_CHUNK = struct.Struct("<QQQI")  # a Chunk's start and end times, uncompressed size and CRC
-
-
-def _string(buf: memoryview, pos: int) -> tuple[str, int]:
-    (n,) = struct.unpack_from("<I", buf, pos)
-    return str(buf[pos + 4 : pos + 4 + n], "utf-8"), pos + 4 + n
-
-
-def _map(buf: memoryview, pos: int) -> dict[str, str]:
-    (n,) = struct.unpack_from("<I", buf, pos)
-    out, end, pos = {}, pos + 4 + n, pos + 4
-    while pos < end:
-        k, pos = _string(buf, pos)
-        out[k], pos = _string(buf, pos)
-    return out
-
-
-def _decompress(compression: str, data: memoryview, size: int) -> bytes:
-    if compression == "":
-        return bytes(data)
-    if compression == "zstd":
-        import zstandard
-
-        return zstandard.ZstdDecompressor().decompress(data, max_output_size=size)
-    if compression == "lz4":
-        import lz4.frame
-
-        return lz4.frame.decompress(data)  # type: ignore[no-any-return]
-    raise ValueError(f"unknown compression {compression!r}")
-
-
-def _walk(buf: memoryview, start: int, end: int, at: list[int]) -> Iterator[tuple[Any, ...]]:
-    """The records of ``buf[start:end]`` as small tuples: ("m", channel id, log time, data), ("c", id, topic),
-    ("meta", name, map), ("footer",); a chunk's records in its place (decompressed, its CRC checked). ``at[0]``
-    is where the record being read starts (for an error's message)."""
-    pos = start
-    while pos < end:
-        at[0] = pos
-        opcode, length = _HEAD.unpack_from(buf, pos)
-        body = pos + 9
-        pos = body + length
-        if opcode == Opcode.MESSAGE:
-            ch, _, log_time, _ = _MSG.unpack_from(buf, body)
-            yield ("m", ch, log_time, bytes(buf[body + 22 : pos]))
-        elif opcode == Opcode.CHUNK and at is not _INSIDE:  # (a chunk holds no chunk: no nesting to recurse on)
-            _, _, size, crc = _CHUNK.unpack_from(buf, body)
-            if size > CHUNK_MAX_BYTES:  # a hostile size would be allocated before a byte is checked
-                raise ValueError("chunk too large")
-            compression, q = _string(buf, body + 28)
-            (n,) = struct.unpack_from("<Q", buf, q)
-            inner = _decompress(compression, buf[q + 8 : q + 8 + n], size)
-            if len(inner) != size or (crc and zlib.crc32(inner) != crc):
-                raise ValueError("chunk CRC")
-            yield from _walk(memoryview(inner), 0, len(inner), _INSIDE)
-        elif opcode == Opcode.CHANNEL:
-            (cid,) = struct.unpack_from("<H", buf, body)
-            topic, _ = _string(buf, body + 4)
-            yield ("c", cid, topic)
-        elif opcode == Opcode.METADATA:
-            name, q = _string(buf, body)
-            yield ("meta", name, _map(buf, q))
-        elif opcode == Opcode.FOOTER:
-            yield ("footer",)
-            return
-
-
 def _records(path: Path, rec: Recording) -> Iterator[tuple[Any, ...]]:
-    """The whole records of ``path``, in file order (``_walk``); a cut-short tail ends the iteration, not an
-    error. The file is read once into memory (a part is at most ``MAX_FILE_BYTES``): parsed with struct, some
-    ten times quicker than the mcap package's stream reader, which replay, export and plot all wait on."""
+    """The whole records of ``path``, in file order (term/data/mcapwalk.py: a cut-short tail ends the iteration,
+    damage is skipped and noted in ``rec.damage``). A file in which nothing after the magic can be read is a
+    RecordingError naming the damage. The file is read once into memory (a part is at most ``MAX_FILE_BYTES``):
+    parsed with struct, some ten times quicker than the mcap package's stream reader, which replay, export and
+    plot all wait on."""
     try:
         f = open_user_file(path, RECORDING_MAX_BYTES, "session recording")  # a regular file: a FIFO never hangs
     except UserFileError as exc:
         raise RecordingError(str(exc)) from None
     with f:
-        if f.read(len(MAGIC)) != MAGIC:
-            raise RecordingError(f"{path} is not a session recording (no MCAP header)")
-        end, rec.complete = _valid_prefix(f, os.fstat(f.fileno()).st_size)
-        rec.valid_bytes = end
-        f.seek(0)
-        buf = memoryview(f.read(end))
-    at = [len(MAGIC)]
-    walk = _walk(buf, len(MAGIC), end, at)
-    while True:
-        try:
-            record = next(walk)
-        except StopIteration:
-            return
-        except Exception as exc:  # a damaged record inside (zstd, CRC, struct): keep what came before
-            raise RecordingError(f"{path}: damaged near byte {at[0]} ({type(exc).__name__})") from None
-        yield record
+        raw = f.read()
+    if not raw.startswith(MAGIC):
+        raise RecordingError(f"{path} is not a session recording (no MCAP header)")
+    walk = Walk(raw, rec.damage)
+    yield from walk.records()
+    rec.complete, rec.valid_bytes = walk.complete, walk.pos
+    if rec.damage and not walk.read_any:
+        d = rec.damage[0]
+        raise RecordingError(f"{path}: damaged at byte {d.start:,}: {d.what}; nothing readable after it")
 
 
 def iter_file(path: Path, recording: Recording | None = None, plain: bool = False) -> Iterator[Any]:
@@ -561,6 +482,7 @@ def iter_file(path: Path, recording: Recording | None = None, plain: bool = Fals
     link bytes as tuples ``(t_ns, link, direction, data)`` instead of ``LinkBytes`` (the export's hot path)."""
     rec = recording if recording is not None else Recording(path)
     channels: dict[int, tuple[str, str]] = {}
+    known: set[int] = set()  # channel ids seen (a topic that is not the session's: its messages are not ours)
     n = 0
     try:
         for record in _records(path, rec):
@@ -568,6 +490,7 @@ def iter_file(path: Path, recording: Recording | None = None, plain: bool = Fals
             if kind == "m":
                 where = channels.get(record[1])
                 if where is None:
+                    rec.orphans += record[1] not in known
                     continue
                 t = record[2]
                 n += 1
@@ -591,6 +514,7 @@ def iter_file(path: Path, recording: Recording | None = None, plain: bool = Fals
                     if ev is not None:
                         yield ev
             elif kind == "c":
+                known.add(record[1])
                 topic = record[2]
                 parts = topic.strip("/").split("/")
                 if topic in ("/events", "/station", "/truth"):

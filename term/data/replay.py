@@ -19,6 +19,8 @@ the wall time that passed, ``seek``, ``speed``, ``paused``) and applies the even
   it goes), so the first frame of an hour's recording shows at once; one cut short is read whole first. What was
   read stays in memory (about 250 bytes a frame: some 200 MB for an hour at full telemetry), so going back is
   quick.
+- A damaged chunk or record is skipped as it is read and the rest plays (``damage`` counts them, ``status()``
+  says so); a file with nothing readable after its header is a RecordingError naming where.
 """
 
 from __future__ import annotations
@@ -143,6 +145,12 @@ class Replay:
         self.paused = False
         self._index = 0
         self._now = 0.0
+        self.recordings: list[Recording] = []  # the files read (``load``): their damage skipped, as it is read
+
+    @property
+    def damage(self) -> int:
+        """Damaged parts of the recording skipped so far (term.data.recording), and messages of lost channels."""
+        return sum(len(r.damage) + (r.orphans > 0) for r in self.recordings)
 
     @classmethod
     def load(cls, path: Path) -> Replay:
@@ -157,22 +165,28 @@ class Replay:
             has_station, end_ns, meta = found
             start_ns = int(meta.get("start_ns", 0) or 0) if meta else 0
             if start_ns:
-                items = (item for part in parts for item in iter_file(part))
+                read = [Recording(part) for part in parts]
+                items = (item for rec in read for item in iter_file(rec.path, rec))
                 replay = cls([], str(path), meta, _in_order(_events(items, start_ns, has_station)),
                              (end_ns - start_ns) / 1e9)
+                replay.recordings = read
                 replay._load_to(LOAD_AHEAD_S)
                 if not replay.timeline and replay._more is None:
                     raise RecordingError(f"{path}: nothing recorded")
                 return replay
         items = []
+        read: list[Recording] = []
         first: Recording | None = None
         for part in parts:
             rec = Recording(part)
             items.extend(iter_file(part, rec))
             first = first or rec
+            read.append(rec)
         if not items or first is None:
             raise RecordingError(f"{path}: nothing recorded")
-        return cls(build_timeline(items, first.start_ns if first.meta else None), str(path), first.meta)
+        replay = cls(build_timeline(items, first.start_ns if first.meta else None), str(path), first.meta)
+        replay.recordings = read
+        return replay
 
     def clock(self) -> float:
         """The time of the event being applied, else the playback position (s since the session's start)."""
@@ -235,7 +249,8 @@ class Replay:
     def status(self) -> str:
         """One line for the screen: position, length, speed, paused."""
         state = "paused" if self.paused else f"{self.speed:g}x"
-        return f"REPLAY {_mmss(self.position)} / {_mmss(self.duration)} {state}"
+        damage = f" · {self.damage} damaged part{'s' * (self.damage > 1)} skipped" if self.damage else ""
+        return f"REPLAY {_mmss(self.position)} / {_mmss(self.duration)} {state}{damage}"
 
 
 def _mmss(t: float) -> str:

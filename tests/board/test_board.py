@@ -676,7 +676,7 @@ def test_under_the_priority_scheduler_a_recompute_waits_if_it_might_not_fit_befo
         if name != "parse":
             return
         if b.motors_at_us == start + dur:  # this parse run recomputed
-            cost = b.prof.reactions.durations[-1]
+            cost = b.prof.reactions.last_us
             assert b.motors_at_us - cost + COSTS[f"control_{b.path}"].figure[3] <= b.sched.next["sensor"]
             checked += 1
         elif b.modes.sticks() != b._sticks_used:
