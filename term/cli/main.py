@@ -21,7 +21,8 @@ and stdout: without one they say so in one line and exit 2, before anything is s
 
 term's own log (warnings always, everything with --verbose) and the simulated board's stderr are kept in the
 platform's log directory (term/session/applog.py): the TUI owns the terminal, so nothing can be printed while it runs.
-POSIX-only parts (SIGHUP, the hung-up-tty watcher, the child's PR_SET_PDEATHSIG) are skipped where missing.
+POSIX-only parts (SIGHUP, the hung-up-tty watcher, the child's PR_SET_PDEATHSIG) are skipped where missing; the
+watcher uses what each platform reports (macOS: no poll() on terminals, see _hangup_check).
 
 Errors a user can cause end in one line on stderr and a non-zero exit, never a traceback: 2 for bad arguments,
 a missing port or a board that will not start; 3 for a board that speaks another protocol version.
@@ -37,7 +38,7 @@ import select
 import signal
 import sys
 import threading
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import IO, TYPE_CHECKING, Any
 
 from term.cli.parser import build_parser, check_command, complete, serial_ports, version_text
@@ -695,23 +696,65 @@ def _request_exit(code: int) -> bool:
 async def _exit_on_hangup(stream: IO[str], period: float = 0.5) -> None:
     """Exit when the terminal goes away. Closing a terminal does not always signal us (a session leader that
     ignores SIGHUP does not pass it on), and Textual reads a hung-up terminal's EOF as piped input and keeps
-    running; a hung-up tty reports POLLHUP, which polling sees without taking any input."""
+    running. Where a terminal sends SIGHUP, ``_terminate_on_signals`` takes it; this watcher covers the rest with
+    what each platform really reports (``_hangup_check``), looking every ``period`` seconds without taking input."""
     import asyncio  # (not at the top: 'term params --sim' starts its board before this)
 
     try:
         fd = stream.fileno()
     except (AttributeError, OSError, ValueError):
         return
-    if not os.isatty(fd) or not hasattr(select, "poll"):  # no poll() on Windows: the console ends us itself
+    gone = _hangup_check(fd)
+    if gone is None:
         return
-    poller = select.poll()
-    poller.register(fd, 0)  # POLLHUP and POLLERR are reported whatever is asked for
     while True:
         await asyncio.sleep(period)
-        if any(ev & (select.POLLHUP | select.POLLERR | select.POLLNVAL) for _, ev in poller.poll(0)):
-            _request_exit(128 + signal.SIGHUP)
+        if gone():
+            _request_exit(128 + 1)  # as SIGHUP (1 on every POSIX system; Windows has none)
             return
 
+
+def _hangup_check(fd: int) -> Callable[[], bool] | None:
+    """A check that answers True once the terminal on ``fd`` has hung up; None where there is nothing to watch.
+
+    - Linux, the BSDs: poll() reports POLLHUP (with POLLERR) for a hung-up tty, without taking any input.
+    - macOS: poll() does not support devices and answers POLLNVAL for every terminal, healthy or not (poll(2)
+      BUGS; termbox2 #31, fzf #4653, console-rs/console #169), and dirge-code/dirge #731 is this very watchdog
+      ending every session with 129. So poll() is not used there, and POLLNVAL is never read as a hang-up
+      anywhere: a kernel that answers it for this descriptor (macOS's, or one like it) is not polled again.
+    - Everywhere with termios: a hung-up line fails the window-size ioctl with EIO (ENXIO for a device gone),
+      which is what macOS reports where poll() cannot (dirge-code/dirge #731's probe; Linux: hung_up_tty_ioctl).
+    - Windows: no tty and no termios: None. Closing the console window ends the process itself (the system's
+      CTRL_CLOSE_EVENT); Ctrl+Break arrives as SIGBREAK (``_terminate_on_signals``)."""
+    import errno
+
+    try:
+        import fcntl
+        import termios
+    except ImportError:
+        return None
+    if not os.isatty(fd):
+        return None
+    poller = None
+    if sys.platform != "darwin" and hasattr(select, "poll"):
+        poller = select.poll()
+        poller.register(fd, 0)  # POLLHUP and POLLERR are reported whatever is asked for
+
+    def gone() -> bool:
+        nonlocal poller
+        if poller is not None:
+            events = [ev for _, ev in poller.poll(0)]
+            if any(ev & (select.POLLHUP | select.POLLERR) for ev in events):
+                return True
+            if any(ev & select.POLLNVAL for ev in events):
+                poller = None  # this kernel cannot poll the device (or the fd was closed): the ioctl alone
+        try:
+            fcntl.ioctl(fd, termios.TIOCGWINSZ, bytes(8))
+        except OSError as exc:
+            return exc.errno in (errno.EIO, errno.ENXIO)
+        return False
+
+    return gone
 
 if __name__ == "__main__":
     sys.exit(main())
