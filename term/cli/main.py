@@ -653,44 +653,70 @@ async def _instructor(address: str, opening: list[Any]) -> Any:
 
 # The app while it runs, and its loop: a signal asks it to exit through the loop.
 _running: list[tuple[Any, asyncio.AbstractEventLoop]] = []
+_watchdogs: list[threading.Timer] = []  # one a signal, cancelled once the orderly exit is done
 SIGNAL_EXIT_GRACE_S = 5.0  # after a signal, the longest an orderly exit may take before term ends itself
 
 
 @contextlib.contextmanager
 def _terminate_on_signals() -> Any:
-    """SIGTERM and SIGHUP (terminal closed) end term in order, so the child board is stopped on the way out.
+    """SIGTERM, SIGHUP (terminal closed), SIGINT and Windows' SIGBREAK end term in order, as Ctrl+Q does: PANIC
+    first while the motors run, then quit with 128 + the signal's number (SIGINT 130), the child board stopped on
+    the way out (issue 34: a signal in flight used to end term without the PANIC, and SIGINT with 0).
 
-    While the app runs, the signal asks it to exit through its event loop: unwinding with SystemExit from inside
-    the loop would skip Textual's own shutdown and leave its input thread spinning on a dead terminal, keeping
-    the process alive. A watchdog ends the process if the orderly exit hangs (the child board then gets its own
-    SIGTERM from the kernel, PR_SET_PDEATHSIG)."""
+    While the app runs, the signal asks it to exit through its event loop (``_quit_in_order``): unwinding with
+    SystemExit from inside the loop would skip Textual's own shutdown and leave its input thread spinning on a dead
+    terminal, keeping the process alive. A watchdog ends the process if the orderly exit hangs (the child board
+    then gets its own SIGTERM from the kernel, PR_SET_PDEATHSIG). Before the app runs (the board starting), SIGINT
+    is KeyboardInterrupt (main's 130) and the others SystemExit."""
     def raise_exit(signum: int, frame: object) -> None:
         if not _request_exit(128 + signum):
+            if signum == signal.SIGINT:
+                raise KeyboardInterrupt
             raise SystemExit(128 + signum)
 
     old = {}
-    # getattr: Windows has no SIGHUP (a closed console window ends the process there anyway)
-    for sig in (getattr(signal, name) for name in ("SIGTERM", "SIGHUP") if hasattr(signal, name)):
+    # getattr: Windows has no SIGHUP (a closed console window ends the process there) but has SIGBREAK (Ctrl+Break)
+    names = ("SIGTERM", "SIGHUP", "SIGINT", "SIGBREAK")
+    for sig in (getattr(signal, name) for name in names if hasattr(signal, name)):
         with contextlib.suppress(ValueError, OSError):
             old[sig] = signal.signal(sig, raise_exit)
     try:
         yield
     finally:
         for sig, handler in old.items():
-            with contextlib.suppress(ValueError, OSError):
+            with contextlib.suppress(ValueError, OSError, TypeError):
                 signal.signal(sig, handler)
+        for watchdog in _watchdogs:  # the orderly exit is done: nothing left to end
+            watchdog.cancel()
+        _watchdogs.clear()
 
 
 def _request_exit(code: int) -> bool:
-    """Ask the running app to exit in order with ``code`` (False if none runs); end the process if that hangs."""
+    """Ask the running app to quit in order with ``code`` (False if none runs); end the process if that hangs."""
     if not _running:
         return False
     app, loop = _running[0]
     watchdog = threading.Timer(SIGNAL_EXIT_GRACE_S, os._exit, (code,))
     watchdog.daemon = True
     watchdog.start()
-    loop.call_soon_threadsafe(lambda: app.exit(return_code=code))
+    _watchdogs.append(watchdog)
+    loop.call_soon_threadsafe(_quit_in_order, app, code)
     return True
+
+
+def _quit_in_order(app: Any, code: int) -> None:
+    """Ctrl+Q's path without its question (term/ui/app.py, action_quit): in a flight mode PANIC goes first, is said
+    in the events and on stderr after the screen, and has QUIT_PANIC_WAIT_S to reach the board; then the exit."""
+    from term.core.protocol import FLIGHT_MODES, Mode, Op
+    from term.ui.app import QUIT_PANIC_WAIT_S
+
+    if app.replay is None and app.model.mode in FLIGHT_MODES and app.control_connection() is not None:
+        app.send(Op.MODE, Mode.PANIC)
+        app.exit_message = "PANIC sent before quitting: the board descends and lands by itself"
+        app.station.note("error", "term", app.exit_message)
+        app.set_timer(QUIT_PANIC_WAIT_S, lambda: app.exit(return_code=code))
+    else:
+        app.exit(return_code=code)
 
 
 async def _exit_on_hangup(stream: IO[str], period: float = 0.5) -> None:
