@@ -3,7 +3,9 @@
 
     term --serial /dev/ttyUSB0 [--baud 115200]    fly the real board (or any pty)
     term --sim [--seed N] [--scenario NAME]       start `fcb-sim serve --pty --ble-hci ...` and fly it over that
-                                                  real pty, its radio connected too (key 8 hands over to BLE)
+                                                  real pty, its radio connected too (key 8 hands over to BLE);
+                                                  without pseudo-terminals (Windows) or with --sim-link tcp, over
+                                                  a loopback TCP port (socket://, the same serial transport)
     term --ble ADDR [--hci TRANSPORT]             fly over BLE only (opens on the wireless screen)
     term --serial PATH --ble ADDR [--hci T]       the cable and the radio, for the handover (as --sim)
     term scan [--hci TRANSPORT]                   list BLE boards nearby
@@ -295,11 +297,13 @@ def _params(a: argparse.Namespace) -> int:
     _check_preset(a)
     if a.sim and (a.serial or a.ble):  # (one may stand before 'params' and the other after it)
         raise UsageError("--sim brings its own board: not with --serial or --ble")
+    _check_sim_link(a)
     _check_ble_address(a.ble)
     sim: SimBoard | None = None
     try:
         if a.sim:  # the board boots on the other core while the config is read and the client imported
-            sim = SimBoard(seed=a.seed, extra=["--preset", a.preset] if a.preset else [], log=True)
+            sim = SimBoard(seed=a.seed, extra=["--preset", a.preset] if a.preset else [], log=True,
+                           link=a.sim_link)
             sim.launch()
         _start_log(a.verbose)
         return _params_on(a, sim)
@@ -322,7 +326,8 @@ def _params_on(a: argparse.Namespace, sim: SimBoard | None) -> int:
     except (ConfigError, SchemaError) as exc:
         raise UsageError(str(exc)) from None
     if sim is not None:
-        transport = _serial(sim.start(), baud)
+        sim.start()
+        transport = sim.transport(baud)
     elif a.ble and not a.serial:
         transport = _ble(a.ble, a.hci, a.ble_timeout)
     else:
@@ -380,6 +385,7 @@ def _check_fly_args(args: argparse.Namespace) -> None:
         raise UsageError(f"--log-dir: {why}")
     if args.scenario is not None and not args.sim:
         raise UsageError("--scenario needs --sim")
+    _check_sim_link(args)
     _check_preset(args)
     if args.ble and args.sim:
         raise UsageError("--ble and --sim: the simulator brings its own radio (term --sim connects it)")
@@ -389,6 +395,18 @@ def _check_fly_args(args: argparse.Namespace) -> None:
         raise UsageError("--hci needs --ble ADDR")
     _check_ble_address(args.ble)
     _check_lessons(args)
+
+
+def _check_sim_link(args: argparse.Namespace) -> None:
+    """--sim-link: only with --sim; pty only where there are pseudo-terminals (one line naming tcp)."""
+    if args.sim_link is None:
+        return
+    if not args.sim:
+        raise UsageError("--sim-link needs --sim (a real board's link is --serial: a device or socket://HOST:PORT)")
+    from term.session.sim import pty_missing
+
+    if args.sim_link == "pty" and (why := pty_missing()):
+        raise UsageError(f"--sim-link pty: {why}; use --sim-link tcp (the board on a loopback TCP port)")
 
 
 def _check_c_board(args: argparse.Namespace) -> None:
@@ -412,7 +430,7 @@ def _cable(args: argparse.Namespace, cfg: Config) -> str | None:
     if not port:
         raise UsageError("no board given: use --serial PATH, --sim or --ble ADDR "
                          f"(or set [connection] port in the config); {_ports_hint()}")
-    if not os.path.exists(port) and not port.upper().startswith("COM"):
+    if "://" not in port and not os.path.exists(port) and not port.upper().startswith("COM"):
         raise UsageError(f"serial port {port} not found: check the cable and the name (ls /dev/tty*), or try --sim")
     return port
 
@@ -438,15 +456,16 @@ def _fly(args: argparse.Namespace) -> int:
             if args.sim:
                 c_board = args.board == "c"
                 sim = SimBoard(seed=args.seed, scenario=args.scenario, link_timeout=None,
-                               radio=not args.no_radio and not c_board, log=True, instructor=True)
+                               radio=not args.no_radio and not c_board, log=True, instructor=True,
+                               link=args.sim_link)
                 if args.preset:
                     sim.cmd += ["--preset", args.preset]
                 if c_board:
                     sim.cmd += ["--board", "c"]
                 screens = _import_in_background("term.ui.app")  # while the board starts: each takes seconds
-                started = sim.start()
+                sim.start()
                 screens.join()
-                transport = _serial(started, baud)
+                transport = sim.transport(baud)
                 if sim.ble_address:
                     radio = _ble(sim.ble_address, sim.ble_hci, args.ble_timeout)
             elif port is None:
