@@ -304,6 +304,43 @@ class PtyServer(BoardServer):
                 os.close(fd)
 
 
+class TcpServer(BoardServer):
+    """Serves one ``Board`` on a TCP port in real time for pyserial's socket:// (fcb_sim/hosts/tcp_link.py: one
+    client at a time, loopback unless ``public``); ``path`` is the URL, ``refused`` the connections closed at once."""
+
+    def __init__(self, board: Board, host: str = "127.0.0.1", port: int = 0, *, public: bool = False,
+                 clock: Callable[[], float] = time.monotonic) -> None:
+        from fcb_sim.hosts.tcp_link import TcpLink
+
+        super().__init__(board, clock=clock)
+        self.link = TcpLink(host, port, public=public, read_bytes=READ_BYTES)
+        self.path = self.link.path
+
+    @property
+    def client(self) -> object:
+        return self.link.client
+
+    @property
+    def refused(self) -> int:
+        return self.link.refused
+
+    def _link_start(self, loop: asyncio.AbstractEventLoop) -> None:
+        self.link.start(loop, self._on_readable, self._pending.clear)  # a new client: nothing stale for it
+
+    def _link_stop(self, loop: asyncio.AbstractEventLoop) -> None:
+        self.link.stop(loop)
+
+    def _recv(self) -> bytes | None:
+        return self.link.recv()
+
+    def _send(self, data: bytes) -> int:
+        return self.link.send(data)
+
+    def close(self) -> None:
+        self.closed = True
+        self.link.close()
+
+
 def event_loop() -> asyncio.AbstractEventLoop:
     """An event loop whose sleeps have microsecond resolution: epoll rounds every timeout up to a whole
     millisecond, select() does not, and the board's tasks are due every 2.5 ms. select() is also the one that
@@ -318,13 +355,7 @@ class ThreadedServer:
     event loop (tests, benchmarks): ``start()`` returns the pty path (the socket:// URL), ``stop()`` ends it."""
 
     def __init__(self, board: Board, *, link: str = "pty") -> None:
-        self.server: BoardServer
-        if link == "tcp":
-            from fcb_sim.hosts.tcp_link import TcpServer
-
-            self.server = TcpServer(board)
-        else:
-            self.server = PtyServer(board)
+        self.server: BoardServer = TcpServer(board) if link == "tcp" else PtyServer(board)
         self._loop: asyncio.AbstractEventLoop | None = None
         self._stop: asyncio.Event | None = None
         self._thread: threading.Thread | None = None
@@ -412,7 +443,7 @@ async def _serve_main(args: Any) -> int:
 def _link_server(args: Any, board: Board) -> BoardServer:
     """The board's UART: a fresh pty (--pty), or a TCP port for socket:// (--tcp, fcb_sim/hosts/tcp_link.py)."""
     if getattr(args, "tcp", None) is not None:
-        from fcb_sim.hosts.tcp_link import TcpServer, parse_address
+        from fcb_sim.hosts.tcp_link import parse_address
 
         host, port = parse_address(args.tcp)
         return TcpServer(board, host, port, public=getattr(args, "tcp_public", False))

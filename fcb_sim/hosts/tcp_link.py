@@ -1,5 +1,6 @@
 """`fcb-sim serve --tcp [HOST:]PORT`: the board's UART on a TCP port, for pyserial's ``socket://`` URL handler, where
-there are no pseudo-terminals (Windows) or on request. term flies it with the same serial transport and codec as a
+there are no pseudo-terminals (Windows) or on request. ``TcpLink`` is the byte link; fcb_sim/hosts/serve.py's
+``TcpServer`` runs the board over it. term flies it with the same serial transport and codec as a
 pty or a USB cable (``term --serial socket://127.0.0.1:PORT``; ``term --sim`` takes this link by itself there).
 
 The contract:
@@ -23,12 +24,9 @@ import ipaddress
 import logging
 import socket
 import sys
-import time
 from collections.abc import Callable
 
-from fcb_sim.board.board import Board
 from fcb_sim.errors import UsageError
-from fcb_sim.hosts.serve import READ_BYTES, BoardServer
 
 log = logging.getLogger(__name__)
 
@@ -58,12 +56,13 @@ def is_loopback(host: str) -> bool:
         return False
 
 
-class TcpServer(BoardServer):
-    """Serves one ``Board`` on a TCP port in real time (``path``: the ``socket://`` URL a client opens)."""
+class TcpLink:
+    """The listening port and its one client (module docstring); ``path`` is the ``socket://`` URL a client opens.
+    ``start(loop, on_readable, on_connect)`` watches it on the loop: ``on_readable`` when the client sent bytes
+    (read them with ``recv``), ``on_connect`` when a new client arrived."""
 
-    def __init__(self, board: Board, host: str = "127.0.0.1", port: int = 0, *, public: bool = False,
-                 clock: Callable[[], float] = time.monotonic) -> None:
-        super().__init__(board, clock=clock)
+    def __init__(self, host: str = "127.0.0.1", port: int = 0, *, public: bool = False,
+                 read_bytes: int = 4096) -> None:
         if not public and not is_loopback(host):
             raise UsageError(f"--tcp {host}:{port} listens beyond this computer, and whoever connects flies the "
                              "board: add --tcp-public to mean it, or use 127.0.0.1")
@@ -78,17 +77,23 @@ class TcpServer(BoardServer):
         shown = f"[{bound[0]}]" if ":" in bound[0] else bound[0]
         self.path = f"socket://{shown}:{bound[1]}"
         self.public = public
+        self.read_bytes = read_bytes
+        self.closed = False
         self.client: socket.socket | None = None
         self.clients = 0  # connections served
         self.refused = 0  # connections closed at once (a second client, a descriptor select() cannot watch)
         self._loop: asyncio.AbstractEventLoop | None = None
         self._resting: asyncio.TimerHandle | None = None
+        self._on_readable: Callable[[], None] = lambda: None
+        self._on_connect: Callable[[], None] = lambda: None
 
-    def _link_start(self, loop: asyncio.AbstractEventLoop) -> None:
+    def start(self, loop: asyncio.AbstractEventLoop, on_readable: Callable[[], None],
+              on_connect: Callable[[], None]) -> None:
         self._loop = loop
+        self._on_readable, self._on_connect = on_readable, on_connect
         loop.add_reader(self.listener, self._on_accept)
 
-    def _link_stop(self, loop: asyncio.AbstractEventLoop) -> None:
+    def stop(self, loop: asyncio.AbstractEventLoop) -> None:
         if self._resting is not None:
             self._resting.cancel()
             self._resting = None
@@ -115,7 +120,7 @@ class TcpServer(BoardServer):
                 conn.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)  # a frame leaves when it is written
             self.client = conn
             self.clients += 1
-            self._pending.clear()  # nothing stale for the new client
+            self._on_connect()
             assert self._loop is not None
             self._loop.add_reader(conn, self._on_readable)
             log.info("TCP client %s connected", peer)
@@ -145,12 +150,12 @@ class TcpServer(BoardServer):
             conn.close()
         log.info("TCP client gone")
 
-    def _recv(self) -> bytes | None:
+    def recv(self) -> bytes | None:
         conn = self.client
         if conn is None:
             return None
         try:
-            data = conn.recv(READ_BYTES)
+            data = conn.recv(self.read_bytes)
         except (BlockingIOError, InterruptedError):
             return None
         except OSError:
@@ -160,7 +165,7 @@ class TcpServer(BoardServer):
             return None
         return data
 
-    def _send(self, data: bytes) -> int:
+    def send(self, data: bytes) -> int:
         conn = self.client
         if conn is None:
             return len(data)  # nobody there: the bytes are gone, as on a real unplugged UART
@@ -178,7 +183,7 @@ class TcpServer(BoardServer):
         self.closed = True
         if self._loop is not None and not self._loop.is_closed():
             with contextlib.suppress(Exception):
-                self._link_stop(self._loop)
+                self.stop(self._loop)
         self._drop_client()
         with contextlib.suppress(OSError):
             self.listener.close()
