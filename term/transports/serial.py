@@ -28,8 +28,9 @@ never interleave.
 
 URL ports: ``socket://`` has no ``cancel_read`` and answers ``in_waiting`` with 0 or 1, so its reader waits with
 ``select`` on the socket (which Windows has for sockets too) and reads what is there in one go (timeout 0); closing
-shuts the socket, which wakes it. Other URL handlers (``rfc2217://``) read with a short timeout, so a close is seen
-within ``URL_POLL_S``. Writes to a URL port go through the worker thread (pyserial's own write).
+shuts the socket, which wakes it. Other URL handlers (``rfc2217://``) read one byte with a short timeout and then
+what is waiting, so a close is seen within ``URL_POLL_S``; rfc2217:// has no write timeout. Writes to a URL port go
+through the worker thread (pyserial's own write).
 
 Every failure (missing, busy, not a serial device, no permission, lost mid-session) becomes a TransportError
 with one line naming the port and what to do.
@@ -123,7 +124,10 @@ class SerialTransport(Transport):
 
     def _open_port(self) -> serial.Serial:
         if self.url:  # (the timeout: module docstring, "URL ports")
-            ser = serial.serial_for_url(self.port, self.baud, timeout=0, write_timeout=self.write_timeout)
+            # rfc2217:// has no write timeout (it refuses one only after connecting, leaving that connection open)
+            rfc2217 = self.port.lower().startswith("rfc2217://")
+            ser = serial.serial_for_url(self.port, self.baud, timeout=0,
+                                        write_timeout=None if rfc2217 else self.write_timeout)
             if _socket_of(ser) is None:
                 ser.timeout = URL_POLL_S
             return ser
@@ -193,8 +197,11 @@ class SerialTransport(Transport):
                 if sock is not None:
                     ready, _, _ = select.select([sock], [], [], self.hold if tail and end else None)
                     data = ser.read(_CHUNK) if ready else b""  # timeout 0: what is there (b"" at EOF raises)
-                else:
-                    data = ser.read(_CHUNK)  # with URL_POLL_S's timeout
+                else:  # one byte with URL_POLL_S's timeout (read(_CHUNK) would wait for all of them), then the rest
+                    data = ser.read(1)
+                    waiting = ser.in_waiting if data else 0
+                    if waiting:
+                        data += ser.read(min(waiting, _CHUNK))
                 if not data:
                     if tail:  # the rest did not come: hand over what there is
                         self._loop.call_soon_threadsafe(put, tail)
@@ -332,6 +339,9 @@ def _nonblocking_fd(ser: serial.Serial) -> int | None:
 
 
 def _socket_of(ser: serial.SerialBase) -> socket.socket | None:
-    """The socket under a socket:// port (pyserial keeps it as ``_socket``), or None."""
+    """The socket under a socket:// port (pyserial keeps it as ``_socket``), or None: rfc2217:// has one too, but
+    its own thread reads it (into a queue), so only ``read`` with a timeout can wait for its bytes."""
+    if not str(ser.port or "").startswith("socket://"):
+        return None
     sock = getattr(ser, "_socket", None)
     return sock if isinstance(sock, socket.socket) else None
