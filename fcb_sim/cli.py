@@ -4,7 +4,8 @@
 Argument parsing and wiring only; each subcommand's work lives in the module that owns it. Errors a user can
 cause (a missing file, a bad option) end in one line on stderr and exit status 2, never a traceback.
 ``fcb-sim --version`` and ``python -m fcb_sim`` as for term; ``-v`` logs at INFO (bumble's too) to stderr, which
-``term --sim`` keeps in its log directory. ``serve`` needs pseudo-terminals (POSIX): elsewhere it is one line.
+``term --sim`` keeps in its log directory. ``serve --pty`` needs pseudo-terminals (POSIX; elsewhere it is one line
+naming ``--tcp``); ``serve --tcp`` runs everywhere. POSIX-only modules are imported only where they are used.
 """
 
 from __future__ import annotations
@@ -35,7 +36,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(
         prog="fcb-sim",
         description="The Quadrupel flight-control board as software: headless flights, IMU replay, "
-        "profiling, and a board served over a pseudo-terminal (and a virtual BLE radio).",
+        "profiling, and a board served over a pseudo-terminal or a TCP port (and a virtual BLE radio).",
     )
     from term.core.protocol import PROTOCOL_VERSION
 
@@ -118,11 +119,17 @@ def _add_profile(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> No
 
 
 def _add_serve(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
-    """serve: the board in real time behind a pseudo-terminal (owner: fcb_sim/hosts/serve.py)."""
+    """serve: the board in real time behind a pseudo-terminal or a TCP port (owner: fcb_sim/hosts/serve.py)."""
     from term.core.protocol import PRESETS
 
-    serve = sub.add_parser("serve", help="run the board in real time behind a pseudo-terminal")
-    serve.add_argument("--pty", action="store_true", help="expose the UART on a fresh pseudo-terminal")
+    serve = sub.add_parser("serve", help="run the board in real time behind a pseudo-terminal or a TCP port")
+    serve.add_argument("--pty", action="store_true", help="expose the UART on a fresh pseudo-terminal (Linux, macOS)")
+    serve.add_argument("--tcp", metavar="[HOST:]PORT", default=None,
+                       help="expose the UART on a TCP port instead, for pyserial's socket:// (term --serial "
+                       "socket://127.0.0.1:PORT); one client at a time; loopback unless --tcp-public; port 0: a "
+                       "free one (the first line printed names it)")
+    serve.add_argument("--tcp-public", action="store_true",
+                       help="let --tcp listen beyond loopback (whoever connects flies the board: no login)")
     serve.add_argument("--seed", type=cli_int, default=1)
     serve.add_argument("--scenario", default="bench", help="initial conditions and disturbances")
     serve.add_argument("--link-timeout", type=cli_float, default=LINK_TIMEOUT_S,
@@ -161,9 +168,8 @@ def _version() -> str:
 
 
 def _cmd_serve(args: argparse.Namespace) -> int:
-    """serve imports termios (POSIX): imported only here, so the other subcommands run on Windows too."""
-    if not hasattr(os, "openpty"):
-        raise UsageError("serve needs pseudo-terminals (Linux or macOS); this system has none")
+    """serve: --pty needs termios and tty (imported where the pty is made: fcb_sim/hosts/serve.py, open_pty, whose
+    one line names --tcp where they are missing); --tcp needs neither."""
     from fcb_sim.hosts.serve import cmd_serve
 
     return cmd_serve(args)

@@ -15,7 +15,6 @@ What the C board has and has not yet: firmware/board/qb_board.h and docs/firmwar
 from __future__ import annotations
 
 import ctypes
-import fcntl
 import json
 import math
 import os
@@ -75,7 +74,12 @@ def library_path(build_dir: Path | None = None, *, real: str = "double") -> Path
             raise CBoardUnavailable(NO_CC)
         out.mkdir(parents=True, exist_ok=True)
         with open(out / ".build.lock", "w") as lock:  # another process (term, a test) may be building it too
-            fcntl.flock(lock, fcntl.LOCK_EX)
+            try:  # POSIX; no cross-process lock elsewhere (Windows) until the portable one (fcb_sim/cbuild.py)
+                import fcntl
+            except ImportError:
+                pass
+            else:
+                fcntl.flock(lock, fcntl.LOCK_EX)
             proc = subprocess.run(["make", "-s", "-C", str(FIRMWARE), f"BUILD={out}", target],
                                   capture_output=True, text=True)
         if proc.returncode != 0:

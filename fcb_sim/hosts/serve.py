@@ -1,10 +1,14 @@
-"""`fcb-sim serve --pty`: the board in real time behind a fresh pseudo-terminal (and optionally a BLE radio).
+"""`fcb-sim serve --pty | --tcp [HOST:]PORT`: the board in real time behind a fresh pseudo-terminal, or on a TCP port
+for pyserial's ``socket://`` (fcb_sim/hosts/tcp_link.py: where there are no pseudo-terminals, Windows), and
+optionally a BLE radio and the instructor channel.
 
 The edge around the sans-IO ``Board``: it owns the wall clock and the file descriptors. The board's clock is
 paced to the wall clock: the server sleeps until the board's next timer interrupt (or until bytes arrive), then
 advances the board to the present, so every task runs at its board time as soon as the wall clock reaches it.
 A pseudo-terminal from ``os.openpty`` (both sides raw at once) is a real serial device: ``term --serial PATH``
-or any pyserial program talks to it. The first line on stdout is ``pty: /dev/pts/N`` (flushed).
+or any pyserial program talks to it. The first line on stdout is ``pty: /dev/pts/N`` (flushed), or
+``tcp: socket://127.0.0.1:PORT`` for the TCP link. ``BoardServer`` is the loop; ``PtyServer`` and ``TcpServer``
+give it the bytes' way in and out.
 
 A starved process (a busy laptop: no CPU for a while) keeps the link's time honest: at each wake-up the board is
 told how long it could not run (``Board.starved``), so its link timer does not count the simulator's own stall as
@@ -15,7 +19,8 @@ more than MAX_LAG_S it slips instead of replaying the stall (the world pauses; `
 Robustness: reads are bounded per wake-up and the board's receive queue is bounded (a flood is dropped and
 counted, never queued without end); garbage and half frames only cost the decoder a resync; a client that stops
 reading cannot block the board (writes are non-blocking, and what does not fit waits in a bounded buffer).
-SIGTERM and SIGINT end the loop cleanly (exit status 0).
+SIGTERM and SIGINT end the loop cleanly (exit status 0). POSIX-only modules (termios, tty) are imported where the
+pty is made, so serve --tcp runs without them.
 """
 
 from __future__ import annotations
@@ -26,10 +31,8 @@ import os
 import selectors
 import signal
 import sys
-import termios
 import threading
 import time
-import tty
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -93,7 +96,16 @@ def make_board(seed: int = 1, scenario: str = "bench", link_timeout: float = LIN
 
 def open_pty() -> tuple[int, int, str]:
     """A fresh pseudo-terminal, both sides raw at once; the master non-blocking. Returns (master, slave, path).
-    The slave stays open here so the master never sees a hang-up between clients."""
+    The slave stays open here so the master never sees a hang-up between clients. UsageError (one line) where
+    there are no pseudo-terminals."""
+    try:
+        if not hasattr(os, "openpty"):
+            raise ImportError("os.openpty")
+        import termios
+        import tty
+    except ImportError:
+        raise UsageError(f"serve --pty needs pseudo-terminals, which {sys.platform} has not: serve the board with "
+                         "--tcp 127.0.0.1:PORT and fly it with term --serial socket://127.0.0.1:PORT") from None
     master, slave = os.openpty()
     for fd in (master, slave):
         tty.setraw(fd, termios.TCSANOW)
@@ -118,13 +130,15 @@ class PacingStats:
         self._last_wall = wall_us
 
 
-class PtyServer:
-    """Serves one ``Board`` on a pseudo-terminal in real time."""
+class BoardServer:
+    """Serves one ``Board`` in real time over a byte link a subclass gives: ``_link_start``/``_link_stop`` (the
+    loop's readers), ``_recv`` (bytes that arrived, or None) and ``_send`` (how many bytes the link took)."""
+
+    path = ""  # what a client opens: the pty's path, or the socket:// URL
 
     def __init__(self, board: Board, *, clock: Callable[[], float] = time.monotonic) -> None:
         self.board = board
         self.clock = clock
-        self.master, self.slave, self.path = open_pty()
         self.pacing = PacingStats()
         self.tx_dropped = 0
         self.bytes_in = 0
@@ -146,7 +160,7 @@ class PtyServer:
         board = self.board
         board.on_task = self._on_task
         self._t0 = self.clock() - board.now / 1e6
-        loop.add_reader(self.master, self._on_readable)
+        self._link_start(loop)
         stop_waiter = asyncio.ensure_future(self._stop.wait())
         stop_waiter.add_done_callback(lambda _f: self._wake_up())
         try:
@@ -168,7 +182,7 @@ class PtyServer:
                     await asyncio.sleep(0)
         finally:
             stop_waiter.cancel()
-            loop.remove_reader(self.master)
+            self._link_stop(loop)
             board.on_task = None
 
     def _wake_up(self) -> None:
@@ -216,13 +230,22 @@ class PtyServer:
             out = b""  # the instructor cut the cable: what the board sent is lost
         self._write(out)
 
+    # --- the link (a subclass's) ---------------------------------------------------------------------------
+
+    def _link_start(self, loop: asyncio.AbstractEventLoop) -> None:
+        raise NotImplementedError
+
+    def _link_stop(self, loop: asyncio.AbstractEventLoop) -> None:
+        raise NotImplementedError
+
+    def _recv(self) -> bytes | None:
+        raise NotImplementedError
+
+    def _send(self, data: bytes) -> int:
+        raise NotImplementedError
+
     def _on_readable(self) -> None:
-        try:
-            data = os.read(self.master, READ_BYTES)
-        except (BlockingIOError, InterruptedError):
-            return
-        except OSError:
-            return  # EIO: no client at the moment
+        data = self._recv()
         if data:
             if self.cable_open is not None and not self.cable_open():
                 return  # the instructor cut the cable: the bytes are lost
@@ -237,18 +260,46 @@ class PtyServer:
             self._pending += data
         if not self._pending:
             return
-        try:
-            n = os.write(self.master, self._pending)
-        except (BlockingIOError, InterruptedError):
-            n = 0
-        except OSError:
-            n = len(self._pending)  # nobody there: the bytes are gone, as on a real unplugged UART
+        n = self._send(bytes(self._pending))
         self.bytes_out += n
         del self._pending[:n]
         if len(self._pending) > PENDING_TX_LIMIT:
             drop = len(self._pending) - PENDING_TX_LIMIT
             del self._pending[:drop]
             self.tx_dropped += drop
+
+    def close(self) -> None:
+        self.closed = True
+
+
+class PtyServer(BoardServer):
+    """Serves one ``Board`` on a fresh pseudo-terminal in real time (``path``: its slave side)."""
+
+    def __init__(self, board: Board, *, clock: Callable[[], float] = time.monotonic) -> None:
+        super().__init__(board, clock=clock)
+        self.master, self.slave, self.path = open_pty()
+
+    def _link_start(self, loop: asyncio.AbstractEventLoop) -> None:
+        loop.add_reader(self.master, self._on_readable)
+
+    def _link_stop(self, loop: asyncio.AbstractEventLoop) -> None:
+        loop.remove_reader(self.master)
+
+    def _recv(self) -> bytes | None:
+        try:
+            return os.read(self.master, READ_BYTES)
+        except (BlockingIOError, InterruptedError):
+            return None
+        except OSError:
+            return None  # EIO: no client at the moment
+
+    def _send(self, data: bytes) -> int:
+        try:
+            return os.write(self.master, data)
+        except (BlockingIOError, InterruptedError):
+            return 0
+        except OSError:
+            return len(data)  # nobody there: the bytes are gone, as on a real unplugged UART
 
     def close(self) -> None:
         if self.closed:
@@ -259,18 +310,58 @@ class PtyServer:
                 os.close(fd)
 
 
+class TcpServer(BoardServer):
+    """Serves one ``Board`` on a TCP port in real time for pyserial's socket:// (fcb_sim/hosts/tcp_link.py: one
+    client at a time, loopback unless ``public``); ``path`` is the URL, ``refused`` the connections closed at once."""
+
+    def __init__(self, board: Board, host: str = "127.0.0.1", port: int = 0, *, public: bool = False,
+                 clock: Callable[[], float] = time.monotonic) -> None:
+        from fcb_sim.hosts.tcp_link import TcpLink
+
+        super().__init__(board, clock=clock)
+        self.link = TcpLink(host, port, public=public, read_bytes=READ_BYTES)
+        self.path = self.link.path
+
+    @property
+    def client(self) -> object:
+        return self.link.client
+
+    @property
+    def refused(self) -> int:
+        return self.link.refused
+
+    def _link_start(self, loop: asyncio.AbstractEventLoop) -> None:
+        self.link.start(loop, self._on_readable, self._pending.clear)  # a new client: nothing stale for it
+
+    def _link_stop(self, loop: asyncio.AbstractEventLoop) -> None:
+        self.link.stop(loop)
+
+    def _recv(self) -> bytes | None:
+        return self.link.recv()
+
+    def _send(self, data: bytes) -> int:
+        return self.link.send(data)
+
+    def close(self) -> None:
+        self.closed = True
+        self.link.close()
+
+
 def event_loop() -> asyncio.AbstractEventLoop:
     """An event loop whose sleeps have microsecond resolution: epoll rounds every timeout up to a whole
-    millisecond, select() does not, and the board's tasks are due every 2.5 ms."""
+    millisecond, select() does not, and the board's tasks are due every 2.5 ms. select() is also the one that
+    watches a pty on macOS (its poll() does not support devices, and kqueue took terminals only recently) and
+    sockets on Windows. Its price: descriptors at or above FD_SETSIZE cannot be watched, so no server here ever
+    registers one (fcb_sim/hosts/tcp_link.py refuses such a connection)."""
     return asyncio.SelectorEventLoop(selectors.SelectSelector())
 
 
 class ThreadedServer:
-    """A ``PtyServer`` on its own thread and event loop (tests, benchmarks): ``start()`` returns the pty path,
-    ``stop()`` ends it cleanly."""
+    """A ``PtyServer`` (or, with ``link="tcp"``, a ``TcpServer`` on a free loopback port) on its own thread and
+    event loop (tests, benchmarks): ``start()`` returns the pty path (the socket:// URL), ``stop()`` ends it."""
 
-    def __init__(self, board: Board) -> None:
-        self.server = PtyServer(board)
+    def __init__(self, board: Board, *, link: str = "pty") -> None:
+        self.server: BoardServer = TcpServer(board) if link == "tcp" else PtyServer(board)
         self._loop: asyncio.AbstractEventLoop | None = None
         self._stop: asyncio.Event | None = None
         self._thread: threading.Thread | None = None
@@ -315,14 +406,15 @@ async def _serve_main(args: Any) -> int:
         raise UsageError("the C board has no BLE radio yet: serve it without --ble-hci")
     board = make_board(args.seed, args.scenario, args.link_timeout, board=kind,
                        preset=getattr(args, "preset", "default"))
-    server = PtyServer(board)
+    server = _link_server(args, board)
     stop = asyncio.Event()
     loop = asyncio.get_running_loop()
-    for sig in (signal.SIGTERM, signal.SIGINT):
-        loop.add_signal_handler(sig, stop.set)
+    if sys.platform != "win32":  # (Windows' loops have no add_signal_handler: cmd_serve's handlers end us there)
+        for sig in (signal.SIGTERM, signal.SIGINT):
+            loop.add_signal_handler(sig, stop.set)
     radio = instructor = None
     try:
-        print(f"pty: {server.path}", flush=True)
+        print(f"{'pty' if isinstance(server, PtyServer) else 'tcp'}: {server.path}", flush=True)
         if getattr(args, "ble_hci", None):
             from fcb_sim.hosts.radio import start_radio
 
@@ -347,17 +439,32 @@ async def _serve_main(args: Any) -> int:
                 await radio.close()
         server.close()
     p = server.pacing
+    refused = getattr(server, "refused", 0)
     print(f"served {board.now / 1e6:.1f} s: mode {board.mode.name}, {server.bytes_in} bytes in, "
-          f"{server.bytes_out} out, {board.rx_overflow} dropped by a full receive queue, {p.slips} slips",
-          flush=True)
+          f"{server.bytes_out} out, {board.rx_overflow} dropped by a full receive queue, {p.slips} slips"
+          + (f", {refused} connections refused" if refused else ""), flush=True)
     return 0
 
 
+def _link_server(args: Any, board: Board) -> BoardServer:
+    """The board's UART: a fresh pty (--pty), or a TCP port for socket:// (--tcp, fcb_sim/hosts/tcp_link.py)."""
+    if getattr(args, "tcp", None) is not None:
+        from fcb_sim.hosts.tcp_link import parse_address
+
+        host, port = parse_address(args.tcp)
+        return TcpServer(board, host, port, public=getattr(args, "tcp_public", False))
+    return PtyServer(board)
+
+
 def cmd_serve(args: Any) -> int:
-    """``fcb-sim serve --pty [--seed N] [--scenario NAME] [--link-timeout S] [--ble-hci TRANSPORT]
-    [--instructor TRANSPORT [--instructor-public]]``."""
-    if not args.pty:
-        raise UsageError("say where to serve the board: --pty (a fresh pseudo-terminal)")
+    """``fcb-sim serve --pty|--tcp [HOST:]PORT [--tcp-public] [--seed N] [--scenario NAME] [--link-timeout S]
+    [--ble-hci TRANSPORT] [--instructor TRANSPORT [--instructor-public]]``."""
+    tcp = getattr(args, "tcp", None)
+    if args.pty == (tcp is not None):
+        raise UsageError("say where to serve the board: --pty (a fresh pseudo-terminal) or --tcp [HOST:]PORT "
+                         "(for pyserial's socket://, where there are no pseudo-terminals)")
+    if getattr(args, "tcp_public", False) and tcp is None:
+        raise UsageError("--tcp-public needs --tcp [HOST:]PORT")
     if args.scenario not in SCENARIOS:
         raise UsageError(f"unknown scenario {args.scenario!r}; choose one of: {', '.join(SCENARIOS)}")
     check_link_timeout(args.link_timeout)

@@ -81,7 +81,8 @@ def _link_options(p: argparse.ArgumentParser | Any, for_params: bool) -> None:
     """The options that name the board's link, shared by flying and params."""
     src = p.add_mutually_exclusive_group()
     serial_arg = src.add_argument("--serial", metavar="PATH",
-                                  help="the board's serial port (or any pty), e.g. /dev/ttyUSB0 or COM3")
+                                  help="the board's serial port (or any pty), e.g. /dev/ttyUSB0 or COM3, or a board "
+                                  "behind a serial-over-network server: socket://HOST:PORT, rfc2217://HOST:PORT")
     serial_arg.completer = lambda **_: [device for device, _ in serial_ports()]  # type: ignore[attr-defined]
     src.add_argument("--sim", action="store_true", help="start the simulated board (fcb-sim serve --pty)" + (
         " for this" if for_params else " and fly it; its BLE radio is connected too, for the handover (key 8)"))
@@ -93,6 +94,9 @@ def _link_options(p: argparse.ArgumentParser | Any, for_params: bool) -> None:
     p.add_argument("--ble-timeout", type=cli_float, default=10.0, metavar="S",
                    help="seconds to look for the BLE board (default 10)")
     p.add_argument("--seed", type=cli_int, default=1, help="--sim: noise seed (same seed, same flight)")
+    p.add_argument("--sim-link", choices=("pty", "tcp"), default=None, help="--sim: the simulated board's cable, a "
+                   "pseudo-terminal (pty, where there are: Linux, macOS) or a loopback TCP port (tcp: socket://, the "
+                   "default where there are no pseudo-terminals, e.g. Windows)")
     from term.core.protocol import PRESETS
 
     p.add_argument("--preset", default=None, choices=sorted(PRESETS), help="--sim: the board's parameters, "

@@ -1,5 +1,9 @@
 """A serial port (the board's UART over USB, or a pseudo-terminal from ``fcb-sim``) as a Transport, via pyserial.
 
+A port may be one of pyserial's URLs too (``socket://HOST:PORT``, ``rfc2217://HOST:PORT``, ``loop://``): a board
+behind a serial-over-network server, or ``fcb-sim serve --tcp`` where there are no pseudo-terminals. The same
+codec and the same reader run over them; only the waiting differs (below, "URL ports").
+
 Reads: one dedicated reader thread per port does the blocking ``read`` and hands the bytes to the event loop
 with ``call_soon_threadsafe``. Chosen over ``run_in_executor`` per read because (1) ``close`` can wake the
 thread with pyserial's ``cancel_read`` and join it, so closing never hangs on a blocked read and leaves no
@@ -22,6 +26,12 @@ whatever does not fit (a peer that stops reading, a stuck pty) is written by a w
 (``asyncio.to_thread``) with a ``write_timeout``, so the loop never blocks. A lock serialises writes so frames
 never interleave.
 
+URL ports: ``socket://`` has no ``cancel_read`` and answers ``in_waiting`` with 0 or 1, so its reader waits with
+``select`` on the socket (which Windows has for sockets too) and reads what is there in one go (timeout 0); closing
+shuts the socket, which wakes it. Other URL handlers (``rfc2217://``) read one byte with a short timeout and then
+what is waiting, so a close is seen within ``URL_POLL_S``; rfc2217:// has no write timeout. Writes to a URL port go
+through the worker thread (pyserial's own write).
+
 Every failure (missing, busy, not a serial device, no permission, lost mid-session) becomes a TransportError
 with one line naming the port and what to do.
 """
@@ -29,9 +39,11 @@ with one line naming the port and what to do.
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import errno
 import os
 import select
+import socket
 import threading
 
 import serial
@@ -40,12 +52,22 @@ from term.core.protocol import BAUD_RATE
 from term.transports.base import Transport, TransportClosed, TransportError
 
 _CHUNK = 4096
+URL_POLL_S = 0.1  # a URL port without a socket to wait on (rfc2217://) reads with this timeout
+
+
+def is_url(port: str) -> bool:
+    """pyserial's URL ports (socket://, rfc2217://, loop://, spy://): not a device path (a COM name has no ://)."""
+    return "://" in port
 
 
 def _open_error(port: str, exc: BaseException) -> TransportError:
     """One line for a failure to open ``port``, from pyserial's exception (its errno where it carries one)."""
     code = getattr(exc, "errno", None)
     text = str(exc)
+    if is_url(port):  # no cable, no dialout group: the network's words
+        first = text.splitlines()[0] if text else type(exc).__name__
+        return TransportError(f"cannot reach {port}: {first.removeprefix(f'Could not open port {port}: ')} (is the "
+                              "board's server running there, e.g. fcb-sim serve --tcp?)")
     if code == errno.ENOENT or "No such file" in text:
         return TransportError(f"serial port {port} not found: check the cable and the name (ls /dev/tty*)")
     if code in (errno.EAGAIN, errno.EBUSY) or "exclusively lock" in text:
@@ -82,6 +104,7 @@ class SerialTransport(Transport):
         self._error: TransportError | None = None
         self._write_lock = asyncio.Lock()
         self._fd: int | None = None  # the port's non-blocking descriptor (POSIX): small writes go from the loop
+        self.url = is_url(port)
         self._os_write_lock = threading.Lock()  # also orders a write whose awaiting task was cancelled
 
     async def open(self) -> None:
@@ -96,8 +119,9 @@ class SerialTransport(Transport):
         except (serial.SerialException, OSError, ValueError) as exc:
             raise _open_error(self.port, exc) from None
         self._closed = False
-        self._fd = _nonblocking_fd(self._serial)
-        self._thread = threading.Thread(target=self._reader, name=f"serial-reader {self.port}", daemon=True)
+        self._fd = None if self.url else _nonblocking_fd(self._serial)
+        target = self._url_reader if self.url else self._reader
+        self._thread = threading.Thread(target=target, name=f"serial-reader {self.port}", daemon=True)
         self._thread.start()
 
     @property
@@ -105,6 +129,14 @@ class SerialTransport(Transport):
         return self._serial is not None
 
     def _open_port(self) -> serial.Serial:
+        if self.url:  # (the timeout: module docstring, "URL ports")
+            # rfc2217:// has no write timeout (it refuses one only after connecting, leaving that connection open)
+            rfc2217 = self.port.lower().startswith("rfc2217://")
+            ser = serial.serial_for_url(self.port, self.baud, timeout=0,
+                                        write_timeout=None if rfc2217 else self.write_timeout)
+            if _socket_of(ser) is None:
+                ser.timeout = URL_POLL_S
+            return ser
         return serial.Serial(
             self.port,
             self.baud,
@@ -156,6 +188,45 @@ class SerialTransport(Transport):
                     self._loop.call_soon_threadsafe(put, err)
                 except RuntimeError:
                     pass  # the loop is already closed: nobody is left to tell
+
+    def _url_reader(self) -> None:
+        """The reader thread of a URL port (module docstring): wait for bytes, take what is there, hand it over up
+        to the last frame end as ``_reader`` does."""
+        ser = self._serial
+        assert ser is not None and self._loop is not None
+        put = self._queue.put_nowait
+        sock = _socket_of(ser)
+        end = self.frame_end
+        tail = b""
+        try:
+            while not self._closed:
+                if sock is not None:
+                    ready, _, _ = select.select([sock], [], [], self.hold if tail and end else None)
+                    data = ser.read(_CHUNK) if ready else b""  # timeout 0: what is there (b"" at EOF raises)
+                else:  # one byte with URL_POLL_S's timeout (read(_CHUNK) would wait for all of them), then the rest
+                    data = ser.read(1)
+                    waiting = ser.in_waiting if data else 0
+                    if waiting:
+                        data += ser.read(min(waiting, _CHUNK))
+                if not data:
+                    if tail:  # the rest did not come: hand over what there is
+                        self._loop.call_soon_threadsafe(put, tail)
+                        tail = b""
+                    continue
+                if end:
+                    data = tail + data
+                    cut = data.rfind(end) + len(end) if end in data else 0
+                    data, tail = data[:cut], data[cut:]
+                    if not data and len(tail) < _CHUNK:
+                        continue
+                    if not data:
+                        data, tail = tail, b""
+                self._loop.call_soon_threadsafe(put, data)
+        except Exception as exc:  # any failure of the port ends the link with one message
+            if not self._closed:
+                err = TransportError(f"{self.port} lost: {_reason(exc)}; is the board's server still running?")
+                with contextlib.suppress(RuntimeError):  # the loop is already closed: nobody is left to tell
+                    self._loop.call_soon_threadsafe(put, err)
 
     async def read(self) -> bytes:
         if self._error is not None:
@@ -225,7 +296,11 @@ class SerialTransport(Transport):
         self._closed = True
         self._fd = None
         ser = self._serial
-        if ser is not None:
+        if ser is not None and self.url:  # no cancel_read: closing the port wakes the reader (pyserial's socket
+            with self._os_write_lock:  # close also pauses 0.3 s for "quick reconnects": off the loop)
+                with contextlib.suppress(OSError, serial.SerialException):
+                    await asyncio.to_thread(ser.close)
+        elif ser is not None:
             try:
                 ser.cancel_read()
                 ser.cancel_write()
@@ -267,3 +342,12 @@ def _nonblocking_fd(ser: serial.Serial) -> int | None:
         return fd if fcntl.fcntl(fd, fcntl.F_GETFL) & os.O_NONBLOCK else None
     except (ImportError, OSError):
         return None
+
+
+def _socket_of(ser: serial.SerialBase) -> socket.socket | None:
+    """The socket under a socket:// port (pyserial keeps it as ``_socket``), or None: rfc2217:// has one too, but
+    its own thread reads it (into a queue), so only ``read`` with a timeout can wait for its bytes."""
+    if not str(ser.port or "").startswith("socket://"):
+        return None
+    sock = getattr(ser, "_socket", None)
+    return sock if isinstance(sock, socket.socket) else None
