@@ -130,7 +130,8 @@ lock:
 	rm -rf .venv-lock
 
 # The C protocol library, the reference board and the C board (firmware/): firmware/build/host_board and
-# firmware/build/libqb_host.so (fcb-sim serve --board c, term --sim --board c), built with cc.
+# firmware/build/libqb_host.so, built with cc. (fcb-sim and term --board c build what they load on first use into
+# the user's cache directory, one folder per version of the sources: fcb_sim/cbuild.py.)
 firmware:
 	$(MAKE) -C firmware host_board board
 
