@@ -12,7 +12,7 @@ BENCH_STAMP := $(VENV)/.installed-bench
 LOWEST := .venv-lowest
 
 .PHONY: run test test-busy test-lowest lock lint bench clean
-.PHONY: firmware
+.PHONY: firmware dist
 
 # Each step says what it does in one line; pip shows its own progress (a first install takes a minute or so). The
 # venv's own pip does the install: upgrading it first cost a first make run seconds and changed nothing here.
@@ -135,6 +135,13 @@ lock:
 firmware:
 	$(MAKE) -C firmware host_board board
 
+# The sdist and the wheel (dist/): what users install (pip install dist/quadrupel-*.whl). The wheel carries the C
+# sources --board c and the native filter build from (into the user's cache, never the installation) and docs/;
+# tests/packaging/test_wheel.py installs it into a fresh venv and flies it.
+dist: $(STAMP)
+	rm -rf dist
+	$(BIN)/python -m build --no-isolation --outdir dist .
+
 clean:
-	rm -rf $(VENV) $(LOWEST) .pytest_cache .hypothesis
+	rm -rf $(VENV) $(LOWEST) .pytest_cache .hypothesis dist build
 	rm -rf firmware/build

@@ -18,18 +18,15 @@ Three parts of fcb_sim compile firmware/ on first use: the native RAW filter (fc
   that finds the file finds it complete and two processes starting together compile once.
 
 Stdlib and platformdirs only (floor 0: anything in fcb_sim may use it). The POSIX and Windows lock modules are
-imported inside :func:`file_lock`, so importing this module works everywhere.
+imported inside :func:`file_lock`, so importing this module works everywhere; what only a build needs is imported
+when one runs (fcb-sim's help names :func:`docs_dir` at every start).
 """
 
 from __future__ import annotations
 
 import contextlib
-import hashlib
 import os
-import platform
 import shutil
-import subprocess
-import tempfile
 import threading
 from collections.abc import Iterator, Sequence
 from pathlib import Path
@@ -69,6 +66,9 @@ def source_files(firmware: Path | None = None) -> list[Path]:
 
 def source_key(firmware: Path | None = None) -> str:
     """A hash of the sources' names and bytes, the machine and the compiler settings (16 hex digits)."""
+    import hashlib
+    import platform
+
     root = firmware or firmware_dir()
     h = hashlib.sha256()
     for path in source_files(root):
@@ -143,6 +143,9 @@ def build(target: str, outputs: Sequence[str], *, out: Path | None = None, firmw
     into ``out`` (default :func:`build_dir`); returns ``out``. Nothing runs when every output is there already.
     :class:`BuildError` (one line): ``missing`` when one of ``tools`` (make is always one) is not on PATH, or
     the compiler's last words, naming ``what``, when the build fails."""
+    import subprocess
+    import tempfile
+
     firmware = firmware or firmware_dir()
     out = Path(out) if out is not None else build_dir(firmware)
     wanted = [out / o for o in outputs]

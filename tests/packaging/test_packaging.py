@@ -19,7 +19,7 @@ from packaging.requirements import Requirement
 
 from term.core.protocol import PROTOCOL_VERSION
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 BIN = Path(sys.executable).parent
 
 
@@ -280,7 +280,7 @@ def test_the_sdist_carries_docs_tests_and_licence(tmp_path: Path) -> None:
         info = tar.extractfile(next(n for n in tar.getnames() if n.endswith("/PKG-INFO")))
         assert info is not None
         meta = info.read().decode()
-    for path in ("LICENSE", "docs/user-guide.md", "docs/protocol.md", "tests/vectors/protocol.json",
+    for path in ("LICENSE", "setup.py", "docs/user-guide.md", "docs/protocol.md", "tests/vectors/protocol.json",
                  "tests/data/broad_07_fast_rotation_excerpt.csv.gz", "tests/conftest.py", "constraints.txt",
                  "term/ui/app.tcss", "fcb_sim/cli.py"):
         assert path in names, path
