@@ -12,7 +12,7 @@ BENCH_STAMP := $(VENV)/.installed-bench
 LOWEST := .venv-lowest
 
 .PHONY: run test test-busy test-lowest lock lint bench clean
-.PHONY: firmware dist
+.PHONY: firmware dist docs
 
 # Each step says what it does in one line; pip shows its own progress (a first install takes a minute or so). The
 # venv's own pip does the install: upgrading it first cost a first make run seconds and changed nothing here.
@@ -51,6 +51,15 @@ $(RUN_STAMP): pyproject.toml $(LOCK) | $(BIN)/python
 
 $(STAMP): pyproject.toml $(LOCK) | $(BIN)/python
 	$(call install,.[test])
+
+DOCS_STAMP := $(VENV)/.installed-docs
+$(DOCS_STAMP): pyproject.toml $(LOCK) | $(BIN)/python
+	$(call install,.[docs])
+
+# docs/ as a site (mkdocs.yml) in site/, strict: a link to a missing page or anchor, or a page out of the nav, fails
+# it. $(BIN)/mkdocs serve shows it live while writing.
+docs: $(DOCS_STAMP)
+	$(BIN)/mkdocs build --strict
 
 BENCH_EXTRAS := .[test,bench]
 $(BENCH_STAMP): pyproject.toml $(LOCK) | $(BIN)/python
@@ -124,7 +133,7 @@ test-lowest:
 lock:
 	rm -rf .venv-lock && $(PY) -m venv .venv-lock
 	.venv-lock/bin/python -m pip install -q --upgrade pip
-	.venv-lock/bin/python -m pip install -q '.[plot,analysis,test,bench]'
+	.venv-lock/bin/python -m pip install -q '.[plot,analysis,test,bench,docs]'
 	{ sed -n '1,2p' $(LOCK); .venv-lock/bin/python -m pip freeze --all --exclude-editable \
 		| grep -v -i '^pip==\|^quadrupel' | sort -f; } > $(LOCK).new && mv $(LOCK).new $(LOCK)
 	rm -rf .venv-lock
@@ -143,5 +152,5 @@ dist: $(STAMP)
 	$(BIN)/python -m build --no-isolation --outdir dist .
 
 clean:
-	rm -rf $(VENV) $(LOWEST) .pytest_cache .hypothesis dist build
+	rm -rf $(VENV) $(LOWEST) .pytest_cache .hypothesis dist build site
 	rm -rf firmware/build

@@ -35,7 +35,7 @@ def _script(name: str) -> str:
     return str(path)
 
 
-def _requirements(extras: tuple[str, ...] = ("plot", "analysis", "test", "bench")) -> list[Requirement]:
+def _requirements(extras: tuple[str, ...] = ("plot", "analysis", "test", "bench", "docs")) -> list[Requirement]:
     project = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]
     reqs = list(project["dependencies"])
     for extra in extras:
