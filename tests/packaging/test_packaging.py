@@ -280,7 +280,8 @@ def test_the_sdist_carries_docs_tests_and_licence(tmp_path: Path) -> None:
         info = tar.extractfile(next(n for n in tar.getnames() if n.endswith("/PKG-INFO")))
         assert info is not None
         meta = info.read().decode()
-    for path in ("LICENSE", "setup.py", "docs/user-guide.md", "docs/protocol.md", "tests/vectors/protocol.json",
+    for path in ("LICENSE", "setup.py", "CHANGELOG.md", "CONTRIBUTING.md", "mkdocs.yml", "docs/user-guide.md",
+                 "docs/protocol.md", "tests/vectors/protocol.json",
                  "tests/data/broad_07_fast_rotation_excerpt.csv.gz", "tests/conftest.py", "constraints.txt",
                  "term/ui/app.tcss", "fcb_sim/cli.py"):
         assert path in names, path
