@@ -12,7 +12,7 @@ BENCH_STAMP := $(VENV)/.installed-bench
 LOWEST := .venv-lowest
 
 .PHONY: run test test-busy test-lowest lock lint bench clean
-.PHONY: firmware
+.PHONY: firmware dist docs
 
 # Each step says what it does in one line; pip shows its own progress (a first install takes a minute or so). The
 # venv's own pip does the install: upgrading it first cost a first make run seconds and changed nothing here.
@@ -51,6 +51,15 @@ $(RUN_STAMP): pyproject.toml $(LOCK) | $(BIN)/python
 
 $(STAMP): pyproject.toml $(LOCK) | $(BIN)/python
 	$(call install,.[test])
+
+DOCS_STAMP := $(VENV)/.installed-docs
+$(DOCS_STAMP): pyproject.toml $(LOCK) | $(BIN)/python
+	$(call install,.[docs])
+
+# docs/ as a site (mkdocs.yml) in site/, strict: a link to a missing page or anchor, or a page out of the nav, fails
+# it. $(BIN)/mkdocs serve shows it live while writing.
+docs: $(DOCS_STAMP)
+	$(BIN)/mkdocs build --strict
 
 BENCH_EXTRAS := .[test,bench]
 $(BENCH_STAMP): pyproject.toml $(LOCK) | $(BIN)/python
@@ -124,16 +133,24 @@ test-lowest:
 lock:
 	rm -rf .venv-lock && $(PY) -m venv .venv-lock
 	.venv-lock/bin/python -m pip install -q --upgrade pip
-	.venv-lock/bin/python -m pip install -q '.[plot,analysis,test,bench]'
+	.venv-lock/bin/python -m pip install -q '.[plot,analysis,test,bench,docs]'
 	{ sed -n '1,2p' $(LOCK); .venv-lock/bin/python -m pip freeze --all --exclude-editable \
 		| grep -v -i '^pip==\|^quadrupel' | sort -f; } > $(LOCK).new && mv $(LOCK).new $(LOCK)
 	rm -rf .venv-lock
 
 # The C protocol library, the reference board and the C board (firmware/): firmware/build/host_board and
-# firmware/build/libqb_host.so (fcb-sim serve --board c, term --sim --board c), built with cc.
+# firmware/build/libqb_host.so, built with cc. (fcb-sim and term --board c build what they load on first use into
+# the user's cache directory, one folder per version of the sources: fcb_sim/cbuild.py.)
 firmware:
 	$(MAKE) -C firmware host_board board
 
+# The sdist and the wheel (dist/): what users install (pip install dist/quadrupel-*.whl). The wheel carries the C
+# sources --board c and the native filter build from (into the user's cache, never the installation) and docs/;
+# tests/packaging/test_wheel.py installs it into a fresh venv and flies it.
+dist: $(STAMP)
+	rm -rf dist
+	$(BIN)/python -m build --no-isolation --outdir dist .
+
 clean:
-	rm -rf $(VENV) $(LOWEST) .pytest_cache .hypothesis
+	rm -rf $(VENV) $(LOWEST) .pytest_cache .hypothesis dist build site
 	rm -rf firmware/build

@@ -37,6 +37,7 @@ def build_parser() -> argparse.ArgumentParser:
         prog="fcb-sim",
         description="The Quadrupel flight-control board as software: headless flights, IMU replay, "
         "profiling, and a board served over a pseudo-terminal or a TCP port (and a virtual BLE radio).",
+        epilog=_docs_line(),
     )
     from term.core.protocol import PROTOCOL_VERSION
 
@@ -52,6 +53,12 @@ def build_parser() -> argparse.ArgumentParser:
     for child in sub.choices.values():  # -v and --version after the command too, as term's
         _add_global(child, version, command=True)
     return parser
+
+
+def _docs_line() -> str:
+    from fcb_sim.cbuild import docs_dir
+
+    return f"The docs/ files the help names are in {docs_dir()}."
 
 
 class _LazyVersion(argparse._VersionAction):
@@ -122,7 +129,8 @@ def _add_serve(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
     """serve: the board in real time behind a pseudo-terminal or a TCP port (owner: fcb_sim/hosts/serve.py)."""
     from term.core.protocol import PRESETS
 
-    serve = sub.add_parser("serve", help="run the board in real time behind a pseudo-terminal or a TCP port")
+    serve = sub.add_parser("serve", help="run the board in real time behind a pseudo-terminal or a TCP port",
+                           epilog=_docs_line())
     serve.add_argument("--pty", action="store_true", help="expose the UART on a fresh pseudo-terminal (Linux, macOS)")
     serve.add_argument("--tcp", metavar="[HOST:]PORT", default=None,
                        help="expose the UART on a TCP port instead, for pyserial's socket:// (term --serial "

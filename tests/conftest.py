@@ -35,7 +35,10 @@ from term.core.protocol import (
 @pytest.fixture(autouse=True, scope="session")
 def _the_c_filter_built_first() -> None:
     """The simulator's RAW filter is C built on first use (fcb_sim.estimation.native): built here, before any test
-    starts a simulator whose link would time out while it compiles. Without a compiler the Python filter runs."""
+    starts a simulator whose link would time out while it compiles. Without a compiler the Python filter runs.
+    It goes where every run's does (fcb_sim/cbuild.py: the user's cache, one folder per version of the sources),
+    so a session builds it only when a source changed; the tests that check the building itself use their own
+    folders."""
     from fcb_sim.estimation.native import library
 
     library()

@@ -1,30 +1,29 @@
 """The simulator's hot path in C: the RAW filter ikf (firmware/board/ikf_f.c in doubles, ikf_q.c in fixed point)
 through ctypes.
 
-``library()`` is the host build of firmware/board/ikf_q.c and ctl_q.c (``make -C firmware native``:
-firmware/build/libikfq.so, rebuilt when a source is newer), or None where it cannot be built (no C compiler, no
-make: the pure-Python filter runs, and ``why_not()`` says why in one line; ``QUADRUPEL_PURE_PYTHON=1`` asks
-for the Python path on purpose). ``NativeIKF`` is :class:`~fcb_sim.estimation.ikf.InertialKalmanFilter` in C
-(the same doubles), ``NativeIKFQ`` :class:`~fcb_sim.estimation.ikf_fixed.InertialKalmanFilterQ` (the same
-integers, formats too): tests/estimation/test_ikf_native.py feeds both sides the same samples. The Python classes stay
-the references the C is tested against.
+``library()`` is the host build of firmware/board/ikf_q.c and ctl_q.c (``make -C firmware native``: libikfq.so in
+the user's cache, built once per version of the sources by fcb_sim/cbuild.py), or None where it cannot be built
+(no C compiler, no make: the pure-Python filter runs, and ``why_not()`` says why in one line;
+``QUADRUPEL_PURE_PYTHON=1`` asks for the Python path on purpose). ``NativeIKF`` is
+:class:`~fcb_sim.estimation.ikf.InertialKalmanFilter` in C (the same doubles), ``NativeIKFQ``
+:class:`~fcb_sim.estimation.ikf_fixed.InertialKalmanFilterQ` (the same integers, formats too):
+tests/estimation/test_ikf_native.py feeds both sides the same samples. The Python classes stay the references the C is
+tested against.
 """
 
 from __future__ import annotations
 
 import ctypes
 import os
-import shutil
-import subprocess
 import threading
 from pathlib import Path
 
+from fcb_sim import cbuild
 from fcb_sim.estimation.base import QuaternionAnglesMixin
 from fcb_sim.estimation.ikf import InertialKalmanFilter
 from fcb_sim.estimation.ikf_fixed import Formats, InertialKalmanFilterQ
 from fcb_sim.estimation.ikf_lite import InertialKalmanFilterQL
 
-FIRMWARE = Path(__file__).resolve().parents[2] / "firmware"
 LIBRARY = "libikfq.so"
 STATE_FIELDS = ("qw", "qx", "qy", "qz", "vx", "vy", "dx", "dy", "pvv", "pvg", "pvd", "pgg", "pgd", "pdd", "bx", "by",
                 "bz", "rx", "ry", "rz", "gl0", "gl1", "gl2", "al0", "al1", "al2", "rest_t", "at_rest", "started",
@@ -51,38 +50,15 @@ class _Consts(ctypes.Structure):
         (n, ctypes.c_int32) for n in ("dtq", "dt2q", "dthq", "krq", "kbq", "decim", "lite")]
 
 
-def _sources() -> list[Path]:
-    names = ("ikf_q.c", "ikf_q.h", "ikf_f.c", "ikf_f.h", "ctl_q.c", "ctl_q.h")
-    return [FIRMWARE / "board" / n for n in names] + [FIRMWARE / "Makefile"]
-
-
 def build(build_dir: Path | None = None) -> Path:
-    """The host library, built when missing or older than a source. Raises RuntimeError (one line) if it cannot."""
-    out = Path(build_dir) if build_dir is not None else FIRMWARE / "build"
-    lib = out / LIBRARY
-
-    def fresh() -> bool:
-        return lib.exists() and lib.stat().st_mtime >= max(p.stat().st_mtime for p in _sources())
-
-    if fresh():
-        return lib
-    if shutil.which(os.environ.get("CC", "cc")) is None or shutil.which("make") is None:
-        raise RuntimeError("no C compiler (cc) or make: the Python filter runs")
-    out.mkdir(parents=True, exist_ok=True)
-    with open(out / ".ikfq.lock", "w") as lock:  # another process (a simulator, a test) may be building it too
-        try:  # POSIX; no cross-process lock elsewhere (Windows) until the portable one (fcb_sim/cbuild.py)
-            import fcntl
-        except ImportError:
-            pass
-        else:
-            fcntl.flock(lock, fcntl.LOCK_EX)
-        if fresh():
-            return lib
-        proc = subprocess.run(["make", "-s", "-C", str(FIRMWARE), f"BUILD={out}", "native"], capture_output=True,
-                              text=True)
-    if proc.returncode != 0:
-        raise RuntimeError(f"firmware/board/ikf_q.c does not build: {(proc.stderr or proc.stdout).strip()[-300:]}")
-    return lib
+    """The host library (``make native``), built once per version of the sources into the user's cache
+    (fcb_sim/cbuild.py) or ``build_dir``. Raises RuntimeError (one line) if it cannot be built."""
+    try:
+        return cbuild.build("native", [LIBRARY], out=build_dir, tools=[os.environ.get("CC", "cc")],
+                            missing="no C compiler (cc) or make: the Python filter runs",
+                            what="firmware/board/ikf_q.c") / LIBRARY
+    except cbuild.BuildError as e:
+        raise RuntimeError(str(e)) from None
 
 
 def _load(path: Path) -> ctypes.CDLL:

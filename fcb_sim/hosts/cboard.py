@@ -3,10 +3,11 @@
 ``CBoard`` offers the surface the Python ``Board`` offers the world and the serve loop (sans-IO, the board's
 microsecond clock): ``uart_receive(data)``, ``advance(until_us)``, ``uart_transmit() -> bytes``,
 ``next_event_us()``, ``starved(until_us)``, ``now``, ``mode``, ``world``, ``config``. Behind it the C board,
-built as a shared library (``make -C firmware board``: firmware/build/libqb_host.so, rebuilt when a source is
-newer) and loaded with ctypes; its hardware layer's host backend (firmware/board/hal_host.c) calls back here for
-the sensors and the motors, at the board time of the task, so the World advances to that instant first: the same
-seed flies the same flight, as fast as the CPU allows or paced by ``fcb-sim serve``.
+built as a shared library (``make -C firmware board``: libqb_host.so in the user's cache, built once per version
+of the sources by fcb_sim/cbuild.py) and loaded with ctypes; its hardware layer's host backend
+(firmware/board/hal_host.c) calls back here for the sensors and the motors, at the board time of the task, so the
+World advances to that instant first: the same seed flies the same flight, as fast as the CPU allows or paced by
+``fcb-sim serve``.
 
 What the C board has and has not yet: firmware/board/qb_board.h and docs/firmware.md. Without a C compiler,
 ``CBoardUnavailable`` says in one line what to install.
@@ -19,13 +20,11 @@ import json
 import math
 import os
 import random
-import shutil
-import subprocess
-import threading
 import time
 from pathlib import Path
 from typing import Any
 
+from fcb_sim import cbuild
 from fcb_sim.board.parts import BoardConfig
 from fcb_sim.board.timing import rtc_ticks
 from fcb_sim.board.wireless import WirelessLink
@@ -33,10 +32,9 @@ from fcb_sim.errors import UsageError
 from fcb_sim.world.physics import World
 from term.core.protocol import PARAMS, Mode, Param
 
-FIRMWARE = Path(__file__).resolve().parents[2] / "firmware"
+FIRMWARE = cbuild.firmware_dir()
 LIBRARY = "libqb_host.so"
 NO_CC = "the C board needs a C compiler and make: install them (Debian/Ubuntu: apt-get install gcc make)"
-_BUILD_LOCK = threading.Lock()
 
 _IMU = ctypes.CFUNCTYPE(None, ctypes.c_uint64, ctypes.POINTER(ctypes.c_int16))
 _DMP = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_uint64, ctypes.POINTER(ctypes.c_float))
@@ -53,38 +51,19 @@ class CBoardUnavailable(UsageError):
     """The C board cannot be built here (one line: what to install)."""
 
 
-def _sources() -> list[Path]:
-    return [*(FIRMWARE / "board").glob("*.[ch]"), FIRMWARE / "qp_protocol.c", FIRMWARE / "qp_protocol.h",
-            FIRMWARE / "Makefile"]
-
-
 def library_path(build_dir: Path | None = None, *, real: str = "double") -> Path:
-    """The host library, built (``make -C firmware board``) when missing or older than a source; cached.
-    ``real`` "float": the board in float, as the Cortex-M0 build computes (``board-float``)."""
+    """The host library (``make -C firmware board``), built once per version of the sources into the user's cache
+    (fcb_sim/cbuild.py) or ``build_dir``. ``real`` "float": the board in float, as the Cortex-M0 build computes
+    (``board-float``). CBoardUnavailable (one line) where it cannot be built."""
     if not (FIRMWARE / "board" / "qb_board.c").is_file():
-        raise CBoardUnavailable("the C board's sources (firmware/board/) are not in this installation: "
-                                "run fcb-sim from a clone of the project")
-    out = Path(build_dir) if build_dir is not None else FIRMWARE / "build"
+        raise CBoardUnavailable(f"the C board's sources are not in this installation (looked in {FIRMWARE}): "
+                                "reinstall quadrupel, or run fcb-sim from a clone of the project")
     target, name = ("board-float", "libqb_host_float.so") if real == "float" else ("board", LIBRARY)
-    lib = out / name
-    with _BUILD_LOCK:
-        if lib.exists() and lib.stat().st_mtime >= max(p.stat().st_mtime for p in _sources()):
-            return lib
-        if shutil.which(os.environ.get("CC", "cc")) is None or shutil.which("make") is None:
-            raise CBoardUnavailable(NO_CC)
-        out.mkdir(parents=True, exist_ok=True)
-        with open(out / ".build.lock", "w") as lock:  # another process (term, a test) may be building it too
-            try:  # POSIX; no cross-process lock elsewhere (Windows) until the portable one (fcb_sim/cbuild.py)
-                import fcntl
-            except ImportError:
-                pass
-            else:
-                fcntl.flock(lock, fcntl.LOCK_EX)
-            proc = subprocess.run(["make", "-s", "-C", str(FIRMWARE), f"BUILD={out}", target],
-                                  capture_output=True, text=True)
-        if proc.returncode != 0:
-            raise CBoardUnavailable(f"the C board does not build: {(proc.stderr or proc.stdout).strip()[-400:]}")
-    return lib
+    try:
+        return cbuild.build(target, [name], out=build_dir, tools=[os.environ.get("CC", "cc")], missing=NO_CC,
+                            what="the C board") / name
+    except cbuild.BuildError as e:
+        raise CBoardUnavailable(str(e)) from None
 
 
 def _load(path: Path) -> ctypes.CDLL:

@@ -1,10 +1,10 @@
 """The board's task bodies executed on an emulated Cortex-M0: instructions and cycles from execution, not a model.
 
 ``make -C firmware m0-tasks`` builds firmware/board/ikf_q.c (the RAW filter) and ctl_q.c (the RAW control step)
-with arm-none-eabi-gcc -mcpu=cortex-m0 -mthumb -Os, as the board's firmware is built, into an ELF whose entry
-points (firmware/m0/tasks_main.c) run one step on buffers in RAM. ``M0Tasks`` loads it into unicorn (the QEMU
-CPU behind the ``unicorn`` package, Cortex-M0 model, Thumb code) and calls one step at a time, counting every
-executed instruction and its cycles.
+with arm-none-eabi-gcc -mcpu=cortex-m0 -mthumb -Os, as the board's firmware is built, into an ELF (in the user's
+cache: fcb_sim/cbuild.py) whose entry points (firmware/m0/tasks_main.c) run one step on buffers in RAM.
+``M0Tasks`` loads it into unicorn (the QEMU CPU behind the ``unicorn`` package, Cortex-M0 model, Thumb code) and
+calls one step at a time, counting every executed instruction and its cycles.
 
 Cycles per instruction: ARM, "Cortex-M0 Technical Reference Manual" r0p0 (DDI 0432C), section 3.3, Table 3-1
 ("Cortex-M0 instruction summary"): data processing 1; MULS 1 (the fast multiplier; 32 with the small one);
@@ -24,26 +24,18 @@ from __future__ import annotations
 import os
 import shutil
 import struct
-import subprocess
-import threading
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-FIRMWARE = Path(__file__).resolve().parents[2] / "firmware"
+from fcb_sim import cbuild
+
 ELF = "m0/tasks.elf"
 CPU_HZ = 16_000_000
 STACK_TOP = 0x2000_8000
 RETURN = 0x3000_0000  # a page holding a branch to itself: the emulation stops when a step returns here
 NO_ARM = "arm-none-eabi-gcc is not installed (apt-get install gcc-arm-none-eabi): no Cortex-M0 build to emulate"
 NO_UNICORN = "the unicorn package is not installed (pip install unicorn; the bench and test extras have it)"
-_LOCK = threading.Lock()
-
-
-def _sources() -> list[Path]:
-    board = FIRMWARE / "board"
-    return [board / "ikf_q.c", board / "ikf_q.h", board / "ctl_q.c", board / "ctl_q.h",
-            FIRMWARE / "m0" / "tasks_main.c", FIRMWARE / "Makefile"]
 
 
 def available() -> str | None:
@@ -58,20 +50,16 @@ def available() -> str | None:
 
 
 def build(build_dir: Path | None = None) -> Path:
-    """The M0 ELF, built when missing or older than a source. RuntimeError (one line) if it cannot be."""
-    out = Path(build_dir) if build_dir is not None else FIRMWARE / "build"
-    elf = out / ELF
-    with _LOCK:
-        if elf.exists() and elf.stat().st_mtime >= max(p.stat().st_mtime for p in _sources()):
-            return elf
-        why = available()
-        if why:
-            raise RuntimeError(why)
-        proc = subprocess.run(["make", "-s", "-C", str(FIRMWARE), f"BUILD={out}", "m0-tasks"], capture_output=True,
-                              text=True)
-        if proc.returncode != 0:
-            raise RuntimeError(f"the M0 tasks do not build: {(proc.stderr or proc.stdout).strip()[-300:]}")
-    return elf
+    """The M0 ELF (``make m0-tasks``), built once per version of the sources into the user's cache
+    (fcb_sim/cbuild.py) or ``build_dir``. RuntimeError (one line) if it cannot be."""
+    why = available()
+    if why:
+        raise RuntimeError(why)
+    try:
+        return cbuild.build("m0-tasks", [ELF], out=build_dir, tools=[os.environ.get("ARM_CC", "arm-none-eabi-gcc")],
+                            missing=NO_ARM, what="the M0 tasks") / ELF
+    except cbuild.BuildError as e:
+        raise RuntimeError(str(e)) from None
 
 
 # --- a little ELF32 reader: the loadable segments and the symbols -------------------------------------------

@@ -20,6 +20,18 @@ from term.core.protocol.numbers import cli_float, cli_int
 LESSONS_DIR = Path(__file__).resolve().parents[1] / "lessons"  # the built-in lessons (term/lessons/spec.py)
 
 
+def docs_dir() -> Path:
+    """Where the docs/ the help texts name are: a clone's docs/, else the copy a wheel installs as term/_docs
+    (pyproject.toml; fcb_sim/cbuild.py's docs_dir is the same for fcb-sim's help)."""
+    term = Path(__file__).resolve().parents[1]
+    clone = term.parent / "docs"
+    return clone if (clone / "architecture.md").is_file() else term / "_docs"
+
+
+def docs_line() -> str:
+    return f"The docs/ files the help names are in {docs_dir()}."
+
+
 class _Parser(argparse.ArgumentParser):
     def error(self, message: str) -> NoReturn:  # one line, not usage + message
         raise UsageError(f"{message} (see {self.prog} --help)")
@@ -219,7 +231,7 @@ COMMANDS: dict[str, tuple[str, str, Callable[[argparse.ArgumentParser], None], s
                "unit, default; * changed), get or set one, save them to a TOML file, load one (only what differs is "
                "set) or diff the board against one.", _params,
                "examples: term params --sim list; term params --serial /dev/ttyUSB0 set ctrl.p1 0.45; "
-               "term params --sim --preset report save report.toml"),
+               "term params --sim --preset report save report.toml. DOCS"),
 }
 
 
@@ -236,11 +248,13 @@ def build_parser() -> argparse.ArgumentParser:
         description="Ground station for the Quadrupel quadcopter: fly the board (or its simulator) with keyboard "
         "and joystick; gauges, link health, events, plots and log download. With no command, term flies.",
         epilog="Keys: press F1 in the terminal. Config: 'term --config-path' shows where term.toml is read from. "
-        "Every command takes -v and --version, before or after its name; 'term COMMAND --help' tells more.",
+        "Every command takes -v and --version, before or after its name; 'term COMMAND --help' tells more. "
+        + docs_line(),
     )
     _add_global(p, version, command=False)
     sub = p.add_subparsers(dest="command", metavar="COMMAND", title="commands (none: fly, with the options below)")
     for name, (line, description, add, epilog) in COMMANDS.items():
+        epilog = epilog.replace("DOCS", docs_line())
         child = sub.add_parser(name, help=line, description=description, epilog=epilog or None,
                                prog=f"term {name}")
         add(child)

@@ -14,6 +14,7 @@ from pathlib import Path
 
 import pytest
 
+from fcb_sim import cbuild
 from fcb_sim.hosts import cboard
 from tests.support.firmware import NO_ARM, SAN_ENV
 from tests.support.paths import EXCERPT
@@ -77,7 +78,7 @@ def test_fcb_sim_serve_board_c_prints_its_pty_and_ends_cleanly() -> None:
 
 
 def test_without_a_compiler_one_line_says_what_to_install(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr(cboard.shutil, "which", lambda name: None)
+    monkeypatch.setattr(cbuild.shutil, "which", lambda name: None)
     with pytest.raises(cboard.CBoardUnavailable) as err:
         cboard.library_path(tmp_path)
     assert str(err.value) == cboard.NO_CC and "\n" not in str(err.value)

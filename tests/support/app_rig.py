@@ -99,7 +99,7 @@ def seeded_flight(seed: int = 1, seconds: float = 5.0) -> tuple[Model, float]:
         (4.2, lambda t: session.send_command(Op.GAIN_P2, 1, t)),
         (4.6, lambda t: session.send_command(Op.PROFILE, 0, t)),
     ]
-    # From 2.5 s the pilot holds 0.5 m with the lift stick (as tests/test_app_flight.py does), 20 times a second,
+    # From 2.5 s the pilot holds 0.5 m with the lift stick (as tests/ui/test_app_flight.py does), 20 times a second,
     # with a little right roll and nose down from 4 s.
     base = 15000.0
     next_pilot = 2.5

@@ -18,8 +18,8 @@ import pytest
 from packaging.requirements import Requirement
 
 from term.core.protocol import PROTOCOL_VERSION
-from tests.support.paths import ROOT
 
+ROOT = Path(__file__).resolve().parents[2]
 BIN = Path(sys.executable).parent
 
 
@@ -35,7 +35,7 @@ def _script(name: str) -> str:
     return str(path)
 
 
-def _requirements(extras: tuple[str, ...] = ("plot", "analysis", "test", "bench")) -> list[Requirement]:
+def _requirements(extras: tuple[str, ...] = ("plot", "analysis", "test", "bench", "docs")) -> list[Requirement]:
     project = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]
     reqs = list(project["dependencies"])
     for extra in extras:
@@ -280,7 +280,8 @@ def test_the_sdist_carries_docs_tests_and_licence(tmp_path: Path) -> None:
         info = tar.extractfile(next(n for n in tar.getnames() if n.endswith("/PKG-INFO")))
         assert info is not None
         meta = info.read().decode()
-    for path in ("LICENSE", "docs/user-guide.md", "docs/protocol.md", "tests/vectors/protocol.json",
+    for path in ("LICENSE", "setup.py", "CHANGELOG.md", "CONTRIBUTING.md", "mkdocs.yml", "docs/user-guide.md",
+                 "docs/protocol.md", "tests/vectors/protocol.json",
                  "tests/fixtures/broad_07_fast_rotation_excerpt.csv.gz", "tests/conftest.py", "constraints.txt",
                  "term/ui/app.tcss", "fcb_sim/cli.py"):
         assert path in names, path
