@@ -268,6 +268,39 @@ def test_a_scripted_flight_is_the_same_on_both_boards() -> None:
     assert pair.c.mode in (Mode.PANIC, Mode.SAFE)
 
 
+def test_gain_bursts_past_both_ends_in_flight_are_the_same() -> None:
+    """Issue 37's finding on both boards at once: in FULL with lift, bursts of every gain key past the table's top
+    and bottom, the finding's P2 +100,000 and yaw P +1e9, parameter writes past the range: the same Acks (the gain
+    x 1000 at the table's end), the same PARAM_CHANGED events, the same motors at every step."""
+    pair = Pair(seed=11)
+    pair.step(4)
+    _joystick(pair, 0)
+    pair.command(Op.MODE, Mode.CALIBRATION)
+    pair.step(240)
+    pair.command(Op.MODE, Mode.FULL)
+    pair.step(2)
+    for k in range(10):
+        _joystick(pair, 15000 + 100 * k)
+        pair.step(4)
+    pair.command(Op.GAIN_P2, 100_000)
+    pair.command(Op.GAIN_YAW_P, 10**9)
+    pair.step(20)
+    for op in (Op.GAIN_YAW_P, Op.GAIN_P1, Op.GAIN_P2, Op.GAIN_HEIGHT_P, Op.GAIN_HEIGHT_D):
+        for burst in (2**31 - 1, -(2**31), 1_000_000, 3):
+            pair.command(op, burst)
+            _joystick(pair, 15500)
+            pair.step(3)
+    for pid in range(1, max(Param) + 1):
+        for raw in (-(2**23), 2**23 - 1, -1):
+            pair.command(Op.SET_PARAM, (pid << 24) | (raw & 0xFFFFFF))
+        pair.command(Op.PARAM_GET, pid)
+        _joystick(pair, 15500)
+        pair.step(2)
+    pair.check()
+    gains = [a for a in pair.said[1] if type(a) is Ack and a.op == Op.GAIN_YAW_P]
+    assert gains[0].value == 5_000_000 and all(0 <= a.value <= 5_000_000 for a in gains)
+
+
 # Settings the C board does not fly as the Python board does (docs/firmware.md): RAW filters other than ikf and the
 # report's height estimator (refused, NOT_IMPLEMENTED), the float ikf (the C board's is always the fixed-point twin).
 NOT_IN_C = {(12, 0), (12, 1), (12, 2), (12, 3), (15, 0), (14, 0)}
@@ -302,9 +335,14 @@ _ACTIONS = st.one_of(
     st.tuples(st.just("neutral"), st.just(0)),
     st.tuples(st.just("trim"), st.tuples(st.sampled_from([Op.TRIM_LIFT, Op.TRIM_ROLL, Op.TRIM_YAW]),
                                          st.integers(-5, 5))),
-    st.tuples(st.just("gain"), st.tuples(st.sampled_from([Op.GAIN_P1, Op.GAIN_P2, Op.GAIN_YAW_P,
-                                                          Op.GAIN_HEIGHT_P]), st.integers(-3, 3))),
-    st.tuples(st.just("param"), st.tuples(st.integers(0, max(Param)), st.integers(-5, 70000))),
+    # gain keys: a few presses, and bursts past both ends of the table (issue 37: the C board had no upper limit)
+    st.tuples(st.just("gain"), st.tuples(st.sampled_from([Op.GAIN_P1, Op.GAIN_P2, Op.GAIN_YAW_P, Op.GAIN_HEIGHT_P,
+                                                          Op.GAIN_HEIGHT_D]),
+                                         st.one_of(st.integers(-3, 3), st.integers(-(2**31), 2**31 - 1),
+                                                   st.sampled_from([100_000, 1_000_000, 10**9, -(10**9)])))),
+    # parameter writes in any mode (in flight too), in range and past it, the 24-bit raw's ends included
+    st.tuples(st.just("param"), st.tuples(st.integers(0, max(Param)),
+                                          st.one_of(st.integers(-5, 70000), st.integers(-(2**23), 2**23 - 1)))),
     st.tuples(st.just("fire"), st.just(0)),
     st.tuples(st.just("wait"), st.integers(1, 300)),
 )
@@ -330,7 +368,7 @@ def test_random_command_sequences_give_the_same_answers(actions: list[tuple[str,
             pid, raw = arg
             if _not_in_c(pid, raw):
                 continue
-            pair.command(Op.SET_PARAM, (pid << 24) | raw)
+            pair.command(Op.SET_PARAM, (pid << 24) | (raw & 0xFFFFFF))
         elif kind == "fire":
             _joystick(pair, 0, fire=True)
         pair.step(arg if kind == "wait" else 2)

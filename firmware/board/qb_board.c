@@ -436,10 +436,15 @@ static result_t execute(qb_board_t *b, const qp_command_t *c)
     case QP_OP_GAIN_P2:
     case QP_OP_GAIN_HEIGHT_P:
     case QP_OP_GAIN_HEIGHT_D: {
+        /* arg presses of the table's step, kept inside the table's range, written by the same setter and guards as
+         * SET_PARAM (fcb_sim's commands._gain): no key burst can push a gain past the table (issue 37) */
         int param = QP_PARAM_YAW_P + (c->op - QP_OP_GAIN_YAW_P);
-        qb_real *g = gain_of(b, param), v = *g + (qb_real)c->arg * QB_PARAMS[param - 1].step;
-        *g = v > 0.0 ? v : 0.0;
-        r.value = (int32_t)QM(lround)(*g * 1000.0);
+        r.status = qb_param_set(b, param, qb_param_raw_clamped(qb_param_spec(param),
+                                                               *gain_of(b, param) +
+                                                                   (qb_real)c->arg * QB_PARAMS[param - 1].step), 1);
+        if (r.status != QP_NAK_OK)
+            return r;
+        r.value = (int32_t)QM(lround)(*gain_of(b, param) * 1000.0);
         r.after = 1;
         r.after_param = param;
         return r;

@@ -267,5 +267,8 @@ void qb_receive(qb_board_t *b, const uint8_t *data, size_t len);
 int32_t qb_param_get(const qb_board_t *b, int id);
 uint8_t qb_param_set(qb_board_t *b, int id, int32_t raw, int mode_guard);
 const qb_param_spec_t *qb_param_spec(int id);
+/* The raw number for value ``v`` kept inside the table's range: round(v / scale) (half to even, Python's round)
+ * clipped to lo..hi; a value past either end (a burst of key presses) is that end. */
+int32_t qb_param_raw_clamped(const qb_param_spec_t *s, qb_real v);
 
 #endif /* QB_BOARD_H */

@@ -24,9 +24,24 @@ static qb_real value_of(const qb_param_spec_t *s, int32_t raw)
     return QM(floor)(v * p + 0.5) / p;
 }
 
+int32_t qb_param_raw_clamped(const qb_param_spec_t *s, qb_real v)
+{
+    qb_real x = v / s->scale, r;
+    if (!(x > (qb_real)s->lo)) /* NaN too: the low end */
+        return s->lo;
+    if (x >= (qb_real)s->hi)
+        return s->hi;
+    r = QM(floor)(x + 0.5);
+    if (r - x == 0.5 && ((int32_t)r & 1))
+        r -= 1.0; /* a tie goes to the even number, as Python's round() */
+    return (int32_t)r;
+}
+
+/* The raw number of a value the board holds: inside the table's range by construction (every write goes through
+ * qb_param_set), clipped all the same so a reading can never overflow the int32 (it once read -2147483648). */
 static int32_t raw_of(const qb_param_spec_t *s, qb_real v)
 {
-    return (int32_t)QM(floor)(v / s->scale + 0.5);
+    return qb_param_raw_clamped(s, v);
 }
 
 int32_t qb_param_get(const qb_board_t *b, int id)

@@ -2,6 +2,7 @@
  * (a level craft on the floor, or hovering, with seeded noise) stands in for the hardware. Exit status 0 when
  * every check passes; each failure prints one line. The tests a team reuses for its own board (docs/firmware.md).
  */
+#include <limits.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -132,6 +133,8 @@ static void joystick(int16_t lift, int16_t roll)
     put(f, qp_encode_joystick(&pc, &js, f));
 }
 
+static int32_t ack_value; /* the value of the last Ack command() read */
+
 /* The status of the Ack to a command (the last Ack the board sent). */
 static int command(uint8_t op, int32_t arg)
 {
@@ -148,8 +151,10 @@ static int command(uint8_t op, int32_t arg)
     put(f, qp_encode_command(&pc, &c, f));
     qp_decoder_init(&dec);
     for (i = 0; i < tx_len; i++) {
-        if (qp_decode_byte(&dec, tx[i], &pkt) && pkt.type == QP_TYPE_ACK && pkt.u.ack.cmd_id == cmd_id)
+        if (qp_decode_byte(&dec, tx[i], &pkt) && pkt.type == QP_TYPE_ACK && pkt.u.ack.cmd_id == cmd_id) {
             status = pkt.u.ack.status;
+            ack_value = pkt.u.ack.value;
+        }
     }
     return status;
 }
@@ -296,6 +301,88 @@ static void test_params(void)
     CHECK(command(QP_OP_LOG_START, 0) == QP_NAK_NOT_IMPLEMENTED);
 }
 
+/* What PARAM_GET answers (the Ack's value), or INT32_MIN when refused. */
+static int32_t param_get(int id)
+{
+    return command(QP_OP_PARAM_GET, id) == QP_NAK_OK ? ack_value : INT32_MIN;
+}
+
+static int32_t set_param_arg(int id, int32_t raw)
+{
+    return (int32_t)(((uint32_t)id << 24) | ((uint32_t)raw & 0xFFFFFFu));
+}
+
+/* One write of ``raw`` to parameter ``s`` by ``path`` (0 SET_PARAM, 1 a preset at boot: every guard but the
+ * mode's): in range it is taken (or refused with the board's reason, the value unchanged), out of range it is
+ * OUT_OF_RANGE and changes nothing; PARAM_GET always answers a value inside the table. */
+static void write_checked(const qb_param_spec_t *s, int path, int32_t raw)
+{
+    int32_t before = param_get(s->id), after;
+    int status = path == 0 ? command(QP_OP_SET_PARAM, set_param_arg(s->id, raw))
+                           : qb_param_set(&board, s->id, raw, 0);
+    after = param_get(s->id);
+    CHECK(after >= s->lo && after <= s->hi);
+    if (raw < s->lo || raw > s->hi) {
+        CHECK(status == QP_NAK_OUT_OF_RANGE && after == before);
+    } else if (status == QP_NAK_OK) {
+        CHECK(after == raw);
+    } else { /* this board's own refusals (qb_params.c), never a silent change */
+        CHECK((status == QP_NAK_NOT_IMPLEMENTED || status == QP_NAK_BAD_ARGUMENT) && after == before);
+    }
+}
+
+/* Every parameter's limits through every path: SET_PARAM, a preset (qbh_set_param's path), and for the gains their
+ * keys: bursts past both ends (the finding of issue 37: P2 +100,000 presses read 501111, yaw P +1e9 wrapped) give
+ * the table's ends, in SAFE and in flight. */
+static void test_param_limits_every_path(void)
+{
+    static const int32_t bursts[] = {100000, 1000000, 1000000000, INT32_MAX, -100000, -1000000000, INT32_MIN};
+    int i, path, k, flying;
+    for (flying = 0; flying <= 1; flying++) {
+        boot();
+        joystick(0, 0);
+        if (flying) {
+            CHECK(command(QP_OP_MODE, QP_MODE_MANUAL) == QP_NAK_OK);
+            joystick(6000, 0);
+        }
+        for (i = 0; i < QB_PARAM_COUNT; i++) {
+            const qb_param_spec_t *s = &QB_PARAMS[i];
+            for (path = 0; path < 2; path++) {
+                const int32_t raws[] = {s->hi + 1, s->lo - 1, 0x7FFFFF, -0x800000, s->lo, s->hi, s->def};
+                for (k = 0; k < (int)(sizeof raws / sizeof raws[0]); k++) {
+                    if (flying && path == 0 && (!s->in_flight || s->shorter_in_flight)) {
+                        int status = command(QP_OP_SET_PARAM, set_param_arg(s->id, raws[k]));
+                        CHECK(status != QP_NAK_OK || !s->shorter_in_flight || raws[k] <= param_get(s->id));
+                        CHECK(param_get(s->id) >= s->lo && param_get(s->id) <= s->hi);
+                        continue;
+                    }
+                    write_checked(s, path, raws[k]);
+                }
+            }
+        }
+        for (i = 0; i < 5; i++) { /* the gain keys */
+            const qb_param_spec_t *s = qb_param_spec(QP_PARAM_YAW_P + i);
+            for (k = 0; k < (int)(sizeof bursts / sizeof bursts[0]); k++) {
+                int32_t end = bursts[k] > 0 ? s->hi : s->lo, milli;
+                CHECK(command((uint8_t)(QP_OP_GAIN_YAW_P + i), bursts[k]) == QP_NAK_OK);
+                milli = ack_value; /* the gain x 1000 */
+                CHECK(param_get(s->id) == end && milli == (int32_t)lround(end * s->scale * 1000.0));
+                if (param_get(s->id) != end)
+                    printf("  gain %d after %ld presses: raw %ld, not %ld\n", s->id, (long)bursts[k],
+                           (long)param_get(s->id), (long)end);
+            }
+            CHECK(command((uint8_t)(QP_OP_GAIN_YAW_P + i), 0) == QP_NAK_OK && param_get(s->id) == s->lo);
+        }
+        CHECK(board.modes.mode == (flying ? QP_MODE_MANUAL : QP_MODE_SAFE));
+    }
+    /* the finding's figures, one by one from the defaults */
+    boot();
+    CHECK(command(QP_OP_GAIN_P2, 100000) == QP_NAK_OK && ack_value == 1000000 && param_get(QP_PARAM_P2) == 100000);
+    CHECK(command(QP_OP_GAIN_P1, 1000000) == QP_NAK_OK && ack_value == 10000 && param_get(QP_PARAM_P1) == 100000);
+    CHECK(command(QP_OP_GAIN_YAW_P, 1000000000) == QP_NAK_OK && param_get(QP_PARAM_YAW_P) == 500000);
+    CHECK(board.core.g.p2 == 1000.0 && board.core.g.p1 == 10.0 && board.core.g.yaw_p == 5000.0);
+}
+
 static void test_garbage_never_hurts(void)
 {
     int i, j;
@@ -323,6 +410,7 @@ int main(void)
     test_link_loss_and_panic_end_in_safe();
     test_low_battery();
     test_params();
+    test_param_limits_every_path();
     test_garbage_never_hurts();
     printf("qb_test: %s (%d failure%s)\n", failures ? "FAILED" : "ok", failures, failures == 1 ? "" : "s");
     return failures ? 1 : 0;
