@@ -51,8 +51,8 @@ static uint32_t timer_period(const qb_board_t *b, int timer)
         return b->raw_path ? QB_SENSOR_RAW_US : QB_SENSOR_DMP_US;
     case QB_TM_BARO:
         return QB_BARO_PERIOD_US;
-    case QB_TM_HEARTBEAT:
-        return QB_HEARTBEAT_PERIOD_US;
+    case QB_TM_HEARTBEAT: /* link.heartbeat_ms */
+        return (uint32_t)b->heartbeat_ms * 1000u;
     default: /* link.telemetry_hz in its raw unit, 0.01 Hz */
         hz = b->telemetry_hz > 0 ? (uint32_t)b->telemetry_hz : 1u;
         return 100000000u / hz < 10000u ? 10000u : 100000000u / hz;

@@ -70,6 +70,8 @@ typedef struct {
     /* config (fcb_sim.board.modes.ModeConfig) */
     qb_real link_timeout_s;
     qb_real link_failsafe_s; /* stage 1's guard time; 0: PANIC at once (the report's) */
+    qb_real calibration_s;   /* mode.calibration_ms: averaging time; 0: for as long as the pilot holds it */
+    qb_real panic_countdown_s; /* mode.panic_countdown_ms: 0 the descent (ours); else the report's fixed level */
     int32_t panic_level;
     int32_t trim_step, lift_step;
     /* state */
@@ -185,6 +187,7 @@ typedef struct {
     qb_real z_base, z_int, sp_cap0, sp_base, sp_offset;
     int32_t lift_entry;
     qb_real panic_scale, panic_i, panic_level, panic_start, land_s;
+    uint8_t panic_hold; /* the report's PANIC (mode.panic_countdown_ms > 0): a fixed level, no descent loop */
     int32_t panic_ae;
     uint16_t ae[4];
 } qb_flight_t;
@@ -238,7 +241,7 @@ typedef struct qb_board {
     qp_ack_t last_ack;
     /* parameters the core does not hold itself */
     int32_t telemetry_hz, sensor_path, scheduler, stick_reaction, queue_rule, log_scheme, attitude_filter;
-    int32_t k_gyro_raw, fixed_point, height_estimator;
+    int32_t k_gyro_raw, fixed_point, height_estimator, heartbeat_ms;
     uint32_t tx_dropped;
     /* the link timer's deaf spans: board time a starved simulator could not run (not the PC's silence) */
     uint64_t deaf[QB_DEAF_SPANS][2];

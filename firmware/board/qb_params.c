@@ -67,9 +67,12 @@ int32_t qb_param_get(const qb_board_t *b, int id)
     case QP_PARAM_HEIGHT_ESTIMATOR: return b->height_estimator;
     case QP_PARAM_STICK_REACTION: return b->stick_reaction;
     case QP_PARAM_QUEUE_RULE: return b->queue_rule;
+    case QP_PARAM_HEARTBEAT_MS: return b->heartbeat_ms;
+    case QP_PARAM_CALIBRATION_MS: return (int32_t)QM(floor)(b->modes.calibration_s * 1000.0 + 0.5);
+    case QP_PARAM_PANIC_COUNTDOWN_MS: return (int32_t)QM(floor)(b->modes.panic_countdown_s * 1000.0 + 0.5);
     case QP_PARAM_TRIM_STEP: return b->modes.trim_step;
     case QP_PARAM_LIFT_STEP: return b->modes.lift_step;
-    default: return s ? s->def : 0; /* the report preset's timings (heartbeat, calibration, countdown): defaults */
+    default: return 0;
     }
 }
 
@@ -120,10 +123,12 @@ static uint8_t set_bound(qb_board_t *b, int id, int32_t raw, qb_real v)
     case QP_PARAM_QUEUE_RULE: b->queue_rule = raw; break;
     case QP_PARAM_TRIM_STEP: b->modes.trim_step = raw; break;
     case QP_PARAM_LIFT_STEP: b->modes.lift_step = raw; break;
-    case QP_PARAM_HEARTBEAT_MS:
-    case QP_PARAM_CALIBRATION_MS:
-    case QP_PARAM_PANIC_COUNTDOWN_MS: /* the report preset's timings are not in C yet: its defaults only */
-        return raw == qb_param_spec(id)->def ? QP_NAK_OK : QP_NAK_NOT_IMPLEMENTED;
+    case QP_PARAM_HEARTBEAT_MS: b->heartbeat_ms = raw; break; /* the heartbeat timer's next period */
+    case QP_PARAM_CALIBRATION_MS: b->modes.calibration_s = raw / 1000.0; break;
+    case QP_PARAM_PANIC_COUNTDOWN_MS:
+        b->modes.panic_countdown_s = raw / 1000.0;
+        b->core.panic_hold = raw != 0; /* the report's PANIC: a fixed level, no descent loop */
+        break;
     default: return QP_NAK_UNKNOWN_PARAM;
     }
     return QP_NAK_OK;
