@@ -108,6 +108,14 @@ def _load(path: Path) -> ctypes.CDLL:
     return lib
 
 
+def _bind_parity(lib: ctypes.CDLL) -> ctypes.CDLL:
+    """The entry points of the C board's parity with the Python board (issue 37): the queue rule's count."""
+    vp = ctypes.c_void_p
+    lib.qbh_rx_discarded.argtypes = [vp]
+    lib.qbh_rx_discarded.restype = ctypes.c_uint32
+    return lib
+
+
 def default_phases(seed: int) -> tuple[int, int, int, int]:
     """The timers' first expiries (RTC ticks: sensor, baro, telemetry, heartbeat): unrelated phases, as the
     Python board's scheduler draws them."""
@@ -140,7 +148,7 @@ class CBoard:
         self.world = world if world is not None else World(cfg.seed)
         self.wireless = WirelessLink()  # no radio on the C board: the handover is refused (NO_BLE_CONNECTION)
         self.on_task: Any = None  # the serve loop's hook; the C board's tasks take no board time
-        self._lib = lib = _load(library_path(build_dir, real=real))
+        self._lib = lib = _bind_parity(_load(library_path(build_dir, real=real)))
         self._buf = ctypes.create_string_buffer(lib.qbh_size())
         self._h = ctypes.cast(self._buf, ctypes.c_void_p)
         self._crashes_seen = len(self.world.crashes)
@@ -231,6 +239,11 @@ class CBoard:
     @property
     def rx_overflow(self) -> int:
         return int(self._lib.qbh_rx_dropped(self._h))
+
+    @property
+    def rx_discarded(self) -> int:
+        """Bytes the receive queue's rule threw away (link.queue_rule discard-20)."""
+        return int(self._lib.qbh_rx_discarded(self._h))
 
     def state(self) -> dict[str, float]:
         """The figures tests and benches read (``STATE_FIELDS``)."""

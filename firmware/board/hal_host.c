@@ -34,6 +34,7 @@ typedef struct qbh {
     uint8_t rx[RX_BYTES];
     size_t rx_len;
     uint32_t rx_dropped;
+    uint32_t rx_discarded; /* bytes the queue rule threw away (discard-20) */
     uint8_t tx[TX_BYTES];
     size_t tx_len;
 } qbh_t;
@@ -53,6 +54,12 @@ int qbh_mode(const qbh_t *h);
 void qbh_motors(const qbh_t *h, uint16_t out[4]);
 void qbh_state(const qbh_t *h, double out[16]);
 uint32_t qbh_rx_dropped(const qbh_t *h);
+uint32_t qbh_rx_discarded(const qbh_t *h);
+uint32_t qbh_rx_discarded(const qbh_t *h)
+{
+    return h->rx_discarded;
+}
+
 int32_t qbh_param(const qbh_t *h, int id);
 int qbh_set_param(qbh_t *h, int id, int32_t raw);
 void qbh_starved(qbh_t *h, uint64_t until_us, int slip);
@@ -167,7 +174,7 @@ void qbh_init(qbh_t *h, uint16_t board_id, double link_timeout_s, const uint32_t
         cfg.phase_tk[i] = phases[i];
     h->time_us = now_us;
     h->rx_len = h->tx_len = 0;
-    h->rx_dropped = 0;
+    h->rx_dropped = h->rx_discarded = 0;
     cur = h;
     qb_init(&h->board, &cfg);
 }
@@ -189,11 +196,18 @@ void qbh_advance(qbh_t *h, uint64_t until_us)
 
 void qbh_receive(qbh_t *h, const uint8_t *data, size_t len)
 {
-    size_t room = RX_BYTES - h->rx_len, n = len < room ? len : room;
+    size_t room = RX_BYTES - h->rx_len, n = len < room ? len : room, i;
+    uint32_t frames = 0;
     cur = h;
     memcpy(h->rx + h->rx_len, data, n);
     h->rx_len += n;
     h->rx_dropped += (uint32_t)(len - n);
+    for (i = 0; i < h->rx_len; i++)
+        frames += h->rx[i] == 0;
+    if (n && qb_rx_discard(&h->board, frames)) { /* the board's queue rule: the whole queue goes */
+        h->rx_discarded += (uint32_t)h->rx_len;
+        h->rx_len = 0;
+    }
     qb_poll(&h->board); /* the UART interrupt flags the parser: it runs now */
 }
 

@@ -591,6 +591,11 @@ static void react(qb_board_t *b)
     memcpy(b->sticks_used, sticks, sizeof sticks);
 }
 
+int qb_rx_discard(const qb_board_t *b, uint32_t frames)
+{
+    return b->queue_rule == QB_QUEUE_RULE_DISCARD_20 && frames >= QB_QUEUE_DISCARD_FRAMES;
+}
+
 void qb_receive(qb_board_t *b, const uint8_t *data, size_t len)
 {
     qp_decode(&b->dec, data, len, on_packet, b);

@@ -263,6 +263,10 @@ uint64_t qb_next_event_us(const qb_board_t *b);
 void qb_starved(qb_board_t *b, uint64_t until_us, int slip);
 /* Board time since the last valid frame, less the time the board could not listen; 0 before the first. */
 uint64_t qb_link_silent_us(qb_board_t *b);
+/* The receive queue's rule (link.queue_rule), for the UART's receive interrupt: 1 when ``frames`` frames waiting
+ * in the queue (its 0x00 delimiters) mean the whole queue goes (discard-20: the report's parser, section 3.4),
+ * 0 to keep it (bounded: only what does not fit is dropped). fcb_sim/board/uart.py's Uart.receive. */
+int qb_rx_discard(const qb_board_t *b, uint32_t frames);
 /* Feed received bytes to the parser at once (the host backend's UART interrupt; qb_poll reads the HAL too). */
 void qb_receive(qb_board_t *b, const uint8_t *data, size_t len);
 

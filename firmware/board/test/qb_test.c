@@ -298,6 +298,9 @@ static void test_params(void)
     CHECK(command(QP_OP_GAIN_P1, -1000) == QP_NAK_OK && qb_param_get(&board, QP_PARAM_P1) == 0);
     CHECK(command(QP_OP_SET_PARAM, (QP_PARAM_TRIM_STEP << 24) | 100) == QP_NAK_OK);
     CHECK(command(QP_OP_PARAM_LIST, 0) == QP_NAK_OK);
+    CHECK(!qb_rx_discard(&board, 1000)); /* bounded: the queue is kept */
+    CHECK(command(QP_OP_SET_PARAM, (QP_PARAM_QUEUE_RULE << 24) | QB_QUEUE_RULE_DISCARD_20) == QP_NAK_OK);
+    CHECK(qb_rx_discard(&board, QB_QUEUE_DISCARD_FRAMES) && !qb_rx_discard(&board, QB_QUEUE_DISCARD_FRAMES - 1));
     CHECK(command(QP_OP_LOG_START, 0) == QP_NAK_NOT_IMPLEMENTED);
 }
 
