@@ -375,7 +375,7 @@ static void task_telemetry(qb_board_t *b)
         p.u.status.trim_pitch = (int16_t)m->trim_pitch;
         p.u.status.trim_yaw = (int16_t)m->trim_yaw;
         p.u.status.trim_lift = (int16_t)m->trim_lift;
-        p.u.status.cpu_load = 0; /* no profiler on the C board yet */
+        p.u.status.cpu_load = qb_prof_load(&b->prof, b->now);
         p.u.status.log_fill = 0;
         p.u.status.wireless = QP_WIRELESS_STATE_DISCONNECTED;
         send(b, &p);
@@ -394,7 +394,8 @@ static void task_telemetry(qb_board_t *b)
 typedef struct {
     uint8_t status;
     int32_t value;
-    int after;      /* what follows the Ack: 0 nothing, 1 PARAM_CHANGED for after_param, 2 the parameter list */
+    int after;      /* what follows the Ack: 0 nothing, 1 PARAM_CHANGED for after_param, 2 the parameter list,
+                     * 3 the task profile */
     int after_param;
 } result_t;
 
@@ -476,6 +477,10 @@ static result_t execute(qb_board_t *b, const qp_command_t *c)
         r.value = QB_PARAM_COUNT;
         r.after = 2;
         return r;
+    case QP_OP_PROFILE: /* the Profile packets follow the Ack, one per task */
+        r.value = QB_TASKS;
+        r.after = 3;
+        return r;
     case QP_OP_ACK_CRASH:
         r.status = qb_modes_ack_crash(&b->modes);
         return r;
@@ -484,7 +489,6 @@ static result_t execute(qb_board_t *b, const qp_command_t *c)
     case QP_OP_LOG_RESET:
     case QP_OP_LOG_STATUS:
     case QP_OP_LOG_DOWNLOAD:
-    case QP_OP_PROFILE:
         r.status = QP_NAK_NOT_IMPLEMENTED; /* the flash log and the profiler come later */
         return r;
     default:
@@ -525,6 +529,12 @@ static void handle_command(qb_board_t *b, const qp_command_t *c)
     drain_mode_events(b);
     if (r.after == 1) {
         param_changed(b, r.after_param);
+    } else if (r.after == 3) {
+        for (i = 0; i < QB_TASKS; i++) {
+            p.type = QP_TYPE_PROFILE;
+            qb_prof_packet(&b->prof, i, &p.u.profile);
+            send(b, &p);
+        }
     } else if (r.after == 2) {
         for (i = 0; i < QB_PARAM_COUNT; i++) {
             p.type = QP_TYPE_PARAM_VALUE;
@@ -669,6 +679,23 @@ static void task_logging(qb_board_t *b)
     (void)b; /* the flash log comes later */
 }
 
+/* One task, timed by hal_time_us() (fcb_sim's Board.advance with Profiler.ran): its duration and period, and a
+ * control period past the deadline said as DEADLINE_MISS while flying, at most every 10 s. */
+static void run_task(qb_board_t *b, uint8_t task, task_fn fn)
+{
+    uint64_t start = hal_time_us(), end;
+    uint32_t period;
+    fn(b);
+    end = hal_time_us();
+    period = qb_prof_ran(&b->prof, task, start, (uint32_t)(end > start ? end - start : 0u));
+    if (task == QB_T_CONTROL && period && qb_prof_control_period(&b->prof, b->raw_path, period) &&
+        qb_modes_flying(&b->modes) && (!b->misses_reported || b->now - b->misses_reported_at >= 10000000u)) {
+        b->misses_reported = 1;
+        b->misses_reported_at = b->now;
+        send_event(b, QP_EVENT_CODE_DEADLINE_MISS, (int32_t)period);
+    }
+}
+
 void qb_poll(qb_board_t *b)
 {
     static const task_fn TASK[QB_TASKS] = {task_parse, task_sensor, task_control, task_baro, task_telemetry,
@@ -684,7 +711,7 @@ void qb_poll(qb_board_t *b)
             if (b->flags[task]) {
                 b->rr = (uint8_t)((b->rr + i + 1) % RR_N);
                 b->flags[task] = 0;
-                TASK[task](b);
+                run_task(b, task, TASK[task]);
                 ran = 1;
             }
         }

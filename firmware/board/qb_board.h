@@ -205,6 +205,34 @@ void qb_quaternion_to_euler(qb_real w, qb_real x, qb_real y, qb_real z, qb_real 
 uint32_t qb_isqrt(uint32_t square);
 void qb_mix(int32_t z, qb_real l, qb_real m, qb_real n, int armed, uint16_t out[4]);
 
+/* --- the task profile (qb_prof.c) -------------------------------------------------------------------------- */
+
+#define QB_PROF_BUCKETS 64u
+
+typedef struct {
+    uint32_t n, pn;           /* runs, periods */
+    uint64_t sum_us, psum_us; /* their sums */
+    uint64_t last_start;
+    uint8_t started;
+    uint16_t misses;          /* control periods of at least WCET99 */
+    uint16_t hist[QB_PROF_BUCKETS]; /* durations, 4 buckets per octave */
+} qb_task_stats_t;
+
+typedef struct {
+    qb_task_stats_t t[QB_TASKS];
+    uint64_t busy_us, mark_t, mark_busy;
+    uint8_t cpu_load;
+} qb_prof_t;
+
+void qb_prof_reset(qb_prof_t *p, uint64_t now);
+/* A task ran from ``start`` for ``dur`` µs (hal_time_us before and after); returns its period, 0 the first time. */
+uint32_t qb_prof_ran(qb_prof_t *p, int task, uint64_t start, uint32_t dur);
+/* Count a control period against the deadline (WCET99 of the path); 1 if it missed. */
+int qb_prof_control_period(qb_prof_t *p, int raw_path, uint32_t period);
+/* The CPU load (%) since the previous call (the Status packet's). */
+uint8_t qb_prof_load(qb_prof_t *p, uint64_t now);
+void qb_prof_packet(const qb_prof_t *p, int task, qp_profile_t *out);
+
 /* --- the board (qb_board.c) ------------------------------------------------------------------------------- */
 
 typedef struct {
@@ -249,6 +277,9 @@ typedef struct qb_board {
     uint64_t lag_max_us, lag_report_at;
     uint32_t overflow_reported;  /* receive-queue drops already said (event OVERFLOW) */
     uint64_t overflow_report_at;
+    qb_prof_t prof;              /* the task profile (PROFILE, the Status packet's CPU load) */
+    uint64_t misses_reported_at;
+    uint8_t misses_reported;
 } qb_board_t;
 
 void qb_config_default(qb_config_t *cfg);

@@ -37,7 +37,14 @@ static int noise(int amp)
     return (int)((rng >> 16) % (uint32_t)(2 * amp + 1)) - amp;
 }
 
-uint64_t hal_time_us(void) { return t_us; }
+static uint32_t read_cost_us; /* each reading of the clock moves it on: tasks that take time (the profile) */
+
+uint64_t hal_time_us(void)
+{
+    uint64_t t = t_us;
+    t_us += read_cost_us;
+    return t;
+}
 
 size_t hal_uart_read(uint8_t *buf, size_t cap)
 {
@@ -113,10 +120,10 @@ static uint8_t cmd_id;
 static void run_until(uint64_t until)
 {
     while (qb_next_event_us(&board) < until) {
-        t_us = qb_next_event_us(&board);
+        t_us = qb_next_event_us(&board) > t_us ? qb_next_event_us(&board) : t_us;
         qb_poll(&board);
     }
-    t_us = until;
+    t_us = until > t_us ? until : t_us;
 }
 
 static void put(const uint8_t *frame, size_t n)
@@ -163,6 +170,7 @@ static void boot(void)
 {
     qb_config_t cfg;
     t_us = 0;
+    read_cost_us = 0;
     rx_len = tx_len = 0;
     battery = 1180;
     memset(&pc, 0, sizeof pc);
@@ -386,6 +394,77 @@ static void test_param_limits_every_path(void)
     CHECK(board.core.g.p2 == 1000.0 && board.core.g.p1 == 10.0 && board.core.g.yaw_p == 5000.0);
 }
 
+/* The profile's arithmetic (qb_prof.c): mean, percentiles from the histogram (never below the true one, at most
+ * 19 % above), the period, the CPU load, a control period past WCET99 a miss. */
+static void test_profile(void)
+{
+    qb_prof_t p;
+    qp_profile_t out;
+    uint64_t t = 0;
+    int i;
+    memset(&p, 0, sizeof p);
+    qb_prof_reset(&p, 0);
+    for (i = 0; i < 1000; i++, t += 5000)
+        qb_prof_ran(&p, QB_T_CONTROL, t, i % 200 < 199 ? 100u : 1001u);
+    qb_prof_packet(&p, QB_T_CONTROL, &out);
+    CHECK(out.task == QB_T_CONTROL && out.mean_us == 105 && out.period_us == 5000);
+    CHECK(out.p99_us >= 100 && out.p99_us <= 119);   /* rank 990 of 1000 (Python's sorted(d)[int(0.99 n)]): 100 us */
+    CHECK(out.p999_us >= 1001 && out.p999_us <= 1191); /* rank 999: 1001 us */
+    CHECK(qb_prof_load(&p, t) == 2); /* 104.5 ms busy in 5 s */
+    CHECK(!qb_prof_control_period(&p, 0, 5000) && qb_prof_control_period(&p, 0, 5974));
+    CHECK(qb_prof_control_period(&p, 1, 2987) && !qb_prof_control_period(&p, 1, 2986));
+    qb_prof_packet(&p, QB_T_CONTROL, &out);
+    CHECK(out.misses == 2);
+    for (i = 0; i < 200000; i++) /* a bucket past 65535 counts: halved, never wrapped */
+        qb_prof_ran(&p, QB_T_PARSE, (uint64_t)i * 10u, 7u);
+    qb_prof_packet(&p, QB_T_PARSE, &out);
+    CHECK(out.p99_us == 7 && out.mean_us == 7 && out.period_us == 10);
+    qb_prof_ran(&p, QB_T_BARO, 0, 0xFFFFFFFFu); /* absurd durations saturate */
+    qb_prof_packet(&p, QB_T_BARO, &out);
+    CHECK(out.mean_us == 0xFFFF && out.p99_us == 0xFFFF);
+    boot();
+    CHECK(command(QP_OP_PROFILE, 0) == QP_NAK_OK && ack_value == QB_TASKS);
+}
+
+/* Tasks that take time, measured by hal_time_us(): the Status packet's CPU load, the Profile packets' durations,
+ * and control periods past the deadline said as DEADLINE_MISS while flying. */
+static void test_profile_in_the_loop(void)
+{
+    qp_decoder_t dec;
+    qp_packet_t pkt;
+    size_t i;
+    int load = -1, misses = -1, deadline_events = 0, ctl_mean = -1;
+    boot();
+    joystick(0, 0);
+    CHECK(command(QP_OP_MODE, QP_MODE_MANUAL) == QP_NAK_OK);
+    joystick(8000, 0);
+    read_cost_us = 700; /* every task 700 us: a pass of sensor and control overruns the 5 ms tick now and then */
+    tx_len = 0;
+    run_until(t_us + 2000000);
+    read_cost_us = 0;
+    qp_decoder_init(&dec);
+    for (i = 0; i < tx_len; i++) {
+        if (!qp_decode_byte(&dec, tx[i], &pkt))
+            continue;
+        if (pkt.type == QP_TYPE_STATUS)
+            load = pkt.u.status.cpu_load;
+        if (pkt.type == QP_TYPE_EVENT && pkt.u.event.code == QP_EVENT_CODE_DEADLINE_MISS)
+            deadline_events++;
+    }
+    command(QP_OP_PROFILE, 0); /* the Profile packets follow the Ack */
+    qp_decoder_init(&dec);
+    for (i = 0; i < tx_len; i++) {
+        if (qp_decode_byte(&dec, tx[i], &pkt) && pkt.type == QP_TYPE_PROFILE && pkt.u.profile.task == QB_T_CONTROL) {
+            misses = pkt.u.profile.misses;
+            ctl_mean = pkt.u.profile.mean_us;
+        }
+    }
+    CHECK(ctl_mean >= 690 && ctl_mean <= 700); /* the command's own passes ran with no cost */
+    CHECK(misses > 0 && deadline_events == 1); /* at most one event in 10 s */
+    CHECK(load >= 40 && load <= 100); /* sensor and control, 1.4 ms of every 5, and the rest */
+    printf("  profile: control mean %d us, %d misses, cpu load %d %%\n", ctl_mean, misses, load);
+}
+
 static void test_garbage_never_hurts(void)
 {
     int i, j;
@@ -414,6 +493,8 @@ int main(void)
     test_low_battery();
     test_params();
     test_param_limits_every_path();
+    test_profile();
+    test_profile_in_the_loop();
     test_garbage_never_hurts();
     printf("qb_test: %s (%d failure%s)\n", failures ? "FAILED" : "ok", failures, failures == 1 ? "" : "s");
     return failures ? 1 : 0;
