@@ -109,10 +109,14 @@ def _load(path: Path) -> ctypes.CDLL:
 
 
 def _bind_parity(lib: ctypes.CDLL) -> ctypes.CDLL:
-    """The entry points of the C board's parity with the Python board (issue 37): the queue rule's count."""
+    """The entry points of the C board's parity with the Python board (issue 37): the queue rule's count, the flash
+    log's encoder alone (tests)."""
     vp = ctypes.c_void_p
     lib.qbh_rx_discarded.argtypes = [vp]
     lib.qbh_rx_discarded.restype = ctypes.c_uint32
+    lib.qbh_log_encode.argtypes = [vp, ctypes.c_int, ctypes.POINTER(ctypes.c_int64), ctypes.c_size_t, ctypes.c_char_p,
+                                   ctypes.c_size_t]
+    lib.qbh_log_encode.restype = ctypes.c_size_t
     return lib
 
 
@@ -244,6 +248,16 @@ class CBoard:
     def rx_discarded(self) -> int:
         """Bytes the receive queue's rule threw away (link.queue_rule discard-20)."""
         return int(self._lib.qbh_rx_discarded(self._h))
+
+    def log_encode(self, rows: list[tuple[int, ...]], scheme: int) -> bytes:
+        """The C encoder's bytes for ``rows`` in one segment (``flash_log.encode_log``'s twin; it erases this board's
+        flash: for tests)."""
+        flat = [int(v) for row in rows for v in row]
+        arr = (ctypes.c_int64 * max(1, len(flat)))(*flat)
+        cap = 256 * 1024
+        out = ctypes.create_string_buffer(cap)
+        n = self._lib.qbh_log_encode(self._h, int(scheme), arr, len(rows), out, cap)
+        return out.raw[:n]
 
     def state(self) -> dict[str, float]:
         """The figures tests and benches read (``STATE_FIELDS``)."""

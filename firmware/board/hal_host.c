@@ -22,6 +22,7 @@
 
 #define RX_BYTES 4096u
 #define TX_BYTES 65536u
+#define FLASH_BYTES QB_LOG_BYTES
 
 typedef void (*qbh_imu_fn)(uint64_t t_us, int16_t *out);
 typedef int (*qbh_dmp_fn)(uint64_t t_us, float *q);
@@ -45,6 +46,7 @@ typedef struct qbh {
     uint32_t rx_discarded; /* bytes the queue rule threw away (discard-20) */
     uint8_t tx[TX_BYTES];
     size_t tx_len;
+    uint8_t flash[FLASH_BYTES]; /* the flash log's NOR flash: erased 0xFF, programming ANDs */
     uint8_t pass;              /* inside a pass of the loop: hal_time_us() counts the board's CPU time */
     uint64_t cpu_base_ns;      /* the thread's CPU time when the pass began */
     uint64_t callback_ns;      /* CPU time spent in the simulator's callbacks since then */
@@ -66,11 +68,7 @@ void qbh_motors(const qbh_t *h, uint16_t out[4]);
 void qbh_state(const qbh_t *h, double out[16]);
 uint32_t qbh_rx_dropped(const qbh_t *h);
 uint32_t qbh_rx_discarded(const qbh_t *h);
-uint32_t qbh_rx_discarded(const qbh_t *h)
-{
-    return h->rx_discarded;
-}
-
+size_t qbh_log_encode(qbh_t *h, int scheme, const int64_t *rows, size_t n, uint8_t *out, size_t cap);
 int32_t qbh_param(const qbh_t *h, int id);
 int qbh_set_param(qbh_t *h, int id, int32_t raw);
 void qbh_starved(qbh_t *h, uint64_t until_us, int slip);
@@ -190,18 +188,28 @@ int32_t hal_impact_mm_s(void)
 
 int hal_flash_write(uint32_t addr, const uint8_t *data, size_t len)
 {
-    (void)addr;
-    (void)data;
-    (void)len;
-    return -1;
+    size_t i;
+    if (addr > FLASH_BYTES || len > FLASH_BYTES - addr)
+        return -1;
+    for (i = 0; i < len; i++)
+        cur->flash[addr + i] &= data[i];
+    return 0;
 }
 
 int hal_flash_read(uint32_t addr, uint8_t *data, size_t len)
 {
-    (void)addr;
-    (void)data;
-    (void)len;
-    return -1;
+    if (addr > FLASH_BYTES || len > FLASH_BYTES - addr)
+        return -1;
+    memcpy(data, cur->flash + addr, len);
+    return 0;
+}
+
+int hal_flash_erase(uint32_t addr, size_t len)
+{
+    if (addr > FLASH_BYTES || len > FLASH_BYTES - addr)
+        return -1;
+    memset(cur->flash + addr, 0xFF, len);
+    return 0;
 }
 
 /* --- the simulator's side --------------------------------------------------------------------------------- */
@@ -236,6 +244,7 @@ void qbh_init(qbh_t *h, uint16_t board_id, double link_timeout_s, const uint32_t
     h->time_us = now_us;
     h->rx_len = h->tx_len = 0;
     h->rx_dropped = h->rx_discarded = 0;
+    memset(h->flash, 0xFF, sizeof h->flash);
     begin_pass(h);
     qb_init(&h->board, &cfg);
 }
@@ -329,6 +338,29 @@ void qbh_state(const qbh_t *h, double out[16])
 uint32_t qbh_rx_dropped(const qbh_t *h)
 {
     return h->rx_dropped;
+}
+
+/* The flash log's encoder alone, for the tests (fcb_sim.board.flash_log.encode_log's twin): ``n`` records of
+ * QB_LOG_VARS values into one segment of an erased flash; returns the used bytes (copied to ``out`` up to
+ * ``cap``). It uses, and erases, this board's flash: a board that logs must not be asked. */
+size_t qbh_log_encode(qbh_t *h, int scheme, const int64_t *rows, size_t n, uint8_t *out, size_t cap)
+{
+    qb_log_t l;
+    size_t i;
+    cur = h;
+    memset(h->flash, 0xFF, sizeof h->flash);
+    qb_log_init(&l, QB_LOG_BYTES, (uint8_t)scheme);
+    qb_log_start(&l);
+    for (i = 0; i < n; i++)
+        qb_log_append(&l, rows + i * QB_LOG_VARS);
+    qb_log_stop(&l);
+    memcpy(out, h->flash, l.used < cap ? l.used : cap);
+    return l.used;
+}
+
+uint32_t qbh_rx_discarded(const qbh_t *h)
+{
+    return h->rx_discarded;
 }
 
 int32_t qbh_param(const qbh_t *h, int id)

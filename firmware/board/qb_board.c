@@ -53,7 +53,9 @@ static uint32_t timer_period(const qb_board_t *b, int timer)
         return QB_BARO_PERIOD_US;
     case QB_TM_HEARTBEAT: /* link.heartbeat_ms */
         return (uint32_t)b->heartbeat_ms * 1000u;
-    default: /* link.telemetry_hz in its raw unit, 0.01 Hz */
+    default: /* link.telemetry_hz in its raw unit, 0.01 Hz; a log download rides it at its own pace */
+        if (b->log.dl_active)
+            return QB_DOWNLOAD_PERIOD_US;
         hz = b->telemetry_hz > 0 ? (uint32_t)b->telemetry_hz : 1u;
         return 100000000u / hz < 10000u ? 10000u : 100000000u / hz;
     }
@@ -122,6 +124,25 @@ static void drain_mode_events(qb_board_t *b)
         send_event(b, ev.code, ev.arg);
 }
 
+static void send_log_status(qb_board_t *b, uint8_t state)
+{
+    qp_packet_t p;
+    p.type = QP_TYPE_LOG_STATUS;
+    p.u.log_status.state = state;
+    p.u.log_status.used = b->log.used;
+    p.u.log_status.records = b->log.records;
+    p.u.log_status.crc32 = qb_log_crc32(&b->log);
+    send(b, &p);
+}
+
+/* The download stops (done, or the board left SAFE) and says where the log stands (flash_log.Download.end). */
+static void end_download(qb_board_t *b)
+{
+    b->log.dl_active = 0;
+    send_log_status(b, b->log.state);
+    send_event(b, QP_EVENT_CODE_LOG_DONE, (int32_t)b->log.dl_sent);
+}
+
 static int16_t i16(qb_real v)
 {
     qb_real r = QM(floor)(v + 0.5);
@@ -157,6 +178,8 @@ static void on_mode_change(void *ctx, uint8_t old_mode, uint8_t new_mode)
             pressure = qb_modes_cal_mean(m, QB_CAL_PRESSURE);
         qb_flight_set_calibration(&b->core, gyro, accel, phi, theta, pressure);
     }
+    if (new_mode != QP_MODE_SAFE && b->log.dl_active)
+        end_download(b);
     qb_flight_enter_mode(&b->core, new_mode, qb_modes_lift(m));
 }
 
@@ -226,6 +249,8 @@ static void task_control(qb_board_t *b)
     memcpy(b->sticks_used, sticks, sizeof b->sticks_used);
     b->sticks_set = 1;
     set_motors(b, ae);
+    if (b->log.state == QP_LOG_STATE_RECORDING)
+        b->flags[QB_T_LOGGING] = 1;
     follow_sensor_path(b);
 }
 
@@ -331,6 +356,23 @@ static uint16_t status_flags(const qb_board_t *b)
     return f;
 }
 
+static void send_status(qb_board_t *b)
+{
+    const qb_modes_t *m = &b->modes;
+    qp_packet_t p;
+    p.type = QP_TYPE_STATUS;
+    p.u.status.flags = status_flags(b);
+    p.u.status.trim_roll = (int16_t)m->trim_roll;
+    p.u.status.trim_pitch = (int16_t)m->trim_pitch;
+    p.u.status.trim_yaw = (int16_t)m->trim_yaw;
+    p.u.status.trim_lift = (int16_t)m->trim_lift;
+    p.u.status.cpu_load = qb_prof_load(&b->prof, b->now);
+    p.u.status.log_fill = (uint8_t)((uint64_t)b->log.used * 100u / b->log.size > 100u
+                                        ? 100u : (uint64_t)b->log.used * 100u / b->log.size);
+    p.u.status.wireless = QP_WIRELESS_STATE_DISCONNECTED;
+    send(b, &p);
+}
+
 static void task_telemetry(qb_board_t *b)
 {
     const qb_flight_t *fc = &b->core;
@@ -338,6 +380,22 @@ static void task_telemetry(qb_board_t *b)
     int32_t att[3];
     b->telemetry_runs++;
     drain_mode_events(b);
+    if (b->log.dl_active) { /* log chunks instead of telemetry (flash_log.Download.step), a Status every tenth run */
+        unsigned k;
+        uint32_t n = qb_log_chunks(&b->log);
+        for (k = 0; k < QB_DOWNLOAD_CHUNKS_PER_RUN && b->log.dl_active; k++) {
+            p.type = QP_TYPE_LOG_CHUNK;
+            p.u.log_chunk.index = (uint16_t)b->log.dl_next;
+            qb_log_chunk(&b->log, b->log.dl_next, p.u.log_chunk.data);
+            send(b, &p);
+            b->log.dl_sent++;
+            if (++b->log.dl_next >= n)
+                end_download(b);
+        }
+        if (b->telemetry_runs % 10u == 0u)
+            send_status(b);
+        return;
+    }
     qb_flight_attitude_cdeg(fc, att);
     p.type = QP_TYPE_ATTITUDE;
     p.u.attitude.mode = b->modes.mode;
@@ -368,17 +426,7 @@ static void task_telemetry(qb_board_t *b)
         send(b, &p);
     }
     if (due(&b->status_due, STATUS_PERIOD_US, b->now)) {
-        const qb_modes_t *m = &b->modes;
-        p.type = QP_TYPE_STATUS;
-        p.u.status.flags = status_flags(b);
-        p.u.status.trim_roll = (int16_t)m->trim_roll;
-        p.u.status.trim_pitch = (int16_t)m->trim_pitch;
-        p.u.status.trim_yaw = (int16_t)m->trim_yaw;
-        p.u.status.trim_lift = (int16_t)m->trim_lift;
-        p.u.status.cpu_load = qb_prof_load(&b->prof, b->now);
-        p.u.status.log_fill = 0;
-        p.u.status.wireless = QP_WIRELESS_STATE_DISCONNECTED;
-        send(b, &p);
+        send_status(b);
         p.type = QP_TYPE_GAINS;
         p.u.gains.yaw_p = qp_half_from_float((float)fc->g.yaw_p);
         p.u.gains.p1 = qp_half_from_float((float)fc->g.p1);
@@ -395,7 +443,7 @@ typedef struct {
     uint8_t status;
     int32_t value;
     int after;      /* what follows the Ack: 0 nothing, 1 PARAM_CHANGED for after_param, 2 the parameter list,
-                     * 3 the task profile */
+                     * 3 the task profile, 4 the LogStatus, 5 a download's start */
     int after_param;
 } result_t;
 
@@ -484,12 +532,41 @@ static result_t execute(qb_board_t *b, const qp_command_t *c)
     case QP_OP_ACK_CRASH:
         r.status = qb_modes_ack_crash(&b->modes);
         return r;
-    case QP_OP_LOG_START:
+    case QP_OP_LOG_START: /* fcb_sim/board/commands.py's _log_* */
+        if (b->log.dl_active) {
+            r.status = QP_NAK_LOG_BUSY;
+            return r;
+        }
+        r.status = qb_log_start(&b->log);
+        if (r.status == QP_NAK_OK)
+            b->log.full_reported = 0;
+        r.value = (int32_t)b->log.used;
+        return r;
     case QP_OP_LOG_STOP:
+        r.status = qb_log_stop(&b->log);
+        r.value = (int32_t)b->log.used;
+        return r;
     case QP_OP_LOG_RESET:
+        r.status = b->log.dl_active ? QP_NAK_LOG_BUSY : qb_log_reset(&b->log, b->modes.mode == QP_MODE_SAFE);
+        return r;
     case QP_OP_LOG_STATUS:
+        r.value = (int32_t)b->log.used;
+        r.after = 4;
+        return r;
     case QP_OP_LOG_DOWNLOAD:
-        r.status = QP_NAK_NOT_IMPLEMENTED; /* the flash log and the profiler come later */
+        if (b->modes.mode != QP_MODE_SAFE)
+            r.status = QP_NAK_NOT_IN_SAFE;
+        else if (b->log.state == QP_LOG_STATE_RECORDING)
+            r.status = QP_NAK_LOG_BUSY;
+        else if (b->log.used == 0)
+            r.status = QP_NAK_LOG_EMPTY;
+        else if (c->arg < 0 || (uint32_t)c->arg >= qb_log_chunks(&b->log)) {
+            r.status = QP_NAK_BAD_ARGUMENT;
+            r.value = (int32_t)qb_log_chunks(&b->log);
+        } else {
+            r.value = (int32_t)qb_log_chunks(&b->log);
+            r.after = 5;
+        }
         return r;
     default:
         r.status = QP_NAK_UNKNOWN_COMMAND;
@@ -529,6 +606,17 @@ static void handle_command(qb_board_t *b, const qp_command_t *c)
     drain_mode_events(b);
     if (r.after == 1) {
         param_changed(b, r.after_param);
+    } else if (r.after == 4) {
+        send_log_status(b, b->log.state);
+    } else if (r.after == 5) { /* the download begins: LogStatus DOWNLOADING, then the chunks (telemetry's turn) */
+        b->log.dl_active = 1;
+        b->log.dl_next = (uint32_t)c->arg;
+        b->log.dl_sent = 0;
+        send_log_status(b, QP_LOG_STATE_DOWNLOADING);
+        if (b->next_us[QB_TM_TELEMETRY] > b->now + QB_DOWNLOAD_PERIOD_US) { /* under a slower telemetry rate */
+            b->next_tk[QB_TM_TELEMETRY] = b->now * QB_RTC_HZ / 1000000u + rtc_ticks(QB_DOWNLOAD_PERIOD_US);
+            b->next_us[QB_TM_TELEMETRY] = rtc_us(b->next_tk[QB_TM_TELEMETRY]);
+        }
     } else if (r.after == 3) {
         for (i = 0; i < QB_TASKS; i++) {
             p.type = QP_TYPE_PROFILE;
@@ -654,6 +742,7 @@ void qb_init(qb_board_t *b, const qb_config_t *cfg)
     b->modes.on_change = on_mode_change;
     b->modes.ctx = b;
     qp_decoder_init(&b->dec);
+    qb_log_init(&b->log, QB_LOG_BYTES, QB_PARAMS[QP_PARAM_LOG_SCHEME - 1].def);
     for (i = 0; i < QB_PARAM_COUNT; i++) {
         int id = QB_PARAMS[i].id;
         if (id != QP_PARAM_LINK_TIMEOUT_MS && id != QP_PARAM_LINK_FAILSAFE_MS)
@@ -674,9 +763,44 @@ void qb_init(qb_board_t *b, const qb_config_t *cfg)
 
 typedef void (*task_fn)(qb_board_t *b);
 
+/* Python's round(): half to even (the log's columns are the Python board's to the bit) */
+static int64_t round_even(qb_real v)
+{
+    qb_real r = QM(floor)(v + 0.5);
+    if (r - v == 0.5 && ((int64_t)r & 1))
+        r -= 1.0;
+    return (int64_t)r;
+}
+
+/* One record per control step while logging (fcb_sim's Board._task_logging: the same columns in board units). */
 static void task_logging(qb_board_t *b)
 {
-    (void)b; /* the flash log comes later */
+    const qb_flight_t *fc = &b->core;
+    int64_t row[QB_LOG_VARS];
+    int32_t att[3];
+    int i;
+    qb_flight_attitude_cdeg(fc, att);
+    row[0] = (int64_t)b->now;
+    row[1] = b->modes.mode;
+    row[2] = att[0];
+    row[3] = att[1];
+    row[4] = att[2];
+    row[5] = round_even(fc->sp);
+    row[6] = round_even(fc->sq);
+    row[7] = round_even(fc->sr);
+    row[8] = round_even(fc->sax);
+    row[9] = round_even(fc->say);
+    row[10] = round_even(fc->saz);
+    for (i = 0; i < 4; i++)
+        row[11 + i] = b->ae[i];
+    row[15] = round_even(fc->height / 0.01);
+    row[16] = b->pressure;
+    row[17] = b->battery;
+    qb_log_append(&b->log, row);
+    if (b->log.state == QP_LOG_STATE_FULL && !b->log.full_reported) {
+        b->log.full_reported = 1;
+        send_event(b, QP_EVENT_CODE_LOG_FULL, (int32_t)b->log.used);
+    }
 }
 
 /* One task, timed by hal_time_us() (fcb_sim's Board.advance with Profiler.ran): its duration and period, and a

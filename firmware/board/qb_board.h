@@ -233,6 +233,45 @@ int qb_prof_control_period(qb_prof_t *p, int raw_path, uint32_t period);
 uint8_t qb_prof_load(qb_prof_t *p, uint64_t now);
 void qb_prof_packet(const qb_prof_t *p, int task, qp_profile_t *out);
 
+/* --- the flash log (qb_log.c) -------------------------------------------------------------------------------- */
+
+#define QB_LOG_VARS 18          /* fcb_sim/board/flash_log.py LOG_VARS */
+#define QB_LOG_BYTES (128u * 1024u)
+#define QB_LOG_CHUNK 12u        /* a LogChunk's bytes */
+#define QB_LOG_RECORD_MAX 212u  /* the most one record (and a flush) adds */
+#define QB_DOWNLOAD_PERIOD_US 20000u
+#define QB_DOWNLOAD_CHUNKS_PER_RUN 8u /* 400 chunks a second: what 115200 baud carries beside the heartbeats */
+
+typedef struct {
+    int32_t prev1, prev2; /* the last two reconstructed (quantised) values */
+    int64_t e1, e2, a;    /* the predictors' decayed errors, LOCO-I's sum of residuals */
+    int32_t n;
+} qb_rice_t;
+
+typedef struct {
+    uint8_t scheme, state;              /* QB_SCHEME_*, QP_LOG_STATE_* */
+    uint32_t size, used, records;
+    uint32_t seg_start, seg_records, data_start, count;
+    uint64_t acc;                       /* the bit writer's partial byte */
+    uint8_t nbits;
+    int64_t recon[QB_LOG_VARS];         /* delta8's reconstruction */
+    qb_rice_t rice[QB_LOG_VARS];
+    uint32_t flash_errors;              /* writes the HAL refused */
+    uint8_t full_reported;              /* LOG_FULL said for this recording */
+    uint8_t dl_active;                  /* a download runs: chunks instead of telemetry */
+    uint32_t dl_next, dl_sent;
+} qb_log_t;
+
+void qb_log_init(qb_log_t *l, uint32_t size, uint8_t scheme);
+uint8_t qb_log_start(qb_log_t *l);
+/* One record (the board's LOG_VARS, in board units) if recording; returns the bytes programmed. */
+uint32_t qb_log_append(qb_log_t *l, const int64_t values[QB_LOG_VARS]);
+uint8_t qb_log_stop(qb_log_t *l);
+uint8_t qb_log_reset(qb_log_t *l, int in_safe);
+uint32_t qb_log_chunks(const qb_log_t *l);
+void qb_log_chunk(const qb_log_t *l, uint32_t index, uint8_t out[QB_LOG_CHUNK]);
+uint32_t qb_log_crc32(const qb_log_t *l);
+
 /* --- the board (qb_board.c) ------------------------------------------------------------------------------- */
 
 typedef struct {
@@ -278,6 +317,7 @@ typedef struct qb_board {
     uint32_t overflow_reported;  /* receive-queue drops already said (event OVERFLOW) */
     uint64_t overflow_report_at;
     qb_prof_t prof;              /* the task profile (PROFILE, the Status packet's CPU load) */
+    qb_log_t log;                /* the flash log (LOG_*) */
     uint64_t misses_reported_at;
     uint8_t misses_reported;
 } qb_board_t;

@@ -105,7 +105,12 @@ static uint8_t set_bound(qb_board_t *b, int id, int32_t raw, qb_real v)
     case QP_PARAM_SCHEDULER: b->scheduler = raw; break; /* kept and reported; the loop is round robin (no slack rule) */
     case QP_PARAM_TELEMETRY_HZ: b->telemetry_hz = raw; break;
     case QP_PARAM_SENSOR_PATH: b->sensor_path = raw; break;
-    case QP_PARAM_LOG_SCHEME: b->log_scheme = raw; break; /* no log yet: always empty */
+    case QP_PARAM_LOG_SCHEME: /* a fresh log in the new scheme; refused while the log holds anything */
+        if (b->log.used)
+            return QP_NAK_LOG_BUSY;
+        b->log_scheme = raw;
+        qb_log_init(&b->log, b->log.size, (uint8_t)raw);
+        break;
     case QP_PARAM_ATTITUDE_FILTER: return set_filter(b, raw, b->fixed_point);
     case QP_PARAM_K_GYRO: /* the complementary filter's: kept; the filter starts afresh */
         b->k_gyro_raw = raw;
