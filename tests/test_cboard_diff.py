@@ -457,6 +457,38 @@ def test_the_flash_log_of_a_flight_is_the_same_on_both_boards(scheme: int, monke
         (s.state, s.records) for s in pair.logs[1] if type(s) is LogStatus]
 
 
+def test_the_report_presets_values_are_the_same_on_both_boards() -> None:
+    """The report preset, but for the two estimators the C board has not got (est.attitude and est.height
+    complementary: refused in one line, docs/firmware.md): set by SET_PARAM on both, then a flight with the report's
+    gains, telemetry at 0.52 Hz, no stick reaction, calibration held by the pilot, the link's PANIC at once and its
+    countdown."""
+    from term.core.protocol import PARAMS, PRESETS
+
+    pair = Pair(seed=23)
+    pair.step(4)
+    for param, value in PRESETS["report"].items():
+        if param in (Param.ATTITUDE_FILTER, Param.HEIGHT_ESTIMATOR):
+            continue
+        pair.command(Op.SET_PARAM, (int(param) << 24) | (PARAMS[param].to_raw(value) & 0xFFFFFF))
+        pair.step(1)
+    pair.command(Op.PARAM_LIST, 0)
+    _joystick(pair, 0)
+    pair.command(Op.MODE, Mode.CALIBRATION)
+    pair.step(300)
+    pair.command(Op.MODE, Mode.SAFE)
+    pair.step(4)
+    pair.command(Op.MODE, Mode.FULL)
+    pair.step(4)
+    for k in range(80):
+        _joystick(pair, 15000 + 20 * k, roll=400 * (k % 3 - 1), pitch=200, yaw=-300)
+        pair.step(3)
+    pair.step(900)  # silence: PANIC at once (link.failsafe_ms 0), the countdown, SAFE
+    pair.check()
+    modes = {pm for pm, *_ in pair.steps}
+    assert {Mode.CALIBRATION, Mode.FULL, Mode.PANIC} <= modes and pair.steps[-1][0] == Mode.SAFE
+    assert all(a.status == 0 for a in pair.said[1] if type(a) is Ack)
+
+
 # Settings the C board does not fly as the Python board does (docs/firmware.md): RAW filters other than ikf and the
 # report's height estimator (refused, NOT_IMPLEMENTED), the float ikf (the C board's is always the fixed-point twin).
 NOT_IN_C = {(12, 0), (12, 1), (12, 2), (12, 3), (15, 0), (14, 0)}

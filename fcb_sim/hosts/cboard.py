@@ -32,7 +32,7 @@ from fcb_sim.board.timing import rtc_ticks
 from fcb_sim.board.wireless import WirelessLink
 from fcb_sim.errors import UsageError
 from fcb_sim.world.physics import World
-from term.core.protocol import PARAMS, Mode, Param
+from term.core.protocol import PARAMS, PRESETS, Mode, Param
 
 FIRMWARE = Path(__file__).resolve().parents[2] / "firmware"
 LIBRARY = "libqb_host.so"
@@ -147,8 +147,6 @@ class CBoard:
                  phases: tuple[int, int, int, int] | None = None, build_dir: Path | None = None,
                  real: str = "double") -> None:
         self.config = cfg = config or BoardConfig()
-        if cfg.preset != "default":
-            raise UsageError(f"the C board has the default preset only (asked: {cfg.preset!r})")
         self.world = world if world is not None else World(cfg.seed)
         self.wireless = WirelessLink()  # no radio on the C board: the handover is refused (NO_BLE_CONNECTION)
         self.on_task: Any = None  # the serve loop's hook; the C board's tasks take no board time
@@ -164,6 +162,17 @@ class CBoard:
         for param, value in _config_params(cfg).items():  # the config's parameters, as the Python board takes them
             if lib.qbh_set_param(self._h, int(param), PARAMS[param].to_raw(value)):
                 raise UsageError(f"the C board cannot run {PARAMS[param].name} = {value!r} (docs/firmware.md)")
+        self._apply_preset(cfg.preset)
+
+    def _apply_preset(self, name: str) -> None:
+        """The preset's values over the defaults, each through the board's own guards (param_bindings.apply_values);
+        one line naming every value the C board cannot run (docs/firmware.md) when any is refused."""
+        refused = []
+        for param, value in PRESETS[name].items():
+            if self._lib.qbh_set_param(self._h, int(param), PARAMS[param].to_raw(value)):
+                refused.append(f"{PARAMS[param].name} = {PARAMS[param].text(value)}")
+        if refused:
+            raise UsageError(f"the C board cannot run preset {name!r}: {', '.join(refused)} (docs/firmware.md)")
 
     # --- the hardware layer's callbacks (board time in µs) ---------------------------------------------------
 
