@@ -138,6 +138,7 @@ typedef struct {
     qb_real ground_baro[QB_ANCHOR_MAX];
     uint8_t n_ground_baro;
     qb_real ground_baro_s;
+    qb_real stand_baro; /* while anchored: the barometer's height, slowly followed (its drift) */
     qb_real captured_height;
     qb_real c[4];
     qb_real c00;
