@@ -763,13 +763,15 @@ void qb_init(qb_board_t *b, const qb_config_t *cfg)
 
 typedef void (*task_fn)(qb_board_t *b);
 
-/* Python's round(): half to even (the log's columns are the Python board's to the bit) */
-static int64_t round_even(qb_real v)
+/* Python's round(): half to even (the log's columns are the Python board's to the bit); through int32, which the
+ * columns fit (a float to int64 conversion would link the M0's soft double routines) */
+static int32_t round_even(qb_real v)
 {
     qb_real r = QM(floor)(v + 0.5);
-    if (r - v == 0.5 && ((int64_t)r & 1))
+    r = r < -2147483648.0 ? -2147483648.0 : r > 2147483520.0 ? 2147483520.0 : r;
+    if (r - v == 0.5 && ((int32_t)r & 1))
         r -= 1.0;
-    return (int64_t)r;
+    return (int32_t)r;
 }
 
 /* One record per control step while logging (fcb_sim's Board._task_logging: the same columns in board units). */

@@ -72,16 +72,16 @@ static void program(qb_log_t *l, const uint8_t *data, size_t n)
 
 /* --- the codecs ---------------------------------------------------------------------------------------------- */
 
-static int64_t floor_div(int64_t a, int64_t b)
+/* Python's a // b for b > 0, in unsigned division (the M0 then links one 64-bit divide, not two) */
+static int64_t floor_div(int64_t a, uint32_t b)
 {
-    int64_t q = a / b;
-    return (a % b != 0 && (a < 0) != (b < 0)) ? q - 1 : q;
+    return a >= 0 ? (int64_t)((uint64_t)a / b) : -(int64_t)(((uint64_t)-(a + 1) + b) / b);
 }
 
 /* logformat.quantise: the nearest multiple's index (ties up) */
-static int64_t quantise(int64_t x, int64_t scale)
+static int64_t quantise(int64_t x, uint32_t scale)
 {
-    return floor_div(x + scale / 2, scale);
+    return floor_div(x + (int64_t)(scale / 2u), scale);
 }
 
 static uint64_t zigzag(int64_t r)
