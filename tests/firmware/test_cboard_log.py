@@ -18,7 +18,9 @@ from hypothesis import strategies as st
 from fcb_sim.board.flash_log import LOG_VARS, encode_log
 from fcb_sim.board.parts import BoardConfig
 from fcb_sim.hosts import cboard
+from fcb_sim.world.physics import World
 from term.core import logformat
+from term.core.link import LinkSession
 from term.core.protocol import (
     SCHEME_DELTA8,
     SCHEME_RICE,
@@ -34,6 +36,9 @@ from term.core.protocol import (
     Op,
     encode,
 )
+from term.session.download import DONE
+from term.transports.loopback import Faults, FaultyChannel
+from tests.support.download_rig import NEUTRAL, Rig
 
 pytestmark = pytest.mark.skipif(shutil.which("cc") is None or shutil.which("make") is None,
                                 reason="no C compiler (cc) or make: the C board's tests are skipped")
@@ -137,3 +142,35 @@ def test_a_flights_log_downloads_and_decodes(scheme: int) -> None:
     assert Mode.FULL in modes and Mode.CALIBRATION in modes
     t = [row[0] for row in seg.rows]
     assert all(0 < b2 - a2 <= 5032 + 32 for a2, b2 in zip(t, t[1:], strict=False))  # one record per control step
+
+
+class _CRig(Rig):
+    """tests/support/download_rig.Rig with the C board in place of the Python board (the terminal's side as it is)."""
+
+    def __init__(self, seed: int, record_s: float) -> None:
+        self.board = cboard.CBoard(BoardConfig(seed=seed, log_scheme="rice"), world=World(seed))  # type: ignore
+        self.session = LinkSession(0.0)
+        self.session.set_joystick(NEUTRAL)
+        self.up, self.down = FaultyChannel(seed=seed * 2), FaultyChannel(seed=seed * 2 + 1)
+        self.now = 0.0
+        self.dl = None
+        self.events = []
+        self.up.send(self.session.hello(), 0.0)
+        self.run(0.3)
+        self.command(Op.LOG_START)
+        self.run(record_s)
+        self.command(Op.LOG_STOP)
+        self.run(0.1)
+
+
+@pytest.mark.parametrize("seed", [1, 2])
+def test_the_terminals_download_takes_the_c_boards_log_through_a_damaging_link(seed: int) -> None:
+    """F5's download (term.session.download.LogDownloader) against the C board, 3 % of the bytes damaged both ways:
+    the whole log, its CRC-32 the board's, decoded by term's decoder."""
+    rig = _CRig(seed, record_s=1.0)
+    rig.faults(Faults(corrupt=0.03), Faults(corrupt=0.03))
+    d = rig.download()
+    assert d.state == DONE, d.reason
+    assert d.verify() is None and zlib.crc32(d.data()) == d.crc32
+    (seg,) = logformat.decode_log(d.data())
+    assert seg.closed and len(seg.rows) > 150 and seg.scheme == SCHEME_RICE
