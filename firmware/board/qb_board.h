@@ -15,9 +15,11 @@
  *     board's set-up and dt in qb_flight.c);
  *   - commands, telemetry, heartbeats, the link-loss failsafe, the parameter table generated from term's
  *     (qb_board.c, qb_params.c, qb_params.h; fcb_sim/board/commands.py, telemetry.py, paramtable.py).
- * Not yet: the flash log (LOG_* commands answer NOT_IMPLEMENTED), the BLE handover, the task profile, RAW filters
- * other than ikf (and ikf in float: the C board's is always the fixed-point twin), the report preset's
- * complementary height estimator. docs/firmware.md keeps this list.
+ *   - the task profile (qb_prof.c, fcb_sim/board/timing.py's Profiler) and the flash log (qb_log.c,
+ *     fcb_sim/board/flash_log.py).
+ * Not yet: the BLE handover, RAW filters other than ikf (and ikf in float: the C board's is always the fixed-point
+ * twin), the report preset's complementary height estimator, the transmit side's answer budget. docs/firmware.md
+ * keeps the list of what is still different.
  *
  * Floating point: the flight core uses qb_real, as the Python board does (the differential test compares them);
  * an M0 build may define QB_REAL=float to halve the soft-float cost.
