@@ -62,12 +62,13 @@ uint32_t qb_prof_ran(qb_prof_t *p, int task, uint64_t start, uint32_t dur)
     }
     s->hist[b]++;
     if (s->started) {
-        uint64_t d = start - s->last_start;
+        /* a clock that steps back (the host's: each pass starts again at the lockstep time) is a period of 0 */
+        uint64_t d = start > s->last_start ? start - s->last_start : 0u;
         period = d > 0xFFFFFFFFu ? 0xFFFFFFFFu : (uint32_t)d;
         s->pn++;
         s->psum_us += period;
     }
-    s->last_start = start;
+    s->last_start = start > s->last_start ? start : s->last_start;
     s->started = 1;
     return period;
 }

@@ -54,4 +54,6 @@ def test_profile_answers_every_task_with_the_python_boards_periods() -> None:
     periods = {TASKS[p.task]: p.period_us for p in c_prof}
     assert periods["control"] == pytest.approx(5000, rel=0.01) and periods["heartbeat"] == pytest.approx(100_000, 0.01)
     assert periods["logging"] == 0  # no log recording
+    assert 0 < periods["parse"] < 100_000  # every pass reads the UART (a pass that starts the host's clock again
+    # at the lockstep time once read as a period of 2**32 µs)
     assert c_status and all(0 <= s.cpu_load <= 100 for s in c_status)

@@ -432,6 +432,9 @@ static void test_profile(void)
         qb_prof_ran(&p, QB_T_PARSE, (uint64_t)i * 10u, 7u);
     qb_prof_packet(&p, QB_T_PARSE, &out);
     CHECK(out.p99_us == 7 && out.mean_us == 7 && out.period_us == 10);
+    qb_prof_ran(&p, QB_T_HEARTBEAT, 1000, 1);
+    CHECK(qb_prof_ran(&p, QB_T_HEARTBEAT, 990, 1) == 0); /* a clock that steps back: a period of 0, not 2^32 */
+    CHECK(qb_prof_ran(&p, QB_T_HEARTBEAT, 1500, 1) == 500);
     qb_prof_ran(&p, QB_T_BARO, 0, 0xFFFFFFFFu); /* absurd durations saturate */
     qb_prof_packet(&p, QB_T_BARO, &out);
     CHECK(out.mean_us == 0xFFFF && out.p99_us == 0xFFFF);
