@@ -481,6 +481,49 @@ static void test_profile_in_the_loop(void)
     printf("  profile: control mean %d us, %d misses, cpu load %d %%\n", ctl_mean, misses, load);
 }
 
+/* The flash log under the sanitizers: int32's ends in every column (delta8's overload, Rice's escapes and
+ * residuals past 32 bits), a log that fills (FULL, closed with its count), the commands' guards. */
+static void test_log_extremes(void)
+{
+    qb_log_t l;
+    int64_t row[QB_LOG_VARS];
+    uint8_t chunk[QB_LOG_CHUNK];
+    uint8_t scheme;
+    int i, k;
+    for (scheme = QB_SCHEME_DELTA8; scheme <= QB_SCHEME_RICE; scheme++) {
+        memset(flash, 0xFF, sizeof flash);
+        qb_log_init(&l, 4000u, scheme);
+        CHECK(qb_log_start(&l) == QP_NAK_OK && l.state == QP_LOG_STATE_RECORDING);
+        for (k = 0; k < 2000 && l.state == QP_LOG_STATE_RECORDING; k++) {
+            for (i = 0; i < QB_LOG_VARS; i++)
+                row[i] = (k + i) % 3 == 0 ? INT32_MIN : (k + i) % 3 == 1 ? INT32_MAX : (int64_t)noise(1000);
+            qb_log_append(&l, row);
+        }
+        CHECK(l.state == QP_LOG_STATE_FULL && l.used <= 4000u && l.records > 10 && l.flash_errors == 0);
+        CHECK(flash[0] == 'Q' && flash[1] == 'L' && flash[3] == scheme);
+        CHECK((uint32_t)(flash[6] | flash[7] << 8 | flash[8] << 16 | (uint32_t)flash[9] << 24) == l.records);
+        CHECK(qb_log_start(&l) == QP_NAK_LOG_FULL);
+        qb_log_chunk(&l, qb_log_chunks(&l) - 1u, chunk);
+        qb_log_chunk(&l, 100000u, chunk); /* past the end: erased bytes */
+        CHECK(chunk[0] == 0xFF && chunk[QB_LOG_CHUNK - 1] == 0xFF);
+        CHECK(qb_log_reset(&l, 0) == QP_NAK_NOT_IN_SAFE && qb_log_reset(&l, 1) == QP_NAK_OK && l.used == 0);
+        CHECK(flash[0] == 0xFF && qb_log_crc32(&l) == 0u);
+    }
+    boot();
+    CHECK(command(QP_OP_LOG_DOWNLOAD, 0) == QP_NAK_LOG_EMPTY);
+    CHECK(command(QP_OP_LOG_START, 0) == QP_NAK_OK);
+    run_until(t_us + 300000);
+    CHECK(command(QP_OP_LOG_DOWNLOAD, 0) == QP_NAK_LOG_BUSY);
+    CHECK(command(QP_OP_SET_PARAM, (QP_PARAM_LOG_SCHEME << 24) | QB_SCHEME_DELTA8) == QP_NAK_LOG_BUSY);
+    CHECK(command(QP_OP_LOG_STOP, 0) == QP_NAK_OK && board.log.records > 50);
+    CHECK(command(QP_OP_LOG_DOWNLOAD, -1) == QP_NAK_BAD_ARGUMENT && ack_value == (int32_t)qb_log_chunks(&board.log));
+    CHECK(command(QP_OP_LOG_DOWNLOAD, 0) == QP_NAK_OK && board.log.dl_active);
+    CHECK(command(QP_OP_LOG_RESET, 0) == QP_NAK_LOG_BUSY);
+    run_until(t_us + 2000000);
+    CHECK(!board.log.dl_active && board.log.dl_sent == qb_log_chunks(&board.log));
+    CHECK(command(QP_OP_LOG_RESET, 0) == QP_NAK_OK && board.log.used == 0);
+}
+
 static void test_garbage_never_hurts(void)
 {
     int i, j;
@@ -511,6 +554,7 @@ int main(void)
     test_param_limits_every_path();
     test_profile();
     test_profile_in_the_loop();
+    test_log_extremes();
     test_garbage_never_hurts();
     printf("qb_test: %s (%d failure%s)\n", failures ? "FAILED" : "ok", failures, failures == 1 ? "" : "s");
     return failures ? 1 : 0;
