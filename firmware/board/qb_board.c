@@ -87,7 +87,7 @@ uint64_t qb_next_event_us(const qb_board_t *b)
 
 /* --- sending ------------------------------------------------------------------------------------------------ */
 
-static void send(qb_board_t *b, const qp_packet_t *pkt)
+void qb_send(qb_board_t *b, const qp_packet_t *pkt)
 {
     uint8_t frame[QP_MAX_FRAME];
     size_t n = qp_encode(&b->enc, pkt, frame);
@@ -95,14 +95,14 @@ static void send(qb_board_t *b, const qp_packet_t *pkt)
         b->tx_dropped++;
 }
 
-static void send_event(qb_board_t *b, uint8_t code, int32_t arg)
+void qb_send_event(qb_board_t *b, uint8_t code, int32_t arg)
 {
     qp_packet_t p;
     p.type = QP_TYPE_EVENT;
     p.u.event.code = code;
     p.u.event.arg = arg;
     p.u.event.board_ms = (uint32_t)(b->now / 1000u);
-    send(b, &p);
+    qb_send(b, &p);
 }
 
 static void send_hello(qb_board_t *b)
@@ -114,33 +114,14 @@ static void send_hello(qb_board_t *b)
     p.u.hello.major = QB_VERSION_MAJOR;
     p.u.hello.minor = QB_VERSION_MINOR;
     p.u.hello.board_id = b->cfg.board_id;
-    send(b, &p);
+    qb_send(b, &p);
 }
 
 static void drain_mode_events(qb_board_t *b)
 {
     qb_event_t ev;
     while (qb_modes_take_event(&b->modes, &ev))
-        send_event(b, ev.code, ev.arg);
-}
-
-static void send_log_status(qb_board_t *b, uint8_t state)
-{
-    qp_packet_t p;
-    p.type = QP_TYPE_LOG_STATUS;
-    p.u.log_status.state = state;
-    p.u.log_status.used = b->log.used;
-    p.u.log_status.records = b->log.records;
-    p.u.log_status.crc32 = qb_log_crc32(&b->log);
-    send(b, &p);
-}
-
-/* The download stops (done, or the board left SAFE) and says where the log stands (flash_log.Download.end). */
-static void end_download(qb_board_t *b)
-{
-    b->log.dl_active = 0;
-    send_log_status(b, b->log.state);
-    send_event(b, QP_EVENT_CODE_LOG_DONE, (int32_t)b->log.dl_sent);
+        qb_send_event(b, ev.code, ev.arg);
 }
 
 static int16_t i16(qb_real v)
@@ -179,7 +160,7 @@ static void on_mode_change(void *ctx, uint8_t old_mode, uint8_t new_mode)
         qb_flight_set_calibration(&b->core, gyro, accel, phi, theta, pressure);
     }
     if (new_mode != QP_MODE_SAFE && b->log.dl_active)
-        end_download(b);
+        qb_log_end_download(b);
     qb_flight_enter_mode(&b->core, new_mode, qb_modes_lift(m));
 }
 
@@ -285,7 +266,7 @@ void qb_starved(qb_board_t *b, uint64_t until_us, int slip)
     b->lag_max_us = lag > b->lag_max_us ? lag : b->lag_max_us;
     if (b->lag_max_us < 100000u || b->now < b->lag_report_at)
         return;
-    send_event(b, QP_EVENT_CODE_SIM_LAG, (int32_t)(b->lag_max_us / 1000u));
+    qb_send_event(b, QP_EVENT_CODE_SIM_LAG, (int32_t)(b->lag_max_us / 1000u));
     b->lag_max_us = 0;
     b->lag_report_at = b->now + 1000000u;
 }
@@ -321,7 +302,7 @@ static void task_heartbeat(qb_board_t *b)
     p.u.heartbeat.counter = (uint16_t)b->heartbeats;
     p.u.heartbeat.board_ms = (uint32_t)(b->now / 1000u);
     p.u.heartbeat.rtt = (uint16_t)(b->hb_rtt_fresh ? (rtt > 0xFFFFu ? 0xFFFFu : rtt < 1u ? 1u : rtt) : 0u);
-    send(b, &p);
+    qb_send(b, &p);
     b->hb_sent_counter = p.u.heartbeat.counter;
     b->hb_sent_us = b->now;
     b->hb_sent_set = 1;
@@ -370,7 +351,7 @@ static void send_status(qb_board_t *b)
     p.u.status.log_fill = (uint8_t)((uint64_t)b->log.used * 100u / b->log.size > 100u
                                         ? 100u : (uint64_t)b->log.used * 100u / b->log.size);
     p.u.status.wireless = QP_WIRELESS_STATE_DISCONNECTED;
-    send(b, &p);
+    qb_send(b, &p);
 }
 
 static void task_telemetry(qb_board_t *b)
@@ -380,18 +361,8 @@ static void task_telemetry(qb_board_t *b)
     int32_t att[3];
     b->telemetry_runs++;
     drain_mode_events(b);
-    if (b->log.dl_active) { /* log chunks instead of telemetry (flash_log.Download.step), a Status every tenth run */
-        unsigned k;
-        uint32_t n = qb_log_chunks(&b->log);
-        for (k = 0; k < QB_DOWNLOAD_CHUNKS_PER_RUN && b->log.dl_active; k++) {
-            p.type = QP_TYPE_LOG_CHUNK;
-            p.u.log_chunk.index = (uint16_t)b->log.dl_next;
-            qb_log_chunk(&b->log, b->log.dl_next, p.u.log_chunk.data);
-            send(b, &p);
-            b->log.dl_sent++;
-            if (++b->log.dl_next >= n)
-                end_download(b);
-        }
+    if (b->log.dl_active) { /* log chunks instead of telemetry, a Status every tenth run */
+        qb_log_download_step(b);
         if (b->telemetry_runs % 10u == 0u)
             send_status(b);
         return;
@@ -405,7 +376,7 @@ static void task_telemetry(qb_board_t *b)
     p.u.attitude.sp = i16(fc->sp);
     p.u.attitude.sq = i16(fc->sq);
     p.u.attitude.sr = i16(fc->sr);
-    send(b, &p);
+    qb_send(b, &p);
     p.type = QP_TYPE_MOTION;
     p.u.motion.sax = i16(fc->sax);
     p.u.motion.say = i16(fc->say);
@@ -414,7 +385,7 @@ static void task_telemetry(qb_board_t *b)
     p.u.motion.ae2 = b->ae[1];
     p.u.motion.ae3 = b->ae[2];
     p.u.motion.ae4 = b->ae[3];
-    send(b, &p);
+    qb_send(b, &p);
     if (due(&b->height_due, HEIGHT_PERIOD_US, b->now)) {
         p.type = QP_TYPE_HEIGHT;
         p.u.height.pressure = (uint32_t)(b->pressure > 0 ? b->pressure : 0);
@@ -423,7 +394,7 @@ static void task_telemetry(qb_board_t *b)
         p.u.height.vz = i16(fc->vz / 0.01);
         p.u.height.battery = b->battery;
         p.u.height.temperature = i16(b->temperature);
-        send(b, &p);
+        qb_send(b, &p);
     }
     if (due(&b->status_due, STATUS_PERIOD_US, b->now)) {
         send_status(b);
@@ -433,7 +404,7 @@ static void task_telemetry(qb_board_t *b)
         p.u.gains.p2 = qp_half_from_float((float)fc->g.p2);
         p.u.gains.height_p = qp_half_from_float((float)fc->g.height_p);
         p.u.gains.height_d = qp_half_from_float((float)fc->g.height_d);
-        send(b, &p);
+        qb_send(b, &p);
     }
 }
 
@@ -577,7 +548,7 @@ static result_t execute(qb_board_t *b, const qp_command_t *c)
 static void param_changed(qb_board_t *b, int param)
 {
     int32_t raw = qb_param_get(b, param);
-    send_event(b, QP_EVENT_CODE_PARAM_CHANGED, (int32_t)(((uint32_t)param << 24) | ((uint32_t)raw & 0xFFFFFFu)));
+    qb_send_event(b, QP_EVENT_CODE_PARAM_CHANGED, (int32_t)(((uint32_t)param << 24) | ((uint32_t)raw & 0xFFFFFFu)));
 }
 
 static void handle_command(qb_board_t *b, const qp_command_t *c)
@@ -589,7 +560,7 @@ static void handle_command(qb_board_t *b, const qp_command_t *c)
         b->now - b->last_cmd_us < QB_DEDUPE_US) {
         p.type = QP_TYPE_ACK; /* a retry: its first answer was lost; answered again, not done again */
         p.u.ack = b->last_ack;
-        send(b, &p);
+        qb_send(b, &p);
         return;
     }
     r = execute(b, c);
@@ -602,17 +573,14 @@ static void handle_command(qb_board_t *b, const qp_command_t *c)
     b->last_ack = p.u.ack;
     b->last_cmd_us = b->now;
     b->have_last = 1;
-    send(b, &p);
+    qb_send(b, &p);
     drain_mode_events(b);
     if (r.after == 1) {
         param_changed(b, r.after_param);
     } else if (r.after == 4) {
-        send_log_status(b, b->log.state);
+        qb_log_send_status(b, b->log.state);
     } else if (r.after == 5) { /* the download begins: LogStatus DOWNLOADING, then the chunks (telemetry's turn) */
-        b->log.dl_active = 1;
-        b->log.dl_next = (uint32_t)c->arg;
-        b->log.dl_sent = 0;
-        send_log_status(b, QP_LOG_STATE_DOWNLOADING);
+        qb_log_begin_download(b, (uint32_t)c->arg);
         if (b->next_us[QB_TM_TELEMETRY] > b->now + QB_DOWNLOAD_PERIOD_US) { /* under a slower telemetry rate */
             b->next_tk[QB_TM_TELEMETRY] = b->now * QB_RTC_HZ / 1000000u + rtc_ticks(QB_DOWNLOAD_PERIOD_US);
             b->next_us[QB_TM_TELEMETRY] = rtc_us(b->next_tk[QB_TM_TELEMETRY]);
@@ -621,7 +589,7 @@ static void handle_command(qb_board_t *b, const qp_command_t *c)
         for (i = 0; i < QB_TASKS; i++) {
             p.type = QP_TYPE_PROFILE;
             qb_prof_packet(&b->prof, i, &p.u.profile);
-            send(b, &p);
+            qb_send(b, &p);
         }
     } else if (r.after == 2) {
         for (i = 0; i < QB_PARAM_COUNT; i++) {
@@ -630,7 +598,7 @@ static void handle_command(qb_board_t *b, const qp_command_t *c)
             p.u.param_value.value = qb_param_get(b, QB_PARAMS[i].id);
             p.u.param_value.index = (uint8_t)i;
             p.u.param_value.count = QB_PARAM_COUNT;
-            send(b, &p);
+            qb_send(b, &p);
         }
     }
 }
@@ -707,7 +675,7 @@ static void task_parse(qb_board_t *b)
     uint32_t dropped = hal_uart_dropped();
     if (dropped > b->overflow_reported && b->now >= b->overflow_report_at) {
         /* what was dropped since the last report, at most once per heartbeat period (a flood is one event) */
-        send_event(b, QP_EVENT_CODE_OVERFLOW, (int32_t)(dropped - b->overflow_reported));
+        qb_send_event(b, QP_EVENT_CODE_OVERFLOW, (int32_t)(dropped - b->overflow_reported));
         b->overflow_reported = dropped;
         b->overflow_report_at = b->now + QB_HEARTBEAT_PERIOD_US;
     }
@@ -757,53 +725,11 @@ void qb_init(qb_board_t *b, const qb_config_t *cfg)
     hal_baro_read(&b->pressure, &b->temperature);
     if (cfg->boot_hello) {
         send_hello(b);
-        send_event(b, QP_EVENT_CODE_BOOT, QP_PROTOCOL_VERSION);
+        qb_send_event(b, QP_EVENT_CODE_BOOT, QP_PROTOCOL_VERSION);
     }
 }
 
 typedef void (*task_fn)(qb_board_t *b);
-
-/* Python's round(): half to even (the log's columns are the Python board's to the bit); through int32, which the
- * columns fit (a float to int64 conversion would link the M0's soft double routines) */
-static int32_t round_even(qb_real v)
-{
-    qb_real r = QM(floor)(v + 0.5);
-    r = r < -2147483648.0 ? -2147483648.0 : r > 2147483520.0 ? 2147483520.0 : r;
-    if (r - v == 0.5 && ((int32_t)r & 1))
-        r -= 1.0;
-    return (int32_t)r;
-}
-
-/* One record per control step while logging (fcb_sim's Board._task_logging: the same columns in board units). */
-static void task_logging(qb_board_t *b)
-{
-    const qb_flight_t *fc = &b->core;
-    int64_t row[QB_LOG_VARS];
-    int32_t att[3];
-    int i;
-    qb_flight_attitude_cdeg(fc, att);
-    row[0] = (int64_t)b->now;
-    row[1] = b->modes.mode;
-    row[2] = att[0];
-    row[3] = att[1];
-    row[4] = att[2];
-    row[5] = round_even(fc->sp);
-    row[6] = round_even(fc->sq);
-    row[7] = round_even(fc->sr);
-    row[8] = round_even(fc->sax);
-    row[9] = round_even(fc->say);
-    row[10] = round_even(fc->saz);
-    for (i = 0; i < 4; i++)
-        row[11 + i] = b->ae[i];
-    row[15] = round_even(fc->height / 0.01);
-    row[16] = b->pressure;
-    row[17] = b->battery;
-    qb_log_append(&b->log, row);
-    if (b->log.state == QP_LOG_STATE_FULL && !b->log.full_reported) {
-        b->log.full_reported = 1;
-        send_event(b, QP_EVENT_CODE_LOG_FULL, (int32_t)b->log.used);
-    }
-}
 
 /* One task, timed by hal_time_us() (fcb_sim's Board.advance with Profiler.ran): its duration and period, and a
  * control period past the deadline said as DEADLINE_MISS while flying, at most every 10 s. */
@@ -818,14 +744,14 @@ static void run_task(qb_board_t *b, uint8_t task, task_fn fn)
         qb_modes_flying(&b->modes) && (!b->misses_reported || b->now - b->misses_reported_at >= 10000000u)) {
         b->misses_reported = 1;
         b->misses_reported_at = b->now;
-        send_event(b, QP_EVENT_CODE_DEADLINE_MISS, (int32_t)period);
+        qb_send_event(b, QP_EVENT_CODE_DEADLINE_MISS, (int32_t)period);
     }
 }
 
 void qb_poll(qb_board_t *b)
 {
     static const task_fn TASK[QB_TASKS] = {task_parse, task_sensor, task_control, task_baro, task_telemetry,
-                                           task_heartbeat, task_logging};
+                                           task_heartbeat, qb_log_task};
     unsigned i;
     b->now = hal_time_us();
     fire_timers(b);

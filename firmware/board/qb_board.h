@@ -274,6 +274,13 @@ uint8_t qb_log_reset(qb_log_t *l, int in_safe);
 uint32_t qb_log_chunks(const qb_log_t *l);
 void qb_log_chunk(const qb_log_t *l, uint32_t index, uint8_t out[QB_LOG_CHUNK]);
 uint32_t qb_log_crc32(const qb_log_t *l);
+/* The board's side (qb_log.c, after the board's declarations below). */
+struct qb_board;
+void qb_log_task(struct qb_board *b);                          /* the logging task: one record */
+void qb_log_send_status(struct qb_board *b, uint8_t state);    /* a LogStatus packet */
+void qb_log_begin_download(struct qb_board *b, uint32_t first); /* after LOG_DOWNLOAD's Ack */
+void qb_log_download_step(struct qb_board *b);                 /* one telemetry run's chunks */
+void qb_log_end_download(struct qb_board *b);                  /* LogStatus, LOG_DONE */
 
 /* --- the board (qb_board.c) ------------------------------------------------------------------------------- */
 
@@ -325,6 +332,9 @@ typedef struct qb_board {
     uint8_t misses_reported;
 } qb_board_t;
 
+/* A packet to the PC, and an Event now (the tasks in qb_board.c, qb_log.c). */
+void qb_send(qb_board_t *b, const qp_packet_t *pkt);
+void qb_send_event(qb_board_t *b, uint8_t code, int32_t arg);
 void qb_config_default(qb_config_t *cfg);
 void qb_init(qb_board_t *b, const qb_config_t *cfg);
 /* Run every task due at hal_time_us() (the timers that expired, bytes that arrived). */

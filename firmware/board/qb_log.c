@@ -2,8 +2,11 @@
  * hal_flash_*), the report's delta8 and our Rice code (docs/flash_log.md), the same bytes as the Python board's
  * encoder for the same records (tests/firmware/test_cboard_log.py), and the download in chunks.
  *
+ * Below the codec, the board's side: the logging task (one record per control step), LogStatus and the download.
+ *
  * The encoder mirrors term/core/logformat.py's decoder state machines; Python's integers are unbounded, so every
  * sum that may pass 32 bits is 64 bits here (a residual of two int32 values, the Rice statistics). */
+#include <math.h>
 #include <string.h>
 
 #include "hal.h"
@@ -308,4 +311,92 @@ uint32_t qb_log_crc32(const qb_log_t *l)
         }
     }
     return crc ^ 0xFFFFFFFFu;
+}
+
+/* --- the board's side: the logging task, LogStatus, the download (qb_board.c's tasks and commands call them) -- */
+
+void qb_log_send_status(qb_board_t *b, uint8_t state)
+{
+    qp_packet_t p;
+    p.type = QP_TYPE_LOG_STATUS;
+    p.u.log_status.state = state;
+    p.u.log_status.used = b->log.used;
+    p.u.log_status.records = b->log.records;
+    p.u.log_status.crc32 = qb_log_crc32(&b->log);
+    qb_send(b, &p);
+}
+
+/* The download stops (done, or the board left SAFE) and says where the log stands (flash_log.Download.end). */
+void qb_log_end_download(qb_board_t *b)
+{
+    b->log.dl_active = 0;
+    qb_log_send_status(b, b->log.state);
+    qb_send_event(b, QP_EVENT_CODE_LOG_DONE, (int32_t)b->log.dl_sent);
+}
+
+void qb_log_begin_download(qb_board_t *b, uint32_t first)
+{
+    b->log.dl_active = 1;
+    b->log.dl_next = first;
+    b->log.dl_sent = 0;
+    qb_log_send_status(b, QP_LOG_STATE_DOWNLOADING);
+}
+
+/* One telemetry run of a download: chunks in order, QB_DOWNLOAD_CHUNKS_PER_RUN at most (flash_log.Download.step). */
+void qb_log_download_step(qb_board_t *b)
+{
+    qp_packet_t p;
+    unsigned k;
+    uint32_t n = qb_log_chunks(&b->log);
+    for (k = 0; k < QB_DOWNLOAD_CHUNKS_PER_RUN && b->log.dl_active; k++) {
+        p.type = QP_TYPE_LOG_CHUNK;
+        p.u.log_chunk.index = (uint16_t)b->log.dl_next;
+        qb_log_chunk(&b->log, b->log.dl_next, p.u.log_chunk.data);
+        qb_send(b, &p);
+        b->log.dl_sent++;
+        if (++b->log.dl_next >= n)
+            qb_log_end_download(b);
+    }
+}
+
+/* Python's round(): half to even (the log's columns are the Python board's to the bit); through int32, which the
+ * columns fit (a float to int64 conversion would link the M0's soft double routines) */
+static int32_t round_even(qb_real v)
+{
+    qb_real r = QM(floor)(v + 0.5);
+    r = r < -2147483648.0 ? -2147483648.0 : r > 2147483520.0 ? 2147483520.0 : r;
+    if (r - v == 0.5 && ((int32_t)r & 1))
+        r -= 1.0;
+    return (int32_t)r;
+}
+
+/* One record per control step while logging (fcb_sim's Board._task_logging: the same columns in board units). */
+void qb_log_task(qb_board_t *b)
+{
+    const qb_flight_t *fc = &b->core;
+    int64_t row[QB_LOG_VARS];
+    int32_t att[3];
+    int i;
+    qb_flight_attitude_cdeg(fc, att);
+    row[0] = (int64_t)b->now;
+    row[1] = b->modes.mode;
+    row[2] = att[0];
+    row[3] = att[1];
+    row[4] = att[2];
+    row[5] = round_even(fc->sp);
+    row[6] = round_even(fc->sq);
+    row[7] = round_even(fc->sr);
+    row[8] = round_even(fc->sax);
+    row[9] = round_even(fc->say);
+    row[10] = round_even(fc->saz);
+    for (i = 0; i < 4; i++)
+        row[11 + i] = b->ae[i];
+    row[15] = round_even(fc->height / 0.01);
+    row[16] = b->pressure;
+    row[17] = b->battery;
+    qb_log_append(&b->log, row);
+    if (b->log.state == QP_LOG_STATE_FULL && !b->log.full_reported) {
+        b->log.full_reported = 1;
+        qb_send_event(b, QP_EVENT_CODE_LOG_FULL, (int32_t)b->log.used);
+    }
 }
