@@ -383,6 +383,8 @@ def params_header() -> str:
             stem = upper(spec.name.split(".")[-1])
             for i, choice in enumerate(spec.choices):
                 out.append(f"#define QB_{stem}_{upper(re.sub(r'[^0-9A-Za-z]+', '_', choice))} {spec.base + i}")
+    out += ["/* discard-20: the whole receive queue goes when this many frames wait in it */",
+            f"#define QB_QUEUE_DISCARD_FRAMES {p.QUEUE_DISCARD_FRAMES}"]
     out += ["", "/* In id order; defined once, in the file that defines QB_PARAMS_TABLE first (qb_params.c). */",
             "extern const qb_param_spec_t QB_PARAMS[QB_PARAM_COUNT];", "", "#ifdef QB_PARAMS_TABLE",
             "const qb_param_spec_t QB_PARAMS[QB_PARAM_COUNT] = {"]

@@ -30,7 +30,7 @@ from fcb_sim.board.timing import rtc_ticks
 from fcb_sim.board.wireless import WirelessLink
 from fcb_sim.errors import UsageError
 from fcb_sim.world.physics import World
-from term.core.protocol import PARAMS, Mode, Param
+from term.core.protocol import PARAMS, PRESETS, Mode, Param
 
 FIRMWARE = cbuild.firmware_dir()
 LIBRARY = "libqb_host.so"
@@ -91,6 +91,18 @@ def _load(path: Path) -> ctypes.CDLL:
     return lib
 
 
+def _bind_parity(lib: ctypes.CDLL) -> ctypes.CDLL:
+    """The entry points of the C board's parity with the Python board (issue 37): the queue rule's count, the flash
+    log's encoder alone (tests)."""
+    vp = ctypes.c_void_p
+    lib.qbh_rx_discarded.argtypes = [vp]
+    lib.qbh_rx_discarded.restype = ctypes.c_uint32
+    lib.qbh_log_encode.argtypes = [vp, ctypes.c_int, ctypes.POINTER(ctypes.c_int64), ctypes.c_size_t, ctypes.c_char_p,
+                                   ctypes.c_size_t]
+    lib.qbh_log_encode.restype = ctypes.c_size_t
+    return lib
+
+
 def default_phases(seed: int) -> tuple[int, int, int, int]:
     """The timers' first expiries (RTC ticks: sensor, baro, telemetry, heartbeat): unrelated phases, as the
     Python board's scheduler draws them."""
@@ -118,12 +130,10 @@ class CBoard:
                  phases: tuple[int, int, int, int] | None = None, build_dir: Path | None = None,
                  real: str = "double") -> None:
         self.config = cfg = config or BoardConfig()
-        if cfg.preset != "default":
-            raise UsageError(f"the C board has the default preset only (asked: {cfg.preset!r})")
         self.world = world if world is not None else World(cfg.seed)
         self.wireless = WirelessLink()  # no radio on the C board: the handover is refused (NO_BLE_CONNECTION)
         self.on_task: Any = None  # the serve loop's hook; the C board's tasks take no board time
-        self._lib = lib = _load(library_path(build_dir, real=real))
+        self._lib = lib = _bind_parity(_load(library_path(build_dir, real=real)))
         self._buf = ctypes.create_string_buffer(lib.qbh_size())
         self._h = ctypes.cast(self._buf, ctypes.c_void_p)
         self._crashes_seen = len(self.world.crashes)
@@ -135,6 +145,17 @@ class CBoard:
         for param, value in _config_params(cfg).items():  # the config's parameters, as the Python board takes them
             if lib.qbh_set_param(self._h, int(param), PARAMS[param].to_raw(value)):
                 raise UsageError(f"the C board cannot run {PARAMS[param].name} = {value!r} (docs/firmware.md)")
+        self._apply_preset(cfg.preset)
+
+    def _apply_preset(self, name: str) -> None:
+        """The preset's values over the defaults, each through the board's own guards (param_bindings.apply_values);
+        one line naming every value the C board cannot run (docs/firmware.md) when any is refused."""
+        refused = []
+        for param, value in PRESETS[name].items():
+            if self._lib.qbh_set_param(self._h, int(param), PARAMS[param].to_raw(value)):
+                refused.append(f"{PARAMS[param].name} = {PARAMS[param].text(value)}")
+        if refused:
+            raise UsageError(f"the C board cannot run preset {name!r}: {', '.join(refused)} (docs/firmware.md)")
 
     # --- the hardware layer's callbacks (board time in µs) ---------------------------------------------------
 
@@ -214,6 +235,21 @@ class CBoard:
     @property
     def rx_overflow(self) -> int:
         return int(self._lib.qbh_rx_dropped(self._h))
+
+    @property
+    def rx_discarded(self) -> int:
+        """Bytes the receive queue's rule threw away (link.queue_rule discard-20)."""
+        return int(self._lib.qbh_rx_discarded(self._h))
+
+    def log_encode(self, rows: list[tuple[int, ...]], scheme: int) -> bytes:
+        """The C encoder's bytes for ``rows`` in one segment (``flash_log.encode_log``'s twin; it erases this board's
+        flash: for tests)."""
+        flat = [int(v) for row in rows for v in row]
+        arr = (ctypes.c_int64 * max(1, len(flat)))(*flat)
+        cap = 256 * 1024
+        out = ctypes.create_string_buffer(cap)
+        n = self._lib.qbh_log_encode(self._h, int(scheme), arr, len(rows), out, cap)
+        return out.raw[:n]
 
     def state(self) -> dict[str, float]:
         """The figures tests and benches read (``STATE_FIELDS``)."""

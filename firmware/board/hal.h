@@ -45,8 +45,11 @@ void hal_motors_set(const uint16_t ae[4]);
  * crashes; a real board would detect the spike itself. */
 int32_t hal_impact_mm_s(void);
 
-/* Flash for the log (not used yet: the flash log comes later, docs/firmware.md). */
+/* The flash log's NOR flash (qb_log.c), addresses from 0 within the log's region: programming only clears bits
+ * (an AND), erasing sets them (0xFF); each returns 0, or -1 when it cannot. A backend without erase may leave
+ * hal_flash_erase out: qb_log.c's weak default refuses (LOG_RESET then answers NOT_IMPLEMENTED). */
 int hal_flash_write(uint32_t addr, const uint8_t *data, size_t len);
 int hal_flash_read(uint32_t addr, uint8_t *data, size_t len);
+int hal_flash_erase(uint32_t addr, size_t len);
 
 #endif /* QB_HAL_H */

@@ -48,9 +48,11 @@ static uint32_t timer_period(const qb_board_t *b, int timer)
         return b->raw_path ? QB_SENSOR_RAW_US : QB_SENSOR_DMP_US;
     case QB_TM_BARO:
         return QB_BARO_PERIOD_US;
-    case QB_TM_HEARTBEAT:
-        return QB_HEARTBEAT_PERIOD_US;
-    default: /* link.telemetry_hz in its raw unit, 0.01 Hz */
+    case QB_TM_HEARTBEAT: /* link.heartbeat_ms */
+        return (uint32_t)b->heartbeat_ms * 1000u;
+    default: /* link.telemetry_hz in its raw unit, 0.01 Hz; a log download rides it at its own pace */
+        if (b->log.dl_active)
+            return QB_DOWNLOAD_PERIOD_US;
         hz = b->telemetry_hz > 0 ? (uint32_t)b->telemetry_hz : 1u;
         return 100000000u / hz < 10000u ? 10000u : 100000000u / hz;
     }
@@ -82,7 +84,7 @@ uint64_t qb_next_event_us(const qb_board_t *b)
 
 /* --- sending ------------------------------------------------------------------------------------------------ */
 
-static void send(qb_board_t *b, const qp_packet_t *pkt)
+void qb_send(qb_board_t *b, const qp_packet_t *pkt)
 {
     uint8_t frame[QP_MAX_FRAME];
     size_t n = qp_encode(&b->enc, pkt, frame);
@@ -90,14 +92,14 @@ static void send(qb_board_t *b, const qp_packet_t *pkt)
         b->tx_dropped++;
 }
 
-static void send_event(qb_board_t *b, uint8_t code, int32_t arg)
+void qb_send_event(qb_board_t *b, uint8_t code, int32_t arg)
 {
     qp_packet_t p;
     p.type = QP_TYPE_EVENT;
     p.u.event.code = code;
     p.u.event.arg = arg;
     p.u.event.board_ms = (uint32_t)(b->now / 1000u);
-    send(b, &p);
+    qb_send(b, &p);
 }
 
 static void send_hello(qb_board_t *b)
@@ -109,14 +111,14 @@ static void send_hello(qb_board_t *b)
     p.u.hello.major = QB_VERSION_MAJOR;
     p.u.hello.minor = QB_VERSION_MINOR;
     p.u.hello.board_id = b->cfg.board_id;
-    send(b, &p);
+    qb_send(b, &p);
 }
 
 static void drain_mode_events(qb_board_t *b)
 {
     qb_event_t ev;
     while (qb_modes_take_event(&b->modes, &ev))
-        send_event(b, ev.code, ev.arg);
+        qb_send_event(b, ev.code, ev.arg);
 }
 
 static int16_t i16(qb_real v)
@@ -154,6 +156,8 @@ static void on_mode_change(void *ctx, uint8_t old_mode, uint8_t new_mode)
             pressure = qb_modes_cal_mean(m, QB_CAL_PRESSURE);
         qb_flight_set_calibration(&b->core, gyro, accel, phi, theta, pressure);
     }
+    if (new_mode != QP_MODE_SAFE && b->log.dl_active)
+        qb_log_end_download(b);
     qb_flight_enter_mode(&b->core, new_mode, qb_modes_lift(m));
 }
 
@@ -223,6 +227,8 @@ static void task_control(qb_board_t *b)
     memcpy(b->sticks_used, sticks, sizeof b->sticks_used);
     b->sticks_set = 1;
     set_motors(b, ae);
+    if (b->log.state == QP_LOG_STATE_RECORDING)
+        b->flags[QB_T_LOGGING] = 1;
     follow_sensor_path(b);
 }
 
@@ -257,7 +263,7 @@ void qb_starved(qb_board_t *b, uint64_t until_us, int slip)
     b->lag_max_us = lag > b->lag_max_us ? lag : b->lag_max_us;
     if (b->lag_max_us < 100000u || b->now < b->lag_report_at)
         return;
-    send_event(b, QP_EVENT_CODE_SIM_LAG, (int32_t)(b->lag_max_us / 1000u));
+    qb_send_event(b, QP_EVENT_CODE_SIM_LAG, (int32_t)(b->lag_max_us / 1000u));
     b->lag_max_us = 0;
     b->lag_report_at = b->now + 1000000u;
 }
@@ -293,7 +299,7 @@ static void task_heartbeat(qb_board_t *b)
     p.u.heartbeat.counter = (uint16_t)b->heartbeats;
     p.u.heartbeat.board_ms = (uint32_t)(b->now / 1000u);
     p.u.heartbeat.rtt = (uint16_t)(b->hb_rtt_fresh ? (rtt > 0xFFFFu ? 0xFFFFu : rtt < 1u ? 1u : rtt) : 0u);
-    send(b, &p);
+    qb_send(b, &p);
     b->hb_sent_counter = p.u.heartbeat.counter;
     b->hb_sent_us = b->now;
     b->hb_sent_set = 1;
@@ -328,6 +334,23 @@ static uint16_t status_flags(const qb_board_t *b)
     return f;
 }
 
+static void send_status(qb_board_t *b)
+{
+    const qb_modes_t *m = &b->modes;
+    qp_packet_t p;
+    p.type = QP_TYPE_STATUS;
+    p.u.status.flags = status_flags(b);
+    p.u.status.trim_roll = (int16_t)m->trim_roll;
+    p.u.status.trim_pitch = (int16_t)m->trim_pitch;
+    p.u.status.trim_yaw = (int16_t)m->trim_yaw;
+    p.u.status.trim_lift = (int16_t)m->trim_lift;
+    p.u.status.cpu_load = qb_prof_load(&b->prof, b->now);
+    p.u.status.log_fill = (uint8_t)((uint64_t)b->log.used * 100u / b->log.size > 100u
+                                        ? 100u : (uint64_t)b->log.used * 100u / b->log.size);
+    p.u.status.wireless = QP_WIRELESS_STATE_DISCONNECTED;
+    qb_send(b, &p);
+}
+
 static void task_telemetry(qb_board_t *b)
 {
     const qb_flight_t *fc = &b->core;
@@ -335,6 +358,12 @@ static void task_telemetry(qb_board_t *b)
     int32_t att[3];
     b->telemetry_runs++;
     drain_mode_events(b);
+    if (b->log.dl_active) { /* log chunks instead of telemetry, a Status every tenth run */
+        qb_log_download_step(b);
+        if (b->telemetry_runs % 10u == 0u)
+            send_status(b);
+        return;
+    }
     qb_flight_attitude_cdeg(fc, att);
     p.type = QP_TYPE_ATTITUDE;
     p.u.attitude.mode = b->modes.mode;
@@ -344,7 +373,7 @@ static void task_telemetry(qb_board_t *b)
     p.u.attitude.sp = i16(fc->sp);
     p.u.attitude.sq = i16(fc->sq);
     p.u.attitude.sr = i16(fc->sr);
-    send(b, &p);
+    qb_send(b, &p);
     p.type = QP_TYPE_MOTION;
     p.u.motion.sax = i16(fc->sax);
     p.u.motion.say = i16(fc->say);
@@ -353,7 +382,7 @@ static void task_telemetry(qb_board_t *b)
     p.u.motion.ae2 = b->ae[1];
     p.u.motion.ae3 = b->ae[2];
     p.u.motion.ae4 = b->ae[3];
-    send(b, &p);
+    qb_send(b, &p);
     if (due(&b->height_due, HEIGHT_PERIOD_US, b->now)) {
         p.type = QP_TYPE_HEIGHT;
         p.u.height.pressure = (uint32_t)(b->pressure > 0 ? b->pressure : 0);
@@ -362,27 +391,17 @@ static void task_telemetry(qb_board_t *b)
         p.u.height.vz = i16(fc->vz / 0.01);
         p.u.height.battery = b->battery;
         p.u.height.temperature = i16(b->temperature);
-        send(b, &p);
+        qb_send(b, &p);
     }
     if (due(&b->status_due, STATUS_PERIOD_US, b->now)) {
-        const qb_modes_t *m = &b->modes;
-        p.type = QP_TYPE_STATUS;
-        p.u.status.flags = status_flags(b);
-        p.u.status.trim_roll = (int16_t)m->trim_roll;
-        p.u.status.trim_pitch = (int16_t)m->trim_pitch;
-        p.u.status.trim_yaw = (int16_t)m->trim_yaw;
-        p.u.status.trim_lift = (int16_t)m->trim_lift;
-        p.u.status.cpu_load = 0; /* no profiler on the C board yet */
-        p.u.status.log_fill = 0;
-        p.u.status.wireless = QP_WIRELESS_STATE_DISCONNECTED;
-        send(b, &p);
+        send_status(b);
         p.type = QP_TYPE_GAINS;
         p.u.gains.yaw_p = qp_half_from_float((float)fc->g.yaw_p);
         p.u.gains.p1 = qp_half_from_float((float)fc->g.p1);
         p.u.gains.p2 = qp_half_from_float((float)fc->g.p2);
         p.u.gains.height_p = qp_half_from_float((float)fc->g.height_p);
         p.u.gains.height_d = qp_half_from_float((float)fc->g.height_d);
-        send(b, &p);
+        qb_send(b, &p);
     }
 }
 
@@ -391,7 +410,8 @@ static void task_telemetry(qb_board_t *b)
 typedef struct {
     uint8_t status;
     int32_t value;
-    int after;      /* what follows the Ack: 0 nothing, 1 PARAM_CHANGED for after_param, 2 the parameter list */
+    int after;      /* what follows the Ack: 0 nothing, 1 PARAM_CHANGED for after_param, 2 the parameter list,
+                     * 3 the task profile, 4 the LogStatus, 5 a download's start */
     int after_param;
 } result_t;
 
@@ -433,10 +453,15 @@ static result_t execute(qb_board_t *b, const qp_command_t *c)
     case QP_OP_GAIN_P2:
     case QP_OP_GAIN_HEIGHT_P:
     case QP_OP_GAIN_HEIGHT_D: {
+        /* arg presses of the table's step, kept inside the table's range, written by the same setter and guards as
+         * SET_PARAM (fcb_sim's commands._gain): no key burst can push a gain past the table (issue 37) */
         int param = QP_PARAM_YAW_P + (c->op - QP_OP_GAIN_YAW_P);
-        qb_real *g = gain_of(b, param), v = *g + (qb_real)c->arg * QB_PARAMS[param - 1].step;
-        *g = v > 0.0 ? v : 0.0;
-        r.value = (int32_t)QM(lround)(*g * 1000.0);
+        r.status = qb_param_set(b, param, qb_param_raw_clamped(qb_param_spec(param),
+                                                               *gain_of(b, param) +
+                                                                   (qb_real)c->arg * QB_PARAMS[param - 1].step), 1);
+        if (r.status != QP_NAK_OK)
+            return r;
+        r.value = (int32_t)QM(lround)(*gain_of(b, param) * 1000.0);
         r.after = 1;
         r.after_param = param;
         return r;
@@ -468,16 +493,48 @@ static result_t execute(qb_board_t *b, const qp_command_t *c)
         r.value = QB_PARAM_COUNT;
         r.after = 2;
         return r;
+    case QP_OP_PROFILE: /* the Profile packets follow the Ack, one per task */
+        r.value = QB_TASKS;
+        r.after = 3;
+        return r;
     case QP_OP_ACK_CRASH:
         r.status = qb_modes_ack_crash(&b->modes);
         return r;
-    case QP_OP_LOG_START:
+    case QP_OP_LOG_START: /* fcb_sim/board/commands.py's _log_* */
+        if (b->log.dl_active) {
+            r.status = QP_NAK_LOG_BUSY;
+            return r;
+        }
+        r.status = qb_log_start(&b->log);
+        if (r.status == QP_NAK_OK)
+            b->log.full_reported = 0;
+        r.value = (int32_t)b->log.used;
+        return r;
     case QP_OP_LOG_STOP:
+        r.status = qb_log_stop(&b->log);
+        r.value = (int32_t)b->log.used;
+        return r;
     case QP_OP_LOG_RESET:
+        r.status = b->log.dl_active ? QP_NAK_LOG_BUSY : qb_log_reset(&b->log, b->modes.mode == QP_MODE_SAFE);
+        return r;
     case QP_OP_LOG_STATUS:
+        r.value = (int32_t)b->log.used;
+        r.after = 4;
+        return r;
     case QP_OP_LOG_DOWNLOAD:
-    case QP_OP_PROFILE:
-        r.status = QP_NAK_NOT_IMPLEMENTED; /* the flash log and the profiler come later */
+        if (b->modes.mode != QP_MODE_SAFE)
+            r.status = QP_NAK_NOT_IN_SAFE;
+        else if (b->log.state == QP_LOG_STATE_RECORDING)
+            r.status = QP_NAK_LOG_BUSY;
+        else if (b->log.used == 0)
+            r.status = QP_NAK_LOG_EMPTY;
+        else if (c->arg < 0 || (uint32_t)c->arg >= qb_log_chunks(&b->log)) {
+            r.status = QP_NAK_BAD_ARGUMENT;
+            r.value = (int32_t)qb_log_chunks(&b->log);
+        } else {
+            r.value = (int32_t)qb_log_chunks(&b->log);
+            r.after = 5;
+        }
         return r;
     default:
         r.status = QP_NAK_UNKNOWN_COMMAND;
@@ -488,7 +545,7 @@ static result_t execute(qb_board_t *b, const qp_command_t *c)
 static void param_changed(qb_board_t *b, int param)
 {
     int32_t raw = qb_param_get(b, param);
-    send_event(b, QP_EVENT_CODE_PARAM_CHANGED, (int32_t)(((uint32_t)param << 24) | ((uint32_t)raw & 0xFFFFFFu)));
+    qb_send_event(b, QP_EVENT_CODE_PARAM_CHANGED, (int32_t)(((uint32_t)param << 24) | ((uint32_t)raw & 0xFFFFFFu)));
 }
 
 static void handle_command(qb_board_t *b, const qp_command_t *c)
@@ -500,7 +557,7 @@ static void handle_command(qb_board_t *b, const qp_command_t *c)
         b->now - b->last_cmd_us < QB_DEDUPE_US) {
         p.type = QP_TYPE_ACK; /* a retry: its first answer was lost; answered again, not done again */
         p.u.ack = b->last_ack;
-        send(b, &p);
+        qb_send(b, &p);
         return;
     }
     r = execute(b, c);
@@ -513,10 +570,24 @@ static void handle_command(qb_board_t *b, const qp_command_t *c)
     b->last_ack = p.u.ack;
     b->last_cmd_us = b->now;
     b->have_last = 1;
-    send(b, &p);
+    qb_send(b, &p);
     drain_mode_events(b);
     if (r.after == 1) {
         param_changed(b, r.after_param);
+    } else if (r.after == 4) {
+        qb_log_send_status(b, b->log.state);
+    } else if (r.after == 5) { /* the download begins: LogStatus DOWNLOADING, then the chunks (telemetry's turn) */
+        qb_log_begin_download(b, (uint32_t)c->arg);
+        if (b->next_us[QB_TM_TELEMETRY] > b->now + QB_DOWNLOAD_PERIOD_US) { /* under a slower telemetry rate */
+            b->next_tk[QB_TM_TELEMETRY] = b->now * QB_RTC_HZ / 1000000u + rtc_ticks(QB_DOWNLOAD_PERIOD_US);
+            b->next_us[QB_TM_TELEMETRY] = rtc_us(b->next_tk[QB_TM_TELEMETRY]);
+        }
+    } else if (r.after == 3) {
+        for (i = 0; i < QB_TASKS; i++) {
+            p.type = QP_TYPE_PROFILE;
+            qb_prof_packet(&b->prof, i, &p.u.profile);
+            qb_send(b, &p);
+        }
     } else if (r.after == 2) {
         for (i = 0; i < QB_PARAM_COUNT; i++) {
             p.type = QP_TYPE_PARAM_VALUE;
@@ -524,7 +595,7 @@ static void handle_command(qb_board_t *b, const qp_command_t *c)
             p.u.param_value.value = qb_param_get(b, QB_PARAMS[i].id);
             p.u.param_value.index = (uint8_t)i;
             p.u.param_value.count = QB_PARAM_COUNT;
-            send(b, &p);
+            qb_send(b, &p);
         }
     }
 }
@@ -583,6 +654,11 @@ static void react(qb_board_t *b)
     memcpy(b->sticks_used, sticks, sizeof sticks);
 }
 
+int qb_rx_discard(const qb_board_t *b, uint32_t frames)
+{
+    return b->queue_rule == QB_QUEUE_RULE_DISCARD_20 && frames >= QB_QUEUE_DISCARD_FRAMES;
+}
+
 void qb_receive(qb_board_t *b, const uint8_t *data, size_t len)
 {
     qp_decode(&b->dec, data, len, on_packet, b);
@@ -596,7 +672,7 @@ static void task_parse(qb_board_t *b)
     uint32_t dropped = hal_uart_dropped();
     if (dropped > b->overflow_reported && b->now >= b->overflow_report_at) {
         /* what was dropped since the last report, at most once per heartbeat period (a flood is one event) */
-        send_event(b, QP_EVENT_CODE_OVERFLOW, (int32_t)(dropped - b->overflow_reported));
+        qb_send_event(b, QP_EVENT_CODE_OVERFLOW, (int32_t)(dropped - b->overflow_reported));
         b->overflow_reported = dropped;
         b->overflow_report_at = b->now + QB_HEARTBEAT_PERIOD_US;
     }
@@ -631,6 +707,7 @@ void qb_init(qb_board_t *b, const qb_config_t *cfg)
     b->modes.on_change = on_mode_change;
     b->modes.ctx = b;
     qp_decoder_init(&b->dec);
+    qb_log_init(&b->log, QB_LOG_BYTES, QB_PARAMS[QP_PARAM_LOG_SCHEME - 1].def);
     for (i = 0; i < QB_PARAM_COUNT; i++) {
         int id = QB_PARAMS[i].id;
         if (id != QP_PARAM_LINK_TIMEOUT_MS && id != QP_PARAM_LINK_FAILSAFE_MS)
@@ -645,21 +722,33 @@ void qb_init(qb_board_t *b, const qb_config_t *cfg)
     hal_baro_read(&b->pressure, &b->temperature);
     if (cfg->boot_hello) {
         send_hello(b);
-        send_event(b, QP_EVENT_CODE_BOOT, QP_PROTOCOL_VERSION);
+        qb_send_event(b, QP_EVENT_CODE_BOOT, QP_PROTOCOL_VERSION);
     }
 }
 
 typedef void (*task_fn)(qb_board_t *b);
 
-static void task_logging(qb_board_t *b)
+/* One task, timed by hal_time_us() (fcb_sim's Board.advance with Profiler.ran): its duration and period, and a
+ * control period past the deadline said as DEADLINE_MISS while flying, at most every 10 s. */
+static void run_task(qb_board_t *b, uint8_t task, task_fn fn)
 {
-    (void)b; /* the flash log comes later */
+    uint64_t start = hal_time_us(), end;
+    uint32_t period;
+    fn(b);
+    end = hal_time_us();
+    period = qb_prof_ran(&b->prof, task, start, (uint32_t)(end > start ? end - start : 0u));
+    if (task == QB_T_CONTROL && period && qb_prof_control_period(&b->prof, b->raw_path, period) &&
+        qb_modes_flying(&b->modes) && (!b->misses_reported || b->now - b->misses_reported_at >= 10000000u)) {
+        b->misses_reported = 1;
+        b->misses_reported_at = b->now;
+        qb_send_event(b, QP_EVENT_CODE_DEADLINE_MISS, (int32_t)period);
+    }
 }
 
 void qb_poll(qb_board_t *b)
 {
     static const task_fn TASK[QB_TASKS] = {task_parse, task_sensor, task_control, task_baro, task_telemetry,
-                                           task_heartbeat, task_logging};
+                                           task_heartbeat, qb_log_task};
     unsigned i;
     b->now = hal_time_us();
     fire_timers(b);
@@ -671,7 +760,7 @@ void qb_poll(qb_board_t *b)
             if (b->flags[task]) {
                 b->rr = (uint8_t)((b->rr + i + 1) % RR_N);
                 b->flags[task] = 0;
-                TASK[task](b);
+                run_task(b, task, TASK[task]);
                 ran = 1;
             }
         }

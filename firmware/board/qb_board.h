@@ -15,9 +15,11 @@
  *     board's set-up and dt in qb_flight.c);
  *   - commands, telemetry, heartbeats, the link-loss failsafe, the parameter table generated from term's
  *     (qb_board.c, qb_params.c, qb_params.h; fcb_sim/board/commands.py, telemetry.py, param_bindings.py).
- * Not yet: the flash log (LOG_* commands answer NOT_IMPLEMENTED), the BLE handover, the task profile, RAW filters
- * other than ikf (and ikf in float: the C board's is always the fixed-point twin), the report preset's
- * complementary height estimator. docs/firmware.md keeps this list.
+ *   - the task profile (qb_prof.c, fcb_sim/board/timing.py's Profiler) and the flash log (qb_log.c,
+ *     fcb_sim/board/flash_log.py).
+ * Not yet: the BLE handover, RAW filters other than ikf (and ikf in float: the C board's is always the fixed-point
+ * twin), the report preset's complementary height estimator, the transmit side's answer budget. docs/firmware.md
+ * keeps the list of what is still different.
  *
  * Floating point: the flight core uses qb_real, as the Python board does (the differential test compares them);
  * an M0 build may define QB_REAL=float to halve the soft-float cost.
@@ -62,6 +64,8 @@ typedef struct {
     /* config (fcb_sim.board.modes.ModeConfig) */
     qb_real link_timeout_s;
     qb_real link_failsafe_s; /* stage 1's guard time; 0: PANIC at once (the report's) */
+    qb_real calibration_s;   /* mode.calibration_ms: averaging time; 0: for as long as the pilot holds it */
+    qb_real panic_countdown_s; /* mode.panic_countdown_ms: 0 the descent (ours); else the report's fixed level */
     int32_t panic_level;
     int32_t trim_step, lift_step;
     /* state */
@@ -128,6 +132,7 @@ typedef struct {
     qb_real ground_baro[QB_ANCHOR_MAX];
     uint8_t n_ground_baro;
     qb_real ground_baro_s;
+    qb_real stand_baro; /* while anchored: the barometer's height, slowly followed (its drift) */
     qb_real captured_height;
     qb_real c[4];
     qb_real c00;
@@ -177,6 +182,7 @@ typedef struct {
     qb_real z_base, z_int, sp_cap0, sp_base, sp_offset;
     int32_t lift_entry;
     qb_real panic_scale, panic_i, panic_level, panic_start, land_s;
+    uint8_t panic_hold; /* the report's PANIC (mode.panic_countdown_ms > 0): a fixed level, no descent loop */
     int32_t panic_ae;
     uint16_t ae[4];
 } qb_flight_t;
@@ -193,6 +199,80 @@ void qb_flight_attitude_cdeg(const qb_flight_t *fc, int32_t out[3]);
 void qb_quaternion_to_euler(qb_real w, qb_real x, qb_real y, qb_real z, qb_real out[3]);
 uint32_t qb_isqrt(uint32_t square);
 void qb_mix(int32_t z, qb_real l, qb_real m, qb_real n, int armed, uint16_t out[4]);
+
+/* --- the task profile (qb_prof.c) -------------------------------------------------------------------------- */
+
+#define QB_PROF_BUCKETS 64u
+
+typedef struct {
+    uint32_t n, pn;           /* runs, periods */
+    uint64_t sum_us, psum_us; /* their sums */
+    uint64_t last_start;
+    uint8_t started;
+    uint16_t misses;          /* control periods of at least WCET99 */
+    uint16_t hist[QB_PROF_BUCKETS]; /* durations, 4 buckets per octave */
+} qb_task_stats_t;
+
+typedef struct {
+    qb_task_stats_t t[QB_TASKS];
+    uint64_t busy_us, mark_t, mark_busy;
+    uint8_t cpu_load;
+} qb_prof_t;
+
+void qb_prof_reset(qb_prof_t *p, uint64_t now);
+/* A task ran from ``start`` for ``dur`` µs (hal_time_us before and after); returns its period, 0 the first time. */
+uint32_t qb_prof_ran(qb_prof_t *p, int task, uint64_t start, uint32_t dur);
+/* Count a control period against the deadline (WCET99 of the path); 1 if it missed. */
+int qb_prof_control_period(qb_prof_t *p, int raw_path, uint32_t period);
+/* The CPU load (%) since the previous call (the Status packet's). */
+uint8_t qb_prof_load(qb_prof_t *p, uint64_t now);
+void qb_prof_packet(const qb_prof_t *p, int task, qp_profile_t *out);
+
+/* --- the flash log (qb_log.c) -------------------------------------------------------------------------------- */
+
+#define QB_LOG_VARS 18          /* fcb_sim/board/flash_log.py LOG_VARS */
+#define QB_LOG_BYTES (128u * 1024u)
+#define QB_LOG_CHUNK 12u        /* a LogChunk's bytes */
+#define QB_LOG_RECORD_MAX 212u  /* the most one record (and a flush) adds */
+#define QB_DOWNLOAD_PERIOD_US 20000u
+#define QB_DOWNLOAD_CHUNKS_PER_RUN 8u /* 400 chunks a second: what 115200 baud carries beside the heartbeats */
+
+typedef struct {
+    int32_t prev1, prev2; /* the last two reconstructed (quantised) values */
+    int64_t e1, e2, a;    /* the predictors' decayed errors, LOCO-I's sum of residuals */
+    int32_t n;
+} qb_rice_t;
+
+typedef struct {
+    uint8_t scheme, state;              /* QB_SCHEME_*, QP_LOG_STATE_* */
+    uint32_t size, used, records;
+    uint32_t seg_start, seg_records, data_start, count;
+    uint64_t acc;                       /* the bit writer's partial byte */
+    uint8_t nbits;
+    int64_t recon[QB_LOG_VARS];         /* delta8's reconstruction */
+    qb_rice_t rice[QB_LOG_VARS];
+    uint32_t flash_errors;              /* writes the HAL refused */
+    uint8_t full_reported;              /* LOG_FULL said for this recording */
+    uint8_t dl_active;                  /* a download runs: chunks instead of telemetry */
+    uint32_t dl_next, dl_sent;
+} qb_log_t;
+
+void qb_log_init(qb_log_t *l, uint32_t size, uint8_t scheme);
+uint8_t qb_log_start(qb_log_t *l);
+/* One record (the board's LOG_VARS, in board units) if recording; returns the bytes programmed. */
+uint32_t qb_log_append(qb_log_t *l, const int64_t values[QB_LOG_VARS]);
+uint8_t qb_log_stop(qb_log_t *l);
+uint8_t qb_log_reset(qb_log_t *l, int in_safe);
+uint32_t qb_log_chunks(const qb_log_t *l);
+void qb_log_chunk(const qb_log_t *l, uint32_t index, uint8_t out[QB_LOG_CHUNK]);
+uint32_t qb_log_crc32(const qb_log_t *l);
+/* The board's side (qb_log.c, after the board's declarations below). */
+struct qb_board;
+void qb_log_task(struct qb_board *b);                          /* the logging task: one record */
+void qb_log_send_status(struct qb_board *b, uint8_t state);    /* a LogStatus packet */
+void qb_log_begin_download(struct qb_board *b, uint32_t first); /* after LOG_DOWNLOAD's Ack */
+void qb_log_download_step(struct qb_board *b);                 /* one telemetry run's chunks */
+void qb_log_end_download(struct qb_board *b);                  /* LogStatus, LOG_DONE */
 
 /* --- the board (qb_board.c) ------------------------------------------------------------------------------- */
 
@@ -230,7 +310,7 @@ typedef struct qb_board {
     qp_ack_t last_ack;
     /* parameters the core does not hold itself */
     int32_t telemetry_hz, sensor_path, scheduler, stick_reaction, queue_rule, log_scheme, attitude_filter;
-    int32_t k_gyro_raw, fixed_point, height_estimator;
+    int32_t k_gyro_raw, fixed_point, height_estimator, heartbeat_ms;
     uint32_t tx_dropped;
     /* the link timer's deaf spans: board time a starved simulator could not run (not the PC's silence) */
     uint64_t deaf[QB_DEAF_SPANS][2];
@@ -238,8 +318,15 @@ typedef struct qb_board {
     uint64_t lag_max_us, lag_report_at;
     uint32_t overflow_reported;  /* receive-queue drops already said (event OVERFLOW) */
     uint64_t overflow_report_at;
+    qb_prof_t prof;              /* the task profile (PROFILE, the Status packet's CPU load) */
+    qb_log_t log;                /* the flash log (LOG_*) */
+    uint64_t misses_reported_at;
+    uint8_t misses_reported;
 } qb_board_t;
 
+/* A packet to the PC, and an Event now (the tasks in qb_board.c, qb_log.c). */
+void qb_send(qb_board_t *b, const qp_packet_t *pkt);
+void qb_send_event(qb_board_t *b, uint8_t code, int32_t arg);
 void qb_config_default(qb_config_t *cfg);
 void qb_init(qb_board_t *b, const qb_config_t *cfg);
 /* Run every task due at hal_time_us() (the timers that expired, bytes that arrived). */
@@ -252,6 +339,10 @@ uint64_t qb_next_event_us(const qb_board_t *b);
 void qb_starved(qb_board_t *b, uint64_t until_us, int slip);
 /* Board time since the last valid frame, less the time the board could not listen; 0 before the first. */
 uint64_t qb_link_silent_us(qb_board_t *b);
+/* The receive queue's rule (link.queue_rule), for the UART's receive interrupt: 1 when ``frames`` frames waiting
+ * in the queue (its 0x00 delimiters) mean the whole queue goes (discard-20: the report's parser, section 3.4),
+ * 0 to keep it (bounded: only what does not fit is dropped). fcb_sim/board/uart.py's Uart.receive. */
+int qb_rx_discard(const qb_board_t *b, uint32_t frames);
 /* Feed received bytes to the parser at once (the host backend's UART interrupt; qb_poll reads the HAL too). */
 void qb_receive(qb_board_t *b, const uint8_t *data, size_t len);
 
@@ -259,5 +350,8 @@ void qb_receive(qb_board_t *b, const uint8_t *data, size_t len);
 int32_t qb_param_get(const qb_board_t *b, int id);
 uint8_t qb_param_set(qb_board_t *b, int id, int32_t raw, int mode_guard);
 const qb_param_spec_t *qb_param_spec(int id);
+/* The raw number for value ``v`` kept inside the table's range: round(v / scale) (half to even, Python's round)
+ * clipped to lo..hi; a value past either end (a burst of key presses) is that end. */
+int32_t qb_param_raw_clamped(const qb_param_spec_t *s, qb_real v);
 
 #endif /* QB_BOARD_H */

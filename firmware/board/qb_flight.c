@@ -326,7 +326,9 @@ static qb_real panic_descent_rate(qb_real height_m)
 static void panic_motors(qb_flight_t *fc, qb_real scale, qb_real dt, uint16_t out[4])
 {
     int32_t level;
-    if (!fc->panic_landed && dt > 0.0) {
+    if (fc->panic_hold) {
+        fc->panic_level = fc->panic_ae < fc->panic_start ? fc->panic_ae : fc->panic_start;
+    } else if (!fc->panic_landed && dt > 0.0) {
         qb_real err = -panic_descent_rate(fc->height) - fc->vz, floor_, lvl;
         qb_real i = fc->panic_i + PANIC_KI * err * dt;
         int still;

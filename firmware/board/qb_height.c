@@ -28,6 +28,8 @@
 #define GROUND_REST_S 0.5
 #define REST_ACC 0.5
 #define ANCHOR_S 1.0
+#define STAND_TAU_S 2.0  /* the barometer's drift while standing: a mean over this, */
+#define STAND_CLIP_M 0.1 /* each reading's pull clipped to this */
 static const qb_real INITIAL_SIGMA[3] = {0.03, 0.05, 0.1};
 
 void qb_height_init(qb_height_t *h)
@@ -63,6 +65,7 @@ void qb_height_reset(qb_height_t *h, qb_real pressure_pa)
     h->rest_s = 0.0;
     h->n_ground_baro = 0;
     h->ground_baro_s = 0.0;
+    h->stand_baro = 0.0;
     h->captured_height = 0.0;
     memset(h->c, 0, sizeof h->c);
     h->c00 = 0.0;
@@ -119,6 +122,8 @@ static void set_ground(qb_height_t *h, int on)
         qb_real bb = h->p[7];
         if (!h->anchored)
             var_h = h->p[0] > 1.0 ? h->p[0] : 1.0;
+        else /* the barometer drifted while the craft stood: its reference takes the drift out (issue 22's) */
+            h->p_ref *= QM(exp)(-(h->stand_baro - h->height) * h->k_pa_per_m / h->p_ref);
         memset(h->p, 0, sizeof h->p);
         h->p[0] = var_h;
         h->p[4] = INITIAL_SIGMA[1] * INITIAL_SIGMA[1];
@@ -181,8 +186,12 @@ static void ground_baro_update(qb_height_t *h, qb_real z, qb_real dt)
 {
     qb_real sorted[QB_ANCHOR_MAX], sum = 0.0;
     size_t n, cut, i;
-    if (h->anchored)
+    if (h->anchored) { /* the height is held; the barometer's drift is measured, each reading's pull clipped */
+        qb_real pull = z - h->stand_baro, w = (dt > 0.0 ? dt : 0.0) / STAND_TAU_S;
+        pull = pull < -STAND_CLIP_M ? -STAND_CLIP_M : pull > STAND_CLIP_M ? STAND_CLIP_M : pull;
+        h->stand_baro += pull * (w < 1.0 ? w : 1.0);
         return;
+    }
     if (h->n_ground_baro < QB_ANCHOR_MAX)
         h->ground_baro[h->n_ground_baro++] = z;
     h->ground_baro_s += dt > 0.0 ? dt : 0.0;
@@ -195,6 +204,7 @@ static void ground_baro_update(qb_height_t *h, qb_real z, qb_real dt)
     for (i = cut; i < n - cut; i++)
         sum += sorted[i];
     h->height = sum / (qb_real)(n - 2 * cut);
+    h->stand_baro = h->height;
     h->anchored = 1;
     h->spike = 0.0;
 }

@@ -66,6 +66,8 @@ void qb_modes_init(qb_modes_t *m, qb_real link_timeout_s, int32_t panic_level)
     memset(m, 0, sizeof *m);
     m->link_timeout_s = link_timeout_s;
     m->link_failsafe_s = QB_PARAMS[QP_PARAM_LINK_FAILSAFE_MS - 1].def / 1000.0;
+    m->calibration_s = QB_PARAMS[QP_PARAM_CALIBRATION_MS - 1].def / 1000.0;
+    m->panic_countdown_s = QB_PARAMS[QP_PARAM_PANIC_COUNTDOWN_MS - 1].def / 1000.0;
     m->panic_level = panic_level;
     m->trim_step = QB_PARAMS[QP_PARAM_TRIM_STEP - 1].def;
     m->lift_step = QB_PARAMS[QP_PARAM_LIFT_STEP - 1].def;
@@ -164,6 +166,10 @@ int32_t qb_modes_cal_mean(const qb_modes_t *m, int var)
 static int ramp_from(const qb_modes_t *m, qb_real *t0)
 {
     qb_real timeout;
+    if (m->panic_countdown_s > 0.0) { /* the report's: when the countdown ends the motors stop (no ramp) */
+        *t0 = m->panic_started + m->panic_countdown_s;
+        return m->now >= *t0;
+    }
     if (m->panic_landed_set) {
         *t0 = m->panic_landed_at;
         return 1;
@@ -181,7 +187,7 @@ static int panic_finished(const qb_modes_t *m)
     qb_real t0;
     if (m->panic_start_level == 0)
         return 1;
-    return ramp_from(m, &t0) && m->now >= t0 + PANIC_RAMP_S;
+    return ramp_from(m, &t0) && m->now >= t0 + (m->panic_countdown_s > 0.0 ? 0.0 : PANIC_RAMP_S);
 }
 
 qb_real qb_modes_panic_scale(qb_modes_t *m, qb_real now)
@@ -193,6 +199,8 @@ qb_real qb_modes_panic_scale(qb_modes_t *m, qb_real now)
         m->now = now;
     if (!ramp_from(m, &t0))
         return 1.0;
+    if (m->panic_countdown_s > 0.0)
+        return 0.0;
     s = 1.0 - (now - t0) / PANIC_RAMP_S;
     return s > 0.0 ? s : 0.0;
 }
@@ -231,7 +239,9 @@ static uint8_t guard(const qb_modes_t *m, int bit)
     case G_PANIC_DONE:
         return panic_finished(m) ? QP_NAK_OK : QP_NAK_PANIC_ACTIVE;
     case G_CAL_TIME:
-        return m->now - m->calibration_started >= CALIBRATION_S ? QP_NAK_OK : QP_NAK_BUSY;
+        /* 0: no timer, the pilot ends it (the report's) */
+        return m->calibration_s > 0.0 && m->now - m->calibration_started >= m->calibration_s ? QP_NAK_OK
+                                                                                              : QP_NAK_BUSY;
     default:
         return QP_NAK_OK;
     }

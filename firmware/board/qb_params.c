@@ -24,9 +24,24 @@ static qb_real value_of(const qb_param_spec_t *s, int32_t raw)
     return QM(floor)(v * p + 0.5) / p;
 }
 
+int32_t qb_param_raw_clamped(const qb_param_spec_t *s, qb_real v)
+{
+    qb_real x = v / s->scale, r;
+    if (!(x > (qb_real)s->lo)) /* NaN too: the low end */
+        return s->lo;
+    if (x >= (qb_real)s->hi)
+        return s->hi;
+    r = QM(floor)(x + 0.5);
+    if (r - x == 0.5 && ((int32_t)r & 1))
+        r -= 1.0; /* a tie goes to the even number, as Python's round() */
+    return (int32_t)r;
+}
+
+/* The raw number of a value the board holds: inside the table's range by construction (every write goes through
+ * qb_param_set), clipped all the same so a reading can never overflow the int32 (it once read -2147483648). */
 static int32_t raw_of(const qb_param_spec_t *s, qb_real v)
 {
-    return (int32_t)QM(floor)(v / s->scale + 0.5);
+    return qb_param_raw_clamped(s, v);
 }
 
 int32_t qb_param_get(const qb_board_t *b, int id)
@@ -52,9 +67,12 @@ int32_t qb_param_get(const qb_board_t *b, int id)
     case QP_PARAM_HEIGHT_ESTIMATOR: return b->height_estimator;
     case QP_PARAM_STICK_REACTION: return b->stick_reaction;
     case QP_PARAM_QUEUE_RULE: return b->queue_rule;
+    case QP_PARAM_HEARTBEAT_MS: return b->heartbeat_ms;
+    case QP_PARAM_CALIBRATION_MS: return (int32_t)QM(floor)(b->modes.calibration_s * 1000.0 + 0.5);
+    case QP_PARAM_PANIC_COUNTDOWN_MS: return (int32_t)QM(floor)(b->modes.panic_countdown_s * 1000.0 + 0.5);
     case QP_PARAM_TRIM_STEP: return b->modes.trim_step;
     case QP_PARAM_LIFT_STEP: return b->modes.lift_step;
-    default: return s ? s->def : 0; /* the report preset's timings (heartbeat, calibration, countdown): defaults */
+    default: return 0;
     }
 }
 
@@ -87,7 +105,12 @@ static uint8_t set_bound(qb_board_t *b, int id, int32_t raw, qb_real v)
     case QP_PARAM_SCHEDULER: b->scheduler = raw; break; /* kept and reported; the loop is round robin (no slack rule) */
     case QP_PARAM_TELEMETRY_HZ: b->telemetry_hz = raw; break;
     case QP_PARAM_SENSOR_PATH: b->sensor_path = raw; break;
-    case QP_PARAM_LOG_SCHEME: b->log_scheme = raw; break; /* no log yet: always empty */
+    case QP_PARAM_LOG_SCHEME: /* a fresh log in the new scheme; refused while the log holds anything */
+        if (b->log.used)
+            return QP_NAK_LOG_BUSY;
+        b->log_scheme = raw;
+        qb_log_init(&b->log, b->log.size, (uint8_t)raw);
+        break;
     case QP_PARAM_ATTITUDE_FILTER: return set_filter(b, raw, b->fixed_point);
     case QP_PARAM_K_GYRO: /* the complementary filter's: kept; the filter starts afresh */
         b->k_gyro_raw = raw;
@@ -105,10 +128,12 @@ static uint8_t set_bound(qb_board_t *b, int id, int32_t raw, qb_real v)
     case QP_PARAM_QUEUE_RULE: b->queue_rule = raw; break;
     case QP_PARAM_TRIM_STEP: b->modes.trim_step = raw; break;
     case QP_PARAM_LIFT_STEP: b->modes.lift_step = raw; break;
-    case QP_PARAM_HEARTBEAT_MS:
-    case QP_PARAM_CALIBRATION_MS:
-    case QP_PARAM_PANIC_COUNTDOWN_MS: /* the report preset's timings are not in C yet: its defaults only */
-        return raw == qb_param_spec(id)->def ? QP_NAK_OK : QP_NAK_NOT_IMPLEMENTED;
+    case QP_PARAM_HEARTBEAT_MS: b->heartbeat_ms = raw; break; /* the heartbeat timer's next period */
+    case QP_PARAM_CALIBRATION_MS: b->modes.calibration_s = raw / 1000.0; break;
+    case QP_PARAM_PANIC_COUNTDOWN_MS:
+        b->modes.panic_countdown_s = raw / 1000.0;
+        b->core.panic_hold = raw != 0; /* the report's PANIC: a fixed level, no descent loop */
+        break;
     default: return QP_NAK_UNKNOWN_PARAM;
     }
     return QP_NAK_OK;

@@ -46,6 +46,8 @@ typedef struct {
 #define QB_HEIGHT_KALMAN 1
 #define QB_QUEUE_RULE_BOUNDED 0
 #define QB_QUEUE_RULE_DISCARD_20 1
+/* discard-20: the whole receive queue goes when this many frames wait in it */
+#define QB_QUEUE_DISCARD_FRAMES 20
 
 /* In id order; defined once, in the file that defines QB_PARAMS_TABLE first (qb_params.c). */
 extern const qb_param_spec_t QB_PARAMS[QB_PARAM_COUNT];

@@ -1,12 +1,15 @@
 """term flies the C board: TermApp over term's own serial transport on the pseudo-terminal `fcb-sim serve --pty
 --board c` serves in its own process (the C board in fcb_sim's physics, in real time), as `term --sim --board c`
 starts it. Calibrate, MANUAL, lift trims and the SAFE refusal with the board's reason, FULL, HEIGHT, PANIC walking
-back to SAFE. On a starved machine the pilot presses a key again when nothing happened, as a pilot would."""
+back to SAFE; the flight logged and its log downloaded (F2, F3, F5), the task profile (F6). On a starved machine the
+pilot presses a key again when nothing happened, as a pilot would."""
 
 from __future__ import annotations
 
 import asyncio
+import csv
 import shutil
+from pathlib import Path
 
 import pytest
 
@@ -21,12 +24,12 @@ pytestmark = pytest.mark.skipif(shutil.which("cc") is None or shutil.which("make
                                 reason="no C compiler (cc) or make: the C board's tests are skipped")
 
 
-async def test_term_flies_the_c_board_in_the_simulator() -> None:
+async def test_term_flies_the_c_board_in_the_simulator(tmp_path: Path) -> None:
     library_path()  # built here, not inside the simulator's start-up time
     sim = SimBoard(seed=3, extra=["--board", "c"])
     path = sim.start()
     try:
-        app = TermApp(SerialTransport(path), joystick=False)
+        app = TermApp(SerialTransport(path), joystick=False, log_directory=tmp_path)
         async with app.run_test(size=(120, 44)) as pilot:
             m = app.model
 
@@ -51,6 +54,7 @@ async def test_term_flies_the_c_board_in_the_simulator() -> None:
                 raise AssertionError(f"key {key}: nothing happened; the events: {texts()}")
 
             await until(pilot, lambda: m.hello is not None and m.mode == Mode.SAFE)
+            await press("f2", lambda: m.status is not None and m.status.log_fill > 0)  # the whole flight logged
             assert (m.hello.protocol, m.hello.role, m.hello.major) == (PROTOCOL_VERSION, Role.BOARD, 0)
             await press("3", lambda: any("CALIBRATION → SAFE" in t for t in texts()))
             await press("2", lambda: m.mode == Mode.MANUAL)
@@ -65,5 +69,18 @@ async def test_term_flies_the_c_board_in_the_simulator() -> None:
             await until(pilot, lambda: any("PANIC → SAFE" in t for t in texts()) and m.mode == Mode.SAFE)
             assert set(naks()) == {lift_nak}
             assert sum("→ PANIC" in t for t in texts()) == 1, texts()  # key 1's: no failsafe PANIC on the way
+            app.simulate_key("f3")
+            await pilot.pause(0.3)
+            await press("f5", lambda: m.download is not None or m.download_note.startswith("log saved"))
+            await until(pilot, lambda: m.download_note.startswith(("log saved", "log download")), 60.0)
+            assert m.download_note.startswith("log saved"), m.download_note
+            (saved,) = tmp_path.glob("quadrupel-log-*.csv")
+            with saved.open() as f:
+                rows = list(csv.reader(f))
+            modes = {int(r[2]) for r in rows[1:]}
+            assert rows[0][:3] == ["segment", "t_us", "mode"] and len(rows) > 1000
+            assert {Mode.SAFE, Mode.MANUAL, Mode.FULL, Mode.HEIGHT, Mode.PANIC} <= modes
+            await press("f6", lambda: len(m.profiles) == 7)  # the profile: every task, its period the board's
+            assert 4900 < m.profiles[2].period_us < 5100 and m.profiles[5].period_us > 90_000
     finally:
         sim.stop()
