@@ -9,6 +9,7 @@ from __future__ import annotations
 import asyncio
 import csv
 import shutil
+from collections.abc import Callable
 from pathlib import Path
 
 import pytest
@@ -36,6 +37,13 @@ async def test_term_flies_the_c_board_in_the_simulator(tmp_path: Path) -> None:
             def texts() -> list[str]:
                 return [e.text for e in m.events]
 
+            async def until_said(cond: Callable[[], bool], timeout: float = 30.0) -> None:
+                """until, naming the events when it times out (what the C board said, or did not)."""
+                try:
+                    await until(pilot, cond, timeout)
+                except TimeoutError:
+                    raise AssertionError(f"waited {timeout} s; the events: {texts()}") from None
+
             def naks() -> list[str]:
                 return [e.text for e in m.events if e.source == "nak"]
 
@@ -53,7 +61,7 @@ async def test_term_flies_the_c_board_in_the_simulator(tmp_path: Path) -> None:
                         continue
                 raise AssertionError(f"key {key}: nothing happened; the events: {texts()}")
 
-            await until(pilot, lambda: m.hello is not None and m.mode == Mode.SAFE)
+            await until_said(lambda: m.hello is not None and m.mode == Mode.SAFE)
             await press("f2", lambda: m.status is not None and m.status.log_fill > 0)  # the whole flight logged
             assert (m.hello.protocol, m.hello.role, m.hello.major) == (PROTOCOL_VERSION, Role.BOARD, 0)
             await press("3", lambda: any("CALIBRATION → SAFE" in t for t in texts()))
@@ -66,7 +74,7 @@ async def test_term_flies_the_c_board_in_the_simulator(tmp_path: Path) -> None:
             await press("5", lambda: m.mode == Mode.FULL)
             await press("7", lambda: m.mode == Mode.HEIGHT)
             await press("1", lambda: any("→ PANIC" in t for t in texts()))
-            await until(pilot, lambda: any("PANIC → SAFE" in t for t in texts()) and m.mode == Mode.SAFE)
+            await until_said(lambda: any("PANIC → SAFE" in t for t in texts()) and m.mode == Mode.SAFE)
             assert set(naks()) == {lift_nak}
             assert sum("→ PANIC" in t for t in texts()) == 1, texts()  # key 1's: no failsafe PANIC on the way
             app.simulate_key("f3")

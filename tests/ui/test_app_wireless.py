@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+from collections.abc import Callable
 
 import pytest
 
@@ -351,21 +352,25 @@ async def test_no_stale_figure_goes_unmarked_through_a_handover() -> None:
         async with app.run_test(size=(120, 44)) as pilot:
             m = app.model
 
+            async def until_checked(cond: Callable[[], bool], timeout: float = 30.0) -> None:
+                """until, with every panel's figures checked at each step (what this test is about)."""
+                await until(pilot, lambda: (check(), cond())[1], timeout, step=0.03)
+
             async def for_s(seconds: float) -> None:
                 end = time.monotonic() + seconds
-                await until(pilot, lambda: time.monotonic() >= end)
+                await until_checked(lambda: time.monotonic() >= end)
 
-            await until(pilot, lambda: m.mode == Mode.SAFE and m.radio_up and m.status is not None)
+            await until_checked(lambda: m.mode == Mode.SAFE and m.radio_up and m.status is not None)
             await for_s(0.3)
             assert not [r for n in PANEL_FIELDS["#motors"] if (r := m.reading(n, app.clock())).stale]
             app.simulate_key("8")
-            await until(pilot, lambda: m.over_ble)
+            await until_checked(lambda: m.over_ble)
             app.simulate_key("2")
-            await until(pilot, lambda: m.mode == Mode.MANUAL)
+            await until_checked(lambda: m.mode == Mode.MANUAL)
             for _ in range(5):  # lift trims over BLE: the Acks carry the new trim
                 app.simulate_key("a")
                 await for_s(0.1)
-            await until(pilot, lambda: m.reading("trim_lift", app.clock()).value == board.modes.trims.lift > 0)
+            await until_checked(lambda: m.reading("trim_lift", app.clock()).value == board.modes.trims.lift > 0)
             assert m.reading("trim_lift", app.clock()).source in ("Ack", "Compact2")
             await for_s(1.5)  # long enough for the cable's last telemetry to go stale
             now = app.clock()
@@ -376,8 +381,8 @@ async def test_no_stale_figure_goes_unmarked_through_a_handover() -> None:
             assert all(r.fresh and r.source == "Compact2" for r in flown), flown  # Compact2
             assert m.reading("ae1", now).value > 0 and m.reading("trim_lift", now).value == board.modes.trims.lift
             app.send(Op.WIRELESS, 0)  # hand control back to the cable, still flying
-            await until(pilot, lambda: not m.over_ble and m.reading("ae1", app.clock()).fresh, 5.0)
-            await until(pilot, lambda: m.reading("trim_lift", app.clock()).source == "Status")
+            await until_checked(lambda: not m.over_ble and m.reading("ae1", app.clock()).fresh, 5.0)
+            await until_checked(lambda: m.reading("trim_lift", app.clock()).source == "Status")
             await for_s(0.3)
             assert m.reading("trim_lift", app.clock()).value == board.modes.trims.lift
             assert not app.screen.query_one("#motors").border_subtitle
