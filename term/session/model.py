@@ -22,6 +22,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
+from term.core.console import ConsoleLine
 from term.core.events import (
     RADIO,
     EventsCleared,
@@ -295,6 +296,8 @@ class Model:
     event_times: dict[int, float] = field(default_factory=dict)  # EventCode -> when the board last said it
     event_args: dict[int, int] = field(default_factory=dict)  # EventCode -> its arg the last time
     notes_written: int = 0  # lines written to the events list (merged repeats too): LogEntry.seq
+    console: deque[tuple[float, ConsoleLine]] = field(default_factory=lambda: deque(maxlen=2000))  # (t, line)
+    console_dropped: int = 0  # lines the link's rate limit dropped (term.core.console)
     _refusal_said: dict[tuple[int, int], float] = field(default_factory=dict)  # (mode, Nak) -> when said
     _misses: tuple[int, int, float, int] = (0, 0, 0.0, 0)  # deadline misses: count, longest period, first, seq
     _erasing: int | None = None  # records in the log when its erase was asked for
@@ -815,4 +818,14 @@ _HANDLERS: dict[type, Callable[[Model, Any, float], None]] = {
     StickSet: Model._on_stick,
     JoystickNamed: Model._on_joystick,
     EventsCleared: Model._on_cleared,
+    ConsoleLine: lambda m, ev, now: _on_console(m, ev, now),
 }
+
+
+def _on_console(m: Model, line: ConsoleLine, now: float) -> None:
+    """A line of the board's text: in the console; an error's in the events list too."""
+    m.console.append((now - m.start, line))
+    m.console_dropped += line.dropped
+    if line.level >= 4:  # foxglove.Log's error and fatal
+        m.note(now, "error", "board", f"console: {line.text}")
+    m.version += 1

@@ -67,6 +67,7 @@ from term.ui.controllers.replay import SEEK_S as REPLAY_SEEK_S
 from term.ui.controllers.replay import ReplayController
 from term.ui.keygate import focus_state, pilot_key_acts
 from term.ui.screens.confirm import ConfirmScreen
+from term.ui.screens.console import ConsoleScreen
 from term.ui.screens.dirprompt import DirectoryPrompt
 from term.ui.screens.flight import FlightScreen
 from term.ui.screens.help import HelpScreen
@@ -200,6 +201,7 @@ class TermApp(App[int]):
             "log_reset": self.ask_log_erase,
             "show_joystick": lambda: self.show_screen("joystick"),
             "show_params": lambda: self.show_screen("params"),
+            "show_console": lambda: self.show_screen("console"),
         }
         unknown = {b.action.local for b in self.keymap if b.action.local} - set(self.local)
         if unknown:
@@ -265,6 +267,7 @@ class TermApp(App[int]):
         self.install_screen(WirelessScreen(self.phone), "wireless")
         self.install_screen(JoystickScreen(lambda: self.joystick.poller), "joystick")
         self.install_screen(ParamsScreen(lambda: self.model), "params")
+        self.install_screen(ConsoleScreen(), "console")
         self.set_interval(1.0 / self.render_hz, self.render_now)
         await self.station.start()
         if self.start_screen != "flight":

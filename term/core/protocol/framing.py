@@ -183,7 +183,7 @@ class Decoder:
         pieces = data.split(b"\x00")
         tail = pieces.pop()
         out: list[Any] = []
-        for i, piece in enumerate(pieces):
+        for piece in pieces:
             if self._discarding:
                 stats.bytes_skipped += len(piece) + 1
                 self._discarding = False
