@@ -200,7 +200,7 @@ class LiveServer:
     def _bytes(self, link: str, data: bytes, now: float) -> None:
         """A link's written bytes: decoded, each packet to its channels."""
         t_ns = self.t_ns(now)
-        dec = self._decoders.get(link) or self._decoders.setdefault(link, Decoder())
+        dec = self._decoders.get(link) or self._decoders.setdefault(link, Decoder(keep_text=True))
         frame, want = self._maker.frame, self._wanted
         try:
             for pkt in dec.feed(data):

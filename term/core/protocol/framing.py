@@ -183,6 +183,13 @@ class Decoder:
         pieces = data.split(b"\x00")
         tail = pieces.pop()
         out: list[Any] = []
+        if pieces and self._joined and not self._discarding:  # the usual case, frames only: the batch decode
+            packets, crc_fail, mal, skipped, gaps, last = _decode_pieces(pieces, self._last_seq)
+            if not crc_fail and not mal:
+                stats.frames_ok += len(packets)
+                stats.seq_gaps += gaps
+                self._last_seq = last
+                out, pieces = packets, []
         for piece in pieces:
             if self._discarding:
                 stats.bytes_skipped += len(piece) + 1
