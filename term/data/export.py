@@ -444,7 +444,7 @@ def _session_csv(src: Path, items: Iterator[Any], f: Any, board_units: bool, inf
             line[4] = "log"
             line[-3:] = [item.severity, item.source, item.text]
             w.writerow(line)
-        else:  # the station's own records are for a replay, not a table (but the console's lines); the first starts the clock
+        else:  # the station's records are for a replay, not a table (but the console's); the first starts the clock
             if start is None:
                 start = info[0].start_ns if info[0].meta else item.t_ns
             n += _console_csv_row(item, w, f, out, start, width)
