@@ -26,6 +26,7 @@ from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 
 from fcb_sim.board.calibration import CalibrationSums
+from fcb_sim.board.motortest import MotorTest
 from fcb_sim.world import constants as P
 from term.core.protocol import (
     BATTERY_LOW,
@@ -269,6 +270,7 @@ class ModeMachine:
     link_hold: bool = False  # the failsafe's stage 1: level, the lift it had, until the link is back or stage 2
     battery_low_latched: bool = False  # set by a low-battery PANIC; only a new battery (a reboot) clears it
     crashed: bool = False  # an impact the pilot has not acknowledged (Op.ACK_CRASH): no leaving SAFE
+    motor_test: MotorTest = field(default_factory=MotorTest)  # the bench test (SAFE only; fcb_sim/board/motortest.py)
 
     def __post_init__(self) -> None:
         self.calibration = CalibrationSums(self.calibration_names)

@@ -28,6 +28,7 @@
 #include <stdint.h>
 
 #include "ikf_q.h"
+#include "qb_console.h"
 #include "qb_params.h"
 #include "qp_protocol.h"
 
@@ -246,6 +247,9 @@ typedef struct qb_board {
     uint64_t lag_max_us, lag_report_at;
     uint32_t overflow_reported;  /* receive-queue drops already said (event OVERFLOW) */
     uint64_t overflow_report_at;
+    /* qb_console.c: the bench motor test and qb_log's counts */
+    qb_motortest_t mt;
+    uint32_t log_sent, log_dropped;
 } qb_board_t;
 
 void qb_config_default(qb_config_t *cfg);
