@@ -72,6 +72,7 @@ from term.core.protocol import (
     LogStatus,
     Mode,
     Motion,
+    MotorTestEnd,
     Nak,
     Op,
     ParamValue,
@@ -79,6 +80,7 @@ from term.core.protocol import (
     Status,
     WirelessState,
     field_scale,
+    motor_test_split,
     param_split,
     scaled,
 )
@@ -142,6 +144,9 @@ def op_text(op: int, arg: int) -> str:
         return f"get param {arg}" if spec is None else f"get {spec.name}"
     if o is Op.PARAM_LIST:
         return "list the parameters"
+    if o is Op.MOTOR_TEST:
+        mask, level = motor_test_split(arg)
+        return f"motor test: mask {mask:x} at {level}" if level and mask else "motor test: stop"
     name = o.name.lower().replace("_", " ")
     if o is Op.TRIM_LIFT and arg <= ZERO_TRIM_STEPS:
         return "lift trim to zero"
@@ -199,6 +204,11 @@ def event_text(code: int, arg: int, flying: bool = True) -> tuple[str, str]:
         return "error", f"sensor fault (sensor {arg})"
     if c is EventCode.OVERFLOW:
         return "warning", f"board receive queue overflow ({arg} bytes dropped)"
+    if c is EventCode.MOTOR_TEST:  # the bench test ended (docs/modes.md); the reasons by name
+        try:
+            return "info", f"motor test ended: {MotorTestEnd(arg).name.lower().replace('_', ' ')}"
+        except ValueError:
+            return "info", f"motor test ended ({arg})"
     if c is EventCode.PARAM_CHANGED:
         pid, raw = param_split(arg)
         spec = PARAMS.get(pid)  # type: ignore[call-overload]
