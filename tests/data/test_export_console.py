@@ -49,3 +49,20 @@ def test_console_lines_export_to_csv_rows(tmp_path: Path) -> None:
     assert [(r["message"], r["level"], r["source"]) for r in console] == [
         ("boot ok", "info", "uart"), ("[3 dropped] ASSERT x > 0", "error", "board")]
     assert [r["counter"] for r in rows if r["packet"] == "Heartbeat"] == ["1", "2"]  # the printed line cost no frame
+
+
+def test_the_live_server_serves_console_lines_on_console() -> None:
+    import pytest
+
+    pytest.importorskip("foxglove")
+    from term.data.foxglove_server import LiveServer
+
+    live = LiveServer("127.0.0.1", 0, t0=0.0, start_ns=WALL)
+    got = []
+    try:
+        live._publish = lambda messages, wanted=False: got.extend(messages)  # what would go to the SDK
+        live.station_event(FromLink("cable", ConsoleLine("E: i2c timeout", 4, "uart", dropped=2)), 1.0)
+    finally:
+        live.close()
+    assert [(spec.topic, spec.schema_name, msg["message"], msg["level"], msg["name"]) for spec, _, msg in got] == [
+        ("/console", "foxglove.Log", "[2 dropped] E: i2c timeout", 4, "cable/uart")]
