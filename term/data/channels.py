@@ -291,7 +291,7 @@ def all_channels(links: Iterable[str] = ("cable", "radio")) -> list[ChannelSpec]
     """Every channel a session over ``links`` can have (docs, the layout's check, tests)."""
     from term.core.protocol import PACKETS
 
-    out = [EVENTS, TRUTH_CHANNEL, TRUTH_POSE]
+    out = [EVENTS, CONSOLE, TRUTH_CHANNEL, TRUTH_POSE]
     for link in links:
         out += [pose_channel(link), stats_channel(link)]
         for spec in sorted(PACKETS.values(), key=lambda s: s.type_id):
