@@ -70,7 +70,7 @@ class MotorTestPanel(ModelView):
                 out.append("ready", style="green")
             if c.last_end:
                 out.append(f"   (last run: {c.last_end})", style="dim")
-        out.append("\n\n1 2 3 4 a motor · a all four · + − level · Enter or s start · any key stops · Esc back",
+        out.append("\n\n1 2 3 4 one motor · a all four · + − level · Enter or s start · any key stops · Esc back",
                    style="dim")
         return out
 

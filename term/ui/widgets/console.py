@@ -33,7 +33,8 @@ class ConsoleView(ModelView):
     def render_model(self, model: Model, now: float) -> RenderableType:
         rows = max(1, (self.content_size.height or 12) - 1)
         lines = list(model.console)[-rows:]
-        head = Text(f"{len(model.console)} lines", style="dim")
+        n = len(model.console)
+        head = Text(f"{n} line{'' if n == 1 else 's'}", style="dim")
         if model.console_dropped:
             head.append(f" · {model.console_dropped} dropped by the rate limit", style="yellow")
         head.append(" · printf on the UART and qb_log lines; errors also go to the events list", style="dim")
