@@ -66,3 +66,10 @@ def test_the_live_server_serves_console_lines_on_console() -> None:
         live.close()
     assert [(spec.topic, spec.schema_name, msg["message"], msg["level"], msg["name"]) for spec, _, msg in got] == [
         ("/console", "foxglove.Log", "[2 dropped] E: i2c timeout", 4, "cable/uart")]
+
+
+def test_a_recorded_console_line_replays_as_itself() -> None:
+    from term.data.recording import decode_event, encode_event
+
+    ev = FromLink("cable", ConsoleLine("ASSERT x > 0", 4, "board", dropped=3, cut=True))
+    assert decode_event(json.loads(json.dumps(encode_event(ev)))) == ev
