@@ -132,3 +132,16 @@ async def test_link_loss_ends_it_here(scripted_board) -> None:  # noqa: ANN001
         await until(pilot, lambda: not app.motortest.running)
         assert "link lost" in app.motortest.last_end
         await asyncio.sleep(0)
+
+
+async def test_a_refusal_by_the_board_ends_it_here(scripted_board) -> None:  # noqa: ANN001
+    from term.core.protocol import Nak
+
+    nak = lambda c: Nak.LIFT_NOT_ZERO if c.op == Op.MOTOR_TEST else Nak.OK  # noqa: E731
+    async with flying(scripted_board, nak=nak) as (app, pilot, board, peer):
+        await _safe(app, pilot, peer)
+        await _open(app, pilot)
+        await pilot.press("enter")
+        await until(pilot, lambda: _sent(board))
+        await until(pilot, lambda: not app.motortest.running)
+        assert "lift not at zero" in app.motortest.last_end

@@ -50,6 +50,7 @@ class MotorTestController:
         self.started = 0.0
         self.last_end = ""  # why the last run ended, for the screen
         self._event_seen = -1.0  # the time of the board's last MOTOR_TEST event already taken
+        self._notes_at_start = 0  # the events list's count when the run was asked for (its refusal comes after)
 
     def refusal(self, model: Model) -> str | None:
         """Why a test cannot start now (the board would refuse too; said first, with the fix)."""
@@ -69,6 +70,7 @@ class MotorTestController:
             return False
         self.running, self.mask, self.level, self.started = True, mask, level, self.clock()
         self._event_seen = model.event_times.get(EventCode.MOTOR_TEST, -1.0)
+        self._notes_at_start = model.notes_written
         self.last_end = ""
         return True
 
@@ -95,14 +97,26 @@ class MotorTestController:
             self.last_end = "link lost: the board stops by itself"
             self.note("error", "term", f"motor test: {self.last_end}")
             return
+        refused = self._refusal_heard(model)
         t = model.event_times.get(EventCode.MOTOR_TEST, -1.0)
-        if t > self._event_seen:
+        if refused is not None:  # the board said no (its NAK, in the events list), or the command never got there
+            self.running = False
+            self.last_end = refused
+        elif t > self._event_seen:
             self._event_seen = t
             self.running = False
             self.last_end = end_text(model.event_args.get(EventCode.MOTOR_TEST, 0))
         elif now - self.started > MOTOR_TEST_MAX_MS / 1000 + MARGIN_S:
             self.running = False
             self.last_end = END_TEXT[MotorTestEnd.TIME_UP]
+
+    def _refusal_heard(self, model: Model) -> str | None:
+        for e in reversed(model.events):
+            if e.seq <= self._notes_at_start:
+                return None
+            if e.source in ("nak", "link") and "motor test: mask" in e.text:
+                return e.text
+        return None
 
     @staticmethod
     def board_running(model: Model) -> bool:
