@@ -56,6 +56,7 @@ from term.core.protocol import (
     BATTERY_WARN,
     EVENT_ARG_SCALE,
     FLIGHT_MODES,
+    LEVEL_ERROR,
     PARAMS,
     Attitude,
     Compact,
@@ -792,6 +793,15 @@ def _on_log_packet(m: Model, pkt: LogStatus | LogChunk, now: float) -> None:
         m.download.feed(pkt, now)
 
 
+def _on_console(m: Model, line: ConsoleLine, now: float) -> None:
+    """A line of the board's text (term.core.console): in the console; an error's in the events list too."""
+    m.console.append((now - m.start, line))
+    m.console_dropped += line.dropped
+    if line.level >= LEVEL_ERROR:
+        m.note(now, "error", "board", f"console: {line.text}")
+    m.version += 1
+
+
 _PACKETS: dict[type, Callable[[Model, Any, float], None]] = {
     Attitude: _on_attitude,
     Motion: _on_motion,
@@ -828,14 +838,5 @@ _HANDLERS: dict[type, Callable[[Model, Any, float], None]] = {
     StickSet: Model._on_stick,
     JoystickNamed: Model._on_joystick,
     EventsCleared: Model._on_cleared,
-    ConsoleLine: lambda m, ev, now: _on_console(m, ev, now),
+    ConsoleLine: _on_console,
 }
-
-
-def _on_console(m: Model, line: ConsoleLine, now: float) -> None:
-    """A line of the board's text: in the console; an error's in the events list too."""
-    m.console.append((now - m.start, line))
-    m.console_dropped += line.dropped
-    if line.level >= 4:  # foxglove.Log's error and fatal
-        m.note(now, "error", "board", f"console: {line.text}")
-    m.version += 1
