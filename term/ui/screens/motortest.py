@@ -78,12 +78,11 @@ class MotorTestPanel(ModelView):
 class MotorTestScreen(Screen[None]):
     TYPING = True  # the pilot's character keys are this screen's (keygate): 1-4 pick a motor, not a mode
 
-    def __init__(self, controller: MotorTestController, model: Model | None = None) -> None:
+    def __init__(self, controller: MotorTestController) -> None:
         super().__init__()
         self.controller = controller
-        self.mask = 0x1
+        self.mask = 0x1  # ae1 front
         self.level = DEFAULT_LEVEL
-        self._model = model
 
     def compose(self) -> ComposeResult:
         yield ModeBanner(id="mode")
