@@ -76,6 +76,13 @@ def measure(seconds: int = 60, repeats: int = 5, seed: int = 1) -> dict:
         decode_times.append(time.perf_counter() - t0)
         assert n == len(pkts) and dec.stats.frames_bad == 0
 
+    # The terminal's decoder keeps text between frames (keep_text): on the same clean stream, and on one where the
+    # board prints a line before every tenth frame (printf on the UART, no delimiter of its own).
+    text_fps = _text_decode_fps(chunks, len(pkts), repeats)
+    printed = b"".join((b"dbg: ae=[401,398,402,400] t=%d\n" % i if i % 10 == 0 else b"") + f
+                       for i, f in enumerate(frames))
+    printf_fps, printf_lost = _printf_decode(serial_reads(printed, rng), len(pkts), repeats)
+
     # Resilience: flip bytes at least 64 bytes apart, so each corruption is a separate event.
     corrupted = bytearray(stream)
     positions = range(rng.randrange(64), len(corrupted), 997)
@@ -98,9 +105,37 @@ def measure(seconds: int = 60, repeats: int = 5, seed: int = 1) -> dict:
         "frames_lost_per_corrupted_byte": round(lost_per_byte, 3),
         "corrupted_bytes": len(positions),
         "uart_1000_fps_core_pct": round(100 * 1000 / decode_fps, 3),
+        "decode_keep_text_frames_per_s": round(text_fps),
+        "decode_with_printf_frames_per_s": round(printf_fps),
+        "printf_frames_lost": printf_lost,
         "python": platform.python_version(),
         "machine": platform.machine(),
     }
+
+
+def _text_decode_fps(chunks: list[bytes], n_pkts: int, repeats: int) -> float:
+    best = float("inf")
+    for _ in range(repeats):
+        dec = p.Decoder(keep_text=True)
+        t0 = time.perf_counter()
+        n = sum(len(dec.feed(c)) for c in chunks)
+        best = min(best, time.perf_counter() - t0)
+        assert n == n_pkts
+    return n_pkts / best
+
+
+def _printf_decode(chunks: list[bytes], n_pkts: int, repeats: int) -> tuple[float, int]:
+    """Frames per second and frames lost decoding a stream with a printed line before every tenth frame."""
+    best, n = float("inf"), 0
+    for _ in range(repeats):
+        dec = p.Decoder(keep_text=True)
+        t0 = time.perf_counter()
+        n = 0
+        for c in chunks:
+            n += len(dec.feed(c))
+            dec.take_text()
+        best = min(best, time.perf_counter() - t0)
+    return n_pkts / best, n_pkts - n
 
 
 def main() -> None:

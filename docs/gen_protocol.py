@@ -53,6 +53,10 @@ EXAMPLES: list[tuple[int, Any]] = [
     (18, p.ParamValue(param=p.Param.K_GYRO, value=99900, index=12, count=19)),
     (19, p.Compact2(ae1=100, ae2=0, ae3=250, ae4=101, height=153, setpoint=150, vz=-12,
                     flags=int(p.Flag.CALIBRATED | p.Flag.ARMED | p.Flag.WIRELESS_ACTIVE), trim_lift=3280)),
+    *((20 + i, pkt) for i, pkt in enumerate(p.text_packets("ASSERT qb.c:12 °C", p.LEVEL_ERROR))),
+    (22, p.Text(info=p.LEVEL_INFO, text=b"\0" * 13)),
+    (23, p.Command(cmd_id=12, op=p.Op.MOTOR_TEST, arg=p.motor_test_arg(0b0001, 200))),
+    (24, p.Event(code=p.EventCode.MOTOR_TEST, arg=p.MotorTestEnd.TIME_UP, board_ms=100500)),
 ]
 
 

@@ -38,7 +38,8 @@ CRC_POLY = 0x1021  # CRC-16/CCITT-FALSE; checked against binascii.crc_hqx below
 # Scalar facts a board needs (each must exist in term.core.protocol: a rename there fails the generator loudly).
 INT_CONSTANTS = ("PROTOCOL_VERSION", "MAX_FRAME", "MAX_BODY", "CRC_INIT", "LOG_CHUNK_BYTES", "STICK_MAX",
                  "LIFT_ZERO", "STICK_NEUTRAL", "LIFT_FINE_FROM", "LIFT_FINE_TO", "LIFT_FINE_DIVISOR", "BATTERY_LOW",
-                 "BATTERY_WARN", "BATTERY_FULL")
+                 "BATTERY_WARN", "BATTERY_FULL", "MOTOR_TEST_MAX_LEVEL", "MOTOR_TEST_MAX_MS",
+                 "MOTOR_TEST_LINK_MS", "TEXT_BYTES", "TEXT_MORE", "TEXT_LEVEL_MASK")
 STR_CONSTANTS = ("NUS_SERVICE", "NUS_RX", "NUS_TX", "BOARD_NAME_PREFIX")
 
 # struct format -> (C type, what the field's comment adds)

@@ -326,6 +326,15 @@ size_t qp_encode_compact2(qp_encoder_t *enc, const qp_compact2_t *pkt, uint8_t o
     return finish_frame(enc, raw, QP_BODY_SIZE_COMPACT2, out);
 }
 
+size_t qp_encode_text(qp_encoder_t *enc, const qp_text_t *pkt, uint8_t out[QP_MAX_FRAME])
+{
+    uint8_t raw[QP_MAX_FRAME];
+    raw[0] = QP_TYPE_TEXT;
+    raw[2] = (uint8_t)pkt->info;
+    memcpy(raw + 3, pkt->text, 13);
+    return finish_frame(enc, raw, QP_BODY_SIZE_TEXT, out);
+}
+
 size_t qp_encode(qp_encoder_t *enc, const qp_packet_t *pkt, uint8_t out[QP_MAX_FRAME])
 {
     switch (pkt->type) {
@@ -365,6 +374,8 @@ size_t qp_encode(qp_encoder_t *enc, const qp_packet_t *pkt, uint8_t out[QP_MAX_F
         return qp_encode_param_value(enc, &pkt->u.param_value, out);
     case QP_TYPE_COMPACT2:
         return qp_encode_compact2(enc, &pkt->u.compact2, out);
+    case QP_TYPE_TEXT:
+        return qp_encode_text(enc, &pkt->u.text, out);
     default:
         return 0;
     }
@@ -537,6 +548,12 @@ static int unpack(const uint8_t *raw, size_t body_len, qp_packet_t *pkt)
         pkt->u.compact2.vz = s16(get16(b + 8));
         pkt->u.compact2.flags = get16(b + 10);
         pkt->u.compact2.trim_lift = s16(get16(b + 12));
+        break;
+    case QP_TYPE_TEXT:
+        if (body_len != QP_BODY_SIZE_TEXT)
+            return 0;
+        pkt->u.text.info = b[0];
+        memcpy(pkt->u.text.text, b + 1, 13);
         break;
     default:
         return 0;

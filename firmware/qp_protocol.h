@@ -37,7 +37,7 @@ extern "C" {
 
 /* --- constants both ends share ---------------------------------------------------------------------------- */
 
-#define QP_PROTOCOL_VERSION 4
+#define QP_PROTOCOL_VERSION 5
 #define QP_MAX_FRAME 20
 #define QP_MAX_BODY 14
 #define QP_CRC_INIT 0xffffu
@@ -51,6 +51,12 @@ extern "C" {
 #define QP_BATTERY_LOW 1050
 #define QP_BATTERY_WARN 1110
 #define QP_BATTERY_FULL 1260
+#define QP_MOTOR_TEST_MAX_LEVEL 300
+#define QP_MOTOR_TEST_MAX_MS 3000
+#define QP_MOTOR_TEST_LINK_MS 500
+#define QP_TEXT_BYTES 13
+#define QP_TEXT_MORE 128
+#define QP_TEXT_LEVEL_MASK 7
 #define QP_NUS_SERVICE "6e400001-b5a3-f393-e0a9-e50e24dcca9e"
 #define QP_NUS_RX "6e400002-b5a3-f393-e0a9-e50e24dcca9e"
 #define QP_NUS_TX "6e400003-b5a3-f393-e0a9-e50e24dcca9e"
@@ -96,6 +102,7 @@ enum qp_op {
     QP_OP_ACK_CRASH = 19,
     QP_OP_PARAM_GET = 20,
     QP_OP_PARAM_LIST = 21,
+    QP_OP_MOTOR_TEST = 22,
 };
 
 /* Reasons a command is refused (``Ack.status``); 0 means accepted. */
@@ -143,6 +150,16 @@ enum qp_event_code {
     QP_EVENT_CODE_LINK_LOST = 17,
     QP_EVENT_CODE_LINK_REGAINED = 18,
     QP_EVENT_CODE_SIM_LAG = 19,
+    QP_EVENT_CODE_MOTOR_TEST = 20,
+};
+
+/* Why the board stopped a motor test (``Event.arg`` of ``EventCode.MOTOR_TEST``). */
+enum qp_motor_test_end {
+    QP_MOTOR_TEST_END_TIME_UP = 1,
+    QP_MOTOR_TEST_END_STOPPED = 2,
+    QP_MOTOR_TEST_END_LINK_SILENT = 3,
+    QP_MOTOR_TEST_END_MODE = 4,
+    QP_MOTOR_TEST_END_LIFT = 5,
 };
 
 enum qp_wireless_state {
@@ -171,6 +188,7 @@ enum qp_log_state {
 #define QP_FLAG_PRIORITY_SCHEDULER 0x0200u
 #define QP_FLAG_HEIGHT_HOLD 0x0400u
 #define QP_FLAG_CRASHED 0x0800u
+#define QP_FLAG_MOTOR_TEST 0x1000u
 
 /* Joystick button bits (``Joystick.buttons``). */
 #define QP_BUTTON_FIRE 0x0001u
@@ -230,6 +248,7 @@ enum qp_param {
 #define QP_TYPE_COMPACT 0x1b
 #define QP_TYPE_PARAM_VALUE 0x1c
 #define QP_TYPE_COMPACT2 0x1d
+#define QP_TYPE_TEXT 0x1e
 
 #define QP_BODY_SIZE_JOYSTICK 9
 #define QP_FRAME_SIZE_JOYSTICK 15
@@ -267,6 +286,8 @@ enum qp_param {
 #define QP_FRAME_SIZE_PARAM_VALUE 13
 #define QP_BODY_SIZE_COMPACT2 14
 #define QP_FRAME_SIZE_COMPACT2 20
+#define QP_BODY_SIZE_TEXT 14
+#define QP_FRAME_SIZE_TEXT 20
 
 /* 0x01 Joystick, pc→board, ≤100 Hz; on change + 2 Hz keep-alive over BLE: Absolute joystick position. */
 typedef struct {
@@ -429,6 +450,12 @@ typedef struct {
     int16_t trim_lift;     /* stick: keyboard lift trim */
 } qp_compact2_t;
 
+/* 0x1e Text, board→pc, on qb_log; a line in as many as it takes: A piece of the board's own debug text (qb_log): a line longer than 13 bytes goes in several, in order. */
+typedef struct {
+    uint8_t info;          /* bits: bits 0-2 the level (1 debug .. 5 fatal, as foxglove.Log); bit 7: the line goes on in the next Text */
+    uint8_t text[13];      /* UTF-8, padded with 0x00 */
+} qp_text_t;
+
 /* Any packet: ``type`` (QP_TYPE_*) says which member of ``u`` holds it; ``seq`` is the frame's sequence number. */
 typedef struct {
     uint8_t type;
@@ -452,6 +479,7 @@ typedef struct {
         qp_compact_t compact;
         qp_param_value_t param_value;
         qp_compact2_t compact2;
+        qp_text_t text;
     } u;
 } qp_packet_t;
 
@@ -484,6 +512,7 @@ size_t qp_encode_log_chunk(qp_encoder_t *enc, const qp_log_chunk_t *pkt, uint8_t
 size_t qp_encode_compact(qp_encoder_t *enc, const qp_compact_t *pkt, uint8_t out[QP_MAX_FRAME]);
 size_t qp_encode_param_value(qp_encoder_t *enc, const qp_param_value_t *pkt, uint8_t out[QP_MAX_FRAME]);
 size_t qp_encode_compact2(qp_encoder_t *enc, const qp_compact2_t *pkt, uint8_t out[QP_MAX_FRAME]);
+size_t qp_encode_text(qp_encoder_t *enc, const qp_text_t *pkt, uint8_t out[QP_MAX_FRAME]);
 
 /* Any packet by its type; returns 0 (and writes nothing) for an unknown type. */
 size_t qp_encode(qp_encoder_t *enc, const qp_packet_t *pkt, uint8_t out[QP_MAX_FRAME]);

@@ -440,6 +440,7 @@ class Board:
         ae = fc.control(int(mode), *sticks, SENSOR_PERIOD_US[self._path] / 1e6)
         if not m.motors_enabled:
             ae = (0, 0, 0, 0)
+        ae = m.motor_test.output(m, now_s, self.link.silent_us(self.now) / 1e6) or ae  # the bench test (SAFE)
         self._sticks_used = sticks
         self._set_motors(ae, self.now)
         if self.log.recording:

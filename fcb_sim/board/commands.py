@@ -23,11 +23,14 @@ from collections.abc import Callable
 from typing import Any
 
 from fcb_sim.board import param_bindings
+from fcb_sim.board.console import qb_log
 from fcb_sim.board.parts import BoardParts
 from fcb_sim.board.scheduler import TASKS
 from fcb_sim.world.constants import GAIN_PARAMS
 from term.core.protocol import (
     GAIN_OPS,
+    LEVEL_INFO,
+    MOTOR_TEST_MAX_MS,
     PARAMS,
     Ack,
     Command,
@@ -167,6 +170,15 @@ def _param_list(b: BoardParts, arg: int) -> Result:
         "params", [ParamValue(int(p), param_bindings.get_raw(b, p), i, n) for i, p in enumerate(params)], b.now)
 
 
+def _motor_test(b: BoardParts, arg: int) -> Result:
+    """The bench motor test (fcb_sim/board/motortest.py): its own guards, on the mode machine's state."""
+    nak, level = b.modes.motor_test.request(b.modes, arg, b.now / 1e6)
+    if nak == Nak.OK and level:  # the C board's line, word for word (firmware/board/qb_console.c)
+        qb_log(b, LEVEL_INFO, "motor test: mask %x at %d for %d ms", b.modes.motor_test.mask, level,
+               MOTOR_TEST_MAX_MS)
+    return nak, level, None
+
+
 COMMANDS: dict[Op, Handler] = {
     Op.MODE: _mode,
     Op.TRIM_LIFT: _trim("lift"),
@@ -185,6 +197,7 @@ COMMANDS: dict[Op, Handler] = {
     Op.ACK_CRASH: _ack_crash,
     Op.PARAM_GET: _param_get,
     Op.PARAM_LIST: _param_list,
+    Op.MOTOR_TEST: _motor_test,
 }
 
 

@@ -26,18 +26,23 @@ from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 
 from fcb_sim.board.calibration import CalibrationSums
+from fcb_sim.board.motortest import MotorTest
 from fcb_sim.world import constants as P
 from term.core.protocol import (
     BATTERY_LOW,
     FLIGHT_MODES,
     LIFT_ZERO,
     LOW_BATTERY_HOLD_S,
+    MOTOR_TEST_LINK_MS,
+    MOTOR_TEST_MAX_LEVEL,
+    MOTOR_TEST_MAX_MS,
     PARAMS,
     STICK_MAX,
     STICK_NEUTRAL,
     EventCode,
     Joystick,
     Mode,
+    MotorTestEnd,
     Nak,
     Param,
     lift_trim_after,
@@ -269,6 +274,7 @@ class ModeMachine:
     link_hold: bool = False  # the failsafe's stage 1: level, the lift it had, until the link is back or stage 2
     battery_low_latched: bool = False  # set by a low-battery PANIC; only a new battery (a reboot) clears it
     crashed: bool = False  # an impact the pilot has not acknowledged (Op.ACK_CRASH): no leaving SAFE
+    motor_test: MotorTest = field(default_factory=MotorTest)  # the bench test (SAFE only; fcb_sim/board/motortest.py)
 
     def __post_init__(self) -> None:
         self.calibration = CalibrationSums(self.calibration_names)
@@ -600,6 +606,27 @@ enter action of the new one run. The motors are zero in SAFE and CALIBRATION; th
 - Key 8 (`Op.WIRELESS`, arg 1) is a BLE handover, not a mode: accepted only in SAFE, the board stays in SAFE and
   `Status.wireless` moves DISCONNECTED -> STARTING -> STARTED (see docs/wireless.md).
 
+## The motor test
+
+A bench check of wiring, order and direction before a first flight, props off (`Op.MOTOR_TEST`, arg
+`motor_test_arg(motors, level)`: a mask of the motors, bit 0 ae1 front .. bit 3 ae4 left, and a level). Not a
+mode: the board stays in SAFE while the motors in the mask turn at the level. Its guards are the board's own,
+whatever the terminal does (fcb_sim/board/motortest.py; the C board's firmware/board/qb_console.c):
+
+| refused with | when |
+|---|---|
+{mt_refusals}
+
+| the test stops by itself (event MOTOR_TEST, arg) | when |
+|---|---|
+{mt_stops}
+
+The level is capped at {mt_level} (hover is about 400): even all four motors with props on cannot lift the craft.
+Each run is at most {mt_ms} ms from the command that started it; a new command starts a new run. While a test
+runs, Status has the flag MOTOR_TEST and Motion carries the motor commands. The board says each start on its
+console (`qb_log`: "motor test: mask 2 at 200 for {mt_ms} ms"). The terminal's motor test screen (Ctrl+O)
+asks "props off?" first, sends one command per start, and a stop (level 0) on any key and on leaving the screen.
+
 ## Diagram
 
 ```mermaid
@@ -636,7 +663,24 @@ def modes_doc() -> str:
         bat_hold=LOW_BATTERY_HOLD_S,
         tilt=cfg.tilt_limit_cdeg / 100, cal=cfg.calibration_s, cal_min=cfg.calibration_min_samples,
         diagram=mermaid(), table=transition_table_markdown(), actions="\n".join(actions),
+        mt_level=MOTOR_TEST_MAX_LEVEL, mt_ms=MOTOR_TEST_MAX_MS, **_motor_test_rows(),
     )
+
+
+def _motor_test_rows() -> dict[str, str]:
+    """The motor test's guards and stops, for docs/modes.md."""
+    refusals = [(Nak.NOT_IN_SAFE, "the board is not in SAFE"),
+                (Nak.CRASHED, "a crash is not acknowledged"),
+                (Nak.LIFT_NOT_ZERO, f"the lift (joystick plus trim) is above {LIFT_ZERO}"),
+                (Nak.BAD_ARGUMENT, "the mask names a motor past the fourth"),
+                (Nak.OUT_OF_RANGE, f"the level is above {MOTOR_TEST_MAX_LEVEL}")]
+    stops = [(MotorTestEnd.TIME_UP, f"{MOTOR_TEST_MAX_MS} ms have passed since the command"),
+             (MotorTestEnd.STOPPED, "a MOTOR_TEST command with level 0 (or mask 0)"),
+             (MotorTestEnd.LINK_SILENT, f"nothing from the terminal for {MOTOR_TEST_LINK_MS} ms"),
+             (MotorTestEnd.MODE, "any mode change"),
+             (MotorTestEnd.LIFT, f"the lift leaves zero (above {LIFT_ZERO})")]
+    return {"mt_refusals": "\n".join(f"| `{n.name}` | {t} |" for n, t in refusals),
+            "mt_stops": "\n".join(f"| `{e.name}` ({int(e)}) | {t} |" for e, t in stops)}
 
 
 _ACTION_TEXT: dict[Callable[[ModeMachine, float], None], str] = {

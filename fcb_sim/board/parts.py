@@ -13,7 +13,7 @@ checker), so nothing circles back to fcb_sim/board/board.py.
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 from fcb_sim.board.flash_log import FLASH_BYTES
@@ -30,6 +30,7 @@ from term.core.protocol import (
 )
 
 if TYPE_CHECKING:
+    from fcb_sim.board.console import BoardConsole
     from fcb_sim.board.flash_log import Download, FlashLog
     from fcb_sim.board.flight import FlightCore
     from fcb_sim.board.modes import ModeMachine
@@ -38,6 +39,12 @@ if TYPE_CHECKING:
     from fcb_sim.board.transmit import Transmitter
     from fcb_sim.board.uart import Uart
     from fcb_sim.board.wireless import WirelessLink
+
+
+def _console() -> BoardConsole:
+    from fcb_sim.board.console import BoardConsole
+
+    return BoardConsole()
 
 
 def _default(param: Param) -> Any:
@@ -98,6 +105,7 @@ class BoardParts:
     uart: Uart
     clock: Callable[[], int]
     log_full_reported: bool = False  # LOG_FULL was said for this recording
+    console: BoardConsole = field(default_factory=lambda: _console())  # qb_log's counts (fcb_sim/board/console.py)
 
     @property
     def now(self) -> int:

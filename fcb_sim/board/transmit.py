@@ -36,12 +36,14 @@ from term.core.protocol import (
     Encoder,
     Heartbeat,
     LogChunk,
+    Text,
 )
 
 __all__ = ["ANSWER_BUDGET", "Transmitter"]
 
 HEARTBEAT, ANSWER, TELEMETRY_CLASS, BULK = range(4)
-_CLASS = {Heartbeat: HEARTBEAT, LogChunk: BULK, Compact: TELEMETRY_CLASS, Compact2: TELEMETRY_CLASS,
+# debug lines (qb_log, Text) wait as the log's chunks do: behind heartbeats, answers and telemetry
+_CLASS = {Heartbeat: HEARTBEAT, LogChunk: BULK, Text: BULK, Compact: TELEMETRY_CLASS, Compact2: TELEMETRY_CLASS,
           **{cls: TELEMETRY_CLASS for cls in TELEMETRY}}
 ACK_BYTES = SPEC_OF[Ack].frame_size
 

@@ -224,6 +224,7 @@ static void task_control(qb_board_t *b)
     qb_flight_control(&b->core, m->mode, sticks, timer_period(b, QB_TM_SENSOR) / 1e6, ae);
     if (!qb_modes_motors_enabled(m))
         memset(ae, 0, sizeof ae);
+    qb_motortest_apply(b, ae); /* qb_console.c: the bench motor test (SAFE only) */
     memcpy(b->sticks_used, sticks, sizeof b->sticks_used);
     b->sticks_set = 1;
     set_motors(b, ae);
@@ -331,6 +332,7 @@ static uint16_t status_flags(const qb_board_t *b)
     f |= b->scheduler == QB_SCHEDULER_PRIORITY ? QP_FLAG_PRIORITY_SCHEDULER : 0u;
     f |= m->mode == QP_MODE_HEIGHT ? QP_FLAG_HEIGHT_HOLD : 0u;
     f |= m->crashed ? QP_FLAG_CRASHED : 0u;
+    f |= b->mt.on ? QP_FLAG_MOTOR_TEST : 0u; /* qb_console.c */
     return f;
 }
 
@@ -499,6 +501,9 @@ static result_t execute(qb_board_t *b, const qp_command_t *c)
         return r;
     case QP_OP_ACK_CRASH:
         r.status = qb_modes_ack_crash(&b->modes);
+        return r;
+    case QP_OP_MOTOR_TEST: /* qb_console.c: the bench motor test */
+        r.status = qb_motortest_command(b, c->arg, &r.value);
         return r;
     case QP_OP_LOG_START: /* fcb_sim/board/commands.py's _log_* */
         if (b->log.dl_active) {

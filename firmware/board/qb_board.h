@@ -31,6 +31,7 @@
 
 #include "ikf_q.h"
 #include "qb_consts.h"
+#include "qb_console.h"
 #include "qb_params.h"
 #include "qp_protocol.h"
 
@@ -322,6 +323,9 @@ typedef struct qb_board {
     qb_log_t log;                /* the flash log (LOG_*) */
     uint64_t misses_reported_at;
     uint8_t misses_reported;
+    /* qb_console.c: the bench motor test and qb_log's counts */
+    qb_motortest_t mt;
+    uint32_t log_sent, log_dropped;
 } qb_board_t;
 
 /* A packet to the PC, and an Event now (the tasks in qb_board.c, qb_log.c). */

@@ -49,6 +49,7 @@ const char *qp_text_name(uint8_t type)
     case QP_TYPE_COMPACT: return "Compact";
     case QP_TYPE_PARAM_VALUE: return "ParamValue";
     case QP_TYPE_COMPACT2: return "Compact2";
+    case QP_TYPE_TEXT: return "Text";
     default: return NULL;
     }
 }
@@ -181,6 +182,10 @@ void qp_text_print(FILE *f, const qp_packet_t *pkt)
         fprintf(f, " vz=%ld", (long)pkt->u.compact2.vz);
         fprintf(f, " flags=%ld", (long)pkt->u.compact2.flags);
         fprintf(f, " trim_lift=%ld", (long)pkt->u.compact2.trim_lift);
+        break;
+    case QP_TYPE_TEXT:
+        fprintf(f, " info=%ld", (long)pkt->u.text.info);
+        print_bytes(f, "text", pkt->u.text.text, sizeof pkt->u.text.text);
         break;
     default:
         break;
@@ -385,6 +390,15 @@ int qp_text_parse(const char *name, char **tok, int ntok, qp_packet_t *pkt)
         pkt->u.compact2.vz = (int16_t)strtoll(tok[6], NULL, 0);
         pkt->u.compact2.flags = (uint16_t)strtoll(tok[7], NULL, 0);
         pkt->u.compact2.trim_lift = (int16_t)strtoll(tok[8], NULL, 0);
+        return 1;
+    }
+    if (strcmp(name, "Text") == 0) {
+        if (ntok != 2)
+            return 0;
+        pkt->type = QP_TYPE_TEXT;
+        pkt->u.text.info = (uint8_t)strtoll(tok[0], NULL, 0);
+        if (!parse_bytes(tok[1], pkt->u.text.text, sizeof pkt->u.text.text))
+            return 0;
         return 1;
     }
     return 0;

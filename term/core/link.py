@@ -18,7 +18,9 @@ A ``LinkSession`` knows the protocol's rules for talking to a board and nothing 
   frame the link is still being made: the start-up grace ``connect_timeout`` applies); time the caller says
   it could not run (``starved``: its process got no CPU) is not the board's silence, so a starved terminal does
   not call a loss for frames that waited in the OS;
-- it sends a ``Hello`` at connect and reports a board that speaks another protocol version.
+- it sends a ``Hello`` at connect and reports a board that speaks another protocol version;
+- it gives the board's text as ``ConsoleLine`` events (``term.core.console``): what the board prints between frames
+  (printf on the UART) and its ``Text`` packets (``qb_log``), as lines, rate-limited (``console``).
 
 Nothing here reads a clock: every call takes ``now`` (seconds, any monotonic origin). The caller (an asyncio
 pump in ``term.session.connection``, a test with a fake clock, a benchmark) owns time and I/O.
@@ -34,6 +36,7 @@ from collections import deque
 from dataclasses import dataclass
 from typing import Any
 
+from term.core.console import Console, ConsoleLine
 from term.core.protocol import (
     LINK_TIMEOUT_S,
     NAK_TEXT,
@@ -51,6 +54,7 @@ from term.core.protocol import (
     Nak,
     Op,
     Role,
+    Text,
     scaled,
 )
 
@@ -108,7 +112,7 @@ class VersionMismatch:
     our_version: int
 
 
-LinkEvent = PacketReceived | CommandAcked | CommandFailed | LinkLost | LinkRestored | VersionMismatch
+LinkEvent = PacketReceived | CommandAcked | CommandFailed | LinkLost | LinkRestored | VersionMismatch | ConsoleLine
 
 
 # --- statistics ---------------------------------------------------------------------------------------------
@@ -224,7 +228,8 @@ class LinkSession:
         self.max_queued = max_queued
 
         self.encoder = Encoder()
-        self.decoder = Decoder()
+        self.decoder = Decoder(keep_text=True)
+        self.console = Console()
         self._start = now
         self._now = now
         self._init_queues()
@@ -287,6 +292,9 @@ class LinkSession:
         stats = self.decoder.stats
         gaps_before = stats.seq_gaps
         packets = self.decoder.feed(data)
+        text = self.decoder.take_text()
+        if text:
+            events += self.console.feed_bytes(text, now)
         missing = stats.seq_gaps - gaps_before
         if not packets:
             if missing:
@@ -309,6 +317,8 @@ class LinkSession:
                 self._on_ack(pkt, now, events)
             elif kind is Hello:
                 self._on_hello(pkt, events)
+            elif kind is Text:
+                events += self.console.feed_packet(pkt, now)
             events.append(PacketReceived(pkt))
         return events
 

@@ -105,6 +105,7 @@ TRUTH_POSE = ChannelSpec("/truth/pose", "foxglove.FrameTransform", _schema(FRAME
 TRUTH_CHANNEL = ChannelSpec("/truth", "quadrupel.Truth", _number_schema(
     "quadrupel.Truth", "The simulator's truth: earth NED from the pad, body FRD, SI units (term --sim)",
     {**{k: ("number", u) for k, u in TRUTH_FIELDS.items()}, "on_ground": ("boolean", ""), "crashes": ("integer", "")}))
+CONSOLE = ChannelSpec("/console", "foxglove.Log", _schema(LOG_SCHEMA))  # the board's text (term.core.console)
 STATION = ChannelSpec("/station", "quadrupel.StationRecord", _schema(
     {"title": "quadrupel.StationRecord", "type": "object",
      "description": "a station event by class ('~') and field (term/core/events.py): what a replay applies"}))
@@ -240,7 +241,7 @@ class Channels:
             if self.raw:
                 yield (raw_channel(item.link, item.direction), item.t_ns, item.data)
             key = (item.link, item.direction)
-            dec = self._decoders.get(key) or self._decoders.setdefault(key, Decoder())
+            dec = self._decoders.get(key) or self._decoders.setdefault(key, Decoder(keep_text=True))
             for pkt in dec.feed(item.data):
                 yield from self.frame(item.t_ns, item.link, item.direction, pkt)
         elif kind is LoggedEvent:
@@ -253,17 +254,44 @@ class Channels:
             d = item.data
             if isinstance(d, dict) and d.get("~") == "StatsSample" and isinstance(d.get("stats"), dict):
                 yield self.stats(item.t_ns, str(d.get("link", "")), d["stats"])
+            line = console_line(d)
+            if line is not None:
+                yield console_message(item.t_ns, *line)
 
     def items(self, items: Iterable[Any]) -> Iterator[Message]:
         for it in items:
             yield from self.item(it)
 
 
+def console_line(d: Any) -> tuple[str, str, int, str] | None:
+    """(link, source, level, text) of a recorded station record that is one of the board's console lines
+    (``FromLink(link, ConsoleLine)``, as ``term.data.recording.encode_event`` keeps it), else None."""
+    if not isinstance(d, dict) or d.get("~") != "FromLink":
+        return None
+    ev = d.get("event")
+    if not isinstance(ev, dict) or ev.get("~") != "ConsoleLine":
+        return None
+    level = ev.get("level")
+    text = ev.get("text")
+    if not isinstance(text, str) or not isinstance(level, int) or isinstance(level, bool):
+        return None
+    dropped = ev.get("dropped")
+    if isinstance(dropped, int) and not isinstance(dropped, bool) and dropped > 0:
+        text = f"[{dropped} dropped] {text}"
+    return str(d.get("link", "")), str(ev.get("source", "")), min(5, max(1, level)), text
+
+
+def console_message(t_ns: int, link: str, source: str, level: int, text: str) -> Message:
+    """A console line as foxglove.Log on /console; its name says the link and the source ("cable/uart")."""
+    return (CONSOLE, t_ns, {"timestamp": stamp(t_ns), "level": level, "message": text, "name": f"{link}/{source}",
+                            "file": "", "line": 0})
+
+
 def all_channels(links: Iterable[str] = ("cable", "radio")) -> list[ChannelSpec]:
     """Every channel a session over ``links`` can have (docs, the layout's check, tests)."""
     from term.core.protocol import PACKETS
 
-    out = [EVENTS, TRUTH_CHANNEL, TRUTH_POSE]
+    out = [EVENTS, CONSOLE, TRUTH_CHANNEL, TRUTH_POSE]
     for link in links:
         out += [pose_channel(link), stats_channel(link)]
         for spec in sorted(PACKETS.values(), key=lambda s: s.type_id):

@@ -46,7 +46,7 @@ from mcap.writer import CompressionType, Writer
 from term.core.logformat import LOG_TIME_COLUMN
 from term.core.protocol import MAX_FRAME, PACKETS, SPEC_OF, Decoder, PacketSpec, column_scale
 from term.core.userfile import LOG_MAX_BYTES, RECORDING_MAX_BYTES, UserFileError, open_user_file
-from term.data.channels import EVENTS, Channels, ChannelSpec, raw_channel
+from term.data.channels import EVENTS, Channels, ChannelSpec, console_line, raw_channel
 from term.data.columns import (  # noqa: F401  (column_name, field_column: the export's names, used beside it)
     DIGITS,
     Column,
@@ -61,6 +61,7 @@ from term.data.columns import (  # noqa: F401  (column_name, field_column: the e
 )
 from term.data.recording import (
     MAGIC,
+    SEVERITY_OF,
     LinkBytes,
     LoggedEvent,
     Recording,
@@ -100,7 +101,7 @@ def decode(items: Iterable[Any], keep_raw: bool = False) -> Iterator[Any]:
             key = (item.link, item.direction)
             dec = decoders.get(key)
             if dec is None:
-                dec = decoders[key] = Decoder()
+                dec = decoders[key] = Decoder(keep_text=True)  # text between frames costs no frame
             for pkt in dec.feed(item.data):
                 yield DecodedFrame(item.t_ns, item.link, item.direction, pkt)
         else:
@@ -425,7 +426,7 @@ def _session_csv(src: Path, items: Iterator[Any], f: Any, board_units: bool, inf
             t_ns, link, direction, data = item
             dec = decoders.get((link, direction))
             if dec is None:
-                dec = decoders[(link, direction)] = Decoder()
+                dec = decoders[(link, direction)] = Decoder(keep_text=True)  # text between frames costs no frame
             pkts = dec.feed(data)
             if not pkts:
                 continue
@@ -458,10 +459,29 @@ def _session_csv(src: Path, items: Iterator[Any], f: Any, board_units: bool, inf
             line[4] = "log"
             line[-3:] = [item.severity, item.source, item.text]
             w.writerow(line)
-        elif start is None:  # the station's own records are for a replay, not a table; the first starts the clock
-            start = info[0].start_ns if info[0].meta else item.t_ns
+        else:  # the station's records are for a replay, not a table (but the console's); the first starts the clock
+            if start is None:
+                start = info[0].start_ns if info[0].meta else item.t_ns
+            n += _console_csv_row(item, w, f, out, start, width)
     f.write("".join(out))
     return n + len(out)
+
+
+def _console_csv_row(item: Any, w: Any, f: Any, out: list[str], start: int, width: int) -> int:
+    """A console line (a station record of one, term.data.channels.console_line) as a CSV row: ``packet``
+    "console", ``level``, ``source`` (link/uart or link/board), ``message``; 1 if one was written."""
+    line = console_line(getattr(item, "data", None))
+    if line is None:
+        return 0
+    link, source, level, text = line
+    k = len(out)  # the frames' rows before it: written first, in time order
+    f.write("".join(out))
+    out.clear()
+    row = [""] * width
+    row[:5] = [f"{(item.t_ns - start) / 1e9:.6f}", utc_text(item.t_ns), link, "rx", "console"]
+    row[-3:] = [SEVERITY_OF.get(level, "info"), source, text]
+    w.writerow(row)
+    return k + 1
 
 
 class _McapLibWriter:
@@ -549,7 +569,7 @@ def _session_mcap(src: Path, items: Iterator[Any], f: Any, info: list[Recording]
                 n += _log(w, channels, raw_channel(link, direction), t_ns, data)
             dec = decoders.get((link, direction))
             if dec is None:
-                dec = decoders[(link, direction)] = Decoder()
+                dec = decoders[(link, direction)] = Decoder(keep_text=True)  # text between frames costs no frame
             for pkt in dec.feed(data):
                 for spec, t, msg in frame(t_ns, link, direction, pkt):
                     found = channels.get(spec.topic)

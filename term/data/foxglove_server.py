@@ -38,7 +38,7 @@ from typing import Any
 
 from term.core.protocol import Decoder
 from term.core.protocol.params import PARAMS, Param
-from term.data.channels import Channels, ChannelSpec
+from term.data.channels import Channels, ChannelSpec, console_message
 from term.data.export import DecodedFrame
 from term.data.recording import LoggedEvent
 
@@ -179,6 +179,8 @@ class LiveServer:
         """The station's events the channels carry: the link statistics."""
         if type(ev).__name__ == "StatsSample":
             self._serve(("stats", self.t_ns(now), ev.link, dataclasses.asdict(ev.stats)))
+        elif type(ev).__name__ == "FromLink" and type(ev.event).__name__ == "ConsoleLine":
+            self._serve(("console", self.t_ns(now), ev.link, ev.event))  # the board's text on /console
 
     def truth(self, truth: Any, now: float) -> None:
         self._serve(("truth", self.t_ns(now), truth))
@@ -200,7 +202,7 @@ class LiveServer:
     def _bytes(self, link: str, data: bytes, now: float) -> None:
         """A link's written bytes: decoded, each packet to its channels."""
         t_ns = self.t_ns(now)
-        dec = self._decoders.get(link) or self._decoders.setdefault(link, Decoder())
+        dec = self._decoders.get(link) or self._decoders.setdefault(link, Decoder(keep_text=True))
         frame, want = self._maker.frame, self._wanted
         try:
             for pkt in dec.feed(data):
@@ -246,6 +248,10 @@ class LiveServer:
         if kind is tuple:
             if item[0] == "stats":
                 return [maker.stats(item[1], item[2], item[3])]
+            if item[0] == "console":
+                line = item[3]
+                text = f"[{line.dropped} dropped] {line.text}" if line.dropped else line.text
+                return [console_message(item[1], item[2], line.source, line.level, text)]
             return maker.truth(item[1], dataclasses.asdict(item[2]))  # (a bad sample: an error counted, not raised)
         return maker.item(item)
 

@@ -668,10 +668,10 @@ def encode_event(ev: Any) -> Any:
 def _event_classes() -> dict[str, type]:
     import dataclasses
 
-    from term.core import events, link
+    from term.core import console, events, link
 
     found: dict[str, type] = {}
-    for module in (link, events):
+    for module in (link, events, console):
         for name, obj in vars(module).items():
             if isinstance(obj, type) and dataclasses.is_dataclass(obj) and obj.__module__ == module.__name__:
                 found[name] = obj

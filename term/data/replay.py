@@ -62,7 +62,7 @@ def _events(items: Iterable[Any], start_ns: int, has_station: bool) -> Iterator[
             if item.direction == "tx" and has_station:
                 continue  # the sticks and commands sent are in the station's events
             key = (item.link, item.direction)
-            dec = decoders.get(key) or decoders.setdefault(key, Decoder())
+            dec = decoders.get(key) or decoders.setdefault(key, Decoder(keep_text=True))
             for pkt in dec.feed(item.data):
                 if item.direction == "rx":
                     yield (t, FromLink(item.link, PacketReceived(pkt)))

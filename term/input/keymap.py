@@ -89,6 +89,9 @@ DEFAULT_KEYMAP: tuple[KeyBinding, ...] = (
     _local("show_params", ("f11",), "parameter screen: the board's parameters, search, edit", "Screen"),
     _local("show_joystick", ("f12",), "joystick screen: live axes, mapping, dead zone, save", "Screen"),
     _local("clear_events", ("ctrl+l",), "clear the events list", "Screen"),
+    _local("show_console", ("ctrl+t",), "console: the board's text (printf on the UART, qb_log lines)", "Screen"),
+    _local("motor_test", ("ctrl+o",), "motor test: spin a motor on the bench, props off (SAFE only; asks first)",
+           "Screen"),
 )
 
 # Keys Textual itself gives meaning to; shown in the help table, not rebound.

@@ -22,6 +22,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
+from term.core.console import ConsoleLine
 from term.core.events import (
     RADIO,
     EventsCleared,
@@ -55,6 +56,7 @@ from term.core.protocol import (
     BATTERY_WARN,
     EVENT_ARG_SCALE,
     FLIGHT_MODES,
+    LEVEL_ERROR,
     PARAMS,
     Attitude,
     Compact,
@@ -71,6 +73,7 @@ from term.core.protocol import (
     LogStatus,
     Mode,
     Motion,
+    MotorTestEnd,
     Nak,
     Op,
     ParamValue,
@@ -78,6 +81,7 @@ from term.core.protocol import (
     Status,
     WirelessState,
     field_scale,
+    motor_test_split,
     param_split,
     scaled,
 )
@@ -141,6 +145,9 @@ def op_text(op: int, arg: int) -> str:
         return f"get param {arg}" if spec is None else f"get {spec.name}"
     if o is Op.PARAM_LIST:
         return "list the parameters"
+    if o is Op.MOTOR_TEST:
+        mask, level = motor_test_split(arg)
+        return f"motor test: mask {mask:x} at {level}" if level and mask else "motor test: stop"
     name = o.name.lower().replace("_", " ")
     if o is Op.TRIM_LIFT and arg <= ZERO_TRIM_STEPS:
         return "lift trim to zero"
@@ -198,6 +205,11 @@ def event_text(code: int, arg: int, flying: bool = True) -> tuple[str, str]:
         return "error", f"sensor fault (sensor {arg})"
     if c is EventCode.OVERFLOW:
         return "warning", f"board receive queue overflow ({arg} bytes dropped)"
+    if c is EventCode.MOTOR_TEST:  # the bench test ended (docs/modes.md); the reasons by name
+        try:
+            return "info", f"motor test ended: {MotorTestEnd(arg).name.lower().replace('_', ' ')}"
+        except ValueError:
+            return "info", f"motor test ended ({arg})"
     if c is EventCode.PARAM_CHANGED:
         pid, raw = param_split(arg)
         spec = PARAMS.get(pid)  # type: ignore[call-overload]
@@ -295,6 +307,8 @@ class Model:
     event_times: dict[int, float] = field(default_factory=dict)  # EventCode -> when the board last said it
     event_args: dict[int, int] = field(default_factory=dict)  # EventCode -> its arg the last time
     notes_written: int = 0  # lines written to the events list (merged repeats too): LogEntry.seq
+    console: deque[tuple[float, ConsoleLine]] = field(default_factory=lambda: deque(maxlen=2000))  # (t, line)
+    console_dropped: int = 0  # lines the link's rate limit dropped (term.core.console)
     _refusal_said: dict[tuple[int, int], float] = field(default_factory=dict)  # (mode, Nak) -> when said
     _misses: tuple[int, int, float, int] = (0, 0, 0.0, 0)  # deadline misses: count, longest period, first, seq
     _erasing: int | None = None  # records in the log when its erase was asked for
@@ -779,6 +793,15 @@ def _on_log_packet(m: Model, pkt: LogStatus | LogChunk, now: float) -> None:
         m.download.feed(pkt, now)
 
 
+def _on_console(m: Model, line: ConsoleLine, now: float) -> None:
+    """A line of the board's text (term.core.console): in the console; an error's in the events list too."""
+    m.console.append((now - m.start, line))
+    m.console_dropped += line.dropped
+    if line.level >= LEVEL_ERROR:
+        m.note(now, "error", "board", f"console: {line.text}")
+    m.version += 1
+
+
 _PACKETS: dict[type, Callable[[Model, Any, float], None]] = {
     Attitude: _on_attitude,
     Motion: _on_motion,
@@ -815,4 +838,5 @@ _HANDLERS: dict[type, Callable[[Model, Any, float], None]] = {
     StickSet: Model._on_stick,
     JoystickNamed: Model._on_joystick,
     EventsCleared: Model._on_cleared,
+    ConsoleLine: _on_console,
 }

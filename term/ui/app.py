@@ -61,16 +61,19 @@ from term.transports.base import Transport
 from term.ui.controllers.downloads import DownloadController
 from term.ui.controllers.joystick import JoystickController
 from term.ui.controllers.lessons import LessonController
+from term.ui.controllers.motortest import MotorTestController
 from term.ui.controllers.outputs import SessionOutputs
 from term.ui.controllers.params import ParamsController
 from term.ui.controllers.replay import SEEK_S as REPLAY_SEEK_S
 from term.ui.controllers.replay import ReplayController
 from term.ui.keygate import focus_state, pilot_key_acts
 from term.ui.screens.confirm import ConfirmScreen
+from term.ui.screens.console import ConsoleScreen
 from term.ui.screens.dirprompt import DirectoryPrompt
 from term.ui.screens.flight import FlightScreen
 from term.ui.screens.help import HelpScreen
 from term.ui.screens.joystick import JoystickScreen, SaveMapping
+from term.ui.screens.motortest import MotorTestScreen
 from term.ui.screens.params import ParamsScreen, ReloadParams, SetParam
 from term.ui.screens.plots import PlotsScreen
 from term.ui.screens.profile import ProfileScreen
@@ -153,6 +156,7 @@ class TermApp(App[int]):
         self.params = ParamsController(self.config, self.station, self.send, replay=replay is not None)
         self.exit_message: str | None = None
         self.alarms = Alarms()
+        self.motortest = MotorTestController(self.send, self.station.note, clock)  # the bench test (Ctrl+O)
         self.alarms_rung: list[str] = []  # every alarm the bell was rung for (or would have been, bell off)
         self.lessons = LessonController(self.station, clock, self.keymap, self, instructor, lesson, demo,
                                         lessons_dirs)
@@ -200,6 +204,8 @@ class TermApp(App[int]):
             "log_reset": self.ask_log_erase,
             "show_joystick": lambda: self.show_screen("joystick"),
             "show_params": lambda: self.show_screen("params"),
+            "show_console": lambda: self.show_screen("console"),
+            "motor_test": self.ask_motor_test,
         }
         unknown = {b.action.local for b in self.keymap if b.action.local} - set(self.local)
         if unknown:
@@ -265,6 +271,7 @@ class TermApp(App[int]):
         self.install_screen(WirelessScreen(self.phone), "wireless")
         self.install_screen(JoystickScreen(lambda: self.joystick.poller), "joystick")
         self.install_screen(ParamsScreen(lambda: self.model), "params")
+        self.install_screen(ConsoleScreen(), "console")
         self.set_interval(1.0 / self.render_hz, self.render_now)
         await self.station.start()
         if self.start_screen != "flight":
@@ -350,6 +357,7 @@ class TermApp(App[int]):
                 if self.config.bell:
                     self.bell()
         self.outputs.tick(now)
+        self._motor_test_tick(now)
         if not self.screen_stack or not self.is_running:
             return  # shutting down
         model = self.model
@@ -377,6 +385,11 @@ class TermApp(App[int]):
         return mode is not None and mode != Mode.SAFE and self.replay is None
 
     async def on_event(self, event: events.Event) -> None:
+        # Any key stops a running motor test first; on its own screen (SAFE) that key is spent on the stop.
+        if type(event) is events.Key and self.motortest.key() and isinstance(self.screen, MotorTestScreen) \
+                and not self.can_fly():
+            self.call_later(self.render_now)
+            return
         # Before Textual's bindings: a focused text box hides printable keys from them (check_consume_key).
         if type(event) is events.Key and not event.is_forwarded and self.can_fly():
             action = action_for_key(self.keymap, event.key)
@@ -507,6 +520,30 @@ class TermApp(App[int]):
     def ask_profile(self) -> None:
         self.send(Op.PROFILE)
         self.show_screen("profile")
+
+    def ask_motor_test(self) -> None:
+        """Ctrl+O: the bench motor test, after "props off?" (term/ui/screens/motortest.py)."""
+        why = self.motortest.refusal(self.model)
+        if why is not None or self.replay is not None:
+            self.station.note("error", "term", f"motor test: {why or 'not in a replay'}")
+            return
+
+        def answer(yes: bool | None) -> None:
+            if yes:
+                self.push_screen(MotorTestScreen(self.motortest))
+            else:
+                self.station.note("info", "term", "motor test cancelled")
+
+        self.push_screen(ConfirmScreen(
+            "Are the PROPELLERS OFF?\nThe motor test spins motors on the bench; with props on the craft can jump or "
+            "cut.\nTake every propeller off first.", "props are off: test", "cancel", title="motor test"), answer)
+
+    def _motor_test_tick(self, now: float) -> None:
+        """The motor test follows the board and the link; leaving its screen by any way stops it."""
+        mt = self.motortest
+        mt.tick(self.model, now)
+        if mt.running and self.screen_stack and not isinstance(self.screen, MotorTestScreen):
+            mt.stop("left the motor test screen")
 
     def clear_events(self) -> None:
         self.station.emit(EventsCleared())

@@ -12,7 +12,8 @@ SCHEME_RICE = 2  # ours: prediction and an adaptive Rice code, the same error bo
 SCHEME_NAMES = {SCHEME_DELTA8: "delta8", SCHEME_RICE: "rice"}
 LOG_TIME_COLUMN = "t_us"  # the board time of each record, µs; the other columns are named after telemetry fields
 
-PROTOCOL_VERSION = 4  # 4: link.telemetry_hz in 0.01 Hz (was whole Hz), the failsafe's and the report preset's
+PROTOCOL_VERSION = 5  # 5: the Text packet (the board's own debug lines, qb_log), Op.MOTOR_TEST, event MOTOR_TEST,
+#   flag MOTOR_TEST; 4: link.telemetry_hz in 0.01 Hz (was whole Hz), the failsafe's and the report preset's
 #   parameters (ids 20-23), NAK ONLY_SHORTER_IN_FLIGHT, events LINK_LOST, LINK_REGAINED, SIM_LAG; 3: the parameter
 #   table (SET_PARAM id 8 + value 24 bits, PARAM_GET, PARAM_LIST, ParamValue, PARAM_CHANGED), Compact2 (the flight
 #   screen's figures over BLE); 2: Height in cm and cm/s (was mm: saturated at 32.77 m), crash flag, event, command
@@ -69,6 +70,8 @@ class Op(IntEnum):
     ACK_CRASH = 19  # the pilot has seen the crash (SAFE only); until then the board will not leave SAFE
     PARAM_GET = 20  # arg: a Param id; Ack.value: its raw value
     PARAM_LIST = 21  # Ack.value: how many parameters; then one ParamValue packet each
+    MOTOR_TEST = 22  # arg = motor_test_arg(motors, level): spin the motors in the mask (bit 0 ae1 .. bit 3 ae4) at
+    #   level (0..MOTOR_TEST_MAX_LEVEL) for at most MOTOR_TEST_MAX_MS; level 0 stops. SAFE only, lift at zero, props off
 
 
 # Ops whose arg counts key presses: two of them in a row are the same as one with the args added (the link merges
@@ -161,6 +164,18 @@ class EventCode(IntEnum):
     LINK_LOST = 17  # arg: ms since the last frame (stage 1 begins: holding level, PANIC after link.failsafe_ms)
     LINK_REGAINED = 18  # arg: ms stage 1 lasted (a frame came back in time: control is the pilot's again)
     SIM_LAG = 19  # arg: ms the simulated board runs behind real time (fcb-sim only: its process was starved)
+    MOTOR_TEST = 20  # arg: MotorTestEnd, why a motor test stopped (the motors are off again)
+
+
+@unique
+class MotorTestEnd(IntEnum):
+    """Why the board stopped a motor test (``Event.arg`` of ``EventCode.MOTOR_TEST``)."""
+
+    TIME_UP = 1  # MOTOR_TEST_MAX_MS passed: the board's own limit
+    STOPPED = 2  # a MOTOR_TEST command with level 0
+    LINK_SILENT = 3  # nothing from the terminal for MOTOR_TEST_LINK_MS
+    MODE = 4  # a mode change (any: SAFE again, PANIC, ...)
+    LIFT = 5  # the lift (joystick plus trim) left zero
 
 
 @unique
@@ -194,6 +209,7 @@ class Flag(IntFlag):
     PRIORITY_SCHEDULER = 1 << 9
     HEIGHT_HOLD = 1 << 10
     CRASHED = 1 << 11  # a crash not yet acknowledged (Op.ACK_CRASH): the board stays in SAFE
+    MOTOR_TEST = 1 << 12  # a motor test runs (SAFE, Op.MOTOR_TEST): the motors turn on the bench
 
 
 @unique
@@ -270,6 +286,27 @@ def lift_trim_after(trim: int, steps: int, lift_step: int, joystick_lift: int = 
                 level -= k * coarse
         n -= k
     return max(0, min(STICK_MAX, level - joystick_lift))
+
+
+# The motor test (Op.MOTOR_TEST): a bench check of wiring, order and direction, props off. The level is capped under
+# hover (about 400), so even all four motors with props on cannot lift the craft; the board stops by itself after
+# MOTOR_TEST_MAX_MS, and after MOTOR_TEST_LINK_MS without a frame from the terminal (which answers 10 heartbeats a
+# second, so five missed answers).
+MOTOR_TEST_MAX_LEVEL = 300
+MOTOR_TEST_MAX_MS = 3000
+MOTOR_TEST_LINK_MS = 500
+MOTOR_COUNT = 4
+
+
+def motor_test_arg(motors: int, level: int) -> int:
+    """Op.MOTOR_TEST's arg: ``motors`` a mask (bit 0 ae1 front .. bit 3 ae4 left), ``level`` 0..1000 (the board
+    refuses above MOTOR_TEST_MAX_LEVEL)."""
+    return ((motors & 0xFF) << 16) | (level & 0xFFFF)
+
+
+def motor_test_split(arg: int) -> tuple[int, int]:
+    """(motors mask, level) from Op.MOTOR_TEST's arg."""
+    return (arg >> 16) & 0xFF, arg & 0xFFFF
 
 
 # The UART's speed (8N1): the board's wire and the terminal's default.

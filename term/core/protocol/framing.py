@@ -83,29 +83,58 @@ class DecoderStats:
     bytes_skipped: int = 0  # bytes discarded outside a good frame
     seq_gaps: int = 0  # frames missing according to the sequence numbers
     bytes_in: int = 0
+    text_bytes: int = 0  # text outside frames (a Decoder with keep_text): not damage, not in bytes_skipped
 
     @property
     def frames_bad(self) -> int:
         return self.crc_errors + self.malformed
 
 
+# What a board prints outside frames (printf on the UART): printable ASCII, tab, CR and LF. A frame's first byte
+# (its COBS code, at most MAX_FRAME - 1) is a control byte, so a piece that starts printable is no frame's start.
+_TEXT_BYTES = b"\t\n\r" + bytes(range(0x20, 0x7F))
+_PRINTABLE = frozenset(range(0x20, 0x7F))
+
+
+def _is_text(data: bytes) -> bool:
+    return not data.translate(None, _TEXT_BYTES)
+
+
 class Decoder:
     """A streaming decoder: ``feed`` any chunking of the byte stream, get the packets in it.
 
     Never raises on bad input; what it drops is counted in ``stats``.
+
+    ``keep_text``: the terminal's decoder also keeps the text a board prints between frames (printf on the UART;
+    ``take_text``): a run of text bytes before a delimiter is text, and so is text followed by a whole frame with
+    no delimiter between them (the frame is decoded, not lost); a pending run that is text and ends in a newline is
+    handed out at once (a board that prints and stops); an over-long run of text is handed out as it comes. Text is
+    counted in ``stats.text_bytes``, not as damage. Without it (the board's decoder, the C codec's twin) every byte
+    outside a good frame is skipped and counted, exactly as the C decoder does.
     """
 
     # Anything longer than a frame without a delimiter is garbage: keep at most this many pending bytes.
     _MAX_PENDING = MAX_FRAME - 1
 
-    def __init__(self) -> None:
+    def __init__(self, keep_text: bool = False) -> None:
         self.stats = DecoderStats()
+        self._text: bytearray | None = bytearray() if keep_text else None
         self._pending = b""
         self._discarding = False  # inside an over-long run: drop bytes up to the next delimiter
         self._joined = False  # a delimiter has been seen: what follows starts on a frame boundary
         self._last_seq: int | None = None
 
+    def take_text(self) -> bytes:
+        """The text outside frames since the last call (always empty without ``keep_text``)."""
+        if not self._text:
+            return b""
+        out = bytes(self._text)
+        self._text.clear()
+        return out
+
     def feed(self, data: bytes) -> list[Any]:
+        if self._text is not None:
+            return self._feed_text(data)
         stats = self.stats
         stats.bytes_in += len(data)
         if self._pending:
@@ -143,6 +172,80 @@ class Decoder:
             tail = b""
         self._pending = tail
         return out
+
+    def _feed_text(self, data: bytes) -> list[Any]:
+        """``feed`` of a decoder that keeps text: piece by piece, a failed piece looked at again for text."""
+        stats, text = self.stats, self._text
+        assert text is not None
+        stats.bytes_in += len(data)
+        if self._pending:
+            data = self._pending + data
+        pieces = data.split(b"\x00")
+        tail = pieces.pop()
+        out: list[Any] = []
+        if pieces and self._joined and not self._discarding:  # the usual case, frames only: the batch decode
+            packets, crc_fail, mal, skipped, gaps, last = _decode_pieces(pieces, self._last_seq)
+            if not crc_fail and not mal:
+                stats.frames_ok += len(packets)
+                stats.seq_gaps += gaps
+                self._last_seq = last
+                out, pieces = packets, []
+        for piece in pieces:
+            if self._discarding:
+                stats.bytes_skipped += len(piece) + 1
+                self._discarding = False
+                continue
+            first = not self._joined
+            self._joined = True
+            if not piece:
+                continue
+            if self._decode_one(piece, out, count_bad=False):
+                continue
+            head, frame = _split_text(piece)
+            if head is not None:
+                text += head
+                stats.text_bytes += len(head)
+                if frame:
+                    self._decode_one(frame, out, count_bad=True)
+                continue
+            if first:  # joined mid-frame: the tail of a frame, not damage (as feed)
+                stats.bytes_skipped += len(piece) + 1
+                continue
+            self._decode_one(piece, out, count_bad=True)
+        if self._discarding:
+            stats.bytes_skipped += len(tail)
+            tail = b""
+        elif len(tail) > self._MAX_PENDING:
+            head, tail = tail[: -self._MAX_PENDING], tail[-self._MAX_PENDING :]
+            if _is_text(head):  # a long line: out as it comes; a frame may start in the last MAX_FRAME - 1 bytes
+                text += head
+                stats.text_bytes += len(head)
+            else:
+                stats.bytes_skipped += len(head) + len(tail)
+                tail = b""
+                self._discarding = True
+        if tail and tail[-1] == 0x0A and tail[0] in _PRINTABLE and _is_text(tail):
+            text += tail  # a whole line and nothing after it: a board that printed and went quiet
+            stats.text_bytes += len(tail)
+            tail = b""
+        self._pending = tail
+        return out
+
+    def _decode_one(self, piece: bytes, out: list[Any], count_bad: bool) -> bool:
+        """Decode one delimiter-free piece into ``out``; its damage counted only if ``count_bad``."""
+        stats = self.stats
+        packets, crc_fail, mal, skipped, gaps, last = _decode_pieces([piece], self._last_seq)
+        if packets:
+            out += packets
+            stats.frames_ok += 1
+            stats.seq_gaps += gaps
+            self._last_seq = last
+            return True
+        if count_bad:
+            stats.crc_errors += crc_fail
+            stats.malformed += mal
+            stats.bytes_skipped += skipped
+        return False
 
     def reset_sequence(self) -> None:
         """Forget the last sequence number (the peer restarted), so no false gap is counted."""
@@ -193,6 +296,28 @@ def _decode_pieces(
         last_seq = seq
         packets.append(new(spec.cls, spec.struct.unpack_from(buf, 3)))
     return packets, crc_fail, malformed, skipped, gaps, last_seq
+
+
+_PIECE_SIZES: tuple[int, ...] = ()  # a whole frame's length without its delimiter, per packet size (filled lazily)
+
+
+def _split_text(piece: bytes) -> tuple[bytes | None, bytes]:
+    """A piece that failed as a frame, looked at as text: ``(text, frame)`` where ``piece`` is text followed by a
+    whole valid frame (or only text: ``frame`` empty); ``(None, b"")`` if it is neither."""
+    global _PIECE_SIZES
+    if not _PIECE_SIZES:
+        _PIECE_SIZES = tuple(sorted({spec.struct.size + 5 for spec in PACKETS.values()}))
+    n = len(piece)
+    if _is_text(piece):
+        return piece, b""
+    for size in _PIECE_SIZES:
+        k = n - size
+        if k <= 0:
+            break
+        head = piece[:k]
+        if _is_text(head) and _decode_pieces([piece[k:]], None)[0]:
+            return head, piece[k:]
+    return None, b""
 
 
 def decode_frame(frame: bytes) -> Any:

@@ -296,7 +296,37 @@ class Compact2(NamedTuple):
     trim_lift: Annotated[int, F("h", "stick", "keyboard lift trim")]
 
 
+@packet(0x1E, BOARD_TO_PC, "on qb_log; a line in as many as it takes",
+        "A piece of the board's own debug text (qb_log): a line longer than 13 bytes goes in several, in order.")
+class Text(NamedTuple):
+    info: Annotated[int, F("B", "bits", "bits 0-2 the level (1 debug .. 5 fatal, as foxglove.Log); bit 7: the "
+                                        "line goes on in the next Text")]
+    text: Annotated[bytes, F("13s", "", "UTF-8, padded with 0x00")]
+
+
 LOG_CHUNK_BYTES = 12
+TEXT_BYTES = 13  # of a line per Text packet
+TEXT_MORE = 0x80  # Text.info: the line goes on in the next Text
+TEXT_LEVEL_MASK = 0x07
+LEVEL_DEBUG, LEVEL_INFO, LEVEL_WARNING, LEVEL_ERROR, LEVEL_FATAL = 1, 2, 3, 4, 5  # foxglove.Log's levels
+
+
+def text_packets(line: str | bytes, level: int = LEVEL_INFO) -> list[Text]:
+    """``line`` (one line, no newline) as Text packets: UTF-8 cut at 13 bytes, never inside a character; every
+    packet but the last has TEXT_MORE set. An empty line is one empty packet."""
+    data = line.encode("utf-8", "replace") if isinstance(line, str) else bytes(line)
+    lvl = level & TEXT_LEVEL_MASK
+    out: list[Text] = []
+    while True:
+        cut = min(len(data), TEXT_BYTES)
+        while 0 < cut < len(data) and (data[cut] & 0xC0) == 0x80:  # a continuation byte: cut before its character
+            cut -= 1
+        if cut == 0:  # a 'character' longer than a packet (not UTF-8): cut anyway
+            cut = min(len(data), TEXT_BYTES)
+        piece, data = data[:cut], data[cut:]
+        out.append(Text(lvl | (TEXT_MORE if data else 0), piece.ljust(TEXT_BYTES, b"\0")))
+        if not data:
+            return out
 TELEMETRY = (Attitude, Motion, Height, Status, Gains)
 
 # Event arguments that are quantities: the scale to the shown unit, per code (the rest are counts or ids).
