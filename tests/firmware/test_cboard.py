@@ -22,7 +22,7 @@ from tests.support.paths import EXCERPT
 FIRMWARE = cboard.FIRMWARE
 HAVE_CC = shutil.which("cc") is not None and shutil.which("make") is not None
 needs_cc = pytest.mark.skipif(not HAVE_CC, reason="no C compiler (cc) or make: the C board's tests are skipped")
-M0_FLASH_GOAL, M0_RAM_GOAL = 40 * 1024, 8 * 1024  # issue 37: the image with the flash log, the profile, the console and the motor test
+M0_FLASH_GOAL, M0_RAM_GOAL = 40 * 1024, 8 * 1024  # issue 37: flash log, profile, console, motor test
 
 
 def _make(tmp_path: Path, *targets: str) -> subprocess.CompletedProcess[str]:
