@@ -143,6 +143,14 @@ enum qp_event_code {
     QP_EVENT_CODE_LINK_LOST = 17,
     QP_EVENT_CODE_LINK_REGAINED = 18,
     QP_EVENT_CODE_SIM_LAG = 19,
+    QP_EVENT_CODE_CONTACT = 20,
+};
+
+/* What stopped the craft (``EventCode.CONTACT``), as the accelerometer tells it: a jolt against the motion. */
+enum qp_contact_kind {
+    QP_CONTACT_KIND_GROUND = 1,
+    QP_CONTACT_KIND_CEILING = 2,
+    QP_CONTACT_KIND_WALL = 3,
 };
 
 enum qp_wireless_state {
@@ -171,6 +179,7 @@ enum qp_log_state {
 #define QP_FLAG_PRIORITY_SCHEDULER 0x0200u
 #define QP_FLAG_HEIGHT_HOLD 0x0400u
 #define QP_FLAG_CRASHED 0x0800u
+#define QP_FLAG_HEIGHT_UNSURE 0x1000u
 
 /* Joystick button bits (``Joystick.buttons``). */
 #define QP_BUTTON_FIRE 0x0001u

@@ -440,6 +440,9 @@ class Board:
         ae = fc.control(int(mode), *sticks, SENSOR_PERIOD_US[self._path] / 1e6)
         if not m.motors_enabled:
             ae = (0, 0, 0, 0)
+        contact = fc.pending_contact()
+        if contact is not None:  # a hard stop the accelerometer felt: the pilot sees it
+            m.emit(EventCode.CONTACT, contact[0] << 16 | contact[1], now_s)
         self._sticks_used = sticks
         self._set_motors(ae, self.now)
         if self.log.recording:

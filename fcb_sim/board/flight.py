@@ -12,6 +12,7 @@ API for the board::
     fc.baro_sample(pressure_pa, dt)                          # each barometer read, dt since the previous one
     ae1, ae2, ae3, ae4 = fc.control(mode, roll, pitch, yaw, lift, dt)   # sticks + trims, int16 / 0..32767
     fc.panic_scale = s                                       # PANIC: the mode machine ramps 1 -> 0 over time
+    kind, speed_mm_s = fc.pending_contact() or (0, 0)        # a hard stop felt since the last call: EventCode.CONTACT
 
 The core keeps no mode of its own: whoever keeps the mode (the board's mode machine, a scenario's ``Sim``)
 calls ``enter_mode(mode, lift)`` when it changes and passes it to every ``control``. HEIGHT captures its set point
@@ -32,9 +33,9 @@ from dataclasses import replace
 from fcb_sim.board import control as C
 from fcb_sim.board.calibration import Calibration
 from fcb_sim.estimation import BEST, HeightEstimator, make_filter, quaternion_to_euler
-from fcb_sim.estimation.height import HEIGHT_BEST, HeightKalman, make_height_estimator
+from fcb_sim.estimation.height import HEIGHT_BEST, STOP_UP, HeightKalman, make_height_estimator
 from fcb_sim.world import constants as P
-from term.core.protocol import PARAMS, STICK_MAX, Mode, Param
+from term.core.protocol import PARAMS, STICK_MAX, ContactKind, Mode, Param
 
 HEIGHT_STICK_RATE = 0.5  # m/s of set-point change at full lift deflection away from the entry position
 HEIGHT_STICK_DEADBAND = 1500  # stick units around the entry position that leave the set point alone
@@ -57,6 +58,14 @@ PANIC_MIN_FRAC = 0.4  # of panic_ae, in the air: the attitude loops keep some th
 PANIC_LAND_FRAC = 0.6  # the ground: the loop asks for less than this share of panic_ae ...
 PANIC_LAND_VZ = 0.3  # ... and the craft does not move (m/s) ...
 PANIC_LAND_S = 0.5  # ... for this long
+# The height estimator's ground test: motors below this cannot lift the craft (thrust goes with ae², so 0.7 of the
+# hover level is half the weight: in the air the accelerometer would read half a g, on the legs it reads one).
+GROUND_AE = int(0.7 * P.AE_HOVER_NOMINAL)
+# A wall: the body's x/y specific force (thrust is along body z, so only drag and contact show there) beyond this
+# many m/s² for WALL_SAMPLES samples in a row; one event per WALL_REPEAT_S.
+WALL_ACC = 6.9
+WALL_SAMPLES = 2
+WALL_REPEAT_S = 0.5
 
 
 def panic_descent_rate(height_m: float) -> float:
@@ -141,6 +150,10 @@ class FlightCore:
         self.ae = (0, 0, 0, 0)
         self._g_off = (0.0, 0.0, 0.0)
         self._a_off = (0.0, 0.0, 0.0)
+        self._stops_seen = 0  # the height estimator's hard stops already reported
+        self._wall_n = 0  # samples in a row of a sideways jolt
+        self._wall_quiet = 0.0  # s until a new wall contact may be reported
+        self._walls = 0  # wall contacts not yet reported
 
     # ---- configuration ---------------------------------------------------------------------------------------
     def set_calibration(self, cal: Calibration) -> None:
@@ -175,6 +188,12 @@ class FlightCore:
             return
         s = _MS2_PER_LSB
         axs, ays, azs = cax * s, cay * s, caz * s
+        # a sideways jolt: a wall (or a hand) stopped the craft
+        self._wall_quiet -= dt
+        self._wall_n = self._wall_n + 1 if axs * axs + ays * ays > WALL_ACC * WALL_ACC else 0
+        if self._wall_n >= WALL_SAMPLES and self._wall_quiet <= 0.0:
+            self._walls += 1
+            self._wall_quiet = WALL_REPEAT_S
         if self.run_filter:
             k = _RAD_S_PER_LSB
             f = self.filter
@@ -320,8 +339,28 @@ class FlightCore:
             self._follow_sensors()
             out = (0, 0, 0, 0)
         self.ae = out
-        self.height_est.motors_off = not (out[0] or out[1] or out[2] or out[3])  # its on-the-ground test
+        # its on-the-ground test: no motor could lift the craft
+        self.height_est.motors_off = max(out) < GROUND_AE
         return out
+
+    def pending_contact(self) -> tuple[int, int] | None:
+        """A hard stop felt since the last call (the board sends it as EventCode.CONTACT): (ContactKind, the
+        estimated speed into the surface in mm/s; 0 for a wall), or None. One per call."""
+        h = self.height_est
+        stops = getattr(h, "stops", 0)
+        if stops != self._stops_seen:
+            self._stops_seen = stops
+            kind = ContactKind.CEILING if h.stop_kind == STOP_UP else ContactKind.GROUND
+            return int(kind), min(0xFFFF, round(h.stop_speed * 1000.0))
+        if self._walls:
+            self._walls = 0
+            return int(ContactKind.WALL), 0
+        return None
+
+    @property
+    def height_unsure(self) -> bool:
+        """The height estimate is unsure (telemetry's HEIGHT_UNSURE flag)."""
+        return bool(getattr(self.height_est, "unsure", False))
 
     def _follow_sensors(self) -> None:
         # No attitude loop runs (PANIC levels on the DMP itself): the angles shown follow the sensor path that runs,

@@ -101,6 +101,7 @@ int32_t qb_modes_adjust_trim(qb_modes_t *m, int axis, int32_t steps); /* axis: 0
 uint8_t qb_modes_request(qb_modes_t *m, int32_t target, qb_real now);
 int qb_modes_panic(qb_modes_t *m, qb_real now);
 void qb_modes_crash(qb_modes_t *m, qb_real now, int32_t speed_mm_s);
+void qb_modes_event(qb_modes_t *m, uint8_t code, int32_t arg);
 uint8_t qb_modes_ack_crash(qb_modes_t *m);
 void qb_modes_tick(qb_modes_t *m, qb_real now);
 qb_real qb_modes_panic_scale(qb_modes_t *m, qb_real now);
@@ -139,6 +140,10 @@ typedef struct {
     qb_real captured_height;
     qb_real c[4];
     qb_real c00;
+    qb_real stand_baro, acc_lp, ground_ref; /* the standing barometer, the low-passed |f| - g, the floor's height */
+    uint8_t snapped, stop_n, stop_kind;      /* on the floor at ground_ref; a jolt's run; the last stop (1 down, 2 up) */
+    qb_real stop_v, stop_hold, stop_speed;
+    uint32_t stops;
 } qb_height_t;
 
 void qb_height_init(qb_height_t *h);
@@ -147,6 +152,7 @@ qb_real qb_height_capture(qb_height_t *h);
 void qb_height_update_imu(qb_height_t *h, qb_real ax, qb_real ay, qb_real az, qb_real qw, qb_real qx, qb_real qy,
                           qb_real qz, qb_real dt);
 void qb_height_update_baro(qb_height_t *h, qb_real pressure_pa, qb_real dt);
+int qb_height_unsure(const qb_height_t *h);
 
 /* --- the RAW path's attitude filter: ikf_q.c, fcb_sim/estimation/ikf_fixed.py bit for bit ------------------ */
 
@@ -187,6 +193,9 @@ typedef struct {
     qb_real panic_scale, panic_i, panic_level, panic_start, land_s;
     int32_t panic_ae;
     uint16_t ae[4];
+    uint32_t stops_seen;           /* the height estimator's hard stops already reported */
+    uint8_t wall_n, walls;         /* a sideways jolt's run; wall contacts not yet reported */
+    qb_real wall_quiet;            /* s until a new wall contact may be reported */
 } qb_flight_t;
 
 void qb_flight_init(qb_flight_t *fc);
@@ -198,6 +207,8 @@ void qb_flight_baro(qb_flight_t *fc, qb_real pressure_pa, qb_real dt);
 void qb_flight_enter_mode(qb_flight_t *fc, uint8_t mode, int32_t lift);
 void qb_flight_control(qb_flight_t *fc, uint8_t mode, const int32_t sticks[4], qb_real dt, uint16_t out[4]);
 void qb_flight_attitude_cdeg(const qb_flight_t *fc, int32_t out[3]);
+/* A hard stop felt since the last call (EventCode.CONTACT's arg: kind << 16 | mm/s), or -1. */
+int32_t qb_flight_pending_contact(qb_flight_t *fc);
 void qb_quaternion_to_euler(qb_real w, qb_real x, qb_real y, qb_real z, qb_real out[3]);
 uint32_t qb_isqrt(uint32_t square);
 void qb_mix(int32_t z, qb_real l, qb_real m, qb_real n, int armed, uint16_t out[4]);

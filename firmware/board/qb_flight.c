@@ -32,6 +32,10 @@
 #define PANIC_LAND_VZ 0.3
 #define PANIC_LAND_S 0.5
 #define ASIN_FALLBACK 0.99
+#define GROUND_AE 280 /* 0.7 of the hover level (400): motors below it cannot lift the craft (flight.py) */
+#define WALL_ACC 6.9  /* m/s^2 of body x/y specific force: a sideways jolt (flight.py) */
+#define WALL_SAMPLES 2
+#define WALL_REPEAT_S 0.5
 #define RAD_S_PER_LSB (1.0 / (16.4 * 180.0 / 3.141592653589793)) /* 1 / (GYRO_LSB_PER_DPS * 180 / pi) */
 
 /* --- the RAW path's attitude filter: ikf_q.c, set up from integers -------------------------------------- */
@@ -269,6 +273,18 @@ void qb_flight_imu(qb_flight_t *fc, const int16_t raw[6], qb_real dt)
     fc->saz = -caz;
     if (dt <= 0.0)
         return;
+    /* a sideways jolt: a wall (or a hand) stopped the craft */
+    fc->wall_quiet -= dt;
+    if ((cax * s) * (cax * s) + (cay * s) * (cay * s) > WALL_ACC * WALL_ACC) {
+        if (fc->wall_n < 255)
+            fc->wall_n++;
+    } else {
+        fc->wall_n = 0;
+    }
+    if (fc->wall_n >= WALL_SAMPLES && fc->wall_quiet <= 0.0) {
+        fc->walls = 1;
+        fc->wall_quiet = WALL_REPEAT_S;
+    }
     qb_ikf_update(&fc->ikf, cgx * RAD_S_PER_LSB, cgy * RAD_S_PER_LSB, cgz * RAD_S_PER_LSB, cax * s, cay * s,
                   caz * s, dt);
     /* no DMP (RAW mode): the height estimator takes the filter's attitude at 100 Hz, as fast as the DMP's */
@@ -447,7 +463,23 @@ void qb_flight_control(qb_flight_t *fc, uint8_t mode, const int32_t sticks[4], q
             out[0] = out[1] = out[2] = out[3] = 0;
     }
     memcpy(fc->ae, out, sizeof fc->ae);
-    fc->hest.motors_off = !(out[0] || out[1] || out[2] || out[3]);
+    /* the height estimator's on-the-ground test: no motor could lift the craft */
+    fc->hest.motors_off = out[0] < GROUND_AE && out[1] < GROUND_AE && out[2] < GROUND_AE && out[3] < GROUND_AE;
+}
+
+int32_t qb_flight_pending_contact(qb_flight_t *fc)
+{
+    if (fc->hest.stops != fc->stops_seen) {
+        qb_real mm = QM(lround)(fc->hest.stop_speed * 1000.0);
+        fc->stops_seen = fc->hest.stops;
+        return (int32_t)((uint32_t)(fc->hest.stop_kind == 2 ? QP_CONTACT_KIND_CEILING : QP_CONTACT_KIND_GROUND) << 16 |
+                         (uint32_t)(mm > 65535.0 ? 65535.0 : mm));
+    }
+    if (fc->walls) {
+        fc->walls = 0;
+        return (int32_t)((uint32_t)QP_CONTACT_KIND_WALL << 16);
+    }
+    return -1;
 }
 
 void qb_flight_attitude_cdeg(const qb_flight_t *fc, int32_t out[3])

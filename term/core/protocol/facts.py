@@ -161,6 +161,16 @@ class EventCode(IntEnum):
     LINK_LOST = 17  # arg: ms since the last frame (stage 1 begins: holding level, PANIC after link.failsafe_ms)
     LINK_REGAINED = 18  # arg: ms stage 1 lasted (a frame came back in time: control is the pilot's again)
     SIM_LAG = 19  # arg: ms the simulated board runs behind real time (fcb-sim only: its process was starved)
+    CONTACT = 20  # arg: (ContactKind << 16) | the estimated speed into it in mm/s: a hard stop the board felt
+
+
+@unique
+class ContactKind(IntEnum):
+    """What stopped the craft (``EventCode.CONTACT``), as the accelerometer tells it: a jolt against the motion."""
+
+    GROUND = 1  # a stop going down: a landing
+    CEILING = 2  # a stop going up
+    WALL = 3  # a sideways jolt
 
 
 @unique
@@ -194,6 +204,7 @@ class Flag(IntFlag):
     PRIORITY_SCHEDULER = 1 << 9
     HEIGHT_HOLD = 1 << 10
     CRASHED = 1 << 11  # a crash not yet acknowledged (Op.ACK_CRASH): the board stays in SAFE
+    HEIGHT_UNSURE = 1 << 12  # the height estimate is unsure (after a hard stop, until the barometer confirms it)
 
 
 @unique
