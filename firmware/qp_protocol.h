@@ -144,6 +144,7 @@ enum qp_event_code {
     QP_EVENT_CODE_LINK_REGAINED = 18,
     QP_EVENT_CODE_SIM_LAG = 19,
     QP_EVENT_CODE_CONTACT = 20,
+    QP_EVENT_CODE_HEADING_DRIFT = 21,
 };
 
 /* What stopped the craft (``EventCode.CONTACT``), as the accelerometer tells it: a jolt against the motion. */

@@ -443,6 +443,9 @@ class Board:
         contact = fc.pending_contact()
         if contact is not None:  # a hard stop the accelerometer felt: the pilot sees it
             m.emit(EventCode.CONTACT, contact[0] << 16 | contact[1], now_s)
+        drift = fc.pending_heading_drift()
+        if drift is not None:  # the heading is relative: how far it drifted since calibration
+            m.emit(EventCode.HEADING_DRIFT, drift, now_s)
         self._sticks_used = sticks
         self._set_motors(ae, self.now)
         if self.log.recording:

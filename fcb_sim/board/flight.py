@@ -33,6 +33,7 @@ from dataclasses import replace
 from fcb_sim.board import control as C
 from fcb_sim.board.calibration import Calibration
 from fcb_sim.estimation import BEST, HeightEstimator, make_filter, quaternion_to_euler
+from fcb_sim.estimation.heading import HeadingHold
 from fcb_sim.estimation.height import HEIGHT_BEST, STOP_UP, HeightKalman, make_height_estimator
 from fcb_sim.world import constants as P
 from term.core.protocol import PARAMS, STICK_MAX, ContactKind, Mode, Param
@@ -66,6 +67,13 @@ GROUND_AE = int(0.7 * P.AE_HOVER_NOMINAL)
 WALL_ACC = 6.9
 WALL_SAMPLES = 2
 WALL_REPEAT_S = 0.5
+# Still (the heading's drift is learnt, estimation/heading.py): on the ground by the height estimator's test and every
+# gyro axis under STILL_LSB (1.5 °/s after calibration's offsets) for STILL_S. The headings are corrected at 100 Hz.
+STILL_LSB = 1.5 * P.GYRO_LSB_PER_DPS
+STILL_S = 1.0
+HEADING_EVERY = 4  # IMU samples
+HEADING_REPORT_CDEG = 200  # a drift this far from the last reported one is reported again (EventCode.HEADING_DRIFT)
+HEADING_LIFTOFF_CDEG = 50  # ... and at a lift-off, one at least this large
 
 
 def panic_descent_rate(height_m: float) -> float:
@@ -154,6 +162,15 @@ class FlightCore:
         self._wall_n = 0  # samples in a row of a sideways jolt
         self._wall_quiet = 0.0  # s until a new wall contact may be reported
         self._walls = 0  # wall contacts not yet reported
+        # the headings without a compass: relative to calibration, their drift learnt while still
+        self.heading_dmp = HeadingHold()
+        self.heading_raw = HeadingHold()
+        self.psi_dmp = self.psi_raw = 0.0  # corrected (rad, FRD)
+        self._still_s = 0.0
+        self.still = False
+        self._n_head = 0
+        self._head_dt = 0.0
+        self._drift_reported = 0  # cdeg
 
     # ---- configuration ---------------------------------------------------------------------------------------
     def set_calibration(self, cal: Calibration) -> None:
@@ -166,6 +183,9 @@ class FlightCore:
         self.filter.reset()
         self.height_est.reset(cal.pressure)
         self.height = self.vz = 0.0
+        self.heading_dmp.reset()
+        self.heading_raw.reset()
+        self._drift_reported = 0
 
     def adjust_gain(self, name: str, steps: int) -> float:
         """Change a gain by ``steps`` key presses (constants.GAIN_STEPS) inside the parameter table's range (as the
@@ -207,6 +227,25 @@ class FlightCore:
             h = self.height_est
             h.update_imu(axs, ays, azs, qw, qx, qy, qz, dt)
             self.height, self.vz = h.height, h.vz
+        self._heading(cgx, cgy, cgz, dt)
+
+    def _heading(self, cgx: float, cgy: float, cgz: float, dt: float) -> None:
+        """Both paths' headings corrected for their drift (estimation/heading.py), at 100 Hz."""
+        quiet = -STILL_LSB < cgx < STILL_LSB and -STILL_LSB < cgy < STILL_LSB and -STILL_LSB < cgz < STILL_LSB
+        self._still_s = self._still_s + dt if quiet and getattr(self.height_est, "on_ground", False) else 0.0
+        self._head_dt += dt
+        self._n_head += 1
+        if self._n_head < HEADING_EVERY:
+            return
+        still = self._still_s >= STILL_S
+        if self.still and not still and abs(self.heading_drift_cdeg() - self._drift_reported) >= HEADING_LIFTOFF_CDEG:
+            self._drift_reported = -1 << 30  # leaving the pad: report the drift
+        self.still = still
+        t = self._head_dt
+        self._n_head = 0
+        self._head_dt = 0.0
+        self.psi_dmp = self.heading_dmp.update(self.dmp_psi, still, t)
+        self.psi_raw = self.heading_raw.update(-self.filter.yaw, still, t)
 
     def dmp_sample(self, w: float, x: float, y: float, z: float) -> None:
         """A new DMP quaternion (body-to-earth, earth z up)."""
@@ -375,13 +414,28 @@ class FlightCore:
     # ---- telemetry helpers -----------------------------------------------------------------------------------
     @property
     def raw_psi(self) -> float:
-        """Yaw of the on-board filter (rad, FRD: nose right positive)."""
-        return -self.filter.yaw
+        """Yaw of the on-board filter (rad, FRD: nose right positive), its drift learnt at rest taken out."""
+        return self.psi_raw
 
     @property
     def psi(self) -> float:
-        """Yaw (rad, FRD) of the path the last control step used (computed when asked: no loop uses it)."""
-        return self.raw_psi if self._psi_src == _RAW else self.dmp_psi
+        """Yaw (rad, FRD) of the path the last control step used, relative to calibration and its drift learnt
+        while still taken out (estimation/heading.py)."""
+        return self.psi_raw if self._psi_src == _RAW else self.psi_dmp
+
+    def heading_drift_cdeg(self) -> int:
+        """How far the heading in use has drifted since calibration (0.01°, what was taken out)."""
+        hold = self.heading_raw if self._psi_src == _RAW else self.heading_dmp
+        return round(hold.offset * 18000.0 / 3.141592653589793)
+
+    def pending_heading_drift(self) -> int | None:
+        """The drift to report (EventCode.HEADING_DRIFT, 0.01°) when the craft leaves the pad or it moved by
+        HEADING_REPORT_CDEG since the last report; else None."""
+        d = self.heading_drift_cdeg()
+        if abs(d - self._drift_reported) < HEADING_REPORT_CDEG:
+            return None
+        self._drift_reported = d
+        return d
 
     def attitude_centideg(self) -> tuple[int, int, int]:
         """phi, theta, psi in 0.01 deg (the Attitude packet's unit)."""

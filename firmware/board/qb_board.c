@@ -209,7 +209,7 @@ static void task_control(qb_board_t *b)
 {
     qb_modes_t *m = &b->modes;
     qb_real t = now_s(b);
-    int32_t impact = hal_impact_mm_s(), sticks[4], contact;
+    int32_t impact = hal_impact_mm_s(), sticks[4], contact, drift;
     uint16_t ae[4];
     if (impact > 0)
         qb_modes_crash(m, t, impact);
@@ -224,6 +224,8 @@ static void task_control(qb_board_t *b)
     contact = qb_flight_pending_contact(&b->core);
     if (contact >= 0) /* a hard stop the accelerometer felt: the pilot sees it */
         qb_modes_event(m, QP_EVENT_CODE_CONTACT, contact);
+    if (qb_flight_pending_heading_drift(&b->core, &drift)) /* the heading is relative: its drift since calibration */
+        qb_modes_event(m, QP_EVENT_CODE_HEADING_DRIFT, drift);
     if (!qb_modes_motors_enabled(m))
         memset(ae, 0, sizeof ae);
     memcpy(b->sticks_used, sticks, sizeof b->sticks_used);

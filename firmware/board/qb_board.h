@@ -168,6 +168,15 @@ void qb_ikf_update(qb_ikf_t *f, qb_real gx, qb_real gy, qb_real gz, qb_real ax, 
 void qb_ikf_quaternion(const qb_ikf_t *f, qb_real q[4]);
 void qb_ikf_angles(const qb_ikf_t *f, qb_real out[3]);
 
+/* --- the heading at rest (qb_flight.c, fcb_sim/estimation/heading.py's HeadingHold) ------------------------ */
+
+typedef struct {
+    qb_real rate, offset, prev;    /* the drift rate learnt while still (rad/s), the drift since reset (rad) */
+    uint8_t have_prev;
+    uint32_t n;                    /* the still stretch's least-squares sums */
+    qb_real t, y, st, sy, sty, stt;
+} qb_heading_t;
+
 /* --- the flight core (qb_flight.c) ------------------------------------------------------------------------ */
 
 typedef struct {
@@ -196,6 +205,11 @@ typedef struct {
     uint32_t stops_seen;           /* the height estimator's hard stops already reported */
     uint8_t wall_n, walls;         /* a sideways jolt's run; wall contacts not yet reported */
     qb_real wall_quiet;            /* s until a new wall contact may be reported */
+    qb_heading_t heading_dmp, heading_raw; /* the headings without a compass, their drift learnt while still */
+    qb_real hpsi_dmp, hpsi_raw;    /* corrected (rad, FRD) */
+    qb_real still_s, head_dt;
+    uint8_t still, n_head;
+    int32_t drift_reported;        /* cdeg */
 } qb_flight_t;
 
 void qb_flight_init(qb_flight_t *fc);
@@ -209,6 +223,8 @@ void qb_flight_control(qb_flight_t *fc, uint8_t mode, const int32_t sticks[4], q
 void qb_flight_attitude_cdeg(const qb_flight_t *fc, int32_t out[3]);
 /* A hard stop felt since the last call (EventCode.CONTACT's arg: kind << 16 | mm/s), or -1. */
 int32_t qb_flight_pending_contact(qb_flight_t *fc);
+/* The heading drift to report (EventCode.HEADING_DRIFT, 0.01 deg) into *cdeg: 1, or 0 for none now. */
+int qb_flight_pending_heading_drift(qb_flight_t *fc, int32_t *cdeg);
 void qb_quaternion_to_euler(qb_real w, qb_real x, qb_real y, qb_real z, qb_real out[3]);
 uint32_t qb_isqrt(uint32_t square);
 void qb_mix(int32_t z, qb_real l, qb_real m, qb_real n, int armed, uint16_t out[4]);

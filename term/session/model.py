@@ -186,6 +186,8 @@ def event_text(code: int, arg: int, flying: bool = True) -> tuple[str, str]:
             return "warning", "hit something sideways (a wall?)"
         what = "touched down" if kind == ContactKind.GROUND else "hit the ceiling"
         return ("info" if kind == ContactKind.GROUND else "warning"), f"{what} at {mm_s / 1000:.2f} m/s"
+    if c is EventCode.HEADING_DRIFT:
+        return "info", f"heading drift {_event_arg(c, arg):+.1f}° since calibration, taken out (no compass)"
     if c is EventCode.PANIC_DONE:
         return "info", "panic done: motors off, SAFE"
     if c is EventCode.CALIBRATION_DONE:

@@ -162,6 +162,7 @@ class EventCode(IntEnum):
     LINK_REGAINED = 18  # arg: ms stage 1 lasted (a frame came back in time: control is the pilot's again)
     SIM_LAG = 19  # arg: ms the simulated board runs behind real time (fcb-sim only: its process was starved)
     CONTACT = 20  # arg: (ContactKind << 16) | the estimated speed into it in mm/s: a hard stop the board felt
+    HEADING_DRIFT = 21  # arg: 0.01° of heading drift taken out since calibration (no compass: the heading is relative)
 
 
 @unique
