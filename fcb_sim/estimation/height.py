@@ -479,7 +479,10 @@ class HeightKalman:
         cut = len(ordered) // 4
         middle = ordered[cut : len(ordered) - cut]
         mean = sum(middle) / len(middle)
-        if self._snapped:  # the floor is ground_ref: what the barometer reads there is its offset
+        # the floor is ground_ref, if the barometer agrees within GROUND_SNAP_M: what it reads there is its offset;
+        # else (a table the estimate did not follow) the barometer's height stands, as before
+        self._snapped = self._snapped and abs(mean - self.ground_ref) < GROUND_SNAP_M
+        if self._snapped:
             self.p_ref *= math.exp(-(mean - self.ground_ref) * self.k_pa_per_m / self.p_ref)
             mean = self.ground_ref
         self.height = mean

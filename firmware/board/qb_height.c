@@ -278,7 +278,10 @@ static void ground_baro_update(qb_height_t *h, qb_real z, qb_real dt)
     for (i = cut; i < n - cut; i++)
         sum += sorted[i];
     mean = sum / (qb_real)(n - 2 * cut);
-    if (h->snapped) { /* the floor is ground_ref: what the barometer reads there is its offset */
+    /* the floor is ground_ref, if the barometer agrees within GROUND_SNAP_M: what it reads there is its offset;
+     * else (a table the estimate did not follow) the barometer's height stands */
+    h->snapped = (uint8_t)(h->snapped && QM(fabs)(mean - h->ground_ref) < GROUND_SNAP_M);
+    if (h->snapped) {
         h->p_ref *= QM(exp)(-(mean - h->ground_ref) * h->k_pa_per_m / h->p_ref);
         mean = h->ground_ref;
     }

@@ -94,3 +94,18 @@ def test_on_the_floor_the_reference_follows_the_barometers_offset() -> None:
         n = _run(kf, rnd, DT, 0.0, h, n0=n, baro_offset_m=-0.25)
     n = _run(kf, rnd, 3.0, 0.0, 1.0, n0=n, baro_offset_m=-0.25)
     assert abs(kf.height - 1.0) < 0.12
+
+
+def test_a_table_the_estimate_missed_is_not_taken_for_the_floor() -> None:
+    """Set down (motors off) on a 0.8 m table while the estimate still read 0.2 m: snapped to the floor at first,
+    but the barometer disagrees by more than GROUND_SNAP_M, so its height stands and the reference is untouched."""
+    kf = HeightKalman()
+    kf.reset(P0)
+    rnd = random.Random(6)
+    n = _run(kf, rnd, 0.2, 0.0, 0.8)
+    kf.height, kf.vz = 0.2, 0.0
+    p_ref = kf.p_ref
+    kf.motors_off = True
+    _run(kf, rnd, 2.5, 0.0, 0.8, n0=n, vib=0.02)
+    assert kf.on_ground and kf.anchored
+    assert abs(kf.height - 0.8) < 0.1 and kf.p_ref == p_ref
