@@ -28,6 +28,7 @@ seed's deviation, the mean of each seed's worst; the 1 % step everywhere is the 
 | the craft, exactly (true height and vz) | 8 of 8, 0.253 m, 0.246 m | 8 of 8, 0.066 m, 0.054 m |
 | the room view (0.01 m, vz from two looks) | 8 of 8, 0.166 m, 0.128 m | 8 of 8, 0.191 m, 0.110 m |
 | the screen's height estimate | 1 of 8, 0.895 m, 0.465 m | 0 of 8, 2.50 m, 1.00 m |
+| the screen, after issue 35's contact work | | 0 of 8, 1.05 m, 0.72 m |
 
 What limits the hold is what the pilot reads, more than the step: a pilot who sees the craft holds 0.3 m with
 either step, and the finer step takes the exact pilot's limit cycle from 0.25 m to 0.06 m (a 1 % press is 4 % of

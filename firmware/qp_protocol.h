@@ -151,6 +151,8 @@ enum qp_event_code {
     QP_EVENT_CODE_LINK_REGAINED = 18,
     QP_EVENT_CODE_SIM_LAG = 19,
     QP_EVENT_CODE_MOTOR_TEST = 20,
+    QP_EVENT_CODE_CONTACT = 21,
+    QP_EVENT_CODE_HEADING_DRIFT = 22,
 };
 
 /* Why the board stopped a motor test (``Event.arg`` of ``EventCode.MOTOR_TEST``). */
@@ -160,6 +162,13 @@ enum qp_motor_test_end {
     QP_MOTOR_TEST_END_LINK_SILENT = 3,
     QP_MOTOR_TEST_END_MODE = 4,
     QP_MOTOR_TEST_END_LIFT = 5,
+};
+
+/* What stopped the craft (``EventCode.CONTACT``), as the accelerometer tells it: a jolt against the motion. */
+enum qp_contact_kind {
+    QP_CONTACT_KIND_GROUND = 1,
+    QP_CONTACT_KIND_CEILING = 2,
+    QP_CONTACT_KIND_WALL = 3,
 };
 
 enum qp_wireless_state {
@@ -189,6 +198,7 @@ enum qp_log_state {
 #define QP_FLAG_HEIGHT_HOLD 0x0400u
 #define QP_FLAG_CRASHED 0x0800u
 #define QP_FLAG_MOTOR_TEST 0x1000u
+#define QP_FLAG_HEIGHT_UNSURE 0x2000u
 
 /* Joystick button bits (``Joystick.buttons``). */
 #define QP_BUTTON_FIRE 0x0001u

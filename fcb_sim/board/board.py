@@ -440,6 +440,12 @@ class Board:
         ae = fc.control(int(mode), *sticks, SENSOR_PERIOD_US[self._path] / 1e6)
         if not m.motors_enabled:
             ae = (0, 0, 0, 0)
+        contact = fc.pending_contact()
+        if contact is not None:  # a hard stop the accelerometer felt: the pilot sees it
+            m.emit(EventCode.CONTACT, contact[0] << 16 | contact[1], now_s)
+        drift = fc.pending_heading_drift()
+        if drift is not None:  # the heading is relative: how far it drifted since calibration
+            m.emit(EventCode.HEADING_DRIFT, drift, now_s)
         ae = m.motor_test.output(m, now_s, self.link.silent_us(self.now) / 1e6) or ae  # the bench test (SAFE)
         self._sticks_used = sticks
         self._set_motors(ae, self.now)

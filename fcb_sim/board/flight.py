@@ -12,6 +12,7 @@ API for the board::
     fc.baro_sample(pressure_pa, dt)                          # each barometer read, dt since the previous one
     ae1, ae2, ae3, ae4 = fc.control(mode, roll, pitch, yaw, lift, dt)   # sticks + trims, int16 / 0..32767
     fc.panic_scale = s                                       # PANIC: the mode machine ramps 1 -> 0 over time
+    kind, speed_mm_s = fc.pending_contact() or (0, 0)        # a hard stop felt since the last call: EventCode.CONTACT
 
 The core keeps no mode of its own: whoever keeps the mode (the board's mode machine, a scenario's ``Sim``)
 calls ``enter_mode(mode, lift)`` when it changes and passes it to every ``control``. HEIGHT captures its set point
@@ -32,9 +33,10 @@ from dataclasses import replace
 from fcb_sim.board import control as C
 from fcb_sim.board.calibration import Calibration
 from fcb_sim.estimation import BEST, HeightEstimator, make_filter, quaternion_to_euler
-from fcb_sim.estimation.height import HEIGHT_BEST, HeightKalman, make_height_estimator
+from fcb_sim.estimation.heading import HeadingHold
+from fcb_sim.estimation.height import HEIGHT_BEST, STOP_UP, HeightKalman, make_height_estimator
 from fcb_sim.world import constants as P
-from term.core.protocol import PARAMS, STICK_MAX, Mode, Param
+from term.core.protocol import PARAMS, STICK_MAX, ContactKind, Mode, Param
 
 HEIGHT_STICK_RATE = 0.5  # m/s of set-point change at full lift deflection away from the entry position
 HEIGHT_STICK_DEADBAND = 1500  # stick units around the entry position that leave the set point alone
@@ -57,6 +59,21 @@ PANIC_MIN_FRAC = 0.4  # of panic_ae, in the air: the attitude loops keep some th
 PANIC_LAND_FRAC = 0.6  # the ground: the loop asks for less than this share of panic_ae ...
 PANIC_LAND_VZ = 0.3  # ... and the craft does not move (m/s) ...
 PANIC_LAND_S = 0.5  # ... for this long
+# The height estimator's ground test: motors below this cannot lift the craft (thrust goes with ae², so 0.7 of the
+# hover level is half the weight: in the air the accelerometer would read half a g, on the legs it reads one).
+GROUND_AE = int(0.7 * P.AE_HOVER_NOMINAL)
+# A wall: the body's x/y specific force (thrust is along body z, so only drag and contact show there) beyond this
+# many m/s² for WALL_SAMPLES samples in a row; one event per WALL_REPEAT_S.
+WALL_ACC = 6.9
+WALL_SAMPLES = 2
+WALL_REPEAT_S = 0.5
+# Still (the heading's drift is learnt, estimation/heading.py): on the ground by the height estimator's test and every
+# gyro axis under STILL_LSB (1.5 °/s after calibration's offsets) for STILL_S. The headings are corrected at 100 Hz.
+STILL_LSB = 1.5 * P.GYRO_LSB_PER_DPS
+STILL_S = 1.0
+HEADING_EVERY = 4  # IMU samples
+HEADING_REPORT_CDEG = 200  # a drift this far from the last reported one is reported again (EventCode.HEADING_DRIFT)
+HEADING_LIFTOFF_CDEG = 50  # ... and at a lift-off, one at least this large
 
 
 def panic_descent_rate(height_m: float) -> float:
@@ -141,6 +158,19 @@ class FlightCore:
         self.ae = (0, 0, 0, 0)
         self._g_off = (0.0, 0.0, 0.0)
         self._a_off = (0.0, 0.0, 0.0)
+        self._stops_seen = 0  # the height estimator's hard stops already reported
+        self._wall_n = 0  # samples in a row of a sideways jolt
+        self._wall_quiet = 0.0  # s until a new wall contact may be reported
+        self._walls = 0  # wall contacts not yet reported
+        # the headings without a compass: relative to calibration, their drift learnt while still
+        self.heading_dmp = HeadingHold()
+        self.heading_raw = HeadingHold()
+        self.psi_dmp = self.psi_raw = 0.0  # corrected (rad, FRD)
+        self._still_s = 0.0
+        self.still = False
+        self._n_head = 0
+        self._head_dt = 0.0
+        self._drift_reported = 0  # cdeg
 
     # ---- configuration ---------------------------------------------------------------------------------------
     def set_calibration(self, cal: Calibration) -> None:
@@ -153,6 +183,9 @@ class FlightCore:
         self.filter.reset()
         self.height_est.reset(cal.pressure)
         self.height = self.vz = 0.0
+        self.heading_dmp.reset()
+        self.heading_raw.reset()
+        self._drift_reported = 0
 
     def adjust_gain(self, name: str, steps: int) -> float:
         """Change a gain by ``steps`` key presses (constants.GAIN_STEPS) inside the parameter table's range (as the
@@ -175,6 +208,12 @@ class FlightCore:
             return
         s = _MS2_PER_LSB
         axs, ays, azs = cax * s, cay * s, caz * s
+        # a sideways jolt: a wall (or a hand) stopped the craft
+        self._wall_quiet -= dt
+        self._wall_n = self._wall_n + 1 if axs * axs + ays * ays > WALL_ACC * WALL_ACC else 0
+        if self._wall_n >= WALL_SAMPLES and self._wall_quiet <= 0.0:
+            self._walls += 1
+            self._wall_quiet = WALL_REPEAT_S
         if self.run_filter:
             k = _RAD_S_PER_LSB
             f = self.filter
@@ -188,6 +227,25 @@ class FlightCore:
             h = self.height_est
             h.update_imu(axs, ays, azs, qw, qx, qy, qz, dt)
             self.height, self.vz = h.height, h.vz
+        self._heading(cgx, cgy, cgz, dt)
+
+    def _heading(self, cgx: float, cgy: float, cgz: float, dt: float) -> None:
+        """Both paths' headings corrected for their drift (estimation/heading.py), at 100 Hz."""
+        quiet = -STILL_LSB < cgx < STILL_LSB and -STILL_LSB < cgy < STILL_LSB and -STILL_LSB < cgz < STILL_LSB
+        self._still_s = self._still_s + dt if quiet and getattr(self.height_est, "on_ground", False) else 0.0
+        self._head_dt += dt
+        self._n_head += 1
+        if self._n_head < HEADING_EVERY:
+            return
+        still = self._still_s >= STILL_S
+        if self.still and not still and abs(self.heading_drift_cdeg() - self._drift_reported) >= HEADING_LIFTOFF_CDEG:
+            self._drift_reported = -1 << 30  # leaving the pad: report the drift
+        self.still = still
+        t = self._head_dt
+        self._n_head = 0
+        self._head_dt = 0.0
+        self.psi_dmp = self.heading_dmp.update(self.dmp_psi, still, t)
+        self.psi_raw = self.heading_raw.update(-self.filter.yaw, still, t)
 
     def dmp_sample(self, w: float, x: float, y: float, z: float) -> None:
         """A new DMP quaternion (body-to-earth, earth z up)."""
@@ -320,8 +378,28 @@ class FlightCore:
             self._follow_sensors()
             out = (0, 0, 0, 0)
         self.ae = out
-        self.height_est.motors_off = not (out[0] or out[1] or out[2] or out[3])  # its on-the-ground test
+        # its on-the-ground test: no motor could lift the craft
+        self.height_est.motors_off = max(out) < GROUND_AE
         return out
+
+    def pending_contact(self) -> tuple[int, int] | None:
+        """A hard stop felt since the last call (the board sends it as EventCode.CONTACT): (ContactKind, the
+        estimated speed into the surface in mm/s; 0 for a wall), or None. One per call."""
+        h = self.height_est
+        stops = getattr(h, "stops", 0)
+        if stops != self._stops_seen:
+            self._stops_seen = stops
+            kind = ContactKind.CEILING if h.stop_kind == STOP_UP else ContactKind.GROUND
+            return int(kind), min(0xFFFF, round(h.stop_speed * 1000.0))
+        if self._walls:
+            self._walls = 0
+            return int(ContactKind.WALL), 0
+        return None
+
+    @property
+    def height_unsure(self) -> bool:
+        """The height estimate is unsure (telemetry's HEIGHT_UNSURE flag)."""
+        return bool(getattr(self.height_est, "unsure", False))
 
     def _follow_sensors(self) -> None:
         # No attitude loop runs (PANIC levels on the DMP itself): the angles shown follow the sensor path that runs,
@@ -336,13 +414,28 @@ class FlightCore:
     # ---- telemetry helpers -----------------------------------------------------------------------------------
     @property
     def raw_psi(self) -> float:
-        """Yaw of the on-board filter (rad, FRD: nose right positive)."""
-        return -self.filter.yaw
+        """Yaw of the on-board filter (rad, FRD: nose right positive), its drift learnt at rest taken out."""
+        return self.psi_raw
 
     @property
     def psi(self) -> float:
-        """Yaw (rad, FRD) of the path the last control step used (computed when asked: no loop uses it)."""
-        return self.raw_psi if self._psi_src == _RAW else self.dmp_psi
+        """Yaw (rad, FRD) of the path the last control step used, relative to calibration and its drift learnt
+        while still taken out (estimation/heading.py)."""
+        return self.psi_raw if self._psi_src == _RAW else self.psi_dmp
+
+    def heading_drift_cdeg(self) -> int:
+        """How far the heading in use has drifted since calibration (0.01°, what was taken out)."""
+        hold = self.heading_raw if self._psi_src == _RAW else self.heading_dmp
+        return round(hold.offset * 18000.0 / 3.141592653589793)
+
+    def pending_heading_drift(self) -> int | None:
+        """The drift to report (EventCode.HEADING_DRIFT, 0.01°) when the craft leaves the pad or it moved by
+        HEADING_REPORT_CDEG since the last report; else None."""
+        d = self.heading_drift_cdeg()
+        if abs(d - self._drift_reported) < HEADING_REPORT_CDEG:
+            return None
+        self._drift_reported = d
+        return d
 
     def attitude_centideg(self) -> tuple[int, int, int]:
         """phi, theta, psi in 0.01 deg (the Attitude packet's unit)."""

@@ -109,7 +109,8 @@ def flags(b: BoardParts, r: Readings) -> int:
             (Flag.LINK_TIMEOUT, m.link_timed_out), (Flag.RAW_SENSORS, r.path == "raw"),
             (Flag.FIXED_POINT, b.config.fixed_point), (Flag.PRIORITY_SCHEDULER, b.sched.priority),
             (Flag.HEIGHT_HOLD, m.mode == Mode.HEIGHT), (Flag.CRASHED, m.crashed),
-            (Flag.MOTOR_TEST, m.motor_test.running))
+            (Flag.MOTOR_TEST, m.motor_test.running),
+            (Flag.HEIGHT_UNSURE, b.core.height_unsure))
     return sum(int(flag) for flag, on in bits if on)
 
 

@@ -15,7 +15,10 @@ onsets that repeat with one sign are a real level change), and ``capture()`` for
 state every later reading refines). On the ground (no thrust and the accelerometer at rest for
 ``GROUND_REST_S``) it stops integrating: the speed is zero, the accelerometer's reading is its bias, and the
 height is re-anchored to the barometer (a trimmed mean over ``ANCHOR_S``) and then held, so neither a bad
-landing nor the barometer's drift moves it (``on_ground``, ``anchored``).
+landing nor the barometer's drift moves it (``on_ground``, ``anchored``); on the floor it was calibrated on the
+height is 0 at once and the barometer's offset there goes into the reference. A hard stop (a jolt against the
+motion, over within 30 ms: the ceiling, a landing) zeroes the speed and makes the height ``unsure`` until the
+barometer has pulled it in (``stops``, ``stop_kind``, ``stop_speed``; docs/height.md "Contact").
 
 ``HeightEstimator``: the report's Figure 10, after Klas Löfstedt's altitude estimator: a velocity and a position
 complementary filter between the high-passed earth-frame acceleration and the low-passed barometer, with the
@@ -197,6 +200,24 @@ class HeightEstimator:
 GROUND_REST_S = 0.5
 REST_ACC = 0.5  # m/s²: |specific force| within this of g is at rest (no thrust, no vibration, no fall, no carry)
 ANCHOR_S = 1.0  # s of barometer readings (a trimmed mean: spikes and noise out) to re-anchor the height
+REST_TAU_S = 0.05  # s: |specific force| - g is low-passed this long before the rest test (idle motors vibrate)
+# The floor the craft was calibrated on is height 0: a touch-down this close to it is on that floor, so the height
+# is 0 at once and the barometer's reading there is its offset (the reference follows it); farther (a table, a
+# step) the barometer's trimmed mean gives the height, as before.
+GROUND_SNAP_M = 0.5
+# A hard stop (docs/height.md "Contact"): a surface stops the craft in about 10 ms, a jolt the accelerometer feels
+# (clipped at 2 g) against the estimated motion. A run of STOP_SAMPLES to STOP_MAX_SAMPLES samples beyond STOP_ACC
+# against a speed of at least STOP_VZ is a stop, when it ends: the speed is zero, the jolt's tail is not integrated
+# for STOP_HOLD_S, and the height is unsure by STOP_H_SIGMA (where the surface is only the barometer says) until
+# the barometer has pulled it in.
+STOP_ACC = 6.9  # m/s² (0.7 g; hover's vibration is 0.15 g rms, a flight's braking under 0.5 g)
+STOP_VZ = 0.15  # m/s
+STOP_SAMPLES = 2
+STOP_MAX_SAMPLES = 12  # 30 ms: a longer run is braking by the motors (their 30 ms lag), not a surface
+STOP_HOLD_S = 0.01
+STOP_H_SIGMA = 0.3  # m
+UNSURE_SIGMA = 0.15  # m: a height less certain than this is flagged unsure (telemetry, the screen)
+STOP_UP, STOP_DOWN = 2, 1  # the kinds of a hard stop: the ceiling (going up), the ground (a landing)
 # While the craft stands anchored, the barometer's slow drift (weather, self-heating: minutes on the pad at term
 # --sim) is followed by a mean of this time constant, each reading's pull clipped (a spike moves it little); at
 # lift-off the reference pressure takes that drift out, so the climb starts from the held height (issue 22).
@@ -245,7 +266,7 @@ class HeightKalman:
         self.level_after = level_after
         self.rejump_window_s = rejump_window_s
         self.temperature_k = temperature_k
-        self.motors_off = False  # told by the flight core at every control step: no thrust
+        self.motors_off = False  # told by the flight core at every control step: no thrust that could lift it
         self.reset(SEA_LEVEL_PA)
 
     def reset(self, pressure_pa: float) -> None:
@@ -275,6 +296,15 @@ class HeightKalman:
         self._rest_s = 0.0
         self._ground_baro: list[float] = []
         self._ground_baro_s = 0.0
+        self._acc_lp = 0.0  # |specific force| - g, low-passed over REST_TAU_S (m/s²)
+        self.ground_ref = 0.0  # m: the floor's height (the reset point is on it)
+        self._snapped = False  # on the ground, on that floor: the height is ground_ref
+        self._stop_n = 0  # samples in a row of a jolt against the motion
+        self._stop_v = 0.0  # the speed when that run began (m/s)
+        self._stop_hold = 0.0  # s left of a stop's jolt, not integrated
+        self.stops = 0  # hard stops seen (telemetry: the board sends each as an event)
+        self.stop_kind = 0  # STOP_UP or STOP_DOWN, of the last
+        self.stop_speed = 0.0  # m/s, the estimated speed it stopped
         # the height at the last capture(), a clone state refined by every later reading (stochastic cloning)
         self.captured_height = 0.0
         self._c = [0.0, 0.0, 0.0, 0.0]  # its covariance with h, v, b, s
@@ -313,7 +343,8 @@ class HeightKalman:
             - G
             - self.bias
         )
-        rest = self.motors_off and abs(math.sqrt(ax * ax + ay * ay + az * az) - G) < REST_ACC
+        self._acc_lp += (math.sqrt(ax * ax + ay * ay + az * az) - G - self._acc_lp) * min(1.0, dt / REST_TAU_S)
+        rest = self.motors_off and abs(self._acc_lp) < REST_ACC
         self._rest_s = self._rest_s + dt if rest else 0.0
         if self.on_ground != (self._rest_s >= GROUND_REST_S):
             self._set_ground(not self.on_ground)
@@ -325,9 +356,54 @@ class HeightKalman:
             return
         self.az_earth = a
         v = self.vz
+        if self._stop_hold > 0.0:  # the jolt of a stop: the craft stands at the surface
+            self._stop_hold -= dt
+            self.vz = 0.0
+            self._t_pred += dt
+            return
+        n = self._stop_n
+        if (a > STOP_ACC or a < -STOP_ACC) and a * (self._stop_v if n else v) < 0.0 and (n or abs(v) >= STOP_VZ):
+            if n == 0:
+                self._stop_v = v
+            self._stop_n = n + 1 if n < 255 else n
+        elif n:
+            self._stop_n = 0
+            if STOP_SAMPLES <= n <= STOP_MAX_SAMPLES:  # a jolt, over as fast as a surface stops the craft
+                self._hard_stop()
+                self._t_pred += dt
+                return
         self.height += (v + 0.5 * a * dt) * dt
         self.vz = v + a * dt
         self._t_pred += dt
+
+    @property
+    def unsure(self) -> bool:
+        """The height is not known to UNSURE_SIGMA: after a hard stop until the barometer has pulled it in, on a
+        floor not yet anchored, after a lift-off from one (the screen marks the figure)."""
+        if self.on_ground:
+            return not (self._snapped or self.anchored)
+        p0 = self.p[0]
+        if self._t_pred > 0.0:
+            t = self._t_pred
+            p0 += t * (2.0 * self.p[1] + t * self.p[4])  # the height's variance grown since the last reading
+        return p0 > UNSURE_SIGMA * UNSURE_SIGMA
+
+    def _hard_stop(self) -> None:
+        """A surface stopped the craft (the jolt against the motion): the speed is zero, the height unsure."""
+        v = self._stop_v
+        self.stops += 1
+        self.stop_kind = STOP_UP if v > 0.0 else STOP_DOWN
+        self.stop_speed = abs(v)
+        self.vz = 0.0
+        self._stop_n = 0
+        self._stop_hold = STOP_HOLD_S
+        if self._t_pred > 0.0:
+            self._propagate(self._t_pred)
+            self._t_pred = 0.0
+        hh, _hv, hb, hs, _vv, _vb, _vs, bb, bs, ss = self.p
+        sv = INITIAL_SIGMA[1]
+        self.p = [max(hh, STOP_H_SIGMA * STOP_H_SIGMA), 0.0, hb, hs, sv * sv, 0.0, 0.0, bb, bs, ss]
+        self._trend = 0.0
 
     def _propagate(self, t: float) -> None:
         """State spike and covariance over ``t`` s: P = F P F' + Q with
@@ -369,11 +445,17 @@ class HeightKalman:
         if not on:
             # lift-off: the covariance of a filter at rest, no spike running; a height not yet anchored is unsure
             sh, sv, _sb = INITIAL_SIGMA
-            var_h = sh * sh if self.anchored else max(self.p[0], 1.0)
+            var_h = sh * sh if (self.anchored or self._snapped) else max(self.p[0], 1.0)
             if self.anchored:  # the barometer drifted while the craft stood: its reference takes the drift out
                 self.p_ref *= math.exp(-(self._stand_baro - self.height) * self.k_pa_per_m / self.p_ref)
             self.p = [var_h, 0.0, 0.0, 0.0, sv * sv, 0.0, 0.0, self.p[7], 0.0, _SS_FLOOR]
             self.spike = 0.0
+        # on the floor it was calibrated on (close to it): the height is the floor's at once
+        self._snapped = on and abs(self.height - self.ground_ref) < GROUND_SNAP_M
+        if self._snapped:
+            self.height = self.ground_ref
+        self._stop_hold = 0.0
+        self._stop_n = 0
         self.on_ground = on
         self.anchored = False
         self._ground_baro = []
@@ -396,7 +478,14 @@ class HeightKalman:
         ordered = sorted(buf)
         cut = len(ordered) // 4
         middle = ordered[cut : len(ordered) - cut]
-        self.height = sum(middle) / len(middle)
+        mean = sum(middle) / len(middle)
+        # the floor is ground_ref, if the barometer agrees within GROUND_SNAP_M: what it reads there is its offset;
+        # else (a table the estimate did not follow) the barometer's height stands, as before
+        self._snapped = self._snapped and abs(mean - self.ground_ref) < GROUND_SNAP_M
+        if self._snapped:
+            self.p_ref *= math.exp(-(mean - self.ground_ref) * self.k_pa_per_m / self.p_ref)
+            mean = self.ground_ref
+        self.height = mean
         self._stand_baro = self.height
         self.anchored = True
         self.spike = 0.0

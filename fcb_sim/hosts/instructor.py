@@ -228,7 +228,7 @@ class Instructor:
         tr = w.truth
         own = {"t": now, "landings": len(w.landings), "touchdown": w.landings[-1][1] if w.landings else 0.0,
                "crashes": len(w.crashes), "cable": self.cable_open(now),
-               "wind_n": w.wind_mean[0], "wind_e": w.wind_mean[1], "gust": w.gust_std}
+               "wind_n": w.wind_mean[0], "wind_e": w.wind_mean[1], "gust": w.gust_std, "contact": w.contact}
         out: dict[str, Any] = {"kind": "truth"}
         for name in INSTRUCTOR_TRUTH:
             v = own[name] if name in own else getattr(tr, name)

@@ -130,6 +130,11 @@ T_AIR_K = 293.15
 CEILING_M = 300.0
 CRASH_SPEED_M_S = 2.0
 CRASH_TILT_DEG = 35.0
+# A surface stops the craft within JOLT_S (legs, guards and the frame give a little): the accelerometer feels the
+# speed into it over that time (1 m/s is 10 g, clipped at the chip's 2 g). Touches of one surface closer together
+# than CONTACT_REPEAT_S are one contact (a craft pressed on the ceiling bounces off it and back at every step).
+JOLT_S = 0.01
+CONTACT_REPEAT_S = 0.5
 M_AIR = 0.0289644  # kg/mol [ISA]
 R_GAS = 8.31446  # J/(mol K)
 # OSR 4096: RMS resolution 0.012 mbar = 1.2 Pa (the report's "0.012mbar (10cm)"); output in 0.01 mbar = 1 Pa.

@@ -17,6 +17,11 @@ Model, integrated at a fixed step (default 1 kHz, ``physics_hz`` may be raised):
   term.core.protocol) walls that far from the pad and a lower ceiling stop it the same way (the speed into them
   zeroed, the craft sliding along them); an impact faster than ``P.CRASH_SPEED_M_S``, or a touch-down tilted past
   ``P.CRASH_TILT_DEG``, is recorded in ``crashes`` (time, speed, tilt);
+- contact is felt: the stop at a surface is a jolt of ``P.JOLT_S`` (the speed into it over that time: the
+  accelerometer clips it at its 2 g), and while the craft is pressed against the ceiling or a wall that surface
+  carries the push (the accelerometer reads no acceleration into it, as on the floor). Every touch starts a
+  ``Contact`` in ``contacts`` (time, where, speed into the surface); ``contact`` names what it touches now
+  ("ground", "ceiling", "wall" or "") for the room view;
 - 3S LiPo: resting voltage against state of charge, internal resistance (the voltage sags with the motors'
   current, which slows the motors for the same command), charge drawn by the motors' electrical power;
 - disturbances: wind (mean plus Ornstein-Uhlenbeck gusts), pushes (a force and torque for a while), a motor stuck
@@ -46,6 +51,15 @@ class Crash(NamedTuple):
     speed: float
     tilt_deg: float
     where: str
+
+
+class Contact(NamedTuple):
+    """The craft touched something: when (s), where ("ground", "ceiling" or "wall") and its speed into it (m/s).
+    A touch within ``P.CONTACT_REPEAT_S`` of the same surface's last is the same contact (no new event)."""
+
+    t: float
+    where: str
+    speed: float
 
 
 class Truth(NamedTuple):
@@ -140,6 +154,10 @@ class World:
             self.qw, self.qx, self.qy, self.qz = euler_to_quat(0.0, 0.0, psi)
         self.landings: list[tuple[float, float]] = []  # (time, vertical impact speed m/s)
         self.crashes: list[Crash] = []  # impacts too fast or too tilted (params: CRASH_SPEED_M_S, CRASH_TILT_DEG)
+        self.contacts: list[Contact] = []  # every touch of the floor, the ceiling or a wall (module docstring)
+        self._touch_t = {"ground": -math.inf, "ceiling": -math.inf, "wall": -math.inf}  # last step touching it
+        self._jolt = (0.0, 0.0, 0.0)  # m/s² NED: a surface stopping the craft, felt until _jolt_until
+        self._jolt_until = -math.inf
         self.ceiling_d = -P.CEILING_M if self.room is None else -min(P.CEILING_M, self.room[1])  # NED down
         self.wall = math.inf if self.room is None else self.room[0]
 
@@ -229,6 +247,9 @@ class World:
         # body specific force f = R^T (a - g), inlined (this runs 400 times per simulated second)
         w, x, y, z = self.qw, self.qx, self.qy, self.qz
         an, ae, ad = self.acc_n, self.acc_e, self.acc_d - P.G
+        if self.t < self._jolt_until:  # a surface stopping the craft
+            jn, je, jd = self._jolt
+            an, ae, ad = an + jn, ae + je, ad + jd
         fx = (1 - 2 * (y * y + z * z)) * an + 2 * (x * y + w * z) * ae + 2 * (x * z - w * y) * ad
         fy = 2 * (x * y - w * z) * an + (1 - 2 * (x * x + z * z)) * ae + 2 * (y * z + w * x) * ad
         fz = 2 * (x * z + w * y) * an + 2 * (y * z - w * x) * ae + (1 - 2 * (x * x + y * y)) * ad
@@ -330,6 +351,28 @@ class World:
         if speed > P.CRASH_SPEED_M_S or (where == "ground" and tilt > P.CRASH_TILT_DEG):
             self.crashes.append(Crash(t, speed, tilt, where))
 
+    @property
+    def contact(self) -> str:
+        """What the craft touches now: "ground", "ceiling", "wall" or "" (within the last physics step or two)."""
+        if self.on_ground:
+            return "ground"
+        for where in ("ceiling", "wall"):
+            if self.t - self._touch_t[where] <= 2.5 * self.dt:
+                return where
+        return ""
+
+    def _contact(self, t: float, where: str, vn: float, ve: float, vd: float) -> None:
+        """A step that ended at a surface with this speed into it (NED, m/s): the jolt the accelerometer feels, and
+        a new ``Contact`` unless the craft touched the same surface within CONTACT_REPEAT_S."""
+        speed = math.sqrt(vn * vn + ve * ve + vd * vd)
+        if t - self._touch_t[where] > 1.5 * self.dt:  # a new touch (pressed on it, each step touches again)
+            k = -1.0 / P.JOLT_S
+            self._jolt = (vn * k, ve * k, vd * k)
+            self._jolt_until = t + P.JOLT_S
+        if t - self._touch_t[where] > P.CONTACT_REPEAT_S:
+            self.contacts.append(Contact(t, where, speed))
+        self._touch_t[where] = t
+
     def advance_to(self, t: float) -> None:
         """Integrate in fixed steps up to time ``t`` (s); a time in the past does nothing. The steps run in
         stretches up to the next periodic event (``_event``), inlined on locals (CPython is much faster with them
@@ -374,15 +417,21 @@ class World:
                 hp, hq, hr = p * hdt, q * hdt, r * hdt
                 qw, qx, qy, qz = (qw - qx * hp - qy * hq - qz * hr, qx + qw * hp + qy * hr - qz * hq,
                                   qy + qw * hq + qz * hp - qx * hr, qz + qw * hr + qx * hq - qy * hp)
-                if d < ceiling_d:
+                if d < ceiling_d:  # the ceiling stops the climb and carries the push (the accelerometer feels it)
                     self._impact(k * dt, vn, ve, vd, qx, qy, "ceiling")
+                    self._contact(k * dt, "ceiling", 0.0, 0.0, vd)
                     d, vd = ceiling_d, 0.0
+                    ad = ad if ad > 0.0 else 0.0
                 if n > wall or n < -wall:  # a wall: the speed into it stops, the craft slides along it
                     self._impact(k * dt, vn, 0.0, 0.0, qx, qy, "wall")
+                    self._contact(k * dt, "wall", vn, 0.0, 0.0)
                     n, vn = (wall if n > 0.0 else -wall), 0.0
+                    an = 0.0 if an * n > 0.0 else an
                 if e > wall or e < -wall:
                     self._impact(k * dt, 0.0, ve, 0.0, qx, qy, "wall")
+                    self._contact(k * dt, "wall", 0.0, ve, 0.0)
                     e, ve = (wall if e > 0.0 else -wall), 0.0
+                    ae = 0.0 if ae * e > 0.0 else ae
                 if ground and d > 0.0:  # touch-down: inelastic
                     qw, qx, qy, qz = self._touch_down(k * dt, vn, ve, vd, qw, qx, qy, qz)
                     d = vn = ve = vd = an = ae = ad = p = q = r = 0.0
@@ -419,5 +468,6 @@ class World:
         """Record a landing (and a crash if it was one); the attitude levelled on the legs, yaw kept."""
         self.landings.append((t, vd))
         self._impact(t, vn, ve, vd, qx, qy, "ground")
+        self._contact(t, "ground", vn, ve, vd)
         psi = math.atan2(2.0 * (qw * qz + qx * qy), 1.0 - 2.0 * (qy * qy + qz * qz))
         return math.cos(psi / 2), 0.0, 0.0, math.sin(psi / 2)

@@ -210,7 +210,7 @@ static void task_control(qb_board_t *b)
 {
     qb_modes_t *m = &b->modes;
     qb_real t = now_s(b);
-    int32_t impact = hal_impact_mm_s(), sticks[4];
+    int32_t impact = hal_impact_mm_s(), sticks[4], contact, drift;
     uint16_t ae[4];
     if (impact > 0)
         qb_modes_crash(m, t, impact);
@@ -222,6 +222,11 @@ static void task_control(qb_board_t *b)
     }
     qb_modes_sticks(m, sticks);
     qb_flight_control(&b->core, m->mode, sticks, timer_period(b, QB_TM_SENSOR) / 1e6, ae);
+    contact = qb_flight_pending_contact(&b->core);
+    if (contact >= 0) /* a hard stop the accelerometer felt: the pilot sees it */
+        qb_modes_event(m, QP_EVENT_CODE_CONTACT, contact);
+    if (qb_flight_pending_heading_drift(&b->core, &drift)) /* the heading is relative: its drift since calibration */
+        qb_modes_event(m, QP_EVENT_CODE_HEADING_DRIFT, drift);
     if (!qb_modes_motors_enabled(m))
         memset(ae, 0, sizeof ae);
     qb_motortest_apply(b, ae); /* qb_console.c: the bench motor test (SAFE only) */
@@ -333,6 +338,7 @@ static uint16_t status_flags(const qb_board_t *b)
     f |= m->mode == QP_MODE_HEIGHT ? QP_FLAG_HEIGHT_HOLD : 0u;
     f |= m->crashed ? QP_FLAG_CRASHED : 0u;
     f |= b->mt.on ? QP_FLAG_MOTOR_TEST : 0u; /* qb_console.c */
+    f |= qb_height_unsure(&b->core.hest) ? QP_FLAG_HEIGHT_UNSURE : 0u;
     return f;
 }
 

@@ -98,6 +98,7 @@ int32_t qb_modes_adjust_trim(qb_modes_t *m, int axis, int32_t steps); /* axis: 0
 uint8_t qb_modes_request(qb_modes_t *m, int32_t target, qb_real now);
 int qb_modes_panic(qb_modes_t *m, qb_real now);
 void qb_modes_crash(qb_modes_t *m, qb_real now, int32_t speed_mm_s);
+void qb_modes_event(qb_modes_t *m, uint8_t code, int32_t arg);
 uint8_t qb_modes_ack_crash(qb_modes_t *m);
 void qb_modes_tick(qb_modes_t *m, qb_real now);
 qb_real qb_modes_panic_scale(qb_modes_t *m, qb_real now);
@@ -133,10 +134,13 @@ typedef struct {
     qb_real ground_baro[QB_ANCHOR_MAX];
     uint8_t n_ground_baro;
     qb_real ground_baro_s;
-    qb_real stand_baro; /* while anchored: the barometer's height, slowly followed (its drift) */
     qb_real captured_height;
     qb_real c[4];
     qb_real c00;
+    qb_real stand_baro, acc_lp, ground_ref; /* the standing barometer, the low-passed |f| - g, the floor's height */
+    uint8_t snapped, stop_n, stop_kind;      /* on the floor at ground_ref; a jolt's run; the last stop (1 down, 2 up) */
+    qb_real stop_v, stop_hold, stop_speed;
+    uint32_t stops;
 } qb_height_t;
 
 void qb_height_init(qb_height_t *h);
@@ -145,6 +149,7 @@ qb_real qb_height_capture(qb_height_t *h);
 void qb_height_update_imu(qb_height_t *h, qb_real ax, qb_real ay, qb_real az, qb_real qw, qb_real qx, qb_real qy,
                           qb_real qz, qb_real dt);
 void qb_height_update_baro(qb_height_t *h, qb_real pressure_pa, qb_real dt);
+int qb_height_unsure(const qb_height_t *h);
 
 /* --- the RAW path's attitude filter: ikf_q.c, fcb_sim/estimation/ikf_fixed.py bit for bit ------------------ */
 
@@ -159,6 +164,15 @@ void qb_ikf_update(qb_ikf_t *f, qb_real gx, qb_real gy, qb_real gz, qb_real ax, 
 /* The attitude predicted over the latency (w x y z), and its ZYX angles (roll, pitch, yaw; rad, z up). */
 void qb_ikf_quaternion(const qb_ikf_t *f, qb_real q[4]);
 void qb_ikf_angles(const qb_ikf_t *f, qb_real out[3]);
+
+/* --- the heading at rest (qb_flight.c, fcb_sim/estimation/heading.py's HeadingHold) ------------------------ */
+
+typedef struct {
+    qb_real rate, offset, prev;    /* the drift rate learnt while still (rad/s), the drift since reset (rad) */
+    uint8_t have_prev;
+    uint32_t n;                    /* the still stretch's least-squares sums */
+    qb_real t, y, st, sy, sty, stt;
+} qb_heading_t;
 
 /* --- the flight core (qb_flight.c) ------------------------------------------------------------------------ */
 
@@ -186,6 +200,14 @@ typedef struct {
     uint8_t panic_hold; /* the report's PANIC (mode.panic_countdown_ms > 0): a fixed level, no descent loop */
     int32_t panic_ae;
     uint16_t ae[4];
+    uint32_t stops_seen;           /* the height estimator's hard stops already reported */
+    uint8_t wall_n, walls;         /* a sideways jolt's run; wall contacts not yet reported */
+    qb_real wall_quiet;            /* s until a new wall contact may be reported */
+    qb_heading_t heading_dmp, heading_raw; /* the headings without a compass, their drift learnt while still */
+    qb_real hpsi_dmp, hpsi_raw;    /* corrected (rad, FRD) */
+    qb_real still_s, head_dt;
+    uint8_t still, n_head;
+    int32_t drift_reported;        /* cdeg */
 } qb_flight_t;
 
 void qb_flight_init(qb_flight_t *fc);
@@ -197,6 +219,10 @@ void qb_flight_baro(qb_flight_t *fc, qb_real pressure_pa, qb_real dt);
 void qb_flight_enter_mode(qb_flight_t *fc, uint8_t mode, int32_t lift);
 void qb_flight_control(qb_flight_t *fc, uint8_t mode, const int32_t sticks[4], qb_real dt, uint16_t out[4]);
 void qb_flight_attitude_cdeg(const qb_flight_t *fc, int32_t out[3]);
+/* A hard stop felt since the last call (EventCode.CONTACT's arg: kind << 16 | mm/s), or -1. */
+int32_t qb_flight_pending_contact(qb_flight_t *fc);
+/* The heading drift to report (EventCode.HEADING_DRIFT, 0.01 deg) into *cdeg: 1, or 0 for none now. */
+int qb_flight_pending_heading_drift(qb_flight_t *fc, int32_t *cdeg);
 void qb_quaternion_to_euler(qb_real w, qb_real x, qb_real y, qb_real z, qb_real out[3]);
 uint32_t qb_isqrt(uint32_t square);
 void qb_mix(int32_t z, qb_real l, qb_real m, qb_real n, int armed, uint16_t out[4]);

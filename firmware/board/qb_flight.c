@@ -6,6 +6,21 @@
 
 #include "qb_board.h"
 
+#define GROUND_AE 280 /* 0.7 of the hover level (400): motors below it cannot lift the craft (flight.py) */
+#define WALL_ACC 6.9  /* m/s^2 of body x/y specific force: a sideways jolt (flight.py) */
+#define WALL_SAMPLES 2
+#define WALL_REPEAT_S 0.5
+#define STILL_LSB (1.5 * 16.4) /* 1.5 deg/s of gyro (flight.py) */
+#define STILL_S 1.0
+#define HEADING_EVERY 4
+#define HEADING_REPORT_CDEG 200
+#define HEADING_LIFTOFF_CDEG 50
+#define HEADING_RATE_MIN_S 5.0
+#define HEADING_RATE_WINDOW_S 60.0
+#define TWO_PI (2.0 * 3.141592653589793)
+static void heading_reset(qb_heading_t *h);
+static void heading_step(qb_flight_t *fc, qb_real cgx, qb_real cgy, qb_real cgz, qb_real dt);
+
 /* --- the RAW path's attitude filter: ikf_q.c, set up from integers -------------------------------------- */
 
 /* ikf's default parameters in ikf_fixed.Formats(), from `python -m fcb_sim.estimation.native --constants 0.0025`
@@ -221,6 +236,9 @@ void qb_flight_set_calibration(qb_flight_t *fc, const qb_real gyro[3], const qb_
     fc->calibrated = 1;
     qb_ikf_reset(&fc->ikf);
     qb_height_reset(&fc->hest, pressure);
+    heading_reset(&fc->heading_dmp);
+    heading_reset(&fc->heading_raw);
+    fc->drift_reported = 0;
     fc->height = fc->vz = 0.0;
 }
 
@@ -237,6 +255,18 @@ void qb_flight_imu(qb_flight_t *fc, const int16_t raw[6], qb_real dt)
     fc->saz = -caz;
     if (dt <= 0.0)
         return;
+    /* a sideways jolt: a wall (or a hand) stopped the craft */
+    fc->wall_quiet -= dt;
+    if ((cax * s) * (cax * s) + (cay * s) * (cay * s) > WALL_ACC * WALL_ACC) {
+        if (fc->wall_n < 255)
+            fc->wall_n++;
+    } else {
+        fc->wall_n = 0;
+    }
+    if (fc->wall_n >= WALL_SAMPLES && fc->wall_quiet <= 0.0) {
+        fc->walls = 1;
+        fc->wall_quiet = WALL_REPEAT_S;
+    }
     qb_ikf_update(&fc->ikf, cgx * RAD_S_PER_LSB, cgy * RAD_S_PER_LSB, cgz * RAD_S_PER_LSB, cax * s, cay * s,
                   caz * s, dt);
     /* no DMP (RAW mode): the height estimator takes the filter's attitude at 100 Hz, as fast as the DMP's */
@@ -246,6 +276,82 @@ void qb_flight_imu(qb_flight_t *fc, const int16_t raw[6], qb_real dt)
     qb_height_update_imu(&fc->hest, cax * s, cay * s, caz * s, fc->q[0], fc->q[1], fc->q[2], fc->q[3], dt);
     fc->height = fc->hest.height;
     fc->vz = fc->hest.vz;
+    heading_step(fc, cgx, cgy, cgz, dt);
+}
+
+static qb_real wrap(qb_real a)
+{
+    return a - TWO_PI * QM(floor)((a + 3.141592653589793) / TWO_PI);
+}
+
+static void heading_still_end(qb_heading_t *h)
+{
+    h->n = 0;
+    h->t = h->y = h->st = h->sy = h->sty = h->stt = 0.0;
+}
+
+static void heading_reset(qb_heading_t *h)
+{
+    h->offset = 0.0;
+    h->have_prev = 0;
+    h->prev = 0.0;
+    heading_still_end(h);
+}
+
+/* heading.py's HeadingHold.update: still, every change is drift (and the stretch's slope its rate); else the
+ * learnt rate is taken out. Returns the corrected heading. */
+static qb_real heading_update(qb_heading_t *h, qb_real psi, int still, qb_real dt)
+{
+    qb_real d = h->have_prev ? wrap(psi - h->prev) : 0.0;
+    h->prev = psi;
+    h->have_prev = 1;
+    if (still) {
+        qb_real den;
+        h->offset += d;
+        if (h->t >= HEADING_RATE_WINDOW_S)
+            heading_still_end(h);
+        h->t += dt;
+        h->y += d;
+        h->n++;
+        h->st += h->t;
+        h->sy += h->y;
+        h->sty += h->t * h->y;
+        h->stt += h->t * h->t;
+        den = (qb_real)h->n * h->stt - h->st * h->st;
+        if (h->t >= HEADING_RATE_MIN_S && den > 0.0)
+            h->rate = ((qb_real)h->n * h->sty - h->st * h->sy) / den;
+    } else {
+        if (h->n)
+            heading_still_end(h);
+        h->offset += h->rate * dt;
+    }
+    return wrap(psi - h->offset);
+}
+
+static void heading_step(qb_flight_t *fc, qb_real cgx, qb_real cgy, qb_real cgz, qb_real dt)
+{
+    int quiet = -STILL_LSB < cgx && cgx < STILL_LSB && -STILL_LSB < cgy && cgy < STILL_LSB && -STILL_LSB < cgz &&
+                cgz < STILL_LSB;
+    int still;
+    qb_real t, e[3];
+    fc->still_s = quiet && fc->hest.on_ground ? fc->still_s + dt : 0.0;
+    fc->head_dt += dt;
+    if (++fc->n_head < HEADING_EVERY)
+        return;
+    still = fc->still_s >= STILL_S;
+    if (fc->still && !still) { /* leaving the pad: report the drift */
+        const qb_heading_t *h = fc->psi_raw ? &fc->heading_raw : &fc->heading_dmp;
+        int32_t d = (int32_t)QM(lround)(h->offset * 18000.0 / 3.141592653589793) - fc->drift_reported;
+        if (d >= HEADING_LIFTOFF_CDEG || d <= -HEADING_LIFTOFF_CDEG)
+            fc->drift_reported = -(1 << 30);
+    }
+    fc->still = (uint8_t)still;
+    t = fc->head_dt;
+    fc->n_head = 0;
+    fc->head_dt = 0.0;
+    fc->hpsi_dmp = heading_update(&fc->heading_dmp, fc->dmp_psi, still, t);
+    qb_ikf_angles(&fc->ikf, e);
+    fc->hpsi_raw = heading_update(&fc->heading_raw, -e[2], still, t);
 }
 
 void qb_flight_dmp(qb_flight_t *fc, const float q[4])
@@ -417,7 +523,35 @@ void qb_flight_control(qb_flight_t *fc, uint8_t mode, const int32_t sticks[4], q
             out[0] = out[1] = out[2] = out[3] = 0;
     }
     memcpy(fc->ae, out, sizeof fc->ae);
-    fc->hest.motors_off = !(out[0] || out[1] || out[2] || out[3]);
+    /* the height estimator's on-the-ground test: no motor could lift the craft */
+    fc->hest.motors_off = out[0] < GROUND_AE && out[1] < GROUND_AE && out[2] < GROUND_AE && out[3] < GROUND_AE;
+}
+
+int qb_flight_pending_heading_drift(qb_flight_t *fc, int32_t *cdeg)
+{
+    const qb_heading_t *h = fc->psi_raw ? &fc->heading_raw : &fc->heading_dmp;
+    int32_t d = (int32_t)QM(lround)(h->offset * 18000.0 / 3.141592653589793);
+    int32_t diff = d - fc->drift_reported;
+    if (diff < HEADING_REPORT_CDEG && diff > -HEADING_REPORT_CDEG)
+        return 0;
+    fc->drift_reported = d;
+    *cdeg = d;
+    return 1;
+}
+
+int32_t qb_flight_pending_contact(qb_flight_t *fc)
+{
+    if (fc->hest.stops != fc->stops_seen) {
+        qb_real mm = QM(lround)(fc->hest.stop_speed * 1000.0);
+        fc->stops_seen = fc->hest.stops;
+        return (int32_t)((uint32_t)(fc->hest.stop_kind == 2 ? QP_CONTACT_KIND_CEILING : QP_CONTACT_KIND_GROUND) << 16 |
+                         (uint32_t)(mm > 65535.0 ? 65535.0 : mm));
+    }
+    if (fc->walls) {
+        fc->walls = 0;
+        return (int32_t)((uint32_t)QP_CONTACT_KIND_WALL << 16);
+    }
+    return -1;
 }
 
 void qb_flight_attitude_cdeg(const qb_flight_t *fc, int32_t out[3])
@@ -425,11 +559,6 @@ void qb_flight_attitude_cdeg(const qb_flight_t *fc, int32_t out[3])
     const qb_real k = 18000.0 / 3.141592653589793;
     out[0] = (int32_t)QM(lround)(fc->phi * k);
     out[1] = (int32_t)QM(lround)(fc->theta * k);
-    qb_real psi = fc->dmp_psi;
-    if (fc->psi_raw) {
-        qb_real e[3];
-        qb_ikf_angles(&fc->ikf, e);
-        psi = -e[2];
-    }
+    qb_real psi = fc->psi_raw ? fc->hpsi_raw : fc->hpsi_dmp; /* relative, the drift learnt at rest out */
     out[2] = (int32_t)QM(lround)(psi * k);
 }

@@ -28,8 +28,19 @@
 #define GROUND_REST_S 0.5
 #define REST_ACC 0.5
 #define ANCHOR_S 1.0
-#define STAND_TAU_S 2.0  /* the barometer's drift while standing: a mean over this, */
-#define STAND_CLIP_M 0.1 /* each reading's pull clipped to this */
+#define STAND_TAU_S 2.0
+#define STAND_CLIP_M 0.1
+#define REST_TAU_S 0.05
+#define GROUND_SNAP_M 0.5
+#define STOP_ACC 6.9
+#define STOP_VZ 0.15
+#define STOP_SAMPLES 2
+#define STOP_MAX_SAMPLES 12
+#define STOP_HOLD_S 0.01
+#define STOP_H_SIGMA 0.3
+#define UNSURE_SIGMA 0.15
+#define STOP_UP 2
+#define STOP_DOWN 1
 static const qb_real INITIAL_SIGMA[3] = {0.03, 0.05, 0.1};
 
 void qb_height_init(qb_height_t *h)
@@ -69,6 +80,10 @@ void qb_height_reset(qb_height_t *h, qb_real pressure_pa)
     h->captured_height = 0.0;
     memset(h->c, 0, sizeof h->c);
     h->c00 = 0.0;
+    h->stand_baro = h->acc_lp = h->ground_ref = 0.0;
+    h->snapped = h->stop_n = h->stop_kind = 0;
+    h->stop_v = h->stop_hold = h->stop_speed = 0.0;
+    h->stops = 0;
     h->motors_off = motors_off;
 }
 
@@ -120,9 +135,9 @@ static void set_ground(qb_height_t *h, int on)
     if (!on) {
         qb_real var_h = INITIAL_SIGMA[0] * INITIAL_SIGMA[0];
         qb_real bb = h->p[7];
-        if (!h->anchored)
+        if (!(h->anchored || h->snapped))
             var_h = h->p[0] > 1.0 ? h->p[0] : 1.0;
-        else /* the barometer drifted while the craft stood: its reference takes the drift out (issue 22's) */
+        if (h->anchored) /* the barometer drifted while the craft stood: its reference takes the drift out */
             h->p_ref *= QM(exp)(-(h->stand_baro - h->height) * h->k_pa_per_m / h->p_ref);
         memset(h->p, 0, sizeof h->p);
         h->p[0] = var_h;
@@ -131,6 +146,12 @@ static void set_ground(qb_height_t *h, int on)
         h->p[9] = SS_FLOOR;
         h->spike = 0.0;
     }
+    /* on the floor it was calibrated on (close to it): the height is the floor's at once */
+    h->snapped = (uint8_t)(on && QM(fabs)(h->height - h->ground_ref) < GROUND_SNAP_M);
+    if (h->snapped)
+        h->height = h->ground_ref;
+    h->stop_hold = 0.0;
+    h->stop_n = 0;
     h->on_ground = (uint8_t)on;
     h->anchored = 0;
     h->n_ground_baro = 0;
@@ -139,16 +160,50 @@ static void set_ground(qb_height_t *h, int on)
     h->t_pred = 0.0;
 }
 
+int qb_height_unsure(const qb_height_t *h)
+{
+    qb_real p0 = h->p[0], t = h->t_pred;
+    if (h->on_ground)
+        return !(h->snapped || h->anchored);
+    if (t > 0.0)
+        p0 += t * (2.0 * h->p[1] + t * h->p[4]); /* the height's variance grown since the last reading */
+    return p0 > UNSURE_SIGMA * UNSURE_SIGMA;
+}
+
+/* A surface stopped the craft (the jolt against the motion): the speed is zero, the height unsure. */
+static void hard_stop(qb_height_t *h)
+{
+    qb_real sv = INITIAL_SIGMA[1];
+    h->stops++;
+    h->stop_kind = h->stop_v > 0.0 ? STOP_UP : STOP_DOWN;
+    h->stop_speed = QM(fabs)(h->stop_v);
+    h->vz = 0.0;
+    h->stop_n = 0;
+    h->stop_hold = STOP_HOLD_S;
+    if (h->t_pred > 0.0) {
+        propagate(h, h->t_pred);
+        h->t_pred = 0.0;
+    }
+    if (h->p[0] < STOP_H_SIGMA * STOP_H_SIGMA)
+        h->p[0] = STOP_H_SIGMA * STOP_H_SIGMA;
+    h->p[1] = 0.0;
+    h->p[4] = sv * sv;
+    h->p[5] = 0.0;
+    h->p[6] = 0.0;
+    h->trend = 0.0;
+}
+
 void qb_height_update_imu(qb_height_t *h, qb_real ax, qb_real ay, qb_real az, qb_real qw, qb_real qx, qb_real qy,
                           qb_real qz, qb_real dt)
 {
     qb_real a, v;
-    int rest;
+    int rest, n;
     if (dt <= 0.0)
         return;
     a = 2.0 * (qx * qz - qw * qy) * ax + 2.0 * (qy * qz + qw * qx) * ay + (qw * qw - qx * qx - qy * qy + qz * qz) * az -
         G - h->bias;
-    rest = h->motors_off && QM(fabs)(QM(sqrt)(ax * ax + ay * ay + az * az) - G) < REST_ACC;
+    h->acc_lp += (QM(sqrt)(ax * ax + ay * ay + az * az) - G - h->acc_lp) * (dt / REST_TAU_S < 1.0 ? dt / REST_TAU_S : 1.0);
+    rest = h->motors_off && QM(fabs)(h->acc_lp) < REST_ACC;
     h->rest_s = rest ? h->rest_s + dt : 0.0;
     if (h->on_ground != (h->rest_s >= GROUND_REST_S))
         set_ground(h, !h->on_ground);
@@ -160,6 +215,26 @@ void qb_height_update_imu(qb_height_t *h, qb_real ax, qb_real ay, qb_real az, qb
     }
     h->az_earth = a;
     v = h->vz;
+    if (h->stop_hold > 0.0) { /* the jolt of a stop: the craft stands at the surface */
+        h->stop_hold -= dt;
+        h->vz = 0.0;
+        h->t_pred += dt;
+        return;
+    }
+    n = h->stop_n;
+    if ((a > STOP_ACC || a < -STOP_ACC) && a * (n ? h->stop_v : v) < 0.0 && (n || QM(fabs)(v) >= STOP_VZ)) {
+        if (n == 0)
+            h->stop_v = v;
+        if (n < 255)
+            h->stop_n = (uint8_t)(n + 1);
+    } else if (n) {
+        h->stop_n = 0;
+        if (n >= STOP_SAMPLES && n <= STOP_MAX_SAMPLES) { /* a jolt, over as fast as a surface stops the craft */
+            hard_stop(h);
+            h->t_pred += dt;
+            return;
+        }
+    }
     h->height += (v + 0.5 * a * dt) * dt;
     h->vz = v + a * dt;
     h->t_pred += dt;
@@ -184,12 +259,12 @@ static void sort_doubles(qb_real *v, size_t n)
 
 static void ground_baro_update(qb_height_t *h, qb_real z, qb_real dt)
 {
-    qb_real sorted[QB_ANCHOR_MAX], sum = 0.0;
+    qb_real sorted[QB_ANCHOR_MAX], sum = 0.0, mean;
     size_t n, cut, i;
-    if (h->anchored) { /* the height is held; the barometer's drift is measured, each reading's pull clipped */
-        qb_real pull = z - h->stand_baro, w = (dt > 0.0 ? dt : 0.0) / STAND_TAU_S;
-        pull = pull < -STAND_CLIP_M ? -STAND_CLIP_M : pull > STAND_CLIP_M ? STAND_CLIP_M : pull;
-        h->stand_baro += pull * (w < 1.0 ? w : 1.0);
+    if (h->anchored) {
+        qb_real pull = z - h->stand_baro;
+        pull = pull > STAND_CLIP_M ? STAND_CLIP_M : (pull < -STAND_CLIP_M ? -STAND_CLIP_M : pull);
+        h->stand_baro += pull * ((dt > 0.0 ? dt : 0.0) / STAND_TAU_S < 1.0 ? (dt > 0.0 ? dt : 0.0) / STAND_TAU_S : 1.0);
         return;
     }
     if (h->n_ground_baro < QB_ANCHOR_MAX)
@@ -203,7 +278,15 @@ static void ground_baro_update(qb_height_t *h, qb_real z, qb_real dt)
     cut = n / 4;
     for (i = cut; i < n - cut; i++)
         sum += sorted[i];
-    h->height = sum / (qb_real)(n - 2 * cut);
+    mean = sum / (qb_real)(n - 2 * cut);
+    /* the floor is ground_ref, if the barometer agrees within GROUND_SNAP_M: what it reads there is its offset;
+     * else (a table the estimate did not follow) the barometer's height stands */
+    h->snapped = (uint8_t)(h->snapped && QM(fabs)(mean - h->ground_ref) < GROUND_SNAP_M);
+    if (h->snapped) {
+        h->p_ref *= QM(exp)(-(mean - h->ground_ref) * h->k_pa_per_m / h->p_ref);
+        mean = h->ground_ref;
+    }
+    h->height = mean;
     h->stand_baro = h->height;
     h->anchored = 1;
     h->spike = 0.0;

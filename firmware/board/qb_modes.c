@@ -51,6 +51,11 @@ static void emit(qb_modes_t *m, uint8_t code, int32_t arg)
     }
 }
 
+void qb_modes_event(qb_modes_t *m, uint8_t code, int32_t arg)
+{
+    emit(m, code, arg);
+}
+
 int qb_modes_take_event(qb_modes_t *m, qb_event_t *ev)
 {
     if (m->n_events == 0)

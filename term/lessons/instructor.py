@@ -63,6 +63,7 @@ class Truth:
     wind_n: float = 0.0
     wind_e: float = 0.0
     gust: float = 0.0
+    contact: str = ""  # what it touches now: "ground", "ceiling", "wall" or ""
 
     @property
     def vz(self) -> float:
@@ -120,6 +121,9 @@ def truth_from(obj: dict[str, Any]) -> Truth | None:
         v = obj[name]
         if name in ("on_ground", "cable"):
             if not isinstance(v, bool):
+                return None
+        elif name == "contact":
+            if v not in ("", "ground", "ceiling", "wall"):
                 return None
         elif name in ("landings", "crashes"):
             if not isinstance(v, int) or isinstance(v, bool):

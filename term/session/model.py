@@ -61,6 +61,7 @@ from term.core.protocol import (
     Attitude,
     Compact,
     Compact2,
+    ContactKind,
     Event,
     EventCode,
     Flag,
@@ -186,6 +187,14 @@ def event_text(code: int, arg: int, flying: bool = True) -> tuple[str, str]:
         return "warning", f"simulator {_event_arg(c, arg) * 1000:.0f} ms behind real time (its process was starved)"
     if c is EventCode.TILT_LIMIT:
         return "error", f"tilt limit {_event_arg(c, arg):.1f}°: PANIC"
+    if c is EventCode.CONTACT:
+        kind, mm_s = arg >> 16, arg & 0xFFFF
+        if kind == ContactKind.WALL:
+            return "warning", "hit something sideways (a wall?)"
+        what = "touched down" if kind == ContactKind.GROUND else "hit the ceiling"
+        return ("info" if kind == ContactKind.GROUND else "warning"), f"{what} at {mm_s / 1000:.2f} m/s"
+    if c is EventCode.HEADING_DRIFT:
+        return "info", f"heading drift {_event_arg(c, arg):+.1f}° since calibration, taken out (no compass)"
     if c is EventCode.PANIC_DONE:
         return "info", "panic done: motors off, SAFE"
     if c is EventCode.CALIBRATION_DONE:

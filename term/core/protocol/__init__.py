@@ -73,6 +73,7 @@ from term.core.protocol.facts import (  # noqa: F401
     STICK_MAX,
     STICK_NEUTRAL,
     Button,
+    ContactKind,
     EventCode,
     Flag,
     LogState,

@@ -165,6 +165,8 @@ class EventCode(IntEnum):
     LINK_REGAINED = 18  # arg: ms stage 1 lasted (a frame came back in time: control is the pilot's again)
     SIM_LAG = 19  # arg: ms the simulated board runs behind real time (fcb-sim only: its process was starved)
     MOTOR_TEST = 20  # arg: MotorTestEnd, why a motor test stopped (the motors are off again)
+    CONTACT = 21  # arg: (ContactKind << 16) | the estimated speed into it in mm/s: a hard stop the board felt
+    HEADING_DRIFT = 22  # arg: 0.01° of heading drift taken out since calibration (no compass: the heading is relative)
 
 
 @unique
@@ -176,6 +178,15 @@ class MotorTestEnd(IntEnum):
     LINK_SILENT = 3  # nothing from the terminal for MOTOR_TEST_LINK_MS
     MODE = 4  # a mode change (any: SAFE again, PANIC, ...)
     LIFT = 5  # the lift (joystick plus trim) left zero
+
+
+@unique
+class ContactKind(IntEnum):
+    """What stopped the craft (``EventCode.CONTACT``), as the accelerometer tells it: a jolt against the motion."""
+
+    GROUND = 1  # a stop going down: a landing
+    CEILING = 2  # a stop going up
+    WALL = 3  # a sideways jolt
 
 
 @unique
@@ -210,6 +221,7 @@ class Flag(IntFlag):
     HEIGHT_HOLD = 1 << 10
     CRASHED = 1 << 11  # a crash not yet acknowledged (Op.ACK_CRASH): the board stays in SAFE
     MOTOR_TEST = 1 << 12  # a motor test runs (SAFE, Op.MOTOR_TEST): the motors turn on the bench
+    HEIGHT_UNSURE = 1 << 13  # the height estimate is unsure (after a hard stop, until the barometer confirms it)
 
 
 @unique

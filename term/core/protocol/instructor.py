@@ -47,6 +47,7 @@ INSTRUCTOR_TRUTH: dict[str, str] = {  # field: unit and meaning (earth NED, body
     "crashes": "impacts too fast or too tilted since the start",
     "cable": "bool: the cable carries bytes (false while the instructor cuts it)",
     "wind_n": "m/s: the mean wind towards north", "wind_e": "m/s: towards east", "gust": "m/s: gusts' std",
+    "contact": "str: what the craft touches now: ground, ceiling, wall or empty",
 }
 INSTRUCTOR_SITUATIONS: dict[str, tuple[str, ...]] = {  # verb: its arguments (all optional)
     "reset": ("soc",),  # on the pad, nose north, fresh pack at soc, still air, no fault (on the floor in SAFE)

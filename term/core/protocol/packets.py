@@ -339,6 +339,7 @@ EVENT_ARG_SCALE: dict[EventCode, tuple[float, str]] = {
     EventCode.LINK_LOST: (1e-3, "s"),
     EventCode.LINK_REGAINED: (1e-3, "s"),
     EventCode.SIM_LAG: (1e-3, "s"),
+    EventCode.HEADING_DRIFT: (0.01, "°"),
 }
 
 

@@ -12,6 +12,7 @@ import math
 from rich.console import RenderableType
 from rich.text import Text
 
+from term.core.protocol import EventCode
 from term.session.model import Model
 from term.ui.widgets.base import STALE_STYLE, ModelView, figure
 
@@ -112,9 +113,17 @@ class HeadingTape(ModelView):
         if psi.stale:
             out.stylize(STALE_STYLE)
         out.append("\n")
-        hdg = f"{psi.bound}{psi.edge:05.1f}" if psi.bound in (">", "<") else f"{yaw % 360:05.1f}"
-        out.append("▲ ".rjust(w // 2 - len(hdg) // 2 + 1), style="bold")
+        hdg = f"{psi.bound}{psi.edge:05.1f}" if psi.bound in (">", "<") else f"{round(yaw, 1) % 360:05.1f}"
+        lead = "▲ ".rjust(w // 2 - len(hdg) // 2 + 1)
+        out.append(lead, style="bold")
         out.append(f"{hdg}°", style=STALE_STYLE if psi.stale else "bold")
+        # no compass: the heading is relative to calibration; the drift the board took out since then
+        drift = model.event_args.get(EventCode.HEADING_DRIFT)
+        room = w - len(lead) - len(hdg) - 1
+        for note in ((f" rel drift {drift / 100:+.1f}°",) if drift is not None else ()) + (" rel",):
+            if len(note) <= room:
+                out.append(note, style="dim")
+                break
         out.append("\n")
         if not phi.known:
             out.append("no attitude yet", style="dim")

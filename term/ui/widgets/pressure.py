@@ -44,6 +44,8 @@ class PressureIndicator(ModelView):
         out.append_text(hbar(max(0.0, num(hr)), 0.0, HEIGHT_SPAN_M, width, bar))
         out.append(" ")
         out.append_text(figure(hr, "+6.2f", " m"))
+        if model.flags & Flag.HEIGHT_UNSURE:  # after a hard stop, until the barometer confirms it
+            out.append(" unsure", style="yellow")
         out.append("\nset pt   ")
         if hold:
             sp_bar = STALE_STYLE if spr.stale else "magenta"

@@ -136,6 +136,8 @@ def figures(room: Room, inside: bool) -> Text:
         return Text("waiting for the simulator's truth…", style="dim")
     n, e, h = (round(x, 2) + 0.0 for x in (t.n, t.e, t.h))  # + 0.0: a craft on the pad reads 0.00, never -0.00
     text = Text(f"n {n:+.2f} e {e:+.2f} h {h:.2f} m hdg {round(t.heading_deg) % 360:03d}°")
+    if t.contact in ("ceiling", "wall"):  # the simulator says it: the craft is pressed on a surface
+        text.append(f"  at the {t.contact}", style="bold yellow")
     if room.box is not None:
         text.append("  in box" if inside else "  outside", style=BOX_IN if inside else BOX_OUT)
     return text
