@@ -14,7 +14,7 @@ from collections.abc import Callable
 import pytest
 
 from fcb_sim.hosts.serve import ThreadedServer, make_board
-from term.cli import main as cli
+from term.cli import signals as cli
 from term.core.protocol import Mode
 from term.transports.serial import SerialTransport
 from term.ui.app import TermApp
