@@ -22,6 +22,10 @@ if TYPE_CHECKING:
 _running: list[tuple[Any, asyncio.AbstractEventLoop]] = []
 _watchdogs: list[threading.Timer] = []  # one a signal, cancelled once the orderly exit is done
 SIGNAL_EXIT_GRACE_S = 5.0  # after a signal, the longest an orderly exit may take before term ends itself
+# Windows' console events that end the process once the handlers return: CTRL_CLOSE_EVENT, LOGOFF, SHUTDOWN
+CONSOLE_ENDS = (2, 5, 6)
+CONSOLE_GRACE_S = 4.0  # the system ends the process 5 s after CTRL_CLOSE_EVENT (HandlerRoutine's documentation)
+_exited = threading.Event()  # set once the orderly exit is done (a console handler waits for it)
 
 
 @contextlib.contextmanager
@@ -42,14 +46,19 @@ def _terminate_on_signals() -> Any:
             raise SystemExit(128 + signum)
 
     old = {}
-    # getattr: Windows has no SIGHUP (a closed console window ends the process there) but has SIGBREAK (Ctrl+Break)
+    # getattr: Windows has no SIGHUP (its console's close is _console_handler's) but has SIGBREAK (Ctrl+Break)
     names = ("SIGTERM", "SIGHUP", "SIGINT", "SIGBREAK")
     for sig in (getattr(signal, name) for name in names if hasattr(signal, name)):
         with contextlib.suppress(ValueError, OSError):
             old[sig] = signal.signal(sig, raise_exit)
+    _exited.clear()
+    console = _console_handler() if sys.platform == "win32" else None
     try:
         yield
     finally:
+        _exited.set()
+        if console is not None:
+            console.remove()
         for sig, handler in old.items():
             with contextlib.suppress(ValueError, OSError, TypeError):
                 signal.signal(sig, handler)
@@ -58,16 +67,68 @@ def _terminate_on_signals() -> Any:
         _watchdogs.clear()
 
 
+class _ConsoleHandler:
+    """Windows: the console window closed (or logoff, shutdown) takes the same orderly path as a hang-up (PANIC first
+    in flight, 129). Python's signal module has no signal for these events: the C runtime maps them to SIGBREAK but
+    only sets a flag, and the system ends the process when the handlers return (python/cpython #85470, #96289). So
+    a console control handler asks the app to quit and holds the system's thread until the orderly exit is done, or
+    CONSOLE_GRACE_S (inside the 5 s the system allows). Ctrl+C and Ctrl+Break go on to Python's own handler (SIGINT,
+    SIGBREAK). ``kernel32`` is the Windows DLL (a stand-in in the tests)."""
+
+    def __init__(self, kernel32: Any) -> None:
+        import ctypes
+        from ctypes import wintypes
+
+        factory = getattr(ctypes, "WINFUNCTYPE", ctypes.CFUNCTYPE)
+        prototype = factory(wintypes.BOOL, wintypes.DWORD)
+        self.kernel32 = kernel32
+        self.routine = prototype(self.handle)  # kept referenced: the system calls it from its own thread
+        setter = kernel32.SetConsoleCtrlHandler
+        setter.argtypes = (prototype, wintypes.BOOL)  # (a 64-bit pointer: without argtypes ctypes would cut it)
+        setter.restype = wintypes.BOOL
+        self.installed = bool(setter(self.routine, True))
+
+    def handle(self, event: int) -> bool:
+        if event not in CONSOLE_ENDS:
+            return False  # the next handler's (Python's own, for Ctrl+C and Ctrl+Break)
+        if _request_exit(128 + 1):  # as a hang-up
+            _exited.wait(CONSOLE_GRACE_S)
+        return True
+
+    def remove(self) -> None:
+        if self.installed:
+            with contextlib.suppress(Exception):
+                self.kernel32.SetConsoleCtrlHandler(self.routine, False)
+            self.installed = False
+
+
+def _console_handler() -> _ConsoleHandler | None:
+    """The console handler installed (Windows), or None where it cannot be."""
+    try:
+        import ctypes
+
+        return _ConsoleHandler(ctypes.windll.kernel32)  # type: ignore[attr-defined]
+    except (ImportError, AttributeError, OSError):
+        return None
+
+
+def _end_now(code: int) -> None:
+    """The watchdog's end: no clean-up left to wait for (a test replaces it, to see it was not needed)."""
+    os._exit(code)
+
+
 def _request_exit(code: int) -> bool:
     """Ask the running app to quit in order with ``code`` (False if none runs); end the process if that hangs."""
     if not _running:
         return False
     app, loop = _running[0]
-    watchdog = threading.Timer(SIGNAL_EXIT_GRACE_S, os._exit, (code,))
+    watchdog = threading.Timer(SIGNAL_EXIT_GRACE_S, _end_now, (code,))
     watchdog.daemon = True
     watchdog.start()
     _watchdogs.append(watchdog)
-    loop.call_soon_threadsafe(_quit_in_order, app, code)
+    # Through the app's own message queue, so the quitting runs in the app's context (its timers need it): a
+    # signal's or a console handler's thread has none, and the loop's callbacks run in the caller's.
+    loop.call_soon_threadsafe(app.call_later, _quit_in_order, app, code)
     return True
 
 
