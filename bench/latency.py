@@ -10,7 +10,10 @@ CLOCK_MONOTONIC, which the two processes share. The board changes the motors in 
 new stick value (fcb_sim/board/board.py, "Sticks to motors"); ``by_parse_pct`` says how often it did.
 
     python -m bench.latency [--events 120] [--policy stream|on-change|fixed-rate] [--raw] [--seed 1]
-                            [--no-report-board]
+                            [--no-report-board] [--link pty|tcp]
+
+``--link tcp`` serves the board on a loopback TCP port instead (fcb-sim serve --tcp: term opens it as socket://,
+the link term --sim takes where there are no pseudo-terminals); ``to_board`` is then the TCP hop.
 
 Prints one JSON line: mean_ms, p50_ms, p99_ms (and n, the report's 23.4 ms mean and the 3 ms goal), and where the
 time goes: term_mean_ms (to the frame handed to the serial port), to_board_mean_ms (to the board's server reading
@@ -43,11 +46,11 @@ LIFTS = (8000, 12000)  # two lift levels, both above idle in MANUAL
 # --- the board side (child process) ---------------------------------------------------------------------------
 
 
-def board_main(seed: int, preset: str = "default") -> int:
-    from fcb_sim.hosts.serve import PtyServer, event_loop, make_board
+def board_main(seed: int, preset: str = "default", link: str = "pty") -> int:
+    from fcb_sim.hosts.serve import PtyServer, TcpServer, event_loop, make_board
     from term.core.protocol import Decoder, Joystick
 
-    class Reporting(PtyServer):
+    class Reporting(TcpServer if link == "tcp" else PtyServer):  # type: ignore[misc]
         """Reports every change of the motor commands with the wall time it took effect and the task that made
         it, and the wall time each new stick value was read from the pty."""
 
@@ -100,9 +103,10 @@ def board_main(seed: int, preset: str = "default") -> int:
 
 
 class BoardChild:
-    def __init__(self, seed: int, preset: str = "default") -> None:
+    def __init__(self, seed: int, preset: str = "default", link: str = "pty") -> None:
         self.proc = subprocess.Popen([sys.executable, "-m", "bench.latency", "--board", "--seed", str(seed),
-                                      "--preset", preset], stdout=subprocess.PIPE, text=True, bufsize=1)
+                                      "--preset", preset, "--link", link], stdout=subprocess.PIPE, text=True,
+                                     bufsize=1)
         assert self.proc.stdout is not None
         line = self.proc.stdout.readline()
         if not line.startswith("pty: "):
@@ -255,9 +259,11 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--no-report-board", action="store_true", help="skip the report's board (measured second)")
     ap.add_argument("--board", action="store_true", help=argparse.SUPPRESS)  # the child process
     ap.add_argument("--preset", default="default", help=argparse.SUPPRESS)  # the child's parameters
+    ap.add_argument("--link", default="pty", choices=["pty", "tcp"],
+                    help="the board's UART on a pseudo-terminal (default) or a loopback TCP port (socket://)")
     args = ap.parse_args(argv)
     if args.board:
-        return board_main(args.seed, args.preset)
+        return board_main(args.seed, args.preset, args.link)
     lat = _run(args, "default", 0.0)
     report_lat = [] if args.no_report_board else _run(args, "report", REPORT_PC_SAMPLE_S)
     report_by_parse = by_task.count("parse") / len(by_task) if by_task and report_lat else 0.0
@@ -309,7 +315,7 @@ _saved: dict[str, list[Any]] = {}
 
 def _run(args: argparse.Namespace, preset: str, pc_sample_s: float) -> list[float]:
     """One board (with ``preset``) measured; the per-event parts of the first run are kept for the main keys."""
-    board = BoardChild(args.seed, preset)
+    board = BoardChild(args.seed, preset, args.link)
     try:
         lat = asyncio.run(measure(board.path, board, args.events, args.policy, args.seed, args.raw, pc_sample_s))
     finally:

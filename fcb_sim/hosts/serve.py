@@ -241,7 +241,7 @@ class BoardServer:
     def _recv(self) -> bytes | None:
         raise NotImplementedError
 
-    def _send(self, data: bytes) -> int:
+    def _send(self, data: bytes | bytearray) -> int:
         raise NotImplementedError
 
     def _on_readable(self) -> None:
@@ -260,7 +260,7 @@ class BoardServer:
             self._pending += data
         if not self._pending:
             return
-        n = self._send(bytes(self._pending))
+        n = self._send(self._pending)
         self.bytes_out += n
         del self._pending[:n]
         if len(self._pending) > PENDING_TX_LIMIT:
@@ -293,7 +293,7 @@ class PtyServer(BoardServer):
         except OSError:
             return None  # EIO: no client at the moment
 
-    def _send(self, data: bytes) -> int:
+    def _send(self, data: bytes | bytearray) -> int:
         try:
             return os.write(self.master, data)
         except (BlockingIOError, InterruptedError):
@@ -339,7 +339,7 @@ class TcpServer(BoardServer):
     def _recv(self) -> bytes | None:
         return self.link.recv()
 
-    def _send(self, data: bytes) -> int:
+    def _send(self, data: bytes | bytearray) -> int:
         return self.link.send(data)
 
     def close(self) -> None:

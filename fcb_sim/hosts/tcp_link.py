@@ -165,7 +165,7 @@ class TcpLink:
             return None
         return data
 
-    def send(self, data: bytes) -> int:
+    def send(self, data: bytes | bytearray) -> int:
         conn = self.client
         if conn is None:
             return len(data)  # nobody there: the bytes are gone, as on a real unplugged UART

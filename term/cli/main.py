@@ -24,7 +24,8 @@ and stdout: without one they say so in one line and exit 2, before anything is s
 term's own log (warnings always, everything with --verbose) and the simulated board's stderr are kept in the
 platform's log directory (term/session/applog.py): the TUI owns the terminal, so nothing can be printed while it runs.
 POSIX-only parts (SIGHUP, the hung-up-tty watcher, the child's PR_SET_PDEATHSIG) are skipped where missing; the
-watcher uses what each platform reports (macOS: no poll() on terminals, see _hangup_check).
+watcher uses what each platform reports (macOS: no poll() on terminals): term/cli/signals.py, which also makes a
+signal in flight take Ctrl+Q's path (PANIC first).
 
 Errors a user can cause end in one line on stderr and a non-zero exit, never a traceback: 2 for bad arguments,
 a missing port or a board that will not start; 3 for a board that speaks another protocol version.
@@ -36,21 +37,18 @@ import argparse
 import contextlib
 import os
 import re
-import select
-import signal
 import sys
 import threading
-from collections.abc import Callable, Sequence
-from typing import IO, TYPE_CHECKING, Any
+from collections.abc import Sequence
+from typing import TYPE_CHECKING, Any
 
 from term.cli.parser import build_parser, check_command, complete, serial_ports, version_text
+from term.cli.signals import _exit_on_hangup, _running, _terminate_on_signals
 from term.core.errors import EXIT_INTERRUPTED, EXIT_USAGE, EXIT_VERSION, UsageError
 from term.core.schema import Number
 from term.session.sim import SimBoard
 
 if TYPE_CHECKING:
-    import asyncio
-
     from term.session.config import Config
 
 __all__ = ["EXIT_USAGE", "EXIT_VERSION", "UsageError", "build_parser", "main", "version_text"]
@@ -671,137 +669,6 @@ async def _instructor(address: str, opening: list[Any]) -> Any:
         raise UsageError(f"the simulated board's instructor channel {address}: {exc}") from None
     return client
 
-
-# The app while it runs, and its loop: a signal asks it to exit through the loop.
-_running: list[tuple[Any, asyncio.AbstractEventLoop]] = []
-_watchdogs: list[threading.Timer] = []  # one a signal, cancelled once the orderly exit is done
-SIGNAL_EXIT_GRACE_S = 5.0  # after a signal, the longest an orderly exit may take before term ends itself
-
-
-@contextlib.contextmanager
-def _terminate_on_signals() -> Any:
-    """SIGTERM, SIGHUP (terminal closed), SIGINT and Windows' SIGBREAK end term in order, as Ctrl+Q does: PANIC
-    first while the motors run, then quit with 128 + the signal's number (SIGINT 130), the child board stopped on
-    the way out (issue 34: a signal in flight used to end term without the PANIC, and SIGINT with 0).
-
-    While the app runs, the signal asks it to exit through its event loop (``_quit_in_order``): unwinding with
-    SystemExit from inside the loop would skip Textual's own shutdown and leave its input thread spinning on a dead
-    terminal, keeping the process alive. A watchdog ends the process if the orderly exit hangs (the child board
-    then gets its own SIGTERM from the kernel, PR_SET_PDEATHSIG). Before the app runs (the board starting), SIGINT
-    is KeyboardInterrupt (main's 130) and the others SystemExit."""
-    def raise_exit(signum: int, frame: object) -> None:
-        if not _request_exit(128 + signum):
-            if signum == signal.SIGINT:
-                raise KeyboardInterrupt
-            raise SystemExit(128 + signum)
-
-    old = {}
-    # getattr: Windows has no SIGHUP (a closed console window ends the process there) but has SIGBREAK (Ctrl+Break)
-    names = ("SIGTERM", "SIGHUP", "SIGINT", "SIGBREAK")
-    for sig in (getattr(signal, name) for name in names if hasattr(signal, name)):
-        with contextlib.suppress(ValueError, OSError):
-            old[sig] = signal.signal(sig, raise_exit)
-    try:
-        yield
-    finally:
-        for sig, handler in old.items():
-            with contextlib.suppress(ValueError, OSError, TypeError):
-                signal.signal(sig, handler)
-        for watchdog in _watchdogs:  # the orderly exit is done: nothing left to end
-            watchdog.cancel()
-        _watchdogs.clear()
-
-
-def _request_exit(code: int) -> bool:
-    """Ask the running app to quit in order with ``code`` (False if none runs); end the process if that hangs."""
-    if not _running:
-        return False
-    app, loop = _running[0]
-    watchdog = threading.Timer(SIGNAL_EXIT_GRACE_S, os._exit, (code,))
-    watchdog.daemon = True
-    watchdog.start()
-    _watchdogs.append(watchdog)
-    loop.call_soon_threadsafe(_quit_in_order, app, code)
-    return True
-
-
-def _quit_in_order(app: Any, code: int) -> None:
-    """Ctrl+Q's path without its question (term/ui/app.py, action_quit): in a flight mode PANIC goes first, is said
-    in the events and on stderr after the screen, and has QUIT_PANIC_WAIT_S to reach the board; then the exit."""
-    from term.core.protocol import FLIGHT_MODES, Mode, Op
-    from term.ui.app import QUIT_PANIC_WAIT_S
-
-    if app.replay is None and app.model.mode in FLIGHT_MODES and app.control_connection() is not None:
-        app.send(Op.MODE, Mode.PANIC)
-        app.exit_message = "PANIC sent before quitting: the board descends and lands by itself"
-        app.station.note("error", "term", app.exit_message)
-        app.set_timer(QUIT_PANIC_WAIT_S, lambda: app.exit(return_code=code))
-    else:
-        app.exit(return_code=code)
-
-
-async def _exit_on_hangup(stream: IO[str], period: float = 0.5) -> None:
-    """Exit when the terminal goes away. Closing a terminal does not always signal us (a session leader that
-    ignores SIGHUP does not pass it on), and Textual reads a hung-up terminal's EOF as piped input and keeps
-    running. Where a terminal sends SIGHUP, ``_terminate_on_signals`` takes it; this watcher covers the rest with
-    what each platform really reports (``_hangup_check``), looking every ``period`` seconds without taking input."""
-    import asyncio  # (not at the top: 'term params --sim' starts its board before this)
-
-    try:
-        fd = stream.fileno()
-    except (AttributeError, OSError, ValueError):
-        return
-    gone = _hangup_check(fd)
-    if gone is None:
-        return
-    while True:
-        await asyncio.sleep(period)
-        if gone():
-            _request_exit(128 + 1)  # as SIGHUP (1 on every POSIX system; Windows has none)
-            return
-
-
-def _hangup_check(fd: int) -> Callable[[], bool] | None:
-    """A check that answers True once the terminal on ``fd`` has hung up; None where there is nothing to watch.
-
-    - Linux, the BSDs: poll() reports POLLHUP (with POLLERR) for a hung-up tty, without taking any input.
-    - macOS: poll() does not support devices and answers POLLNVAL for every terminal, healthy or not (poll(2)
-      BUGS; termbox2 #31, fzf #4653, console-rs/console #169), and dirge-code/dirge #731 is this very watchdog
-      ending every session with 129. So poll() is not used there, and POLLNVAL is never read as a hang-up
-      anywhere: a kernel that answers it for this descriptor (macOS's, or one like it) is not polled again.
-    - Everywhere with termios: a hung-up line fails the window-size ioctl with EIO (ENXIO for a device gone),
-      which is what macOS reports where poll() cannot (dirge-code/dirge #731's probe; Linux: hung_up_tty_ioctl).
-    - Windows: no tty and no termios: None. Closing the console window ends the process itself (the system's
-      CTRL_CLOSE_EVENT); Ctrl+Break arrives as SIGBREAK (``_terminate_on_signals``)."""
-    import errno
-
-    try:
-        import fcntl
-        import termios
-    except ImportError:
-        return None
-    if not os.isatty(fd):
-        return None
-    poller = None
-    if sys.platform != "darwin" and hasattr(select, "poll"):
-        poller = select.poll()
-        poller.register(fd, 0)  # POLLHUP and POLLERR are reported whatever is asked for
-
-    def gone() -> bool:
-        nonlocal poller
-        if poller is not None:
-            events = [ev for _, ev in poller.poll(0)]
-            if any(ev & (select.POLLHUP | select.POLLERR) for ev in events):
-                return True
-            if any(ev & select.POLLNVAL for ev in events):
-                poller = None  # this kernel cannot poll the device (or the fd was closed): the ioctl alone
-        try:
-            fcntl.ioctl(fd, termios.TIOCGWINSZ, bytes(8))
-        except OSError as exc:
-            return exc.errno in (errno.EIO, errno.ENXIO)
-        return False
-
-    return gone
 
 if __name__ == "__main__":
     sys.exit(main())

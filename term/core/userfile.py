@@ -59,15 +59,19 @@ def open_user_file(path: Path | str, limit: int, kind: str) -> BinaryIO:
         raise UserFileError(f"{kind} {path} is {_what(st.st_mode)}, not a file")
     if st.st_size > limit:
         raise UserFileError(f"{kind} {path} is larger than {_kb(limit)}")
-    try:  # non-blocking: if a FIFO was swapped in since the stat, the open returns at once
-        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | getattr(os, "O_NOCTTY", 0))
+    # Non-blocking where there is O_NONBLOCK (POSIX): if a FIFO was swapped in since the stat, the open returns at
+    # once. Windows has neither O_NONBLOCK nor FIFOs in its file system, and needs O_BINARY (no newline translation).
+    flags = os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_NOCTTY", 0) | getattr(os, "O_BINARY", 0)
+    try:
+        fd = os.open(path, flags)
     except OSError as exc:
         raise UserFileError(f"cannot read {kind} {path}: {exc.strerror or exc}") from None
     try:
         st = os.fstat(fd)
         if not stat.S_ISREG(st.st_mode):
             raise UserFileError(f"{kind} {path} is {_what(st.st_mode)}, not a file")
-        os.set_blocking(fd, True)
+        if flags & getattr(os, "O_NONBLOCK", 0):
+            os.set_blocking(fd, True)
         return io.open(fd, "rb", closefd=True)  # noqa: UP020 (an fd, not a path)
     except BaseException:
         os.close(fd)

@@ -28,9 +28,10 @@ never interleave.
 
 URL ports: ``socket://`` has no ``cancel_read`` and answers ``in_waiting`` with 0 or 1, so its reader waits with
 ``select`` on the socket (which Windows has for sockets too) and reads what is there in one go (timeout 0); closing
-shuts the socket, which wakes it. Other URL handlers (``rfc2217://``) read one byte with a short timeout and then
-what is waiting, so a close is seen within ``URL_POLL_S``; rfc2217:// has no write timeout. Writes to a URL port go
-through the worker thread (pyserial's own write).
+shuts the socket, which wakes it; its writes go from the loop as a pty's do (the socket is non-blocking), with
+TCP_NODELAY (Nagle's algorithm would hold a frame until the previous one's ACK). Other URL handlers (rfc2217://)
+read one byte with a short timeout and then what is waiting, so a close is seen within ``URL_POLL_S``; rfc2217://
+has no write timeout, and its writes go through the worker thread (pyserial's own write).
 
 Every failure (missing, busy, not a serial device, no permission, lost mid-session) becomes a TransportError
 with one line naming the port and what to do.
@@ -104,6 +105,7 @@ class SerialTransport(Transport):
         self._error: TransportError | None = None
         self._write_lock = asyncio.Lock()
         self._fd: int | None = None  # the port's non-blocking descriptor (POSIX): small writes go from the loop
+        self._sock: socket.socket | None = None  # a socket:// port's socket (non-blocking): the same, with send
         self.url = is_url(port)
         self._os_write_lock = threading.Lock()  # also orders a write whose awaiting task was cancelled
 
@@ -120,6 +122,10 @@ class SerialTransport(Transport):
             raise _open_error(self.port, exc) from None
         self._closed = False
         self._fd = None if self.url else _nonblocking_fd(self._serial)
+        self._sock = _socket_of(self._serial)
+        if self._sock is not None:  # a frame leaves when it is written (Nagle would hold it for the last one's ACK)
+            with contextlib.suppress(OSError):
+                self._sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
         target = self._url_reader if self.url else self._reader
         self._thread = threading.Thread(target=target, name=f"serial-reader {self.port}", daemon=True)
         self._thread.start()
@@ -183,7 +189,7 @@ class SerialTransport(Transport):
                 self._loop.call_soon_threadsafe(put, data)
         except Exception as exc:  # any failure of the port ends the link with one message
             if not self._closed:
-                err = TransportError(f"serial port {self.port} lost: {_reason(exc)}; check the cable and reconnect")
+                err = TransportError(self._lost(exc))
                 try:
                     self._loop.call_soon_threadsafe(put, err)
                 except RuntimeError:
@@ -224,7 +230,7 @@ class SerialTransport(Transport):
                 self._loop.call_soon_threadsafe(put, data)
         except Exception as exc:  # any failure of the port ends the link with one message
             if not self._closed:
-                err = TransportError(f"{self.port} lost: {_reason(exc)}; is the board's server still running?")
+                err = TransportError(self._lost(exc))
                 with contextlib.suppress(RuntimeError):  # the loop is already closed: nobody is left to tell
                     self._loop.call_soon_threadsafe(put, err)
 
@@ -245,7 +251,7 @@ class SerialTransport(Transport):
         if self._closed or self._serial is None:
             raise TransportClosed(f"{self.name} is closed")
         async with self._write_lock:
-            if self._fd is not None:
+            if self._fd is not None or self._sock is not None:
                 data = self._write_now(data)
                 if not data:
                     return  # all of it taken at once, from the loop (the usual case)
@@ -260,10 +266,14 @@ class SerialTransport(Transport):
             except (serial.SerialException, OSError, TypeError, AttributeError) as exc:
                 if self._closed:
                     raise TransportClosed(f"{self.name} is closed") from None
-                self._error = TransportError(
-                    f"serial port {self.port} lost: {_reason(exc)}; check the cable and reconnect"
-                )
+                self._error = TransportError(self._lost(exc))
                 raise self._error from None
+
+    def _lost(self, exc: BaseException) -> str:
+        """The one line for a port that died in use: a cable's, or a network server's."""
+        if self.url:
+            return f"{self.port} lost: {_reason(exc)}; is the board's server still running?"
+        return f"serial port {self.port} lost: {_reason(exc)}; check the cable and reconnect"
 
     def _write_now(self, data: bytes) -> bytes:
         """Write what the OS takes at once from the loop's own thread (the port is non-blocking); returns the
@@ -271,13 +281,13 @@ class SerialTransport(Transport):
         if not self._os_write_lock.acquire(blocking=False):
             return data
         try:
-            n = os.write(self._fd, data)
+            n = self._sock.send(data) if self._sock is not None else os.write(self._fd, data)  # type: ignore[arg-type]
         except (BlockingIOError, InterruptedError):
             n = 0
         except OSError as exc:
             if self._closed:
                 raise TransportClosed(f"{self.name} is closed") from None
-            self._error = TransportError(f"serial port {self.port} lost: {_reason(exc)}; check the cable and reconnect")
+            self._error = TransportError(self._lost(exc))
             raise self._error from None
         finally:
             self._os_write_lock.release()
@@ -295,6 +305,7 @@ class SerialTransport(Transport):
             return
         self._closed = True
         self._fd = None
+        self._sock = None
         ser = self._serial
         if ser is not None and self.url:  # no cancel_read: closing the port wakes the reader (pyserial's socket
             with self._os_write_lock:  # close also pauses 0.3 s for "quick reconnects": off the loop)

@@ -133,6 +133,7 @@ def rfc2217_server(device: str) -> Iterator[str]:
 
 
 @pytest.mark.skipif(pty_missing() is not None, reason="the board behind the RFC 2217 server is on a pty")
+@pytest.mark.filterwarnings("ignore:set(Daemon|Name)\\(\\) is deprecated:DeprecationWarning")  # (pyserial 3.5's own)
 async def test_rfc2217_url_flies_the_board_behind_a_serial_server() -> None:
     board = make_board(seed=1)
     served = ThreadedServer(board)

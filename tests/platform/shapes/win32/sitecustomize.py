@@ -2,7 +2,9 @@
 
 What it changes, as Windows has it, for the project's own code (term, fcb_sim, the tests' scripts):
 - fcntl, termios, tty, pty and resource cannot be imported (ModuleNotFoundError, as there);
-- os.openpty and os.forkpty are gone, and signal.SIGHUP (Windows has neither);
+- its ``os`` and ``signal`` lack what Windows' lack (``WINDOWS_LACKS``: os.openpty, O_NONBLOCK, set_blocking (before
+  Python 3.12), setsid, uname, ...; signal.SIGHUP, SIGKILL, ...): the project's ``import os`` gets a stand-in
+  without them, so an unguarded use fails here as it would there;
 - sys.platform is "win32" wherever the project's code reads it.
 
 Other packages (the standard library, pyserial, Textual, bumble, platformdirs) keep Linux's: each module outside
@@ -18,6 +20,7 @@ import importlib.abc
 import os
 import signal
 import sys
+import types
 
 REAL = sys.platform
 BLOCKED = frozenset({"fcntl", "termios", "tty", "pty", "resource"})
@@ -28,13 +31,52 @@ def _ours(name: object) -> bool:
     return isinstance(name, str) and (name in PROJECT or name.startswith(tuple(p + "." for p in PROJECT)))
 
 
+WINDOWS_LACKS = {
+    "os": {"openpty", "forkpty", "fork", "setsid", "getsid", "setpgrp", "getpgid", "killpg", "ttyname", "uname",
+           "getuid", "geteuid", "getgid", "getegid", "getgroups", "mkfifo", "mknod", "sync", "nice", "getloadavg",
+           "sysconf", "statvfs", "fstatvfs", "chown", "lchown", "fchown", "pipe2", "posix_spawn", "WNOHANG",
+           "O_NONBLOCK", "O_NOCTTY", "O_SYNC", "O_DSYNC", "O_CLOEXEC", "set_blocking", "get_blocking"},
+    "signal": {"SIGHUP", "SIGKILL", "SIGQUIT", "SIGUSR1", "SIGUSR2", "SIGALRM", "SIGCHLD", "SIGPIPE", "SIGTSTP",
+               "SIGCONT", "SIGSTOP", "SIGTTIN", "SIGTTOU", "SIGWINCH", "pause", "alarm", "setitimer", "getitimer",
+               "siginterrupt", "pthread_kill", "pthread_sigmask", "sigwait"},
+}
+
+
+class _Without(types.ModuleType):
+    """A module as the project sees it on Windows: the real one without ``lacks``."""
+
+    def __init__(self, real: types.ModuleType, lacks: set[str]) -> None:
+        super().__init__(real.__name__, real.__doc__)
+        self._real, self._lacks = real, lacks
+
+    def __getattr__(self, name: str) -> object:
+        if name in self._lacks:
+            raise AttributeError(f"module {self.__name__!r} has no attribute {name!r}")
+        return getattr(self._real, name)
+
+    def __dir__(self) -> list[str]:
+        return [n for n in dir(self._real) if n not in self._lacks]
+
+
+_SHOWN = {"os": _Without(os, WINDOWS_LACKS["os"]), "signal": _Without(signal, WINDOWS_LACKS["signal"])}
 _real_import = builtins.__import__
 
 
 def _import(name, globals=None, locals=None, fromlist=(), level=0):  # noqa: A002, ANN001, ANN202
-    """The project's ``import fcntl`` fails as on Windows (even when another package already imported it)."""
-    if level == 0 and name.partition(".")[0] in BLOCKED and _ours((globals or {}).get("__name__")):
-        raise ModuleNotFoundError(f"No module named {name!r}", name=name)
+    """The project's ``import fcntl`` fails as on Windows (even when another package already imported it), and
+    its ``import os`` and ``import signal`` get the stand-ins."""
+    if level == 0 and _ours((globals or {}).get("__name__")):
+        top = name.partition(".")[0]
+        if top in BLOCKED:
+            raise ModuleNotFoundError(f"No module named {name!r}", name=name)
+        if top in _SHOWN:
+            module = _real_import(name, globals, locals, fromlist, level)
+            if fromlist:
+                for attr in fromlist:
+                    if attr in WINDOWS_LACKS[top]:
+                        raise ImportError(f"cannot import name {attr!r} from {top!r}", name=top)
+                return module if name != top else _SHOWN[top]
+            return _SHOWN[top]
     return _real_import(name, globals, locals, fromlist, level)
 
 
@@ -79,9 +121,4 @@ class _Loader(importlib.abc.Loader):
 
 
 sys.meta_path.insert(0, _RealPlatformWhileImporting())
-for _name in ("openpty", "forkpty"):
-    if hasattr(os, _name):
-        delattr(os, _name)
-if hasattr(signal, "SIGHUP"):
-    del signal.SIGHUP
 sys.platform = "win32"
