@@ -46,6 +46,7 @@ from term.cli.parser import build_parser, check_command, complete, serial_ports,
 from term.cli.signals import _exit_on_hangup, _running, _terminate_on_signals
 from term.core.errors import EXIT_INTERRUPTED, EXIT_USAGE, EXIT_VERSION, UsageError
 from term.core.schema import Number
+from term.session.links import LinkSpec, open_link
 from term.session.sim import SimBoard
 
 if TYPE_CHECKING:
@@ -328,13 +329,12 @@ def _params_on(a: argparse.Namespace, sim: SimBoard | None) -> int:
     if sim is not None:
         sim.start()
         transport = sim.transport(baud)
-    elif a.ble and not a.serial:
-        transport = _ble(a.ble, a.hci, a.ble_timeout)
     else:
-        port = a.serial or cfg.port
-        if not port:
+        port = None if a.ble and not a.serial else a.serial or cfg.port
+        if not port and not a.ble:
             raise UsageError(f"no board given: use --serial PATH, --sim or --ble ADDR; {_ports_hint()}")
-        transport = _serial(port, baud)
+        spec = LinkSpec(port=port, baud=baud, ble=a.ble, hci=a.hci, ble_timeout=a.ble_timeout)
+        transport = open_link(spec)  # the cable when a port is named, else BLE: as for flying
     try:
         return asyncio.run(run_command(transport, a.action, a.words))
     except ParamError as exc:
@@ -467,13 +467,12 @@ def _fly(args: argparse.Namespace) -> int:
                 screens.join()
                 transport = sim.transport(baud)
                 if sim.ble_address:
-                    radio = _ble(sim.ble_address, sim.ble_hci, args.ble_timeout)
-            elif port is None:
-                transport = _ble(args.ble, args.hci, args.ble_timeout)
+                    radio = open_link(LinkSpec(ble=sim.ble_address, hci=sim.ble_hci, ble_timeout=args.ble_timeout))
             else:
-                transport = _serial(port, baud)
-                if args.ble:
-                    radio = _ble(args.ble, args.hci, args.ble_timeout)
+                spec = LinkSpec(port=port, baud=baud, ble=args.ble, hci=args.hci, ble_timeout=args.ble_timeout)
+                transport = open_link(spec)  # the cable, or BLE alone
+                if spec.cable is not None and spec.radio is not None:
+                    radio = open_link(spec.radio)  # the radio beside the cable, for the handover
             return asyncio.run(_run_app(transport, cfg, args, radio, sim.instructor_address if sim else ""))
         finally:
             if sim is not None:
@@ -497,21 +496,6 @@ def _import_in_background(module: str) -> threading.Thread:
     thread = threading.Thread(target=run, name=f"import {module}", daemon=True)
     thread.start()
     return thread
-
-
-def _serial(port: str, baud: int) -> Any:
-    from term.transports.serial import SerialTransport
-
-    return SerialTransport(port, baud)
-
-
-def _ble(address: str, hci: str | None, timeout: float = 10.0) -> Any:
-    """The BLE transport (term/transports/ble.py): ``BleTransport(address, hci=..., timeout=...)``."""
-    try:
-        from term.transports.ble import BleTransport  # type: ignore[import-not-found,unused-ignore]
-    except ImportError as exc:
-        raise UsageError(f"BLE transport not available ({exc})") from None
-    return BleTransport(address, hci=hci, timeout=timeout)
 
 
 def _scan(args: argparse.Namespace) -> int:

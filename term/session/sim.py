@@ -175,9 +175,9 @@ class SimBoard:
     def transport(self, baud: int) -> SimTransport:
         """term's transport to the started board: the serial one over its pty or socket:// URL, naming the child's
         death (``SimTransport``)."""
-        from term.transports.serial import SerialTransport
+        from term.session.links import LinkSpec, open_link
 
-        return SimTransport(SerialTransport(self.port, baud), self)
+        return SimTransport(open_link(LinkSpec(port=self.port, baud=baud)), self)
 
     def death(self, wait: float = DEATH_WAIT_S) -> str | None:
         """One line if the child has died (waiting up to ``wait`` s for it): its exit status and the last line of
