@@ -47,7 +47,6 @@ from fcb_sim.board.modes import FLIGHT_MODES, ModeChange, ModeConfig, ModeMachin
 from fcb_sim.board.param_bindings import apply_values
 from fcb_sim.board.parts import BoardConfig, BoardParts
 from fcb_sim.board.scheduler import (
-    HEARTBEAT_PERIOD_US,
     PARSE_MAX_BYTES,
     TASKS,
     Scheduler,
@@ -67,7 +66,7 @@ from fcb_sim.board.timing import (
     Profiler,
 )
 from fcb_sim.board.transmit import Transmitter
-from fcb_sim.board.uart import RX_QUEUE_BYTES, Uart
+from fcb_sim.board.uart import BleInbox, Uart
 from fcb_sim.board.wireless import WirelessLink
 from fcb_sim.world.physics import World
 from term.core.logformat import SCHEME_RICE
@@ -150,8 +149,7 @@ class Board:
         self.ble_decoder = Decoder()
         self.uart = Uart()
         self.tx = Transmitter(self.uart, self.wireless)
-        self._ble_rx = bytearray()
-        self._ble_overflow = 0  # bytes dropped from a full BLE receive queue
+        self.ble_rx = BleInbox()
         self.rx_ignored = 0  # UART bytes while the parser reads BLE
         self.link = LinkTimer()  # the PC's silence, honest about a starved simulator
         self.rtt_us: int | None = None  # the last heartbeat round trip (Heartbeat → HeartbeatAck)
@@ -177,8 +175,6 @@ class Board:
         self.ae = (0, 0, 0, 0)
         self.motors_at_us = 0  # board time at which ``ae`` took effect
         self._sticks_used: tuple[int, int, int, int] | None = None  # what the motors were last computed from
-        self._overflow_reported = 0
-        self._overflow_report_at = 0
         self._crashes_seen = len(self.world.crashes)
         self.on_task: Any = None  # optional callback(name, start_us, duration_us) after every task run
         # what the handlers act on (fcb_sim/board/parts.py): commands, parameters, telemetry
@@ -209,7 +205,7 @@ class Board:
     @property
     def rx_overflow(self) -> int:
         """Bytes dropped from a full receive queue (UART and BLE)."""
-        return self.uart.rx_overflow + self._ble_overflow
+        return self.uart.rx_overflow + self.ble_rx.overflow
 
     @property
     def download_next(self) -> int | None:
@@ -231,16 +227,12 @@ class Board:
 
     def ble_data(self, data: bytes) -> None:
         """Parser bytes from BLE that already went through ``wireless.ble_receive`` (the radio's ``on_data``)."""
-        room = RX_QUEUE_BYTES - len(self._ble_rx)
-        if len(data) > room:
-            self._ble_overflow += len(data) - max(room, 0)
-            data = data[: max(room, 0)]
-        self._ble_rx += data
+        self.ble_rx.put(data)
         self.wireless_events()
 
     def ble_lost(self, was_started: bool) -> None:
         """The radio lost its phone after calling ``wireless.disconnected()`` (the radio's ``on_disconnect``)."""
-        self._ble_rx.clear()
+        self.ble_rx.queue.clear()
         if was_started and self.modes.flying:
             self.modes.panic(self.now / 1e6, "ble")
         self.wireless_events()
@@ -326,7 +318,7 @@ class Board:
         if self.download.active and self.sched.next["telemetry"] - self.now > DOWNLOAD_PERIOD_US:
             self.sched.restart("telemetry", self.now)  # a download began under a slower telemetry rate
         self.sched.fire(self.now)
-        if self._ble_rx or self.uart.arrived(self.now):
+        if self.ble_rx.queue or self.uart.arrived(self.now):
             self.sched.flags["parse"] = True
 
     def _pick(self) -> str | None:
@@ -353,13 +345,8 @@ class Board:
             chunk, decoder = self.uart.take(min(limit, self.uart.arrived(self.now))), self.decoder
         else:
             self.rx_ignored += self.uart.discard_rx()
-            chunk, decoder = bytes(self._ble_rx[:limit]), self.ble_decoder
-            del self._ble_rx[: len(chunk)]
-        if self.rx_overflow > self._overflow_reported and self.now >= self._overflow_report_at:
-            # what was dropped since the last report, at most once per heartbeat period (a flood is one event)
-            self.event(EventCode.OVERFLOW, self.rx_overflow - self._overflow_reported)
-            self._overflow_reported = self.rx_overflow
-            self._overflow_report_at = self.now + HEARTBEAT_PERIOD_US
+            chunk, decoder = self.ble_rx.take(limit), self.ble_decoder
+        self.parts.report_overflow(self.rx_overflow)
         cost = PARSE_US_BASE + PARSE_US_PER_BYTE * len(chunk)
         for pkt in decoder.feed(chunk):
             self.link.heard(self.now)
@@ -461,12 +448,7 @@ class Board:
         return self._cost[f"control_{path}" if flying or mode == Mode.PANIC else f"control_{path}_safe"]()
 
     def _task_logging(self) -> int:
-        fc = self.core
-        phi, theta, psi = fc.attitude_centideg()
-        row = (self.now, int(self.modes.mode), phi, theta, psi, round(fc.sp), round(fc.sq), round(fc.sr),
-               round(fc.sax), round(fc.say), round(fc.saz), *self.ae, round(fc.height / tm.HEIGHT_UNIT_M),
-               self.pressure, self.battery)
-        written = self.log.append(row)
+        written = self.log.append(tm.log_row(self.parts, self.readings()))
         if self.log.state == LogState.FULL and not self.parts.log_full_reported:
             self.parts.log_full_reported = True
             self.event(EventCode.LOG_FULL, self.log.used)

@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 from fcb_sim.board.flash_log import FLASH_BYTES
+from fcb_sim.board.scheduler import HEARTBEAT_PERIOD_US
 from term.core.protocol import (
     PARAMS,
     PRESETS,
@@ -105,11 +106,21 @@ class BoardParts:
     uart: Uart
     clock: Callable[[], int]
     log_full_reported: bool = False  # LOG_FULL was said for this recording
+    overflow_reported: int = 0  # receive-queue bytes dropped that OVERFLOW events have said
+    overflow_report_at: int = 0  # board time before which no other OVERFLOW is said
     console: BoardConsole = field(default_factory=lambda: _console())  # qb_log's counts (fcb_sim/board/console.py)
 
     @property
     def now(self) -> int:
         return self.clock()
+
+    def report_overflow(self, dropped: int) -> None:
+        """What the receive queues dropped (``dropped`` bytes since boot) since the last report, at most once per
+        heartbeat period: a flood is one event."""
+        if dropped > self.overflow_reported and self.now >= self.overflow_report_at:
+            self.event(EventCode.OVERFLOW, dropped - self.overflow_reported)
+            self.overflow_reported = dropped
+            self.overflow_report_at = self.now + HEARTBEAT_PERIOD_US
 
     def send(self, pkt: Any) -> None:
         """A packet to the PC, through the transmit side (fcb_sim/board/transmit.py)."""

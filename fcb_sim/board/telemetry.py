@@ -46,6 +46,15 @@ class Readings(NamedTuple):
     path: str  # the sensor path running: "dmp" or "raw"
 
 
+def log_row(b: BoardParts, r: Readings) -> tuple[int, ...]:
+    """The flash log's record now (docs/flash_log.md): time, mode, attitude, rates, accelerations, motors, height,
+    pressure, battery."""
+    fc = b.core
+    phi, theta, psi = fc.attitude_centideg()
+    return (b.now, int(b.modes.mode), phi, theta, psi, round(fc.sp), round(fc.sq), round(fc.sr), round(fc.sax),
+            round(fc.say), round(fc.saz), *r.ae, round(fc.height / HEIGHT_UNIT_M), r.pressure, r.battery)
+
+
 def i16(v: float) -> int:
     """``v`` rounded and clipped to an int16 field's range."""
     v = int(round(v))

@@ -112,3 +112,24 @@ class Uart:
         del self.tx[:can]
         self.tx_clock = start + len(out) * UART_US_PER_BYTE
         return out
+
+
+class BleInbox:
+    """What the phone wrote for the parser after the handover (``WirelessLink.ble_receive``), queued as the UART's
+    receive side is: bounded by RX_QUEUE_BYTES, a full queue drops and counts."""
+
+    def __init__(self) -> None:
+        self.queue = bytearray()
+        self.overflow = 0  # bytes dropped from a full queue
+
+    def put(self, data: bytes) -> None:
+        room = max(RX_QUEUE_BYTES - len(self.queue), 0)
+        if len(data) > room:
+            self.overflow += len(data) - room
+            data = data[:room]
+        self.queue += data
+
+    def take(self, limit: int) -> bytes:
+        chunk = bytes(self.queue[:limit])
+        del self.queue[: len(chunk)]
+        return chunk
