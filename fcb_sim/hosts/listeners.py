@@ -153,9 +153,14 @@ class Door:
 
     def _flush_now(self) -> None:
         self._flush = None
-        self.refusals.flush()
-        if self.refusals._since is not None:  # the interval goes on: the next line at its end
-            self._flush = asyncio.get_running_loop().call_later(self.refusals.interval, self._flush_now)
+        r = self.refusals
+        left = r.interval - (r.clock() - r._since) if r._since is not None else 0.0
+        if left > 0.05:  # a refusal already wrote this interval's line (``note``): the next at the new one's end
+            self._flush = asyncio.get_running_loop().call_later(left, self._flush_now)
+            return
+        r.flush()
+        if r._since is not None:  # the interval goes on: the next line at its end
+            self._flush = asyncio.get_running_loop().call_later(r.interval, self._flush_now)
 
     def _expire(self, transport: asyncio.BaseTransport) -> None:
         if self._pending.pop(transport, None) is not None:
