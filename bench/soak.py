@@ -24,7 +24,8 @@ end, growth per minute); damaged frames. A line per cycle goes to stderr.
 With ``--flood`` (issue 36) the simulator's instructor channel is on too, and a flood process beside the flight
 keeps ``--idle`` idle TCP connections open to each of the instructor and the BLE HCI ports (more than select() can
 watch: those the simulator closes are opened again every 2 s) and logs in with wrong tokens as fast as one thread
-can. Printed beside the rest: LINK LOST and PANIC counts (goal 0), the board's and term's resident memory growth
+can. Printed beside the rest: LINK LOST (on the link in control: the other one's silence while it is not is
+the handover's, in ``link_lost``) and PANIC counts (goal 0), the board's and term's resident memory growth
 after the first ``--warmup`` minutes (goal at most 2 MB), the bytes the simulator wrote to its log (stderr), and
 the flood's own counts.
 
@@ -110,6 +111,8 @@ class Tally:
     memory: dict[str, list[tuple[float, float]]] = field(default_factory=lambda: {"term": [], "sim": []})
     download: LogDownloader | None = None
     crashes_acked: int = 0
+    control: Any = None  # () -> the role of the link in control now (the station's), for ``lost_in_control``
+    lost_in_control: int = 0  # LINK LOST on the link flying the craft (the other's silence is the handover's)
     panics: int = 0  # times the board went into PANIC (its mode as term saw it)
     panics_sent: int = 0  # of them asked for by the script (a SAFE that would not come)
     phase: str = "start"  # what the script is doing, for the notable events
@@ -161,6 +164,7 @@ class Tally:
                 self.failed[ev.reason.split(" (")[0] if ev.nak is None else f"NAK: {ev.reason}"] += 1
         elif kind is LinkLost:
             self.link_lost[link] += 1
+            self.lost_in_control += self.control is None or self.control() == link
 
     def note_sent(self, link: str, cmd_id: int, what: str) -> None:
         self.sent += 1
@@ -464,6 +468,7 @@ async def soak(minutes: float, damage: float, seed: int, flood: int = 0, warmup:
     cycles = 0
     stats = None
     s = Soak(st, tally, model)
+    tally.control = lambda: getattr(st.control(), "role", None)
     try:
         await st.start()
         s._stick_task = asyncio.create_task(s.sticks())
@@ -531,7 +536,7 @@ async def soak(minutes: float, damage: float, seed: int, flood: int = 0, warmup:
                       "time_mean_s": round(statistics.mean(d["s"] for d in done), 1) if done else None,
                       "bytes_mean": round(statistics.mean(d["bytes"] for d in done)) if done else None},
         "notable": dict(tally.notable),
-        "LINK_LOST": sum(tally.link_lost.values()), "PANIC": tally.panics, "panic_asked_by_soak": tally.panics_sent,
+        "LINK_LOST": tally.lost_in_control, "PANIC": tally.panics, "panic_asked_by_soak": tally.panics_sent,
         "sim_log_bytes": log_bytes, "flood": flooded if flood else None,
         "memory": tally.memory_figures(60 * warmup),
         "cable": {"bytes_damaged_up": cable.up.stats.bytes_corrupted,
