@@ -21,7 +21,16 @@ must be 0); heartbeat gaps (the board's heartbeat counter, merged over both link
 and CRC-checked, failed with their reason); the resident memory of both processes (start after the first cycle,
 end, growth per minute); damaged frames. A line per cycle goes to stderr.
 
-``python -m bench.soak [--minutes 10] [--damage 0.02] [--seed 1]``
+With ``--flood`` (issue 36) the simulator's instructor channel is on too, and a flood process beside the flight
+keeps ``--idle`` idle TCP connections open to each of the instructor and the BLE HCI ports (more than select() can
+watch: those the simulator closes are opened again every 2 s) and logs in with wrong tokens as fast as one thread
+can. Printed beside the rest: LINK LOST (on the link in control: the other one's silence while it is not is
+the handover's, in ``link_lost``) and PANIC counts (goal 0), the board's and term's resident memory growth
+after the first ``--warmup`` minutes (goal at most 2 MB), the bytes the simulator wrote to its log (stderr), and
+the flood's own counts.
+
+``python -m bench.soak [--minutes 10] [--damage 0.02] [--seed 1] [--flood [--idle 1100] [--warmup 5]]``
+(the issue's run: ``python -m bench.soak --minutes 30 --flood``)
 """
 
 from __future__ import annotations
@@ -32,7 +41,10 @@ import contextlib
 import json
 import math
 import os
+import signal
+import socket
 import statistics
+import subprocess
 import sys
 import time
 from collections import Counter
@@ -99,6 +111,10 @@ class Tally:
     memory: dict[str, list[tuple[float, float]]] = field(default_factory=lambda: {"term": [], "sim": []})
     download: LogDownloader | None = None
     crashes_acked: int = 0
+    control: Any = None  # () -> the role of the link in control now (the station's), for ``lost_in_control``
+    lost_in_control: int = 0  # LINK LOST on the link flying the craft (the other's silence is the handover's)
+    panics: int = 0  # times the board went into PANIC (its mode as term saw it)
+    panics_sent: int = 0  # of them asked for by the script (a SAFE that would not come)
     phase: str = "start"  # what the script is doing, for the notable events
     notable: Counter[str] = field(default_factory=Counter)  # link timeouts and long heartbeat gaps, by phase
 
@@ -148,6 +164,7 @@ class Tally:
                 self.failed[ev.reason.split(" (")[0] if ev.nak is None else f"NAK: {ev.reason}"] += 1
         elif kind is LinkLost:
             self.link_lost[link] += 1
+            self.lost_in_control += self.control is None or self.control() == link
 
     def note_sent(self, link: str, cmd_id: int, what: str) -> None:
         self.sent += 1
@@ -168,10 +185,13 @@ class Tally:
             "gaps_over_500ms": sum(1 for g in gaps if g > 0.5),
         }
 
-    def memory_figures(self) -> dict[str, Any]:
-        """Resident memory from the end of the first cycle (imports and buffers warmed up) to the end."""
+    def memory_figures(self, warmup_s: float = 0.0) -> dict[str, Any]:
+        """Resident memory from the end of the first cycle (imports and buffers warmed up) to the end, and from the
+        first sample ``warmup_s`` after the start to the end (``growth_after_warmup_mb``)."""
         out: dict[str, Any] = {}
         for name, xs in self.memory.items():
+            late = [(t, m) for t, m in xs if t - self.t0 >= warmup_s]
+            after = round(late[-1][1] - late[0][1], 2) if len(late) >= 2 else None
             if len(xs) < 2:
                 out[name] = {"samples": len(xs)}
                 continue
@@ -179,6 +199,7 @@ class Tally:
             out[name] = {"start_mb": round(m0, 1), "end_mb": round(m1, 1), "max_mb": round(max(m for _, m in xs), 1),
                          "growth_mb": round(m1 - m0, 2),
                          "growth_mb_per_min": round((m1 - m0) / max((t1 - t0) / 60, 1e-9), 3),
+                         "growth_after_warmup_mb": after,
                          "per_cycle_mb": [round(b - a, 2) for (_, a), (_, b) in zip(xs, xs[1:], strict=False)]}
         return out
 
@@ -207,10 +228,14 @@ class Soak:
         app's render tick does."""
         t0 = time.monotonic()
         n = 0
+        mode = None
         while True:
             n += 1
             if n % 8 == 0:
                 self.st.sample()
+            if self.model.mode != mode:
+                mode = self.model.mode
+                self.tally.panics += mode == Mode.PANIC
             t = time.monotonic() - t0
             a = self.circle * 1500
             self.stick = Joystick(int(a * math.sin(1.1 * t)), int(a * math.cos(1.1 * t)), 0,
@@ -261,6 +286,7 @@ class Soak:
         await self.ramp(0.0, 2.0)
         if not await self.mode(Mode.SAFE, f"SAFE over {where}"):
             self.send(Op.MODE, int(Mode.PANIC))  # PANIC ends in SAFE by itself
+            self.tally.panics_sent += 1
             await self.until(lambda: self.model.mode == Mode.SAFE, 15.0)
 
     # --- the cycle -------------------------------------------------------------------------------------------
@@ -347,7 +373,77 @@ class Soak:
         self.tally.steps_failed["LOG_RESET"] += 1
 
 
-async def soak(minutes: float, damage: float, seed: int) -> dict[str, Any]:
+def _address(spec: str) -> tuple[str, int]:
+    """``tcp-client:HOST:PORT[#TOKEN]`` to (host, port)."""
+    _, host, port = spec.split("#", 1)[0].split(":")
+    return host, int(port)
+
+
+def flood_main(argv: list[str]) -> int:
+    """The flood process (``--flood``): ``--idle`` idle connections to each address kept open, wrong-token logins
+    to the first as fast as one thread can, until SIGTERM; its counts as JSON on stdout."""
+    import resource
+
+    ap = argparse.ArgumentParser(prog="bench.soak flood")
+    ap.add_argument("--idle", type=int, required=True)
+    ap.add_argument("addresses", nargs="+")
+    a = ap.parse_args(argv)
+    soft, hard = resource.getrlimit(resource.RLIMIT_NOFILE)
+    want = len(a.addresses) * a.idle + 64
+    if soft != resource.RLIM_INFINITY and soft < want:
+        resource.setrlimit(resource.RLIMIT_NOFILE, (want if hard == resource.RLIM_INFINITY else min(want, hard), hard))
+    stop = []
+    signal.signal(signal.SIGTERM, lambda *_: stop.append(1))
+    targets = [_address(x) for x in a.addresses]
+    idle: dict[tuple[str, int], list[socket.socket]] = {t: [] for t in targets}
+    counts: Counter[str] = Counter()
+    next_idle = 0.0
+    while not stop:
+        now = time.monotonic()
+        if now >= next_idle:  # the idle flood: those closed by the simulator opened again
+            next_idle = now + 2.0
+            for t, socks in idle.items():
+                alive = []
+                for sk in socks:
+                    try:
+                        gone = sk.recv(1, socket.MSG_PEEK | socket.MSG_DONTWAIT) == b""
+                    except BlockingIOError:
+                        gone = False
+                    except OSError:
+                        gone = True
+                    if gone:
+                        sk.close()
+                        counts["idle_closed_by_server"] += 1
+                    else:
+                        alive.append(sk)
+                while len(alive) < a.idle:
+                    sk = socket.socket()
+                    sk.setblocking(False)
+                    try:
+                        sk.connect_ex(t)
+                    except OSError:
+                        sk.close()
+                        counts["idle_connect_failed"] += 1
+                        break
+                    alive.append(sk)
+                    counts["idle_opened"] += 1
+                idle[t] = alive
+        try:  # one wrong-token login
+            with socket.create_connection(targets[0], timeout=2.0) as c:
+                c.sendall(b'{"kind": "auth", "token": "00000000000000000000000000000000"}\n')
+                line = c.makefile("rb").readline()
+            why = json.loads(line).get("why", "") if line else ""
+            counts["logins"] += 1
+            counts["login_refused_" + ("throttled" if "try again" in why else "token" if "token" in why
+                                       else "too_many_waiting" if "waiting" in why else "other")] += 1
+        except (OSError, ValueError):
+            counts["login_errors"] += 1
+            time.sleep(0.01)
+    print(json.dumps(dict(counts)), flush=True)
+    return 0
+
+
+async def soak(minutes: float, damage: float, seed: int, flood: int = 0, warmup: float = 5.0) -> dict[str, Any]:
     from term.session.config import JOYSTICK_POLICIES
     from term.session.sim import SimBoard
     from term.session.station import Station
@@ -355,8 +451,9 @@ async def soak(minutes: float, damage: float, seed: int) -> dict[str, Any]:
     from term.transports.loopback import Faults, FaultyTransport
     from term.transports.serial import SerialTransport
 
-    sim = SimBoard(seed=seed, radio=True)
+    sim = SimBoard(seed=seed, radio=True, instructor=bool(flood))
     port = sim.start()
+    flooder: subprocess.Popen[str] | None = None
     assert sim.proc is not None
     sim_pid = sim.proc.pid
     t0 = time.monotonic()
@@ -371,10 +468,15 @@ async def soak(minutes: float, damage: float, seed: int) -> dict[str, Any]:
     cycles = 0
     stats = None
     s = Soak(st, tally, model)
+    tally.control = lambda: getattr(st.control(), "role", None)
     try:
         await st.start()
         s._stick_task = asyncio.create_task(s.sticks())
         await s.until(lambda: model.radio_up and model.mode is not None, 20.0)
+        log_start = _log_bytes(sim)
+        if flood:  # beside the flight, once the radio's HCI host is attached (a waiting one would queue behind it)
+            flooder = subprocess.Popen([sys.executable, "-m", "bench.soak", "--flood-child", "--idle", str(flood),
+                                        sim.instructor_address, sim.ble_hci], stdout=subprocess.PIPE, text=True)
         await s.calibrate()
         end = t0 + 60 * minutes
         while time.monotonic() < end:
@@ -406,6 +508,13 @@ async def soak(minutes: float, damage: float, seed: int) -> dict[str, Any]:
                 await s._stick_task
         if sim.proc is not None and sim.proc.poll() is not None and crash is None:
             crash = f"the simulator exited ({sim.proc.returncode})"
+        flooded: dict[str, Any] = {}
+        if flooder is not None:
+            flooder.send_signal(signal.SIGTERM)
+            with contextlib.suppress(Exception):
+                out, _ = flooder.communicate(timeout=30)
+                flooded = json.loads(out.strip().splitlines()[-1])
+        log_bytes = _log_bytes(sim) - log_start if "log_start" in locals() else None
         with contextlib.suppress(Exception):
             await st.shutdown()
         sim.stop()
@@ -427,7 +536,9 @@ async def soak(minutes: float, damage: float, seed: int) -> dict[str, Any]:
                       "time_mean_s": round(statistics.mean(d["s"] for d in done), 1) if done else None,
                       "bytes_mean": round(statistics.mean(d["bytes"] for d in done)) if done else None},
         "notable": dict(tally.notable),
-        "memory": tally.memory_figures(),
+        "LINK_LOST": tally.lost_in_control, "PANIC": tally.panics, "panic_asked_by_soak": tally.panics_sent,
+        "sim_log_bytes": log_bytes, "flood": flooded if flood else None,
+        "memory": tally.memory_figures(60 * warmup),
         "cable": {"bytes_damaged_up": cable.up.stats.bytes_corrupted,
                   "bytes_damaged_down": cable.down.stats.bytes_corrupted,
                   "frames_bad": None if stats is None else stats.frames_bad,
@@ -435,11 +546,27 @@ async def soak(minutes: float, damage: float, seed: int) -> dict[str, Any]:
     }
 
 
+def _log_bytes(sim: Any) -> int:
+    """What the simulator has written to its stderr (its log) so far."""
+    f = getattr(sim, "_stderr", None)
+    try:
+        return os.fstat(f.fileno()).st_size if f is not None else 0
+    except (OSError, ValueError):
+        return 0
+
+
 def main(argv: list[str] | None = None) -> int:
+    argv = sys.argv[1:] if argv is None else argv
+    if argv[:1] == ["--flood-child"]:
+        return flood_main(argv[1:])
     ap = argparse.ArgumentParser(prog="python -m bench.soak", description=__doc__.splitlines()[0])
     ap.add_argument("--minutes", type=float, default=10.0, help="how long to fly (default 10)")
     ap.add_argument("--damage", type=float, default=0.02, help="probability a cable byte is damaged (default 0.02)")
     ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--flood", action="store_true", help="an idle-connection flood and a login flood beside the flight")
+    ap.add_argument("--idle", type=int, default=1100, help="idle connections to each port with --flood (1100)")
+    ap.add_argument("--warmup", type=float, default=5.0,
+                    help="minutes before the memory growth is counted (default 5)")
     a = ap.parse_args(argv)
     if not 0.1 <= a.minutes <= 24 * 60:
         print("bench.soak: --minutes must be between 0.1 and 1440", file=sys.stderr)
@@ -449,7 +576,7 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     if not os.path.exists("/proc/self/status"):
         print("bench.soak: memory figures need Linux (/proc)", file=sys.stderr)
-    result = asyncio.run(soak(a.minutes, a.damage, a.seed))
+    result = asyncio.run(soak(a.minutes, a.damage, a.seed, a.idle if a.flood else 0, a.warmup))
     print(json.dumps(result))
     return 0 if result["crash"] is None else 1
 

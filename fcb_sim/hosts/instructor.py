@@ -48,7 +48,7 @@ from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 from fcb_sim.errors import UsageError, parse_tcp_server
-from fcb_sim.hosts.listeners import Door, LoginThrottle, guarded
+from fcb_sim.hosts.listeners import Door, GuardedServer, LoginThrottle
 from fcb_sim.world import constants as P
 from term.core.protocol import (
     INSTRUCTOR_AUTH,
@@ -279,7 +279,7 @@ class InstructorServer:
         if radio is not None:
             instructor.on_radio_cut = self._cut_radio
         self.token = token or secrets.token_hex(16)
-        self._server: asyncio.Server | None = None
+        self._server: GuardedServer | None = None
         self._writer: asyncio.StreamWriter | None = None  # the one client, once it gave the token
         self._clients: set[asyncio.Task[Any]] = set()
         self._task: asyncio.Task[None] | None = None
@@ -309,7 +309,7 @@ class InstructorServer:
                 return asyncio.StreamReaderProtocol(asyncio.StreamReader(limit=MAX_LINE, loop=loop), self._client,
                                                     loop=loop)
 
-            self._server = await loop.create_server(guarded(stream, self.door, refusal=_refusal_line), host, port)
+            self._server = await GuardedServer.start(host, port, stream, self.door, refusal=_refusal_line)
         except OSError as exc:
             raise UsageError(f"--instructor {spec}: {exc.strerror or exc}") from None
         sock = self._server.sockets[0].getsockname()

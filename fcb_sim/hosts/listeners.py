@@ -20,20 +20,26 @@ ones, so a server that holds few connections never gets there; a process that ho
 (or a soft RLIMIT_NOFILE above 1024 with a burst of connections accepted at once) could. So ``Door.admit`` refuses
 a connection whose descriptor is at or past the limit before asyncio registers it (``connection_made`` runs before
 the transport's own ``add_reader``; a transport closed there is never registered), without writing to it (a write
-that waits would register it for writing). On Windows select() limits the count of sockets (512 in CPython), not
-their numbers; the caps above keep the count small there. A loop on epoll, kqueue or poll has no such limit
-(``fd_limit`` None).
+that waits would register it for writing); ``GuardedServer`` refuses it on the bare socket, before any
+transport. On Windows select() limits the count of sockets (512 in CPython), not their numbers; the caps above
+keep the count small there. A loop on epoll, kqueue or poll has no such limit (``fd_limit`` None).
 
 ``guarded(factory, door)`` wraps an asyncio protocol factory for ``loop.create_server``: the door admits or refuses
 in ``connection_made``, and releases in ``connection_lost``; the wrapped protocol sees only admitted connections.
+``GuardedServer.start(host, port, factory, door)`` is the cheaper way in under a flood: its own accept loop refuses
+a connection past the cap or the descriptor bound on the bare socket (a refusal line sent without waiting, then
+closed), before asyncio makes a transport, a task and a protocol of it (a few µs instead of some hundred), and
+passes the rest to ``loop.connect_accepted_socket`` behind the same door.
 """
 
 from __future__ import annotations
 
 import asyncio
 import contextlib
+import errno
 import logging
 import selectors
+import socket
 import sys
 import time
 from collections import Counter, OrderedDict
@@ -147,9 +153,14 @@ class Door:
 
     def _flush_now(self) -> None:
         self._flush = None
-        self.refusals.flush()
-        if self.refusals._since is not None:  # the interval goes on: the next line at its end
-            self._flush = asyncio.get_running_loop().call_later(self.refusals.interval, self._flush_now)
+        r = self.refusals
+        left = r.interval - (r.clock() - r._since) if r._since is not None else 0.0
+        if left > 0.05:  # a refusal already wrote this interval's line (``note``): the next at the new one's end
+            self._flush = asyncio.get_running_loop().call_later(left, self._flush_now)
+            return
+        r.flush()
+        if r._since is not None:  # the interval goes on: the next line at its end
+            self._flush = asyncio.get_running_loop().call_later(r.interval, self._flush_now)
 
     def _expire(self, transport: asyncio.BaseTransport) -> None:
         if self._pending.pop(transport, None) is not None:
@@ -264,3 +275,94 @@ class LoginThrottle:
 
     def __len__(self) -> int:
         return len(self._failures)
+
+
+ACCEPT_BATCH = 100  # connections accepted per wake-up (asyncio's backlog default)
+ACCEPT_RETRY_S = 1.0  # out of descriptors (EMFILE): stop accepting this long, as asyncio does
+
+
+class GuardedServer:
+    """A listening TCP socket whose connections pass ``door`` before asyncio makes anything of them (module
+    docstring). ``sockets``, ``close()`` and ``wait_closed()`` as an ``asyncio.Server``'s."""
+
+    def __init__(self, sock: socket.socket, factory: Callable[[], asyncio.Protocol], door: Door,
+                 refusal: Callable[[str], bytes | None] | None) -> None:
+        self._sock = sock
+        self._factory = guarded(factory, door, refusal=refusal)
+        self._door = door
+        self._refusal = refusal
+        self._loop = asyncio.get_running_loop()
+        self._connecting: set[asyncio.Task[None]] = set()
+        self._closed = False
+        self._loop.add_reader(sock.fileno(), self._accept)
+
+    @classmethod
+    async def start(cls, host: str, port: int, factory: Callable[[], asyncio.Protocol], door: Door, *,
+                    refusal: Callable[[str], bytes | None] | None = None) -> GuardedServer:
+        """Listen on (host, port) (the first address ``host`` resolves to); OSError if it cannot."""
+        loop = asyncio.get_running_loop()
+        infos = await loop.getaddrinfo(host, port, type=socket.SOCK_STREAM, flags=socket.AI_PASSIVE)
+        family, _, _, _, addr = infos[0]
+        sock = socket.create_server(addr[:2], family=family, backlog=ACCEPT_BATCH)
+        sock.setblocking(False)
+        return cls(sock, factory, door, refusal)
+
+    @property
+    def sockets(self) -> list[socket.socket]:
+        return [] if self._closed else [self._sock]
+
+    def _accept(self) -> None:
+        door, limit = self._door, fd_limit(self._loop)
+        for _ in range(ACCEPT_BATCH):
+            try:
+                conn, _ = self._sock.accept()
+            except (BlockingIOError, InterruptedError):
+                return
+            except OSError as exc:  # out of descriptors or memory: pause, do not spin
+                if exc.errno in (errno.EMFILE, errno.ENFILE, errno.ENOBUFS, errno.ENOMEM):
+                    door.refuse(f"cannot accept: {exc.strerror}")
+                    self._loop.remove_reader(self._sock.fileno())
+                    self._loop.call_later(ACCEPT_RETRY_S, self._resume)
+                return  # (ECONNABORTED and the like: that client is gone)
+            why = None
+            if limit is not None and conn.fileno() >= limit:
+                why = FD_RANGE
+            elif door.pending + len(self._connecting) >= door.max_pending:
+                why = TOO_MANY
+            if why is not None:
+                door.refuse(why)
+                line = self._refusal(why) if self._refusal is not None else None
+                if line:
+                    with contextlib.suppress(OSError):
+                        conn.setblocking(False)
+                        conn.send(line)  # a fresh socket's buffer holds a line: never waits, never registered
+                conn.close()
+                continue
+            conn.setblocking(False)
+            task = self._loop.create_task(self._connect(conn))
+            self._connecting.add(task)
+            task.add_done_callback(self._connecting.discard)
+
+    async def _connect(self, conn: socket.socket) -> None:
+        try:
+            await self._loop.connect_accepted_socket(self._factory, sock=conn)
+        except OSError:
+            conn.close()
+
+    def _resume(self) -> None:
+        if not self._closed:
+            self._loop.add_reader(self._sock.fileno(), self._accept)
+
+    def close(self) -> None:
+        if self._closed:
+            return
+        self._closed = True
+        self._loop.remove_reader(self._sock.fileno())
+        self._sock.close()
+        for task in self._connecting:
+            task.cancel()
+
+    async def wait_closed(self) -> None:
+        for task in list(self._connecting):
+            with contextlib.suppress(asyncio.CancelledError, Exception):
+                await task

@@ -14,7 +14,7 @@ from typing import Any
 
 from fcb_sim.board.wireless import ATT_MTU, WirelessLink, board_name
 from fcb_sim.errors import parse_tcp_server
-from fcb_sim.hosts.listeners import Door, guarded
+from fcb_sim.hosts.listeners import Door, GuardedServer
 from term.core.protocol import NUS_RX, NUS_SERVICE, NUS_TX, WirelessState
 
 log = logging.getLogger(__name__)
@@ -274,7 +274,7 @@ hosts/listeners.py). When the host goes away (the terminal quit or crashed), its
         self._source = StreamPacketSource()
         self._peer: asyncio.Transport | None = None
         self.controller = Controller(name, host_source=self._source, host_sink=self, link=local_link)
-        self._server: asyncio.Server | None = None
+        self._server: GuardedServer | None = None
         self.host = ""
         self.port = 0
         self.hosts_served = 0
@@ -322,7 +322,7 @@ hosts/listeners.py). When the host goes away (the terminal quit or crashed), its
                     server._next_host()
 
         try:
-            self._server = await asyncio.get_running_loop().create_server(guarded(_Host, self.door), host, port)
+            self._server = await GuardedServer.start(host, port, _Host, self.door)
         except OSError as exc:
             raise UsageError(f"cannot serve the BLE HCI on {host}:{port}: {exc.strerror or exc}") from None
         self.host = host
