@@ -85,10 +85,17 @@ def test_text_packets_join_to_the_line(line, level) -> None:  # noqa: ANN001
     pkts = p.text_packets(line, level)
     assert all(len(p.encode(x)) <= p.MAX_FRAME for x in pkts)
     assert all(x.info & p.TEXT_MORE for x in pkts[:-1]) and not pkts[-1].info & p.TEXT_MORE
-    assert b"".join(x.text.rstrip(b"\0") for x in pkts).decode() == line.rstrip("\0")
+    assert b"".join(x.text.rstrip(b"\0") for x in pkts).decode() == line.replace("\0", " ")
     c = Console()
     out = [ln for x in pkts for ln in c.feed_packet(x, 0.0)]
     assert len(out) == 1 and out[0].level == level and out[0].source == BOARD
+
+
+def test_a_nul_inside_a_line_is_a_space_not_a_cut() -> None:
+    """Hypothesis found it: a NUL at a packet's end was taken for padding and the line came back short."""
+    line = "00\x80\x80\x80\x80\x80\x800\x80\U00010000\x00\U00010000"
+    pkts = p.text_packets(line, 1)
+    assert b"".join(x.text.rstrip(b"\0") for x in pkts).decode() == line.replace("\0", " ")
 
 
 def test_levels_from_words() -> None:

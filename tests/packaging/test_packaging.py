@@ -125,7 +125,9 @@ def test_fcb_sim_without_ptys() -> None:
             "from fcb_sim.cli import main\nsys.exit(main(sys.argv[1:]))")  # (None in sys.modules: import fails)
     res = _run([sys.executable, "-c", code, "serve", "--pty"])
     assert res.returncode == 2 and "Traceback" not in res.stderr
-    assert res.stderr == "fcb-sim: serve needs pseudo-terminals (Linux or macOS); this system has none\n"
+    # one line that names the way that works without them: the TCP link (issue 33)
+    assert res.stderr.startswith("fcb-sim: serve --pty needs pseudo-terminals") and res.stderr.count("\n") == 1
+    assert "--tcp" in res.stderr and "socket://" in res.stderr, res.stderr
     res = _run([sys.executable, "-c", code, "run", "--list"])
     assert res.returncode == 0 and "hover" in res.stdout, res.stderr
 

@@ -313,8 +313,10 @@ LEVEL_DEBUG, LEVEL_INFO, LEVEL_WARNING, LEVEL_ERROR, LEVEL_FATAL = 1, 2, 3, 4, 5
 
 def text_packets(line: str | bytes, level: int = LEVEL_INFO) -> list[Text]:
     """``line`` (one line, no newline) as Text packets: UTF-8 cut at 13 bytes, never inside a character; every
-    packet but the last has TEXT_MORE set. An empty line is one empty packet."""
+    packet but the last has TEXT_MORE set. An empty line is one empty packet. A NUL in the line goes as a space:
+    NULs pad the packet's text, so one inside it could not be told from the padding."""
     data = line.encode("utf-8", "replace") if isinstance(line, str) else bytes(line)
+    data = data.replace(b"\0", b" ")
     lvl = level & TEXT_LEVEL_MASK
     out: list[Text] = []
     while True:
@@ -327,6 +329,8 @@ def text_packets(line: str | bytes, level: int = LEVEL_INFO) -> list[Text]:
         out.append(Text(lvl | (TEXT_MORE if data else 0), piece.ljust(TEXT_BYTES, b"\0")))
         if not data:
             return out
+
+
 TELEMETRY = (Attitude, Motion, Height, Status, Gains)
 
 # Event arguments that are quantities: the scale to the shown unit, per code (the rest are counts or ids).
