@@ -210,8 +210,15 @@ GROUND_SNAP_M = 0.5
 # against a speed of at least STOP_VZ is a stop, when it ends: the speed is zero, the jolt's tail is not integrated
 # for STOP_HOLD_S, and the height is unsure by STOP_H_SIGMA (where the surface is only the barometer says) until
 # the barometer has pulled it in.
-STOP_ACC = 6.9  # m/s² (0.7 g; hover's vibration is 0.15 g rms, a flight's braking under 0.5 g)
+# STOP_ACC is 1 g: a surface stopping 0.15 m/s in 10 ms is 1.5 g; the motors' braking with their vibration (up to
+# 0.5 g and 0.3 g rms at full thrust) crossed 0.7 g in runs short enough to be taken for a stop (the descent from
+# 30 m of tests/estimation/test_height_profile.py).
+STOP_ACC = 6.9  # m/s²
 STOP_VZ = 0.15  # m/s
+# A stop going down is a landing only near the floor the board knows (the calibration's): the motors braking a
+# descent, their vibration on top, crossed STOP_ACC in runs short enough to look like one, 5 m up (the descent from
+# 30 m of tests/estimation/test_height_profile.py). Elsewhere a landing is found by the rest test, as before.
+STOP_FLOOR_M = 1.0
 STOP_SAMPLES = 2
 STOP_MAX_SAMPLES = 12  # 30 ms: a longer run is braking by the motors (their 30 ms lag), not a surface
 STOP_HOLD_S = 0.01
@@ -368,7 +375,8 @@ class HeightKalman:
             self._stop_n = n + 1 if n < 255 else n
         elif n:
             self._stop_n = 0
-            if STOP_SAMPLES <= n <= STOP_MAX_SAMPLES:  # a jolt, over as fast as a surface stops the craft
+            near = self._stop_v > 0.0 or abs(self.height - self.ground_ref) < STOP_FLOOR_M  # (a landing: the floor)
+            if STOP_SAMPLES <= n <= STOP_MAX_SAMPLES and near:  # a jolt, over as fast as a surface stops the craft
                 self._hard_stop()
                 self._t_pred += dt
                 return

@@ -34,6 +34,7 @@
 #define GROUND_SNAP_M 0.5
 #define STOP_ACC 6.9
 #define STOP_VZ 0.15
+#define STOP_FLOOR_M 1.0 /* a stop going down is a landing only near the floor (height.py) */
 #define STOP_SAMPLES 2
 #define STOP_MAX_SAMPLES 12
 #define STOP_HOLD_S 0.01
@@ -229,7 +230,8 @@ void qb_height_update_imu(qb_height_t *h, qb_real ax, qb_real ay, qb_real az, qb
             h->stop_n = (uint8_t)(n + 1);
     } else if (n) {
         h->stop_n = 0;
-        if (n >= STOP_SAMPLES && n <= STOP_MAX_SAMPLES) { /* a jolt, over as fast as a surface stops the craft */
+        int near = h->stop_v > 0.0 || QM(fabs)(h->height - h->ground_ref) < STOP_FLOOR_M; /* a landing: the floor */
+        if (n >= STOP_SAMPLES && n <= STOP_MAX_SAMPLES && near) { /* a jolt, as fast as a surface stops the craft */
             hard_stop(h);
             h->t_pred += dt;
             return;
