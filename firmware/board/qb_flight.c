@@ -5,16 +5,9 @@
 #include <string.h>
 
 #include "qb_board.h"
+#include "qb_estimator.h"
 
-#define GROUND_AE 280 /* 0.7 of the hover level (400): motors below it cannot lift the craft (flight.py) */
-#define WALL_ACC 6.9  /* m/s^2 of body x/y specific force: a sideways jolt (flight.py) */
-#define WALL_SAMPLES 2
-#define WALL_REPEAT_S 0.5
 #define STILL_LSB (1.5 * 16.4) /* 1.5 deg/s of gyro (flight.py) */
-#define STILL_S 1.0
-#define HEADING_EVERY 4
-#define HEADING_REPORT_CDEG 200
-#define HEADING_LIFTOFF_CDEG 50
 #define HEADING_RATE_MIN_S 5.0
 #define HEADING_RATE_WINDOW_S 60.0
 #define TWO_PI (2.0 * 3.141592653589793)

@@ -5,43 +5,13 @@
 #include <string.h>
 
 #include "qb_board.h"
+#include "qb_estimator.h"
 
-#define G 9.80665
-#define R_GAS 8.314462618
-#define M_AIR 0.0289644
-#define T_ROOM 293.15
-#define SEA_LEVEL_PA 101325.0
-#define ACC_NOISE_DENSITY 0.075
-#define BIAS_WALK 0.005
-#define BARO_SIGMA_M 0.105
-#define SPIKE_TAU_S 0.3
-#define SPIKE_RATE_SIGMA 5.0
 #define GATE_SIGMA 3.0
 #define HUBER_SIGMA 2.0
 #define LEVEL_AFTER 3
 #define REJUMP_WINDOW_S 1.0
 #define SS_FLOOR 1e-6
-#define TREND_GAIN 0.2
-#define TREND_SIGMA 1.5
-#define TREND_VZ_VAR 0.25
-#define GROUND_BIAS_TAU_S 2.0
-#define GROUND_REST_S 0.5
-#define REST_ACC 0.5
-#define ANCHOR_S 1.0
-#define STAND_TAU_S 2.0
-#define STAND_CLIP_M 0.1
-#define REST_TAU_S 0.05
-#define GROUND_SNAP_M 0.5
-#define STOP_ACC 6.9
-#define STOP_VZ 0.15
-#define STOP_FLOOR_M 1.0 /* a stop going down is a landing only near the floor (height.py) */
-#define STOP_SAMPLES 2
-#define STOP_MAX_SAMPLES 12
-#define STOP_HOLD_S 0.01
-#define STOP_H_SIGMA 0.3
-#define UNSURE_SIGMA 0.15
-#define STOP_UP 2
-#define STOP_DOWN 1
 static const qb_real INITIAL_SIGMA[3] = {0.03, 0.05, 0.1};
 
 void qb_height_init(qb_height_t *h)
