@@ -131,6 +131,17 @@ def _flying_options(p: argparse.ArgumentParser) -> None:
     fly.add_argument("--lessons", type=Path, default=None, metavar="DIR", help="--sim: a directory of lesson files "
                      "(*.toml) beside the built-in ones (a teacher's)")
     _add_foxglove(fly)
+    _add_mavlink(fly)
+
+
+# --- term --mavlink (term/data/mavlink.py; helper mavlink) ---
+def _add_mavlink(p: argparse.ArgumentParser | Any) -> None:
+    p.add_argument("--mavlink", metavar="[udp:|tcp:]HOST:PORT", nargs="?", const="udp:127.0.0.1:14550",
+                   default=None, help="send the flight to a MAVLink ground station there and take its messages "
+                   "(QGroundControl, MAVProxy; alone: udp:127.0.0.1:14550; needs the 'mavlink' extra); "
+                   "docs/mavlink.md")
+    p.add_argument("--mavlink-public", action="store_true", help="--mavlink may name a host that is not this "
+                   "machine (the flight leaves it)")
 
 
 def _add_foxglove(p: argparse.ArgumentParser | Any) -> None:

@@ -1,0 +1,787 @@
+"""`term --mavlink [udp:|tcp:]HOST:PORT`: the flight sent to a MAVLink ground station (QGroundControl, MAVProxy, a
+pymavlink script) and its messages taken on the same socket (pymavlink, the ``mavlink`` extra). What maps to what:
+docs/mavlink.md and term/data/mavlink_map.py.
+
+Contract:
+
+- ``MavlinkEndpoint(address, t0=, public=)`` opens the socket: UDP (default) sends to HOST:PORT from a port of its
+  own and, the socket being connected, reads only what that peer sends (QGroundControl listens on 14550); TCP
+  connects to a ground station listening there and connects again every second while it is gone. HOST must be
+  this machine (loopback) unless ``public``. ``MavlinkError`` (one line) if the address is bad or the extra missing.
+- Out, on the link's thread (``link_packet``: the station's ``on_packet``, as the Foxglove server is fed): each
+  board packet becomes its messages at once (ATTITUDE with every Attitude; height, pressure, motors at capped
+  rates), written to the socket without a hop through another thread (UDP datagrams never block; TCP writes
+  what the socket takes and keeps a bounded rest for the endpoint's thread, dropping whole messages beyond it).
+  The endpoint's own thread (``term mavlink``) sends HEARTBEAT, SYS_STATUS and BATTERY_STATUS once a second and
+  reads the ground station's messages. Nothing here can stall the link: a slow or absent ground station costs
+  messages (``dropped``), never the flight.
+- In: parameter reads are answered on the endpoint's thread from the board's values as heard (``ParamValue``,
+  ``PARAM_CHANGED``, the Acks). Everything that acts (PARAM_SET, COMMAND_LONG, SET_MODE, MANUAL_CONTROL, the log
+  requests) is carried to the display's loop (``attach``'s ``post``) and goes through ``Station.send`` /
+  ``Station.set_stick``: the station's guards and then the board's, as term's keys do. The answers (PARAM_VALUE,
+  COMMAND_ACK with the board's Nak in ``result_param2`` and its text as STATUSTEXT) follow the board's Ack
+  (``station_event``). Parameter sets need no handover; arming and modes other than SAFE and PANIC do.
+- The handover (docs/mavlink.md, as the BLE one, docs/wireless.md): the pilot offers control from term
+  (``handover``: in SAFE, with a ground station heard); the ground station's first MANUAL_CONTROL takes it; until
+  then MANUAL_CONTROL moves nothing. While it flies, its silence (no MANUAL_CONTROL for ``MANUAL_TIMEOUT_S``)
+  stops term's writes to the board (the links' gate), so the board sees a link loss and runs its own two-stage
+  failsafe: hold level, then PANIC; MANUAL_CONTROL back in time gives control back, PANIC ends the handover. A
+  pilot's own command in term (``pilot_command``) or ``handback`` takes control back at once.
+- The log protocol: LOG_REQUEST_LIST asks the board's LogStatus and lists its flash log as log 1; LOG_REQUEST_DATA
+  downloads it as F5 does (``start_download``: the app's download, its retries, its CSV) and serves the bytes
+  in 90-byte LOG_DATA from the download once it is complete and matches the board's CRC-32.
+- ``tick(now)`` (the render tick) runs the download's serving; ``close()`` stops the thread and the socket.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import ipaddress
+import logging
+import select
+import socket
+import threading
+import time
+from collections.abc import Callable
+from typing import Any
+
+from term.core.events import FromLink, NotSent, StatsSample
+from term.core.link import CommandAcked, CommandFailed, PacketReceived
+from term.core.protocol import (
+    FLIGHT_MODES,
+    PARAMS,
+    Event,
+    EventCode,
+    Joystick,
+    LogStatus,
+    Mode,
+    Nak,
+    Op,
+    Param,
+    ParamValue,
+    param_arg,
+    param_split,
+)
+from term.data.mavlink_map import (
+    PARAM_BY_MAV,
+    PARAM_NAMES,
+    PARAM_ORDER,
+    MavlinkMissing,
+    Telemetry,
+    codec,
+    pack,
+    param_float,
+    param_raw,
+)
+from term.session.model import mode_name
+
+log = logging.getLogger("term.mavlink")
+DEFAULT_ADDRESS = "udp:127.0.0.1:14550"  # QGroundControl's and MAVProxy's listening port
+PERIOD_S = 1.0  # HEARTBEAT, SYS_STATUS, BATTERY_STATUS
+HEARD_S = 3.0  # a ground station heard within this is there (MAVLink's GCS heartbeat is 1 Hz)
+MANUAL_TIMEOUT_S = 0.5  # handed over and flying: no MANUAL_CONTROL this long is the ground station's link loss
+TCP_BACKLOG_MAX = 64 * 1024  # TCP bytes the socket did not take yet; whole messages beyond it are dropped
+LOG_DATA_BYTES = 90  # LOG_DATA's payload
+PARAM_LIST_WAIT_S = 3.0  # a list asked of the board: sent as far as it came after this
+STICK_FULL = 32767
+
+TERM, OFFERED, GCS = "term", "offered", "ground station"  # who flies (the handover's states)
+
+
+class MavlinkError(ValueError):
+    """The endpoint cannot start; the message is one line."""
+
+
+def parse_address(text: str, public: bool = False) -> tuple[str, str, int]:
+    """``[udp:|tcp:]HOST:PORT`` (or PORT alone: loopback) to (kind, host, port). MavlinkError (one line) if
+    malformed, or if HOST is not this machine and not ``public``."""
+    shown = repr(text[:40]) + (f"... ({len(text)} characters)" if len(text) > 40 else "")
+    kind, _, rest = text.partition(":") if text.split(":", 1)[0] in ("udp", "tcp") else ("udp", "", text)
+    host, sep, port_text = rest.rpartition(":")
+    host = host.strip("[]") if sep else "127.0.0.1"
+    try:
+        port = int(port_text)
+    except ValueError:
+        raise MavlinkError(f"--mavlink takes [udp:|tcp:]HOST:PORT, e.g. 127.0.0.1:14550; got {shown}") from None
+    if not 0 < port <= 65535 or not host:
+        raise MavlinkError(f"--mavlink: a host and a port 1..65535, e.g. udp:127.0.0.1:14550; got {shown}")
+    if not public and not _loopback(host):
+        raise MavlinkError(f"--mavlink {shown}: not this machine; the flight leaves it only with --mavlink-public")
+    return kind, host, port
+
+
+def _loopback(host: str) -> bool:
+    if host == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(host).is_loopback
+    except ValueError:
+        return False  # a name: it may be anywhere
+
+
+class MavlinkEndpoint:
+    """One ground station's link (module docstring)."""
+
+    thread_safe = True  # its link_packet never blocks: the link's thread calls it as packets are decoded
+
+    def __init__(self, address: str = DEFAULT_ADDRESS, *, t0: float | None = None, public: bool = False,
+                 clock: Callable[[], float] = time.monotonic) -> None:
+        self.kind, self.host, self.port = parse_address(address, public)
+        try:
+            self._mav = codec()
+            self._rx = codec()
+        except MavlinkMissing as exc:
+            raise MavlinkError(str(exc)) from None
+        self.clock = clock
+        self.t0 = clock() if t0 is None else t0
+        self._lock = threading.Lock()  # the codec's sequence and the socket's writes, from any thread
+        self._tele = Telemetry(self._mav)
+        self._sock: socket.socket | None = None
+        self._backlog = bytearray()  # TCP: what the socket did not take yet
+        self._wake_r, self._wake_w = socket.socketpair()
+        self._wake_r.setblocking(False)
+        self._wake_w.setblocking(False)
+        self._closed = False
+        self._thread: threading.Thread | None = None
+        # what the ground station did, and the board's parameters as heard (link thread and this one: dict ops)
+        self.gcs: tuple[int, int] | None = None  # its (system, component)
+        self.heard_at: float | None = None
+        self.manual_at: float | None = None  # its last MANUAL_CONTROL
+        self.params: dict[int, int] = {}  # Param -> raw
+        self._list_asked: float | None = None  # a PARAM_REQUEST_LIST waits for the board's list since then
+        # the display's side (attach)
+        self.station: Any = None
+        self._post: Callable[..., None] | None = None
+        self._start_download: Callable[[], None] | None = None
+        self.state = TERM
+        self._pending: dict[int, tuple[str, Any]] = {}  # cmd_id -> (what, detail): the answer the Ack brings
+        self._notsent: NotSent | None = None
+        self._sending = False
+        self._log: bytes | None = None  # the flash log downloaded and checked
+        self._log_key: tuple[int, int] | None = None  # its (used, crc32)
+        self._log_wanted: list[tuple[int, int]] = []  # LOG_REQUEST_DATA (offset, count) waiting for the bytes
+        self._download: Any = None
+        self._refused_manual_at = -1e9
+        # figures
+        self.sent: dict[str, int] = {}
+        self.received: dict[str, int] = {}
+        self.dropped = 0
+        self.errors = 0
+        self._open()
+
+    @property
+    def url(self) -> str:
+        host = f"[{self.host}]" if ":" in self.host else self.host
+        return f"{self.kind}:{host}:{self.port}"
+
+    # --- the socket -------------------------------------------------------------------------------------------
+
+    def _open(self) -> None:
+        try:
+            info = socket.getaddrinfo(self.host, self.port, type=socket.SOCK_DGRAM if self.kind == "udp"
+                                      else socket.SOCK_STREAM)[0]
+        except OSError as exc:
+            raise MavlinkError(f"--mavlink {self.host}: {exc.strerror or exc}") from None
+        self._family, self._addr = info[0], info[4]
+        if self.kind == "udp":
+            s = socket.socket(self._family, socket.SOCK_DGRAM)
+            s.setblocking(False)
+            try:
+                s.connect(self._addr)  # only this peer's datagrams are read
+            except OSError as exc:
+                s.close()
+                raise MavlinkError(f"--mavlink {self.url}: {exc.strerror or exc}") from None
+            self._sock = s
+
+    def _tcp_connect(self) -> None:
+        s = socket.socket(self._family, socket.SOCK_STREAM)
+        s.settimeout(1.0)
+        try:
+            s.connect(self._addr)
+        except OSError:
+            s.close()
+            return
+        s.setblocking(False)
+        s.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+        with self._lock:
+            self._backlog.clear()
+            self._sock = s
+        log.info("MAVLink: connected to %s", self.url)
+
+    def _write(self, data: bytes) -> bool:
+        """Under the lock. UDP: one datagram; TCP: what the socket takes now, the rest kept (bounded)."""
+        s = self._sock
+        if s is None:
+            return False
+        try:
+            if self.kind == "udp":
+                s.send(data)
+                return True
+            if self._backlog:
+                if len(self._backlog) + len(data) > TCP_BACKLOG_MAX:
+                    return False
+                self._backlog += data
+                self._wake()
+                return True
+            n = s.send(data)
+            if n < len(data):
+                self._backlog += data[n:]
+                self._wake()
+            return True
+        except BlockingIOError:
+            if self.kind == "tcp" and len(data) <= TCP_BACKLOG_MAX:
+                self._backlog += data
+                self._wake()
+                return True
+            return False
+        except ConnectionRefusedError:  # UDP: nobody listens there (yet)
+            return False
+        except OSError:
+            if self.kind == "tcp":
+                self._drop_tcp()
+            return False
+
+    def _drop_tcp(self) -> None:
+        s, self._sock = self._sock, None
+        if s is not None:
+            with contextlib.suppress(OSError):
+                s.close()
+
+    def _wake(self) -> None:
+        with contextlib.suppress(OSError):
+            self._wake_w.send(b"\0")
+
+    def send(self, msgs: list[Any]) -> None:
+        """Messages to the ground station, from any thread (never blocks)."""
+        if not msgs or self._closed:
+            return
+        with self._lock:
+            for msg in msgs:
+                try:
+                    ok = self._write(pack(self._mav, msg))
+                except Exception:  # a bad message costs itself
+                    self.errors += 1
+                    continue
+                name = msg.get_type()
+                if ok:
+                    self.sent[name] = self.sent.get(name, 0) + 1
+                else:
+                    self.dropped += 1
+
+    def text(self, severity: str, text: str) -> None:
+        """A line of term's own to the ground station as STATUSTEXT (``severity``: "error", "warning", "info")."""
+        d = self._tele.m
+        sev = {"error": d.MAV_SEVERITY_ERROR, "warning": d.MAV_SEVERITY_WARNING}.get(severity, d.MAV_SEVERITY_INFO)
+        with self._lock:
+            msgs = self._tele.text(sev, text)
+        self.send(msgs)
+
+    # --- life cycle -------------------------------------------------------------------------------------------
+
+    def start(self) -> None:
+        if self._thread is None:
+            self._thread = threading.Thread(target=self._run, name="term mavlink", daemon=True)
+            self._thread.start()
+
+    def attach(self, station: Any, post: Callable[..., None], start_download: Callable[[], None] | None = None) -> None:
+        """The display's side: the station (its guards, its model), ``post(fn, *args)`` running ``fn`` on the
+        display's loop, and the app's log download (F5's)."""
+        self.station = station
+        self._post = post
+        self._start_download = start_download
+        for link in station.links:
+            self._gate(link)
+
+    def close(self) -> None:
+        self._closed = True
+        self._wake()
+        if self._thread is not None and self._thread is not threading.current_thread():
+            self._thread.join(2.0)
+        with self._lock:
+            if self._sock is not None:
+                self._sock.close()
+                self._sock = None
+        for s in (self._wake_r, self._wake_w):
+            s.close()
+
+    def _run(self) -> None:
+        next_periodic = self.clock()
+        while not self._closed:
+            now = self.clock()
+            if self.kind == "tcp" and self._sock is None:
+                self._tcp_connect()
+                if self._sock is None:
+                    self._wait(1.0)
+                    continue
+            if now >= next_periodic:
+                next_periodic = max(next_periodic + PERIOD_S, now)
+                self._periodic(now)
+            self._timers(now)
+            s = self._sock
+            want_write = [s] if s is not None and self._backlog else []
+            try:
+                readable, writable, _ = select.select([r for r in (s, self._wake_r) if r is not None], want_write,
+                                                      [], max(0.0, min(next_periodic - now, 0.05)))
+            except (OSError, ValueError):
+                if self._closed:
+                    return
+                self._drop_tcp() if self.kind == "tcp" else self._wait(0.1)
+                continue
+            if self._wake_r in readable:
+                with contextlib.suppress(OSError):
+                    self._wake_r.recv(4096)
+            if s is not None and s in writable:
+                self._flush()
+            if s is not None and s in readable:
+                self._read(s)
+
+    def _wait(self, seconds: float) -> None:
+        with contextlib.suppress(OSError, ValueError):
+            select.select([self._wake_r], [], [], seconds)
+
+    def _flush(self) -> None:
+        with self._lock:
+            s = self._sock
+            if s is None or not self._backlog:
+                return
+            try:
+                n = s.send(self._backlog)
+                del self._backlog[:n]
+            except BlockingIOError:
+                pass
+            except OSError:
+                self._drop_tcp()
+
+    def _read(self, s: socket.socket) -> None:
+        try:
+            data = s.recv(65536)
+        except (BlockingIOError, ConnectionRefusedError):
+            return
+        except OSError:
+            if self.kind == "tcp":
+                with self._lock:
+                    self._drop_tcp()
+            return
+        if not data:
+            if self.kind == "tcp":
+                with self._lock:
+                    self._drop_tcp()
+            return
+        try:
+            msgs = self._rx.parse_buffer(data) or []
+        except Exception:  # garbage costs the buffer it came in
+            self.errors += 1
+            return
+        for msg in msgs:
+            try:
+                self._on_message(msg)
+            except Exception:  # one bad message costs itself, never the endpoint
+                self.errors += 1
+                log.exception("MAVLink: a %s from the ground station failed", msg.get_type())
+
+    def _periodic(self, now: float) -> None:
+        with self._lock:
+            msgs = self._tele.periodic()
+        self.send(msgs)
+
+    def _timers(self, now: float) -> None:
+        asked = self._list_asked
+        if asked is not None and (self._params_complete() or now - asked > PARAM_LIST_WAIT_S):
+            self._list_asked = None
+            self._send_param_list()
+        if self.state == GCS and self._post is not None and self._silent(now) and self.station is not None:
+            mode = self.station.model.mode
+            if mode is not None and mode not in FLIGHT_MODES:  # (in flight its silence is the board's failsafe's)
+                self._post(self.handback, f"the ground station went silent ({mode_name(mode)}): control is term's "
+                           "pilot's again; hand it over again from term")
+
+    # --- out: the board's packets, on the link's thread -------------------------------------------------------
+
+    def link_packet(self, link: str, pkt: Any) -> None:
+        if self._closed:
+            return
+        kind = type(pkt)
+        if kind is ParamValue:
+            self.params[pkt.param] = pkt.value
+            return
+        if kind is Event and pkt.code == EventCode.PARAM_CHANGED:
+            pid, raw = param_split(pkt.arg)
+            self._param_changed(pid, raw)
+        t = self.clock() - self.t0
+        try:
+            with self._lock:
+                msgs = self._tele.packet(pkt, t)
+        except Exception:  # one bad packet costs itself, never the link
+            self.errors += 1
+            return
+        self.send(msgs)
+
+    def _param_changed(self, pid: int, raw: int) -> None:
+        """The board's value changed (a key, F11, a set of ours): the ground station hears it (as ArduPilot's do)."""
+        self.params[pid] = raw
+        if pid in PARAM_NAMES and self.heard_at is not None:
+            self.send([self._param_value(pid)])
+
+    # --- in: the ground station's messages, on the endpoint's thread -----------------------------------------
+
+    def _on_message(self, msg: Any) -> None:
+        name = msg.get_type()
+        if name == "BAD_DATA":
+            return
+        self.received[name] = self.received.get(name, 0) + 1
+        now = self.clock()
+        self.heard_at = now
+        self.gcs = (msg.get_srcSystem(), msg.get_srcComponent())
+        target = getattr(msg, "target_system", None)
+        if target not in (None, 0, self._mav.srcSystem):
+            return  # for another vehicle
+        if name == "PARAM_REQUEST_LIST":
+            self._list_asked = now
+            if not self._params_complete():
+                self._to_display(self._ask_params)
+        elif name == "PARAM_REQUEST_READ":
+            self._param_read(msg)
+        elif name == "PARAM_SET":
+            self._param_set(msg)
+        elif name == "MANUAL_CONTROL":
+            self._manual(msg, now)
+        elif name in ("COMMAND_LONG", "SET_MODE", "LOG_REQUEST_LIST", "LOG_REQUEST_DATA", "LOG_REQUEST_END"):
+            self._to_display(getattr(self, "_on_" + name.lower()), msg)
+
+    def _to_display(self, fn: Callable[..., None], *args: Any) -> None:
+        if self._post is not None:
+            self._post(fn, *args)
+
+    # parameters
+
+    def _params_complete(self) -> bool:
+        return all(p in self.params for p in PARAM_ORDER)
+
+    def _param_value(self, pid: int) -> Any:
+        spec = PARAMS[Param(pid)]
+        raw = self.params.get(pid, spec.to_raw(spec.default))
+        return self._mav.param_value_encode(PARAM_NAMES[pid].encode(), param_float(spec, raw),
+                                            self._tele.m.MAV_PARAM_TYPE_REAL32, len(PARAM_ORDER),
+                                            PARAM_ORDER.index(pid))
+
+    def _send_param_list(self) -> None:
+        """Every parameter the board has said (all of them unless its list did not come: a ground station asks
+        the missing ones by index)."""
+        self.send([self._param_value(pid) for pid in PARAM_ORDER if pid in self.params])
+
+    def _param_read(self, msg: Any) -> None:
+        if msg.param_index >= 0:
+            if msg.param_index >= len(PARAM_ORDER):
+                return
+            pid = PARAM_ORDER[msg.param_index]
+        else:
+            spec = PARAM_BY_MAV.get(_name(msg.param_id))
+            if spec is None:
+                self.text("warning", f"no parameter {_name(msg.param_id)!r} on this board")
+                return
+            pid = int(spec.param)
+        if pid in self.params:
+            self.send([self._param_value(pid)])
+        else:
+            self._to_display(self._send_cmd, Op.PARAM_GET, pid, ("param", pid))
+
+    def _param_set(self, msg: Any) -> None:
+        name = _name(msg.param_id)
+        spec = PARAM_BY_MAV.get(name)
+        if spec is None:
+            self.text("error", f"no parameter {name!r} on this board")
+            return
+        pid = int(spec.param)
+        raw, why = param_raw(spec, float(msg.param_value))
+        if raw is None:
+            self._param_refused(pid, why)
+            return
+        self._to_display(self._send_cmd, Op.SET_PARAM, param_arg(spec.param, raw), ("param", pid))
+
+    def _param_refused(self, pid: int, why: str) -> None:
+        """A refused set: why (STATUSTEXT), then the value still in force (PARAM_VALUE)."""
+        self.text("error", f"{PARAM_NAMES[pid]} not set: {why}" if not why.startswith(PARAM_NAMES[pid]) else
+                  f"not set: {why}")
+        self.send([self._param_value(pid)])
+
+    # the sticks
+
+    def _manual(self, msg: Any, now: float) -> None:
+        if self.state == TERM:
+            if now - self._refused_manual_at > 1.0:  # said once a second, not for every message
+                self._refused_manual_at = now
+                self.text("warning", "MANUAL_CONTROL ignored: term's pilot has not handed control to this ground "
+                          "station")
+            return
+        self.manual_at = now
+        js = Joystick(_axis(msg.y), _axis(-msg.x), _axis(msg.r), _axis(max(0, msg.z)), 0)
+        self._to_display(self._fly, js)
+
+    # --- on the display's loop --------------------------------------------------------------------------------
+
+    def _fly(self, js: Joystick) -> None:
+        if self.state == TERM or self.station is None:
+            return
+        if self.state == OFFERED:
+            self.state = GCS
+            self.station.note("warning", "mavlink", f"the ground station at {self.url} flies now (its MANUAL_CONTROL); "
+                              "any command of yours takes control back")
+        self.station.set_stick(js)
+
+    def _ask_params(self) -> None:
+        self._send_cmd(Op.PARAM_LIST, 0, ("list", 0))
+
+    def _send_cmd(self, op: Op, arg: int, what: tuple[str, Any]) -> int | None:
+        """``Station.send`` (its guards, then the board's), the answer kept for the Ack; a refusal answered now."""
+        st = self.station
+        if st is None:
+            return None
+        self._sending, self._notsent = True, None
+        try:
+            cmd = st.send(op, arg)
+        finally:
+            self._sending = False
+        if cmd is None:
+            self._answer(what, False, self._notsent.why if self._notsent else "not sent", None, None)
+        else:
+            if what[0] == "list":
+                st.model.own.add(cmd)  # (term's own request: its failure is no error)
+            self._pending[cmd] = what
+        return cmd
+
+    def station_event(self, ev: Any) -> None:
+        """Every station event, on the display's loop: the Acks of our commands, refusals, the link statistics."""
+        kind = type(ev)
+        if kind is NotSent and self._sending:
+            self._notsent = ev
+        elif kind is StatsSample and ev.link == "cable":
+            with self._lock:
+                self._tele.stats(ev.stats.loss_pct, ev.stats.frames_bad)
+        elif kind is FromLink:
+            e = ev.event
+            if type(e) is PacketReceived:
+                if self._list_log_due and type(e.packet) is LogStatus:  # (it follows the Ack of LOG_STATUS)
+                    self._list_log_due = False
+                    self._send_log_entry(e.packet)
+            elif type(e) is CommandAcked or type(e) is CommandFailed:
+                what = self._pending.pop(e.cmd_id, None)
+                if what is not None:
+                    ok = type(e) is CommandAcked
+                    self._answer(what, ok, "" if ok else e.reason, e.value if ok else None,
+                                 None if ok else e.nak)
+
+    def _answer(self, what: tuple[str, Any], ok: bool, why: str, value: int | None, nak: Nak | None) -> None:
+        kind, detail = what
+        if kind == "param":
+            if ok and value is not None:
+                self.params[detail] = value
+                self.send([self._param_value(detail)])
+            elif not ok:
+                self._param_refused(detail, why)
+        elif kind == "command":
+            command, label = detail
+            d = self._tele.m
+            if not ok:
+                self.text("error", f"{label} refused: {why}")
+            result = d.MAV_RESULT_ACCEPTED if ok else (
+                d.MAV_RESULT_TEMPORARILY_REJECTED if nak is not None else d.MAV_RESULT_DENIED)
+            self.send([self._mav.command_ack_encode(command, result, 0, int(nak) if nak is not None else 0,
+                                                    *(self.gcs or (0, 0)))])
+        elif kind == "log":
+            self._log_status_answered(ok, why)
+
+    # commands
+
+    def _on_command_long(self, msg: Any) -> None:
+        d = self._tele.m
+        c = msg.command
+        if c == d.MAV_CMD_COMPONENT_ARM_DISARM:
+            arm = msg.param1 > 0.5
+            self._command(c, Op.MODE, Mode.MANUAL if arm else Mode.SAFE, "arm (MANUAL)" if arm else "disarm (SAFE)")
+        elif c == d.MAV_CMD_DO_SET_MODE:
+            self._set_mode(c, int(msg.param2))
+        elif c in (d.MAV_CMD_NAV_LAND, d.MAV_CMD_DO_FLIGHTTERMINATION):
+            self._command(c, Op.MODE, Mode.PANIC, "PANIC")
+        elif c in (d.MAV_CMD_REQUEST_MESSAGE, d.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES):
+            self._autopilot_version(msg)
+        else:
+            self.send([self._mav.command_ack_encode(c, d.MAV_RESULT_UNSUPPORTED, 0, 0, *(self.gcs or (0, 0)))])
+
+    def _on_set_mode(self, msg: Any) -> None:
+        self._set_mode(self._tele.m.MAV_CMD_DO_SET_MODE, int(msg.custom_mode))
+
+    def _set_mode(self, command: int, mode: int) -> None:
+        try:
+            m = Mode(mode)
+        except ValueError:
+            self.text("error", f"mode {mode}: the board's modes are 0..8 (docs/mavlink.md)")
+            self.send([self._mav.command_ack_encode(command, self._tele.m.MAV_RESULT_DENIED, 0, 0,
+                                                    *(self.gcs or (0, 0)))])
+            return
+        self._command(command, Op.MODE, m, f"mode {m.name}")
+
+    def _command(self, command: int, op: Op, arg: int, label: str) -> None:
+        """A flight command: SAFE and PANIC always (stopping is never refused here); the rest only when handed over."""
+        d = self._tele.m
+        if op == Op.MODE and arg not in (Mode.SAFE, Mode.PANIC) and self.state == TERM:
+            why = "term's pilot has not handed control to the ground station (palette: MAVLink: hand control)"
+            self.text("error", f"{label} refused: {why}")
+            self.send([self._mav.command_ack_encode(command, d.MAV_RESULT_DENIED, 0, 0, *(self.gcs or (0, 0)))])
+            return
+        self._send_cmd(op, arg, ("command", (command, label)))
+
+    def _autopilot_version(self, msg: Any) -> None:
+        d = self._tele.m
+        c = msg.command
+        wanted = int(msg.param1) if c == d.MAV_CMD_REQUEST_MESSAGE else d.MAVLINK_MSG_ID_AUTOPILOT_VERSION
+        if wanted != d.MAVLINK_MSG_ID_AUTOPILOT_VERSION:
+            self.send([self._mav.command_ack_encode(c, d.MAV_RESULT_UNSUPPORTED, 0, 0, *(self.gcs or (0, 0)))])
+            return
+        caps = d.MAV_PROTOCOL_CAPABILITY_PARAM_FLOAT | d.MAV_PROTOCOL_CAPABILITY_MAVLINK2
+        self.send([self._mav.command_ack_encode(c, d.MAV_RESULT_ACCEPTED, 0, 0, *(self.gcs or (0, 0))),
+                   self._mav.autopilot_version_encode(caps, 0, 0, 0, 0, bytes(8), bytes(8), bytes(8), 0, 0, 0)])
+
+    # the handover
+
+    def handover(self) -> str | None:
+        """The pilot offers control to the ground station; the reason it cannot be, or None."""
+        st = self.station
+        if st is None:
+            return "not attached"
+        if self.state != TERM:
+            return f"already handed over ({self.state})"
+        if st.model.mode not in (Mode.SAFE, None):
+            return "only in SAFE, as the BLE handover"
+        heard = self.heard_at
+        if heard is None or self.clock() - heard > HEARD_S:
+            return f"no ground station heard at {self.url}: start it (QGroundControl, mavproxy.py) first"
+        self.state = OFFERED
+        self.manual_at = None
+        st.note("info", "mavlink", f"control offered to the ground station at {self.url}: its MANUAL_CONTROL takes it")
+        self.text("warning", "term's pilot handed control to this ground station: MANUAL_CONTROL flies")
+        return None
+
+    def handback(self, why: str = "term's pilot took control back") -> None:
+        if self.state == TERM:
+            return
+        self.state = TERM
+        if self.station is not None:
+            self.station.note("warning", "mavlink", why)
+        self.text("warning", why)
+
+    def pilot_command(self) -> None:
+        """A pilot's own command in term: control is term's again (before the command goes)."""
+        if self.state != TERM:
+            self.handback()
+
+    def _silent(self, now: float) -> bool:
+        """Handed over, flying, and no MANUAL_CONTROL for MANUAL_TIMEOUT_S: the ground station's link is lost."""
+        if self.state != GCS:
+            return False
+        at = self.manual_at
+        return at is None or now - at > MANUAL_TIMEOUT_S
+
+    def _gate(self, link: Any) -> None:
+        """Wrap ``link``'s connection gate (and each new one's: checked at every tick): while the ground station
+        that flies is silent, nothing goes to the board, whose failsafe then acts as for any lost link."""
+        conn = link.connection
+        if conn is None or getattr(conn.gate, "mavlink", False):
+            return
+        inner = conn.gate
+
+        def gate() -> bool:
+            if self._silent(self.clock()) and self.station is not None and self.station.model.flying:
+                return False
+            return inner is None or inner()
+
+        gate.mavlink = True  # type: ignore[attr-defined]
+        conn.gate = gate
+
+    # the log protocol
+
+    def _on_log_request_list(self, msg: Any) -> None:
+        self._send_cmd(Op.LOG_STATUS, 0, ("log", None))
+
+    def _log_status_answered(self, ok: bool, why: str) -> None:
+        """The board's LogStatus follows the Ack of LOG_STATUS: the log list when it is here (``tick``)."""
+        if not ok:
+            self.text("error", f"log list: {why}")
+            return
+        self._list_log_due = True
+
+    def _send_log_entry(self, ls: LogStatus) -> None:
+        if ls.used == 0:
+            entry = self._mav.log_entry_encode(0, 0, 0, 0, 0)
+        else:
+            entry = self._mav.log_entry_encode(1, 1, 1, 0, ls.used)
+        self.send([entry])
+
+    def _on_log_request_data(self, msg: Any) -> None:
+        if msg.id != 1:
+            self.text("error", f"log {msg.id}: the board has one log, number 1")
+            return
+        self._log_wanted.append((int(msg.ofs), int(msg.count)))
+        self._serve_log()
+
+    def _on_log_request_end(self, msg: Any) -> None:
+        self._log_wanted.clear()
+
+    def _serve_log(self) -> None:
+        """The waiting LOG_REQUEST_DATA from the checked download, or a download started (F5's)."""
+        if not self._log_wanted:
+            return
+        st = self.station
+        ls = st.model.log_status if st is not None else None
+        key = None if ls is None else (ls.used, ls.crc32)
+        if self._log is None or (key is not None and key != self._log_key):
+            if self._download is None and st is not None and self._start_download is not None:
+                if st.model.download is None:
+                    self._start_download()
+                self._download = st.model.download
+                if self._download is not None:
+                    self.text("info", "downloading the board's flash log (as F5 does): LOG_DATA follows")
+            return
+        data = self._log
+        out = []
+        for ofs, count in self._log_wanted:
+            end = min(len(data), ofs + count)
+            pos = ofs
+            while pos < end or (pos == ofs and ofs >= len(data)):
+                chunk = data[pos:min(end, pos + LOG_DATA_BYTES)]
+                out.append(self._mav.log_data_encode(1, pos, len(chunk), chunk.ljust(LOG_DATA_BYTES, b"\0")))
+                pos += LOG_DATA_BYTES
+                if not chunk:
+                    break
+        self._log_wanted.clear()
+        self.send(out)
+
+    _list_log_due = False
+
+    def tick(self, now: float) -> None:
+        """The render tick (the display's loop): new connections gated, the log list and data served."""
+        st = self.station
+        if st is None:
+            return
+        for link in st.links:
+            self._gate(link)
+        d = self._download
+        if d is not None and getattr(d, "state", "running") != "running":
+            self._download = None
+            if d.state == "done":
+                self._log, self._log_key = d.data(), (d.used, d.crc32)
+                self._serve_log()
+            else:
+                self._log_wanted.clear()
+                self.text("error", f"log download: {d.reason}")
+
+
+def _name(raw: Any) -> str:
+    """A param_id as text (pymavlink gives str or bytes, NUL-padded)."""
+    if isinstance(raw, bytes):
+        raw = raw.decode("ascii", "replace")
+    return str(raw).split("\0", 1)[0]
+
+
+def _axis(v: float) -> int:
+    """MANUAL_CONTROL's -1000..1000 as the stick's -32767..32767."""
+    return max(-STICK_FULL, min(STICK_FULL, round(float(v) * STICK_FULL / 1000)))
