@@ -162,6 +162,7 @@ class MavlinkEndpoint:
         self._log_wanted: list[tuple[int, int]] = []  # LOG_REQUEST_DATA (offset, count) waiting for the bytes
         self._download: Any = None
         self._refused_manual_at = -1e9
+        self._gated = False  # the ground station's silence held term's writes back in this handover
         # figures
         self.sent: dict[str, int] = {}
         self.received: dict[str, int] = {}
@@ -389,9 +390,12 @@ class MavlinkEndpoint:
         if asked is not None and (self._params_complete() or now - asked > PARAM_LIST_WAIT_S):
             self._list_asked = None
             self._send_param_list()
-        if self.state == GCS and self._post is not None and self._silent(now) and self.station is not None:
+        if self.state == GCS and self._post is not None and self.station is not None:
             mode = self.station.model.mode
-            if mode is not None and mode not in FLIGHT_MODES:  # (in flight its silence is the board's failsafe's)
+            # In flight its silence is the board's failsafe's to handle (the gate); once that has landed it, or
+            # when it is silent on the ground for HEARD_S, the handover is over (as a lost BLE phone's).
+            gone = self._gated or self.heard_at is None or now - self.heard_at > HEARD_S
+            if gone and mode is not None and mode not in FLIGHT_MODES:
                 self._post(self.handback, f"the ground station went silent ({mode_name(mode)}): control is term's "
                            "pilot's again; hand it over again from term")
 
@@ -657,6 +661,7 @@ class MavlinkEndpoint:
             return f"no ground station heard at {self.url}: start it (QGroundControl, mavproxy.py) first"
         self.state = OFFERED
         self.manual_at = None
+        self._gated = False
         st.note("info", "mavlink", f"control offered to the ground station at {self.url}: its MANUAL_CONTROL takes it")
         self.text("warning", "term's pilot handed control to this ground station: MANUAL_CONTROL flies")
         return None
@@ -665,6 +670,7 @@ class MavlinkEndpoint:
         if self.state == TERM:
             return
         self.state = TERM
+        self._gated = False
         if self.station is not None:
             self.station.note("warning", "mavlink", why)
         self.text("warning", why)
@@ -691,6 +697,7 @@ class MavlinkEndpoint:
 
         def gate() -> bool:
             if self._silent(self.clock()) and self.station is not None and self.station.model.flying:
+                self._gated = True
                 return False
             return inner is None or inner()
 

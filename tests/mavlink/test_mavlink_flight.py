@@ -64,6 +64,15 @@ class Flight:
     def manual(self, x: int = 0, y: int = 0, z: int = 0, r: int = 0) -> None:
         self.gcs.mav.manual_control_send(1, x, y, z, r, 0)
 
+    async def stream(self) -> None:
+        """MANUAL_CONTROL at 20 Hz with ``self.stick`` (x, y, z, r), as a ground station with a joystick sends it,
+        until ``self.stick`` is None."""
+        while self.stick is not None:
+            self.manual(*self.stick)
+            await asyncio.sleep(0.05)
+
+    stick: tuple[int, int, int, int] | None = None
+
 
 @contextlib.asynccontextmanager
 async def flight(tmp_path: Path, seed: int = 5) -> AsyncIterator[Flight]:
@@ -151,45 +160,50 @@ async def test_commands_and_the_sticks_only_after_the_handover(tmp_path: Path) -
         gcs.heartbeat()
         app.mavlink_handover()
         await f.wait(lambda: ep.state == "offered")
-        f.manual(z=0)
+        f.stick = (0, 0, 0, 0)
+        streaming = asyncio.create_task(f.stream())
         await f.wait(lambda: ep.state == "ground station", what="the ground station to take control")
         # FULL needs a calibration first: the board's own refusal, its Nak in result_param2 and its text.
         ack = await f.command(d.MAV_CMD_DO_SET_MODE, 1, Mode.FULL)
         assert ack.result == d.MAV_RESULT_TEMPORARILY_REJECTED and ack.result_param2 == 3  # Nak.NOT_CALIBRATED
         assert any("not calibrated" in t for t in gcs.texts()), gcs.texts()
         # Arming with the lift up: term's own guard refuses, as it would the pilot's key.
-        f.manual(z=400)
+        f.stick = (0, 0, 400, 0)
         await f.wait(lambda: model.stick.lift > 10000)
         ack = await f.command(d.MAV_CMD_COMPONENT_ARM_DISARM, 1)
-        assert ack.result == d.MAV_RESULT_DENIED and any("lift" in t for t in gcs.texts())
+        assert ack.result == d.MAV_RESULT_DENIED and any("throttle is up" in t for t in gcs.texts())
         # Lift at zero: armed (MANUAL); the heartbeat says so.
-        f.manual(z=0)
+        f.stick = (0, 0, 0, 0)
         await f.wait(lambda: model.stick.lift == 0)
         ack = await f.command(d.MAV_CMD_COMPONENT_ARM_DISARM, 1)
         assert ack.result == d.MAV_RESULT_ACCEPTED
         await f.wait(lambda: model.mode == Mode.MANUAL and gcs.last("HEARTBEAT").custom_mode == Mode.MANUAL
                      and gcs.last("HEARTBEAT").base_mode & 128, what="armed in MANUAL")
-        # Fly on the ground station's stick: up, a little roll. Attitude and height against the simulator's truth.
-        t_end = time.monotonic() + 2.5
-        while time.monotonic() < t_end:
-            f.manual(y=60, z=560)
-            await f.pilot.pause(0.05)
+        # Out of SAFE a SAFE-only parameter is refused by the board: why, and the old value.
+        got = await f.param_set("EST_ATTITUDE", 0.0)
+        assert got.param_value == float(model.param_raw[Param.ATTITUDE_FILTER]) != 0.0
+        assert any("EST_ATTITUDE not set" in t and "SAFE" in t for t in gcs.texts()), gcs.texts()
+        # Fly on the ground station's stick: up. Attitude and height against the simulator's truth.
+        f.stick = (0, 0, 530, 0)  # (a gentle climb: the room has a ceiling)
+        await f.wait(lambda: f.instructor.truth is not None and f.instructor.truth.h > 0.3, what="a climb")
+        f.stick = (0, 0, 480, 0)
+        await f.pilot.pause(0.3)
         truth = f.instructor.truth
         att, alt = gcs.last("ATTITUDE"), gcs.last("ALTITUDE")
-        assert truth is not None and truth.h > 0.1, truth
+        assert truth is not None and truth.h > 0.1 and model.mode == Mode.MANUAL and not truth.crashes, (
+            truth, model.mode)
         assert math.degrees(att.roll) == pytest.approx(math.degrees(truth.phi), abs=3.0)
         assert math.degrees(att.pitch) == pytest.approx(math.degrees(truth.theta), abs=3.0)
         assert alt.altitude_relative == pytest.approx(truth.h, abs=0.3)
         assert gcs.last("VFR_HUD").alt == pytest.approx(truth.h, abs=0.3)
         servo = gcs.last("SERVO_OUTPUT_RAW")
         assert all(1200 < getattr(servo, f"servo{i}_raw") < 2000 for i in range(1, 5))
-        # In flight a SAFE-only parameter is refused by the board: why, and the old value.
-        got = await f.param_set("EST_ATTITUDE", 0.0)
-        assert got.param_value == float(model.param_raw[Param.ATTITUDE_FILTER]) != 0.0
-        assert any("EST_ATTITUDE not set" in t and "SAFE" in t for t in gcs.texts()), gcs.texts()
+        f.stick = None
+        await streaming
         # The ground station goes silent: term stops feeding the board, whose failsafe holds level, then PANICs;
         # the handover ends and control is term's again.
-        await f.wait(lambda: any("LINK LOST" in t for t in gcs.texts()), what="the board's LINK LOST", timeout=10)
+        await f.wait(lambda: any("LINK LOST" in t for t in gcs.texts()), timeout=10,
+                     what=f"the board's LINK LOST {[e.text for e in model.events][-8:]} {gcs.texts()[-5:]} {ep.state}")
         await f.wait(lambda: model.mode in (Mode.PANIC, Mode.SAFE) and ep.state == "term", timeout=15,
                      what="PANIC and the handback")
         assert any("went silent" in e.text for e in model.events)

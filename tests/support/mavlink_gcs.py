@@ -51,7 +51,15 @@ class Gcs:
         return found[-1] if found else None
 
     def texts(self) -> list[str]:
-        return [m.text for m in self.seen("STATUSTEXT")]
+        """The STATUSTEXT lines, chunks (MAVLink 2: same id, chunk_seq in order) joined."""
+        out: list[str] = []
+        parts: dict[int, list[str]] = {}
+        for m in self.seen("STATUSTEXT"):
+            if not getattr(m, "id", 0):
+                out.append(m.text)
+            else:
+                parts.setdefault(m.id, []).append(m.text)
+        return out + ["".join(p) for p in parts.values()]
 
     def heartbeat(self) -> None:
         m = self.mav
