@@ -170,7 +170,8 @@ def _export(p: argparse.ArgumentParser) -> None:
     p.add_argument("source", nargs="?", type=Path, help="a session recording (.mcap) or a flash-log CSV")
     p.add_argument("--latest", action="store_true", help="the newest session recording (instead of a file)")
     p.add_argument("-o", "--output", type=Path, required=True, help="file to write (.mcap or .csv)")
-    p.add_argument("-f", "--format", choices=("mcap", "csv"), default=None, help="default: from the output's suffix")
+    p.add_argument("-f", "--format", choices=("mcap", "csv", "tlog"), default=None, help="default: from the output's "
+                   "suffix (tlog: a MAVLink telemetry log, needs the 'mavlink' extra; docs/mavlink.md)")
     p.add_argument("--board-units", action="store_true", help="CSV in the board's units (raw field values)")
     p.add_argument("--raw", action="store_true", help="MCAP: the link's raw bytes and the station's records too "
                    "(channels in the quadrupel-frames encoding other readers skip; 'term replay' plays the file)")

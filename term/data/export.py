@@ -198,6 +198,10 @@ def export(src: Path, out: Path, fmt: str | None = None, board_units: bool = Fal
     ``raw``: MCAP keeps the link bytes and the station's records too (it replays); ``progress`` is told how far;
     ``library``: the MCAP writer, "sdk", "mcap" or "auto" (the SDK's if installed)."""
     fmt = fmt or out.suffix.lstrip(".").lower()
+    if fmt == "tlog":  # a MAVLink telemetry log (term/data/tlog.py; helper mavlink)
+        from term.data.tlog import export_tlog
+
+        return export_tlog(src, out, progress, board_units=board_units, raw=raw)
     if fmt not in FORMATS:
         raise ExportError(f"unknown format {fmt!r}: use -f mcap or -f csv (or an -o ending in .mcap or .csv)")
     if board_units and fmt != "csv":

@@ -202,7 +202,7 @@ class Telemetry:
         if t < due:
             return False
         period = 1.0 / RATE_HZ[name]
-        self._due[name] = max(due + period, t - period / 2)  # (a steady rate, no burst after a pause)
+        self._due[name] = max(due, t - period / 2) + period  # (half a period of jitter let through, no burst)
         return True
 
     def packet(self, pkt: Any, t: float) -> list[Any]:
