@@ -84,6 +84,7 @@ TCP_BACKLOG_MAX = 64 * 1024  # TCP bytes the socket did not take yet; whole mess
 LOG_DATA_BYTES = 90  # LOG_DATA's payload
 PARAM_LIST_WAIT_S = 3.0  # a list asked of the board: sent as far as it came after this
 STICK_FULL = 32767
+FTP_NAK, FTP_UNKNOWN = 129, 7  # MAVLink FTP: opcode Nack, error UnknownCommand
 
 TERM, OFFERED, GCS = "term", "offered", "ground station"  # who flies (the handover's states)
 
@@ -434,8 +435,12 @@ class MavlinkEndpoint:
             return
         self.received[name] = self.received.get(name, 0) + 1
         now = self.clock()
+        new = self.heard_at is None or now - self.heard_at > HEARD_S
         self.heard_at = now
         self.gcs = (msg.get_srcSystem(), msg.get_srcComponent())
+        if new:  # a ground station names a quadrotor's custom modes from its own table (ArduCopter's): ours
+            self.text("info", "Quadrupel: custom mode = the board's mode: " + ", ".join(
+                f"{m.value} {m.name}" for m in Mode if m != Mode.WIRELESS) + f"; now {mode_name(self._tele.mode)}")
         target = getattr(msg, "target_system", None)
         if target not in (None, 0, self._mav.srcSystem):
             return  # for another vehicle
@@ -449,6 +454,8 @@ class MavlinkEndpoint:
             self._param_set(msg)
         elif name == "MANUAL_CONTROL":
             self._manual(msg, now)
+        elif name == "FILE_TRANSFER_PROTOCOL":
+            self._ftp_nak(msg)
         elif name in ("COMMAND_LONG", "SET_MODE", "LOG_REQUEST_LIST", "LOG_REQUEST_DATA", "LOG_REQUEST_END"):
             self._to_display(getattr(self, "_on_" + name.lower()), msg)
 
@@ -507,6 +514,16 @@ class MavlinkEndpoint:
         self.text("error", f"{PARAM_NAMES[pid]} not set: {why}" if not why.startswith(PARAM_NAMES[pid]) else
                   f"not set: {why}")
         self.send([self._param_value(pid)])
+
+    def _ftp_nak(self, msg: Any) -> None:
+        """No file server here: every MAVLink FTP request is answered NAK UnknownCommand at once, so a ground
+        station that tries FTP first (MAVProxy's parameter fetch) falls back to the parameter protocol at once."""
+        p = bytes(msg.payload)
+        if len(p) < 12:
+            return
+        seq = (int.from_bytes(p[0:2], "little") + 1) & 0xFFFF
+        reply = seq.to_bytes(2, "little") + bytes([p[2], FTP_NAK, 1, p[3], 0, 0]) + bytes(4) + bytes([FTP_UNKNOWN])
+        self.send([self._mav.file_transfer_protocol_encode(0, *(self.gcs or (0, 0)), reply.ljust(251, b"\0"))])
 
     # the sticks
 

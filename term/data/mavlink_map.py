@@ -284,7 +284,7 @@ class Telemetry:
         sensors = (d.MAV_SYS_STATUS_SENSOR_3D_GYRO | d.MAV_SYS_STATUS_SENSOR_3D_ACCEL
                    | d.MAV_SYS_STATUS_SENSOR_ABSOLUTE_PRESSURE | d.MAV_SYS_STATUS_SENSOR_MOTOR_OUTPUTS
                    | d.MAV_SYS_STATUS_SENSOR_BATTERY)
-        health = sensors
+        health = sensors | d.MAV_SYS_STATUS_GEOFENCE  # (no fence: healthy, as ArduPilot says; MAVProxy's "breach")
         if self.flags & Flag.LOW_BATTERY:
             health &= ~d.MAV_SYS_STATUS_SENSOR_BATTERY
         volts_mv = 0xFFFF if self.battery is None else self.battery * 10

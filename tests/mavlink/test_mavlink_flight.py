@@ -75,7 +75,9 @@ class Flight:
 
 
 @contextlib.asynccontextmanager
-async def flight(tmp_path: Path, seed: int = 5) -> AsyncIterator[Flight]:
+async def flight(tmp_path: Path, seed: int = 5, address: str | None = None) -> AsyncIterator[Flight]:
+    """``term --sim --mavlink`` in the test: pymavlink's ground station (tests/support/mavlink_gcs.py) listening,
+    or, with ``address``, whatever listens there."""
     from term.data.mavlink import MavlinkEndpoint
     from term.lessons.instructor import InstructorClient
     from term.session.sim import SimBoard
@@ -85,7 +87,7 @@ async def flight(tmp_path: Path, seed: int = 5) -> AsyncIterator[Flight]:
     sim = SimBoard(seed=seed, radio=False, instructor=True)
     port = sim.start()
     gcs = Gcs()
-    endpoint = MavlinkEndpoint(gcs.address, t0=time.monotonic())
+    endpoint = MavlinkEndpoint(address or gcs.address, t0=time.monotonic())
     try:
         instructor = InstructorClient(sim.instructor_address)
         await instructor.open()
@@ -95,7 +97,8 @@ async def flight(tmp_path: Path, seed: int = 5) -> AsyncIterator[Flight]:
             f = Flight(app, pilot, gcs, endpoint, instructor)
             await f.wait(lambda: app.model.mode == Mode.SAFE and len(app.model.param_raw) == len(PARAMS),
                          what="the board's Hello and its parameters")
-            gcs.heartbeat()
+            if address is None:
+                gcs.heartbeat()
             yield f
             app.exit()
         await instructor.close()
@@ -228,3 +231,55 @@ async def test_the_flash_log_is_listed_and_downloaded_byte_for_byte(tmp_path: Pa
         data = b"".join(parts[o] for o in sorted(parts))
         assert len(data) == entry.size
         assert zlib.crc32(data) == model.log_status.crc32  # the board's own CRC-32 of its flash
+
+
+def _free_udp_port() -> int:
+    import socket
+
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+async def test_mavproxy_lists_the_parameters_and_shows_the_mode(tmp_path: Path) -> None:
+    """MAVProxy, a ground station nobody here wrote (pip install MAVProxy), fed its commands on stdin as a user
+    types them: the board's 23 parameters with their values, and the HEARTBEAT's custom mode (the board's mode;
+    MAVProxy names a quadrotor's custom modes from ArduCopter's table, docs/mavlink.md)."""
+    import shutil
+    import sys
+
+    exe = shutil.which("mavproxy.py") or str(Path(sys.executable).with_name("mavproxy.py"))
+    if not Path(exe).exists():
+        pytest.skip("MAVProxy is not installed (pip install MAVProxy)")
+    port = _free_udp_port()
+    async with flight(tmp_path, seed=8, address=f"udp:127.0.0.1:{port}") as f:
+        proc = await asyncio.create_subprocess_exec(
+            sys.executable, exe, f"--master=udpin:127.0.0.1:{port}", "--cmd=param fetch", cwd=tmp_path,
+            stdin=asyncio.subprocess.PIPE, stdout=asyncio.subprocess.PIPE, stderr=asyncio.subprocess.STDOUT)
+        lines: list[str] = []
+
+        async def read() -> None:
+            assert proc.stdout is not None
+            while line := await proc.stdout.readline():
+                lines.append(line.decode("utf-8", "replace"))
+
+        reader = asyncio.create_task(read())
+        try:
+            await f.wait(lambda: any("Received 23 parameters" in ln for ln in lines), timeout=60,
+                         what=f"MAVProxy's parameter list: {lines[-5:]}")
+            assert proc.stdin is not None
+            proc.stdin.write(b"param show *\nstatus HEARTBEAT\n")
+            await proc.stdin.drain()
+            await f.wait(lambda: any("custom_mode" in ln for ln in lines), timeout=20, what="MAVProxy's status")
+        finally:
+            proc.kill()
+            await proc.wait()
+            reader.cancel()
+        text = "".join(lines)
+        model = f.app.model
+        for pid, name in PARAM_NAMES.items():
+            spec = PARAMS[Param(pid)]
+            shown = next(ln for ln in text.splitlines() if ln.startswith(name + " ") or ln.endswith("> " + name)
+                         or f" {name} " in f" {ln} ")
+            assert float(shown.split()[-1]) == pytest.approx(param_float(spec, model.param_raw[pid]), rel=1e-6)
+        assert "type : 2" in text and f"custom_mode : {int(Mode.SAFE)}" in text
