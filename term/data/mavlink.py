@@ -4,17 +4,15 @@ docs/mavlink.md and term/data/mavlink_map.py.
 
 Contract:
 
-- ``MavlinkEndpoint(address, t0=, public=)`` opens the socket: UDP (default) sends to HOST:PORT from a port of its
-  own and, the socket being connected, reads only what that peer sends (QGroundControl listens on 14550); TCP
-  connects to a ground station listening there and connects again every second while it is gone. HOST must be
-  this machine (loopback) unless ``public``. ``MavlinkError`` (one line) if the address is bad or the extra missing.
+- ``MavlinkEndpoint(address, t0=, public=)`` opens the socket (term/data/mavlink_socket.py: UDP to HOST:PORT,
+  reading only that peer, or TCP to a ground station listening there; loopback unless ``public``; QGroundControl
+  listens on 14550). ``MavlinkError`` (one line) if the address is bad or the extra missing. ``start()`` starts
+  the socket's thread (``term mavlink``), ``attach`` joins the display's side, ``close()`` ends it all.
 - Out, on the link's thread (``link_packet``: the station's ``on_packet``, as the Foxglove server is fed): each
   board packet becomes its messages at once (ATTITUDE with every Attitude; height, pressure, motors at capped
-  rates), written to the socket without a hop through another thread (UDP datagrams never block; TCP writes
-  what the socket takes and keeps a bounded rest for the endpoint's thread, dropping whole messages beyond it).
-  The endpoint's own thread (``term mavlink``) sends HEARTBEAT, SYS_STATUS and BATTERY_STATUS once a second and
-  reads the ground station's messages. Nothing here can stall the link: a slow or absent ground station costs
-  messages (``dropped``), never the flight.
+  rates), written to the socket without a hop through another thread (its writes never block). The socket's
+  thread sends HEARTBEAT, SYS_STATUS and BATTERY_STATUS once a second and reads the ground station's messages.
+  Nothing here can stall the link: a slow or absent ground station costs messages (``dropped``), never the flight.
 - In: parameter reads are answered on the endpoint's thread from the board's values as heard (``ParamValue``,
   ``PARAM_CHANGED``, the Acks). Everything that acts (PARAM_SET, COMMAND_LONG, SET_MODE, MANUAL_CONTROL, the log
   requests) is carried to the display's loop (``attach``'s ``post``) and goes through ``Station.send`` /
@@ -30,16 +28,14 @@ Contract:
 - The log protocol: LOG_REQUEST_LIST asks the board's LogStatus and lists its flash log as log 1; LOG_REQUEST_DATA
   downloads it as F5 does (``start_download``: the app's download, its retries, its CSV) and serves the bytes
   in 90-byte LOG_DATA from the download once it is complete and matches the board's CRC-32.
-- ``tick(now)`` (the render tick) runs the download's serving; ``close()`` stops the thread and the socket.
+- ``tick(now)`` (the render tick) gates new connections and serves a finished download. A flood from the ground
+  station costs its own messages: at most ``DISPLAY_QUEUE_MAX`` of its requests wait on the display, MANUAL_CONTROL
+  is latest-wins (one call waiting with the newest stick).
 """
 
 from __future__ import annotations
 
-import contextlib
-import ipaddress
 import logging
-import select
-import socket
 import threading
 import time
 from collections.abc import Callable
@@ -73,6 +69,7 @@ from term.data.mavlink_map import (
     param_float,
     param_raw,
 )
+from term.data.mavlink_socket import GroundSocket, MavlinkError, parse_address
 from term.session.model import mode_name
 
 log = logging.getLogger("term.mavlink")
@@ -80,44 +77,13 @@ DEFAULT_ADDRESS = "udp:127.0.0.1:14550"  # QGroundControl's and MAVProxy's liste
 PERIOD_S = 1.0  # HEARTBEAT, SYS_STATUS, BATTERY_STATUS
 HEARD_S = 3.0  # a ground station heard within this is there (MAVLink's GCS heartbeat is 1 Hz)
 MANUAL_TIMEOUT_S = 0.5  # handed over and flying: no MANUAL_CONTROL this long is the ground station's link loss
-TCP_BACKLOG_MAX = 64 * 1024  # TCP bytes the socket did not take yet; whole messages beyond it are dropped
 LOG_DATA_BYTES = 90  # LOG_DATA's payload
 PARAM_LIST_WAIT_S = 3.0  # a list asked of the board: sent as far as it came after this
 STICK_FULL = 32767
 FTP_NAK, FTP_UNKNOWN = 129, 7  # MAVLink FTP: opcode Nack, error UnknownCommand
+DISPLAY_QUEUE_MAX = 64  # the ground station's requests waiting on the display's loop at once
 
 TERM, OFFERED, GCS = "term", "offered", "ground station"  # who flies (the handover's states)
-
-
-class MavlinkError(ValueError):
-    """The endpoint cannot start; the message is one line."""
-
-
-def parse_address(text: str, public: bool = False) -> tuple[str, str, int]:
-    """``[udp:|tcp:]HOST:PORT`` (or PORT alone: loopback) to (kind, host, port). MavlinkError (one line) if
-    malformed, or if HOST is not this machine and not ``public``."""
-    shown = repr(text[:40]) + (f"... ({len(text)} characters)" if len(text) > 40 else "")
-    kind, _, rest = text.partition(":") if text.split(":", 1)[0] in ("udp", "tcp") else ("udp", "", text)
-    host, sep, port_text = rest.rpartition(":")
-    host = host.strip("[]") if sep else "127.0.0.1"
-    try:
-        port = int(port_text)
-    except ValueError:
-        raise MavlinkError(f"--mavlink takes [udp:|tcp:]HOST:PORT, e.g. 127.0.0.1:14550; got {shown}") from None
-    if not 0 < port <= 65535 or not host:
-        raise MavlinkError(f"--mavlink: a host and a port 1..65535, e.g. udp:127.0.0.1:14550; got {shown}")
-    if not public and not _loopback(host):
-        raise MavlinkError(f"--mavlink {shown}: not this machine; the flight leaves it only with --mavlink-public")
-    return kind, host, port
-
-
-def _loopback(host: str) -> bool:
-    if host == "localhost":
-        return True
-    try:
-        return ipaddress.ip_address(host).is_loopback
-    except ValueError:
-        return False  # a name: it may be anywhere
 
 
 class MavlinkEndpoint:
@@ -127,7 +93,7 @@ class MavlinkEndpoint:
 
     def __init__(self, address: str = DEFAULT_ADDRESS, *, t0: float | None = None, public: bool = False,
                  clock: Callable[[], float] = time.monotonic) -> None:
-        self.kind, self.host, self.port = parse_address(address, public)
+        kind, host, port = parse_address(address, public)
         try:
             self._mav = codec()
             self._rx = codec()
@@ -135,15 +101,11 @@ class MavlinkEndpoint:
             raise MavlinkError(str(exc)) from None
         self.clock = clock
         self.t0 = clock() if t0 is None else t0
-        self._lock = threading.Lock()  # the codec's sequence and the socket's writes, from any thread
+        self._lock = threading.Lock()  # the codec's sequence and the telemetry's state, from any thread
         self._tele = Telemetry(self._mav)
-        self._sock: socket.socket | None = None
-        self._backlog = bytearray()  # TCP: what the socket did not take yet
-        self._wake_r, self._wake_w = socket.socketpair()
-        self._wake_r.setblocking(False)
-        self._wake_w.setblocking(False)
+        self.socket = GroundSocket(kind, host, port, clock)
         self._closed = False
-        self._thread: threading.Thread | None = None
+        self._next_periodic = clock()
         # what the ground station did, and the board's parameters as heard (link thread and this one: dict ops)
         self.gcs: tuple[int, int] | None = None  # its (system, component)
         self.heard_at: float | None = None
@@ -164,94 +126,19 @@ class MavlinkEndpoint:
         self._download: Any = None
         self._refused_manual_at = -1e9
         self._gated = False  # the ground station's silence held term's writes back in this handover
+        self._queued = 0  # calls waiting on the display's loop
+        self._stick: Joystick | None = None  # the ground station's latest MANUAL_CONTROL, as a stick
+        self._stick_posted = False
+        self.dropped_in = 0  # ground station's messages dropped: too many waiting on the display
         # figures
         self.sent: dict[str, int] = {}
         self.received: dict[str, int] = {}
         self.dropped = 0
         self.errors = 0
-        self._open()
 
     @property
     def url(self) -> str:
-        host = f"[{self.host}]" if ":" in self.host else self.host
-        return f"{self.kind}:{host}:{self.port}"
-
-    # --- the socket -------------------------------------------------------------------------------------------
-
-    def _open(self) -> None:
-        try:
-            info = socket.getaddrinfo(self.host, self.port, type=socket.SOCK_DGRAM if self.kind == "udp"
-                                      else socket.SOCK_STREAM)[0]
-        except OSError as exc:
-            raise MavlinkError(f"--mavlink {self.host}: {exc.strerror or exc}") from None
-        self._family, self._addr = info[0], info[4]
-        if self.kind == "udp":
-            s = socket.socket(self._family, socket.SOCK_DGRAM)
-            s.setblocking(False)
-            try:
-                s.connect(self._addr)  # only this peer's datagrams are read
-            except OSError as exc:
-                s.close()
-                raise MavlinkError(f"--mavlink {self.url}: {exc.strerror or exc}") from None
-            self._sock = s
-
-    def _tcp_connect(self) -> None:
-        s = socket.socket(self._family, socket.SOCK_STREAM)
-        s.settimeout(1.0)
-        try:
-            s.connect(self._addr)
-        except OSError:
-            s.close()
-            return
-        s.setblocking(False)
-        s.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-        with self._lock:
-            self._backlog.clear()
-            self._sock = s
-        log.info("MAVLink: connected to %s", self.url)
-
-    def _write(self, data: bytes) -> bool:
-        """Under the lock. UDP: one datagram; TCP: what the socket takes now, the rest kept (bounded)."""
-        s = self._sock
-        if s is None:
-            return False
-        try:
-            if self.kind == "udp":
-                s.send(data)
-                return True
-            if self._backlog:
-                if len(self._backlog) + len(data) > TCP_BACKLOG_MAX:
-                    return False
-                self._backlog += data
-                self._wake()
-                return True
-            n = s.send(data)
-            if n < len(data):
-                self._backlog += data[n:]
-                self._wake()
-            return True
-        except BlockingIOError:
-            if self.kind == "tcp" and len(data) <= TCP_BACKLOG_MAX:
-                self._backlog += data
-                self._wake()
-                return True
-            return False
-        except ConnectionRefusedError:  # UDP: nobody listens there (yet)
-            return False
-        except OSError:
-            if self.kind == "tcp":
-                self._drop_tcp()
-            return False
-
-    def _drop_tcp(self) -> None:
-        s, self._sock = self._sock, None
-        if s is not None:
-            with contextlib.suppress(OSError):
-                s.close()
-
-    def _wake(self) -> None:
-        with contextlib.suppress(OSError):
-            self._wake_w.send(b"\0")
+        return self.socket.url
 
     def send(self, msgs: list[Any]) -> None:
         """Messages to the ground station, from any thread (never blocks)."""
@@ -260,7 +147,7 @@ class MavlinkEndpoint:
         with self._lock:
             for msg in msgs:
                 try:
-                    ok = self._write(pack(self._mav, msg))
+                    ok = self.socket.write(pack(self._mav, msg))
                 except Exception:  # a bad message costs itself
                     self.errors += 1
                     continue
@@ -281,9 +168,7 @@ class MavlinkEndpoint:
     # --- life cycle -------------------------------------------------------------------------------------------
 
     def start(self) -> None:
-        if self._thread is None:
-            self._thread = threading.Thread(target=self._run, name="term mavlink", daemon=True)
-            self._thread.start()
+        self.socket.start(self._on_data, self._on_tick)
 
     def attach(self, station: Any, post: Callable[..., None], start_download: Callable[[], None] | None = None) -> None:
         """The display's side: the station (its guards, its model), ``post(fn, *args)`` running ``fn`` on the
@@ -296,79 +181,10 @@ class MavlinkEndpoint:
 
     def close(self) -> None:
         self._closed = True
-        self._wake()
-        if self._thread is not None and self._thread is not threading.current_thread():
-            self._thread.join(2.0)
-        with self._lock:
-            if self._sock is not None:
-                self._sock.close()
-                self._sock = None
-        for s in (self._wake_r, self._wake_w):
-            s.close()
+        self.socket.close()
 
-    def _run(self) -> None:
-        next_periodic = self.clock()
-        while not self._closed:
-            now = self.clock()
-            if self.kind == "tcp" and self._sock is None:
-                self._tcp_connect()
-                if self._sock is None:
-                    self._wait(1.0)
-                    continue
-            if now >= next_periodic:
-                next_periodic = max(next_periodic + PERIOD_S, now)
-                self._periodic(now)
-            self._timers(now)
-            s = self._sock
-            want_write = [s] if s is not None and self._backlog else []
-            try:
-                readable, writable, _ = select.select([r for r in (s, self._wake_r) if r is not None], want_write,
-                                                      [], max(0.0, min(next_periodic - now, 0.05)))
-            except (OSError, ValueError):
-                if self._closed:
-                    return
-                self._drop_tcp() if self.kind == "tcp" else self._wait(0.1)
-                continue
-            if self._wake_r in readable:
-                with contextlib.suppress(OSError):
-                    self._wake_r.recv(4096)
-            if s is not None and s in writable:
-                self._flush()
-            if s is not None and s in readable:
-                self._read(s)
-
-    def _wait(self, seconds: float) -> None:
-        with contextlib.suppress(OSError, ValueError):
-            select.select([self._wake_r], [], [], seconds)
-
-    def _flush(self) -> None:
-        with self._lock:
-            s = self._sock
-            if s is None or not self._backlog:
-                return
-            try:
-                n = s.send(self._backlog)
-                del self._backlog[:n]
-            except BlockingIOError:
-                pass
-            except OSError:
-                self._drop_tcp()
-
-    def _read(self, s: socket.socket) -> None:
-        try:
-            data = s.recv(65536)
-        except (BlockingIOError, ConnectionRefusedError):
-            return
-        except OSError:
-            if self.kind == "tcp":
-                with self._lock:
-                    self._drop_tcp()
-            return
-        if not data:
-            if self.kind == "tcp":
-                with self._lock:
-                    self._drop_tcp()
-            return
+    def _on_data(self, data: bytes) -> None:
+        """Bytes from the ground station (the socket's thread): its messages, each handled alone."""
         try:
             msgs = self._rx.parse_buffer(data) or []
         except Exception:  # garbage costs the buffer it came in
@@ -380,6 +196,12 @@ class MavlinkEndpoint:
             except Exception:  # one bad message costs itself, never the endpoint
                 self.errors += 1
                 log.exception("MAVLink: a %s from the ground station failed", msg.get_type())
+
+    def _on_tick(self, now: float) -> None:
+        if now >= self._next_periodic:
+            self._next_periodic = max(self._next_periodic + PERIOD_S, now)
+            self._periodic(now)
+        self._timers(now)
 
     def _periodic(self, now: float) -> None:
         with self._lock:
@@ -460,8 +282,25 @@ class MavlinkEndpoint:
             self._to_display(getattr(self, "_on_" + name.lower()), msg)
 
     def _to_display(self, fn: Callable[..., None], *args: Any) -> None:
-        if self._post is not None:
-            self._post(fn, *args)
+        """``fn(*args)`` on the display's loop; beyond DISPLAY_QUEUE_MAX waiting there, dropped (a flood from the
+        ground station costs its own messages, never the screen)."""
+        if self._post is None:
+            return
+        with self._lock:
+            if self._queued >= DISPLAY_QUEUE_MAX:
+                self.dropped_in += 1
+                return
+            self._queued += 1
+        self._post(self._run_posted, fn, args)
+
+    def _run_posted(self, fn: Callable[..., None], args: tuple[Any, ...]) -> None:
+        with self._lock:
+            self._queued -= 1
+        try:
+            fn(*args)
+        except Exception:  # a hostile message's values (nan where an int goes) cost that message
+            self.errors += 1
+            log.exception("MAVLink: handling a ground station's message failed")
 
     # parameters
 
@@ -535,13 +374,17 @@ class MavlinkEndpoint:
                           "station")
             return
         self.manual_at = now
-        js = Joystick(_axis(msg.y), _axis(-msg.x), _axis(msg.r), _axis(max(0, msg.z)), 0)
-        self._to_display(self._fly, js)
+        self._stick = Joystick(_axis(msg.y), _axis(-msg.x), _axis(msg.r), _axis(max(0, msg.z)), 0)
+        if not self._stick_posted:  # latest wins: one call waits on the display at a time, with the newest stick
+            self._stick_posted = True
+            self._to_display(self._fly)
 
     # --- on the display's loop --------------------------------------------------------------------------------
 
-    def _fly(self, js: Joystick) -> None:
-        if self.state == TERM or self.station is None:
+    def _fly(self) -> None:
+        self._stick_posted = False
+        js = self._stick
+        if self.state == TERM or self.station is None or js is None:
             return
         if self.state == OFFERED:
             self.state = GCS
