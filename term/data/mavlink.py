@@ -184,7 +184,10 @@ class MavlinkEndpoint:
         self.socket.close()
 
     def _on_data(self, data: bytes) -> None:
-        """Bytes from the ground station (the socket's thread): its messages, each handled alone."""
+        """Bytes from the ground station (the socket's thread): its messages, each handled alone. A datagram holds
+        whole messages: what a damaged one left half-parsed is thrown away, never glued to the next datagram's."""
+        if self.socket.kind == "udp" and len(self._rx.buf) > self._rx.buf_index:
+            self._rx = codec()
         try:
             msgs = self._rx.parse_buffer(data) or []
         except Exception:  # garbage costs the buffer it came in
@@ -281,17 +284,18 @@ class MavlinkEndpoint:
         elif name in ("COMMAND_LONG", "SET_MODE", "LOG_REQUEST_LIST", "LOG_REQUEST_DATA", "LOG_REQUEST_END"):
             self._to_display(getattr(self, "_on_" + name.lower()), msg)
 
-    def _to_display(self, fn: Callable[..., None], *args: Any) -> None:
+    def _to_display(self, fn: Callable[..., None], *args: Any) -> bool:
         """``fn(*args)`` on the display's loop; beyond DISPLAY_QUEUE_MAX waiting there, dropped (a flood from the
         ground station costs its own messages, never the screen)."""
         if self._post is None:
-            return
+            return False
         with self._lock:
             if self._queued >= DISPLAY_QUEUE_MAX:
                 self.dropped_in += 1
-                return
+                return False
             self._queued += 1
         self._post(self._run_posted, fn, args)
+        return True
 
     def _run_posted(self, fn: Callable[..., None], args: tuple[Any, ...]) -> None:
         with self._lock:
@@ -350,8 +354,7 @@ class MavlinkEndpoint:
 
     def _param_refused(self, pid: int, why: str) -> None:
         """A refused set: why (STATUSTEXT), then the value still in force (PARAM_VALUE)."""
-        self.text("error", f"{PARAM_NAMES[pid]} not set: {why}" if not why.startswith(PARAM_NAMES[pid]) else
-                  f"not set: {why}")
+        self.text("error", f"{PARAM_NAMES[pid]} not set: {why}")
         self.send([self._param_value(pid)])
 
     def _ftp_nak(self, msg: Any) -> None:
@@ -376,8 +379,7 @@ class MavlinkEndpoint:
         self.manual_at = now
         self._stick = Joystick(_axis(msg.y), _axis(-msg.x), _axis(msg.r), _axis(max(0, msg.z)), 0)
         if not self._stick_posted:  # latest wins: one call waits on the display at a time, with the newest stick
-            self._stick_posted = True
-            self._to_display(self._fly)
+            self._stick_posted = self._to_display(self._fly)
 
     # --- on the display's loop --------------------------------------------------------------------------------
 

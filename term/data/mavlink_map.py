@@ -60,6 +60,8 @@ CELLS = 3  # the 3S LiPo of the report: battery_remaining is linear from BATTERY
 # Words shortened so every name fits 16 characters (the test checks each is unique and fits).
 _ABBREV = {"REACTION": "RXN", "TELEMETRY": "TELEM", "HEARTBEAT": "HB", "CALIBRATION": "CALIB",
            "COUNTDOWN": "CD"}
+_ASCII = str.maketrans({"→": "->", "—": "-", "–": "-", "°": " deg", "µ": "u", "×": "x", "…": "...", "·": "-",
+                        "²": "^2", "‘": "'", "’": "'", "“": '"', "”": '"'})
 # Board events a ground station must not miss: MAV_SEVERITY_CRITICAL (the rest by term's severity).
 _CRITICAL = frozenset({EventCode.TILT_LIMIT, EventCode.LOW_BATTERY, EventCode.CRASH, EventCode.LINK_LOST,
                        EventCode.LINK_TIMEOUT, EventCode.SENSOR_FAULT})
@@ -122,18 +124,17 @@ def param_float(spec: ParamSpec, raw: int) -> float:
 
 def param_raw(spec: ParamSpec, value: float) -> tuple[int | None, str]:
     """A ground station's float for ``spec`` as the wire's raw value, or (None, why) if the table refuses it."""
-    name = PARAM_NAMES[int(spec.param)]
     if not math.isfinite(value):
-        return None, f"{name}: not a number"
+        return None, "not a number"
     if spec.kind in ("enum", "bool"):
         raw = round(value)
         if raw != value or not spec.accepts(raw):
             choices = ", ".join(f"{spec.base + i} {c}" for i, c in enumerate(spec.choices)) or "0 false, 1 true"
-            return None, f"{name}: {value:g} is not one of {choices}"
+            return None, f"{value:g} is not one of {choices}"
         return raw, ""
     raw = round(value / spec.scale)
     if not spec.accepts(raw):
-        return None, f"{name}: {value:g} outside {spec.text(spec.lo)}..{spec.text(spec.hi)} {spec.unit}".rstrip()
+        return None, f"{value:g} outside {spec.text(spec.lo)}..{spec.text(spec.hi)} {spec.unit}".rstrip()
     return raw, ""
 
 
@@ -154,8 +155,9 @@ def severity(code: int, term_severity: str) -> int:
 
 
 def statustexts(mav: Any, sev: int, text: str, text_id: int) -> list[Any]:
-    """``text`` as STATUSTEXT messages: one if it fits 50 bytes, else chunks sharing ``text_id`` (1..65535)."""
-    data = text.encode("utf-8", "replace")
+    """``text`` as STATUSTEXT messages: one if it fits 50 bytes, else chunks sharing ``text_id`` (1..65535). In
+    ASCII (MAVLink's char: ground stations show UTF-8 as garbage): term's arrows and units spelled out."""
+    data = text.translate(_ASCII).encode("ascii", "replace")
     if len(data) <= STATUSTEXT_MAX:
         return [mav.statustext_encode(sev, data)]
     out = []
