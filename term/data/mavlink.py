@@ -58,6 +58,7 @@ from term.core.protocol import (
     param_arg,
     param_split,
 )
+from term.data.mavlink_log import LogService
 from term.data.mavlink_map import (
     PARAM_BY_MAV,
     PARAM_NAMES,
@@ -77,7 +78,6 @@ DEFAULT_ADDRESS = "udp:127.0.0.1:14550"  # QGroundControl's and MAVProxy's liste
 PERIOD_S = 1.0  # HEARTBEAT, SYS_STATUS, BATTERY_STATUS
 HEARD_S = 3.0  # a ground station heard within this is there (MAVLink's GCS heartbeat is 1 Hz)
 MANUAL_TIMEOUT_S = 0.5  # handed over and flying: no MANUAL_CONTROL this long is the ground station's link loss
-LOG_DATA_BYTES = 90  # LOG_DATA's payload
 PARAM_LIST_WAIT_S = 3.0  # a list asked of the board: sent as far as it came after this
 STICK_FULL = 32767
 FTP_NAK, FTP_UNKNOWN = 129, 7  # MAVLink FTP: opcode Nack, error UnknownCommand
@@ -115,15 +115,11 @@ class MavlinkEndpoint:
         # the display's side (attach)
         self.station: Any = None
         self._post: Callable[..., None] | None = None
-        self._start_download: Callable[[], None] | None = None
+        self.logs = LogService(self, None)  # the log protocol (term/data/mavlink_log.py)
         self.state = TERM
         self._pending: dict[int, tuple[str, Any]] = {}  # cmd_id -> (what, detail): the answer the Ack brings
         self._notsent: NotSent | None = None
         self._sending = False
-        self._log: bytes | None = None  # the flash log downloaded and checked
-        self._log_key: tuple[int, int] | None = None  # its (used, crc32)
-        self._log_wanted: list[tuple[int, int]] = []  # LOG_REQUEST_DATA (offset, count) waiting for the bytes
-        self._download: Any = None
         self._refused_manual_at = -1e9
         self._gated = False  # the ground station's silence held term's writes back in this handover
         self._queued = 0  # calls waiting on the display's loop
@@ -139,6 +135,11 @@ class MavlinkEndpoint:
     @property
     def url(self) -> str:
         return self.socket.url
+
+    @property
+    def mav(self) -> Any:
+        """The codec that builds the messages (``*_encode``)."""
+        return self._mav
 
     def send(self, msgs: list[Any]) -> None:
         """Messages to the ground station, from any thread (never blocks)."""
@@ -175,7 +176,7 @@ class MavlinkEndpoint:
         display's loop, and the app's log download (F5's)."""
         self.station = station
         self._post = post
-        self._start_download = start_download
+        self.logs.start_download = start_download
         for link in station.links:
             self._gate(link)
 
@@ -281,8 +282,10 @@ class MavlinkEndpoint:
             self._manual(msg, now)
         elif name == "FILE_TRANSFER_PROTOCOL":
             self._ftp_nak(msg)
-        elif name in ("COMMAND_LONG", "SET_MODE", "LOG_REQUEST_LIST", "LOG_REQUEST_DATA", "LOG_REQUEST_END"):
+        elif name in ("COMMAND_LONG", "SET_MODE"):
             self._to_display(getattr(self, "_on_" + name.lower()), msg)
+        elif name in ("LOG_REQUEST_LIST", "LOG_REQUEST_DATA", "LOG_REQUEST_END"):
+            self._to_display(getattr(self.logs, name[4:].lower()), msg)
 
     def _to_display(self, fn: Callable[..., None], *args: Any) -> bool:
         """``fn(*args)`` on the display's loop; beyond DISPLAY_QUEUE_MAX waiting there, dropped (a flood from the
@@ -337,7 +340,7 @@ class MavlinkEndpoint:
         if pid in self.params:
             self.send([self._param_value(pid)])
         else:
-            self._to_display(self._send_cmd, Op.PARAM_GET, pid, ("param", pid))
+            self._to_display(self.send_command, Op.PARAM_GET, pid, ("param", pid))
 
     def _param_set(self, msg: Any) -> None:
         name = _name(msg.param_id)
@@ -350,7 +353,7 @@ class MavlinkEndpoint:
         if raw is None:
             self._param_refused(pid, why)
             return
-        self._to_display(self._send_cmd, Op.SET_PARAM, param_arg(spec.param, raw), ("param", pid))
+        self._to_display(self.send_command, Op.SET_PARAM, param_arg(spec.param, raw), ("param", pid))
 
     def _param_refused(self, pid: int, why: str) -> None:
         """A refused set: why (STATUSTEXT), then the value still in force (PARAM_VALUE)."""
@@ -395,9 +398,9 @@ class MavlinkEndpoint:
         self.station.set_stick(js)
 
     def _ask_params(self) -> None:
-        self._send_cmd(Op.PARAM_LIST, 0, ("list", 0))
+        self.send_command(Op.PARAM_LIST, 0, ("list", 0))
 
-    def _send_cmd(self, op: Op, arg: int, what: tuple[str, Any]) -> int | None:
+    def send_command(self, op: Op, arg: int, what: tuple[str, Any]) -> int | None:
         """``Station.send`` (its guards, then the board's), the answer kept for the Ack; a refusal answered now."""
         st = self.station
         if st is None:
@@ -426,9 +429,8 @@ class MavlinkEndpoint:
         elif kind is FromLink:
             e = ev.event
             if type(e) is PacketReceived:
-                if self._list_log_due and type(e.packet) is LogStatus:  # (it follows the Ack of LOG_STATUS)
-                    self._list_log_due = False
-                    self._send_log_entry(e.packet)
+                if type(e.packet) is LogStatus:  # (the list's answer: it follows the Ack of LOG_STATUS)
+                    self.logs.log_status(e.packet)
             elif type(e) is CommandAcked or type(e) is CommandFailed:
                 what = self._pending.pop(e.cmd_id, None)
                 if what is not None:
@@ -454,7 +456,7 @@ class MavlinkEndpoint:
             self.send([self._mav.command_ack_encode(command, result, 0, int(nak) if nak is not None else 0,
                                                     *(self.gcs or (0, 0)))])
         elif kind == "log":
-            self._log_status_answered(ok, why)
+            self.logs.status_answered(ok, why)
 
     # commands
 
@@ -494,7 +496,7 @@ class MavlinkEndpoint:
             self.text("error", f"{label} refused: {why}")
             self.send([self._mav.command_ack_encode(command, d.MAV_RESULT_DENIED, 0, 0, *(self.gcs or (0, 0)))])
             return
-        self._send_cmd(op, arg, ("command", (command, label)))
+        self.send_command(op, arg, ("command", (command, label)))
 
     def _autopilot_version(self, msg: Any) -> None:
         d = self._tele.m
@@ -566,82 +568,14 @@ class MavlinkEndpoint:
         gate.mavlink = True  # type: ignore[attr-defined]
         conn.gate = gate
 
-    # the log protocol
-
-    def _on_log_request_list(self, msg: Any) -> None:
-        self._send_cmd(Op.LOG_STATUS, 0, ("log", None))
-
-    def _log_status_answered(self, ok: bool, why: str) -> None:
-        """The board's LogStatus follows the Ack of LOG_STATUS: the log list when it is here (``tick``)."""
-        if not ok:
-            self.text("error", f"log list: {why}")
-            return
-        self._list_log_due = True
-
-    def _send_log_entry(self, ls: LogStatus) -> None:
-        if ls.used == 0:
-            entry = self._mav.log_entry_encode(0, 0, 0, 0, 0)
-        else:
-            entry = self._mav.log_entry_encode(1, 1, 1, 0, ls.used)
-        self.send([entry])
-
-    def _on_log_request_data(self, msg: Any) -> None:
-        if msg.id != 1:
-            self.text("error", f"log {msg.id}: the board has one log, number 1")
-            return
-        self._log_wanted.append((int(msg.ofs), int(msg.count)))
-        self._serve_log()
-
-    def _on_log_request_end(self, msg: Any) -> None:
-        self._log_wanted.clear()
-
-    def _serve_log(self) -> None:
-        """The waiting LOG_REQUEST_DATA from the checked download, or a download started (F5's)."""
-        if not self._log_wanted:
-            return
-        st = self.station
-        ls = st.model.log_status if st is not None else None
-        key = None if ls is None else (ls.used, ls.crc32)
-        if self._log is None or (key is not None and key != self._log_key):
-            if self._download is None and st is not None and self._start_download is not None:
-                if st.model.download is None:
-                    self._start_download()
-                self._download = st.model.download
-                if self._download is not None:
-                    self.text("info", "downloading the board's flash log (as F5 does): LOG_DATA follows")
-            return
-        data = self._log
-        out = []
-        for ofs, count in self._log_wanted:
-            end = min(len(data), ofs + count)
-            pos = ofs
-            while pos < end or (pos == ofs and ofs >= len(data)):
-                chunk = data[pos:min(end, pos + LOG_DATA_BYTES)]
-                out.append(self._mav.log_data_encode(1, pos, len(chunk), chunk.ljust(LOG_DATA_BYTES, b"\0")))
-                pos += LOG_DATA_BYTES
-                if not chunk:
-                    break
-        self._log_wanted.clear()
-        self.send(out)
-
-    _list_log_due = False
-
     def tick(self, now: float) -> None:
-        """The render tick (the display's loop): new connections gated, the log list and data served."""
+        """The render tick (the display's loop): new connections gated, a finished log download served."""
         st = self.station
         if st is None:
             return
         for link in st.links:
             self._gate(link)
-        d = self._download
-        if d is not None and getattr(d, "state", "running") != "running":
-            self._download = None
-            if d.state == "done":
-                self._log, self._log_key = d.data(), (d.used, d.crc32)
-                self._serve_log()
-            else:
-                self._log_wanted.clear()
-                self.text("error", f"log download: {d.reason}")
+        self.logs.tick()
 
 
 def _name(raw: Any) -> str:
