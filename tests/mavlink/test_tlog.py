@@ -114,6 +114,11 @@ def test_every_parameter_has_a_mavlink_name_of_16_characters_both_ways() -> None
         assert len(name) <= 16 and name.isascii() and name == name.upper()
         assert int(PARAM_BY_MAV[name].param) == pid
     assert PARAM_NAMES[int(Param.YAW_P)] == "CTRL_YAW_P"
+    # docs/mavlink.md's table: every parameter, in the table's order, with both names
+    doc = (Path(__file__).resolve().parents[2] / "docs" / "mavlink.md").read_text(encoding="utf-8")
+    rows = [r.split("|")[1:4] for r in doc.splitlines() if r.startswith("| ") and "` | `" in r]
+    assert [(int(i), m.strip(" `"), t.strip(" `")) for i, m, t in rows] == [
+        (i, PARAM_NAMES[int(p)], PARAMS[p].name) for i, p in enumerate(PARAMS)]
 
 
 def test_a_ground_stations_float_goes_to_the_tables_step_or_is_refused() -> None:
