@@ -202,12 +202,21 @@ async def test_commands_and_the_sticks_only_after_the_handover(tmp_path: Path) -
         assert gcs.last("VFR_HUD").alt == pytest.approx(truth.h, abs=0.3)
         servo = gcs.last("SERVO_OUTPUT_RAW")
         assert all(1200 < getattr(servo, f"servo{i}_raw") < 2000 for i in range(1, 5))
+        # The ground station goes silent: term stops feeding the board, whose failsafe holds level (LINK LOST);
+        # its sticks back within the guard time give it control again (the board's LINK_REGAINED) ...
         f.stick = None
         await streaming
-        # The ground station goes silent: term stops feeding the board, whose failsafe holds level, then PANICs;
-        # the handover ends and control is term's again.
         await f.wait(lambda: any("LINK LOST" in t for t in gcs.texts()), timeout=10,
                      what=f"the board's LINK LOST {[e.text for e in model.events][-8:]} {gcs.texts()[-5:]} {ep.state}")
+        f.stick = (0, 0, 480, 0)
+        streaming = asyncio.create_task(f.stream())
+        await f.wait(lambda: any("has the link back" in t for t in gcs.texts()), timeout=10, what="LINK_REGAINED")
+        assert model.mode == Mode.MANUAL and ep.state == "ground station"
+        # ... silent past it: PANIC, and the handover ends: control is term's again.
+        lost = sum("LINK LOST" in t for t in gcs.texts())
+        f.stick = None
+        await streaming
+        await f.wait(lambda: sum("LINK LOST" in t for t in gcs.texts()) > lost, timeout=10, what="LINK LOST again")
         await f.wait(lambda: model.mode in (Mode.PANIC, Mode.SAFE) and ep.state == "term", timeout=15,
                      what="PANIC and the handback")
         assert any("went silent" in e.text for e in model.events)
