@@ -6,17 +6,18 @@ messages are the ones a live ground station gets from ``term --mavlink`` (term/d
 at the same capped rates): what the board sent, decoded from the recording's bytes at the times they crossed the
 link, plus HEARTBEAT, SYS_STATUS and BATTERY_STATUS once a second of the recording and a PARAM_VALUE for each of
 the board's parameter answers. Only the board's side (rx) is read; term's own lines (the events list) are not
-MAVLink's. pymavlink (the ``mavlink`` extra) is needed: ExportError (one line) without it.
+MAVLink's. pymavlink (the ``mavlink`` extra) is needed: TlogError (one line) without it. term/data/export.py reads
+the recording and calls ``write_tlog`` (this module imports nothing of it: one way, no cycle).
 """
 
 from __future__ import annotations
 
 import struct
+from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
 from term.core.protocol import PARAMS, Decoder, Param, ParamValue
-from term.data.export import ExportError, ExportResult, Progress, _counted, _session_items, kind_of
 from term.data.mavlink_map import (
     PARAM_NAMES,
     PARAM_ORDER,
@@ -32,27 +33,23 @@ _STAMP = struct.Struct(">Q")
 BATCH = 256  # messages joined into one write
 
 
-def export_tlog(src: Path, out: Path, progress: Progress | None = None, *, board_units: bool = False,
-                raw: bool = False) -> ExportResult:
-    """Write the session recording ``src`` to ``out`` as a telemetry log; ExportError (one line) on trouble."""
-    if board_units or raw:
-        raise ExportError("--board-units and --raw are for CSV and MCAP: a telemetry log carries MAVLink's units")
-    if kind_of(src) != "session":
-        raise ExportError(f"{src} is a flash-log CSV: a telemetry log is written from a session recording")
-    if out.exists() and out.resolve() == src.resolve():
-        raise ExportError(f"{out} is the input: choose another output")
+class TlogError(ValueError):
+    """The log cannot be written (pymavlink missing, the file not writable); the message is one line."""
+
+
+def write_tlog(items: Iterable[Any], out: Path, info: list[Recording]) -> int:
+    """A recording's items (term/data/export.py's reading of it: link bytes as ``(t_ns, link, direction, data)``,
+    ``info`` its parts as they are read) to ``out`` as a telemetry log; the number of messages written."""
     try:
         mav = codec()
     except MavlinkMissing as exc:
-        raise ExportError(str(exc)) from None
+        raise TlogError(str(exc)) from None
     try:
         out.parent.mkdir(parents=True, exist_ok=True)
         with out.open("wb") as f:
-            info: list[Recording] = []
-            n = _write(_counted(_session_items(src, info), src, progress), f, mav, info)
+            return _write(items, f, mav, info)
     except OSError as exc:
-        raise ExportError(f"cannot write {out}: {exc.strerror or exc}") from None
-    return ExportResult("session", n, all(r.complete for r in info))
+        raise TlogError(f"cannot write {out}: {exc.strerror or exc}") from None
 
 
 def _write(items: Any, f: Any, mav: Any, info: list[Recording]) -> int:
