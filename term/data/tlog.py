@@ -72,14 +72,14 @@ def _write(items: Any, f: Any, mav: Any, info: list[Recording]) -> int:
         t = (t_ns - start) / 1e9
         stamp = _STAMP.pack(max(0, t_ns // 1000))
         msgs: list[Any] = []
-        if t >= next_periodic:
-            next_periodic = t + 1.0
-            msgs += tele.periodic()
         for pkt in pkts:
             if type(pkt) is ParamValue:
                 msgs += _param(mav, pkt)
             else:
                 msgs += tele.packet(pkt, t)
+        if t >= next_periodic:  # (after this read's packets: the first heartbeat has the board's mode)
+            next_periodic = t + 1.0
+            msgs += tele.periodic()
         for msg in msgs:
             out.append(stamp + pack(mav, msg))
         if len(out) >= BATCH:
