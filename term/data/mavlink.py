@@ -122,6 +122,7 @@ class MavlinkEndpoint:
         self._sending = False
         self._refused_manual_at = -1e9
         self._gated = False  # the ground station's silence held term's writes back in this handover
+        self._handing_back = False  # the hand-back for its silence waits on the display
         self._queued = 0  # calls waiting on the display's loop
         self._stick: Joystick | None = None  # the ground station's latest MANUAL_CONTROL, as a stick
         self._stick_posted = False
@@ -222,9 +223,10 @@ class MavlinkEndpoint:
             # In flight its silence is the board's failsafe's to handle (the gate); once that has landed it, or
             # when it is silent on the ground for HEARD_S, the handover is over (as a lost BLE phone's).
             gone = self._gated or self.heard_at is None or now - self.heard_at > HEARD_S
-            if gone and mode is not None and mode not in FLIGHT_MODES:
-                self._post(self.handback, f"the ground station went silent ({mode_name(mode)}): control is term's "
-                           "pilot's again; hand it over again from term")
+            if gone and mode is not None and mode not in FLIGHT_MODES and not self._handing_back:
+                self._handing_back = self._to_display(
+                    self.handback, f"the ground station went silent ({mode_name(mode)}): control is term's pilot's "
+                    "again; hand it over again from term")
 
     # --- out: the board's packets, on the link's thread -------------------------------------------------------
 
@@ -531,6 +533,7 @@ class MavlinkEndpoint:
         return None
 
     def handback(self, why: str = "term's pilot took control back") -> None:
+        self._handing_back = False
         if self.state == TERM:
             return
         self.state = TERM
