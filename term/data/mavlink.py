@@ -224,9 +224,10 @@ class MavlinkEndpoint:
             # when it is silent on the ground for HEARD_S, the handover is over (as a lost BLE phone's).
             gone = self._gated or self.heard_at is None or now - self.heard_at > HEARD_S
             if gone and mode is not None and mode not in FLIGHT_MODES and not self._handing_back:
+                self._handing_back = True  # (before the post: the display may run it, and clear this, at once)
                 self._handing_back = self._to_display(
                     self.handback, f"the ground station went silent ({mode_name(mode)}): control is term's pilot's "
-                    "again; hand it over again from term")
+                    "again; hand it over again from term") and self.state != TERM
 
     # --- out: the board's packets, on the link's thread -------------------------------------------------------
 
@@ -384,7 +385,9 @@ class MavlinkEndpoint:
         self.manual_at = now
         self._stick = Joystick(_axis(msg.y), _axis(-msg.x), _axis(msg.r), _axis(max(0, msg.z)), 0)
         if not self._stick_posted:  # latest wins: one call waits on the display at a time, with the newest stick
-            self._stick_posted = self._to_display(self._fly)
+            self._stick_posted = True  # (before the post: the display may run it, and clear this, at once)
+            if not self._to_display(self._fly):
+                self._stick_posted = False
 
     # --- on the display's loop --------------------------------------------------------------------------------
 
@@ -527,7 +530,7 @@ class MavlinkEndpoint:
             return f"no ground station heard at {self.url}: start it (QGroundControl, mavproxy.py) first"
         self.state = OFFERED
         self.manual_at = None
-        self._gated = False
+        self._gated = self._handing_back = False
         st.note("info", "mavlink", f"control offered to the ground station at {self.url}: its MANUAL_CONTROL takes it")
         self.text("warning", "term's pilot handed control to this ground station: MANUAL_CONTROL flies")
         return None
