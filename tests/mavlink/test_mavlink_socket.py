@@ -102,3 +102,16 @@ def test_a_hostile_ground_station_costs_only_its_own_messages() -> None:
     finally:
         ep.close()
         gcs.close()
+
+
+def test_term_refuses_a_bad_or_public_address_in_one_line_before_anything_starts(
+        capsys: pytest.CaptureFixture[str]) -> None:
+    from term.cli.main import main
+
+    assert main(["--sim", "--mavlink", "192.0.2.7:14550"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("term: --mavlink") and "--mavlink-public" in err and "\n" not in err
+    assert main(["--sim", "--mavlink", "udp:127.0.0.1:nope"]) == 2
+    assert "[udp:|tcp:]HOST:PORT" in capsys.readouterr().err
+    assert main(["--sim", "--mavlink-public"]) == 2
+    assert "--mavlink-public needs --mavlink" in capsys.readouterr().err
