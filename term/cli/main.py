@@ -395,6 +395,15 @@ def _check_fly_args(args: argparse.Namespace) -> None:
         raise UsageError("--hci needs --ble ADDR")
     _check_ble_address(args.ble)
     _check_lessons(args)
+    if args.mavlink_public and args.mavlink is None:
+        raise UsageError("--mavlink-public needs --mavlink")
+    if args.mavlink is not None:
+        from term.data.mavlink import MavlinkError, parse_address
+
+        try:
+            parse_address(args.mavlink, args.mavlink_public)
+        except MavlinkError as exc:
+            raise UsageError(str(exc)) from None
 
 
 def _check_sim_link(args: argparse.Namespace) -> None:
@@ -549,12 +558,13 @@ async def _run_app(transport: Any, cfg: Any, args: argparse.Namespace, radio: An
     session = dict(RADIO_SESSION) if ble_only else {}
     recorder = _recorder(args, transport, radio, ble_only)
     live = _live_foxglove(args, recorder)
+    mavlink = _mavlink(args, recorder)
     transport, radio = _tapped(transport, radio, tuple(s for s in (recorder, live) if s is not None))
     app = TermApp(transport, config=cfg, joystick=not args.no_joystick, log_directory=args.log_dir,
                   session_options=session, radio=radio, primary_ble=ble_only,
                   start_screen="wireless" if ble_only else "flight", recorder=recorder, instructor=instructor,
                   lesson=args.lesson, demo=args.demo, lessons_dirs=(args.lessons,) if args.lessons else (),
-                  live=live)
+                  live=live, mavlink=mavlink)
     _running[:] = [(app, asyncio.get_running_loop())]
     hangup = asyncio.create_task(_exit_on_hangup(sys.stdin))
     try:
@@ -573,6 +583,8 @@ async def _run_app(transport: Any, cfg: Any, args: argparse.Namespace, radio: An
             recorder.close()
         if live is not None:
             live.close()
+        if mavlink is not None:
+            mavlink.close()
     with contextlib.suppress(OSError, ValueError):  # (the terminal may be gone: term ended with it)
         if recorder is not None and recorder.error:
             print(f"term: {recorder.error}", file=sys.stderr)
@@ -607,6 +619,25 @@ def _live_foxglove(args: argparse.Namespace, recorder: Any) -> Any:
     if recorder is not None:
         return _live_server(args.foxglove, recorder.t0, recorder.start_ns)
     return _live_server(args.foxglove, time.monotonic(), time.time_ns())
+
+
+# --- term --mavlink (term/data/mavlink.py; helper mavlink) ---
+def _mavlink(args: argparse.Namespace, recorder: Any) -> Any:
+    """--mavlink's endpoint on the recording's clock (its time_boot_ms is the session's time); its trouble is one
+    line, before the screen is taken over."""
+    if getattr(args, "mavlink", None) is None:
+        return None
+    import time
+
+    from term.data.mavlink import MavlinkEndpoint, MavlinkError
+
+    try:
+        endpoint = MavlinkEndpoint(args.mavlink, t0=recorder.t0 if recorder is not None else time.monotonic(),
+                                   public=args.mavlink_public)
+    except MavlinkError as exc:
+        raise UsageError(str(exc)) from None
+    print(f"MAVLink: sending to {endpoint.url}", file=sys.stderr)
+    return endpoint
 
 
 def _check_lessons(args: argparse.Namespace) -> None:

@@ -147,6 +147,17 @@ def _flying_options(p: argparse.ArgumentParser) -> None:
     fly.add_argument("--lessons", type=Path, default=None, metavar="DIR", help="--sim: a directory of lesson files "
                      "(*.toml) beside the built-in ones (a teacher's)")
     _add_foxglove(fly)
+    _add_mavlink(fly)
+
+
+# --- term --mavlink (term/data/mavlink.py; helper mavlink) ---
+def _add_mavlink(p: argparse.ArgumentParser | Any) -> None:
+    p.add_argument("--mavlink", metavar="[udp:|tcp:]HOST:PORT", nargs="?", const="udp:127.0.0.1:14550",
+                   default=None, help="send the flight to a MAVLink ground station there and take its messages "
+                   "(QGroundControl, MAVProxy; alone: udp:127.0.0.1:14550; needs the 'mavlink' extra); "
+                   "docs/mavlink.md")
+    p.add_argument("--mavlink-public", action="store_true", help="--mavlink may name a host that is not this "
+                   "machine (the flight leaves it)")
 
 
 def _add_foxglove(p: argparse.ArgumentParser | Any) -> None:
@@ -175,7 +186,8 @@ def _export(p: argparse.ArgumentParser) -> None:
     p.add_argument("source", nargs="?", type=Path, help="a session recording (.mcap) or a flash-log CSV")
     p.add_argument("--latest", action="store_true", help="the newest session recording (instead of a file)")
     p.add_argument("-o", "--output", type=Path, required=True, help="file to write (.mcap or .csv)")
-    p.add_argument("-f", "--format", choices=("mcap", "csv"), default=None, help="default: from the output's suffix")
+    p.add_argument("-f", "--format", choices=("mcap", "csv", "tlog"), default=None, help="default: from the output's "
+                   "suffix (tlog: a MAVLink telemetry log, needs the 'mavlink' extra; docs/mavlink.md)")
     p.add_argument("--board-units", action="store_true", help="CSV in the board's units (raw field values)")
     p.add_argument("--raw", action="store_true", help="MCAP: the link's raw bytes and the station's records too "
                    "(channels in the quadrupel-frames encoding other readers skip; 'term replay' plays the file)")

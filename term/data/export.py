@@ -206,6 +206,18 @@ def export(src: Path, out: Path, fmt: str | None = None, board_units: bool = Fal
     ``raw``: MCAP keeps the link bytes and the station's records too (it replays); ``progress`` is told how far;
     ``library``: the MCAP writer, "sdk", "mcap" or "auto" (the SDK's if installed)."""
     fmt = fmt or out.suffix.lstrip(".").lower()
+    if fmt == "tlog":  # a MAVLink telemetry log (term/data/tlog.py; helper mavlink)
+        from term.data.tlog import TlogError, write_tlog
+
+        if board_units or raw or kind_of(src) != "session" or (out.exists() and out.resolve() == src.resolve()):
+            raise ExportError("a telemetry log is written from a session recording to another file, in MAVLink's "
+                              "units (no --board-units, no --raw)")
+        tlog_info: list[Recording] = []
+        try:
+            n = write_tlog(_counted(_session_items(src, tlog_info), src, progress), out, tlog_info)
+        except TlogError as exc:
+            raise ExportError(str(exc)) from None
+        return ExportResult("session", n, all(r.complete for r in tlog_info))
     if fmt not in FORMATS:
         raise ExportError(f"unknown format {fmt!r}: use -f mcap or -f csv (or an -o ending in .mcap or .csv)")
     if board_units and fmt != "csv":

@@ -22,6 +22,7 @@ The routing rules, the reconnect policy and the model's two-link rules: docs/arc
 
 from __future__ import annotations
 
+import asyncio
 import gc
 import sys
 import time
@@ -117,6 +118,7 @@ class TermApp(App[int]):
         lessons_dirs: tuple[Path, ...] = (),
         live: Any = None,
         link_thread: bool | None = None,
+        mavlink: Any = None,
     ) -> None:
         """``transport``: the board's link (the cable, or BLE with ``primary_ble``); ``radio``: a BLE transport
         to the same board beside the cable, for the handover; ``start_screen``: "flight" or "wireless".
@@ -129,13 +131,15 @@ class TermApp(App[int]):
         events, the link statistics, the truth and, in a replay, the packets; flying, the station hands it each
         packet the links decode, on the link's thread (the taps give it the reads' times and the bytes written).
         ``link_thread``: run the links on their own thread (term/session/link_thread.py); by default they do
-        whenever the transports are real ones (serial, BLE)."""
+        whenever the transports are real ones (serial, BLE). ``mavlink``: the MAVLink ground station's endpoint
+        (term/data/mavlink.py), fed like the live server, attached to the station when the app mounts."""
         super().__init__()
         self.config = config or Config()
         self.keymap: tuple[KeyBinding, ...] = self.config.keymap
         self.recorder = recorder
         self.replay = replay
         self.live = live
+        self.mavlink = mavlink
         if replay is not None:
             clock = replay.clock  # the panels, plots and events run on the recording's time
             joystick = False
@@ -185,7 +189,7 @@ class TermApp(App[int]):
         station = Station(model, cable=transport, radio=radio, cable_session=cable_session,
                           radio_session={"link_timeout": self.config.link_timeout}, clock=clock,
                           on_event=self._on_station_event, runner=LinkThread() if link_thread else None,
-                          on_packet=None if self.live is None or replay is not None else self.live.link_packet)
+                          on_packet=None if replay is not None else _fan_out(self.live, self.mavlink))
         for t in links:  # the recording's taps write on this thread, never on the link's
             post_taps(t, station.post)
         return station
@@ -274,6 +278,7 @@ class TermApp(App[int]):
         self.install_screen(ConsoleScreen(), "console")
         self.set_interval(1.0 / self.render_hz, self.render_now)
         await self.station.start()
+        self._start_mavlink()
         if self.start_screen != "flight":
             self.show_screen(self.start_screen)
         if self._want_joystick:
@@ -288,6 +293,8 @@ class TermApp(App[int]):
     def _on_station_event(self, ev: StationEvent) -> None:
         """The app's reactions to the station's events (the model has them already)."""
         self.outputs.station_event(ev)
+        if self.mavlink is not None:
+            self.mavlink.station_event(ev)
         self.lessons.on_station_event(ev)
         if type(ev) is FromLink:
             self.downloads.on_link_event(ev.event)
@@ -358,6 +365,8 @@ class TermApp(App[int]):
                     self.bell()
         self.outputs.tick(now)
         self._motor_test_tick(now)
+        if self.mavlink is not None:
+            self.mavlink.tick(now)
         if not self.screen_stack or not self.is_running:
             return  # shutting down
         model = self.model
@@ -416,6 +425,8 @@ class TermApp(App[int]):
         if action.local is not None:
             self.local[action.local]()
             return
+        if self.mavlink is not None:
+            self.mavlink.pilot_command()  # ... and from a MAVLink ground station that was handed control
         assert action.op is not None
         self.send(action.op, action.arg)
 
@@ -557,12 +568,34 @@ class TermApp(App[int]):
                             self.reconnect_now)
         yield SystemCommand("Link: hand control back to the cable", "WIRELESS off: the board leaves BLE "
                             "(DISCONNECTED, the connection stays)", lambda: self.send(Op.WIRELESS, 0))
+        if self.mavlink is not None:
+            yield SystemCommand("MAVLink: hand control to the ground station", f"{self.mavlink.url}: its "
+                                "MANUAL_CONTROL flies (in SAFE; any key of yours takes it back)", self.mavlink_handover)
+            yield SystemCommand("MAVLink: take control back", "from the ground station", self.mavlink.handback)
         yield from self.lessons.commands()
         for b in self.keymap:
             a = b.action
             keys = ", ".join(pretty_key(k) for k in b.keys)
             yield SystemCommand(f"{a.group}: {a.description}", f"key {keys}", _bound(self.perform, a))
 
+
+    # --- the MAVLink endpoint (term/data/mavlink.py; helper mavlink) -------------------------------------------
+
+    def _start_mavlink(self) -> None:
+        """Attach the endpoint to the station (its commands run on this loop), start it, say where it sends."""
+        mav = self.mavlink
+        if mav is None:
+            return
+        loop = asyncio.get_running_loop()
+        mav.attach(self.station, lambda fn, *args: loop.call_soon_threadsafe(fn, *args), self.downloads.start)
+        mav.start()
+        self.station.note("info", "mavlink", f"MAVLink: sending the flight to {mav.url} (palette: hand control)")
+
+    def mavlink_handover(self) -> None:
+        why = self.mavlink.handover() if self.mavlink is not None else "no --mavlink"
+        if why is not None:
+            self.station.note("error", "mavlink", f"not handed over: {why}")
+            self.notify(why, title="MAVLink handover", severity="warning")
 
     # --- recording and replay (term/data/recording.py, term/data/replay.py) ---------------------------------------
 
@@ -588,6 +621,24 @@ REPLAY_KEYS = (  # term replay: the pilot's keys have no board to command; these
     ("minus", "replay('slower')", "slower"),
     ("home", "replay('start')", "from the start"),
 )
+
+
+# --- the MAVLink endpoint (term/data/mavlink.py; helper mavlink) ---
+
+
+def _fan_out(*sinks: Any) -> Callable[[str, Any], None] | None:
+    """The station's ``on_packet`` for each live output there is (the Foxglove server, the MAVLink endpoint)."""
+    calls = [s.link_packet for s in sinks if s is not None]
+    if not calls:
+        return None
+    if len(calls) == 1:
+        return calls[0]
+
+    def each(link: str, pkt: Any) -> None:
+        for call in calls:
+            call(link, pkt)
+
+    return each
 
 
 def _bound(fn: Callable[[Action], None], action: Action) -> Callable[[], None]:
