@@ -45,7 +45,6 @@ from term.core.events import FromLink, NotSent, StatsSample
 from term.core.link import CommandAcked, CommandFailed, PacketReceived
 from term.core.protocol import (
     FLIGHT_MODES,
-    PARAMS,
     Event,
     EventCode,
     Joystick,
@@ -53,23 +52,17 @@ from term.core.protocol import (
     Mode,
     Nak,
     Op,
-    Param,
     ParamValue,
-    param_arg,
     param_split,
 )
 from term.data.mavlink_log import LogService
 from term.data.mavlink_map import (
-    PARAM_BY_MAV,
-    PARAM_NAMES,
-    PARAM_ORDER,
     MavlinkMissing,
     Telemetry,
     codec,
     pack,
-    param_float,
-    param_raw,
 )
+from term.data.mavlink_params import ParamService
 from term.data.mavlink_socket import GroundSocket, MavlinkError, parse_address
 from term.session.model import mode_name
 
@@ -116,6 +109,7 @@ class MavlinkEndpoint:
         self.station: Any = None
         self._post: Callable[..., None] | None = None
         self.logs = LogService(self, None)  # the log protocol (term/data/mavlink_log.py)
+        self.param_service = ParamService(self)  # the parameter protocol (term/data/mavlink_params.py)
         self.state = TERM
         self._pending: dict[int, tuple[str, Any]] = {}  # cmd_id -> (what, detail): the answer the Ack brings
         self._notsent: NotSent | None = None
@@ -215,9 +209,9 @@ class MavlinkEndpoint:
 
     def _timers(self, now: float) -> None:
         asked = self._list_asked
-        if asked is not None and (self._params_complete() or now - asked > PARAM_LIST_WAIT_S):
+        if asked is not None and (self.param_service.complete() or now - asked > PARAM_LIST_WAIT_S):
             self._list_asked = None
-            self._send_param_list()
+            self.param_service.send_list()
         if self.state == GCS and self._post is not None and self.station is not None:
             mode = self.station.model.mode
             # In flight its silence is the board's failsafe's to handle (the gate); once that has landed it, or
@@ -240,7 +234,7 @@ class MavlinkEndpoint:
             return
         if kind is Event and pkt.code == EventCode.PARAM_CHANGED:
             pid, raw = param_split(pkt.arg)
-            self._param_changed(pid, raw)
+            self.param_service.changed(pid, raw)
         t = self.clock() - self.t0
         try:
             with self._lock:
@@ -249,12 +243,6 @@ class MavlinkEndpoint:
             self.errors += 1
             return
         self.send(msgs)
-
-    def _param_changed(self, pid: int, raw: int) -> None:
-        """The board's value changed (a key, F11, a set of ours): the ground station hears it (as ArduPilot's do)."""
-        self.params[pid] = raw
-        if pid in PARAM_NAMES and self.heard_at is not None:
-            self.send([self._param_value(pid)])
 
     # --- in: the ground station's messages, on the endpoint's thread -----------------------------------------
 
@@ -275,12 +263,12 @@ class MavlinkEndpoint:
             return  # for another vehicle
         if name == "PARAM_REQUEST_LIST":
             self._list_asked = now
-            if not self._params_complete():
+            if not self.param_service.complete():
                 self._to_display(self._ask_params)
         elif name == "PARAM_REQUEST_READ":
-            self._param_read(msg)
+            self.param_service.read(msg)
         elif name == "PARAM_SET":
-            self._param_set(msg)
+            self.param_service.set(msg)
         elif name == "MANUAL_CONTROL":
             self._manual(msg, now)
         elif name == "FILE_TRANSFER_PROTOCOL":
@@ -311,57 +299,6 @@ class MavlinkEndpoint:
         except Exception:  # a hostile message's values (nan where an int goes) cost that message
             self.errors += 1
             log.exception("MAVLink: handling a ground station's message failed")
-
-    # parameters
-
-    def _params_complete(self) -> bool:
-        return all(p in self.params for p in PARAM_ORDER)
-
-    def _param_value(self, pid: int) -> Any:
-        spec = PARAMS[Param(pid)]
-        raw = self.params.get(pid, spec.to_raw(spec.default))
-        return self._mav.param_value_encode(PARAM_NAMES[pid].encode(), param_float(spec, raw),
-                                            self._tele.m.MAV_PARAM_TYPE_REAL32, len(PARAM_ORDER),
-                                            PARAM_ORDER.index(pid))
-
-    def _send_param_list(self) -> None:
-        """Every parameter the board has said (all of them unless its list did not come: a ground station asks
-        the missing ones by index)."""
-        self.send([self._param_value(pid) for pid in PARAM_ORDER if pid in self.params])
-
-    def _param_read(self, msg: Any) -> None:
-        if msg.param_index >= 0:
-            if msg.param_index >= len(PARAM_ORDER):
-                return
-            pid = PARAM_ORDER[msg.param_index]
-        else:
-            spec = PARAM_BY_MAV.get(_name(msg.param_id))
-            if spec is None:
-                self.text("warning", f"no parameter {_name(msg.param_id)!r} on this board")
-                return
-            pid = int(spec.param)
-        if pid in self.params:
-            self.send([self._param_value(pid)])
-        else:
-            self._to_display(self.send_command, Op.PARAM_GET, pid, ("param", pid))
-
-    def _param_set(self, msg: Any) -> None:
-        name = _name(msg.param_id)
-        spec = PARAM_BY_MAV.get(name)
-        if spec is None:
-            self.text("error", f"no parameter {name!r} on this board")
-            return
-        pid = int(spec.param)
-        raw, why = param_raw(spec, float(msg.param_value))
-        if raw is None:
-            self._param_refused(pid, why)
-            return
-        self._to_display(self.send_command, Op.SET_PARAM, param_arg(spec.param, raw), ("param", pid))
-
-    def _param_refused(self, pid: int, why: str) -> None:
-        """A refused set: why (STATUSTEXT), then the value still in force (PARAM_VALUE)."""
-        self.text("error", f"{PARAM_NAMES[pid]} not set: {why}")
-        self.send([self._param_value(pid)])
 
     def _ftp_nak(self, msg: Any) -> None:
         """No file server here: every MAVLink FTP request is answered NAK UnknownCommand at once, so a ground
@@ -448,9 +385,9 @@ class MavlinkEndpoint:
         if kind == "param":
             if ok and value is not None:
                 self.params[detail] = value
-                self.send([self._param_value(detail)])
+                self.send([self.param_service.value(detail)])
             elif not ok:
-                self._param_refused(detail, why)
+                self.param_service.refused(detail, why)
         elif kind == "command":
             command, label = detail
             d = self._tele.m
@@ -582,13 +519,6 @@ class MavlinkEndpoint:
         for link in st.links:
             self._gate(link)
         self.logs.tick()
-
-
-def _name(raw: Any) -> str:
-    """A param_id as text (pymavlink gives str or bytes, NUL-padded)."""
-    if isinstance(raw, bytes):
-        raw = raw.decode("ascii", "replace")
-    return str(raw).split("\0", 1)[0]
 
 
 def _axis(v: float) -> int:
