@@ -395,3 +395,34 @@ def test_no_test_imports_a_test_module_or_a_benchmark() -> None:
             if parts[0] == "bench" or (parts[0] == "tests" and any(x.startswith("test_") for x in parts[1:])):
                 bad.append(f"{name} imports {m}")
     assert not bad, "move what is shared into tests/support/:\n" + "\n".join(bad)
+
+
+# --- sizes --------------------------------------------------------------------------------------------------
+
+CLASS_MAX_LINES = 450  # a class does one job and fits in a few screens (DESIGN.md)
+MODULE_MAX_LINES = 800
+
+
+def _oversized(paths: list[Path], class_max: int = CLASS_MAX_LINES, module_max: int = MODULE_MAX_LINES) -> list[str]:
+    out = []
+    for path in paths:
+        text = path.read_text(encoding="utf-8")
+        if (n := text.count("\n")) > module_max:
+            out.append(f"{path.relative_to(ROOT)}: {n} lines (at most {module_max})")
+        for node in ast.walk(ast.parse(text)):
+            if isinstance(node, ast.ClassDef) and (n := node.end_lineno - node.lineno + 1) > class_max:
+                out.append(f"{path.relative_to(ROOT)}: class {node.name} {n} lines (at most {class_max})")
+    return out
+
+
+@pytest.mark.parametrize("tree", ("term", "fcb_sim"))
+def test_no_class_or_module_outgrows_its_job(tree: str) -> None:
+    big = _oversized(sorted((ROOT / tree).rglob("*.py")))
+    assert not big, "split these by job:\n" + "\n".join(big)
+
+
+def test_size_check_can_fail() -> None:
+    board = ROOT / "fcb_sim" / "board" / "board.py"
+    assert _oversized([board]) == []
+    found = _oversized([board], class_max=100, module_max=100)
+    assert len(found) == 2 and "class Board" in found[1], found
