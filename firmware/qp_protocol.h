@@ -120,6 +120,7 @@ enum qp_nak {
     QP_NAK_OUT_OF_RANGE = 17,
     QP_NAK_UNKNOWN_PARAM = 18,
     QP_NAK_ONLY_SHORTER_IN_FLIGHT = 19,
+    QP_NAK_PARAM_RULE = 20,
 };
 
 /* Board events (``Event.code``), each with an ``arg`` whose meaning is given here. */

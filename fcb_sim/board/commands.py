@@ -146,6 +146,8 @@ def _ack_crash(b: BoardParts, arg: int) -> Result:
 def _set_param(b: BoardParts, arg: int) -> Result:
     pid, raw = param_split(arg)
     nak, param = param_bindings.set_raw(b, pid, raw)
+    if nak == Nak.PARAM_RULE and param is not None:  # the Ack names the rule: its index in PARAM_RULES
+        return nak, param_bindings.broken_rule(b, param, raw) or 0, None
     if nak != Nak.OK or param is None:
         return nak, 0 if param is None else param_bindings.get_raw(b, param), None
     return Nak.OK, param_bindings.get_raw(b, param), lambda: _changed(b, param)

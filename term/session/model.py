@@ -73,10 +73,12 @@ from term.core.protocol import (
     Motion,
     Nak,
     Op,
+    Param,
     ParamValue,
     Profile,
     Status,
     WirelessState,
+    broken_rules,
     field_scale,
     param_split,
     scaled,
@@ -377,10 +379,16 @@ class Model:
         self.version += 1
         self.pending = max(0, self.pending - 1)
         what = op_text(event.op, event.arg)
+        reason = event.reason
         if event.nak is not None and event.op == Op.SET_PARAM:
-            spec = PARAMS.get(param_split(event.arg)[0])  # type: ignore[call-overload]
+            pid, raw = param_split(event.arg)
+            spec = PARAMS.get(pid)  # type: ignore[call-overload]
             if spec is not None:
-                self.param_refused[spec.name] = event.reason
+                if event.nak == Nak.PARAM_RULE:
+                    reason = self._rule_reason(spec.param, raw, reason)
+                self.param_refused[spec.name] = reason
+        elif event.nak == Nak.INVALID_TRANSITION and event.op == Op.MODE and self.mode is not None:
+            reason = f"not allowed from {mode_name(self.mode)}"  # (the pilot reads which mode it was in)
         if event.cmd_id in self.own and event.op == Op.PARAM_LIST:
             self.own.discard(event.cmd_id)  # asked again at the board's next Hello (F11's r asks now)
             return
@@ -389,7 +397,7 @@ class Model:
             self.note(now, "info", "params", f"this board has no parameter list ({event.reason})")
             return
         if event.nak is not None:
-            text = f"NAK {what}: {event.reason}"
+            text = f"NAK {what}: {reason}"
             mode = event.arg if event.op == Op.MODE else -1
             if self._refusal(mode, int(event.nak), text, now):
                 self.note(now, "error", "nak", text)
@@ -522,6 +530,16 @@ class Model:
             return  # heartbeats and acks change nothing on screen (the link panel shows their stats)
         applier(self, pkt, now)
         self.version += 1
+
+    def _rule_reason(self, param: Param, raw: int, said: str) -> str:
+        """The board's PARAM_RULE refusal with the rule named: the one the refused value breaks with the values the
+        board last said (``said`` if none is found: the board knows values the terminal has not heard yet)."""
+        values = {s.param: self.params[s.name] for s in PARAMS.values() if s.name in self.params}
+        values[param] = PARAMS[param].from_raw(raw)
+        for rule in broken_rules(values):
+            if param in (rule.big, rule.small):
+                return f"breaks the rule {rule.text()} ({rule.now_text(values)})"
+        return said
 
     def _param(self, pid: int, raw: int) -> None:
         """A parameter's value as the board has it (a listing, a change, an Ack)."""

@@ -264,7 +264,7 @@ class TermApp(App[int]):
         self.install_screen(ProfileScreen(), "profile")
         self.install_screen(WirelessScreen(self.phone), "wireless")
         self.install_screen(JoystickScreen(lambda: self.joystick.poller), "joystick")
-        self.install_screen(ParamsScreen(lambda: self.model), "params")
+        self.install_screen(ParamsScreen(lambda: self.model, self.can_fly), "params")
         self.set_interval(1.0 / self.render_hz, self.render_now)
         await self.station.start()
         if self.start_screen != "flight":

@@ -101,6 +101,7 @@ class Nak(IntEnum):
     OUT_OF_RANGE = 17
     UNKNOWN_PARAM = 18
     ONLY_SHORTER_IN_FLIGHT = 19  # a link timeout made longer outside SAFE (it may only shrink in flight)
+    PARAM_RULE = 20  # a set that breaks a rule between parameters (PARAM_RULES; the Ack's value: the rule's index)
 
 
 NAK_TEXT = {
@@ -124,6 +125,7 @@ NAK_TEXT = {
     Nak.OUT_OF_RANGE: "value out of range",
     Nak.UNKNOWN_PARAM: "no such parameter on this board",
     Nak.ONLY_SHORTER_IN_FLIGHT: "in flight a link timeout can only be made shorter: land (SAFE) to lengthen it",
+    Nak.PARAM_RULE: "breaks a rule between parameters (docs/parameters.md)",
 }
 
 
