@@ -144,6 +144,7 @@ enum qp_event_code {
     QP_EVENT_CODE_LINK_LOST = 17,
     QP_EVENT_CODE_LINK_REGAINED = 18,
     QP_EVENT_CODE_SIM_LAG = 19,
+    QP_EVENT_CODE_HEIGHT_SETPOINT = 20,
 };
 
 enum qp_wireless_state {

@@ -28,6 +28,9 @@ from fcb_sim.board.scheduler import TASKS
 from fcb_sim.world.constants import GAIN_PARAMS
 from term.core.protocol import (
     GAIN_OPS,
+    HEIGHT_KEY_STEP_MM,
+    HEIGHT_SETPOINT_MAX_MM,
+    HEIGHT_SETPOINT_MIN_MM,
     PARAMS,
     Ack,
     Command,
@@ -58,9 +61,19 @@ def _mode(b: BoardParts, arg: int) -> Result:
 
 def _trim(axis: str) -> Handler:
     def handler(b: BoardParts, arg: int) -> Result:
+        if axis == "lift" and b.modes.mode == Mode.HEIGHT:
+            return _height_keys(b, arg)
         return Nak.OK, b.modes.adjust_trim(axis, arg), None
 
     return handler
+
+
+def _height_keys(b: BoardParts, presses: int) -> Result:
+    """In HEIGHT the lift keys move the height set point (HEIGHT_KEY_STEP_MM a press), said by an event; the lift
+    trim is left as it was (leaving HEIGHT gives back the lift it was entered with). The Ack carries the trim."""
+    sp = b.core.move_setpoint(presses * HEIGHT_KEY_STEP_MM / 1000, HEIGHT_SETPOINT_MIN_MM / 1000,
+                              HEIGHT_SETPOINT_MAX_MM / 1000)
+    return Nak.OK, b.modes.trims.lift, lambda: b.event(EventCode.HEIGHT_SETPOINT, round(sp * 1000))
 
 
 def _gain(param: Param) -> Handler:

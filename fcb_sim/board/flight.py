@@ -205,6 +205,13 @@ class FlightCore:
             self.height_est.update_baro(pressure_pa, dt)
 
     # ---- modes and control -----------------------------------------------------------------------------------
+    def move_setpoint(self, dm: float, lo: float, hi: float) -> float:
+        """HEIGHT: the set point moved by ``dm`` metres (the lift keys), kept in ``lo``..``hi``; the new one."""
+        sp = min(hi, max(lo, self.setpoint + dm))
+        self._sp_offset += sp - self.setpoint
+        self.setpoint = sp
+        return sp
+
     def enter_mode(self, mode: int, lift: int = 0) -> None:
         """Mode entry actions of the control law (the board's mode machine decides whether it may).
 

@@ -55,6 +55,7 @@ from term.core.protocol import (
     BATTERY_WARN,
     EVENT_ARG_SCALE,
     FLIGHT_MODES,
+    HEIGHT_KEY_STEP_MM,
     PARAMS,
     Attitude,
     Compact,
@@ -177,6 +178,10 @@ def event_text(code: int, arg: int, flying: bool = True) -> tuple[str, str]:
         return "error", f"LINK LOST: board holds level ({_event_arg(c, arg) * 1000:.0f} ms silent); PANIC if it stays"
     if c is EventCode.LINK_REGAINED:
         return "warning", f"board has the link back after {_event_arg(c, arg) * 1000:.0f} ms: no PANIC, fly on"
+    if c is EventCode.HEIGHT_SETPOINT:
+        return "info", f"HEIGHT set point {_event_arg(c, arg):.2f} m (lift keys: ±{HEIGHT_KEY_STEP_MM / 1000:.2f} m)"
+    if c is EventCode.CRASH:
+        return "error", f"crash at {_event_arg(c, arg):.2f} m/s: motors off (c acknowledges it)"
     if c is EventCode.SIM_LAG:
         return "warning", f"simulator {_event_arg(c, arg) * 1000:.0f} ms behind real time (its process was starved)"
     if c is EventCode.TILT_LIMIT:

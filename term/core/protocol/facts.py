@@ -163,6 +163,7 @@ class EventCode(IntEnum):
     LINK_LOST = 17  # arg: ms since the last frame (stage 1 begins: holding level, PANIC after link.failsafe_ms)
     LINK_REGAINED = 18  # arg: ms stage 1 lasted (a frame came back in time: control is the pilot's again)
     SIM_LAG = 19  # arg: ms the simulated board runs behind real time (fcb-sim only: its process was starved)
+    HEIGHT_SETPOINT = 20  # arg: HEIGHT's set point in mm after a lift key moved it (the lift trim is left alone)
 
 
 @unique
@@ -238,6 +239,12 @@ STICK_NEUTRAL = 1000  # |joystick + trim| at most this on roll, pitch and yaw (3
 LIFT_FINE_FROM = 13107  # 40 %
 LIFT_FINE_TO = 19661  # 60 %
 LIFT_FINE_DIVISOR = 4
+# In HEIGHT the lift keys move the height set point (issue 34: a silent lift trim there changed nothing the pilot
+# saw, then dropped the craft on leaving HEIGHT): HEIGHT_KEY_STEP_MM per press, kept within
+# HEIGHT_SETPOINT_MIN_MM..HEIGHT_SETPOINT_MAX_MM (the lab's room is 3 m high); the lift trim stays as it was.
+HEIGHT_KEY_STEP_MM = 100
+HEIGHT_SETPOINT_MIN_MM = 200
+HEIGHT_SETPOINT_MAX_MM = 2500
 
 
 def lift_trim_after(trim: int, steps: int, lift_step: int, joystick_lift: int = 0) -> int:

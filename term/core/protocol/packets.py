@@ -309,6 +309,7 @@ EVENT_ARG_SCALE: dict[EventCode, tuple[float, str]] = {
     EventCode.LINK_LOST: (1e-3, "s"),
     EventCode.LINK_REGAINED: (1e-3, "s"),
     EventCode.SIM_LAG: (1e-3, "s"),
+    EventCode.HEIGHT_SETPOINT: (1e-3, "m"),
 }
 
 
