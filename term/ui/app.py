@@ -301,7 +301,7 @@ class TermApp(App[int]):
                 self.downloads.log_directory = path
                 self.downloads.start()
 
-        self.push_screen(DirectoryPrompt(self.downloads.log_directory), chosen)
+        self.push_screen(DirectoryPrompt(self.downloads.log_directory, about=frozenset({Mode.SAFE})), chosen)
 
     def on_set_param(self, message: SetParam) -> None:
         self.params.set_param(message.param, message.value)
@@ -352,12 +352,25 @@ class TermApp(App[int]):
         self.outputs.tick(now)
         if not self.screen_stack or not self.is_running:
             return  # shutting down
+        self.close_stale_dialog()
         model = self.model
         for screen in self._live_screens():
             for w in screen.query(ModelView):
                 w.show(model, now)
             for p in screen.query(LivePlot):
                 p.show(model, now)
+
+    def close_stale_dialog(self) -> None:
+        """A dialog about some modes (``about``: the erase question about SAFE) closes itself, with a line, once the
+        board is in another: out of SAFE Esc is PANIC, and a question left over the panels hides the flight."""
+        screen = self.screen
+        about = getattr(screen, "about", None)
+        mode = self.model.mode
+        if about is None or mode is None or mode in about or not isinstance(screen, ModalScreen):
+            return
+        title = getattr(screen, "title_text", "") or "dialog"
+        self.station.note("warning", "term", f"{title}: closed, nothing done: the board is in {mode_name(mode)} now")
+        screen.dismiss(None)
 
     def _live_screens(self) -> list[Screen[object]]:
         """The screen on top and, under a dialog (a summary, a question, the help), the screens it lets show
@@ -383,7 +396,15 @@ class TermApp(App[int]):
             if action is not None and action.name in PRIORITY_IN_FLIGHT:
                 self.perform(action)
                 return
+        elif type(event) is events.Key and not event.is_forwarded and event.key == "escape" and self._dialog_on_top():
+            # In SAFE (or with no board) Esc closes any dialog: PANIC would change nothing there (the motors are
+            # off) and the pilot means "close". Out of SAFE Esc stays PANIC (above).
+            self.screen.dismiss(getattr(self.screen, "CANCEL", None))  # the dialog's own "no"
+            return
         await super().on_event(event)
+
+    def _dialog_on_top(self) -> bool:
+        return isinstance(self.screen, ModalScreen) and not isinstance(self.screen, CommandPalette)
 
     def check_action(self, action: str, parameters: tuple[object, ...]) -> bool | None:
         if action == "pilot" and len(parameters) == 2:  # a key (term/ui/keygate.py): the pilot's or the widget's
@@ -462,10 +483,11 @@ class TermApp(App[int]):
         def answer(yes: bool | None) -> None:
             if yes:
                 self.send(Op.LOG_RESET)
-            else:
+            elif yes is not None:  # (None: closed by the app, said there)
                 self.station.note("info", "term", "log erase cancelled: nothing erased")
 
-        self.push_screen(ConfirmScreen(question, "erase the log", "keep it", title="erase the flash log"), answer)
+        self.push_screen(ConfirmScreen(question, "erase the log", "keep it", title="erase the flash log",
+                                       about=frozenset({Mode.SAFE})), answer)
 
     async def action_quit(self) -> None:
         """Ctrl+Q. While the motors run it asks first; quitting then sends PANIC before it goes (and says so), so
@@ -480,6 +502,8 @@ class TermApp(App[int]):
             return  # already asking
 
         def answer(yes: bool | None) -> None:
+            if yes is None:
+                return  # closed by the app (the motors stopped: Ctrl+Q quits at once now), said there
             if not yes:
                 self.station.note("info", "term", "quit cancelled: still flying")
                 return
@@ -495,7 +519,8 @@ class TermApp(App[int]):
                 "lands by itself." if mode in FLIGHT_MODES else
                 "PANIC is in progress: the board lands by itself.\nQuit the terminal anyway?")
         self.push_screen(ConfirmScreen(text, "PANIC and quit" if mode in FLIGHT_MODES else "quit", "keep flying",
-                                       title="quit while the motors run?"), answer)
+                                       title="quit while the motors run?",
+                                       about=frozenset(FLIGHT_MODES) | {Mode.PANIC}), answer)
 
     def show_screen(self, name: str) -> None:
         while len(self.screen_stack) > 1:
