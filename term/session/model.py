@@ -152,9 +152,9 @@ def op_text(op: int, arg: int) -> str:
     return name
 
 
-def event_text(code: int, arg: int, flying: bool = True) -> tuple[str, str]:
+def event_text(code: int, arg: int, flying: bool = True, mode: int | None = None) -> tuple[str, str]:
     """(severity, text) for a board Event; ``flying``: the board was in a flight mode when it sent it (a link
-    timeout PANICs only there)."""
+    timeout PANICs only there); ``mode``: the mode it was in (a link timeout in PANIC: the descent goes on)."""
     try:
         c = EventCode(code)
     except ValueError:
@@ -173,6 +173,8 @@ def event_text(code: int, arg: int, flying: bool = True) -> tuple[str, str]:
         return "error", f"LOW BATTERY {_event_arg(c, arg):.2f} V"
     if c is EventCode.LINK_TIMEOUT:
         silent = f"board saw link timeout ({_event_arg(c, arg) * 1000:.0f} ms silent)"
+        if mode == Mode.PANIC:
+            return "error", f"{silent}: already in PANIC, the descent goes on"
         return ("error", f"{silent}: PANIC") if flying else ("warning", f"{silent}: not flying, no PANIC")
     if c is EventCode.LINK_LOST:
         return "error", f"LINK LOST: board holds level ({_event_arg(c, arg) * 1000:.0f} ms silent); PANIC if it stays"
@@ -313,7 +315,9 @@ class Model:
 
     def note(self, now: float, severity: str, source: str, text: str) -> None:
         """A line in the events list. The same line (``merge_key``) as one of the last few, within ``MERGE_S``,
-        is merged into it: moved to the end with its count raised, not written again."""
+        is merged into it: moved to the end with its count raised, not written again; but never over a board line
+        written after it (a mode change, a link event: what the board did after the first stays listed after its
+        cause, issue 34: a repeated "request PANIC" jumped over "mode FULL → PANIC")."""
         t = now - self.start
         events = self.events
         key = merge_key(text)
@@ -323,6 +327,8 @@ class Model:
                 del events[i]
                 self._write(LogEntry(t, severity, source, text, e.count + 1))
                 return
+            if e.source == "board":
+                break  # (a repeat of a board line itself may merge: it is the same effect again)
         self._write(LogEntry(t, severity, source, text))
 
     def _write(self, entry: LogEntry) -> None:
@@ -770,7 +776,7 @@ def _on_event(m: Model, pkt: Event, now: float) -> None:
     m.board_ms = pkt.board_ms
     m.event_times[pkt.code] = now
     m.event_args[pkt.code] = pkt.arg
-    severity, text = event_text(pkt.code, pkt.arg, m.flying)  # the mode it was sent in
+    severity, text = event_text(pkt.code, pkt.arg, m.flying, m.mode)  # the mode it was sent in
     if pkt.code == EventCode.PARAM_CHANGED:
         m._param(*param_split(pkt.arg))
     if pkt.code == EventCode.DEADLINE_MISS:
