@@ -309,6 +309,7 @@ class Model:
     _erasing: int | None = None  # records in the log when its erase was asked for
     _bad_noted: int = 0
     _link_noted: float = -1e9
+    _lost_to_ble: bool = False  # the cable went quiet because the board flies over BLE (the handover)
     _loss_noted: float = -1e9
 
     # --- updates ------------------------------------------------------------------------------------------
@@ -355,8 +356,10 @@ class Model:
             if e.seq == seq:
                 del self.events[i]
                 break
-        text = (f"deadline miss (period {period_us} µs)" if n == 1 else
-                f"deadline misses: {n} since {first:.0f} s (longest period {worst} µs)")
+        # The board reports a miss at most every 10 s while flying: this counts its reports, F9 every miss.
+        text = (f"deadline miss (period {period_us} µs; F9 counts them all)" if n == 1 else
+                f"deadline misses reported {n} times since {first:.0f} s (longest period {worst} µs; at most one "
+                "report per 10 s: F9 counts them all)")
         self._write(LogEntry(now - self.start, "warning", "board", text))
         self._misses = (n, worst, first, self.notes_written)
 
@@ -421,7 +424,8 @@ class Model:
     def _on_lost(self, event: LinkLost, now: float) -> None:
         self.version += 1
         self.link_lost = True
-        if self.radio_name and self.over_ble:
+        self._lost_to_ble = bool(self.radio_name and self.over_ble)  # the handover's silence, not a fault
+        if self._lost_to_ble:
             self.note(now, "info", "link", f"cable silent for {event.silent_s:.1f} s: flying over BLE")
         elif self.primary_ble and not self.heard:
             self.note(now, "info", "link", "nothing over BLE yet: the board talks here after the handover "
@@ -435,6 +439,11 @@ class Model:
     def _on_restored(self, event: LinkRestored, now: float) -> None:
         self.version += 1
         self.link_lost = False
+        if self._lost_to_ble:  # handed back: the cable was quiet by design, nothing was lost
+            self._lost_to_ble = False
+            self.note(now, "info", "link", f"the board talks on the cable again (handed back after "
+                      f"{event.lost_for_s:.1f} s over BLE)")
+            return
         self.note(now, "info", "link", f"link restored after {event.lost_for_s:.1f} s")
 
     def _on_mismatch(self, event: VersionMismatch, now: float) -> None:

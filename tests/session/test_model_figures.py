@@ -29,3 +29,25 @@ def test_a_link_timeout_in_panic_is_not_called_not_flying() -> None:
     m.apply_packet(Event(EventCode.LINK_TIMEOUT, 1760, 5000), 5.0)
     text = m.events[-1].text
     assert "not flying" not in text and "PANIC" in text, text
+
+
+def test_deadline_misses_say_they_count_the_boards_reports_not_every_miss() -> None:
+    m = Model(start=0.0)
+    for i in range(3):
+        m.apply_packet(Event(EventCode.DEADLINE_MISS, 6034, 1000 + 10_000 * i), 1.0 + 10 * i)
+    text = m.events[-1].text
+    assert "reported 3 times" in text and "F9 counts them all" in text, text
+
+
+def test_a_handback_is_not_called_a_restored_link() -> None:
+    from term.core.link import LinkLost, LinkRestored
+    from term.core.protocol import WirelessState
+
+    m = Model(start=0.0, link_name="serial", radio_name="ble")
+    m.radio_up = True
+    m.wireless = WirelessState.STARTED
+    m.apply(LinkLost(0.6), 10.0)
+    m.wireless = WirelessState.DISCONNECTED
+    m.apply(LinkRestored(64.1), 74.1)
+    text = m.events[-1].text
+    assert "link restored" not in text and "handed back after 64.1 s over BLE" in text, text
