@@ -279,6 +279,7 @@ class Model:
     version_mismatch: VersionMismatch | None = None
     download: LogDownload | None = None
     download_note: str = ""
+    download_note_at: float | None = None  # when it was said (the panel shows it STATUS_LINE_S; None: always)
     events: deque[LogEntry] = field(default_factory=lambda: deque(maxlen=500))
     history: dict[str, deque[tuple[float, float]]] = field(default_factory=dict)
     pending: int = 0  # commands sent and not yet answered

@@ -38,6 +38,7 @@ from textual.widgets import DataTable, Footer, Input, Static
 from term.core.protocol import PARAM_BY_NAME, PARAMS, Param, ParamSpec, broken_rules
 from term.session.model import Model
 from term.session.param_client import ParamError, parse_text
+from term.ui.widgets.base import STATUS_LINE_S
 from term.ui.widgets.mode import ModeBanner
 
 COLUMNS = ("parameter", "value", "unit", "default", "range", "in flight", "board says")
@@ -192,6 +193,7 @@ class ParamsScreen(Screen[None]):
         self.can_fly = can_fly
         self.shown: list[ParamSpec] = list(_ORDER)
         self.editing: ParamSpec | None = None
+        self._said_at: float | None = None  # when the help line last said something other than the hint
         self.pending: dict[str, tuple[float, object]] = {}  # name -> (when its set was sent, the value then)
         self._version = -1
 
@@ -228,6 +230,8 @@ class ParamsScreen(Screen[None]):
     def refresh_values(self) -> None:
         """The board's values into the rows (when the model changed); a text edit closed when the board left
         SAFE (its digits and Esc fly the craft now)."""
+        if self._said_at is not None and self.editing is None and time.monotonic() - self._said_at > STATUS_LINE_S:
+            self._say(HINT)
         if self.editing is not None and self.query_one("#param-edit").has_class("editing") and self.can_fly():
             name = self.editing.name
             self._close_edit()
@@ -349,6 +353,8 @@ class ParamsScreen(Screen[None]):
         self.set_focus(self.query_one(ParamTable))
 
     def _say(self, text: str, style: str = "dim") -> None:
+        """The help line: ``text`` for STATUS_LINE_S, then the hint again (an error never outlives its moment)."""
+        self._said_at = None if text == HINT else time.monotonic()
         self.query_one("#param-help", Static).update(Text(text, style=style))
 
     # --- actions --------------------------------------------------------------------------------------------
