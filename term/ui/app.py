@@ -272,6 +272,7 @@ class TermApp(App[int]):
         if self._want_joystick:
             self.call_after_refresh(self.joystick.start)
         self.lessons.mount()
+        self.outputs.recording_failed()  # a recording that could not start: said before the first flight
         self.render_now()
         # The widget tree and the libraries are built: a full collection need not walk them again (it holds the
         # GIL, and the link's thread with it, for as long as it walks). Undone at shutdown.

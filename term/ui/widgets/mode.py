@@ -73,6 +73,8 @@ class ModeBanner(ModelView):
             text += "   ·   over BLE"
         if mode is not None and mode_r.stale:
             text += f"   ·   mode {mode_r.mark}"
+        if model.recording_error:  # (the events list says why)
+            text += "   ·   NOT RECORDING"
         if lost:
             style = "bold blink white on red" if mode is not None else style
         self.set_class(mode == Mode.PANIC or lost, "alarm")
