@@ -163,7 +163,8 @@ def _replay(a: argparse.Namespace) -> int:
         raise UsageError(str(exc)) from None
     _start_log(a.verbose)
 
-    live = _live_server(a.foxglove, 0.0, int(replay.meta.get("start_ns", 0) or 0))  # (its one-line errors first)
+    # (its one-line errors first)
+    live = _live_server(a.foxglove, 0.0, int(replay.meta.get("start_ns", 0) or 0), a.foxglove_public)
     try:
         _need_terminal()
     except UsageError:
@@ -205,15 +206,18 @@ def _recorder(args: argparse.Namespace, transport: Any, radio: Any, ble_only: bo
     return rec
 
 
-def _live_server(address: str | None, t0: float, start_ns: int) -> Any:
+def _live_server(address: str | None, t0: float, start_ns: int, public: bool = False) -> Any:
     """The live Foxglove server (term/data/foxglove_server.py) if asked for; its trouble is one line, before the
     screen is taken over."""
     if address is None:
         return None
-    from term.data.foxglove_server import FoxgloveError, LiveServer, parse_address
+    from term.data.foxglove_server import FoxgloveError, LiveServer, parse_address, public_refusal
 
     try:
         host, port = parse_address(address)
+        why = public_refusal(host, public)
+        if why:
+            raise FoxgloveError(why)
         live = LiveServer(host, port, t0=t0, start_ns=start_ns)
     except FoxgloveError as exc:
         raise UsageError(str(exc)) from None
@@ -600,8 +604,8 @@ def _live_foxglove(args: argparse.Namespace, recorder: Any) -> Any:
     import time
 
     if recorder is not None:
-        return _live_server(args.foxglove, recorder.t0, recorder.start_ns)
-    return _live_server(args.foxglove, time.monotonic(), time.time_ns())
+        return _live_server(args.foxglove, recorder.t0, recorder.start_ns, args.foxglove_public)
+    return _live_server(args.foxglove, time.monotonic(), time.time_ns(), args.foxglove_public)
 
 
 def _check_lessons(args: argparse.Namespace) -> None:

@@ -136,6 +136,8 @@ def _flying_options(p: argparse.ArgumentParser) -> None:
 def _add_foxglove(p: argparse.ArgumentParser | Any) -> None:
     p.add_argument("--foxglove", metavar="[HOST:]PORT", default=None, help="serve the session live to Foxglove "
                    "(ws://HOST:PORT, loopback unless a host is given; needs the 'foxglove' extra); docs/recording.md")
+    p.add_argument("--foxglove-public", action="store_true", help="let --foxglove listen beyond this machine (a "
+                   "host other than loopback, 0.0.0.0: every interface): the whole flight to the network")
 
 
 def _plot(p: argparse.ArgumentParser) -> None:

@@ -278,6 +278,7 @@ class Model:
     link_name: str = ""
     version_mismatch: VersionMismatch | None = None
     download: LogDownload | None = None
+    live_url: str = ""  # the live Foxglove server's address while it serves (on screen: who can see the flight)
     recording_error: str = ""  # the session recording stopped (or never started): why; an alarm while set
     download_note: str = ""
     download_note_at: float | None = None  # when it was said (the panel shows it STATUS_LINE_S; None: always)

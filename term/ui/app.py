@@ -140,6 +140,8 @@ class TermApp(App[int]):
         self.render_hz = render_hz
         self.joystick_hz = joystick_hz
         self.station = self._make_station(transport, radio, primary_ble, session_options, link_thread)
+        if live is not None:  # on screen while it serves (the line printed before the screen took over is hidden)
+            self.station.model.live_url = str(getattr(live, "url", ""))
         self.phone = Phone()
         self.start_screen = start_screen
         self._want_joystick = joystick

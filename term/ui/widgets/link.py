@@ -45,7 +45,9 @@ class LinkPanel(ModelView):
 
     def render_model(self, model: Model, now: float) -> RenderableType:
         # in the bottom border (the panel's rows are all taken), between its corners and the title's padding
-        self.subtitle(board_text(model.hello, self.size.width - 6))
+        live = f"Foxglove {model.live_url}" if model.live_url else ""
+        board = board_text(model.hello, self.size.width - 6 - (len(live) + 3 if live else 0))
+        self.subtitle(" · ".join(t for t in (board, live) if t))
         if model.radio_name:
             return self._two_links(model)
         s = model.link
