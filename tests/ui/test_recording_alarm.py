@@ -39,5 +39,5 @@ async def _check(directory: Path) -> None:
         app.render_now()
         await pilot.pause(0.05)
         assert "NOT RECORDING" in str(app.screen.query_one(ModeBanner).render())
-        assert any("NOT RECORDING" in e.text for e in app.model.events)
+        assert any(rec.error in e.text for e in app.model.events)
         assert "not recording" in app.alarms_rung

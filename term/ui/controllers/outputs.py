@@ -34,7 +34,7 @@ class SessionOutputs:
         if rec is not None and rec.error and not self._error_said:
             self._error_said = True
             self.station.model.recording_error = rec.error
-            self.station.note("error", "term", f"{rec.error}: NOT RECORDING (the flight goes on)")
+            self.station.note("error", "term", rec.error)
 
     def station_event(self, ev: StationEvent) -> None:
         now = self.clock()
