@@ -50,6 +50,7 @@ from term.input.keymap import (
     pretty_key,
 )
 from term.lessons.instructor import InstructorClient
+from term.lessons.room import Room
 from term.session.alarms import Alarms
 from term.session.config import Config
 from term.session.connection import Connection
@@ -148,7 +149,7 @@ class TermApp(App[int]):
         self.joystick = JoystickController(self.station, self.config, self.send, self.set_stick, self.set_interval,
                                            joystick_hz)
         self.outputs = SessionOutputs(self.station, clock, recorder, live, replaying=replay is not None)
-        self.replayer = None if replay is None else ReplayController(replay, self.station, self.render_now)
+        self.replayer = None
         self.downloads = DownloadController(self.station, clock, self.send, self.control_connection,
                                             lambda work: self.run_worker(work, exclusive=False),
                                             log_directory or self.config.log_directory)
@@ -158,6 +159,10 @@ class TermApp(App[int]):
         self.alarms_rung: list[str] = []  # every alarm the bell was rung for (or would have been, bell off)
         self.lessons = LessonController(self.station, clock, self.keymap, self, instructor, lesson, demo,
                                         lessons_dirs)
+        if replay is not None:  # a --sim recording's truth: the room view shows where the craft was
+            if replay.has_truth and self.lessons.room is None:
+                self.lessons.room = Room()
+            self.replayer = ReplayController(replay, self.station, self.render_now, room=self.lessons.room)
         if instructor is not None and (live is not None or recorder is not None):  # the true pose, kept and served
             on_truth = instructor.on_truth
             instructor.on_truth = lambda truth: (self.outputs.truth(truth), on_truth and on_truth(truth))
