@@ -229,6 +229,8 @@ def _recordings(a: argparse.Namespace) -> int:
     from term.data.recording import default_directory, session_table
 
     _start_log(a.verbose)
+    if a.dir is not None and not a.dir.is_dir():  # a folder named wrong: a usage error, as export's (2)
+        raise UsageError(f"no folder {a.dir}")
     directory = a.dir or default_directory()
     lines = session_table(directory)
     if len(lines) == 1:
@@ -295,6 +297,8 @@ def _params(a: argparse.Namespace) -> int:
     except SchemaError as exc:
         raise UsageError(str(exc)) from None
     _check_preset(a)
+    if a.action is None:  # (argparse would name its 'words' as missing)
+        raise UsageError("give an action: list | get NAME | set NAME VALUE | save FILE | load FILE | diff FILE")
     if a.sim and (a.serial or a.ble):  # (one may stand before 'params' and the other after it)
         raise UsageError("--sim brings its own board: not with --serial or --ble")
     _check_ble_address(a.ble)

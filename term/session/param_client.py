@@ -270,6 +270,8 @@ def _request(action: str, words: list[str]) -> Any:
         path = Path(words[0])
         if path.parent and not path.parent.is_dir():
             raise ParamError(f"cannot write {path}: no directory {path.parent}")
+        if path.exists() and not path.is_file():  # a FIFO would hang the write, a device take it
+            raise ParamError(f"cannot write {path}: not a regular file")
         return path
     return None
 
