@@ -34,8 +34,9 @@ def setpoint_events(board: Board) -> list[int]:
 
 
 def step(sp: float, presses: int) -> float:
-    return min(HEIGHT_SETPOINT_MAX_MM / 1000, max(HEIGHT_SETPOINT_MIN_MM / 1000,
-                                                 sp + presses * HEIGHT_KEY_STEP_MM / 1000))
+    """The set point after ``presses``: kept in the keys' range, never moved against the press."""
+    lo, hi, new = HEIGHT_SETPOINT_MIN_MM / 1000, HEIGHT_SETPOINT_MAX_MM / 1000, sp + presses * HEIGHT_KEY_STEP_MM / 1000
+    return min(new, max(hi, sp)) if presses > 0 else max(new, min(lo, sp))
 
 
 def in_height(board: Board) -> None:
@@ -76,3 +77,12 @@ def test_out_of_height_the_lift_keys_trim_the_lift() -> None:
 
 def test_a_crash_event_says_its_unit() -> None:
     assert event_text(EventCode.CRASH, 3779)[1].startswith("crash at 3.78 m/s")
+
+
+def test_a_press_never_moves_the_set_point_against_itself() -> None:
+    board = Board(BoardConfig(boot_hello=False))
+    in_height(board)
+    board.core.setpoint = 2.9  # (as if held above the keys' ceiling: entered HEIGHT up there)
+    board.core.move_setpoint(0.0, 0.0, 10.0)  # (the offset follows: the next steps see 2.9)
+    assert board.core.move_setpoint(0.1, 0.2, 2.5) >= 2.9
+    assert abs(board.core.move_setpoint(-0.1, 0.2, 2.5) - 2.8) < 1e-9
