@@ -112,6 +112,12 @@ def _export(a: argparse.Namespace) -> int:
     _start_log(a.verbose)
     if a.latest == (a.source is not None):
         raise UsageError("give one recording or flash log, or --latest")
+    if not a.output.parent.exists():  # made, and said (issue 34: it was made without a word)
+        try:
+            a.output.parent.mkdir(parents=True)
+        except OSError as exc:
+            raise UsageError(f"cannot make folder {a.output.parent}: {exc.strerror or exc}") from None
+        print(f"term: made folder {a.output.parent} for {a.output.name}", file=sys.stderr)
     try:
         src = latest(a.dir) if a.latest else a.source
         res = export(src, a.output, a.format, a.board_units, raw=a.raw, progress=_progress_bar("exporting"))

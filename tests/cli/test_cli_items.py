@@ -56,8 +56,12 @@ def test_recordings_on_a_missing_folder_is_a_usage_error(tmp_path: Path) -> None
 def test_export_does_not_create_folders_without_a_word(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     src = recording(tmp_path / "rec")
     out = tmp_path / "no" / "such" / "x.csv"
-    assert main(["export", str(src), "-o", str(out)]) == 2
-    assert not out.parent.exists() and "does not exist" in capsys.readouterr().err
+    assert main(["export", str(src), "-o", str(out)]) == 0
+    assert out.exists() and f"made folder {out.parent}" in capsys.readouterr().err
+    from term.data.export import ExportError, export  # the library itself makes none
+
+    with pytest.raises(ExportError, match="does not exist"):
+        export(src, tmp_path / "elsewhere" / "y.csv", None, False)
 
 
 def test_plot_takes_exports_own_csv_and_its_columns_have_one_unit(tmp_path: Path) -> None:
