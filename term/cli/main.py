@@ -236,7 +236,7 @@ def _recordings(a: argparse.Namespace) -> int:
 
     _start_log(a.verbose)
     if a.dir is not None and not a.dir.is_dir():  # a folder named wrong: a usage error, as export's (2)
-        raise UsageError(f"no folder {a.dir}")
+        raise UsageError(f"no session recordings in {a.dir}: no such folder")
     directory = a.dir or default_directory()
     lines = session_table(directory)
     if len(lines) == 1:
