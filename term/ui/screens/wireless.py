@@ -185,12 +185,16 @@ class LiftSlider(_PhoneControl):
         return out
 
 
-def link_lines(model: Model, out: Text) -> None:
-    """Which link carries control, and each link's health, in a few lines (the link panel uses them too)."""
+def link_lines(model: Model, out: Text, width: int | None = None) -> None:
+    """Which link carries control, and each link's health, in a few lines (the link panel uses them too). With
+    ``width`` (a narrow panel) each state loses its explanation in brackets first, then is cut to fit."""
     for ls in link_states(model):
         out.append("▶ " if ls.carries else "  ", style="bold")
         out.append(f"{ls.name:<6}", style="bold" if ls.carries else "")
-        out.append(ls.state, style=LEVEL_STYLE[ls.level])
+        state = ls.state
+        if width is not None and len(state) + 8 > width:
+            state = state.split(" (", 1)[0][: max(4, width - 8)]
+        out.append(state, style=LEVEL_STYLE[ls.level])
         out.append("\n")
 
 

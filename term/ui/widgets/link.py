@@ -11,6 +11,8 @@ from term.session.model import Model, rtt_text
 from term.ui.screens.wireless import link_lines
 from term.ui.widgets.base import ModelView
 
+NARROW_COLS = 50  # a panel narrower than this (80 columns) gets one line a link, cut to fit, never cut by the edge
+
 
 def _ms(v: float | None) -> str:
     return "—" if v is None else f"{v:.1f}"
@@ -92,12 +94,21 @@ class LinkPanel(ModelView):
         if model.control_lost:
             out.append("  L I N K   L O S T  ", style="bold blink white on red")
             out.append("  (the link that carries control)\n", style="red")
-        link_lines(model, out)
+        width = self.content_size.width or 80
+        narrow = width < NARROW_COLS
+        link_lines(model, out, width if narrow else None)
         for name, s in (("cable", model.link), ("ble", model.radio if model.radio_up else None)):
             if s is None:
                 continue
             hb = s.since_last_heartbeat_s
             loss = "—" if s.loss_pct is None else f"{s.loss_pct:.1f}"
+            if narrow:  # one line a link, the figures a pilot reads in flight: the rest where it fits (issue 34)
+                beat = _heartbeat(model, name, hb).replace(" ago", "").replace(" (idle)", "").replace(
+                    " (over BLE)", "")
+                rtt = "—" if s.rtt_last_ms is None else f"{s.rtt_last_ms:.0f}"
+                out.append(f"{name:<6}{rtt} ms  loss {loss}%  hb {beat}\n"[:width + 1],
+                           style="dim" if model.over_ble != (name == "ble") else "")
+                continue
             out.append(f"{name:<6}{rtt_text(s) or 'RTT —'}  loss {loss}%  rx/tx {s.rx_bytes_per_s:.0f}/"
                        f"{s.tx_bytes_per_s:.0f}\n", style="dim" if model.over_ble != (name == "ble") else "")
             out.append(f"      frames {s.frames_ok} bad {s.frames_bad}  heartbeat {_heartbeat(model, name, hb)}\n",
