@@ -29,3 +29,16 @@ async def test_the_link_panel_fits_80_columns_with_both_links() -> None:
         assert len(lines) <= panel.content_size.height, lines  # every line shows
         assert all(len(line) <= width for line in lines), (width, lines)  # none cut at the edge
         assert any("cable" in line and "17" in line for line in lines), lines
+
+
+async def test_at_220x60_the_room_view_has_room() -> None:
+    from term.ui.widgets.room import RoomView
+    from tests.support.sim_app_rig import sim_app, until
+
+    async with sim_app(seed=3, size=(220, 60)) as (app, pilot, board):
+        view = app.screen.query_one(RoomView)
+        await until(pilot, lambda: view.room is not None and view.room.truth is not None)
+        assert view.content_size.width >= 44, view.region  # at least what it has at 160x50
+        app.render_now()
+        await pilot.pause(0.1)
+        assert "hdg" in str(view.render())  # the figures' line whole: n, e, h and the heading

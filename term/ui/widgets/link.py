@@ -11,7 +11,7 @@ from term.session.model import Model, rtt_text
 from term.ui.screens.wireless import link_lines
 from term.ui.widgets.base import ModelView
 
-NARROW_COLS = 50  # a panel narrower than this (80 columns) gets one line a link, cut to fit, never cut by the edge
+NARROW_COLS = 45  # a panel narrower than this (80 columns: 36) gets one line a link, cut to fit, never cut by the edge
 
 
 def _ms(v: float | None) -> str:
