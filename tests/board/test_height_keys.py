@@ -84,5 +84,5 @@ def test_a_press_never_moves_the_set_point_against_itself() -> None:
     in_height(board)
     board.core.setpoint = 2.9  # (as if held above the keys' ceiling: entered HEIGHT up there)
     board.core.move_setpoint(0.0, 0.0, 10.0)  # (the offset follows: the next steps see 2.9)
-    assert board.core.move_setpoint(0.1, 0.2, 2.5) >= 2.9
+    assert abs(board.core.move_setpoint(0.1, 0.2, 2.5) - 2.9) < 1e-9  # neither down nor further up
     assert abs(board.core.move_setpoint(-0.1, 0.2, 2.5) - 2.8) < 1e-9

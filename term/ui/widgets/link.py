@@ -105,8 +105,8 @@ class LinkPanel(ModelView):
             if narrow:  # one line a link, the figures a pilot reads in flight: the rest where it fits (issue 34)
                 beat = _heartbeat(model, name, hb).replace(" ago", "").replace(" (idle)", "").replace(
                     " (over BLE)", "")
-                rtt = "—" if s.rtt_last_ms is None else f"{s.rtt_last_ms:.0f}"
-                out.append(f"{name:<6}{rtt} ms  loss {loss}%  hb {beat}\n"[:width + 1],
+                rtt = rtt_text(s) or "RTT —"  # (the one RTT the screens show: none for an idle link)
+                out.append(f"{name:<6}{rtt}  loss {loss}%  hb {beat}\n"[:width + 1],
                            style="dim" if model.over_ble != (name == "ble") else "")
                 continue
             out.append(f"{name:<6}{rtt_text(s) or 'RTT —'}  loss {loss}%  rx/tx {s.rx_bytes_per_s:.0f}/"
