@@ -33,6 +33,7 @@ from term.core.protocol import (
     ParamValue,
     nak_text,
     param_arg,
+    rule_order,
 )
 from term.core.schema import nearest, one_line, shown
 from term.core.userfile import UserFileError, read_user_toml
@@ -309,7 +310,8 @@ async def _run(client: ParamClient, action: str, request: Any, out: Any) -> int:
             out(f"not on the board: {', '.join(missing)}")
         return 1 if differ or missing else 0
     refused = 0  # load
-    for p, v in request.items():
+    for p in rule_order(request, board):  # (each step keeps the rules between parameters)
+        v = request[p]
         if p in board and PARAMS[p].to_raw(board[p]) == PARAMS[p].to_raw(v):
             continue
         ok, said = await client.set(p, v)

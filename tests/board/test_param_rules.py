@@ -85,3 +85,15 @@ def test_a_refused_mode_says_from_which_mode() -> None:
                 1.0)
     assert any("NAK mode FULL: not allowed from MANUAL" in e.text for e in model.events), [e.text for e in
                                                                                          model.events]
+
+
+def test_a_set_of_values_is_sent_in_an_order_that_keeps_the_rules() -> None:
+    from term.core.protocol import rule_order
+
+    board = Board(BoardConfig(boot_hello=False))  # timeout 500, heartbeat 100
+    now = {p: get_value(board.parts, p) for p in PARAMS}
+    for values in ({Param.HEARTBEAT_MS: 400, Param.LINK_TIMEOUT_MS: 900},  # both longer: the timeout first
+                   {Param.LINK_TIMEOUT_MS: 120, Param.HEARTBEAT_MS: 50}):  # both shorter: the heartbeat first
+        for p in rule_order(values, now):
+            assert cmd(board, Op.SET_PARAM, param_arg(p, PARAMS[p].to_raw(values[p])))[0] == Nak.OK, (p, values)
+        now = {p: get_value(board.parts, p) for p in PARAMS}

@@ -166,4 +166,5 @@ from term.core.protocol.params import (  # noqa: F401
     param_arg,
     param_split,
     preset_values,
+    rule_order,
 )

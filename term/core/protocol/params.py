@@ -222,6 +222,23 @@ def broken_rules(values: Mapping[Param, float | str | bool]) -> list[ParamRule]:
     return [r for r in PARAM_RULES if not r.holds(values)]
 
 
+def rule_order(values: Mapping[Param, float | str | bool],
+               now: Mapping[Param, float | str | bool]) -> list[Param]:
+    """The order to set ``values`` one by one over ``now`` (the board's) so that no step breaks a rule the end keeps:
+    for each rule, the side that makes room goes first (a longer timeout before a longer heartbeat, a shorter
+    heartbeat before a shorter timeout)."""
+    order = list(values)
+    for rule in PARAM_RULES:
+        if rule.big not in values or rule.small not in values or rule.big not in now:
+            continue
+        grows = PARAMS[rule.big].to_raw(values[rule.big]) >= PARAMS[rule.big].to_raw(now[rule.big])
+        first, second = (rule.big, rule.small) if grows else (rule.small, rule.big)
+        if order.index(first) > order.index(second):
+            order.remove(first)
+            order.insert(order.index(second), first)
+    return order
+
+
 def _decimals(scale: float) -> int:
     d = 0
     while d < 9 and abs(round(scale * 10**d) - scale * 10**d) > 1e-9:
