@@ -376,6 +376,8 @@ class TermApp(App[int]):
         mode = self.model.mode
         if about is None or mode is None or mode in about or not isinstance(screen, ModalScreen):
             return
+        if not screen.is_mounted:
+            return  # (its own mount first: the next tick closes it)
         title = getattr(screen, "title_text", "") or "dialog"
         self.station.note("warning", "term", f"{title}: closed, nothing done: the board is in {mode_name(mode)} now")
         screen.dismiss(None)
@@ -479,6 +481,10 @@ class TermApp(App[int]):
         its log status first, so the count is its latest)."""
         if self.control_connection() is None:
             self.station.note("error", "term", "not sent: log erase: not connected")
+            return
+        if self.model.mode is not None and self.model.mode != Mode.SAFE:  # a question about SAFE: not in flight
+            self.station.note("error", "term", f"not sent: log erase: only in SAFE (the board is in "
+                              f"{mode_name(self.model.mode)})")
             return
         self.send(Op.LOG_STATUS)
 

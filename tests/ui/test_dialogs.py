@@ -40,3 +40,11 @@ async def test_the_erase_question_closes_itself_when_the_board_leaves_safe() -> 
         # out of SAFE Esc is PANIC again, with no dialog in the way
         await pilot.press("escape")
         await until(lambda: app.model.mode == Mode.PANIC)
+
+
+async def test_the_erase_question_is_not_asked_out_of_safe() -> None:
+    async with served() as (app, pilot, until):
+        await fly_out_of_safe(app, until)
+        await pilot.press("f4")
+        await until(lambda: any("log erase: only in SAFE (the board is in MANUAL)" in t for t in lines(app)))
+        assert not isinstance(app.screen, ModalScreen)

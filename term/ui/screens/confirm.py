@@ -49,7 +49,8 @@ class ConfirmScreen(ModalScreen[bool]):
                 yield Button(self.yes, id="yes", variant="error")
 
     def on_mount(self) -> None:
-        self.query_one("#no", Button).focus()
+        for no in self.query("#no").results(Button):  # (none if the app closed it before it was mounted)
+            no.focus()
         if callable(self.message):
             self.set_interval(0.25, self._refresh_text)
 
