@@ -12,6 +12,7 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 from docs import protocol_tables as tables  # noqa: E402
+from term.core.protocol import PARAM_RULES  # noqa: E402
 
 DOC = ROOT / "docs" / "parameters.md"
 
@@ -28,9 +29,12 @@ board accepts, a default, and whether it may change in flight (the others only i
 ## Reading and setting them
 
 - **In the terminal**: F11 opens the parameter screen: the board's values (asked for when the board says Hello;
-  **r** asks again), **/** searches, **Enter** edits a row, `*` marks a value that differs from the default, a
-  refusal shows the board's reason in the row. The gain keys (u/j, i/k, o/l, t/g, y/h) step the same parameters
-  by the step below, and the board reports each change (`PARAM_CHANGED`) like any other.
+  **r** asks again), **/** searches, **Enter** changes a row, `*` marks a value that differs from the default, a
+  refusal shows the board's reason in the row. In SAFE the value is typed (Esc cancels); out of SAFE nothing is
+  typed (0, 1 and Esc fly the craft there): ↑ ↓ step the value by its step (the table's, else the wire's),
+  PageUp/PageDown by ten, Enter sends, Backspace leaves it; a SAFE-only parameter says so. The gain keys (u/j,
+  i/k, o/l, t/g, y/h) step the same parameters by their step, and the board reports each change
+  (`PARAM_CHANGED`) like any other.
 - **From the command line**, over the same links as `term` (`--serial PORT`, `--ble ADDR`, `--sim`):
 
       term params --sim list                      # one a line: name, value, unit, default (* changed)
@@ -49,6 +53,25 @@ board accepts, a default, and whether it may change in flight (the others only i
 ## The table
 
 """
+
+RULES_TEXT = """
+## Rules between parameters
+
+A value inside its range can still break a rule that ties it to another parameter. Both boards refuse such a set
+(`PARAM_RULE`; the simulated board's Ack carries the rule's number, below, as its value), and the terminal says
+so before it sends (F11, `term params set`). A preset or a file applied at boot must keep them too. To move both
+parameters, set first the one that keeps the rule (to lengthen the heartbeat, lengthen the timeout first).
+
+"""
+
+
+def rules_markdown() -> str:
+    """The rules as Markdown (``PARAM_RULES``): number, name, the rule, why."""
+    lines = ["| # | name | rule | why |", "|---|---|---|---|"]
+    for i, r in enumerate(PARAM_RULES):
+        lines.append(f"| {i} | `{r.name}` | `{r.text()}` | {r.why} |")
+    return "\n".join(lines) + "\n"
+
 
 PRESETS_TEXT = """
 ## Presets
@@ -85,7 +108,8 @@ a PC that samples the joystick every 10 ms, as in the report's section 4.3, besi
 
 
 def render() -> str:
-    return HEAD + tables.params_markdown() + PRESETS_TEXT + tables.presets_markdown() + REPORT_TEXT
+    return (HEAD + tables.params_markdown() + RULES_TEXT + rules_markdown() + PRESETS_TEXT
+            + tables.presets_markdown() + REPORT_TEXT)
 
 
 def main() -> None:

@@ -86,7 +86,8 @@ def _add_global(p: argparse.ArgumentParser, version: Callable[[], str], command:
 def _add_run(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     """run: headless scenarios (owner: fcb_sim/lab/scenarios.py)."""
     run = sub.add_parser("run", help="fly a scripted scenario as fast as possible and print metrics")
-    run.add_argument("--scenario", default="hover", help="scenario name (see --list)")
+    scenario = run.add_argument("--scenario", default="hover", help="scenario name (see --list)")
+    scenario.completer = _run_scenarios  # type: ignore[attr-defined]
     run.add_argument("--duration", type=cli_float, default=10.0, help="simulated seconds (default 10)")
     run.add_argument("--seed", type=cli_int, default=1, help="noise seed: the same seed flies the same flight")
     run.add_argument("--json", action="store_true", help="print one JSON object as the last line")
@@ -98,6 +99,13 @@ def _add_run(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
                      help="core: the flight core alone (default); python or c: the whole board over its UART, "
                      "scenarios hover and height-hold (fcb_sim/hosts/cboard.py)")
     run.set_defaults(handler=_cmd_run)
+
+
+def _run_scenarios(**_: Any) -> tuple[str, ...]:
+    """Shell completion of run's --scenario (argcomplete)."""
+    from fcb_sim.lab.scenarios import SCENARIOS
+
+    return tuple(SCENARIOS)
 
 
 def _add_replay_imu(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:

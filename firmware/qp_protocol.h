@@ -127,6 +127,7 @@ enum qp_nak {
     QP_NAK_OUT_OF_RANGE = 17,
     QP_NAK_UNKNOWN_PARAM = 18,
     QP_NAK_ONLY_SHORTER_IN_FLIGHT = 19,
+    QP_NAK_PARAM_RULE = 20,
 };
 
 /* Board events (``Event.code``), each with an ``arg`` whose meaning is given here. */
@@ -153,6 +154,7 @@ enum qp_event_code {
     QP_EVENT_CODE_MOTOR_TEST = 20,
     QP_EVENT_CODE_CONTACT = 21,
     QP_EVENT_CODE_HEADING_DRIFT = 22,
+    QP_EVENT_CODE_HEIGHT_SETPOINT = 23,
 };
 
 /* Why the board stopped a motor test (``Event.arg`` of ``EventCode.MOTOR_TEST``). */

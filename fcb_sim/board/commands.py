@@ -29,6 +29,9 @@ from fcb_sim.board.scheduler import TASKS
 from fcb_sim.world.constants import GAIN_PARAMS
 from term.core.protocol import (
     GAIN_OPS,
+    HEIGHT_KEY_STEP_MM,
+    HEIGHT_SETPOINT_MAX_MM,
+    HEIGHT_SETPOINT_MIN_MM,
     LEVEL_INFO,
     MOTOR_TEST_MAX_MS,
     PARAMS,
@@ -61,9 +64,19 @@ def _mode(b: BoardParts, arg: int) -> Result:
 
 def _trim(axis: str) -> Handler:
     def handler(b: BoardParts, arg: int) -> Result:
+        if axis == "lift" and b.modes.mode == Mode.HEIGHT:
+            return _height_keys(b, arg)
         return Nak.OK, b.modes.adjust_trim(axis, arg), None
 
     return handler
+
+
+def _height_keys(b: BoardParts, presses: int) -> Result:
+    """In HEIGHT the lift keys move the height set point (HEIGHT_KEY_STEP_MM a press), said by an event; the lift
+    trim is left as it was (leaving HEIGHT gives back the lift it was entered with). The Ack carries the trim."""
+    sp = b.core.move_setpoint(presses * HEIGHT_KEY_STEP_MM / 1000, HEIGHT_SETPOINT_MIN_MM / 1000,
+                              HEIGHT_SETPOINT_MAX_MM / 1000)
+    return Nak.OK, b.modes.trims.lift, lambda: b.event(EventCode.HEIGHT_SETPOINT, round(sp * 1000))
 
 
 def _gain(param: Param) -> Handler:
@@ -149,6 +162,8 @@ def _ack_crash(b: BoardParts, arg: int) -> Result:
 def _set_param(b: BoardParts, arg: int) -> Result:
     pid, raw = param_split(arg)
     nak, param = param_bindings.set_raw(b, pid, raw)
+    if nak == Nak.PARAM_RULE and param is not None:  # the Ack names the rule: its index in PARAM_RULES
+        return nak, param_bindings.broken_rule(b, param, raw) or 0, None
     if nak != Nak.OK or param is None:
         return nak, 0 if param is None else param_bindings.get_raw(b, param), None
     return Nak.OK, param_bindings.get_raw(b, param), lambda: _changed(b, param)

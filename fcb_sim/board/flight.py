@@ -263,6 +263,15 @@ class FlightCore:
             self.height_est.update_baro(pressure_pa, dt)
 
     # ---- modes and control -----------------------------------------------------------------------------------
+    def move_setpoint(self, dm: float, lo: float, hi: float) -> float:
+        """HEIGHT: the set point moved by ``dm`` metres (the lift keys), kept in ``lo``..``hi``; the new one. A press
+        never moves it against its own direction (a craft held above ``hi`` is not pulled down by a press up)."""
+        sp = self.setpoint + dm
+        sp = min(sp, max(hi, self.setpoint)) if dm > 0 else max(sp, min(lo, self.setpoint))
+        self._sp_offset += sp - self.setpoint
+        self.setpoint = sp
+        return sp
+
     def enter_mode(self, mode: int, lift: int = 0) -> None:
         """Mode entry actions of the control law (the board's mode machine decides whether it may).
 

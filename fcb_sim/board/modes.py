@@ -31,6 +31,9 @@ from fcb_sim.world import constants as P
 from term.core.protocol import (
     BATTERY_LOW,
     FLIGHT_MODES,
+    HEIGHT_KEY_STEP_MM,
+    HEIGHT_SETPOINT_MAX_MM,
+    HEIGHT_SETPOINT_MIN_MM,
     LIFT_ZERO,
     LOW_BATTERY_HOLD_S,
     MOTOR_TEST_LINK_MS,
@@ -574,6 +577,13 @@ enter action of the new one run. The motors are zero in SAFE and CALIBRATION; th
 - From a flight mode the way out is SAFE (only with the lift at zero, so a key press cannot cut the motors in the
   air) or PANIC. HEIGHT is entered from FULL or RAW (it holds the height it had) and falls back to the one it
   came from.
+- In HEIGHT the lift keys (a / z) move the height set point, {height_step:g} m a press (kept within
+  {sp_lo:g}..{sp_hi:g} m), and the board says the new set point (event HEIGHT_SETPOINT); they leave the lift trim
+  as it was. Why the set point and not a trim: HEIGHT holds a height, so a lift trim there is taken back by the
+  controller and changes nothing the pilot sees, until HEIGHT is left and the changed trim drops (or lifts) the
+  craft; a press that moves what HEIGHT holds is seen at once, and leaving HEIGHT gives back the lift the craft
+  hovered on when it entered. The lift stick moves the set point too (beyond a dead band, at up to
+  {stick_rate:g} m/s).
 - PANIC is reachable from every mode that can turn the motors (a PANIC request in SAFE is accepted and changes
   nothing: the motors are already off). It descends at a bounded rate (1 m/s below 10 m of estimated height, up
   to 3 m/s above 40 m) from the motor level it found (never spinning them up; levelled by the attitude loops when
@@ -647,6 +657,8 @@ asks "props off?" first, sends one command per start, and a stop (level 0) on an
 
 def modes_doc() -> str:
     """The whole of docs/modes.md."""
+    from fcb_sim.board.flight import HEIGHT_STICK_RATE  # (the flight core's; only the doc needs it)
+
     cfg = ModeConfig()
     actions = []
     for mode in ENTER:
@@ -664,6 +676,8 @@ def modes_doc() -> str:
         tilt=cfg.tilt_limit_cdeg / 100, cal=cfg.calibration_s, cal_min=cfg.calibration_min_samples,
         diagram=mermaid(), table=transition_table_markdown(), actions="\n".join(actions),
         mt_level=MOTOR_TEST_MAX_LEVEL, mt_ms=MOTOR_TEST_MAX_MS, **_motor_test_rows(),
+        height_step=HEIGHT_KEY_STEP_MM / 1000, sp_lo=HEIGHT_SETPOINT_MIN_MM / 1000, sp_hi=HEIGHT_SETPOINT_MAX_MM / 1000,
+        stick_rate=HEIGHT_STICK_RATE,
     )
 
 

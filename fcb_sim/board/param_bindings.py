@@ -8,8 +8,10 @@ says what may change outside SAFE.
 - ``set_raw(parts, param, raw)``: the guards in order (unknown id: ``Nak.UNKNOWN_PARAM``; out of the table's range:
   ``Nak.OUT_OF_RANGE``; a SAFE-only parameter in another mode: ``Nak.NOT_IN_SAFE``; the parameter's own rule: the
   log scheme needs an empty log, ``Nak.LOG_BUSY``; a filter without a fixed-point twin in fixed point,
-  ``Nak.BAD_ARGUMENT``), then the change; the caller reports it (``EventCode.PARAM_CHANGED``);
-- ``apply_values(parts, values)``: a preset or a file at boot (SAFE: every guard but the mode's applies).
+  ``Nak.BAD_ARGUMENT``; a rule between parameters broken, ``Nak.PARAM_RULE``: ``broken_rule`` names it), then the
+  change; the caller reports it (``EventCode.PARAM_CHANGED``);
+- ``apply_values(parts, values)``: a preset or a file at boot (SAFE: every guard but the mode's applies; the rules
+  are checked on the whole set, after it: a set whose order passes through a broken rule is fine if it ends whole).
 
 An attitude filter or height estimator changed by name is built afresh (the filter converges on the ground in
 SAFE; the height estimator is re-anchored at the calibration's pressure).
@@ -26,7 +28,7 @@ from fcb_sim.estimation import has_fixed_point, make_filter
 from fcb_sim.estimation.complementary import ComplementaryFilter, ComplementaryFilterQ16
 from fcb_sim.estimation.height import make_height_estimator
 from fcb_sim.world import constants as P
-from term.core.protocol import PARAMS, Mode, Nak, Param, preset_values
+from term.core.protocol import PARAM_RULES, PARAMS, Mode, Nak, Param, ParamRule, preset_values
 
 Value = float | str | bool
 Getter = Callable[[BoardParts], Value]
@@ -184,7 +186,23 @@ def get_raw(parts: BoardParts, param: Param) -> int:
     return PARAMS[param].to_raw(get_value(parts, param))
 
 
-def set_raw(parts: BoardParts, pid: int, raw: int, *, mode_guard: bool = True) -> tuple[Nak, Param | None]:
+def broken_rule(parts: BoardParts, param: Param, raw: int) -> int | None:
+    """The index in ``PARAM_RULES`` of the first rule ``param`` = ``raw`` would break with the values in force."""
+    for i, rule in enumerate(PARAM_RULES):
+        if param in (rule.big, rule.small) and not _rule_holds(parts, rule, {param: raw}):
+            return i
+    return None
+
+
+def _rule_holds(parts: BoardParts, rule: ParamRule, raws: Mapping[Param, int]) -> bool:
+    def raw(p: Param) -> int:
+        return raws[p] if p in raws else get_raw(parts, p)
+
+    return raw(rule.big) >= rule.factor * raw(rule.small)
+
+
+def set_raw(parts: BoardParts, pid: int, raw: int, *, mode_guard: bool = True,
+            rule_guard: bool = True) -> tuple[Nak, Param | None]:
     """Set parameter ``pid`` to ``raw`` if every guard passes; (Nak.OK or the reason, the Param if known)."""
     try:
         param = Param(pid)
@@ -198,6 +216,8 @@ def set_raw(parts: BoardParts, pid: int, raw: int, *, mode_guard: bool = True) -
             return Nak.NOT_IN_SAFE, param
         if spec.shorter_in_flight and raw > get_raw(parts, param):
             return Nak.ONLY_SHORTER_IN_FLIGHT, param  # a link timeout may not grow (or go off) in flight
+    if rule_guard and broken_rule(parts, param, raw) is not None:
+        return Nak.PARAM_RULE, param
     return BINDINGS[param][1](parts, spec.from_raw(raw)), param
 
 
@@ -205,9 +225,14 @@ def apply_values(parts: BoardParts, values: Mapping[Param, Value]) -> list[tuple
     """Set each parameter (a preset, a file); returns the ones refused, with why."""
     refused = []
     for param, value in values.items():
-        nak, _ = set_raw(parts, param, PARAMS[param].to_raw(value), mode_guard=False)
+        nak, _ = set_raw(parts, param, PARAMS[param].to_raw(value), mode_guard=False, rule_guard=False)
         if nak != Nak.OK:
             refused.append((param, nak))
+    for rule in PARAM_RULES:  # the whole set keeps the rules, or the table's defaults of the two come back
+        if not _rule_holds(parts, rule, {}):
+            for p in (rule.big, rule.small):
+                BINDINGS[p][1](parts, PARAMS[p].default)
+                refused.append((p, Nak.PARAM_RULE))
     return refused
 
 

@@ -54,9 +54,9 @@ extern const qb_param_spec_t QB_PARAMS[QB_PARAM_COUNT];
 
 #ifdef QB_PARAMS_TABLE
 const qb_param_spec_t QB_PARAMS[QB_PARAM_COUNT] = {
-    {1, QB_KIND_INT, 1, 1, 50, 60000, 500, 1.0, 0.0}, /* link.timeout_ms */
+    {1, QB_KIND_INT, 1, 1, 50, 60000, 500, 1.0, 50.0}, /* link.timeout_ms */
     {2, QB_KIND_ENUM, 1, 0, 0, 1, 0, 1.0, 0.0}, /* sched.scheduler */
-    {3, QB_KIND_FLOAT, 1, 0, 10, 10000, 5000, 0.01, 0.0}, /* link.telemetry_hz */
+    {3, QB_KIND_FLOAT, 1, 0, 10, 10000, 5000, 0.01, 5.0}, /* link.telemetry_hz */
     {4, QB_KIND_ENUM, 1, 0, 0, 2, 0, 1.0, 0.0}, /* est.sensor_path */
     {5, QB_KIND_ENUM, 0, 0, 1, 2, 2, 1.0, 0.0}, /* log.scheme */
     {6, QB_KIND_FLOAT, 1, 0, 0, 500000, 80000, 0.01, 50.0}, /* ctrl.yaw_p */
@@ -64,18 +64,18 @@ const qb_param_spec_t QB_PARAMS[QB_PARAM_COUNT] = {
     {8, QB_KIND_FLOAT, 1, 0, 0, 100000, 11100, 0.01, 5.0}, /* ctrl.p2 */
     {9, QB_KIND_FLOAT, 1, 0, 0, 50000, 4000, 0.1, 10.0}, /* ctrl.height_p */
     {10, QB_KIND_FLOAT, 1, 0, 0, 50000, 4000, 0.1, 10.0}, /* ctrl.height_d */
-    {11, QB_KIND_FLOAT, 1, 0, 0, 10000, 1000, 0.1, 0.0}, /* ctrl.height_i */
+    {11, QB_KIND_FLOAT, 1, 0, 0, 10000, 1000, 0.1, 5.0}, /* ctrl.height_i */
     {12, QB_KIND_ENUM, 0, 0, 0, 4, 4, 1.0, 0.0}, /* est.attitude */
     {13, QB_KIND_FLOAT, 0, 0, 50000, 99999, 99900, 1e-05, 0.0}, /* est.k_gyro */
     {14, QB_KIND_BOOL, 0, 0, 0, 1, 1, 1.0, 0.0}, /* est.fixed_point */
     {15, QB_KIND_ENUM, 0, 0, 0, 1, 1, 1.0, 0.0}, /* est.height */
     {16, QB_KIND_BOOL, 0, 0, 0, 1, 1, 1.0, 0.0}, /* sched.stick_reaction */
     {17, QB_KIND_ENUM, 0, 0, 0, 1, 0, 1.0, 0.0}, /* link.queue_rule */
-    {18, QB_KIND_INT, 1, 0, 1, 4096, 256, 1.0, 0.0}, /* trim.step */
-    {19, QB_KIND_INT, 1, 0, 1, 4096, 328, 1.0, 0.0}, /* trim.lift_step */
-    {20, QB_KIND_INT, 1, 1, 0, 10000, 1000, 1.0, 0.0}, /* link.failsafe_ms */
+    {18, QB_KIND_INT, 1, 0, 1, 4096, 256, 1.0, 32.0}, /* trim.step */
+    {19, QB_KIND_INT, 1, 0, 1, 4096, 328, 1.0, 32.0}, /* trim.lift_step */
+    {20, QB_KIND_INT, 1, 1, 0, 10000, 1000, 1.0, 100.0}, /* link.failsafe_ms */
     {21, QB_KIND_INT, 0, 0, 20, 1000, 100, 1.0, 0.0}, /* link.heartbeat_ms */
-    {22, QB_KIND_INT, 1, 0, 0, 60000, 1000, 1.0, 0.0}, /* mode.calibration_ms */
+    {22, QB_KIND_INT, 1, 0, 0, 60000, 1000, 1.0, 100.0}, /* mode.calibration_ms */
     {23, QB_KIND_INT, 0, 0, 0, 60000, 0, 1.0, 0.0}, /* mode.panic_countdown_ms */
 };
 #endif

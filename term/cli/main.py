@@ -114,6 +114,12 @@ def _export(a: argparse.Namespace) -> int:
     _start_log(a.verbose)
     if a.latest == (a.source is not None):
         raise UsageError("give one recording or flash log, or --latest")
+    if not a.output.parent.exists():  # made, and said (issue 34: it was made without a word)
+        try:
+            a.output.parent.mkdir(parents=True)
+        except OSError as exc:
+            raise UsageError(f"cannot make folder {a.output.parent}: {exc.strerror or exc}") from None
+        print(f"term: made folder {a.output.parent} for {a.output.name}", file=sys.stderr)
     try:
         src = latest(a.dir) if a.latest else a.source
         res = export(src, a.output, a.format, a.board_units, raw=a.raw, progress=_progress_bar("exporting"))
@@ -167,7 +173,8 @@ def _replay(a: argparse.Namespace) -> int:
         raise UsageError(str(exc)) from None
     _start_log(a.verbose)
 
-    live = _live_server(a.foxglove, 0.0, int(replay.meta.get("start_ns", 0) or 0))  # (its one-line errors first)
+    # (its one-line errors first)
+    live = _live_server(a.foxglove, 0.0, int(replay.meta.get("start_ns", 0) or 0), a.foxglove_public)
     try:
         _need_terminal()
     except UsageError:
@@ -204,21 +211,23 @@ def _recorder(args: argparse.Namespace, transport: Any, radio: Any, ble_only: bo
     meta = {"cable": transport.name, "radio": radio.name if radio is not None else "",
             "primary_ble": "1" if ble_only else "0"}
     rec = SessionRecorder(args.record_dir or default_directory(), time.monotonic(), meta=meta)
-    if rec.error:
+    if rec.error:  # the app shows it at once, as an alarm (the screen covers this line)
         print(f"term: {rec.error} (flying without a recording)", file=sys.stderr)
-        return None
     return rec
 
 
-def _live_server(address: str | None, t0: float, start_ns: int) -> Any:
+def _live_server(address: str | None, t0: float, start_ns: int, public: bool = False) -> Any:
     """The live Foxglove server (term/data/foxglove_server.py) if asked for; its trouble is one line, before the
     screen is taken over."""
     if address is None:
         return None
-    from term.data.foxglove_server import FoxgloveError, LiveServer, parse_address
+    from term.data.foxglove_server import FoxgloveError, LiveServer, parse_address, public_refusal
 
     try:
         host, port = parse_address(address)
+        why = public_refusal(host, public)
+        if why:
+            raise FoxgloveError(why)
         live = LiveServer(host, port, t0=t0, start_ns=start_ns)
     except FoxgloveError as exc:
         raise UsageError(str(exc)) from None
@@ -230,6 +239,8 @@ def _recordings(a: argparse.Namespace) -> int:
     from term.data.recording import default_directory, session_table
 
     _start_log(a.verbose)
+    if a.dir is not None and not a.dir.is_dir():  # a folder named wrong: a usage error, as export's (2)
+        raise UsageError(f"no session recordings in {a.dir}: no such folder")
     directory = a.dir or default_directory()
     lines = session_table(directory)
     if len(lines) == 1:
@@ -296,6 +307,8 @@ def _params(a: argparse.Namespace) -> int:
     except SchemaError as exc:
         raise UsageError(str(exc)) from None
     _check_preset(a)
+    if a.action is None:  # (argparse would name its 'words' as missing)
+        raise UsageError("give an action: list | get NAME | set NAME VALUE | save FILE | load FILE | diff FILE")
     if a.sim and (a.serial or a.ble):  # (one may stand before 'params' and the other after it)
         raise UsageError("--sim brings its own board: not with --serial or --ble")
     _check_sim_link(a)
@@ -617,8 +630,8 @@ def _live_foxglove(args: argparse.Namespace, recorder: Any) -> Any:
     import time
 
     if recorder is not None:
-        return _live_server(args.foxglove, recorder.t0, recorder.start_ns)
-    return _live_server(args.foxglove, time.monotonic(), time.time_ns())
+        return _live_server(args.foxglove, recorder.t0, recorder.start_ns, args.foxglove_public)
+    return _live_server(args.foxglove, time.monotonic(), time.time_ns(), args.foxglove_public)
 
 
 # --- term --mavlink (term/data/mavlink.py; helper mavlink) ---

@@ -10,6 +10,7 @@ before a command that does not take it is refused in one line (``check_command``
 from __future__ import annotations
 
 import argparse
+import re
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any, NoReturn
@@ -32,7 +33,15 @@ def docs_line() -> str:
     return f"The docs/ files the help names are in {docs_dir()}."
 
 
+# Any number a value may be (-1e308, -.5, -inf): a value, never an unknown option (argparse knows only -1 and -1.5)
+_NEGATIVE_NUMBER = re.compile(r"^-(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?$|^-(inf|infinity|nan)$", re.IGNORECASE)
+
+
 class _Parser(argparse.ArgumentParser):
+    def __init__(self, *args: Any, **kw: Any) -> None:
+        super().__init__(*args, **kw)
+        self._negative_number_matcher = _NEGATIVE_NUMBER  # (no option of ours looks like a number)
+
     def error(self, message: str) -> NoReturn:  # one line, not usage + message
         raise UsageError(f"{message} (see {self.prog} --help)")
 
@@ -163,6 +172,8 @@ def _add_mavlink(p: argparse.ArgumentParser | Any) -> None:
 def _add_foxglove(p: argparse.ArgumentParser | Any) -> None:
     p.add_argument("--foxglove", metavar="[HOST:]PORT", default=None, help="serve the session live to Foxglove "
                    "(ws://HOST:PORT, loopback unless a host is given; needs the 'foxglove' extra); docs/recording.md")
+    p.add_argument("--foxglove-public", action="store_true", help="let --foxglove listen beyond this machine (a "
+                   "host other than loopback, 0.0.0.0: every interface): the whole flight to the network")
 
 
 def _plot(p: argparse.ArgumentParser) -> None:
@@ -211,7 +222,8 @@ def _replay(p: argparse.ArgumentParser) -> None:
 def _params(p: argparse.ArgumentParser) -> None:
     _link_options(p, for_params=True)
     # no choices: run_command names the nearest action ("did you mean 'list'?"); completion offers them
-    action = p.add_argument("action", help="list | get NAME | set NAME VALUE | save FILE | load FILE | diff FILE")
+    action = p.add_argument("action", nargs="?", help="list | get NAME | set NAME VALUE | save FILE | load FILE | "
+                            "diff FILE")
     action.completer = _params_actions  # type: ignore[attr-defined]
     p.add_argument("words", nargs="*", help="the action's NAME, VALUE or FILE")
 

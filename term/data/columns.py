@@ -49,7 +49,8 @@ class Column:
 
 def column_name(field: str, unit: str) -> str:
     suffix = UNIT_SUFFIX.get(unit)
-    return f"{field}_{suffix}" if suffix else field
+    # a field named with its unit already (Profile's mean_us) keeps its name: not mean_us_us (issue 34)
+    return f"{field}_{suffix}" if suffix and not field.endswith(f"_{suffix}") else field
 
 
 def _enum_of(unit: str) -> type[IntEnum] | None:

@@ -227,9 +227,12 @@ def export(src: Path, out: Path, fmt: str | None = None, board_units: bool = Fal
     kind = kind_of(src)
     if out.exists() and out.resolve() == src.resolve():
         raise ExportError(f"{out} is the input: choose another output")
+    if not out.parent.is_dir():  # (created without a word, it hid a typo in the path: issue 34)
+        raise ExportError(f"cannot write {out}: folder {out.parent} does not exist (create it first)")
+    if out.exists() and not out.is_file():
+        raise ExportError(f"cannot write {out}: not a regular file")
     part = out.with_name(f".{out.name}.part")  # written beside, renamed at the end (module docstring)
     try:
-        out.parent.mkdir(parents=True, exist_ok=True)
         if fmt == "csv":
             f = part.open("w", newline="", encoding="utf-8")
         else:

@@ -53,6 +53,27 @@ class FoxgloveError(ValueError):
     """The server cannot start; the message is one line."""
 
 
+def is_loopback(host: str) -> bool:
+    """Whether ``host`` is this machine alone (a name other than localhost counts as beyond it)."""
+    import ipaddress
+
+    if host.lower() == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(host).is_loopback
+    except ValueError:
+        return False
+
+
+def public_refusal(host: str, public: bool) -> str:
+    """Why ``--foxglove HOST:PORT`` is refused ("" if it is not): an address beyond this machine serves the whole
+    flight to the network, so it needs ``--foxglove-public`` (as the instructor's channel needs its own)."""
+    if public or is_loopback(host):
+        return ""
+    return (f"--foxglove on {_shown(host, quoted=False)} serves the whole flight to every machine that reaches it; "
+            "add --foxglove-public to mean it (or leave the host out: loopback)")
+
+
 def parse_address(text: str) -> tuple[str, int]:
     """``[HOST:]PORT`` to (host, port); host defaults to loopback. FoxgloveError with one line if malformed."""
     host, sep, port_text = text.rpartition(":")

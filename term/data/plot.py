@@ -287,7 +287,87 @@ def read_source(path: Path, progress: Any = None) -> Source:
         raise PlotError(f"cannot read {path}: {exc.strerror or exc}") from None
     if head == MCAP_MAGIC or path.suffix.lower() == ".mcap":
         return read_session(path, progress)
+    if _is_export_csv(path):
+        return read_export_csv(path)
     return read_flash_log(path)
+
+
+EXPORT_HEAD = ("t_s", "utc", "link", "dir", "packet")  # a session exported by `term export -o x.csv` begins so
+
+
+def _is_export_csv(path: Path) -> bool:
+    try:
+        with open_user_file(path, LOG_MAX_BYTES, "flight log") as f:
+            first = f.read(LINE_MAX).split(b"\n", 1)[0].decode("utf-8-sig", "replace").strip()
+    except (UserFileError, OSError):
+        return False
+    return tuple(first.split(",")[: len(EXPORT_HEAD)]) == EXPORT_HEAD
+
+
+def read_export_csv(path: Path) -> Source:
+    """``term export``'s own CSV of a session (issue 34: ``term plot`` refused it): the board's telemetry rows
+    (``dir`` rx, the SESSION_PACKETS), their SI columns drawn as a recording's are, one trace per link."""
+    units = _export_units()
+    per_link: dict[tuple[str, str], Trace] = {}
+    n = 0
+    try:
+        with io.TextIOWrapper(open_user_file(path, LOG_MAX_BYTES, "exported session"), encoding="utf-8-sig",
+                              newline="") as f:
+            reader = csv.reader(_lines(f, path), strict=True)
+            header = next(reader, None) or []
+            index = {h: i for i, h in enumerate(header)}
+            cols = [(i, h, *units[h]) for i, h in enumerate(header) if h in units]
+            for row in reader:
+                if len(row) != len(header):
+                    raise PlotError(f"{path} line {reader.line_num}: {len(row)} fields, the header has "
+                                    f"{len(header)}")
+                if row[index["dir"]] != "rx" or row[index["packet"]] not in SESSION_PACKETS:
+                    continue
+                t = _value(path, reader.line_num, "t_s", Number(0, 1e9), row[index["t_s"]])
+                link = row[index["link"]]
+                got = False
+                for i, h, name, unit in cols:
+                    if not row[i]:
+                        continue  # another packet's column
+                    v = _value(path, reader.line_num, h, Number(-1e12, 1e12), row[i])
+                    tr = per_link.get((name, link))
+                    if tr is None:
+                        tr = per_link[(name, link)] = Trace(name, unit)
+                    tr.t.append(t)
+                    tr.v.append(v)
+                    got = True
+                n += got
+    except csv.Error as exc:
+        raise PlotError(f"{path}: not a readable CSV ({one_line(str(exc))})") from None
+    except UserFileError as exc:
+        raise PlotError(str(exc)) from None
+    except UnicodeDecodeError:
+        raise PlotError(f"{path} is not UTF-8 text") from None
+    except OSError as exc:
+        raise PlotError(f"cannot read {path}: {exc.strerror or exc}") from None
+    if not n:
+        raise PlotError(f"{path} holds no telemetry from the board (exported with --board-units? plot takes SI)")
+    traces: dict[str, list[Trace]] = {}
+    for (name, _link), tr in per_link.items():
+        traces.setdefault(name, []).append(tr)
+    for (name, link), tr in per_link.items():
+        if len(traces[name]) > 1:
+            tr.label = f"{name} ({link})"
+    return Source("session", "time since the session started (s)", traces, n)
+
+
+def _export_units() -> dict[str, tuple[str, str]]:
+    """``term export``'s SI column names of the board's telemetry (phi_deg) to (field name, unit)."""
+    from term.core.protocol import SPEC_OF
+    from term.data.export import column_name
+
+    out: dict[str, tuple[str, str]] = {}
+    for kind, spec in SPEC_OF.items():
+        if kind.__name__ not in SESSION_PACKETS:
+            continue
+        for f in spec.fields:
+            out.setdefault(column_name(f.name, f.scaled_unit or f.unit), (f.name, f.scaled_unit or f.unit))
+    return out
 
 
 def _export_names() -> dict[str, str]:

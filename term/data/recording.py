@@ -35,6 +35,7 @@ from __future__ import annotations
 import contextlib
 import datetime as dt
 import json
+import math
 import os
 import re
 import time
@@ -627,12 +628,20 @@ def _human(n: int) -> str:
 
 
 def latest(directory: Path | None = None) -> Path:
-    """The first part of the newest session in ``directory``; RecordingError if there is none."""
+    """The first part of the session that ended last in ``directory`` (its last part written last: issue 34, a 1 s
+    demo started during a long flight is not the flight); RecordingError if there is none."""
     directory = directory or default_directory()
-    files = list_files(directory)
-    if not files:
+    groups = sessions(directory)
+    if not groups:
         raise RecordingError(f"no session recordings in {directory}")
-    return session_parts(files[-1])[0]
+
+    def ended(parts: list[Path]) -> tuple[float, tuple[str, int, int]]:
+        try:
+            return parts[-1].stat().st_mtime, _sort_key(parts[0])
+        except OSError:
+            return -math.inf, _sort_key(parts[0])
+
+    return max(groups, key=ended)[0]
 
 
 # --- station events as JSON -----------------------------------------------------------------------------------

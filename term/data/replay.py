@@ -41,6 +41,7 @@ from term.data.recording import (
     Recording,
     RecordingError,
     StationRecord,
+    TruthSample,
     decode_event,
     decoded_only,
     iter_file,
@@ -77,6 +78,8 @@ def _events(items: Iterable[Any], start_ns: int, has_station: bool) -> Iterator[
             yield (t, ev)
         elif kind is LoggedEvent and not has_station:
             yield (t, Note(item.severity, item.source, item.text))
+        elif kind is TruthSample:  # the simulator's truth (term --sim): the front end's room view, not the model
+            yield (t, item)
 
 
 def build_timeline(items: Iterable[Any], start_ns: int | None = None) -> list[tuple[float, Any]]:
@@ -104,12 +107,13 @@ def _in_order(events: Iterator[tuple[float, Any]]) -> Iterator[tuple[float, Any]
         yield (t0, e0)
 
 
-def _summaries(parts: list[Path]) -> tuple[bool, int, dict[str, str]] | None:
+def _summaries(parts: list[Path]) -> tuple[bool, int, dict[str, str], bool] | None:
     """From the parts' MCAP summaries (no message read): whether the station's events were recorded, the end
-    time (ns) and the session metadata; None if a part has no summary (cut short: then it is read whole)."""
+    time (ns), the session metadata and whether the simulator's truth was recorded; None if a part has no summary
+    (cut short: then it is read whole)."""
     from mcap.reader import make_reader
 
-    has_station, end_ns, meta = False, 0, {}
+    has_station, end_ns, meta, has_truth = False, 0, {}, False
     for i, part in enumerate(parts):
         try:
             with open_user_file(part, RECORDING_MAX_BYTES, "session recording") as f:  # never a FIFO
@@ -118,12 +122,13 @@ def _summaries(parts: list[Path]) -> tuple[bool, int, dict[str, str]] | None:
                 if summary is None or summary.statistics is None:
                     return None
                 has_station |= any(c.topic == "/station" for c in summary.channels.values())
+                has_truth |= any(c.topic == "/truth" for c in summary.channels.values())
                 end_ns = max(end_ns, summary.statistics.message_end_time)
                 if i == 0:
                     meta = next((dict(m.metadata) for m in reader.iter_metadata() if m.name == "session"), {})
         except Exception:  # a file without its summary: the mcap package's reader gives up on it
             return None
-    return has_station, end_ns, meta
+    return has_station, end_ns, meta, has_truth
 
 
 class Replay:
@@ -145,6 +150,7 @@ class Replay:
         self.paused = False
         self._index = 0
         self._now = 0.0
+        self.has_truth = any(type(ev) is TruthSample for _, ev in timeline)  # (load: from the summaries)
         self.recordings: list[Recording] = []  # the files read (``load``): their damage skipped, as it is read
 
     @property
@@ -162,7 +168,7 @@ class Replay:
             raise RecordingError(f"{path} {NOT_REPLAYABLE}")
         found = _summaries(parts)
         if found is not None:
-            has_station, end_ns, meta = found
+            has_station, end_ns, meta, has_truth = found
             start_ns = int(meta.get("start_ns", 0) or 0) if meta else 0
             if start_ns:
                 read = [Recording(part) for part in parts]
@@ -171,6 +177,7 @@ class Replay:
                              (end_ns - start_ns) / 1e9)
                 replay.recordings = read
                 replay._load_to(LOAD_AHEAD_S)
+                replay.has_truth = has_truth
                 if not replay.timeline and replay._more is None:
                     raise RecordingError(f"{path}: nothing recorded")
                 return replay

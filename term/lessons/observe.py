@@ -18,7 +18,7 @@ from typing import Any
 
 from term.core.events import RADIO, FromLink, LinkDown, NotSent, Requested, StationEvent
 from term.core.link import CommandFailed, PacketReceived
-from term.core.protocol import Event, EventCode, Flag, Mode, Op, WirelessState
+from term.core.protocol import ROOM_CEILING_M, ROOM_HALF_M, Event, EventCode, Flag, Mode, Op, WirelessState
 from term.lessons.instructor import Truth
 from term.session.model import Model, battery_level, mode_name
 
@@ -36,6 +36,8 @@ NAMES: dict[str, str] = {
     "touchdown": "downward speed of the last touch-down (m/s)",
     "landings": "touch-downs in this attempt",
     "crashes": "crashes in this attempt (too fast or too tilted)",
+    "crash_where": "what the last crash hit: \"the floor\", \"a wall\" or \"the ceiling\" (\"\" before one)",
+    "crash_speed": "how fast the craft went into it (m/s, the truth just before; 0 before one)",
     "soc": "the pack's state of charge, 0 to 1",
     "cable_ok": "the cable carries bytes (the instructor may cut it)",
     "in_box": "inside the lesson's box",
@@ -120,17 +122,23 @@ class Observer:
         self._mode: int | None = None
         self._mode_since = 0.0
         self.log: list[tuple[float, str]] = []  # (time, what) of the counted happenings, for the summary
+        self.crash_where, self.crash_speed = "", 0.0
 
     def reset(self, now: float) -> None:
         """An attempt starts: counters, touch-downs and crashes count from now."""
         self.counts = dict.fromkeys(COUNTERS, 0)
         self.started = now
         self.log = []
+        self.crash_where, self.crash_speed = "", 0.0
         s = self.sample
         self._landings0 = s.landings if s is not None else None
         self._crashes0 = s.crashes if s is not None else None
 
     def truth(self, sample: Truth) -> None:
+        before = self.sample
+        if before is not None and sample.crashes > before.crashes:  # what it hit, and how fast, from just before
+            self.crash_where = crash_place(before)
+            self.crash_speed = math.sqrt(before.vn ** 2 + before.ve ** 2 + before.vd ** 2)
         self.sample = sample
         if self._landings0 is None:
             self._landings0 = sample.landings
@@ -189,7 +197,8 @@ class Observer:
                       yaw_rate=s.yaw_rate_dps, on_ground=s.on_ground, touchdown=s.touchdown, soc=s.soc,
                       cable_ok=s.cable, in_box=box_out == 0.0 if box_out is not None else None, box_out=box_out,
                       landings=s.landings - (self._landings0 if self._landings0 is not None else s.landings),
-                      crashes=s.crashes - (self._crashes0 if self._crashes0 is not None else s.crashes))
+                      crashes=s.crashes - (self._crashes0 if self._crashes0 is not None else s.crashes),
+                      crash_where=self.crash_where, crash_speed=self.crash_speed)
         if model.mode != self._mode:
             self._mode, self._mode_since = model.mode, now
         volts = model.battery_v
@@ -222,6 +231,15 @@ class Observer:
         for name in STEP_NAMES:
             ns[name] = (step or {}).get(name, 0.0)
         return ns
+
+
+def crash_place(t: Truth) -> str:
+    """What a crash at ``t`` hit: the room's walls and ceiling are the simulator's (term.core.protocol's ROOM_*)."""
+    if max(abs(t.n), abs(t.e)) > ROOM_HALF_M - 0.4:
+        return "a wall"
+    if t.h > ROOM_CEILING_M - 0.4:
+        return "the ceiling"
+    return "the floor"
 
 
 def names_markdown() -> str:

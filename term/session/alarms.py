@@ -6,7 +6,9 @@ ring the terminal's bell (``[alarms] bell`` in the config, ``--no-bell`` on the 
   over BLE is not an alarm);
 - PANIC: the board is in PANIC (whoever asked for it: the pilot, the fire button or the board's safety monitor);
 - low battery: the board's LOW_BATTERY flag, or a battery under the board's PANIC threshold;
-- crash: the board's CRASHED flag (an impact the pilot has not acknowledged).
+- crash: the board's CRASHED flag (an impact the pilot has not acknowledged);
+- not recording: the session recording failed (a read-only folder, a full disk: ``Model.recording_error``), at
+  once, not after quitting.
 """
 
 from __future__ import annotations
@@ -14,7 +16,7 @@ from __future__ import annotations
 from term.core.protocol import EventCode, Flag, Mode
 from term.session.model import BATTERY_PANIC_V, Model
 
-ALARMS = ("LINK LOST", "PANIC", "low battery", "crash")
+ALARMS = ("LINK LOST", "PANIC", "low battery", "crash", "not recording")
 EVENT_ALARM_S = 5.0  # a board event (LOW_BATTERY, CRASH) holds its alarm this long (over BLE no Status says it)
 
 
@@ -34,6 +36,8 @@ def active(model: Model, now: float) -> set[str]:
     crashed = getattr(Flag, "CRASHED", None)
     if (crashed is not None and flags & crashed) or _recent(model, "CRASH", now):
         out.add("crash")
+    if model.recording_error:
+        out.add("not recording")
     return out
 
 

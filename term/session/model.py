@@ -56,6 +56,7 @@ from term.core.protocol import (
     BATTERY_WARN,
     EVENT_ARG_SCALE,
     FLIGHT_MODES,
+    HEIGHT_KEY_STEP_MM,
     LEVEL_ERROR,
     PARAMS,
     Attitude,
@@ -77,10 +78,12 @@ from term.core.protocol import (
     MotorTestEnd,
     Nak,
     Op,
+    Param,
     ParamValue,
     Profile,
     Status,
     WirelessState,
+    broken_rules,
     field_scale,
     motor_test_split,
     param_split,
@@ -157,9 +160,9 @@ def op_text(op: int, arg: int) -> str:
     return name
 
 
-def event_text(code: int, arg: int, flying: bool = True) -> tuple[str, str]:
+def event_text(code: int, arg: int, flying: bool = True, mode: int | None = None) -> tuple[str, str]:
     """(severity, text) for a board Event; ``flying``: the board was in a flight mode when it sent it (a link
-    timeout PANICs only there)."""
+    timeout PANICs only there); ``mode``: the mode it was in (a link timeout in PANIC: the descent goes on)."""
     try:
         c = EventCode(code)
     except ValueError:
@@ -178,11 +181,17 @@ def event_text(code: int, arg: int, flying: bool = True) -> tuple[str, str]:
         return "error", f"LOW BATTERY {_event_arg(c, arg):.2f} V"
     if c is EventCode.LINK_TIMEOUT:
         silent = f"board saw link timeout ({_event_arg(c, arg) * 1000:.0f} ms silent)"
+        if mode == Mode.PANIC:
+            return "error", f"{silent}: already in PANIC, the descent goes on"
         return ("error", f"{silent}: PANIC") if flying else ("warning", f"{silent}: not flying, no PANIC")
     if c is EventCode.LINK_LOST:
         return "error", f"LINK LOST: board holds level ({_event_arg(c, arg) * 1000:.0f} ms silent); PANIC if it stays"
     if c is EventCode.LINK_REGAINED:
         return "warning", f"board has the link back after {_event_arg(c, arg) * 1000:.0f} ms: no PANIC, fly on"
+    if c is EventCode.HEIGHT_SETPOINT:
+        return "info", f"HEIGHT set point {_event_arg(c, arg):.2f} m (lift keys: ±{HEIGHT_KEY_STEP_MM / 1000:.2f} m)"
+    if c is EventCode.CRASH:
+        return "error", f"crash at {_event_arg(c, arg):.2f} m/s: motors off (c acknowledges it)"
     if c is EventCode.SIM_LAG:
         return "warning", f"simulator {_event_arg(c, arg) * 1000:.0f} ms behind real time (its process was starved)"
     if c is EventCode.TILT_LIMIT:
@@ -290,7 +299,10 @@ class Model:
     link_name: str = ""
     version_mismatch: VersionMismatch | None = None
     download: LogDownload | None = None
+    live_url: str = ""  # the live Foxglove server's address while it serves (on screen: who can see the flight)
+    recording_error: str = ""  # the session recording stopped (or never started): why; an alarm while set
     download_note: str = ""
+    download_note_at: float | None = None  # when it was said (the panel shows it STATUS_LINE_S; None: always)
     events: deque[LogEntry] = field(default_factory=lambda: deque(maxlen=500))
     history: dict[str, deque[tuple[float, float]]] = field(default_factory=dict)
     pending: int = 0  # commands sent and not yet answered
@@ -323,13 +335,16 @@ class Model:
     _erasing: int | None = None  # records in the log when its erase was asked for
     _bad_noted: int = 0
     _link_noted: float = -1e9
+    _lost_to_ble: bool = False  # the cable went quiet because the board flies over BLE (the handover)
     _loss_noted: float = -1e9
 
     # --- updates ------------------------------------------------------------------------------------------
 
     def note(self, now: float, severity: str, source: str, text: str) -> None:
         """A line in the events list. The same line (``merge_key``) as one of the last few, within ``MERGE_S``,
-        is merged into it: moved to the end with its count raised, not written again."""
+        is merged into it: moved to the end with its count raised, not written again; but never over a board line
+        written after it (a mode change, a link event: what the board did after the first stays listed after its
+        cause, issue 34: a repeated "request PANIC" jumped over "mode FULL → PANIC")."""
         t = now - self.start
         events = self.events
         key = merge_key(text)
@@ -339,6 +354,8 @@ class Model:
                 del events[i]
                 self._write(LogEntry(t, severity, source, text, e.count + 1))
                 return
+            if e.source == "board":
+                break  # (a repeat of a board line itself may merge: it is the same effect again)
         self._write(LogEntry(t, severity, source, text))
 
     def _write(self, entry: LogEntry) -> None:
@@ -365,8 +382,10 @@ class Model:
             if e.seq == seq:
                 del self.events[i]
                 break
-        text = (f"deadline miss (period {period_us} µs)" if n == 1 else
-                f"deadline misses: {n} since {first:.0f} s (longest period {worst} µs)")
+        # The board reports a miss at most every 10 s while flying: this counts its reports, F9 every miss.
+        text = (f"deadline miss (period {period_us} µs; F9 counts them all)" if n == 1 else
+                f"deadline misses reported {n} times since {first:.0f} s (longest period {worst} µs; at most one "
+                "report per 10 s: F9 counts them all)")
         self._write(LogEntry(now - self.start, "warning", "board", text))
         self._misses = (n, worst, first, self.notes_written)
 
@@ -400,10 +419,16 @@ class Model:
         self.version += 1
         self.pending = max(0, self.pending - 1)
         what = op_text(event.op, event.arg)
+        reason = event.reason
         if event.nak is not None and event.op == Op.SET_PARAM:
-            spec = PARAMS.get(param_split(event.arg)[0])  # type: ignore[call-overload]
+            pid, raw = param_split(event.arg)
+            spec = PARAMS.get(pid)  # type: ignore[call-overload]
             if spec is not None:
-                self.param_refused[spec.name] = event.reason
+                if event.nak == Nak.PARAM_RULE:
+                    reason = self._rule_reason(spec.param, raw, reason)
+                self.param_refused[spec.name] = reason
+        elif event.nak == Nak.INVALID_TRANSITION and event.op == Op.MODE and self.mode is not None:
+            reason = f"not allowed from {mode_name(self.mode)}"  # (the pilot reads which mode it was in)
         if event.cmd_id in self.own and event.op == Op.PARAM_LIST:
             self.own.discard(event.cmd_id)  # asked again at the board's next Hello (F11's r asks now)
             return
@@ -412,7 +437,7 @@ class Model:
             self.note(now, "info", "params", f"this board has no parameter list ({event.reason})")
             return
         if event.nak is not None:
-            text = f"NAK {what}: {event.reason}"
+            text = f"NAK {what}: {reason}"
             mode = event.arg if event.op == Op.MODE else -1
             if self._refusal(mode, int(event.nak), text, now):
                 self.note(now, "error", "nak", text)
@@ -425,7 +450,8 @@ class Model:
     def _on_lost(self, event: LinkLost, now: float) -> None:
         self.version += 1
         self.link_lost = True
-        if self.radio_name and self.over_ble:
+        self._lost_to_ble = bool(self.radio_name and self.over_ble)  # the handover's silence, not a fault
+        if self._lost_to_ble:
             self.note(now, "info", "link", f"cable silent for {event.silent_s:.1f} s: flying over BLE")
         elif self.primary_ble and not self.heard:
             self.note(now, "info", "link", "nothing over BLE yet: the board talks here after the handover "
@@ -439,6 +465,11 @@ class Model:
     def _on_restored(self, event: LinkRestored, now: float) -> None:
         self.version += 1
         self.link_lost = False
+        if self._lost_to_ble:  # handed back: the cable was quiet by design, nothing was lost
+            self._lost_to_ble = False
+            self.note(now, "info", "link", f"the board talks on the cable again (handed back after "
+                      f"{event.lost_for_s:.1f} s over BLE)")
+            return
         self.note(now, "info", "link", f"link restored after {event.lost_for_s:.1f} s")
 
     def _on_mismatch(self, event: VersionMismatch, now: float) -> None:
@@ -545,6 +576,16 @@ class Model:
             return  # heartbeats and acks change nothing on screen (the link panel shows their stats)
         applier(self, pkt, now)
         self.version += 1
+
+    def _rule_reason(self, param: Param, raw: int, said: str) -> str:
+        """The board's PARAM_RULE refusal with the rule named: the one the refused value breaks with the values the
+        board last said (``said`` if none is found: the board knows values the terminal has not heard yet)."""
+        values = {s.param: self.params[s.name] for s in PARAMS.values() if s.name in self.params}
+        values[param] = PARAMS[param].from_raw(raw)
+        for rule in broken_rules(values):
+            if param in (rule.big, rule.small):
+                return f"breaks the rule {rule.text()} ({rule.now_text(values)})"
+        return said
 
     def _param(self, pid: int, raw: int) -> None:
         """A parameter's value as the board has it (a listing, a change, an Ack)."""
@@ -770,7 +811,7 @@ def _on_event(m: Model, pkt: Event, now: float) -> None:
     m.board_ms = pkt.board_ms
     m.event_times[pkt.code] = now
     m.event_args[pkt.code] = pkt.arg
-    severity, text = event_text(pkt.code, pkt.arg, m.flying)  # the mode it was sent in
+    severity, text = event_text(pkt.code, pkt.arg, m.flying, m.mode)  # the mode it was sent in
     if pkt.code == EventCode.PARAM_CHANGED:
         m._param(*param_split(pkt.arg))
     if pkt.code == EventCode.DEADLINE_MISS:

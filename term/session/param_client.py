@@ -22,7 +22,19 @@ from pathlib import Path
 from typing import Any
 
 from term.core.link import CommandAcked, CommandFailed, PacketReceived, VersionMismatch
-from term.core.protocol import PARAM_BY_NAME, PARAMS, Nak, Op, Param, ParamSpec, ParamValue, nak_text, param_arg
+from term.core.protocol import (
+    PARAM_BY_NAME,
+    PARAM_RULES,
+    PARAMS,
+    Nak,
+    Op,
+    Param,
+    ParamSpec,
+    ParamValue,
+    nak_text,
+    param_arg,
+    rule_order,
+)
 from term.core.schema import nearest, one_line, shown
 from term.core.userfile import UserFileError, read_user_toml
 from term.session.connection import Connection, TransportFailed
@@ -200,6 +212,13 @@ class ParamClient:
     async def set(self, param: Param, value: Value) -> tuple[bool, str]:
         """Ask the board to set ``param``; (True, the value now in force as text) or (False, the board's reason)."""
         spec = PARAMS[param]
+        values: dict[Param, Value] = {param: value}
+        for rule in PARAM_RULES:  # the rules between parameters, checked with the board's own values before sending
+            if param in (rule.big, rule.small):
+                other = rule.small if param == rule.big else rule.big
+                values[other] = PARAMS[other].from_raw(await self.get(other))
+                if not rule.holds(values):
+                    return False, f"breaks the rule {rule.text()} ({rule.now_text(values)}): not sent"
         ev = await self.command(Op.SET_PARAM, param_arg(param, spec.to_raw(value)))
         if isinstance(ev, CommandFailed):
             return False, ev.reason
@@ -252,6 +271,8 @@ def _request(action: str, words: list[str]) -> Any:
         path = Path(words[0])
         if path.parent and not path.parent.is_dir():
             raise ParamError(f"cannot write {path}: no directory {path.parent}")
+        if path.exists() and not path.is_file():  # a FIFO would hang the write, a device take it
+            raise ParamError(f"cannot write {path}: not a regular file")
         return path
     return None
 
@@ -289,7 +310,8 @@ async def _run(client: ParamClient, action: str, request: Any, out: Any) -> int:
             out(f"not on the board: {', '.join(missing)}")
         return 1 if differ or missing else 0
     refused = 0  # load
-    for p, v in request.items():
+    for p in rule_order(request, board):  # (each step keeps the rules between parameters)
+        v = request[p]
         if p in board and PARAMS[p].to_raw(board[p]) == PARAMS[p].to_raw(v):
             continue
         ok, said = await client.set(p, v)

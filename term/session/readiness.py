@@ -66,6 +66,7 @@ NAK_ITEM: dict[Nak, str | None] = {
     Nak.OUT_OF_RANGE: None,  # a parameter's value: the parameter screen shows it beside the parameter
     Nak.UNKNOWN_PARAM: None,
     Nak.ONLY_SHORTER_IN_FLIGHT: None,  # a link timeout made longer in flight: the parameter screen says why
+    Nak.PARAM_RULE: None,  # a rule between parameters: the parameter screen names it beside the parameter
 }
 
 REFUSAL_SHOWN_S = 30.0  # a refusal marks its item this long (or until the item is fixed)

@@ -51,6 +51,7 @@ from term.input.keymap import (
     pretty_key,
 )
 from term.lessons.instructor import InstructorClient
+from term.lessons.room import Room
 from term.session.alarms import Alarms
 from term.session.config import Config
 from term.session.connection import Connection
@@ -147,13 +148,15 @@ class TermApp(App[int]):
         self.render_hz = render_hz
         self.joystick_hz = joystick_hz
         self.station = self._make_station(transport, radio, primary_ble, session_options, link_thread)
+        if live is not None:  # on screen while it serves (the line printed before the screen took over is hidden)
+            self.station.model.live_url = str(getattr(live, "url", ""))
         self.phone = Phone()
         self.start_screen = start_screen
         self._want_joystick = joystick
         self.joystick = JoystickController(self.station, self.config, self.send, self.set_stick, self.set_interval,
                                            joystick_hz)
         self.outputs = SessionOutputs(self.station, clock, recorder, live, replaying=replay is not None)
-        self.replayer = None if replay is None else ReplayController(replay, self.station, self.render_now)
+        self.replayer = None
         self.downloads = DownloadController(self.station, clock, self.send, self.control_connection,
                                             lambda work: self.run_worker(work, exclusive=False),
                                             log_directory or self.config.log_directory)
@@ -164,6 +167,10 @@ class TermApp(App[int]):
         self.alarms_rung: list[str] = []  # every alarm the bell was rung for (or would have been, bell off)
         self.lessons = LessonController(self.station, clock, self.keymap, self, instructor, lesson, demo,
                                         lessons_dirs)
+        if replay is not None:  # a --sim recording's truth: the room view shows where the craft was
+            if replay.has_truth and self.lessons.room is None:
+                self.lessons.room = Room()
+            self.replayer = ReplayController(replay, self.station, self.render_now, room=self.lessons.room)
         if instructor is not None and (live is not None or recorder is not None):  # the true pose, kept and served
             on_truth = instructor.on_truth
             instructor.on_truth = lambda truth: (self.outputs.truth(truth), on_truth and on_truth(truth))
@@ -274,7 +281,7 @@ class TermApp(App[int]):
         self.install_screen(ProfileScreen(), "profile")
         self.install_screen(WirelessScreen(self.phone), "wireless")
         self.install_screen(JoystickScreen(lambda: self.joystick.poller), "joystick")
-        self.install_screen(ParamsScreen(lambda: self.model), "params")
+        self.install_screen(ParamsScreen(lambda: self.model, self.can_fly), "params")
         self.install_screen(ConsoleScreen(), "console")
         self.set_interval(1.0 / self.render_hz, self.render_now)
         await self.station.start()
@@ -284,6 +291,7 @@ class TermApp(App[int]):
         if self._want_joystick:
             self.call_after_refresh(self.joystick.start)
         self.lessons.mount()
+        self.outputs.recording_failed()  # a recording that could not start: said before the first flight
         self.render_now()
         # The widget tree and the libraries are built: a full collection need not walk them again (it holds the
         # GIL, and the link's thread with it, for as long as it walks). Undone at shutdown.
@@ -315,7 +323,7 @@ class TermApp(App[int]):
                 self.downloads.log_directory = path
                 self.downloads.start()
 
-        self.push_screen(DirectoryPrompt(self.downloads.log_directory), chosen)
+        self.push_screen(DirectoryPrompt(self.downloads.log_directory, about=frozenset({Mode.SAFE})), chosen)
 
     def on_set_param(self, message: SetParam) -> None:
         self.params.set_param(message.param, message.value)
@@ -369,12 +377,27 @@ class TermApp(App[int]):
             self.mavlink.tick(now)
         if not self.screen_stack or not self.is_running:
             return  # shutting down
+        self.close_stale_dialog()
         model = self.model
         for screen in self._live_screens():
             for w in screen.query(ModelView):
                 w.show(model, now)
             for p in screen.query(LivePlot):
                 p.show(model, now)
+
+    def close_stale_dialog(self) -> None:
+        """A dialog about some modes (``about``: the erase question about SAFE) closes itself, with a line, once the
+        board is in another: out of SAFE Esc is PANIC, and a question left over the panels hides the flight."""
+        screen = self.screen
+        about = getattr(screen, "about", None)
+        mode = self.model.mode
+        if about is None or mode is None or mode in about or not isinstance(screen, ModalScreen):
+            return
+        if not screen.is_mounted:
+            return  # (its own mount first: the next tick closes it)
+        title = getattr(screen, "title_text", "") or "dialog"
+        self.station.note("warning", "term", f"{title}: closed, nothing done: the board is in {mode_name(mode)} now")
+        screen.dismiss(None)
 
     def _live_screens(self) -> list[Screen[object]]:
         """The screen on top and, under a dialog (a summary, a question, the help), the screens it lets show
@@ -405,7 +428,15 @@ class TermApp(App[int]):
             if action is not None and action.name in PRIORITY_IN_FLIGHT:
                 self.perform(action)
                 return
+        elif type(event) is events.Key and not event.is_forwarded and event.key == "escape" and self._dialog_on_top():
+            # In SAFE (or with no board) Esc closes any dialog: PANIC would change nothing there (the motors are
+            # off) and the pilot means "close". Out of SAFE Esc stays PANIC (above).
+            self.screen.dismiss(getattr(self.screen, "CANCEL", None))  # the dialog's own "no"
+            return
         await super().on_event(event)
+
+    def _dialog_on_top(self) -> bool:
+        return isinstance(self.screen, ModalScreen) and not isinstance(self.screen, CommandPalette)
 
     def check_action(self, action: str, parameters: tuple[object, ...]) -> bool | None:
         if action == "pilot" and len(parameters) == 2:  # a key (term/ui/keygate.py): the pilot's or the widget's
@@ -475,6 +506,10 @@ class TermApp(App[int]):
         if self.control_connection() is None:
             self.station.note("error", "term", "not sent: log erase: not connected")
             return
+        if self.model.mode is not None and self.model.mode != Mode.SAFE:  # a question about SAFE: not in flight
+            self.station.note("error", "term", f"not sent: log erase: only in SAFE (the board is in "
+                              f"{mode_name(self.model.mode)})")
+            return
         self.send(Op.LOG_STATUS)
 
         def question() -> str:
@@ -486,10 +521,11 @@ class TermApp(App[int]):
         def answer(yes: bool | None) -> None:
             if yes:
                 self.send(Op.LOG_RESET)
-            else:
+            elif yes is not None:  # (None: closed by the app, said there)
                 self.station.note("info", "term", "log erase cancelled: nothing erased")
 
-        self.push_screen(ConfirmScreen(question, "erase the log", "keep it", title="erase the flash log"), answer)
+        self.push_screen(ConfirmScreen(question, "erase the log", "keep it", title="erase the flash log",
+                                       about=frozenset({Mode.SAFE})), answer)
 
     async def action_quit(self) -> None:
         """Ctrl+Q. While the motors run it asks first; quitting then sends PANIC before it goes (and says so), so
@@ -504,6 +540,8 @@ class TermApp(App[int]):
             return  # already asking
 
         def answer(yes: bool | None) -> None:
+            if yes is None:
+                return  # closed by the app (the motors stopped: Ctrl+Q quits at once now), said there
             if not yes:
                 self.station.note("info", "term", "quit cancelled: still flying")
                 return
@@ -519,7 +557,8 @@ class TermApp(App[int]):
                 "lands by itself." if mode in FLIGHT_MODES else
                 "PANIC is in progress: the board lands by itself.\nQuit the terminal anyway?")
         self.push_screen(ConfirmScreen(text, "PANIC and quit" if mode in FLIGHT_MODES else "quit", "keep flying",
-                                       title="quit while the motors run?"), answer)
+                                       title="quit while the motors run?",
+                                       about=frozenset(FLIGHT_MODES) | {Mode.PANIC}), answer)
 
     def show_screen(self, name: str) -> None:
         while len(self.screen_stack) > 1:

@@ -119,7 +119,8 @@ def test_files_round_trip_and_diff(tmp_path: Path) -> None:
     assert [PARAMS[p].name for p in diff(values, preset_values("default"))] == [
         "ctrl.height_d", "ctrl.height_i", "ctrl.height_p", "est.attitude", "est.fixed_point", "est.height",
         "link.failsafe_ms",
-        "link.heartbeat_ms", "link.queue_rule", "link.telemetry_hz", "log.scheme", "mode.calibration_ms",
+        "link.heartbeat_ms", "link.queue_rule", "link.telemetry_hz", "link.timeout_ms", "log.scheme",
+        "mode.calibration_ms",
         "mode.panic_countdown_ms", "sched.stick_reaction"]
 
 

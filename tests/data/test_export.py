@@ -220,7 +220,7 @@ def test_the_command_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) ->
         assert main(argv) == 2, argv
         err = capsys.readouterr().err
         assert err.startswith("term: ") and why in err and err.count("\n") == 1, err
-    assert main(["recordings", "--dir", str(tmp_path / "none")]) == 1
+    assert main(["recordings", "--dir", str(tmp_path / "none")]) == 2  # a folder named wrong: usage (issue 34)
     assert "no session recordings" in capsys.readouterr().err
 
 

@@ -72,8 +72,8 @@ def sources(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
 PINNED = {
     ("two-links", "csv", False, False): "aca624fd9b2aa54c",
     ("two-links", "csv", True, False): "e672b78a00a4884f",
-    ("two-links", "mcap", False, False): "04ff09c1f7766bae",
-    ("two-links", "mcap", False, True): "889b47456442e09f",
+    ("two-links", "mcap", False, False): "0954adf023c3c4fd",  # issue 34: EventCode.HEIGHT_SETPOINT in the enums
+    ("two-links", "mcap", False, True): "67f185c37dc88234",  # (the schemas list every name)
     ("full-telemetry", "csv", False, False): "4418701f1c0d787e",
     ("full-telemetry", "csv", True, False): "a84f8d7c1878efe4",
     ("full-telemetry", "mcap", False, False): "2ed3e5b0bd419cd3",

@@ -13,6 +13,7 @@ from pathlib import Path
 import pytest
 from textual import events
 from textual.command import CommandPalette
+from textual.screen import ModalScreen
 from textual.widget import Widget
 from textual.widgets import Input
 
@@ -157,8 +158,12 @@ async def check_key(app: TermApp, pilot, board, w: Widget | None, key: str, want
     board.executed.clear()
     if is_text(w):
         w.value = ""  # type: ignore[union-attr]
+    dialog = app.screen if isinstance(app.screen, ModalScreen) and not isinstance(app.screen, CommandPalette) else None
     await pilot.press(key)
     modes = lambda: [c for c in sent(board) if c[0] == Op.MODE]  # noqa: E731
+    if dialog is not None and key == "escape" and app.model.mode == Mode.SAFE:  # issue 34: Esc closes it in SAFE
+        closed = await settle(pilot, lambda: app.screen is not dialog)
+        return None if closed and not modes() else f"{where}: Esc in SAFE sent {modes()}, dialog closed: {closed}"
     if app.model.mode != Mode.SAFE or not is_text(w):
         if not await settle(pilot, lambda: bool(modes())) or modes() != [(Op.MODE, want)]:
             return f"{where}: sent {modes()}, wanted {want.name} ({app.model.events[-1].text})"

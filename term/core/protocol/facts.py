@@ -104,6 +104,7 @@ class Nak(IntEnum):
     OUT_OF_RANGE = 17
     UNKNOWN_PARAM = 18
     ONLY_SHORTER_IN_FLIGHT = 19  # a link timeout made longer outside SAFE (it may only shrink in flight)
+    PARAM_RULE = 20  # a set that breaks a rule between parameters (PARAM_RULES; the Ack's value: the rule's index)
 
 
 NAK_TEXT = {
@@ -127,6 +128,7 @@ NAK_TEXT = {
     Nak.OUT_OF_RANGE: "value out of range",
     Nak.UNKNOWN_PARAM: "no such parameter on this board",
     Nak.ONLY_SHORTER_IN_FLIGHT: "in flight a link timeout can only be made shorter: land (SAFE) to lengthen it",
+    Nak.PARAM_RULE: "breaks a rule between parameters (docs/parameters.md)",
 }
 
 
@@ -167,6 +169,7 @@ class EventCode(IntEnum):
     MOTOR_TEST = 20  # arg: MotorTestEnd, why a motor test stopped (the motors are off again)
     CONTACT = 21  # arg: (ContactKind << 16) | the estimated speed into it in mm/s: a hard stop the board felt
     HEADING_DRIFT = 22  # arg: 0.01° of heading drift taken out since calibration (no compass: the heading is relative)
+    HEIGHT_SETPOINT = 23  # arg: HEIGHT's set point in mm after a lift key moved it (the lift trim is left alone)
 
 
 @unique
@@ -263,6 +266,12 @@ STICK_NEUTRAL = 1000  # |joystick + trim| at most this on roll, pitch and yaw (3
 LIFT_FINE_FROM = 13107  # 40 %
 LIFT_FINE_TO = 19661  # 60 %
 LIFT_FINE_DIVISOR = 4
+# In HEIGHT the lift keys move the height set point (issue 34: a silent lift trim there changed nothing the pilot
+# saw, then dropped the craft on leaving HEIGHT): HEIGHT_KEY_STEP_MM per press, kept within
+# HEIGHT_SETPOINT_MIN_MM..HEIGHT_SETPOINT_MAX_MM (the lab's room is 3 m high); the lift trim stays as it was.
+HEIGHT_KEY_STEP_MM = 100
+HEIGHT_SETPOINT_MIN_MM = 200
+HEIGHT_SETPOINT_MAX_MM = 2500
 
 
 def lift_trim_after(trim: int, steps: int, lift_step: int, joystick_lift: int = 0) -> int:

@@ -344,6 +344,7 @@ EVENT_ARG_SCALE: dict[EventCode, tuple[float, str]] = {
     EventCode.LINK_REGAINED: (1e-3, "s"),
     EventCode.SIM_LAG: (1e-3, "s"),
     EventCode.HEADING_DRIFT: (0.01, "°"),
+    EventCode.HEIGHT_SETPOINT: (1e-3, "m"),
 }
 
 

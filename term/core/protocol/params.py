@@ -5,6 +5,7 @@ not), the SET_PARAM argument packing and the presets. docs/parameters.md is gene
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
 from enum import IntEnum
 from typing import Any
@@ -79,6 +80,11 @@ class ParamSpec:
     @property
     def safe_only(self) -> bool:
         return not self.in_flight
+
+    @property
+    def nudge(self) -> float:
+        """One step of the parameter screen's arrows in flight: ``step``, else the wire's own step."""
+        return self.step or self.scale
 
     @property
     def raw_range(self) -> tuple[int, int]:
@@ -181,6 +187,58 @@ class ParamSpec:
         return f"{self.text(self.lo)}..{self.text(self.hi)}"
 
 
+@dataclass(frozen=True, slots=True)
+class ParamRule:
+    """A rule between two parameters: ``big`` >= ``factor`` × ``small``, compared on their raw values (the two share
+    a unit and a scale: a board checks it in integers). Both boards refuse a set that breaks it (``Nak.PARAM_RULE``;
+    the Python board's Ack carries the rule's index in ``PARAM_RULES`` as its value) and the terminal says so before
+    it sends. ``why``: the reason, as both parameters' docs state it."""
+
+    name: str
+    big: Param
+    factor: int
+    small: Param
+    why: str
+
+    def holds(self, values: Mapping[Param, float | str | bool]) -> bool:
+        """Whether ``values`` (a parameter's value in its unit, by Param) keep the rule (one missing: it does)."""
+        if self.big not in values or self.small not in values:
+            return True
+        return PARAMS[self.big].to_raw(values[self.big]) >= self.factor * PARAMS[self.small].to_raw(values[self.small])
+
+    def text(self) -> str:
+        return f"{PARAMS[self.big].name} ≥ {self.factor} × {PARAMS[self.small].name}"
+
+    def now_text(self, values: Mapping[Param, float | str | bool]) -> str:
+        """The two values as they would be, e.g. "50 ms < 2 × 100 ms"."""
+        big, small = PARAMS[self.big], PARAMS[self.small]
+        unit = f" {big.unit}" if big.unit else ""
+        return (f"{big.text(values[self.big])}{unit} < {self.factor} × {small.text(values[self.small])}"
+                f"{' ' + small.unit if small.unit else ''}")
+
+
+def broken_rules(values: Mapping[Param, float | str | bool]) -> list[ParamRule]:
+    """The rules of ``PARAM_RULES`` that ``values`` break."""
+    return [r for r in PARAM_RULES if not r.holds(values)]
+
+
+def rule_order(values: Mapping[Param, float | str | bool],
+               now: Mapping[Param, float | str | bool]) -> list[Param]:
+    """The order to set ``values`` one by one over ``now`` (the board's) so that no step breaks a rule the end keeps:
+    for each rule, the side that makes room goes first (a longer timeout before a longer heartbeat, a shorter
+    heartbeat before a shorter timeout)."""
+    order = list(values)
+    for rule in PARAM_RULES:
+        if rule.big not in values or rule.small not in values or rule.big not in now:
+            continue
+        grows = PARAMS[rule.big].to_raw(values[rule.big]) >= PARAMS[rule.big].to_raw(now[rule.big])
+        first, second = (rule.big, rule.small) if grows else (rule.small, rule.big)
+        if order.index(first) > order.index(second):
+            order.remove(first)
+            order.insert(order.index(second), first)
+    return order
+
+
 def _decimals(scale: float) -> int:
     d = 0
     while d < 9 and abs(round(scale * 10**d) - scale * 10**d) > 1e-9:
@@ -206,7 +264,7 @@ PARAMS: dict[Param, ParamSpec] = {p.param: p for p in (
     _p(Param.HEIGHT_D, "ctrl.height_d", "float", "ae²/(mm/s)", 400.0, "height D on the vertical speed (HEIGHT)",
        lo=0, hi=5000, scale=0.1, step=10.0),
     _p(Param.HEIGHT_I, "ctrl.height_i", "float", "ae²/(mm·s)", 100.0, "height I: takes out the battery's sag "
-       "(0: the report's PD)", lo=0, hi=1000, scale=0.1),
+       "(0: the report's PD)", lo=0, hi=1000, scale=0.1, step=5.0),
     _p(Param.ATTITUDE_FILTER, "est.attitude", "enum", "", "ikf", "RAW path attitude filter: complementary (report "
        "eq. 1, K from est.k_gyro), kalman and kalman-cov (Table 2), qgate, ikf (ours)", choices=ATTITUDE_FILTERS,
        in_flight=False),
@@ -224,14 +282,16 @@ PARAMS: dict[Param, ParamSpec] = {p.param: p for p in (
     _p(Param.STICK_REACTION, "sched.stick_reaction", "bool", "", True, "a changed stick moves the motors in the "
        "parse task (false: only the control step, as the report's firmware)", in_flight=False),
     _p(Param.LINK_TIMEOUT_MS, "link.timeout_ms", "int", "ms", 500, "link silence longer than this in a flight "
-       "mode: stage 1 of the failsafe (hold level; only shorter in flight)", lo=50, hi=60000, shorter_in_flight=True),
+       "mode: stage 1 of the failsafe (hold level; only shorter in flight); at least 2 × link.heartbeat_ms (rule "
+       "timeout-spans-heartbeats)", lo=50, hi=60000, shorter_in_flight=True, step=50),
     _p(Param.LINK_FAILSAFE_MS, "link.failsafe_ms", "int", "ms", 1000, "stage 1's guard time: the link back within "
        "it gives control back, else PANIC (0: PANIC at once, the report's; only shorter in flight)", lo=0,
-       hi=10000, shorter_in_flight=True),
+       hi=10000, shorter_in_flight=True, step=100),
     _p(Param.TELEMETRY_HZ, "link.telemetry_hz", "float", "Hz", 50.0, "Attitude and Motion rate over the UART "
-       "(the report's: 0.52, a run every 1.9 s, Figure 14)", lo=0.1, hi=100, scale=0.01),
+       "(the report's: 0.52, a run every 1.9 s, Figure 14)", lo=0.1, hi=100, scale=0.01, step=5.0),
     _p(Param.HEARTBEAT_MS, "link.heartbeat_ms", "int", "ms", 100, "the board's Heartbeat period, and its safety "
-       "monitor's (the report's: 325, Figure 14)", lo=20, hi=1000, in_flight=False),
+       "monitor's (the report's: 325, Figure 14); at most half of link.timeout_ms (rule timeout-spans-heartbeats)",
+       lo=20, hi=1000, in_flight=False),
     _p(Param.QUEUE_RULE, "link.queue_rule", "enum", "", "bounded", "the receive queue: bounded (what does not "
        "fit is dropped) or discard-20 (the report's: the whole queue goes at 20 frames)", choices=QUEUE_RULES,
        in_flight=False),
@@ -239,12 +299,12 @@ PARAMS: dict[Param, ParamSpec] = {p.param: p for p in (
        "Nak.LOG_BUSY)", choices=tuple(SCHEME_NAMES[k] for k in sorted(SCHEME_NAMES)), base=min(SCHEME_NAMES),
        in_flight=False),
     _p(Param.TRIM_STEP, "trim.step", "int", "stick", 256, "roll, pitch and yaw trim per key press (0.8 %)",
-       lo=1, hi=4096),
+       lo=1, hi=4096, step=32),
     _p(Param.LIFT_STEP, "trim.lift_step", "int", "stick", 328, "lift trim per key press (1 %); a quarter of it "
-       "while the lift is in 40-60 %, near hover (LIFT_FINE_*)", lo=1, hi=4096),
+       "while the lift is in 40-60 %, near hover (LIFT_FINE_*)", lo=1, hi=4096, step=32),
     _p(Param.CALIBRATION_MS, "mode.calibration_ms", "int", "ms", 1000, "CALIBRATION averages this long, then "
        "returns to SAFE by itself (0: for as long as the pilot holds it, the report's, section 3.6)", lo=0,
-       hi=60000),
+       hi=60000, step=100),
     _p(Param.PANIC_COUNTDOWN_MS, "mode.panic_countdown_ms", "int", "ms", 0, "PANIC: 0 descends at a bounded rate "
        "until the ground is sensed (ours); else holds a level just under hover for this long, then motors off (the "
        "report's countdown, section 3.2)", lo=0, hi=60000, in_flight=False),
@@ -257,6 +317,13 @@ LINK_TIMEOUT_S: float = PARAMS[Param.LINK_TIMEOUT_MS].default / 1000
 LINK_TIMEOUT_RANGE_S: tuple[float, float] = (PARAMS[Param.LINK_TIMEOUT_MS].lo / 1000,
                                              PARAMS[Param.LINK_TIMEOUT_MS].hi / 1000)
 HEARTBEAT_S: float = PARAMS[Param.HEARTBEAT_MS].default / 1000
+# The rules between parameters (as data: firmware/gen_c.py can emit them for the C board), each stated in both
+# parameters' docs.
+PARAM_RULES: tuple[ParamRule, ...] = (
+    ParamRule("timeout-spans-heartbeats", Param.LINK_TIMEOUT_MS, 2, Param.HEARTBEAT_MS,
+              "the link timeout spans two heartbeat periods: one late heartbeat is no LINK LOST (a timeout under "
+              "the period fails safe over and over on a healthy link)"),
+)
 # The gain keys (u/j, i/k, o/l, t/g, y/h) step these parameters by their ``step``.
 GAIN_OPS: dict[int, Param] = {Op.GAIN_YAW_P: Param.YAW_P, Op.GAIN_P1: Param.P1, Op.GAIN_P2: Param.P2,
                               Op.GAIN_HEIGHT_P: Param.HEIGHT_P, Op.GAIN_HEIGHT_D: Param.HEIGHT_D}
@@ -297,7 +364,9 @@ PRESETS: dict[str, dict[Param, float | str | bool]] = {
         Param.LINK_FAILSAFE_MS: 0,
         # the report's telemetry period (1.9 s) and heartbeat period (324-327 ms) of Figure 14, its delta log
         # (section 3.5), calibration for as long as it is held (3.6), PANIC's countdown (3.2; docs/deviations.md)
-        Param.TELEMETRY_HZ: 0.52, Param.HEARTBEAT_MS: 325, Param.LOG_SCHEME: "delta8", Param.CALIBRATION_MS: 0,
+        # its link timeout is not given: 650 ms is the shortest the rule timeout-spans-heartbeats allows
+        Param.TELEMETRY_HZ: 0.52, Param.HEARTBEAT_MS: 325, Param.LINK_TIMEOUT_MS: 650, Param.LOG_SCHEME: "delta8",
+        Param.CALIBRATION_MS: 0,
         Param.PANIC_COUNTDOWN_MS: REPORT_PANIC_COUNTDOWN_MS,
     },
 }

@@ -58,7 +58,7 @@ class DownloadController:
         else:
             d = LogDownloader(started=now, **self.options)
         model.download = d
-        model.download_note = ""
+        model.download_note, model.download_note_at = "", None
         self.tick(now)
 
     def on_link_event(self, ev: object) -> None:
@@ -82,6 +82,7 @@ class DownloadController:
         if d.state == RUNNING:
             return
         model.download = None
+        model.download_note_at = now
         if d.state == EMPTY:
             model.download_note = f"log download: {d.reason}"
         elif d.state == FAILED:
@@ -102,10 +103,10 @@ class DownloadController:
         except OSError as exc:
             msg = f"cannot write {path}: {exc.strerror}"
             model.note(self.clock(), "error", "term", msg)
-            model.download_note = msg
+            model.download_note, model.download_note_at = msg, self.clock()
             return
         size = path.stat().st_size if path.exists() else 0  # the file's size, not the flash's bytes it came from
         msg = (f"log saved: {path} ({rows} rows, {size:,} bytes; {len(data):,} bytes read from the flash at "
                f"{rate:.2f} kB/s)")
         model.note(self.clock(), "info", "term", msg)
-        model.download_note = msg
+        model.download_note, model.download_note_at = msg, self.clock()

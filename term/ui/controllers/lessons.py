@@ -30,7 +30,7 @@ from textual.app import SystemCommand
 from textual.screen import Screen
 
 from term.core.events import StationEvent, StickSet
-from term.core.protocol import FLIGHT_MODES, INSTRUCTOR_TRUTH_HZ, STICK_NEUTRAL, Joystick, Mode, Op
+from term.core.protocol import FLIGHT_MODES, INSTRUCTOR_TRUTH_HZ, STICK_MAX, STICK_NEUTRAL, Flag, Joystick, Mode, Op
 from term.input.keymap import Action, KeyBinding, action_by_name
 from term.lessons.autopilot import COMMANDS, Press, Stick
 from term.lessons.driver import LessonDriver
@@ -260,6 +260,7 @@ class LessonController:
                                has_next=bool(later))
 
         def chosen(what: str | None) -> None:
+            self._tidy_after()
             if what == "again":
                 self.start_lesson(lesson.number)
             elif what == "show":
@@ -268,6 +269,21 @@ class LessonController:
                 self.start_lesson(later[0])
 
         self.host.push_screen(screen, chosen)
+
+    def _tidy_after(self) -> None:
+        """The summary closed, in SAFE: the board as a new flight wants it, each step said (issue 34: the lift trim
+        stayed at 1 % and a crash still needed c). The crash was the lesson's, summed up already; the simulator
+        puts the craft back on its feet."""
+        model = self.model
+        if model.mode != Mode.SAFE:
+            return
+        if model.flags & Flag.CRASHED:
+            self.host.send(Op.ACK_CRASH)
+            self.station.note("info", "lesson", "lesson over: its crash acknowledged (c) for the next flight")
+        trim = model.status.trim_lift if model.status is not None else 0
+        if trim > 0:
+            self.host.send(Op.TRIM_LIFT, -STICK_MAX)
+            self.station.note("info", "lesson", f"lesson over: lift trim {100 * trim / STICK_MAX:.1f} % back to 0")
 
     # --- the palette --------------------------------------------------------------------------------------
 

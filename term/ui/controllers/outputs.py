@@ -28,6 +28,14 @@ class SessionOutputs:
         self._noted = 0  # the seq of the last events-list entry written
         self._error_said = False
 
+    def recording_failed(self) -> None:
+        """The recording's failure, said at once: an alarm in the mode banner and a line (the flight goes on)."""
+        rec = self.recorder
+        if rec is not None and rec.error and not self._error_said:
+            self._error_said = True
+            self.station.model.recording_error = rec.error
+            self.station.note("error", "term", rec.error)
+
     def station_event(self, ev: StationEvent) -> None:
         now = self.clock()
         if self.recorder is not None:
@@ -51,9 +59,7 @@ class SessionOutputs:
         self.notes(now)
         if self.recorder is not None:
             self.recorder.poll(now)
-            if self.recorder.error and not self._error_said:  # said once; the flight goes on
-                self._error_said = True
-                self.station.note("error", "term", self.recorder.error)
+            self.recording_failed()  # said once; the flight goes on
 
     def notes(self, now: float) -> None:
         """The events list's new lines to the recording and the live server (/events: what the pilot read)."""

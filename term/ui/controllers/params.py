@@ -12,7 +12,7 @@ from typing import Any
 
 from term.core.events import CABLE, FromLink
 from term.core.link import PacketReceived
-from term.core.protocol import PARAMS, Hello, Op, Param, param_arg
+from term.core.protocol import PARAMS, Hello, Op, Param, param_arg, rule_order
 from term.session.config import Config
 from term.session.param_client import ParamError, load_file
 from term.session.station import Station
@@ -44,8 +44,10 @@ class ParamsController:
             except ParamError as exc:
                 self.station.note("error", "params", f"{exc}: not applied")
             else:
-                for p, v in values.items():
-                    self.send(Op.SET_PARAM, param_arg(p, PARAMS[p].to_raw(v)))
+                now = {s.param: self.station.model.params[s.name] for s in PARAMS.values()
+                       if s.name in self.station.model.params}
+                for p in rule_order(values, now):  # (each step keeps the rules between parameters)
+                    self.send(Op.SET_PARAM, param_arg(p, PARAMS[p].to_raw(values[p])))
                 self.station.note("info", "params", f"{len(values)} parameters from {cfg.params_file} sent to the "
                                   "board (apply_on_connect); refusals follow")
         link = self.station.control()

@@ -1,9 +1,12 @@
 """A question before something that cannot be undone (erasing the flash log, quitting while the motors run).
 
 Two buttons; the safe one ("no") has the focus, so Enter alone never does the harm; Tab moves to the other, a click
-works too, and ``n`` answers no. The pilot's keys stay live underneath (they are priority bindings): PANIC always
-works, a question never blocks it. ``message`` may be a callable, re-read four times a second (the log's record
-count arrives after the question is shown). Dismissed with True (yes) or False (no).
+works too, and ``n`` answers no (Esc too, in SAFE: the app closes any dialog on it there). The pilot's keys stay
+live underneath (they are priority bindings): PANIC always works, a question never blocks it. ``message`` may be a
+callable, re-read four times a second (the log's record count arrives after the question is shown). Dismissed with
+True (yes) or False (no); None when the app closed it. ``about``: the modes the question is about (the erase: SAFE;
+quitting while the motors run: the flight modes and PANIC): the app closes it, with a line, once the board is in
+another (``TermApp.close_stale_dialog``).
 """
 
 from __future__ import annotations
@@ -25,11 +28,14 @@ class ConfirmScreen(ModalScreen[bool]):
     ConfirmScreen Button { margin: 0 2 0 0; }
     """
     BINDINGS = [("n", "answer(False)", "no")]
+    CANCEL = False  # what Esc answers (in SAFE, term/ui/app.py)
 
-    def __init__(self, message: str | Callable[[], str], yes: str, no: str, *, title: str = "") -> None:
+    def __init__(self, message: str | Callable[[], str], yes: str, no: str, *, title: str = "",
+                 about: frozenset[int] | None = None) -> None:
         super().__init__()
         self.message = message
         self.yes, self.no, self.title_text = yes, no, title
+        self.about = about
 
     def _text(self) -> str:
         return self.message() if callable(self.message) else self.message
@@ -43,7 +49,8 @@ class ConfirmScreen(ModalScreen[bool]):
                 yield Button(self.yes, id="yes", variant="error")
 
     def on_mount(self) -> None:
-        self.query_one("#no", Button).focus()
+        for no in self.query("#no").results(Button):  # (none if the app closed it before it was mounted)
+            no.focus()
         if callable(self.message):
             self.set_interval(0.25, self._refresh_text)
 

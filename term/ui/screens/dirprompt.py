@@ -24,9 +24,13 @@ class DirectoryPrompt(ModalScreen[Path | None]):
     """
     BINDINGS = [("escape", "cancel", "cancel")]
 
-    def __init__(self, current: Path) -> None:
+    title_text = "download the log to a directory"
+
+    def __init__(self, current: Path, about: frozenset[int] | None = None) -> None:
+        """``about``: the modes it is about (SAFE: a download and free text only there; the app closes it)."""
         super().__init__()
         self.current = current
+        self.about = about
 
     def compose(self) -> ComposeResult:
         with Vertical():

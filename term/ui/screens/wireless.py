@@ -124,14 +124,28 @@ class StickPad(_PhoneControl):
 
 
 class LiftSlider(_PhoneControl):
-    """The lift, 0 at the bottom to full at the top: click or drag; it stays where it is left. It shows the lift
-    the terminal sends (a hardware throttle's too)."""
+    """The lift, 0 at the bottom to full at the top: click or drag; it stays where it is left. It shows the lift the
+    motors get: the stick the terminal sends (a hardware throttle's too) plus the board's lift trim (the keys' a/z),
+    the trim's part in its own colour and said in the label (issue 34: it read 0 % while the craft hovered on a
+    50.6 % trim). A click asks for the lift at that level: the stick is what the trim leaves to it."""
 
     DEFAULT_CSS = "LiftSlider { width: 1fr; height: 1fr; }"
+
+    def __init__(self, phone: Phone, *, id: str | None = None) -> None:  # noqa: A002
+        super().__init__(phone, id=id)
+        self.trim = 0  # the board's lift trim (Status), stick units
 
     @property
     def lift(self) -> int:
         return self.phone.lift
+
+    @property
+    def total(self) -> int:
+        return max(0, min(FULL, self.lift + self.trim))
+
+    def render_model(self, model: Model, now: float) -> RenderableType:
+        self.trim = model.status.trim_lift if model.status is not None else 0
+        return super().render_model(model, now)
 
     def _rows(self) -> int:
         return max(2, self.content_size.height - 1)  # the last row is the label
@@ -139,7 +153,7 @@ class LiftSlider(_PhoneControl):
     def _slide(self, y: int) -> None:
         rows = self._rows()
         y = max(0, min(rows - 1, y))
-        self._ask(self.phone.slide(round((rows - 1 - y) / (rows - 1) * FULL)))
+        self._ask(self.phone.slide(max(0, round((rows - 1 - y) / (rows - 1) * FULL) - self.trim)))
 
     def on_mouse_down(self, event: events.MouseDown) -> None:
         self.capture_mouse()
@@ -156,22 +170,31 @@ class LiftSlider(_PhoneControl):
 
     def render(self) -> RenderableType:
         rows, w = self._rows(), max(3, self.content_size.width)
-        level = self.lift / FULL * (rows - 1)
+        total = self.total
+        level, trim_level = total / FULL * (rows - 1), max(0, min(FULL, self.trim)) / FULL * (rows - 1)
         out = Text()
         for y in range(rows):
-            filled = (rows - 1 - y) <= level and self.lift > 0
-            out.append(("█" if filled else "░") * w, style="yellow" if filled else "dim")
+            filled = (rows - 1 - y) <= level and total > 0
+            trim_part = filled and self.trim > 0 and (rows - 1 - y) <= trim_level
+            out.append(("█" if filled else "░") * w, style="cyan" if trim_part else "yellow" if filled else "dim")
             out.append("\n")
-        out.append(f"{100 * self.lift / FULL:3.0f}%".center(w), style="bold")
+        label = f"{100 * total / FULL:.1f}%"
+        if self.trim:
+            label += f" trim {100 * self.trim / FULL:.1f}"
+        out.append(label.center(w)[:max(w, len(label))], style="bold")
         return out
 
 
-def link_lines(model: Model, out: Text) -> None:
-    """Which link carries control, and each link's health, in a few lines (the link panel uses them too)."""
+def link_lines(model: Model, out: Text, width: int | None = None) -> None:
+    """Which link carries control, and each link's health, in a few lines (the link panel uses them too). With
+    ``width`` (a narrow panel) each state loses its explanation in brackets first, then is cut to fit."""
     for ls in link_states(model):
         out.append("▶ " if ls.carries else "  ", style="bold")
         out.append(f"{ls.name:<6}", style="bold" if ls.carries else "")
-        out.append(ls.state, style=LEVEL_STYLE[ls.level])
+        state = ls.state
+        if width is not None and len(state) + 8 > width:
+            state = state.split(" (", 1)[0][: max(4, width - 8)]
+        out.append(state, style=LEVEL_STYLE[ls.level])
         out.append("\n")
 
 

@@ -115,6 +115,7 @@ class ModelView(Widget):
 # --- figures with their freshness ----------------------------------------------------------------------------
 
 STALE_STYLE = "dim"
+STATUS_LINE_S = 15.0  # a status line (the download panel's, F11's) this long, then it goes: the events list keeps it
 _PRECISION = re.compile(r"\.(\d+)[eEfF%]$")
 
 

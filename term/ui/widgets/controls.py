@@ -141,11 +141,14 @@ def _flags_line(out: Text, flags_r: Reading) -> None:
 
 
 def _status_line(out: Text, model: Model, cpu: Reading, log: Reading) -> None:
-    """CPU load, log fill and the log's state, when the board has said them."""
+    """CPU load, log fill and the log's state, when the board has said them (a load of 0: "—", not measured)."""
     if not cpu.known:
         return
     out.append("\ncpu ")
-    out.append_text(figure(cpu, "3d", "%"))
+    if cpu.value == 0:  # a running loop is never idle: 0 is a board that does not measure it (the C board's so far)
+        out.append("  —", style="dim")
+    else:
+        out.append_text(figure(cpu, "3d", "%"))
     out.append("  log ")
     out.append_text(figure(log, "3d", "%"))
     ls = model.log_state

@@ -1,4 +1,5 @@
-"""Log download progress: a bar with the fraction, kB/s and where the CSV goes."""
+"""Log download progress: a bar with the fraction, kB/s and where the CSV goes; the outcome's line for
+``STATUS_LINE_S`` (the events list keeps it)."""
 
 from __future__ import annotations
 
@@ -7,7 +8,7 @@ from rich.text import Text
 
 from term.session.model import Model
 from term.ui.widgets.bars import hbar
-from term.ui.widgets.base import ModelView
+from term.ui.widgets.base import STATUS_LINE_S, ModelView
 
 
 class DownloadPanel(ModelView):
@@ -16,9 +17,11 @@ class DownloadPanel(ModelView):
     def render_model(self, model: Model, now: float) -> RenderableType:
         d = model.download
         out = Text()
-        self.display = d is not None or bool(model.download_note)
+        said = model.download_note_at
+        note = model.download_note if said is None or now - said < STATUS_LINE_S else ""  # the events list keeps it
+        self.display = d is not None or bool(note)
         if d is None:
-            out.append(model.download_note)
+            out.append(note)
             return out
         width = max(10, (self.content_size.width or 60) - 40)
         out.append("log download ")

@@ -90,6 +90,7 @@ class SummaryScreen(ModalScreen[str]):
     SummaryScreen Horizontal { height: auto; margin: 1 0 0 0; }
     SummaryScreen Button { margin: 0 2 0 0; min-width: 14; }
     """
+    CANCEL = "close"  # what Esc answers (in SAFE, term/ui/app.py)
     BINDINGS = [("r", "choose('again')", "again"), ("s", "choose('show')", "show me"),
                 ("n", "choose('next')", "next lesson"), ("x", "choose('close')", "close")]
 

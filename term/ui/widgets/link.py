@@ -11,6 +11,8 @@ from term.session.model import Model, rtt_text
 from term.ui.screens.wireless import link_lines
 from term.ui.widgets.base import ModelView
 
+NARROW_COLS = 45  # a panel narrower than this (80 columns: 36) gets one line a link, cut to fit, never cut by the edge
+
 
 def _ms(v: float | None) -> str:
     return "—" if v is None else f"{v:.1f}"
@@ -45,7 +47,9 @@ class LinkPanel(ModelView):
 
     def render_model(self, model: Model, now: float) -> RenderableType:
         # in the bottom border (the panel's rows are all taken), between its corners and the title's padding
-        self.subtitle(board_text(model.hello, self.size.width - 6))
+        live = f"Foxglove {model.live_url}" if model.live_url else ""
+        board = board_text(model.hello, self.size.width - 6 - (len(live) + 3 if live else 0))
+        self.subtitle(" · ".join(t for t in (board, live) if t))
         if model.radio_name:
             return self._two_links(model)
         s = model.link
@@ -90,12 +94,21 @@ class LinkPanel(ModelView):
         if model.control_lost:
             out.append("  L I N K   L O S T  ", style="bold blink white on red")
             out.append("  (the link that carries control)\n", style="red")
-        link_lines(model, out)
+        width = self.content_size.width or 80
+        narrow = width < NARROW_COLS
+        link_lines(model, out, width if narrow else None)
         for name, s in (("cable", model.link), ("ble", model.radio if model.radio_up else None)):
             if s is None:
                 continue
             hb = s.since_last_heartbeat_s
             loss = "—" if s.loss_pct is None else f"{s.loss_pct:.1f}"
+            if narrow:  # one line a link, the figures a pilot reads in flight: the rest where it fits (issue 34)
+                beat = _heartbeat(model, name, hb).replace(" ago", "").replace(" (idle)", "").replace(
+                    " (over BLE)", "")
+                rtt = rtt_text(s) or "RTT —"  # (the one RTT the screens show: none for an idle link)
+                out.append(f"{name:<6}{rtt}  loss {loss}%  hb {beat}\n"[:width + 1],
+                           style="dim" if model.over_ble != (name == "ble") else "")
+                continue
             out.append(f"{name:<6}{rtt_text(s) or 'RTT —'}  loss {loss}%  rx/tx {s.rx_bytes_per_s:.0f}/"
                        f"{s.tx_bytes_per_s:.0f}\n", style="dim" if model.over_ble != (name == "ble") else "")
             out.append(f"      frames {s.frames_ok} bad {s.frames_bad}  heartbeat {_heartbeat(model, name, hb)}\n",

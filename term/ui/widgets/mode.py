@@ -63,12 +63,16 @@ class ModeBanner(ModelView):
             text += "   ·   over BLE"
         if mode is not None and mode_r.stale:
             text += f"   ·   mode {mode_r.mark}"
+        if model.recording_error:  # (the events list says why)
+            text += "   ·   NOT RECORDING"
         if lost:
             style = "bold blink white on red" if mode is not None else style
         self.set_class(mode == Mode.PANIC or lost, "alarm")
         lag = sim_lag_text(model, now)
         if lag:  # gone again SIM_LAG_SHOWN_S after the simulator last said it
             self._expires = min(self._expires, model.event_times[EventCode.SIM_LAG] + SIM_LAG_SHOWN_S + 0.01)
+        if not lag and model.live_url:  # who can see the flight, while they can
+            lag = f"serving live to Foxglove: {model.live_url}"
         width = max(self.size.width, len(text) + 4, len(lag) + 4)
         blank = Text(" " * width, style=style)
         line = Text(text.center(width), style=style)
