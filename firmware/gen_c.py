@@ -40,7 +40,8 @@ CRC_POLY = 0x1021  # CRC-16/CCITT-FALSE; checked against binascii.crc_hqx below
 INT_CONSTANTS = ("PROTOCOL_VERSION", "MAX_FRAME", "MAX_BODY", "CRC_INIT", "LOG_CHUNK_BYTES", "STICK_MAX",
                  "LIFT_ZERO", "STICK_NEUTRAL", "LIFT_FINE_FROM", "LIFT_FINE_TO", "LIFT_FINE_DIVISOR", "BATTERY_LOW",
                  "BATTERY_WARN", "BATTERY_FULL", "MOTOR_TEST_MAX_LEVEL", "MOTOR_TEST_MAX_MS",
-                 "MOTOR_TEST_LINK_MS", "TEXT_BYTES", "TEXT_MORE", "TEXT_LEVEL_MASK")
+                 "MOTOR_TEST_LINK_MS", "TEXT_BYTES", "TEXT_MORE", "TEXT_LEVEL_MASK", "HEIGHT_KEY_STEP_MM",
+                 "HEIGHT_SETPOINT_MIN_MM", "HEIGHT_SETPOINT_MAX_MM")
 STR_CONSTANTS = ("NUS_SERVICE", "NUS_RX", "NUS_TX", "BOARD_NAME_PREFIX")
 
 # struct format -> (C type, what the field's comment adds)
@@ -387,6 +388,9 @@ def params_header() -> str:
                 out.append(f"#define QB_{stem}_{upper(re.sub(r'[^0-9A-Za-z]+', '_', choice))} {spec.base + i}")
     out += ["/* discard-20: the whole receive queue goes when this many frames wait in it */",
             f"#define QB_QUEUE_DISCARD_FRAMES {p.QUEUE_DISCARD_FRAMES}"]
+    out += ["", "/* The rules between parameters (term.core.protocol.PARAM_RULES): raw big >= factor x raw small. */",
+            "typedef struct {", "    uint8_t big, small;", "    int32_t factor;", "} qb_param_rule_t;",
+            f"#define QB_RULE_COUNT {len(p.PARAM_RULES)}", "extern const qb_param_rule_t QB_RULES[QB_RULE_COUNT];"]
     out += ["", "/* In id order; defined once, in the file that defines QB_PARAMS_TABLE first (qb_params.c). */",
             "extern const qb_param_spec_t QB_PARAMS[QB_PARAM_COUNT];", "", "#ifdef QB_PARAMS_TABLE",
             "const qb_param_spec_t QB_PARAMS[QB_PARAM_COUNT] = {"]
@@ -395,6 +399,8 @@ def params_header() -> str:
         out.append(f"    {{{int(spec.param)}, {_KIND_C[spec.kind]}, {int(spec.in_flight)}, "
                    f"{int(spec.shorter_in_flight)}, {lo}, {hi}, "
                    f"{spec.to_raw(spec.default)}, {spec.scale!r}, {float(spec.step)!r}}}, /* {spec.name} */")
+    out += ["};", "const qb_param_rule_t QB_RULES[QB_RULE_COUNT] = {"]
+    out += [f"    {{{int(r.big)}, {int(r.small)}, {r.factor}}}, /* {r.name} */" for r in p.PARAM_RULES]
     out += ["};", "#endif", "", "#endif /* QB_PARAMS_H */", ""]
     return "\n".join(out)
 

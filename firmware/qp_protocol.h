@@ -57,6 +57,9 @@ extern "C" {
 #define QP_TEXT_BYTES 13
 #define QP_TEXT_MORE 128
 #define QP_TEXT_LEVEL_MASK 7
+#define QP_HEIGHT_KEY_STEP_MM 100
+#define QP_HEIGHT_SETPOINT_MIN_MM 200
+#define QP_HEIGHT_SETPOINT_MAX_MM 2500
 #define QP_NUS_SERVICE "6e400001-b5a3-f393-e0a9-e50e24dcca9e"
 #define QP_NUS_RX "6e400002-b5a3-f393-e0a9-e50e24dcca9e"
 #define QP_NUS_TX "6e400003-b5a3-f393-e0a9-e50e24dcca9e"

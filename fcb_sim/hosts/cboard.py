@@ -30,7 +30,7 @@ from fcb_sim.board.timing import rtc_ticks
 from fcb_sim.board.wireless import WirelessLink
 from fcb_sim.errors import UsageError
 from fcb_sim.world.physics import World
-from term.core.protocol import PARAMS, PRESETS, Mode, Param
+from term.core.protocol import PARAM_RULES, PARAMS, PRESETS, Mode, Param
 
 FIRMWARE = cbuild.firmware_dir()
 LIBRARY = "libqb_host.so"
@@ -154,6 +154,11 @@ class CBoard:
         for param, value in PRESETS[name].items():
             if self._lib.qbh_set_param(self._h, int(param), PARAMS[param].to_raw(value)):
                 refused.append(f"{PARAMS[param].name} = {PARAMS[param].text(value)}")
+        for rule in PARAM_RULES:  # the whole set keeps the rules, or the two come back to the table's defaults
+            big, small = (self._lib.qbh_param(self._h, int(p)) for p in (rule.big, rule.small))
+            if big < rule.factor * small:
+                for p in (rule.big, rule.small):
+                    self._lib.qbh_set_param(self._h, int(p), PARAMS[p].to_raw(PARAMS[p].default))
         if refused:
             raise UsageError(f"the C board cannot run preset {name!r}: {', '.join(refused)} (docs/firmware.md)")
 

@@ -419,7 +419,7 @@ typedef struct {
     uint8_t status;
     int32_t value;
     int after;      /* what follows the Ack: 0 nothing, 1 PARAM_CHANGED for after_param, 2 the parameter list,
-                     * 3 the task profile, 4 the LogStatus, 5 a download's start */
+                     * 3 the task profile, 4 the LogStatus, 5 a download's start, 6 HEIGHT_SETPOINT */
     int after_param;
 } result_t;
 
@@ -433,6 +433,14 @@ static qb_real *gain_of(qb_board_t *b, int param)
     case QP_PARAM_HEIGHT_P: return &g->height_p;
     default: return &g->height_d;
     }
+}
+
+/* x (>= 0) to the nearest integer, a half to the even one, as Python's round(): no libm on the M0 for one call. */
+static int round_half_even(qb_real x)
+{
+    qb_real v = x + 0.5;
+    int q = (int)v;
+    return ((qb_real)q == v && (q & 1)) ? q - 1 : q;
 }
 
 static result_t execute(qb_board_t *b, const qp_command_t *c)
@@ -451,6 +459,15 @@ static result_t execute(qb_board_t *b, const qp_command_t *c)
         r.value = b->modes.mode;
         return r;
     case QP_OP_TRIM_LIFT:
+        if (b->modes.mode == QP_MODE_HEIGHT) { /* the lift keys move HEIGHT's set point (commands.py _height_keys) */
+            qb_real sp = qb_flight_move_setpoint(&b->core, (qb_real)c->arg * QP_HEIGHT_KEY_STEP_MM / 1000.0,
+                                                 QP_HEIGHT_SETPOINT_MIN_MM / 1000.0, QP_HEIGHT_SETPOINT_MAX_MM / 1000.0);
+            r.value = b->modes.trim_lift;
+            r.after = 6;
+            r.after_param = round_half_even(sp * 1000.0); /* Python's round() */
+            return r;
+        }
+        /* fall through */
     case QP_OP_TRIM_ROLL:
     case QP_OP_TRIM_PITCH:
     case QP_OP_TRIM_YAW:
@@ -487,6 +504,8 @@ static result_t execute(qb_board_t *b, const qp_command_t *c)
             raw -= 0x1000000;
         r.status = qb_param_set(b, pid, raw, 1);
         r.value = qb_param_spec(pid) ? qb_param_get(b, pid) : 0;
+        if (r.status == QP_NAK_PARAM_RULE) /* the Ack names the rule: its index in QB_RULES */
+            r.value = qb_param_broken_rule(b, pid, raw);
         r.after = r.status == QP_NAK_OK;
         r.after_param = pid;
         return r;
@@ -585,6 +604,8 @@ static void handle_command(qb_board_t *b, const qp_command_t *c)
     drain_mode_events(b);
     if (r.after == 1) {
         param_changed(b, r.after_param);
+    } else if (r.after == 6) {
+        qb_send_event(b, QP_EVENT_CODE_HEIGHT_SETPOINT, r.after_param);
     } else if (r.after == 4) {
         qb_log_send_status(b, b->log.state);
     } else if (r.after == 5) { /* the download begins: LogStatus DOWNLOADING, then the chunks (telemetry's turn) */

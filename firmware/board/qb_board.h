@@ -217,6 +217,8 @@ void qb_flight_imu(qb_flight_t *fc, const int16_t raw[6], qb_real dt);
 void qb_flight_dmp(qb_flight_t *fc, const float q[4]);
 void qb_flight_baro(qb_flight_t *fc, qb_real pressure_pa, qb_real dt);
 void qb_flight_enter_mode(qb_flight_t *fc, uint8_t mode, int32_t lift);
+/* HEIGHT: the set point moved by dm metres (the lift keys), kept in lo..hi, never against the press; the new one. */
+qb_real qb_flight_move_setpoint(qb_flight_t *fc, qb_real dm, qb_real lo, qb_real hi);
 void qb_flight_control(qb_flight_t *fc, uint8_t mode, const int32_t sticks[4], qb_real dt, uint16_t out[4]);
 void qb_flight_attitude_cdeg(const qb_flight_t *fc, int32_t out[3]);
 /* A hard stop felt since the last call (EventCode.CONTACT's arg: kind << 16 | mm/s), or -1. */
@@ -379,6 +381,8 @@ void qb_receive(qb_board_t *b, const uint8_t *data, size_t len);
 /* Parameters (qb_params.c): the raw value in force, and a change with the guards of fcb_sim/board/param_bindings.py. */
 int32_t qb_param_get(const qb_board_t *b, int id);
 uint8_t qb_param_set(qb_board_t *b, int id, int32_t raw, int mode_guard);
+/* The index in QB_RULES of the first rule `id` = `raw` would break with the values in force, or -1. */
+int qb_param_broken_rule(const qb_board_t *b, int id, int32_t raw);
 const qb_param_spec_t *qb_param_spec(int id);
 /* The raw number for value ``v`` kept inside the table's range: round(v / scale) (half to even, Python's round)
  * clipped to lo..hi; a value past either end (a burst of key presses) is that end. */

@@ -368,6 +368,18 @@ void qb_flight_baro(qb_flight_t *fc, qb_real pressure_pa, qb_real dt)
 
 /* --- modes and control ------------------------------------------------------------------------------------ */
 
+qb_real qb_flight_move_setpoint(qb_flight_t *fc, qb_real dm, qb_real lo, qb_real hi)
+{
+    qb_real sp = fc->setpoint + dm; /* fcb_sim/board/flight.py's move_setpoint */
+    if (dm > 0.0)
+        sp = sp < (hi > fc->setpoint ? hi : fc->setpoint) ? sp : (hi > fc->setpoint ? hi : fc->setpoint);
+    else
+        sp = sp > (lo < fc->setpoint ? lo : fc->setpoint) ? sp : (lo < fc->setpoint ? lo : fc->setpoint);
+    fc->sp_offset += sp - fc->setpoint;
+    fc->setpoint = sp;
+    return sp;
+}
+
 void qb_flight_enter_mode(qb_flight_t *fc, uint8_t mode, int32_t lift)
 {
     if (mode == QP_MODE_HEIGHT) {

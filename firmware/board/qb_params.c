@@ -139,6 +139,22 @@ static uint8_t set_bound(qb_board_t *b, int id, int32_t raw, qb_real v)
     return QP_NAK_OK;
 }
 
+int qb_param_broken_rule(const qb_board_t *b, int id, int32_t raw)
+{
+    int i;
+    for (i = 0; i < QB_RULE_COUNT; i++) { /* fcb_sim/board/param_bindings.py's broken_rule */
+        const qb_param_rule_t *r = &QB_RULES[i];
+        int32_t big, small; /* raw values of at most 24 bits, factors small: the product fits */
+        if (id != r->big && id != r->small)
+            continue;
+        big = id == r->big ? raw : qb_param_get(b, r->big);
+        small = id == r->small ? raw : qb_param_get(b, r->small);
+        if (big < r->factor * small)
+            return i;
+    }
+    return -1;
+}
+
 uint8_t qb_param_set(qb_board_t *b, int id, int32_t raw, int mode_guard)
 {
     const qb_param_spec_t *s = qb_param_spec(id);
@@ -152,5 +168,7 @@ uint8_t qb_param_set(qb_board_t *b, int id, int32_t raw, int mode_guard)
         if (s->shorter_in_flight && raw > qb_param_get(b, id))
             return QP_NAK_ONLY_SHORTER_IN_FLIGHT; /* a link timeout may not grow (or go off) in flight */
     }
+    if (mode_guard && qb_param_broken_rule(b, id, raw) >= 0) /* a command's set (a preset's: the whole set, after) */
+        return QP_NAK_PARAM_RULE;
     return set_bound(b, id, raw, value_of(s, raw));
 }

@@ -49,6 +49,14 @@ typedef struct {
 /* discard-20: the whole receive queue goes when this many frames wait in it */
 #define QB_QUEUE_DISCARD_FRAMES 20
 
+/* The rules between parameters (term.core.protocol.PARAM_RULES): raw big >= factor x raw small. */
+typedef struct {
+    uint8_t big, small;
+    int32_t factor;
+} qb_param_rule_t;
+#define QB_RULE_COUNT 1
+extern const qb_param_rule_t QB_RULES[QB_RULE_COUNT];
+
 /* In id order; defined once, in the file that defines QB_PARAMS_TABLE first (qb_params.c). */
 extern const qb_param_spec_t QB_PARAMS[QB_PARAM_COUNT];
 
@@ -77,6 +85,9 @@ const qb_param_spec_t QB_PARAMS[QB_PARAM_COUNT] = {
     {21, QB_KIND_INT, 0, 0, 20, 1000, 100, 1.0, 0.0}, /* link.heartbeat_ms */
     {22, QB_KIND_INT, 1, 0, 0, 60000, 1000, 1.0, 100.0}, /* mode.calibration_ms */
     {23, QB_KIND_INT, 0, 0, 0, 60000, 0, 1.0, 0.0}, /* mode.panic_countdown_ms */
+};
+const qb_param_rule_t QB_RULES[QB_RULE_COUNT] = {
+    {1, 21, 2}, /* timeout-spans-heartbeats */
 };
 #endif
 

@@ -53,7 +53,8 @@ TOLERANCE_AE = 1  # observed: 0 (the same doubles, the same libm)
 # Events both boards send the same way (the Python board's cost model adds DEADLINE_MISS and OVERFLOW).
 COMPARED_EVENTS = {EventCode.BOOT, EventCode.MODE_CHANGED, EventCode.REFUSED, EventCode.CALIBRATION_DONE,
                    EventCode.PANIC_DONE, EventCode.LINK_TIMEOUT, EventCode.LOW_BATTERY, EventCode.TILT_LIMIT,
-                   EventCode.PARAM_CHANGED, EventCode.LINK_LOST, EventCode.LINK_REGAINED, EventCode.SIM_LAG}
+                   EventCode.PARAM_CHANGED, EventCode.LINK_LOST, EventCode.LINK_REGAINED, EventCode.SIM_LAG,
+                   EventCode.HEIGHT_SETPOINT}
 
 
 @dataclass
@@ -299,6 +300,36 @@ def test_a_scripted_flight_is_the_same_on_both_boards() -> None:
     assert {"LINK_LOST", "LINK_REGAINED", "LINK_TIMEOUT", "REFUSED", "SIM_LAG"} <= {e[0] for e in events}
     assert sum(e[0] == "LINK_LOST" for e in events) == 2  # the hold in FULL and the end's, not the starved 0.7 s
     assert pair.c.mode in (Mode.PANIC, Mode.SAFE)
+
+
+def test_height_keys_and_the_rule_between_parameters_are_the_same_on_both_boards() -> None:
+    """Issue 34 on the C board too: in HEIGHT the lift keys move the set point (event HEIGHT_SETPOINT, the trim
+    kept), and a link timeout under two heartbeats is refused with the rule's index (Nak.PARAM_RULE)."""
+    pair = Pair()
+    pair.step(20)
+    pair.command(Op.SET_PARAM, (int(Param.LINK_TIMEOUT_MS) << 24) | 150)  # heartbeat 100 ms: breaks the rule
+    pair.command(Op.SET_PARAM, (int(Param.HEARTBEAT_MS) << 24) | 400)  # timeout 500 ms: breaks it the other way
+    pair.command(Op.SET_PARAM, (int(Param.LINK_TIMEOUT_MS) << 24) | 200)  # exactly two heartbeats: taken
+    pair.step(2)
+    pair.command(Op.MODE, Mode.CALIBRATION)
+    pair.step(240)
+    pair.command(Op.MODE, Mode.FULL)
+    for k in range(200):
+        if k % 5 == 0:
+            _joystick(pair, 16500)
+        pair.step()
+    pair.command(Op.MODE, Mode.HEIGHT)
+    pair.step(4)
+    for presses in (1, 3, -2, 40, -60):  # up, up, down, past the top, past the bottom
+        pair.command(Op.TRIM_LIFT, presses)
+        for k in range(20):
+            if k % 5 == 0:
+                _joystick(pair, 16500)
+            pair.step()
+    pair.check()
+    events = [e for e in pair.said[1] if isinstance(e, tuple)]
+    assert sum(e[0] == "HEIGHT_SETPOINT" for e in events) == 5, events
+    assert any(e[0] == "PARAM_CHANGED" for e in events)
 
 
 def test_gain_bursts_past_both_ends_in_flight_are_the_same() -> None:

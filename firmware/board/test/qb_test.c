@@ -351,7 +351,8 @@ static void write_checked(const qb_param_spec_t *s, int path, int32_t raw)
     } else if (status == QP_NAK_OK) {
         CHECK(after == raw);
     } else { /* this board's own refusals (qb_params.c), never a silent change */
-        CHECK((status == QP_NAK_NOT_IMPLEMENTED || status == QP_NAK_BAD_ARGUMENT) && after == before);
+        CHECK((status == QP_NAK_NOT_IMPLEMENTED || status == QP_NAK_BAD_ARGUMENT || status == QP_NAK_PARAM_RULE) &&
+              after == before);
     }
 }
 
