@@ -10,7 +10,6 @@ import contextvars
 import os
 import signal
 import sys
-from collections.abc import Callable
 
 import pytest
 
@@ -19,6 +18,7 @@ from term.cli import signals as cli
 from term.core.protocol import Mode
 from term.transports.serial import SerialTransport
 from term.ui.app import TermApp
+from tests.support.waits import until
 
 pytestmark = pytest.mark.skipif(sys.platform == "win32", reason="sends POSIX signals")
 
@@ -30,12 +30,6 @@ def _no_forced_end(monkeypatch: pytest.MonkeyPatch) -> object:
     monkeypatch.setattr(cli, "_end_now", forced.append)
     yield
     assert not forced, f"the orderly exit hung: the watchdog ended term with {forced}"
-
-
-async def until(pilot: object, cond: Callable[[], bool], timeout: float = 20.0) -> None:
-    async with asyncio.timeout(timeout):
-        while not cond():
-            await pilot.pause(0.05)  # type: ignore[attr-defined]
 
 
 @pytest.mark.parametrize("name", ["SIGTERM", "SIGHUP", "SIGINT"])

@@ -20,22 +20,12 @@ from typing import Any
 import pytest
 
 from term.core.protocol import PARAMS, Mode, Op, Param
+from tests.support.waits import until
 
 pytest.importorskip("pymavlink", reason="the mavlink extra (pymavlink) is not installed")
 
 from term.data.mavlink_map import PARAM_BY_MAV, PARAM_NAMES, param_float  # noqa: E402
 from tests.support.mavlink_gcs import Gcs  # noqa: E402
-
-
-async def until(pilot: Any, cond: Callable[[], Any], timeout: float = 20.0,
-                what: str | Callable[[], str] = "") -> None:
-    """Wait for ``cond``; ``what`` (or what it returns, asked at the timeout) names it in the failure."""
-    try:
-        async with asyncio.timeout(timeout):
-            while not cond():
-                await pilot.pause(0.02)
-    except TimeoutError:
-        raise AssertionError(f"timed out waiting for {(what() if callable(what) else what) or cond}") from None
 
 
 class Flight:
@@ -45,7 +35,7 @@ class Flight:
         self.app, self.pilot, self.gcs, self.endpoint, self.instructor = app, pilot, gcs, endpoint, instructor
 
     async def wait(self, cond: Callable[[], Any], timeout: float = 20.0, what: str | Callable[[], str] = "") -> None:
-        await until(self.pilot, cond, timeout, what)
+        await until(self.pilot, cond, timeout, what=what)
 
     async def command(self, command: int, *params: float) -> Any:
         """COMMAND_LONG; its COMMAND_ACK."""

@@ -5,7 +5,6 @@ board served in real time in this process with its instructor channel."""
 from __future__ import annotations
 
 import asyncio
-from collections.abc import Callable
 
 from fcb_sim.hosts.instructor import Instructor, InstructorServer
 from fcb_sim.hosts.serve import ThreadedServer, make_board
@@ -14,12 +13,7 @@ from term.lessons.instructor import InstructorClient
 from term.transports.serial import SerialTransport
 from term.ui.app import TermApp
 from term.ui.widgets.lesson import LessonBar
-
-
-async def until(pilot: object, cond: Callable[[], bool], timeout: float = 20.0) -> None:
-    async with asyncio.timeout(timeout):
-        while not cond():
-            await pilot.pause(0.05)  # type: ignore[attr-defined]
+from tests.support.waits import until
 
 
 async def test_the_demo_flies_over_the_tcp_link_with_the_instructor() -> None:

@@ -13,6 +13,7 @@ from typing import Any
 from term.transports.base import TransportClosed, TransportError
 from term.transports.loopback import loopback_pair
 from term.ui.app import TermApp
+from tests.support.waits import until
 
 
 class LoopBoard:
@@ -58,13 +59,6 @@ class LoopBoard:
         for t in self.tasks:
             with contextlib.suppress(asyncio.CancelledError):
                 await t
-
-
-async def until(pilot: Any, cond: Callable[[], bool], timeout: float = 20.0) -> None:
-    """Wait for ``cond``; the bound only ends a test that would hang (a busy machine is slow, not wrong)."""
-    async with asyncio.timeout(timeout):
-        while not cond():
-            await pilot.pause(0.01)
 
 
 @contextlib.asynccontextmanager

@@ -13,8 +13,9 @@ import asyncio
 import json
 import sys
 import time
-from collections.abc import Callable
 from pathlib import Path
+
+from tests.support.waits import until
 
 
 async def fly(record_dir: Path) -> dict[str, object]:
@@ -40,21 +41,17 @@ async def fly(record_dir: Path) -> dict[str, object]:
         app = TermApp(cable, radio=radio, instructor=client, lesson=1, joystick=False, recorder=rec)
         async with app.run_test(size=(120, 44)) as pilot:
 
-            async def until(cond: Callable[[], bool], timeout: float = 20.0) -> None:
-                async with asyncio.timeout(timeout):
-                    while not cond():
-                        await pilot.pause(0.05)
-
-            await until(lambda: app.lessons.driver.run is not None and app.lessons.driver.run.state == "running")
+            await until(pilot, lambda: app.lessons.driver.run is not None and app.lessons.driver.run.state == "running")
             bar = app.screen.query_one(LessonBar)
             app.simulate_key("3")
-            await until(lambda: "2/3 Arm in MANUAL" in bar.text)
+            await until(pilot, lambda: "2/3 Arm in MANUAL" in bar.text)
             app.simulate_key("2")
-            await until(lambda: "3/3 Disarm" in bar.text)
+            await until(pilot, lambda: "3/3 Disarm" in bar.text)
             app.simulate_key("0")
-            await until(lambda: isinstance(app.screen, SummaryScreen) and bool(app.screen.query("#summary-head")))
+            await until(pilot, lambda: isinstance(app.screen, SummaryScreen)
+                        and bool(app.screen.query("#summary-head")))
             score = app.screen.result.score
-            await until(lambda: app.model.radio_up)
+            await until(pilot, lambda: app.model.radio_up)
         rec.close()
         return {"link": sim.link, "port": sim.port, "score": score, "radio": app.model.radio_up,
                 "platform": sys.platform, "recording": str(rec.path)}

@@ -14,15 +14,22 @@ from typing import Any
 TIMEOUT_S = 30.0
 
 
-async def until(first: Any, second: Any = None, timeout: float = TIMEOUT_S, *, step: float = 0.005) -> None:
+async def until(first: Any, second: Any = None, timeout: float = TIMEOUT_S, *, step: float = 0.005,
+                what: str | Callable[[], str] = "") -> None:
     """``until(cond[, timeout])`` steps the event loop with ``asyncio.sleep``; ``until(pilot, cond[, timeout])``
-    with Textual's ``pilot.pause`` (the app's messages run between the looks)."""
+    with Textual's ``pilot.pause`` (the app's messages run between the looks). ``what`` (or what it returns, asked
+    at the timeout) names the wait in the failure."""
     if callable(first):
         cond: Callable[[], object] = first
         timeout = second if second is not None else timeout
         pause: Callable[[float], Any] = asyncio.sleep
     else:
         cond, pause = second, first.pause
-    async with asyncio.timeout(timeout):
-        while not cond():
-            await pause(step)
+    try:
+        async with asyncio.timeout(timeout):
+            while not cond():
+                await pause(step)
+    except TimeoutError:
+        if not what:
+            raise
+        raise AssertionError(f"waited {timeout:g} s for {what() if callable(what) else what}") from None

@@ -8,7 +8,8 @@ from term.input.keymap import DEFAULT_KEYMAP, help_rows
 from term.ui.screens.console import ConsoleScreen
 from term.ui.screens.flight import FlightScreen
 from term.ui.widgets.console import ConsoleView
-from tests.support.loop_rig import flying, until
+from tests.support.loop_rig import flying
+from tests.support.waits import until
 
 
 def _texts(app) -> list[str]:  # noqa: ANN001

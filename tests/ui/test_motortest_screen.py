@@ -17,7 +17,8 @@ from term.ui.app import TermApp
 from term.ui.screens.confirm import ConfirmScreen
 from term.ui.screens.motortest import DEFAULT_LEVEL, LEVEL_STEP, MotorTestScreen
 from term.ui.widgets.motors import MotorBars
-from tests.support.loop_rig import flying, until
+from tests.support.loop_rig import flying
+from tests.support.waits import until
 
 
 def _sent(board) -> list[tuple[int, int]]:  # noqa: ANN001
