@@ -146,7 +146,7 @@ class BoardChild:
 async def term_main(port: str, ble: str, seconds: float, seed: int) -> int:
     """The app flies: calibrate, FULL (over BLE after the handover if ``ble``), the lift between two levels."""
     from term.core.protocol import EventCode, Joystick, Mode, Op
-    from term.session.model import mode_name
+    from term.session.texts import mode_name
     from term.transports.ble import BleTransport
     from term.transports.serial import SerialTransport
     from term.ui.app import TermApp

@@ -136,7 +136,7 @@ def _quit_in_order(app: Any, code: int) -> None:
     """Ctrl+Q's path without its question (term/ui/app.py, action_quit): in a flight mode PANIC goes first, is said
     in the events and on stderr after the screen, and has QUIT_PANIC_WAIT_S to reach the board; then the exit."""
     from term.core.protocol import FLIGHT_MODES, Mode, Op
-    from term.ui.app import QUIT_PANIC_WAIT_S
+    from term.ui.controllers.dialogs import QUIT_PANIC_WAIT_S
 
     if app.replay is None and app.model.mode in FLIGHT_MODES and app.control_connection() is not None:
         app.send(Op.MODE, Mode.PANIC)

@@ -64,7 +64,7 @@ from term.data.mavlink_map import (
 )
 from term.data.mavlink_params import ParamService
 from term.data.mavlink_socket import GroundSocket, MavlinkError, parse_address
-from term.session.model import mode_name
+from term.session.texts import mode_name
 
 log = logging.getLogger("term.mavlink")
 DEFAULT_ADDRESS = "udp:127.0.0.1:14550"  # QGroundControl's and MAVProxy's listening port

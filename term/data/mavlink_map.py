@@ -43,7 +43,7 @@ from term.core.protocol import (
     Status,
     field_scale,
 )
-from term.session.model import event_text
+from term.session.texts import event_text
 
 INSTALL_HINT = "MAVLink needs pymavlink: pip install 'quadrupel[mavlink]' (or: pip install pymavlink)"
 SYSTEM_ID = 1  # the vehicle's MAVLink system id (a ground station is 255)

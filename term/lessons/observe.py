@@ -20,7 +20,8 @@ from term.core.events import RADIO, FromLink, LinkDown, NotSent, Requested, Stat
 from term.core.link import CommandFailed, PacketReceived
 from term.core.protocol import ROOM_CEILING_M, ROOM_HALF_M, Event, EventCode, Flag, Mode, Op, WirelessState
 from term.lessons.instructor import Truth
-from term.session.model import Model, battery_level, mode_name
+from term.session.model import Model
+from term.session.texts import battery_level, mode_name
 
 NAMES: dict[str, str] = {
     # the truth (only the simulator knows it)

@@ -14,7 +14,8 @@ ring the terminal's bell (``[alarms] bell`` in the config, ``--no-bell`` on the 
 from __future__ import annotations
 
 from term.core.protocol import EventCode, Flag, Mode
-from term.session.model import BATTERY_PANIC_V, Model
+from term.session.model import Model
+from term.session.texts import BATTERY_PANIC_V
 
 ALARMS = ("LINK LOST", "PANIC", "low battery", "crash", "not recording")
 EVENT_ALARM_S = 5.0  # a board event (LOW_BATTERY, CRASH) holds its alarm this long (over BLE no Status says it)

@@ -16,7 +16,6 @@ value, age, staleness, whether the current link carries it and its bound at the 
 
 from __future__ import annotations
 
-import re
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -51,18 +50,12 @@ from term.core.link import (
 )
 from term.core.logfile import LogDownload
 from term.core.protocol import (
-    BATTERY_FULL,
-    BATTERY_LOW,
-    BATTERY_WARN,
-    EVENT_ARG_SCALE,
     FLIGHT_MODES,
-    HEIGHT_KEY_STEP_MM,
     LEVEL_ERROR,
     PARAMS,
     Attitude,
     Compact,
     Compact2,
-    ContactKind,
     Event,
     EventCode,
     Flag,
@@ -73,9 +66,7 @@ from term.core.protocol import (
     LogChunk,
     LogState,
     LogStatus,
-    Mode,
     Motion,
-    MotorTestEnd,
     Nak,
     Op,
     Param,
@@ -84,195 +75,17 @@ from term.core.protocol import (
     Status,
     WirelessState,
     broken_rules,
-    field_scale,
-    motor_test_split,
     param_split,
     scaled,
 )
-from term.input.keymap import ZERO_TRIM_STEPS
+from term.session.eventlog import REFUSAL_PAIR_S, LogEntry, deadline_miss, note
+from term.session.texts import (  # (the pilot's words: imported from here by the widgets too)
+    event_text,
+    mode_name,
+    op_text,
+)
 
-_VOLTS = field_scale(Height, "battery")
-BATTERY_PANIC_V = BATTERY_LOW * _VOLTS  # the board's PANIC threshold while flying
-BATTERY_WARN_V = BATTERY_WARN * _VOLTS  # a 3S LiPo at its nominal voltage: time to land
-BATTERY_FULL_V = BATTERY_FULL * _VOLTS
 HISTORY = 3000  # samples kept per plotted series (60 s at 50 Hz)
-
-
-
-def battery_level(volts: float) -> str:
-    """"panic" under the board's PANIC threshold, "warn" under a 3S LiPo's nominal voltage (time to land), else
-    "ok"."""
-    if volts < BATTERY_PANIC_V:
-        return "panic"
-    if volts < BATTERY_WARN_V:
-        return "warn"
-    return "ok"
-
-
-def mode_name(mode: int | None) -> str:
-    if mode is None:
-        return "—"
-    try:
-        return Mode(mode).name
-    except ValueError:
-        return f"MODE {mode}"
-
-
-RTT_IDLE_S = 1.0  # a link that answered no heartbeat for this long is idle: it shows no round-trip time
-
-
-def rtt_text(s: LinkStats | None) -> str:
-    """The one round-trip time the screens show: the heartbeat's round trip (the board's own measurement and the
-    commands' acknowledgements), the mean of the recent ones, as "RTT 27 ms"; "" for a link that is idle or has
-    none measured (issue 22: three RTTs on one screen, and one for a silent cable)."""
-    if s is None or s.rtt_mean_ms is None or s.since_last_heartbeat_s is None or s.since_last_heartbeat_s > RTT_IDLE_S:
-        return ""
-    return "RTT <1 ms" if s.rtt_mean_ms < 0.5 else f"RTT {s.rtt_mean_ms:.0f} ms"
-
-
-def op_text(op: int, arg: int) -> str:
-    """A command in words, for the events list."""
-    try:
-        o = Op(op)
-    except ValueError:
-        return f"op {op}"
-    if o is Op.MODE:
-        return f"mode {mode_name(arg)}"
-    if o is Op.WIRELESS:
-        return "wireless handover" if arg else "wireless hand-back"
-    if o is Op.SET_PARAM:
-        pid, raw = param_split(arg)
-        spec = PARAMS.get(pid)  # type: ignore[call-overload]
-        return f"set param {pid} = {raw}" if spec is None else f"set {spec.name} = {spec.text(spec.from_raw(raw))}"
-    if o is Op.PARAM_GET:
-        spec = PARAMS.get(arg)  # type: ignore[call-overload]
-        return f"get param {arg}" if spec is None else f"get {spec.name}"
-    if o is Op.PARAM_LIST:
-        return "list the parameters"
-    if o is Op.MOTOR_TEST:
-        mask, level = motor_test_split(arg)
-        return f"motor test: mask {mask:x} at {level}" if level and mask else "motor test: stop"
-    name = o.name.lower().replace("_", " ")
-    if o is Op.TRIM_LIFT and arg <= ZERO_TRIM_STEPS:
-        return "lift trim to zero"
-    if o.name.startswith(("TRIM_", "GAIN_")):
-        return f"{name} {'+' if arg > 0 else ''}{arg}"
-    return name
-
-
-def event_text(code: int, arg: int, flying: bool = True, mode: int | None = None) -> tuple[str, str]:
-    """(severity, text) for a board Event; ``flying``: the board was in a flight mode when it sent it (a link
-    timeout PANICs only there); ``mode``: the mode it was in (a link timeout in PANIC: the descent goes on)."""
-    try:
-        c = EventCode(code)
-    except ValueError:
-        return "warning", f"board event {code} ({arg})"
-    if c is EventCode.BOOT:
-        return "info", f"board booted (protocol v{arg})"
-    if c is EventCode.MODE_CHANGED:
-        return "info", f"mode {mode_name(arg >> 8)} → {mode_name(arg & 0xFF)}"
-    if c is EventCode.REFUSED:
-        try:
-            why = _nak_text(Nak(arg >> 8))
-        except ValueError:
-            why = f"reason {arg >> 8}"
-        return "error", f"board refused {mode_name(arg & 0xFF)}: {why}"
-    if c is EventCode.LOW_BATTERY:
-        return "error", f"LOW BATTERY {_event_arg(c, arg):.2f} V"
-    if c is EventCode.LINK_TIMEOUT:
-        silent = f"board saw link timeout ({_event_arg(c, arg) * 1000:.0f} ms silent)"
-        if mode == Mode.PANIC:
-            return "error", f"{silent}: already in PANIC, the descent goes on"
-        return ("error", f"{silent}: PANIC") if flying else ("warning", f"{silent}: not flying, no PANIC")
-    if c is EventCode.LINK_LOST:
-        return "error", f"LINK LOST: board holds level ({_event_arg(c, arg) * 1000:.0f} ms silent); PANIC if it stays"
-    if c is EventCode.LINK_REGAINED:
-        return "warning", f"board has the link back after {_event_arg(c, arg) * 1000:.0f} ms: no PANIC, fly on"
-    if c is EventCode.HEIGHT_SETPOINT:
-        return "info", f"HEIGHT set point {_event_arg(c, arg):.2f} m (lift keys: ±{HEIGHT_KEY_STEP_MM / 1000:.2f} m)"
-    if c is EventCode.CRASH:
-        return "error", f"crash at {_event_arg(c, arg):.2f} m/s: motors off (c acknowledges it)"
-    if c is EventCode.SIM_LAG:
-        return "warning", f"simulator {_event_arg(c, arg) * 1000:.0f} ms behind real time (its process was starved)"
-    if c is EventCode.TILT_LIMIT:
-        return "error", f"tilt limit {_event_arg(c, arg):.1f}°: PANIC"
-    if c is EventCode.CONTACT:
-        kind, mm_s = arg >> 16, arg & 0xFFFF
-        if kind == ContactKind.WALL:
-            return "warning", "hit something sideways (a wall?)"
-        what = "touched down" if kind == ContactKind.GROUND else "hit the ceiling"
-        return ("info" if kind == ContactKind.GROUND else "warning"), f"{what} at {mm_s / 1000:.2f} m/s"
-    if c is EventCode.HEADING_DRIFT:
-        return "info", f"heading drift {_event_arg(c, arg):+.1f}° since calibration, taken out (no compass)"
-    if c is EventCode.PANIC_DONE:
-        return "info", "panic done: motors off, SAFE"
-    if c is EventCode.CALIBRATION_DONE:
-        return "info", f"calibration done ({arg} samples)"
-    if c is EventCode.LOG_FULL:
-        return "warning", f"log flash full ({arg} bytes)"
-    if c is EventCode.LOG_DONE:
-        return "info", f"log download sent ({arg} chunks)"
-    if c is EventCode.WIRELESS_STATE:
-        try:
-            return "info", f"wireless {WirelessState(arg).name}"
-        except ValueError:
-            return "info", f"wireless state {arg}"
-    if c is EventCode.DEADLINE_MISS:
-        return "warning", f"deadline miss (period {arg} µs)"
-    if c is EventCode.SENSOR_FAULT:
-        return "error", f"sensor fault (sensor {arg})"
-    if c is EventCode.OVERFLOW:
-        return "warning", f"board receive queue overflow ({arg} bytes dropped)"
-    if c is EventCode.MOTOR_TEST:  # the bench test ended (docs/modes.md); the reasons by name
-        try:
-            return "info", f"motor test ended: {MotorTestEnd(arg).name.lower().replace('_', ' ')}"
-        except ValueError:
-            return "info", f"motor test ended ({arg})"
-    if c is EventCode.PARAM_CHANGED:
-        pid, raw = param_split(arg)
-        spec = PARAMS.get(pid)  # type: ignore[call-overload]
-        if spec is None:
-            return "info", f"param {pid}: {raw} (not in this terminal's table)"
-        value = spec.from_raw(raw)
-        default = "" if raw == spec.to_raw(spec.default) else f" (default {spec.text(spec.default)})"
-        return "info", f"param {spec.name}: {spec.text(value)}{(' ' + spec.unit) if spec.unit else ''}{default}"
-    return "info", f"{c.name.lower()} ({arg})"
-
-
-def _event_arg(code: EventCode, arg: int) -> float:
-    """An Event's argument in its unit (V, s, °; EVENT_ARG_SCALE)."""
-    return arg * EVENT_ARG_SCALE[code][0]
-
-
-def _nak_text(nak: Nak) -> str:
-    from term.core.protocol import nak_text
-
-    return nak_text(nak)
-
-
-@dataclass(frozen=True, slots=True)
-class LogEntry:
-    t: float  # seconds since the terminal started
-    severity: str  # "info", "warning", "error"
-    source: str  # "board", "nak", "link", "term", "joystick"
-    text: str
-    count: int = 1  # the same line this many times (merged: ``Model.note``)
-    seq: int = 0  # the order lines were written in (a merged repeat is written again)
-
-
-MERGE_S = 60.0  # a line the same as one of the last MERGE_BACK lines within this is merged into it, with a count
-MERGE_BACK = 4
-REFUSAL_PAIR_S = 2.0  # the board's Ack NAK and its REFUSED event for one request: said once
-_BOARD_TIME = re.compile(r"^\[[0-9.]+\] ")
-_PARAM_LINE = re.compile(r"^param (\S+): ")
-
-
-def merge_key(text: str) -> str:
-    """What makes two lines the same: their text without the board's time stamp; a parameter's changes are one
-    line (its latest value, with the count)."""
-    text = _BOARD_TIME.sub("", text)
-    m = _PARAM_LINE.match(text)
-    return f"param {m.group(1)}" if m else text
 
 
 @dataclass
@@ -341,28 +154,8 @@ class Model:
     # --- updates ------------------------------------------------------------------------------------------
 
     def note(self, now: float, severity: str, source: str, text: str) -> None:
-        """A line in the events list. The same line (``merge_key``) as one of the last few, within ``MERGE_S``,
-        is merged into it: moved to the end with its count raised, not written again; but never over a board line
-        written after it (a mode change, a link event: what the board did after the first stays listed after its
-        cause, issue 34: a repeated "request PANIC" jumped over "mode FULL → PANIC")."""
-        t = now - self.start
-        events = self.events
-        key = merge_key(text)
-        for i in range(len(events) - 1, max(-1, len(events) - 1 - MERGE_BACK), -1):
-            e = events[i]
-            if e.source == source and e.severity == severity and t - e.t <= MERGE_S and merge_key(e.text) == key:
-                del events[i]
-                self._write(LogEntry(t, severity, source, text, e.count + 1))
-                return
-            if e.source == "board":
-                break  # (a repeat of a board line itself may merge: it is the same effect again)
-        self._write(LogEntry(t, severity, source, text))
-
-    def _write(self, entry: LogEntry) -> None:
-        self.notes_written += 1
-        self.events.append(LogEntry(entry.t, entry.severity, entry.source, entry.text, entry.count,
-                                    self.notes_written))
-        self.version += 1
+        """A line in the events list, merged with a repeat of it (term/session/eventlog.py)."""
+        note(self, now, severity, source, text)
 
     def _refusal(self, mode: int, nak: int, text: str, now: float) -> bool:
         """Note a refusal of ``mode`` for ``nak`` (its readiness item shows it); False if it was just said (the
@@ -371,23 +164,6 @@ class Model:
         said = self._refusal_said.get((mode, nak))
         self._refusal_said[(mode, nak)] = now
         return said is None or now - said > REFUSAL_PAIR_S
-
-    def _deadline_miss(self, now: float, period_us: int) -> None:
-        """Deadline misses as one line, kept up to date: how many, since when, the longest period."""
-        n, worst, first, seq = self._misses
-        if n == 0:
-            first = now - self.start
-        n, worst = n + 1, max(worst, period_us)
-        for i, e in enumerate(self.events):
-            if e.seq == seq:
-                del self.events[i]
-                break
-        # The board reports a miss at most every 10 s while flying: this counts its reports, F9 every miss.
-        text = (f"deadline miss (period {period_us} µs; F9 counts them all)" if n == 1 else
-                f"deadline misses reported {n} times since {first:.0f} s (longest period {worst} µs; at most one "
-                "report per 10 s: F9 counts them all)")
-        self._write(LogEntry(now - self.start, "warning", "board", text))
-        self._misses = (n, worst, first, self.notes_written)
 
     def apply(self, event: Any, now: float) -> None:
         """The one way the model changes: one event, from a link's session (the board's link; the radio's come
@@ -815,7 +591,7 @@ def _on_event(m: Model, pkt: Event, now: float) -> None:
     if pkt.code == EventCode.PARAM_CHANGED:
         m._param(*param_split(pkt.arg))
     if pkt.code == EventCode.DEADLINE_MISS:
-        m._deadline_miss(now, pkt.arg)
+        deadline_miss(m, now, pkt.arg)
     elif pkt.code != EventCode.REFUSED or m._refusal(pkt.arg & 0xFF, pkt.arg >> 8, text, now):
         m.note(now, severity, "board", f"[{scaled(pkt, 'board_ms'):.3f}] {text}")
     if pkt.code == EventCode.MODE_CHANGED:

@@ -27,7 +27,8 @@ from dataclasses import dataclass
 from term.core.freshness import Reading
 from term.core.protocol import MODE_TABLE, Joystick, Mode, Op, WirelessState
 from term.input.mapping import FULL
-from term.session.model import Model, battery_level, mode_name, rtt_text
+from term.session.model import Model
+from term.session.texts import battery_level, mode_name, rtt_text
 
 
 @dataclass(frozen=True, slots=True)

@@ -32,7 +32,8 @@ from term.core.protocol import (
     lift_trim_after,
 )
 from term.input.keymap import KeyBinding, pretty_key
-from term.session.model import BATTERY_PANIC_V, BATTERY_WARN_V, Model, rtt_text
+from term.session.model import Model
+from term.session.texts import BATTERY_PANIC_V, BATTERY_WARN_V, rtt_text
 
 # The checks, in the order the panel lists them.
 ITEMS = ("calibrated", "lift", "sticks", "link", "battery", "crash", "wireless", "log")

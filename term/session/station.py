@@ -54,7 +54,8 @@ from term.input.keymap import ZERO_TRIM_STEPS
 from term.input.mapping import leave_safe_refusal
 from term.session.connection import Connection, ConnectionEvent, TransportFailed
 from term.session.link_thread import FrontDoor, LinkThread, is_open
-from term.session.model import Model, mode_name, op_text
+from term.session.model import Model
+from term.session.texts import mode_name, op_text
 from term.transports.base import Transport, TransportError
 
 ZERO_AGAIN_S = 1.0  # in flight, the lift trim goes to zero only on a second press within this

@@ -22,7 +22,6 @@ The routing rules, the reconnect policy and the model's two-link rules: docs/arc
 
 from __future__ import annotations
 
-import asyncio
 import gc
 import sys
 import time
@@ -37,7 +36,7 @@ from textual.screen import ModalScreen, Screen
 
 from term.core.errors import EXIT_USAGE
 from term.core.events import EventsCleared, Fatal, FromLink, NotSent, StationEvent
-from term.core.protocol import FLIGHT_MODES, MODE_TABLE, Joystick, Mode, Op
+from term.core.protocol import MODE_TABLE, Joystick, Mode, Op
 from term.data.recording import SessionRecorder
 from term.data.replay import Replay
 from term.input.joystick import JoystickPoller
@@ -56,20 +55,21 @@ from term.session.alarms import Alarms
 from term.session.config import Config
 from term.session.connection import Connection
 from term.session.link_thread import LinkThread, movable, post_taps
-from term.session.model import Model, mode_name
+from term.session.model import Model
 from term.session.phone import Phone, RunAction, SendCommand, SetAxes
 from term.session.station import Station
 from term.transports.base import Transport
+from term.ui.controllers.dialogs import Dialogs
 from term.ui.controllers.downloads import DownloadController
 from term.ui.controllers.joystick import JoystickController
 from term.ui.controllers.lessons import LessonController
+from term.ui.controllers.mavlink import MavlinkControl
 from term.ui.controllers.motortest import MotorTestController
 from term.ui.controllers.outputs import SessionOutputs
 from term.ui.controllers.params import ParamsController
 from term.ui.controllers.replay import SEEK_S as REPLAY_SEEK_S
 from term.ui.controllers.replay import ReplayController
 from term.ui.keygate import focus_state, pilot_key_acts
-from term.ui.screens.confirm import ConfirmScreen
 from term.ui.screens.console import ConsoleScreen
 from term.ui.screens.dirprompt import DirectoryPrompt
 from term.ui.screens.flight import FlightScreen
@@ -174,6 +174,8 @@ class TermApp(App[int]):
         if instructor is not None and (live is not None or recorder is not None):  # the true pose, kept and served
             on_truth = instructor.on_truth
             instructor.on_truth = lambda truth: (self.outputs.truth(truth), on_truth and on_truth(truth))
+        self.mav = MavlinkControl(mavlink, self.station, self.notify)  # term --mavlink (controllers/mavlink.py)
+        self.dialogs = Dialogs(self)  # the questions (the log's erase, quitting in flight, the motor test)
         self._bind_keys()
 
     def _make_station(self, transport: Transport | None, radio: Transport | None, primary_ble: bool,
@@ -212,11 +214,11 @@ class TermApp(App[int]):
             "profile": self.ask_profile,
             "clear_events": self.clear_events,
             "log_download": self.downloads.start,
-            "log_reset": self.ask_log_erase,
+            "log_reset": self.dialogs.log_erase,
             "show_joystick": lambda: self.show_screen("joystick"),
             "show_params": lambda: self.show_screen("params"),
             "show_console": lambda: self.show_screen("console"),
-            "motor_test": self.ask_motor_test,
+            "motor_test": self.dialogs.motor_test,
         }
         unknown = {b.action.local for b in self.keymap if b.action.local} - set(self.local)
         if unknown:
@@ -285,7 +287,7 @@ class TermApp(App[int]):
         self.install_screen(ConsoleScreen(), "console")
         self.set_interval(1.0 / self.render_hz, self.render_now)
         await self.station.start()
-        self._start_mavlink()
+        self.mav.start(self.downloads.start)
         if self.start_screen != "flight":
             self.show_screen(self.start_screen)
         if self._want_joystick:
@@ -301,8 +303,7 @@ class TermApp(App[int]):
     def _on_station_event(self, ev: StationEvent) -> None:
         """The app's reactions to the station's events (the model has them already)."""
         self.outputs.station_event(ev)
-        if self.mavlink is not None:
-            self.mavlink.station_event(ev)
+        self.mav.station_event(ev)
         self.lessons.on_station_event(ev)
         if type(ev) is FromLink:
             self.downloads.on_link_event(ev.event)
@@ -373,31 +374,16 @@ class TermApp(App[int]):
                     self.bell()
         self.outputs.tick(now)
         self._motor_test_tick(now)
-        if self.mavlink is not None:
-            self.mavlink.tick(now)
+        self.mav.tick(now)
         if not self.screen_stack or not self.is_running:
             return  # shutting down
-        self.close_stale_dialog()
+        self.dialogs.close_stale()
         model = self.model
         for screen in self._live_screens():
             for w in screen.query(ModelView):
                 w.show(model, now)
             for p in screen.query(LivePlot):
                 p.show(model, now)
-
-    def close_stale_dialog(self) -> None:
-        """A dialog about some modes (``about``: the erase question about SAFE) closes itself, with a line, once the
-        board is in another: out of SAFE Esc is PANIC, and a question left over the panels hides the flight."""
-        screen = self.screen
-        about = getattr(screen, "about", None)
-        mode = self.model.mode
-        if about is None or mode is None or mode in about or not isinstance(screen, ModalScreen):
-            return
-        if not screen.is_mounted:
-            return  # (its own mount first: the next tick closes it)
-        title = getattr(screen, "title_text", "") or "dialog"
-        self.station.note("warning", "term", f"{title}: closed, nothing done: the board is in {mode_name(mode)} now")
-        screen.dismiss(None)
 
     def _live_screens(self) -> list[Screen[object]]:
         """The screen on top and, under a dialog (a summary, a question, the help), the screens it lets show
@@ -456,8 +442,7 @@ class TermApp(App[int]):
         if action.local is not None:
             self.local[action.local]()
             return
-        if self.mavlink is not None:
-            self.mavlink.pilot_command()  # ... and from a MAVLink ground station that was handed control
+        self.mav.pilot_command()  # ... and from a MAVLink ground station that was handed control
         assert action.op is not None
         self.send(action.op, action.arg)
 
@@ -501,64 +486,10 @@ class TermApp(App[int]):
             self.push_screen(HelpScreen(self.keymap, PRESET_TEXT.get(self.config.key_preset, "")))
 
     def ask_log_erase(self) -> None:
-        """F4: erase the flash log, after a question that says how much would be gone (the board is asked for
-        its log status first, so the count is its latest)."""
-        if self.control_connection() is None:
-            self.station.note("error", "term", "not sent: log erase: not connected")
-            return
-        if self.model.mode is not None and self.model.mode != Mode.SAFE:  # a question about SAFE: not in flight
-            self.station.note("error", "term", f"not sent: log erase: only in SAFE (the board is in "
-                              f"{mode_name(self.model.mode)})")
-            return
-        self.send(Op.LOG_STATUS)
-
-        def question() -> str:
-            ls = self.model.log_status
-            what = ("how much is in it: asking the board…" if ls is None else
-                    f"{ls.records} records ({ls.used / 1000:.1f} kB) will be gone")
-            return f"Erase the board's flash log? {what}.\nDownload it first with F5 if you want to keep it."
-
-        def answer(yes: bool | None) -> None:
-            if yes:
-                self.send(Op.LOG_RESET)
-            elif yes is not None:  # (None: closed by the app, said there)
-                self.station.note("info", "term", "log erase cancelled: nothing erased")
-
-        self.push_screen(ConfirmScreen(question, "erase the log", "keep it", title="erase the flash log",
-                                       about=frozenset({Mode.SAFE})), answer)
+        self.dialogs.log_erase()
 
     async def action_quit(self) -> None:
-        """Ctrl+Q. While the motors run it asks first; quitting then sends PANIC before it goes (and says so), so
-        the board descends under control at once rather than after its link timeout."""
-        mode, motion = self.model.mode, self.model.motion
-        turning = motion is None or any((motion.ae1, motion.ae2, motion.ae3, motion.ae4))
-        running = mode in FLIGHT_MODES or (mode == Mode.PANIC and turning)  # (a PANIC landed on the pad: no)
-        if not running or self.replay is not None or self.control_connection() is None:
-            self.exit()
-            return
-        if isinstance(self.screen, ConfirmScreen):
-            return  # already asking
-
-        def answer(yes: bool | None) -> None:
-            if yes is None:
-                return  # closed by the app (the motors stopped: Ctrl+Q quits at once now), said there
-            if not yes:
-                self.station.note("info", "term", "quit cancelled: still flying")
-                return
-            if self.model.mode in FLIGHT_MODES:
-                self.send(Op.MODE, Mode.PANIC)
-                self.exit_message = "PANIC sent before quitting: the board descends and lands by itself"
-                self.station.note("error", "term", self.exit_message)
-                self.set_timer(QUIT_PANIC_WAIT_S, self.exit)  # time for the PANIC to go out (and be retried)
-            else:
-                self.exit()
-
-        text = (f"The motors are running ({mode_name(mode)}).\nQuitting sends PANIC first: the board descends and "
-                "lands by itself." if mode in FLIGHT_MODES else
-                "PANIC is in progress: the board lands by itself.\nQuit the terminal anyway?")
-        self.push_screen(ConfirmScreen(text, "PANIC and quit" if mode in FLIGHT_MODES else "quit", "keep flying",
-                                       title="quit while the motors run?",
-                                       about=frozenset(FLIGHT_MODES) | {Mode.PANIC}), answer)
+        self.dialogs.quit()
 
     def show_screen(self, name: str) -> None:
         while len(self.screen_stack) > 1:
@@ -570,23 +501,6 @@ class TermApp(App[int]):
     def ask_profile(self) -> None:
         self.send(Op.PROFILE)
         self.show_screen("profile")
-
-    def ask_motor_test(self) -> None:
-        """Ctrl+O: the bench motor test, after "props off?" (term/ui/screens/motortest.py)."""
-        why = self.motortest.refusal(self.model)
-        if why is not None or self.replay is not None:
-            self.station.note("error", "term", f"motor test: {why or 'not in a replay'}")
-            return
-
-        def answer(yes: bool | None) -> None:
-            if yes:
-                self.push_screen(MotorTestScreen(self.motortest))
-            else:
-                self.station.note("info", "term", "motor test cancelled")
-
-        self.push_screen(ConfirmScreen(
-            "Are the PROPELLERS OFF?\nThe motor test spins motors on the bench; with props on the craft can jump or "
-            "cut.\nTake every propeller off first.", "props are off: test", "cancel", title="motor test"), answer)
 
     def _motor_test_tick(self, now: float) -> None:
         """The motor test follows the board and the link; leaving its screen by any way stops it."""
@@ -607,34 +521,13 @@ class TermApp(App[int]):
                             self.reconnect_now)
         yield SystemCommand("Link: hand control back to the cable", "WIRELESS off: the board leaves BLE "
                             "(DISCONNECTED, the connection stays)", lambda: self.send(Op.WIRELESS, 0))
-        if self.mavlink is not None:
-            yield SystemCommand("MAVLink: hand control to the ground station", f"{self.mavlink.url}: its "
-                                "MANUAL_CONTROL flies (in SAFE; any key of yours takes it back)", self.mavlink_handover)
-            yield SystemCommand("MAVLink: take control back", "from the ground station", self.mavlink.handback)
+        yield from self.mav.commands()
         yield from self.lessons.commands()
         for b in self.keymap:
             a = b.action
             keys = ", ".join(pretty_key(k) for k in b.keys)
             yield SystemCommand(f"{a.group}: {a.description}", f"key {keys}", _bound(self.perform, a))
 
-
-    # --- the MAVLink endpoint (term/data/mavlink.py; helper mavlink) -------------------------------------------
-
-    def _start_mavlink(self) -> None:
-        """Attach the endpoint to the station (its commands run on this loop), start it, say where it sends."""
-        mav = self.mavlink
-        if mav is None:
-            return
-        loop = asyncio.get_running_loop()
-        mav.attach(self.station, lambda fn, *args: loop.call_soon_threadsafe(fn, *args), self.downloads.start)
-        mav.start()
-        self.station.note("info", "mavlink", f"MAVLink: sending the flight to {mav.url} (palette: hand control)")
-
-    def mavlink_handover(self) -> None:
-        why = self.mavlink.handover() if self.mavlink is not None else "no --mavlink"
-        if why is not None:
-            self.station.note("error", "mavlink", f"not handed over: {why}")
-            self.notify(why, title="MAVLink handover", severity="warning")
 
     # --- recording and replay (term/data/recording.py, term/data/replay.py) ---------------------------------------
 
@@ -651,7 +544,6 @@ class TermApp(App[int]):
             self.notify(self.replayer.act(what), timeout=1.5)
 
 
-QUIT_PANIC_WAIT_S = 0.5  # quitting in flight: the PANIC command's time to reach the board before the link closes
 REPLAY_KEYS = (  # term replay: the pilot's keys have no board to command; these play the recording
     ("space", "replay('pause')", "pause / play"),
     ("right", "replay('forward')", f"{REPLAY_SEEK_S:g} s on"),
@@ -662,7 +554,6 @@ REPLAY_KEYS = (  # term replay: the pilot's keys have no board to command; these
 )
 
 
-# --- the MAVLink endpoint (term/data/mavlink.py; helper mavlink) ---
 
 
 def _fan_out(*sinks: Any) -> Callable[[str, Any], None] | None:

@@ -107,7 +107,7 @@ def test_the_machine_alone() -> None:
 
 
 def test_the_terminal_says_what_the_board_does() -> None:
-    from term.session.model import event_text
+    from term.session.texts import event_text
 
     assert event_text(EventCode.LINK_LOST, 600) == ("error", "LINK LOST: board holds level (600 ms silent); "
                                                               "PANIC if it stays")

@@ -17,7 +17,7 @@ from term.core.protocol import (
     Nak,
     Op,
 )
-from term.session.model import event_text
+from term.session.texts import event_text
 
 
 def cmd(board: Board, op: Op, arg: int = 0) -> tuple[Nak, int]:

@@ -66,9 +66,10 @@ def stats(rtt_last: float | None, rtt_mean: float | None, heartbeat_ago: float |
 def test_one_rtt_and_none_for_an_idle_link() -> None:
     """Issue 22: `▶ cable OK, RTT 244 ms`, `cable RTT 79.2 ms` and `link up cable (RTT 27 ms)` on one screen; an RTT
     shown for a silent cable and an idle radio; `RTT 0 ms` over BLE."""
-    from term.session.model import Model, rtt_text
+    from term.session.model import Model
     from term.session.phone import link_states
     from term.session.readiness import checks
+    from term.session.texts import rtt_text
 
     assert rtt_text(stats(244.0, 27.4, 0.05)) == "RTT 27 ms"  # the heartbeat's round trip, its recent mean
     assert rtt_text(stats(5.0, 0.2, 0.05)) == "RTT <1 ms"

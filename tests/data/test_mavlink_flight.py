@@ -161,7 +161,7 @@ async def test_commands_and_the_sticks_only_after_the_handover(tmp_path: Path) -
         assert any("has not handed control" in t for t in gcs.texts())
         # The pilot hands over from term (the palette's command), the ground station's stick takes it.
         gcs.heartbeat()
-        app.mavlink_handover()
+        app.mav.handover()
         await f.wait(lambda: ep.state == "offered")
         f.stick = (0, 0, 0, 0)
         streaming = f.stream()

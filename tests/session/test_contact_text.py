@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from term.core.protocol import ContactKind, EventCode
-from term.session.model import event_text
+from term.session.texts import event_text
 
 
 def test_contact_events_say_what_stopped_the_craft() -> None:

@@ -66,8 +66,12 @@ def test_logstatus_dropped_and_bytes_damaged_fails_with_a_resume_point() -> None
     d = rig.download()
     assert d.state == FAILED and "LogStatus" in d.reason
     rig.faults(Faults(corrupt=0.05), Faults(corrupt=0.05))
-    d.resume(rig.now)
-    rig.download(dl=d)
+    for _ in range(3):  # F5 again while it fails: at 5 % a LogStatus and its ask survive together 1 time in 4
+        d.resume(rig.now)
+        rig.download(dl=d)
+        if d.state == DONE:
+            break
+        assert "LogStatus" in d.reason
     assert d.state == DONE and d.data() == rig.truth()
 
 

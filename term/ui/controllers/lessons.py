@@ -39,8 +39,9 @@ from term.lessons.instructor import InstructorClient, Refused, Truth
 from term.lessons.progress import Progress, load
 from term.lessons.room import Room
 from term.lessons.spec import DEMO, Lesson, LessonError, load_lessons, load_script
-from term.session.model import Model, mode_name
+from term.session.model import Model
 from term.session.station import Station
+from term.session.texts import mode_name
 from term.ui.widgets.lesson import SummaryScreen
 
 

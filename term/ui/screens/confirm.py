@@ -6,7 +6,7 @@ live underneath (they are priority bindings): PANIC always works, a question nev
 callable, re-read four times a second (the log's record count arrives after the question is shown). Dismissed with
 True (yes) or False (no); None when the app closed it. ``about``: the modes the question is about (the erase: SAFE;
 quitting while the motors run: the flight modes and PANIC): the app closes it, with a line, once the board is in
-another (``TermApp.close_stale_dialog``).
+another (``Dialogs.close_stale``, term/ui/controllers/dialogs.py).
 """
 
 from __future__ import annotations

@@ -21,8 +21,9 @@ from textual.screen import Screen
 from textual.widgets import Button, Footer
 
 from term.input.mapping import FULL
-from term.session.model import BATTERY_FULL_V, Model
+from term.session.model import Model
 from term.session.phone import MODE_BUTTONS, TRIM_BUTTONS, Phone, Request, link_states, readout
+from term.session.texts import BATTERY_FULL_V
 from term.ui.widgets.bars import cbar, hbar
 from term.ui.widgets.base import STALE_STYLE, ModelView, figure
 from term.ui.widgets.battery import LEVEL_STYLE as BATTERY_STYLE

@@ -7,7 +7,8 @@ from __future__ import annotations
 from rich.console import RenderableType
 from rich.text import Text
 
-from term.session.model import BATTERY_FULL_V, BATTERY_PANIC_V, BATTERY_WARN_V, Model, battery_level
+from term.session.model import Model
+from term.session.texts import BATTERY_FULL_V, BATTERY_PANIC_V, BATTERY_WARN_V, battery_level
 from term.ui.widgets.bars import hbar
 from term.ui.widgets.base import STALE_STYLE, ModelView, figure
 

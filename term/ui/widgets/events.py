@@ -5,7 +5,8 @@ from __future__ import annotations
 from rich.console import RenderableType
 from rich.text import Text
 
-from term.session.model import LogEntry, Model
+from term.session.eventlog import LogEntry
+from term.session.model import Model
 from term.ui.widgets.base import ModelView
 
 STYLE = {"error": "bold red", "warning": "yellow", "info": ""}

@@ -7,7 +7,8 @@ from rich.console import RenderableType
 from rich.text import Text
 
 from term.core.protocol import Hello, WirelessState
-from term.session.model import Model, rtt_text
+from term.session.model import Model
+from term.session.texts import rtt_text
 from term.ui.screens.wireless import link_lines
 from term.ui.widgets.base import ModelView
 

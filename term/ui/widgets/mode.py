@@ -6,7 +6,8 @@ from rich.console import RenderableType
 from rich.text import Text
 
 from term.core.protocol import MODE_TABLE, EventCode, Flag, Mode
-from term.session.model import Model, mode_name
+from term.session.model import Model
+from term.session.texts import mode_name
 from term.ui.widgets.base import ModelView
 
 STYLE = {mode: spec.style for mode, spec in MODE_TABLE.items()}  # the mode table's colours
