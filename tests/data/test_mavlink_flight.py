@@ -112,6 +112,8 @@ async def test_a_ground_station_sees_the_heartbeat_every_parameter_and_sets_one(
         gcs, model = f.gcs, f.app.model
         await f.wait(lambda: gcs.last("HEARTBEAT") is not None and gcs.last("SYS_STATUS") is not None
                      and gcs.last("BATTERY_STATUS") is not None, what="the once-a-second messages")
+        # (a SYS_STATUS sent before the board's first Height says the battery is unknown: 0xFFFF mV, as MAVLink has it)
+        await f.wait(lambda: gcs.last("SYS_STATUS").voltage_battery != 0xFFFF, what="a SYS_STATUS with the battery")
         hb = gcs.last("HEARTBEAT")
         assert (hb.type, hb.custom_mode) == (2, Mode.SAFE)  # MAV_TYPE_QUADROTOR, the board's mode
         assert not hb.base_mode & 128  # MAV_MODE_FLAG_SAFETY_ARMED: in SAFE, disarmed

@@ -58,6 +58,9 @@ def test_every_entry_point_uses_it() -> None:
     scripts = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["scripts"]
     assert scripts["term"] == "term.cli.main:run"
     assert "run()" in (ROOT / "term" / "__main__.py").read_text()
-    from term.session.sim import SimBoard
+    import inspect
 
-    assert "exit_now(main())" in SimBoard().cmd[2]
+    from term.session.sim import SimBoard, child_main
+
+    assert "child_main()" in SimBoard().cmd[2]  # the simulated board's child starts through the seam ...
+    assert "exit_now(main(" in inspect.getsource(child_main)  # ... which ends it without the teardown
