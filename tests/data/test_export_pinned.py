@@ -72,14 +72,14 @@ def sources(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
 PINNED = {
     ("two-links", "csv", False, False): "aca624fd9b2aa54c",
     ("two-links", "csv", True, False): "e672b78a00a4884f",
-    ("two-links", "mcap", False, False): "0954adf023c3c4fd",  # issue 34: EventCode.HEIGHT_SETPOINT in the enums
-    ("two-links", "mcap", False, True): "67f185c37dc88234",  # (the schemas list every name)
+    ("two-links", "mcap", False, False): "daadd16129f5c379",  # issues 34, 35, 37: the new event codes (the schemas
+    ("two-links", "mcap", False, True): "825229056e514b46",  # list every name)
     ("full-telemetry", "csv", False, False): "4418701f1c0d787e",
     ("full-telemetry", "csv", True, False): "a84f8d7c1878efe4",
-    ("full-telemetry", "mcap", False, False): "2ed3e5b0bd419cd3",
-    ("full-telemetry", "mcap", False, True): "4968ed95535441c6",
+    ("full-telemetry", "mcap", False, False): "dfb8280bd1613bfa",
+    ("full-telemetry", "mcap", False, True): "0140ae7813c1669d",
     ("noisy", "csv", False, False): "9bb35b6b00fa0973",
-    ("noisy", "mcap", False, False): "6b6fb497412efb05",
+    ("noisy", "mcap", False, False): "830c298ed96496a6",
     ("flash", "csv", False, False): "320403bcfcfd0a83",
     ("flash", "csv", True, False): "29bec888cc3ebce2",
     ("flash", "mcap", False, False): "371543421664ec7b",

@@ -101,7 +101,6 @@ def test_the_command_line_on_a_recording_a_flash_log_and_the_latest(tmp_path: Pa
     (["{rec}", "--latest"], "give one recording or flight log, or --latest"),
     (["--latest", "--dir", "{d}/empty"], "no session recordings in"),
     (["{d}/cut.mcap"], "is not a session recording"),
-    (["{d}/garbage.mcap"], "holds no telemetry from the board"),  # read up to the damage, as a cut-short file
     (["{d}/flashlog.mcap"], "holds no telemetry from the board"),
 ])
 def test_bad_input_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str], args: list[str],
@@ -143,3 +142,15 @@ def test_over_ble_the_motors_and_height_come_from_compact2(tmp_path: Path) -> No
     assert set(ae1) == {"ae1 (serial)", "ae1 (ble)"} and list(ae1["ae1 (ble)"].v) == [400.0] * 10
     height = {tr.label: list(tr.v) for tr in src.traces["height"]}
     assert height["height (ble)"] == pytest.approx([(100 + i) * 0.01 for i in range(10, 20)])
+
+
+def test_a_damaged_recording_is_plotted_from_what_survives(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Issue 36: a damaged stretch is skipped and the rest read (it was read up to the damage, as a cut-short file,
+    and refused as holding no telemetry)."""
+    rec, _ = record(tmp_path / "rec")
+    good = rec.path.read_bytes()
+    garbage = tmp_path / "garbage.mcap"
+    garbage.write_bytes(good[:200] + bytes(b ^ 0x5A for b in good[200:4000]) + good[4000:])
+    out_png = tmp_path / "out.png"
+    code, out, err = run(capsys, "plot", str(garbage), "-o", str(out_png))
+    assert code == 0 and out_png.exists(), err

@@ -281,6 +281,7 @@ def test_term_killed_in_flight_leaves_a_recording_readable_up_to_its_last_second
               for p in [i.packet]]
     attitudes = [p for p in frames if isinstance(p, Attitude)]
     assert len(attitudes) > 50 and all(p.mode == Mode.SAFE for p in attitudes)
+    (tmp_path / "out").mkdir()  # (export makes no folder: a typo in a path is said, not created)
     res = export(files[0], tmp_path / "out" / "flight.mcap")
     assert not res.complete and res.rows > len(frames)
     with (tmp_path / "out" / "flight.mcap").open("rb") as f:

@@ -7,6 +7,7 @@ import asyncio
 import contextlib
 from collections.abc import AsyncIterator, Callable
 from contextlib import asynccontextmanager
+from functools import partial
 
 from term.core.link import LinkSession
 from term.core.protocol import (
@@ -143,7 +144,7 @@ async def served(config: Config | None = None, preset: str | None = None) -> Asy
         async with app.run_test(size=(120, 44)) as pilot:
 
             await until(pilot, lambda: len(app.model.params) == len(PARAMS))  # listed when the board said Hello
-            yield app, pilot, until
+            yield app, pilot, partial(until, pilot)  # the one wait, stepping this app (Pilot.pause)
     finally:
         sim.stop()
 

@@ -59,7 +59,7 @@ async def _probe() -> dict[str, object]:
 
 
 def test_term_sim_starts_without_a_false_link_alarm() -> None:
-    proc = subprocess.run([sys.executable, "-m", "tests.test_app_startup"], cwd=ROOT, capture_output=True,
+    proc = subprocess.run([sys.executable, "-m", "tests.ui.test_app_startup"], cwd=ROOT, capture_output=True,
                           text=True, timeout=60)
     assert proc.returncode == 0, proc.stderr[-2000:]
     seen = json.loads(proc.stdout.strip().splitlines()[-1])
