@@ -494,14 +494,15 @@ def test_the_report_presets_values_are_the_same_on_both_boards() -> None:
     complementary: refused in one line, docs/firmware.md): set by SET_PARAM on both, then a flight with the report's
     gains, telemetry at 0.52 Hz, no stick reaction, calibration held by the pilot, the link's PANIC at once and its
     countdown."""
-    from term.core.protocol import PARAMS, PRESETS
+    from term.core.protocol import PARAMS, PRESETS, preset_values, rule_order
 
     pair = Pair(seed=23)
     pair.step(4)
-    for param, value in PRESETS["report"].items():
+    values = PRESETS["report"]
+    for param in rule_order(values, preset_values("default")):  # each step keeps the rules between parameters
         if param in (Param.ATTITUDE_FILTER, Param.HEIGHT_ESTIMATOR):
             continue
-        pair.command(Op.SET_PARAM, (int(param) << 24) | (PARAMS[param].to_raw(value) & 0xFFFFFF))
+        pair.command(Op.SET_PARAM, (int(param) << 24) | (PARAMS[param].to_raw(values[param]) & 0xFFFFFF))
         pair.step(1)
     pair.command(Op.PARAM_LIST, 0)
     _joystick(pair, 0)
