@@ -193,6 +193,10 @@ class LoopBoard:
     async def send(self, *pkts: object) -> None:
         await self.t.write(self.board.encoder.encode_many(pkts))
 
+    async def write(self, raw: bytes) -> None:
+        """Any bytes on the board's side of the wire: text between frames, damaged frames."""
+        await self.t.write(raw)
+
     async def stop(self) -> None:
         for t in self.tasks:
             t.cancel()

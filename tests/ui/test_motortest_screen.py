@@ -17,7 +17,7 @@ from term.ui.app import TermApp
 from term.ui.screens.confirm import ConfirmScreen
 from term.ui.screens.motortest import DEFAULT_LEVEL, LEVEL_STEP, MotorTestScreen
 from term.ui.widgets.motors import MotorBars
-from tests.support.loop_rig import flying
+from tests.support.app_rig import flying
 from tests.support.waits import until
 
 
