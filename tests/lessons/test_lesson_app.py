@@ -6,55 +6,25 @@ last."""
 
 from __future__ import annotations
 
-import asyncio
-import contextlib
 import json
 import math
-from collections.abc import AsyncIterator
 from pathlib import Path
 
 import pytest
 
-from fcb_sim.hosts.instructor import Instructor, InstructorServer
-from fcb_sim.hosts.serve import ThreadedServer, make_board
 from term.cli.main import main
 from term.core.protocol import FLIGHT_MODES, EventCode, Joystick, Mode
-from term.lessons.instructor import InstructorClient
 from term.lessons.observe import Box
 from term.lessons.progress import default_path
 from term.lessons.room import arrow
 from term.lessons.spec import maneuvers
-from term.transports.serial import SerialTransport
 from term.ui.app import TermApp
 from term.ui.widgets.lesson import LessonBar, SummaryScreen
 from term.ui.widgets.room import NO_ROOM, RoomView
+from tests.support.sim_app_rig import sim_app
 from tests.support.waits import until
 
 SIZE = (120, 44)
-
-
-@contextlib.asynccontextmanager
-async def sim_app(seed: int = 3, **app_kw: object) -> AsyncIterator[tuple[TermApp, object, object]]:
-    """The board served in real time with its instructor channel, and the app connected to both."""
-    board = make_board(seed=seed)
-    served = ThreadedServer(board)
-    port = served.start()
-    inst = Instructor(board)
-    server = InstructorServer(inst)
-    loop = served._loop
-    assert loop is not None
-    address = asyncio.run_coroutine_threadsafe(server.start("tcp-server:127.0.0.1:0"), loop).result(5)
-    served.server.cable_open = lambda: inst.cable_open(board.now / 1e6)
-    client = InstructorClient(address)
-    await client.open()
-    app = TermApp(SerialTransport(port), instructor=client, **{"joystick": False, **app_kw})  # type: ignore[arg-type]
-    try:
-        async with app.run_test(size=SIZE) as pilot:
-            yield app, pilot, board
-    finally:
-        await client.close()
-        asyncio.run_coroutine_threadsafe(server.close(), loop).result(5)
-        served.stop()
 
 
 def craft_cell(view: RoomView, glyphs: str, first_col: int, cols: int) -> tuple[int, int] | None:
