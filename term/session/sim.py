@@ -64,18 +64,9 @@ def _die_with_parent() -> None:
     os.setsid()  # its own session: the terminal's Ctrl+C or SIGHUP goes to term, which stops it in order
 
 
-def child_main() -> None:
-    """The child's entry: fcb-sim's command line (its arguments after ``-c``), then out without the interpreter's
-    teardown (term/session/quick_exit.py): ``stop()`` waits for the child's exit. This module is the one seam
-    between the programs: no other module of term imports fcb_sim."""
-    from fcb_sim.cli import main
-    from term.session.quick_exit import exit_now
-
-    exit_now(main(sys.argv[1:]))
-
-
 def c_board_problem() -> str | None:
-    """Why ``--board c`` cannot fly here, in one line (no C compiler, no sources), or None once it is built."""
+    """Why ``--board c`` cannot fly here, in one line (no C compiler, no sources), or None once it is built. This
+    module is the one seam between the programs: no other module of term imports fcb_sim."""
     from fcb_sim.hosts.cboard import CBoardUnavailable, library_path
 
     try:
@@ -102,7 +93,8 @@ class SimBoard:
         if link == "pty" and (why := pty_missing()):
             raise UsageError(f"--sim-link pty: {why}; use --sim-link tcp (the board on a loopback TCP port)")
         self.link = link
-        self.cmd = [sys.executable, "-c", "from term.session.sim import child_main; child_main()",
+        # fcb-sim's entry, ended without the interpreter's teardown (fcb_sim/__main__.py): stop() waits for it
+        self.cmd = [sys.executable, "-m", "fcb_sim",
                     "serve", *(["--pty"] if link == "pty" else ["--tcp", "127.0.0.1:0"]), "--seed", str(seed)]
         if scenario:
             self.cmd += ["--scenario", scenario]

@@ -3,7 +3,7 @@
 - a number both ends of the link need lives in ``term/core/protocol/`` (or its sibling ``term/core/logformat.py``),
   never as a literal elsewhere: the NUS UUIDs, the lift zero and stick neutral, ``SET_PARAM`` ids and packing, the
   Hello role, the flight modes, the fire button, the log scheme ids, the battery thresholds, the field scales;
-- no module under ``term/`` or ``fcb_sim/`` but a ``cli`` (or ``__main__``, or the seam below) imports a ``cli``;
+- no module under ``term/`` or ``fcb_sim/`` but a ``cli`` (or ``__main__``) imports a ``cli`` module;
 - ``term.core.protocol`` imports nothing of the project; ``term.core.logformat`` only the protocol;
   ``fcb_sim`` imports only those two of ``term`` and never Textual;
 - ``term`` reaches ``fcb_sim`` through one seam, the simulator launcher (``SIM_SEAM``), by an import or by code in
@@ -181,7 +181,7 @@ def _all_modules(tree: str) -> dict[str, Path]:
 def test_no_core_module_imports_a_cli(tree: str) -> None:
     bad = []
     for name, path in _all_modules(tree).items():
-        if path.name in ("cli.py", "__main__.py") or name == SIM_SEAM:  # the seam starts fcb-sim's command line
+        if path.name in ("cli.py", "__main__.py"):
             continue
         clis = sorted(m for m in _imports(path) if m.split(".")[-1] == "cli" and m.split(".")[0] in ("term", "fcb_sim"))
         if clis:

@@ -58,9 +58,7 @@ def test_every_entry_point_uses_it() -> None:
     scripts = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["scripts"]
     assert scripts["term"] == "term.cli.main:run"
     assert "run()" in (ROOT / "term" / "__main__.py").read_text()
-    import inspect
+    from term.session.sim import SimBoard
 
-    from term.session.sim import SimBoard, child_main
-
-    assert "child_main()" in SimBoard().cmd[2]  # the simulated board's child starts through the seam ...
-    assert "exit_now(main(" in inspect.getsource(child_main)  # ... which ends it without the teardown
+    assert SimBoard().cmd[1:3] == ["-m", "fcb_sim"]  # the simulated board's child: fcb-sim's own entry ...
+    assert "os._exit(code)" in (ROOT / "fcb_sim" / "__main__.py").read_text()  # ... which ends without teardown
