@@ -249,10 +249,9 @@ async def test_a_client_subscribed_during_a_sim_flight_gets_the_attitude_as_the_
         assert r.log_time in recorded, "a live attitude the recording does not have at that time"
         assert r.json() in [packet_record(p, cols) for p in recorded[r.log_time]]
     assert {r.json()["mode_name"] for r in got} >= {"SAFE", "MANUAL"}
-    # Its age when it reached the client: from the time its bytes were read (the recording's stamp) to its arrival.
-    # The quickest is the serving's own cost; a busy machine can delay some, so only the quickest is held to 100 ms.
-    ages_ms = sorted((r.arrived - r.log_time) / 1e6 for r in got)
-    assert ages_ms[0] < 100.0, ages_ms[:5]
+    # Stamped when its bytes were read, on the clock the client reads: none arrives before it was read (how old
+    # they are is a figure, measured by bench.foxglove, not held here).
+    assert all(r.arrived >= r.log_time for r in got)
     pose = client.on("/cable/pose")[-1].json()
     sdk_frame_transform(pose)
     truth = client.on("/truth/pose")[-1].json()

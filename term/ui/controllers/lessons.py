@@ -166,6 +166,7 @@ class LessonController:
     def _handed_over(self, what: str, loud: bool = True) -> None:
         """The autopilot let go: in the air (``loud``) the pilot flies now, on the lift it left (which stays until
         the board is out of the flight modes: ``leftover_stick``), and is told so loudly, with the way down."""
+        self._show_caption()  # (with the event, not a tick later)
         mode = self.model.mode
         if loud and mode in FLIGHT_MODES:
             self.station.note("warning", "lesson", f"{what}: YOU FLY NOW ({mode_name(mode)}, on the autopilot's "
