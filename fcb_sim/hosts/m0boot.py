@@ -1,0 +1,256 @@
+"""The C board's nRF51822 image booted on an emulated Cortex-M0, from its reset vector to its first frames on UART0.
+
+``make -C firmware board-m0`` links the whole board with its vector table, reset handler and the S110 memory map
+(firmware/m0/startup_nrf51.c, nrf51822_s110.ld, firmware/board/hal_m0.c). :func:`boot` loads that ELF's flash
+image (the load addresses: .data's initial values stay in flash, as a programmer writes them), fills the RAM with
+0xA5 (a reset handler that does not zero .bss is seen), and starts the CPU as the SoftDevice's MBR hands over: SP
+from the application's vector table word 0, PC from word 1. The instructions run in unicorn (the Cortex-M0 model of
+fcb_sim.hosts.m0emu), their cycles counted by the same table; the peripherals the image touches are
+:class:`NRF51` below, a register model strict where a real board would fail silently:
+
+- CLOCK: HFCLKSTARTED and LFCLKSTARTED come after their start tasks; LFCLKSRC is recorded.
+- RTC1: COUNTER counts 32768 Hz from the emulated cycles (16 MHz) once TASKS_START came with the LFCLK running,
+  at PRESCALER + 1 ticks a count; before that it reads 0, as the real one does.
+- UART0: a byte written to TXD leaves (TXDRDY follows at once) only when the UART is enabled (ENABLE 4), its
+  transmitter started (TASKS_STARTTX), its TXD pin selected, at 115200 baud (0x01D7E000), with the 16 MHz crystal
+  running; else the write is a fault and the run stops there, naming it.
+- NVIC and SCB (ISER, ICPR, SCR): recorded. Interrupts are not emulated (so the receive interrupt's ring, and the
+  loop's WFE, are not run here: :func:`boot` stops at the frames it waits for, before the loop's first sleep).
+- A write to the SoftDevice's RAM (below 0x20002000) or to flash is a fault.
+Any other peripheral register reads what was last written to it (0 at reset).
+
+The bytes from TXD go through term.core.protocol's Decoder; the run ends when ``until`` packets have left (the
+board sends Hello, then the BOOT event), or at a fault, or after ``max_instructions``.
+"""
+
+from __future__ import annotations
+
+import struct
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from fcb_sim import cbuild
+from fcb_sim.hosts.m0emu import CPU_HZ, NO_ARM, available, block_cost, read_elf
+from term.core import protocol as p
+
+ELF = "m0/board.elf"
+APP_FLASH = 0x0001_8000  # S110 8.0's MBR and SoftDevice below (firmware/m0/nrf51822_s110.ld)
+FLASH_SIZE = 0x0004_0000  # nRF51822-QFAA: 256 KB
+RAM, RAM_SIZE = 0x2000_0000, 0x4000  # 16 KB
+APP_RAM = 0x2000_2000  # S110 8.0's 8 KB below
+PERIPHERALS, PERIPHERALS_SIZE = 0x4000_0000, 0x2_0000
+SCS = 0xE000_E000
+RTC_HZ = 32768
+UART_115200 = 0x01D7_E000
+UART_ENABLED = 4
+LFCLK_SYNTH = 2
+
+# register addresses (nRF51 Series Reference Manual v3.0; the same as firmware/board/hal_m0.c's)
+CLOCK_TASKS_HFCLKSTART, CLOCK_TASKS_LFCLKSTART = 0x4000_0000, 0x4000_0008
+CLOCK_EVENTS_HFCLKSTARTED, CLOCK_EVENTS_LFCLKSTARTED, CLOCK_LFCLKSRC = 0x4000_0100, 0x4000_0104, 0x4000_0518
+RTC1_TASKS_START, RTC1_TASKS_STOP, RTC1_COUNTER, RTC1_PRESCALER = 0x4001_1000, 0x4001_1004, 0x4001_1504, 0x4001_1508
+UART0_TASKS_STARTTX, UART0_EVENTS_TXDRDY, UART0_ENABLE = 0x4000_2008, 0x4000_211C, 0x4000_2500
+UART0_PSELTXD, UART0_TXD, UART0_BAUDRATE = 0x4000_250C, 0x4000_251C, 0x4000_2524
+
+
+def build(build_dir: Path | None = None) -> Path:
+    """The board's M0 image (``make board-m0``), built once per version of the sources (fcb_sim/cbuild.py) or into
+    ``build_dir``. RuntimeError (one line) if it cannot be."""
+    why = available()
+    if why:
+        raise RuntimeError(why)
+    try:
+        return cbuild.build("board-m0", [ELF], out=build_dir, tools=["arm-none-eabi-gcc"], missing=NO_ARM,
+                            what="the C board's M0 image") / ELF
+    except cbuild.BuildError as e:
+        raise RuntimeError(str(e)) from None
+
+
+def load_image(data: bytes) -> list[tuple[int, bytes]]:
+    """(physical address, bytes) of each PT_LOAD segment with bytes in the file: what a programmer writes."""
+    phoff = struct.unpack_from("<I", data, 28)[0]
+    phentsize, phnum = struct.unpack_from("<HH", data, 42)
+    out = []
+    for i in range(phnum):
+        ptype, off, _vaddr, paddr, filesz, _memsz = struct.unpack_from("<IIIIII", data, phoff + i * phentsize)
+        if ptype == 1 and filesz:
+            out.append((paddr, data[off:off + filesz]))
+    return out
+
+
+class NRF51:
+    """The registers of the nRF51822 the image touches (module docstring). ``cycles`` is the CPU's count, which
+    the RTC follows; ``faults`` what a real board would not have done; ``tx`` the bytes that left UART0."""
+
+    def __init__(self) -> None:
+        self.regs: dict[int, int] = {}
+        self.cycles = 0
+        self.rtc_start_cycles: int | None = None
+        self.tx = bytearray()
+        self.faults: list[str] = []
+        self.log: list[tuple[int, int]] = []  # (address, value) of every write, in order
+
+    def reg(self, address: int) -> int:
+        return self.regs.get(address, 0)
+
+    def counter(self) -> int:
+        if self.rtc_start_cycles is None:
+            return 0
+        ticks = (self.cycles - self.rtc_start_cycles) * RTC_HZ // CPU_HZ
+        return ticks // (self.reg(RTC1_PRESCALER) + 1) & 0xFF_FFFF
+
+    def read(self, address: int) -> int:
+        if address == RTC1_COUNTER:
+            return self.counter()
+        return self.reg(address)
+
+    def write(self, address: int, value: int) -> None:
+        self.log.append((address, value))
+        if address == CLOCK_TASKS_HFCLKSTART and value:
+            self.regs[CLOCK_EVENTS_HFCLKSTARTED] = 1
+        elif address == CLOCK_TASKS_LFCLKSTART and value:
+            self.regs[CLOCK_EVENTS_LFCLKSTARTED] = 1
+        elif address == RTC1_TASKS_START and value:
+            if not self.reg(CLOCK_EVENTS_LFCLKSTARTED):
+                self.faults.append("RTC1 started before the LFCLK runs: its COUNTER would stay 0")
+            elif self.rtc_start_cycles is None:
+                self.rtc_start_cycles = self.cycles
+        elif address == RTC1_TASKS_STOP and value:
+            self.rtc_start_cycles = None
+        elif address == UART0_TXD:
+            why = self.uart_not_ready()
+            if why:
+                self.faults.append(f"byte {len(self.tx)} written to UART0 TXD {why}")
+                return
+            self.tx.append(value & 0xFF)
+            self.regs[UART0_EVENTS_TXDRDY] = 1
+            return
+        self.regs[address] = value
+
+    def uart_not_ready(self) -> str:
+        """Why a byte written to TXD now would not leave at 115200 baud ('' when it would)."""
+        if self.reg(UART0_ENABLE) != UART_ENABLED:
+            return f"with UART0 not enabled (ENABLE {self.reg(UART0_ENABLE)})"
+        if not self.reg(UART0_TASKS_STARTTX):
+            return "before TASKS_STARTTX"
+        if self.regs.get(UART0_PSELTXD, 0xFFFF_FFFF) > 31:
+            return "with no TXD pin selected"
+        if self.reg(UART0_BAUDRATE) != UART_115200:
+            return f"at BAUDRATE {self.reg(UART0_BAUDRATE):#x}, not 115200"
+        if not self.reg(CLOCK_EVENTS_HFCLKSTARTED):
+            return "on the RC oscillator (the 16 MHz crystal not started: the baud rate is off)"
+        return ""
+
+
+@dataclass
+class Boot:
+    """What one boot did."""
+
+    packets: list[Any] = field(default_factory=list)
+    tx: bytes = b""
+    faults: list[str] = field(default_factory=list)
+    instructions: int = 0
+    cycles: int = 0
+    initial_sp: int = 0
+    reset_vector: int = 0
+    bss_zeroed: bool | None = None  # at qb_m0_main's first instruction (None: never reached)
+    data_copied: bool | None = None
+    writes: list[tuple[int, int]] = field(default_factory=list)
+
+    @property
+    def ms(self) -> float:
+        return self.cycles * 1e3 / CPU_HZ
+
+
+def boot(elf: Path | None = None, until: int = 2, max_instructions: int = 20_000_000) -> Boot:
+    """Run the image from reset until ``until`` packets have left UART0 (module docstring)."""
+    from unicorn import UC_ARCH_ARM, UC_HOOK_BLOCK, UC_HOOK_CODE, UC_HOOK_MEM_WRITE, UC_MODE_MCLASS, UC_MODE_THUMB, Uc
+    from unicorn.arm_const import UC_ARM_REG_PC, UC_ARM_REG_SP, UC_CPU_ARM_CORTEX_M0
+
+    data = Path(elf or build()).read_bytes()
+    _segments, symbols = read_elf(data)
+    uc = Uc(UC_ARCH_ARM, UC_MODE_THUMB | UC_MODE_MCLASS)
+    uc.ctl_set_cpu_model(UC_CPU_ARM_CORTEX_M0)
+    uc.mem_map(0, FLASH_SIZE)
+    uc.mem_write(0, b"\xff" * FLASH_SIZE)  # erased flash
+    for paddr, blob in load_image(data):
+        uc.mem_write(paddr, blob)
+    uc.mem_map(RAM, RAM_SIZE)
+    uc.mem_write(RAM, b"\xa5" * RAM_SIZE)  # what RAM holds at power-up is not zero
+    chip = NRF51()
+    run = Boot()
+    decoder = p.Decoder()
+
+    def stop(why: str) -> None:
+        run.faults.append(why)
+        uc.emu_stop()
+
+    def periph_read(_uc: Any, offset: int, _size: int, _user: Any) -> int:
+        return chip.read(PERIPHERALS + offset)
+
+    def periph_write(_uc: Any, offset: int, _size: int, value: int, _user: Any) -> None:
+        n = len(chip.tx)
+        chip.write(PERIPHERALS + offset, value)
+        if chip.faults:
+            stop(chip.faults.pop())
+        elif len(chip.tx) > n:
+            run.packets += decoder.feed(bytes(chip.tx[n:]))
+            if len(run.packets) >= until:
+                uc.emu_stop()
+
+    def scs_read(_uc: Any, offset: int, _size: int, _user: Any) -> int:
+        return chip.read(SCS + offset)
+
+    def scs_write(_uc: Any, offset: int, _size: int, value: int, _user: Any) -> None:
+        chip.write(SCS + offset, value)
+
+    uc.mmio_map(PERIPHERALS, PERIPHERALS_SIZE, periph_read, None, periph_write, None)
+    uc.mmio_map(SCS, 0x1000, scs_read, None, scs_write, None)
+
+    def guarded_write(_uc: Any, _access: int, address: int, size: int, _value: int, _user: Any) -> None:
+        where = "the SoftDevice's RAM" if RAM <= address < APP_RAM else "flash"
+        stop(f"a {size}-byte write to {where} at {address:#010x} (pc {uc.reg_read(UC_ARM_REG_PC):#x})")
+
+    uc.hook_add(UC_HOOK_MEM_WRITE, guarded_write, begin=RAM, end=APP_RAM - 1)
+    uc.hook_add(UC_HOOK_MEM_WRITE, guarded_write, begin=0, end=FLASH_SIZE - 1)
+
+    costs: dict[tuple[int, int], tuple[int, int, int]] = {}
+    pending = [0]
+
+    def block(_uc: Any, address: int, size: int, _user: Any) -> None:
+        if pending[0]:
+            chip.cycles += 1 if address == pending[0] else 3
+        cost = costs.get((address, size))
+        if cost is None:
+            cost = costs[(address, size)] = block_cost(bytes(uc.mem_read(address, size)), address)
+        chip.cycles += cost[0]
+        run.instructions += cost[1]
+        pending[0] = cost[2]
+
+    uc.hook_add(UC_HOOK_BLOCK, block)
+
+    main = symbols.get("qb_m0_main", (0, 0))[0] & ~1
+
+    def at_main(_uc: Any, _address: int, _size: int, _user: Any) -> None:
+        if run.bss_zeroed is not None:
+            return
+        start, end = symbols["__bss_start__"][0], symbols["__bss_end__"][0]
+        run.bss_zeroed = bytes(uc.mem_read(start, end - start)) == bytes(end - start)
+        d0, d1, load = symbols["__data_start__"][0], symbols["__data_end__"][0], symbols["__data_load__"][0]
+        run.data_copied = bytes(uc.mem_read(d0, d1 - d0)) == bytes(uc.mem_read(load, d1 - d0))
+
+    if main:
+        uc.hook_add(UC_HOOK_CODE, at_main, begin=main, end=main)
+
+    run.initial_sp, run.reset_vector = struct.unpack_from("<II", uc.mem_read(APP_FLASH, 8))
+    uc.reg_write(UC_ARM_REG_SP, run.initial_sp)
+    try:
+        uc.emu_start(run.reset_vector, 0, count=max_instructions)
+    except Exception as e:  # an unmapped access or an invalid instruction: where, in one line
+        run.faults.append(f"{e} at pc {uc.reg_read(UC_ARM_REG_PC):#x}")
+    run.tx, run.cycles, run.writes = bytes(chip.tx), chip.cycles, chip.log
+    if len(run.packets) < until and not run.faults:
+        run.faults.append(f"{len(run.packets)} of {until} packets after {run.instructions} instructions "
+                          f"(pc {uc.reg_read(UC_ARM_REG_PC):#x})")
+    return run
