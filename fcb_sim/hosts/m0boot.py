@@ -163,94 +163,128 @@ class Boot:
         return self.cycles * 1e3 / CPU_HZ
 
 
-def boot(elf: Path | None = None, until: int = 2, max_instructions: int = 20_000_000) -> Boot:
-    """Run the image from reset until ``until`` packets have left UART0 (module docstring)."""
-    from unicorn import UC_ARCH_ARM, UC_HOOK_BLOCK, UC_HOOK_CODE, UC_HOOK_MEM_WRITE, UC_MODE_MCLASS, UC_MODE_THUMB, Uc
-    from unicorn.arm_const import UC_ARM_REG_PC, UC_ARM_REG_SP, UC_CPU_ARM_CORTEX_M0
+RETURN = RAM  # a branch to itself, in the SoftDevice's RAM (the image never runs there): where call() returns
 
-    data = Path(elf or build()).read_bytes()
-    _segments, symbols = read_elf(data)
-    uc = Uc(UC_ARCH_ARM, UC_MODE_THUMB | UC_MODE_MCLASS)
-    uc.ctl_set_cpu_model(UC_CPU_ARM_CORTEX_M0)
-    uc.mem_map(0, FLASH_SIZE)
-    uc.mem_write(0, b"\xff" * FLASH_SIZE)  # erased flash
-    for paddr, blob in load_image(data):
-        uc.mem_write(paddr, blob)
-    uc.mem_map(RAM, RAM_SIZE)
-    uc.mem_write(RAM, b"\xa5" * RAM_SIZE)  # what RAM holds at power-up is not zero
-    chip = NRF51()
-    run = Boot()
-    decoder = p.Decoder()
 
-    def stop(why: str) -> None:
-        run.faults.append(why)
-        uc.emu_stop()
+class M0Image:
+    """The image in an emulated nRF51822: flash written from the ELF, RAM filled with 0xA5, :class:`NRF51`'s
+    registers, the guards on the SoftDevice's RAM and on flash, the cycle count. :meth:`boot` runs it from reset;
+    :meth:`call` runs one of its functions (the toolchain's float routines, checked by the tests)."""
 
-    def periph_read(_uc: Any, offset: int, _size: int, _user: Any) -> int:
-        return chip.read(PERIPHERALS + offset)
+    def __init__(self, elf: Path | None = None) -> None:
+        from unicorn import UC_ARCH_ARM, UC_HOOK_BLOCK, UC_HOOK_MEM_WRITE, UC_MODE_MCLASS, UC_MODE_THUMB, Uc
+        from unicorn.arm_const import UC_CPU_ARM_CORTEX_M0
 
-    def periph_write(_uc: Any, offset: int, _size: int, value: int, _user: Any) -> None:
+        data = Path(elf or build()).read_bytes()
+        _segments, self.symbols = read_elf(data)
+        self.uc = uc = Uc(UC_ARCH_ARM, UC_MODE_THUMB | UC_MODE_MCLASS)
+        uc.ctl_set_cpu_model(UC_CPU_ARM_CORTEX_M0)
+        uc.mem_map(0, FLASH_SIZE)
+        uc.mem_write(0, b"\xff" * FLASH_SIZE)  # erased flash
+        for paddr, blob in load_image(data):
+            uc.mem_write(paddr, blob)
+        uc.mem_map(RAM, RAM_SIZE)
+        uc.mem_write(RAM, b"\xa5" * RAM_SIZE)  # what RAM holds at power-up is not zero
+        uc.mem_write(RETURN, b"\xfe\xe7")  # b .
+        self.chip = NRF51()
+        self.run = Boot()
+        self.until = 0
+        self._decoder = p.Decoder()
+        self._costs: dict[tuple[int, int], tuple[int, int, int]] = {}
+        self._pending = 0
+        uc.mmio_map(PERIPHERALS, PERIPHERALS_SIZE, self._periph_read, None, self._periph_write, None)
+        uc.mmio_map(SCS, 0x1000, self._scs_read, None, self._scs_write, None)
+        uc.hook_add(UC_HOOK_MEM_WRITE, self._guarded_write, begin=RAM, end=APP_RAM - 1)
+        uc.hook_add(UC_HOOK_MEM_WRITE, self._guarded_write, begin=0, end=FLASH_SIZE - 1)
+        uc.hook_add(UC_HOOK_BLOCK, self._block)
+
+    def addr(self, symbol: str) -> int:
+        return self.symbols[symbol][0]
+
+    def _stop(self, why: str) -> None:
+        self.run.faults.append(why)
+        self.uc.emu_stop()
+
+    def _periph_read(self, _uc: Any, offset: int, _size: int, _user: Any) -> int:
+        return self.chip.read(PERIPHERALS + offset)
+
+    def _periph_write(self, _uc: Any, offset: int, _size: int, value: int, _user: Any) -> None:
+        chip = self.chip
         n = len(chip.tx)
         chip.write(PERIPHERALS + offset, value)
         if chip.faults:
-            stop(chip.faults.pop())
+            self._stop(chip.faults.pop())
         elif len(chip.tx) > n:
-            run.packets += decoder.feed(bytes(chip.tx[n:]))
-            if len(run.packets) >= until:
-                uc.emu_stop()
+            self.run.packets += self._decoder.feed(bytes(chip.tx[n:]))
+            if self.until and len(self.run.packets) >= self.until:
+                self.uc.emu_stop()
 
-    def scs_read(_uc: Any, offset: int, _size: int, _user: Any) -> int:
-        return chip.read(SCS + offset)
+    def _scs_read(self, _uc: Any, offset: int, _size: int, _user: Any) -> int:
+        return self.chip.read(SCS + offset)
 
-    def scs_write(_uc: Any, offset: int, _size: int, value: int, _user: Any) -> None:
-        chip.write(SCS + offset, value)
+    def _scs_write(self, _uc: Any, offset: int, _size: int, value: int, _user: Any) -> None:
+        self.chip.write(SCS + offset, value)
 
-    uc.mmio_map(PERIPHERALS, PERIPHERALS_SIZE, periph_read, None, periph_write, None)
-    uc.mmio_map(SCS, 0x1000, scs_read, None, scs_write, None)
+    def _guarded_write(self, _uc: Any, _access: int, address: int, size: int, _value: int, _user: Any) -> None:
+        from unicorn.arm_const import UC_ARM_REG_PC
 
-    def guarded_write(_uc: Any, _access: int, address: int, size: int, _value: int, _user: Any) -> None:
         where = "the SoftDevice's RAM" if RAM <= address < APP_RAM else "flash"
-        stop(f"a {size}-byte write to {where} at {address:#010x} (pc {uc.reg_read(UC_ARM_REG_PC):#x})")
+        self._stop(f"a {size}-byte write to {where} at {address:#010x} (pc {self.uc.reg_read(UC_ARM_REG_PC):#x})")
 
-    uc.hook_add(UC_HOOK_MEM_WRITE, guarded_write, begin=RAM, end=APP_RAM - 1)
-    uc.hook_add(UC_HOOK_MEM_WRITE, guarded_write, begin=0, end=FLASH_SIZE - 1)
-
-    costs: dict[tuple[int, int], tuple[int, int, int]] = {}
-    pending = [0]
-
-    def block(_uc: Any, address: int, size: int, _user: Any) -> None:
-        if pending[0]:
-            chip.cycles += 1 if address == pending[0] else 3
-        cost = costs.get((address, size))
+    def _block(self, _uc: Any, address: int, size: int, _user: Any) -> None:
+        if self._pending:
+            self.chip.cycles += 1 if address == self._pending else 3
+        cost = self._costs.get((address, size))
         if cost is None:
-            cost = costs[(address, size)] = block_cost(bytes(uc.mem_read(address, size)), address)
-        chip.cycles += cost[0]
-        run.instructions += cost[1]
-        pending[0] = cost[2]
+            cost = self._costs[(address, size)] = block_cost(bytes(self.uc.mem_read(address, size)), address)
+        self.chip.cycles += cost[0]
+        self.run.instructions += cost[1]
+        self._pending = cost[2]
 
-    uc.hook_add(UC_HOOK_BLOCK, block)
-
-    main = symbols.get("qb_m0_main", (0, 0))[0] & ~1
-
-    def at_main(_uc: Any, _address: int, _size: int, _user: Any) -> None:
+    def _at_main(self, _uc: Any, _address: int, _size: int, _user: Any) -> None:
+        run, uc = self.run, self.uc
         if run.bss_zeroed is not None:
             return
-        start, end = symbols["__bss_start__"][0], symbols["__bss_end__"][0]
+        start, end = self.addr("__bss_start__"), self.addr("__bss_end__")
         run.bss_zeroed = bytes(uc.mem_read(start, end - start)) == bytes(end - start)
-        d0, d1, load = symbols["__data_start__"][0], symbols["__data_end__"][0], symbols["__data_load__"][0]
+        d0, d1, load = self.addr("__data_start__"), self.addr("__data_end__"), self.addr("__data_load__")
         run.data_copied = bytes(uc.mem_read(d0, d1 - d0)) == bytes(uc.mem_read(load, d1 - d0))
 
-    if main:
-        uc.hook_add(UC_HOOK_CODE, at_main, begin=main, end=main)
+    def boot(self, until: int = 2, max_instructions: int = 20_000_000) -> Boot:
+        """Run from reset, as the MBR hands over, until ``until`` packets have left UART0 (module docstring)."""
+        from unicorn import UC_HOOK_CODE
+        from unicorn.arm_const import UC_ARM_REG_PC, UC_ARM_REG_SP
 
-    run.initial_sp, run.reset_vector = struct.unpack_from("<II", uc.mem_read(APP_FLASH, 8))
-    uc.reg_write(UC_ARM_REG_SP, run.initial_sp)
-    try:
-        uc.emu_start(run.reset_vector, 0, count=max_instructions)
-    except Exception as e:  # an unmapped access or an invalid instruction: where, in one line
-        run.faults.append(f"{e} at pc {uc.reg_read(UC_ARM_REG_PC):#x}")
-    run.tx, run.cycles, run.writes = bytes(chip.tx), chip.cycles, chip.log
-    if len(run.packets) < until and not run.faults:
-        run.faults.append(f"{len(run.packets)} of {until} packets after {run.instructions} instructions "
-                          f"(pc {uc.reg_read(UC_ARM_REG_PC):#x})")
-    return run
+        uc, run = self.uc, self.run
+        self.until = until
+        main = self.addr("qb_m0_main") & ~1
+        uc.hook_add(UC_HOOK_CODE, self._at_main, begin=main, end=main)
+        run.initial_sp, run.reset_vector = struct.unpack_from("<II", uc.mem_read(APP_FLASH, 8))
+        uc.reg_write(UC_ARM_REG_SP, run.initial_sp)
+        try:
+            uc.emu_start(run.reset_vector, 0, count=max_instructions)
+        except Exception as e:  # an unmapped access or an invalid instruction: where, in one line
+            run.faults.append(f"{e} at pc {uc.reg_read(UC_ARM_REG_PC):#x}")
+        run.tx, run.cycles, run.writes = bytes(self.chip.tx), self.chip.cycles, self.chip.log
+        if len(run.packets) < until and not run.faults:
+            run.faults.append(f"{len(run.packets)} of {until} packets after {run.instructions} instructions "
+                              f"(pc {uc.reg_read(UC_ARM_REG_PC):#x})")
+        return run
+
+    def call(self, name: str, *args: int) -> int:
+        """``name(args...)`` (up to four 32-bit arguments, the AAPCS's r0-r3; floats as their bits: the image is
+        soft-float) run to its return; r0."""
+        from unicorn.arm_const import UC_ARM_REG_LR, UC_ARM_REG_R0, UC_ARM_REG_SP
+
+        uc = self.uc
+        for i, a in enumerate(args):
+            uc.reg_write(UC_ARM_REG_R0 + i, a & 0xFFFF_FFFF)
+        uc.reg_write(UC_ARM_REG_SP, RAM + RAM_SIZE)
+        uc.reg_write(UC_ARM_REG_LR, RETURN | 1)
+        uc.emu_start(self.addr(name) | 1, RETURN, count=1_000_000)
+        return int(uc.reg_read(UC_ARM_REG_R0))
+
+
+def boot(elf: Path | None = None, until: int = 2, max_instructions: int = 20_000_000) -> Boot:
+    """The image (``make board-m0``, built if need be) run from reset until ``until`` packets have left UART0."""
+    return M0Image(elf).boot(until, max_instructions)

@@ -1,0 +1,118 @@
+"""The C board's nRF51822 image (make -C firmware board-m0) boots: run on the emulated Cortex-M0 from the reset
+vector the SoftDevice's MBR hands over to, it starts the clocks, RTC1 and UART0 and sends Hello (this protocol's
+version) and the BOOT event out of UART0's TXD; it keeps to the S110 SoftDevice's memory map; and the toolchain
+pieces firmware/m0/lean_libs.c replaces still give IEEE 754's answers. The peripheral model refuses what a real
+nRF51 would not do (so the boot is not a model that accepts anything). Skipped, with the reason, where
+arm-none-eabi-gcc or unicorn is missing."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from fcb_sim.hosts import m0boot
+from term.core.protocol import PROTOCOL_VERSION, Event, EventCode, Hello
+
+ROLE_BOARD = 1
+
+
+@pytest.fixture(scope="module")
+def image_path():  # type: ignore[no-untyped-def]
+    why = m0boot.available()
+    if why:
+        pytest.skip(why)
+    return m0boot.build()
+
+
+@pytest.fixture(scope="module")
+def booted(image_path) -> m0boot.Boot:  # type: ignore[no-untyped-def]
+    return m0boot.boot(image_path)
+
+
+def test_the_image_boots_from_reset_to_its_hello_on_uart0(booted: m0boot.Boot) -> None:
+    assert booted.faults == []
+    hello, event = booted.packets[:2]
+    assert isinstance(hello, Hello) and hello.protocol == PROTOCOL_VERSION and hello.role == ROLE_BOARD
+    assert isinstance(event, Event) and event.code == EventCode.BOOT and event.arg == PROTOCOL_VERSION
+    # the reset handler ran before main: .bss zeroed (RAM started as 0xA5), .data copied from flash
+    assert booted.bss_zeroed is True and booted.data_copied is True
+
+
+def test_the_vector_table_sits_where_the_softdevice_forwards_the_reset(booted: m0boot.Boot) -> None:
+    assert booted.initial_sp == 0x2000_4000  # the top of the 16 KB RAM
+    assert booted.reset_vector & 1  # a Thumb address
+    assert m0boot.APP_FLASH <= booted.reset_vector & ~1 < m0boot.FLASH_SIZE
+
+
+def test_the_clocks_rtc1_and_uart0_start_in_order_before_the_first_byte(booted: m0boot.Boot) -> None:
+    order = [a for a, _v in booted.writes]
+
+    def first(address: int) -> int:
+        return order.index(address)
+
+    assert first(m0boot.CLOCK_TASKS_HFCLKSTART) < first(m0boot.CLOCK_TASKS_LFCLKSTART) < first(m0boot.RTC1_TASKS_START)
+    assert (m0boot.CLOCK_LFCLKSRC, m0boot.LFCLK_SYNTH) in booted.writes
+    assert first(m0boot.UART0_ENABLE) < first(m0boot.UART0_TASKS_STARTTX) < first(m0boot.UART0_TXD)
+    assert (m0boot.UART0_BAUDRATE, m0boot.UART_115200) in booted.writes
+    # RTC1 counts the emulated cycles' time: the BOOT event's board time is past 0, within the run's
+    assert 0 < booted.packets[1].board_ms <= booted.ms
+
+
+def test_the_image_keeps_to_the_softdevices_flash_and_ram(image_path) -> None:  # type: ignore[no-untyped-def]
+    data = image_path.read_bytes()
+    for paddr, blob in m0boot.load_image(data):  # what a programmer writes
+        assert m0boot.APP_FLASH <= paddr and paddr + len(blob) <= m0boot.FLASH_SIZE
+    _segments, symbols = m0boot.read_elf(data)
+    assert symbols["__data_start__"][0] >= m0boot.APP_RAM
+    assert symbols["__bss_end__"][0] + 0x800 <= m0boot.RAM + m0boot.RAM_SIZE  # QB_STACK left for the stack
+
+
+def test_the_model_refuses_a_uart_or_rtc_that_was_not_started() -> None:
+    chip = m0boot.NRF51()
+    chip.write(m0boot.RTC1_TASKS_START, 1)
+    chip.write(m0boot.UART0_TXD, 0x41)
+    assert chip.tx == b"" and len(chip.faults) == 2
+    assert "LFCLK" in chip.faults[0] and "not enabled" in chip.faults[1]
+    assert chip.read(m0boot.RTC1_COUNTER) == 0
+    for address, value in ((m0boot.UART0_ENABLE, 4), (m0boot.UART0_TASKS_STARTTX, 1), (m0boot.UART0_PSELTXD, 14),
+                           (m0boot.UART0_BAUDRATE, m0boot.UART_115200)):
+        chip.write(address, value)
+    chip.write(m0boot.UART0_TXD, 0x41)
+    assert "crystal" in chip.faults[-1] and chip.tx == b""
+    chip.write(m0boot.CLOCK_TASKS_HFCLKSTART, 1)
+    chip.write(m0boot.UART0_TXD, 0x41)
+    assert chip.tx == b"A" and chip.read(m0boot.UART0_EVENTS_TXDRDY) == 1
+
+
+def _bits(x: np.float32) -> int:
+    return int(np.float32(x).view(np.uint32))
+
+
+def _floats(n: int, seed: int) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    random = rng.integers(0, 2**32, n, dtype=np.uint64).astype(np.uint32).view(np.float32)
+    near = rng.normal(0, 10, n).astype(np.float32)
+    edge = np.array([0.0, -0.0, 1.0, -1.0, np.inf, -np.inf, np.nan, 1e-45, -1e-45, 3.4028235e38, 1.1754944e-38],
+                    dtype=np.float32)
+    return np.concatenate([edge, random, near])
+
+
+def test_the_lean_float_routines_give_ieee_answers(image_path) -> None:  # type: ignore[no-untyped-def]
+    """firmware/m0/lean_libs.c: a - b through the one adder, the comparisons through __gesf2 (numpy's float32 is
+    the reference: IEEE 754, round to nearest even)."""
+    img = m0boot.M0Image(image_path)
+    xs = _floats(150, 1)
+    ys = np.random.default_rng(3).permutation(_floats(150, 2))
+    pairs = [(a, b) for a, b in zip(xs, ys, strict=True)] + [(a, a) for a in xs[:40]]
+    with np.errstate(all="ignore"):
+        for a, b in pairs:
+            got = img.call("__aeabi_fsub", _bits(a), _bits(b))
+            want = np.float32(a) - np.float32(b)
+            if np.isnan(want):
+                assert np.isnan(np.uint32(got).view(np.float32)), (a, b)
+            else:
+                assert got == _bits(want), (a, b, hex(got), want)
+            for name, op in (("__aeabi_fcmpeq", np.equal), ("__aeabi_fcmplt", np.less),
+                             ("__aeabi_fcmple", np.less_equal), ("__aeabi_fcmpge", np.greater_equal),
+                             ("__aeabi_fcmpgt", np.greater)):
+                assert img.call(name, _bits(a), _bits(b)) == int(op(a, b)), (name, a, b)
