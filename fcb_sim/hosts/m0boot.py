@@ -14,18 +14,24 @@ fcb_sim.hosts.m0emu), their cycles counted by the same table; the peripherals th
 - UART0: a byte written to TXD leaves (TXDRDY follows at once) only when the UART is enabled (ENABLE 4), its
   transmitter started (TASKS_STARTTX), its TXD pin selected, at 115200 baud (0x01D7E000), with the 16 MHz crystal
   running; else the write is a fault and the run stops there, naming it.
-- NVIC and SCB (ISER, ICPR, SCR): recorded. Interrupts are not emulated (so the receive interrupt's ring, and the
-  loop's WFE, are not run here: :func:`boot` stops at the frames it waits for, before the loop's first sleep).
+  A byte takes 10 bit times (1388 cycles) to leave: TXDRDY reads 1 from then on, and a byte written before is a
+  fault. Bytes to receive enter the 6-byte FIFO, RXDRDY raised while one waits, RXD giving the next.
+- RTC1's COMPARE0, with its interrupt enabled, is when the loop's sleep (WFE) ends; NVIC and SCB (ISER, ICPR,
+  SCR) are recorded. Interrupts are not emulated mid-instruction stream: :meth:`M0Image.run` hands received bytes
+  to UART0_IRQHandler at the loop's next sleep (the functions are the board's, their timing is not).
 - A write to the SoftDevice's RAM (below 0x20002000) or to flash is a fault.
 Any other peripheral register reads what was last written to it (0 at reset).
 
-The bytes from TXD go through term.core.protocol's Decoder; the run ends when ``until`` packets have left (the
-board sends Hello, then the BOOT event), or at a fault, or after ``max_instructions``.
+The bytes from TXD go through term.core.protocol's Decoder. :func:`boot` ends when ``until`` packets have left (the
+board sends Hello, then the BOOT event); :func:`run` runs the loop for a given emulated time (the board's timers,
+its telemetry and heartbeats, what it answers to bytes sent to it); both stop at a fault, or after
+``max_instructions``.
 """
 
 from __future__ import annotations
 
 import struct
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -50,8 +56,15 @@ LFCLK_SYNTH = 2
 CLOCK_TASKS_HFCLKSTART, CLOCK_TASKS_LFCLKSTART = 0x4000_0000, 0x4000_0008
 CLOCK_EVENTS_HFCLKSTARTED, CLOCK_EVENTS_LFCLKSTARTED, CLOCK_LFCLKSRC = 0x4000_0100, 0x4000_0104, 0x4000_0518
 RTC1_TASKS_START, RTC1_TASKS_STOP, RTC1_COUNTER, RTC1_PRESCALER = 0x4001_1000, 0x4001_1004, 0x4001_1504, 0x4001_1508
-UART0_TASKS_STARTTX, UART0_EVENTS_TXDRDY, UART0_ENABLE = 0x4000_2008, 0x4000_211C, 0x4000_2500
-UART0_PSELTXD, UART0_TXD, UART0_BAUDRATE = 0x4000_250C, 0x4000_251C, 0x4000_2524
+UART0_TASKS_STARTRX, UART0_TASKS_STARTTX = 0x4000_2000, 0x4000_2008
+UART0_EVENTS_RXDRDY, UART0_EVENTS_TXDRDY, UART0_INTENSET = 0x4000_2108, 0x4000_211C, 0x4000_2304
+UART0_ENABLE, UART0_PSELTXD, UART0_PSELRXD = 0x4000_2500, 0x4000_250C, 0x4000_2514
+UART0_RXD, UART0_TXD, UART0_BAUDRATE = 0x4000_2518, 0x4000_251C, 0x4000_2524
+RTC1_EVENTS_COMPARE0, RTC1_INTENSET, RTC1_CC0 = 0x4001_1140, 0x4001_1304, 0x4001_1540
+NVIC_ISER, SCB_SCR = 0xE000_E100, 0xE000_ED10
+UART0_IRQ, RTC1_IRQ = 2, 17
+BYTE_CYCLES = 10 * CPU_HZ // 115200  # a start bit, 8 data bits and a stop bit at 115200 baud: 1388 cycles
+RX_FIFO = 6  # the UART's receive FIFO (nRF51 RM, UART: "RXD ... 6 bytes")
 
 
 def build(build_dir: Path | None = None) -> Path:
@@ -88,6 +101,8 @@ class NRF51:
         self.cycles = 0
         self.rtc_start_cycles: int | None = None
         self.tx = bytearray()
+        self.tx_busy_until = 0  # the cycle the byte in TXD has left by
+        self.rx: list[int] = []  # bytes in the receive FIFO
         self.faults: list[str] = []
         self.log: list[tuple[int, int]] = []  # (address, value) of every write, in order
 
@@ -103,7 +118,34 @@ class NRF51:
     def read(self, address: int) -> int:
         if address == RTC1_COUNTER:
             return self.counter()
+        if address == UART0_EVENTS_TXDRDY:
+            return int(bool(self.reg(address)) and self.cycles >= self.tx_busy_until)
+        if address == UART0_RXD:  # the next byte of the FIFO, and RXDRDY again while more wait
+            byte = self.rx.pop(0) if self.rx else 0
+            if self.rx:
+                self.regs[UART0_EVENTS_RXDRDY] = 1
+            return byte
         return self.reg(address)
+
+    def receive(self, data: bytes) -> int:
+        """Bytes arriving on RXD (those the FIFO has room for; how many it took). Each raises RXDRDY."""
+        if self.reg(UART0_ENABLE) != UART_ENABLED or not self.reg(UART0_TASKS_STARTRX):
+            return 0
+        n = min(len(data), RX_FIFO - len(self.rx))
+        self.rx += data[:n]
+        if n:
+            self.regs[UART0_EVENTS_RXDRDY] = 1
+        return n
+
+    def wake_cycles(self) -> int | None:
+        """The cycle RTC1's COMPARE0 next matches at (None: not armed to interrupt, or the RTC stopped)."""
+        if self.rtc_start_cycles is None or not self.reg(RTC1_INTENSET) & 1 << 16:
+            return None
+        ahead = (self.reg(RTC1_CC0) - self.counter()) & 0xFF_FFFF or 1 << 24
+        per_tick = CPU_HZ * (self.reg(RTC1_PRESCALER) + 1)
+        elapsed = (self.cycles - self.rtc_start_cycles) * RTC_HZ
+        # the first cycle at which the counter reads CC0
+        return self.rtc_start_cycles + -(-((elapsed // per_tick + ahead) * per_tick) // RTC_HZ)
 
     def write(self, address: int, value: int) -> None:
         self.log.append((address, value))
@@ -123,8 +165,12 @@ class NRF51:
             if why:
                 self.faults.append(f"byte {len(self.tx)} written to UART0 TXD {why}")
                 return
+            if self.cycles < self.tx_busy_until:
+                self.faults.append(f"byte {len(self.tx)} written to TXD before the last one left (no TXDRDY wait)")
+                return
             self.tx.append(value & 0xFF)
             self.regs[UART0_EVENTS_TXDRDY] = 1
+            self.tx_busy_until = self.cycles + BYTE_CYCLES
             return
         self.regs[address] = value
 
@@ -187,11 +233,12 @@ class M0Image:
         uc.mem_write(RAM, b"\xa5" * RAM_SIZE)  # what RAM holds at power-up is not zero
         uc.mem_write(RETURN, b"\xfe\xe7")  # b .
         self.chip = NRF51()
-        self.run = Boot()
+        self.result = Boot()
         self.until = 0
         self._decoder = p.Decoder()
         self._costs: dict[tuple[int, int], tuple[int, int, int]] = {}
         self._pending = 0
+        self._asleep = 0  # the WFE's address where the loop went to sleep
         uc.mmio_map(PERIPHERALS, PERIPHERALS_SIZE, self._periph_read, None, self._periph_write, None)
         uc.mmio_map(SCS, 0x1000, self._scs_read, None, self._scs_write, None)
         uc.hook_add(UC_HOOK_MEM_WRITE, self._guarded_write, begin=RAM, end=APP_RAM - 1)
@@ -202,7 +249,7 @@ class M0Image:
         return self.symbols[symbol][0]
 
     def _stop(self, why: str) -> None:
-        self.run.faults.append(why)
+        self.result.faults.append(why)
         self.uc.emu_stop()
 
     def _periph_read(self, _uc: Any, offset: int, _size: int, _user: Any) -> int:
@@ -215,8 +262,8 @@ class M0Image:
         if chip.faults:
             self._stop(chip.faults.pop())
         elif len(chip.tx) > n:
-            self.run.packets += self._decoder.feed(bytes(chip.tx[n:]))
-            if self.until and len(self.run.packets) >= self.until:
+            self.result.packets += self._decoder.feed(bytes(chip.tx[n:]))
+            if self.until and len(self.result.packets) >= self.until:
                 self.uc.emu_stop()
 
     def _scs_read(self, _uc: Any, offset: int, _size: int, _user: Any) -> int:
@@ -238,11 +285,11 @@ class M0Image:
         if cost is None:
             cost = self._costs[(address, size)] = block_cost(bytes(self.uc.mem_read(address, size)), address)
         self.chip.cycles += cost[0]
-        self.run.instructions += cost[1]
+        self.result.instructions += cost[1]
         self._pending = cost[2]
 
     def _at_main(self, _uc: Any, _address: int, _size: int, _user: Any) -> None:
-        run, uc = self.run, self.uc
+        run, uc = self.result, self.uc
         if run.bss_zeroed is not None:
             return
         start, end = self.addr("__bss_start__"), self.addr("__bss_end__")
@@ -251,25 +298,80 @@ class M0Image:
         run.data_copied = bytes(uc.mem_read(d0, d1 - d0)) == bytes(uc.mem_read(load, d1 - d0))
 
     def boot(self, until: int = 2, max_instructions: int = 20_000_000) -> Boot:
-        """Run from reset, as the MBR hands over, until ``until`` packets have left UART0 (module docstring)."""
+        """Run from reset until ``until`` packets have left UART0 (module docstring)."""
+        return self.run(until=until, max_instructions=max_instructions)
+
+    def run(self, ms: float | None = None, until: int | None = None, rx: Sequence[tuple[float, bytes]] = (),
+            max_instructions: int = 50_000_000) -> Boot:
+        """From reset, as the MBR hands over (SP and PC from the application's vector table), until ``until``
+        packets have left UART0 or ``ms`` emulated milliseconds have passed; ``rx``: (ms, bytes) to arrive on RXD,
+        a byte every 10 bit times from then. Where the loop sleeps (WFE) the time moves on to the next wake-up,
+        RTC1's COMPARE0 or a received byte; received bytes enter the FIFO (6 bytes) there and UART0_IRQHandler is
+        run as the NVIC would run it (its registers saved around it, SP lowered by an exception frame), if UART0's
+        RXDRDY interrupt is enabled. So an interrupt comes at the next sleep, never in the middle of a task: the
+        functions are the board's, the interrupt timing is not."""
         from unicorn import UC_HOOK_CODE
         from unicorn.arm_const import UC_ARM_REG_PC, UC_ARM_REG_SP
 
-        uc, run = self.uc, self.run
-        self.until = until
+        uc, run, chip = self.uc, self.result, self.chip
+        self.until = until or 0
         main = self.addr("qb_m0_main") & ~1
         uc.hook_add(UC_HOOK_CODE, self._at_main, begin=main, end=main)
+        for wfe in self._wfe_addresses():
+            uc.hook_add(UC_HOOK_CODE, self._at_wfe, begin=wfe, end=wfe)
+        end = None if ms is None else round(ms * CPU_HZ / 1000)
+        arrivals = sorted((round(t * CPU_HZ / 1000) + i * BYTE_CYCLES, b) for t, data in rx for i, b in enumerate(data))
         run.initial_sp, run.reset_vector = struct.unpack_from("<II", uc.mem_read(APP_FLASH, 8))
         uc.reg_write(UC_ARM_REG_SP, run.initial_sp)
-        try:
-            uc.emu_start(run.reset_vector, 0, count=max_instructions)
-        except Exception as e:  # an unmapped access or an invalid instruction: where, in one line
-            run.faults.append(f"{e} at pc {uc.reg_read(UC_ARM_REG_PC):#x}")
-        run.tx, run.cycles, run.writes = bytes(self.chip.tx), self.chip.cycles, self.chip.log
-        if len(run.packets) < until and not run.faults:
-            run.faults.append(f"{len(run.packets)} of {until} packets after {run.instructions} instructions "
+        pc = run.reset_vector
+        while True:
+            self._asleep = 0
+            try:
+                uc.emu_start(pc, 0, count=max(1, max_instructions - run.instructions))
+            except Exception as e:  # an unmapped access or an invalid instruction: where, in one line
+                run.faults.append(f"{e} at pc {uc.reg_read(UC_ARM_REG_PC):#x}")
+            if run.faults or (self.until and len(run.packets) >= self.until) or not self._asleep:
+                break
+            wakes = [c for c in (chip.wake_cycles(), arrivals[0][0] if arrivals else None) if c is not None]
+            if not wakes or (end is not None and min(wakes) >= end):
+                chip.cycles = max(chip.cycles, end or 0)
+                break
+            chip.cycles = max(chip.cycles, min(wakes))
+            while arrivals and arrivals[0][0] <= chip.cycles and chip.receive(bytes([arrivals[0][1]])):
+                arrivals.pop(0)
+            if chip.reg(UART0_EVENTS_RXDRDY) and chip.reg(UART0_INTENSET) & 4 and chip.reg(NVIC_ISER) & 1 << UART0_IRQ:
+                self._interrupt("UART0_IRQHandler")
+            pc = (self._asleep + 2) | 1  # on after the WFE, as the wake-up does
+        run.tx, run.cycles, run.writes = bytes(chip.tx), chip.cycles, chip.log
+        if not run.faults and (len(run.packets) < self.until or (end is not None and chip.cycles < end)):
+            run.faults.append(f"{len(run.packets)} packets, {run.ms:.1f} ms after {run.instructions} instructions "
                               f"(pc {uc.reg_read(UC_ARM_REG_PC):#x})")
         return run
+
+    def _wfe_addresses(self) -> list[int]:
+        """Every halfword of the image's code that reads as WFE (0xBF20); a hook there fires only on the ones that
+        run, which are WFEs."""
+        start, size = self.symbols["qb_m0_main"]
+        code = bytes(self.uc.mem_read(start & ~1, size))
+        return [(start & ~1) + i for i in range(0, size - 1, 2) if code[i:i + 2] == b"\x20\xbf"]
+
+    def _at_wfe(self, uc: Any, address: int, _size: int, _user: Any) -> None:
+        self._asleep = address
+        uc.emu_stop()  # before the WFE executes: run() moves the time and resumes after it
+
+    def _interrupt(self, handler: str) -> None:
+        from unicorn.arm_const import (UC_ARM_REG_LR, UC_ARM_REG_PC, UC_ARM_REG_R0, UC_ARM_REG_R12, UC_ARM_REG_SP,
+                                       UC_ARM_REG_XPSR)
+
+        uc = self.uc
+        saved_regs = [*range(UC_ARM_REG_R0, UC_ARM_REG_R12 + 1), UC_ARM_REG_SP, UC_ARM_REG_LR, UC_ARM_REG_PC,
+                      UC_ARM_REG_XPSR]
+        saved = [(r, uc.reg_read(r)) for r in saved_regs]
+        uc.reg_write(UC_ARM_REG_SP, uc.reg_read(UC_ARM_REG_SP) - 32)  # the 8 words the hardware stacks
+        uc.reg_write(UC_ARM_REG_LR, RETURN | 1)
+        uc.emu_start(self.addr(handler) | 1, RETURN, count=100_000)
+        for r, v in saved:
+            uc.reg_write(r, v)
 
     def call(self, name: str, *args: int) -> int:
         """``name(args...)`` (up to four 32-bit arguments, the AAPCS's r0-r3; floats as their bits: the image is
@@ -288,3 +390,8 @@ class M0Image:
 def boot(elf: Path | None = None, until: int = 2, max_instructions: int = 20_000_000) -> Boot:
     """The image (``make board-m0``, built if need be) run from reset until ``until`` packets have left UART0."""
     return M0Image(elf).boot(until, max_instructions)
+
+
+def run(elf: Path | None = None, ms: float = 100.0, rx: Sequence[tuple[float, bytes]] = ()) -> Boot:
+    """The image run from reset for ``ms`` emulated milliseconds, ``rx`` arriving on RXD (:meth:`M0Image.run`)."""
+    return M0Image(elf).run(ms=ms, rx=rx)

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from fcb_sim.hosts import m0boot
-from term.core.protocol import PROTOCOL_VERSION, Event, EventCode, Hello
+from term.core.protocol import PROTOCOL_VERSION, Encoder, Event, EventCode, Heartbeat, Hello, Status
 
 ROLE_BOARD = 1
 
@@ -58,6 +58,22 @@ def test_the_clocks_rtc1_and_uart0_start_in_order_before_the_first_byte(booted: 
     assert 0 < booted.packets[1].board_ms <= booted.ms
 
 
+def test_the_loop_runs_its_timers_and_answers_what_uart0_receives(image_path) -> None:  # type: ignore[no-untyped-def]
+    """Past the boot: the loop sleeps until RTC1's compare and wakes for its timers (heartbeats 100 ms apart by the
+    RTC's time), and a Hello sent to RXD at 50 ms goes through the receive interrupt's ring, the parser and the
+    loop to the board's answering Hello."""
+    term_hello = Encoder().encode(Hello(protocol=PROTOCOL_VERSION, role=0, major=0, minor=1, board_id=0))
+    run = m0boot.run(image_path, ms=260, rx=[(50.0, term_hello)])
+    assert run.faults == []
+    beats = [pk.board_ms for pk in run.packets if isinstance(pk, Heartbeat)]
+    assert len(beats) >= 2 and all(b - a == 100 for a, b in zip(beats, beats[1:], strict=False))
+    hellos = [i for i, pk in enumerate(run.packets) if isinstance(pk, Hello)]
+    assert len(hellos) == 2  # the boot's, then the answer
+    before = [pk.board_ms for pk in run.packets[:hellos[1]] if isinstance(pk, Heartbeat)]
+    assert before and before[-1] < 50 < beats[-1]  # the answer came after the terminal's Hello arrived
+    assert any(isinstance(pk, Status) and pk.cpu_load > 0 for pk in run.packets)  # the task profile's real load
+
+
 def test_the_image_keeps_to_the_softdevices_flash_and_ram(image_path) -> None:  # type: ignore[no-untyped-def]
     data = image_path.read_bytes()
     for paddr, blob in m0boot.load_image(data):  # what a programmer writes
@@ -81,7 +97,11 @@ def test_the_model_refuses_a_uart_or_rtc_that_was_not_started() -> None:
     assert "crystal" in chip.faults[-1] and chip.tx == b""
     chip.write(m0boot.CLOCK_TASKS_HFCLKSTART, 1)
     chip.write(m0boot.UART0_TXD, 0x41)
-    assert chip.tx == b"A" and chip.read(m0boot.UART0_EVENTS_TXDRDY) == 1
+    assert chip.tx == b"A" and chip.read(m0boot.UART0_EVENTS_TXDRDY) == 0  # still leaving: 10 bit times
+    chip.write(m0boot.UART0_TXD, 0x42)
+    assert "before the last one left" in chip.faults[-1] and chip.tx == b"A"
+    chip.cycles += m0boot.BYTE_CYCLES
+    assert chip.read(m0boot.UART0_EVENTS_TXDRDY) == 1
 
 
 def _bits(x: np.float32) -> int:
