@@ -17,7 +17,10 @@ line (the last); a missing compiler is one line before it, and its figures are n
   for the stack by the linker script) beside the report's firmware; issue 37's goal: <= 40 KB flash, <= 8 KB RAM
   (what the S110 SoftDevice leaves on a 16 KB part), ``*_margin_bytes`` what is left. ``cboard_m0_boot_*``: the
   image run on the emulated Cortex-M0 from its reset vector until Hello and the BOOT event have left UART0's TXD
-  (fcb_sim.hosts.m0boot): the instructions and the emulated milliseconds (16 MHz), null without unicorn. ``flight_*``: the C board (double, and float as the M0 computes) and the Python board flown in the
+  (fcb_sim.hosts.m0boot): the instructions and the emulated milliseconds (16 MHz), null without unicorn;
+  ``cboard_m0_safe_cpu_load_pct``: the CPU load the board's own task profile reports (Status) after one emulated
+  second in SAFE, its telemetry sent by the blocking UART writes (87 us a byte) and its sensor stubs.
+  ``flight_*``: the C board (double, and float as the M0 computes) and the Python board flown in the
   same run, each a whole board over its UART by the scenarios' pilot (fcb_sim.hosts.cboard.fly_board): hover in FULL,
   HEIGHT hold, seeds 1-8, 15 s, figures from 6 s on against the truth: mean attitude rms (deg) and height rms
   (m), and the C board's over the Python board's (goal: within 10 %). Also hover in RAW, for information: the C
@@ -96,16 +99,19 @@ def cboard_m0_sizes() -> dict[str, Any]:
         elf = build / "m0" / "board.elf"
         text, data, bss = _size(elf)
         boot = m0boot.boot(elf) if m0boot.available() is None else None
+        loop = m0boot.run(elf, ms=1000.0) if boot else None
     if boot is None:
         print(f"bench.firmware: no boot figures: {m0boot.available()}")
-    elif boot.faults:
-        raise SystemExit(f"bench.firmware: the M0 image did not boot: {boot.faults}")
+    elif boot.faults or (loop and loop.faults):
+        raise SystemExit(f"bench.firmware: the M0 image did not boot or run: {boot.faults} {loop and loop.faults}")
+    loads = [pk.cpu_load for pk in loop.packets if isinstance(pk, p.Status)] if loop else []
     return {"cboard_m0_flash_bytes": text + data, "cboard_m0_ram_bytes": data + bss,
             "cboard_m0_stack_reserved_bytes": M0_STACK,
             "cboard_m0_flash_margin_bytes": M0_FLASH_GOAL - text - data,
             "cboard_m0_ram_margin_bytes": M0_RAM_GOAL - data - bss - M0_STACK,
             "cboard_m0_boot_to_hello_instructions": boot.instructions if boot else None,
             "cboard_m0_boot_to_hello_ms": round(boot.ms, 2) if boot else None,
+            "cboard_m0_safe_cpu_load_pct": loads[-1] if loads else None,
             "cboard_m0_share_of_report_firmware_text_pct": round(100 * (text + data) / REPORT_FIRMWARE_TEXT, 1),
             "report_firmware_text_bytes": REPORT_FIRMWARE_TEXT}
 

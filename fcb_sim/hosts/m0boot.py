@@ -360,8 +360,14 @@ class M0Image:
         uc.emu_stop()  # before the WFE executes: run() moves the time and resumes after it
 
     def _interrupt(self, handler: str) -> None:
-        from unicorn.arm_const import (UC_ARM_REG_LR, UC_ARM_REG_PC, UC_ARM_REG_R0, UC_ARM_REG_R12, UC_ARM_REG_SP,
-                                       UC_ARM_REG_XPSR)
+        from unicorn.arm_const import (
+            UC_ARM_REG_LR,
+            UC_ARM_REG_PC,
+            UC_ARM_REG_R0,
+            UC_ARM_REG_R12,
+            UC_ARM_REG_SP,
+            UC_ARM_REG_XPSR,
+        )
 
         uc = self.uc
         saved_regs = [*range(UC_ARM_REG_R0, UC_ARM_REG_R12 + 1), UC_ARM_REG_SP, UC_ARM_REG_LR, UC_ARM_REG_PC,
