@@ -197,7 +197,8 @@ class Boot:
     tx: bytes = b""
     faults: list[str] = field(default_factory=list)
     instructions: int = 0
-    cycles: int = 0
+    cycles: int = 0  # the emulated time (16 MHz), the sleeps' included
+    busy_cycles: int = 0  # the cycles the instructions took (the time awake)
     initial_sp: int = 0
     reset_vector: int = 0
     bss_zeroed: bool | None = None  # at qb_m0_main's first instruction (None: never reached)
@@ -279,12 +280,12 @@ class M0Image:
         self._stop(f"a {size}-byte write to {where} at {address:#010x} (pc {self.uc.reg_read(UC_ARM_REG_PC):#x})")
 
     def _block(self, _uc: Any, address: int, size: int, _user: Any) -> None:
-        if self._pending:
-            self.chip.cycles += 1 if address == self._pending else 3
+        c = (1 if address == self._pending else 3) if self._pending else 0
         cost = self._costs.get((address, size))
         if cost is None:
             cost = self._costs[(address, size)] = block_cost(bytes(self.uc.mem_read(address, size)), address)
-        self.chip.cycles += cost[0]
+        self.chip.cycles += c + cost[0]
+        self.result.busy_cycles += c + cost[0]
         self.result.instructions += cost[1]
         self._pending = cost[2]
 
@@ -382,6 +383,10 @@ class M0Image:
     def call(self, name: str, *args: int) -> int:
         """``name(args...)`` (up to four 32-bit arguments, the AAPCS's r0-r3; floats as their bits: the image is
         soft-float) run to its return; r0."""
+        return self.call_pair(name, *args)[0]
+
+    def call_pair(self, name: str, *args: int) -> tuple[int, int]:
+        """:meth:`call`, and r1 beside r0 (a 64-bit result's halves, or the run-time ABI's divmod pair)."""
         from unicorn.arm_const import UC_ARM_REG_LR, UC_ARM_REG_R0, UC_ARM_REG_SP
 
         uc = self.uc
@@ -390,7 +395,7 @@ class M0Image:
         uc.reg_write(UC_ARM_REG_SP, RAM + RAM_SIZE)
         uc.reg_write(UC_ARM_REG_LR, RETURN | 1)
         uc.emu_start(self.addr(name) | 1, RETURN, count=1_000_000)
-        return int(uc.reg_read(UC_ARM_REG_R0))
+        return int(uc.reg_read(UC_ARM_REG_R0)), int(uc.reg_read(UC_ARM_REG_R0 + 1))
 
 
 def boot(elf: Path | None = None, until: int = 2, max_instructions: int = 20_000_000) -> Boot:

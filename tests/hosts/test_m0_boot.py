@@ -66,7 +66,8 @@ def test_the_loop_runs_its_timers_and_answers_what_uart0_receives(image_path) ->
     run = m0boot.run(image_path, ms=260, rx=[(50.0, term_hello)])
     assert run.faults == []
     beats = [pk.board_ms for pk in run.packets if isinstance(pk, Heartbeat)]
-    assert len(beats) >= 2 and all(b - a == 100 for a, b in zip(beats, beats[1:], strict=False))
+    # 100 ms apart by the RTC's time, give or take the tasks that ran first in the same pass (the blocking UART)
+    assert len(beats) >= 2 and all(abs(b - a - 100) <= 3 for a, b in zip(beats, beats[1:], strict=False))
     hellos = [i for i, pk in enumerate(run.packets) if isinstance(pk, Hello)]
     assert len(hellos) == 2  # the boot's, then the answer
     before = [pk.board_ms for pk in run.packets[:hellos[1]] if isinstance(pk, Heartbeat)]
@@ -136,3 +137,21 @@ def test_the_lean_float_routines_give_ieee_answers(image_path) -> None:  # type:
                              ("__aeabi_fcmple", np.less_equal), ("__aeabi_fcmpge", np.greater_equal),
                              ("__aeabi_fcmpgt", np.greater)):
                 assert img.call(name, _bits(a), _bits(b)) == int(op(a, b)), (name, a, b)
+
+
+def test_the_lean_integer_divisions_give_cs_answers(image_path) -> None:  # type: ignore[no-untyped-def]
+    """firmware/m0/lean_libs.c's divisions against Python's integers: C's truncated quotient, the remainder with the
+    dividend's sign, INT_MIN / -1 wrapping to INT_MIN as ARM's own does, 0 for a zero divisor (libgcc's too)."""
+    img = m0boot.M0Image(image_path)
+    rng = np.random.default_rng(4)
+    edges = [0, 1, 2, 3, 7, 10, 255, 256, 65535, 65536, 2**31 - 1, 2**31, 2**32 - 2, 2**32 - 1]
+    words = edges + [int(x) for x in rng.integers(0, 2**32, 60)] + [int(x) for x in rng.integers(0, 2**12, 30)]
+    for n in words:
+        for d in edges[1:] + [int(x) for x in rng.integers(1, 2**32, 4)] + [int(x) for x in rng.integers(1, 64, 4)]:
+            assert img.call_pair("__aeabi_uidivmod", n, d) == (n // d, n % d), (n, d)
+            assert img.call("__aeabi_uidiv", n, d) == n // d, (n, d)
+            sn, sd = n - (n >> 31 << 32), d - (d >> 31 << 32)  # the same words as int32
+            q = abs(sn) // abs(sd) * (-1 if (sn < 0) != (sd < 0) else 1)
+            assert img.call("__aeabi_idiv", n, d) == q & 0xFFFF_FFFF, (sn, sd)
+        assert img.call("__aeabi_uidiv", n, 0) == 0 and img.call("__aeabi_idiv", n, 0) == 0
+
