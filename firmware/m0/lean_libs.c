@@ -14,9 +14,10 @@
  * - the 32-bit integer divisions (__aeabi_uidiv, __aeabi_uidivmod, __aeabi_idiv, __aeabi_idivmod and their
  *   __udivsi3/__divsi3 names): libgcc's Thumb-1 ones are unrolled (0.74 KB); this is the schoolbook shift and
  *   subtract over the quotient's bits only, 0.2 KB. Slower for a long quotient (about 10 cycles a bit against
- *   libgcc's 4); the board's divisions are mostly short ones (the loop's, a quotient of 0 or 1). C's results: truncated quotients, remainders with the
+ *   libgcc's 4); the board's divisions are mostly short ones (the loop's, a quotient of 0 or 1): 0.2 % more
+ *   CPU in the emulated loop (fcb_sim.hosts.m0boot). C's results: truncated quotients, remainders with the
  *   dividend's sign, INT_MIN / -1 = INT_MIN as ARM's own; a zero divisor gives 0 (libgcc's __aeabi_idiv0 path
- *   returns 0 too) and the dividend as remainder.
+ *   returns 0 too) and the dividend as remainder. Built outside LTO (the Makefile says why).
  * - expf, logf, atan2f, sqrtf: newlib's wrappers (wf_*.c) call __ieee754_*f and then set errno on a domain or range
  *   error; the board never reads errno, so these call the same __ieee754_*f and return its result unchanged (the
  *   wrappers' own results in IEEE mode), and errno's reentrancy struct (96 B of flash and RAM) is not linked.
