@@ -2,7 +2,7 @@
  *
  * make -C firmware board-m0 links it with m0/startup_nrf51.c (vector table, reset handler) and m0/nrf51822_s110.ld
  * (the application beside the S110 SoftDevice) into an image that boots: fcb_sim/hosts/m0emu.py runs it from the
- * reset vector to its first Hello on UART0's TXD (tests/firmware/test_m0_boot.py). What runs for real:
+ * reset vector to its first Hello on UART0's TXD, and its loop on (tests/hosts/test_m0_boot.py). What runs for real:
  *   - the clocks: the 16 MHz crystal (HFXO: UART0's baud rate is only as good as the HFCLK, and the RC's is not good
  *     enough for 115200) and the 32.768 kHz LFCLK synthesised from it (every nRF51 module has the 16 MHz crystal; a
  *     32 kHz one is optional);
