@@ -11,9 +11,9 @@ fcb_sim.hosts.m0emu), their cycles counted by the same table; the peripherals th
 - CLOCK: HFCLKSTARTED and LFCLKSTARTED come after their start tasks; LFCLKSRC is recorded.
 - RTC1: COUNTER counts 32768 Hz from the emulated cycles (16 MHz) once TASKS_START came with the LFCLK running,
   at PRESCALER + 1 ticks a count; before that it reads 0, as the real one does.
-- UART0: a byte written to TXD leaves (TXDRDY follows at once) only when the UART is enabled (ENABLE 4), its
-  transmitter started (TASKS_STARTTX), its TXD pin selected, at 115200 baud (0x01D7E000), with the 16 MHz crystal
-  running; else the write is a fault and the run stops there, naming it.
+- UART0: a byte written to TXD leaves only when the UART is enabled (ENABLE 4), its transmitter started
+  (TASKS_STARTTX), its TXD pin selected and set up in the GPIO as an output driven high, at 115200 baud
+  (0x01D7E000), with the 16 MHz crystal running; else the write is a fault and the run stops there, naming it.
   A byte takes 10 bit times (1388 cycles) to leave: TXDRDY reads 1 from then on, and a byte written before is a
   fault. Bytes to receive enter the 6-byte FIFO, RXDRDY raised while one waits, RXD giving the next.
 - RTC1's COMPARE0, with its interrupt enabled, is when the loop's sleep (WFE) ends; NVIC and SCB (ISER, ICPR,
@@ -62,6 +62,7 @@ UART0_ENABLE, UART0_PSELTXD, UART0_PSELRXD = 0x4000_2500, 0x4000_250C, 0x4000_25
 UART0_RXD, UART0_TXD, UART0_BAUDRATE = 0x4000_2518, 0x4000_251C, 0x4000_2524
 RTC1_EVENTS_COMPARE0, RTC1_INTENSET, RTC1_CC0 = 0x4001_1140, 0x4001_1304, 0x4001_1540
 NVIC_ISER, SCB_SCR = 0xE000_E100, 0xE000_ED10
+GPIO, GPIO_OUTSET, GPIO_PIN_CNF = 0x5000_0000, 0x5000_0508, 0x5000_0700  # PIN_CNF[n] at + 4 n; DIR is bit 0
 UART0_IRQ, RTC1_IRQ = 2, 17
 BYTE_CYCLES = 10 * CPU_HZ // 115200  # a start bit, 8 data bits and a stop bit at 115200 baud: 1388 cycles
 RX_FIFO = 6  # the UART's receive FIFO (nRF51 RM, UART: "RXD ... 6 bytes")
@@ -182,6 +183,9 @@ class NRF51:
             return "before TASKS_STARTTX"
         if self.regs.get(UART0_PSELTXD, 0xFFFF_FFFF) > 31:
             return "with no TXD pin selected"
+        pin = self.regs[UART0_PSELTXD]
+        if not self.reg(GPIO_PIN_CNF + 4 * pin) & 1 or not self.reg(GPIO_OUTSET) >> pin & 1:
+            return f"with its pin P0.{pin} not an output driven high (GPIO PIN_CNF, OUTSET)"
         if self.reg(UART0_BAUDRATE) != UART_115200:
             return f"at BAUDRATE {self.reg(UART0_BAUDRATE):#x}, not 115200"
         if not self.reg(CLOCK_EVENTS_HFCLKSTARTED):
@@ -242,6 +246,7 @@ class M0Image:
         self._asleep = 0  # the WFE's address where the loop went to sleep
         uc.mmio_map(PERIPHERALS, PERIPHERALS_SIZE, self._periph_read, None, self._periph_write, None)
         uc.mmio_map(SCS, 0x1000, self._scs_read, None, self._scs_write, None)
+        uc.mmio_map(GPIO, 0x1000, self._gpio_read, None, self._gpio_write, None)
         uc.hook_add(UC_HOOK_MEM_WRITE, self._guarded_write, begin=RAM, end=APP_RAM - 1)
         uc.hook_add(UC_HOOK_MEM_WRITE, self._guarded_write, begin=0, end=FLASH_SIZE - 1)
         uc.hook_add(UC_HOOK_BLOCK, self._block)
@@ -272,6 +277,12 @@ class M0Image:
 
     def _scs_write(self, _uc: Any, offset: int, _size: int, value: int, _user: Any) -> None:
         self.chip.write(SCS + offset, value)
+
+    def _gpio_read(self, _uc: Any, offset: int, _size: int, _user: Any) -> int:
+        return self.chip.read(GPIO + offset)
+
+    def _gpio_write(self, _uc: Any, offset: int, _size: int, value: int, _user: Any) -> None:
+        self.chip.write(GPIO + offset, value)
 
     def _guarded_write(self, _uc: Any, _access: int, address: int, size: int, _value: int, _user: Any) -> None:
         from unicorn.arm_const import UC_ARM_REG_PC

@@ -20,11 +20,12 @@
  * answers as a full one). Those stubs are noipa so that the link keeps everything that reads them: the size
  * figures are the real board's, not a board the optimiser emptied.
  *
- * Registers: nRF51 Series Reference Manual v3.0, the peripherals' register tables (CLOCK, RTC, UART; base addresses
- * from its "Instantiation" table: CLOCK 0x40000000, UART0 0x40002000, RTC1 0x40011000), the same offsets as
- * Nordic's nrf51.h (MDK, generated from nrf51.svd) and nrf51_bitfields.h (UART ENABLE 4, BAUDRATE 115200 =
- * 0x01D7E000, LFCLKSRC Synth 2). NVIC and SCB: ARMv6-M Architecture Reference Manual, B3.4 (ISER 0xE000E100,
- * ICPR 0xE000E280) and B3.2 (SCR 0xE000ED10, SEVONPEND bit 4).
+ * Registers: nRF51 Series Reference Manual v3.0, the peripherals' register tables (CLOCK, RTC, UART, GPIO; base
+ * addresses from its "Instantiation" table: CLOCK 0x40000000, UART0 0x40002000, RTC1 0x40011000, GPIO
+ * 0x50000000), the same offsets as Nordic's nrf51.h (MDK, generated from nrf51.svd) and nrf51_bitfields.h (UART
+ * ENABLE 4, BAUDRATE 115200 = 0x01D7E000, LFCLKSRC Synth 2, PIN_CNF's DIR bit 0 and INPUT bit 1). NVIC and SCB:
+ * ARMv6-M Architecture Reference Manual, B3.4 (ISER 0xE000E100, ICPR 0xE000E280) and B3.2 (SCR 0xE000ED10,
+ * SEVONPEND bit 4).
  */
 #include <stdint.h>
 #include <string.h>
@@ -67,6 +68,11 @@
 #define PIN_TXD 14u
 #define PIN_RXD 16u
 
+#define GPIO_OUTSET REG(0x50000508u)
+#define GPIO_PIN_CNF(pin) REG(0x50000700u + 4u * (pin))
+#define PIN_OUTPUT 3u /* DIR output, input buffer disconnected */
+#define PIN_INPUT 0u  /* DIR input, input buffer connected, no pull */
+
 #define NVIC_ISER REG(0xE000E100u)
 #define NVIC_ICPR REG(0xE000E280u)
 #define SCB_SCR REG(0xE000ED10u)
@@ -82,7 +88,9 @@ static uint32_t rtc_last, rtc_wraps;
 static volatile uint8_t rx_ring[256], rx_head, rx_tail; /* 8-bit indices wrap with the ring */
 static volatile uint32_t rx_dropped;
 
-/* The clocks, RTC1 and UART0, in that order: RTC1 counts only once the LFCLK runs. */
+/* The clocks, RTC1 and UART0, in that order: RTC1 counts only once the LFCLK runs. UART0's pins are set up in the
+ * GPIO first (the reference manual's UART chapter: TXD an output driven high, RXD an input), as the SDK's
+ * simple_uart does. */
 static void hal_m0_start(void)
 {
     CLOCK_TASKS_HFCLKSTART = 1;
@@ -96,6 +104,9 @@ static void hal_m0_start(void)
     RTC1_INTENSET = RTC_INT_COMPARE0;
     RTC1_TASKS_START = 1;
 
+    GPIO_OUTSET = 1u << PIN_TXD; /* the line idles high: set before the pin drives it */
+    GPIO_PIN_CNF(PIN_TXD) = PIN_OUTPUT;
+    GPIO_PIN_CNF(PIN_RXD) = PIN_INPUT;
     UART0_PSELTXD = PIN_TXD;
     UART0_PSELRXD = PIN_RXD;
     UART0_BAUDRATE = UART_115200; /* CONFIG stays 0 after reset: no parity, no flow control */

@@ -95,6 +95,10 @@ def test_the_model_refuses_a_uart_or_rtc_that_was_not_started() -> None:
                            (m0boot.UART0_BAUDRATE, m0boot.UART_115200)):
         chip.write(address, value)
     chip.write(m0boot.UART0_TXD, 0x41)
+    assert "not an output" in chip.faults[-1] and chip.tx == b""
+    chip.write(m0boot.GPIO_OUTSET, 1 << 14)
+    chip.write(m0boot.GPIO_PIN_CNF + 4 * 14, 3)
+    chip.write(m0boot.UART0_TXD, 0x41)
     assert "crystal" in chip.faults[-1] and chip.tx == b""
     chip.write(m0boot.CLOCK_TASKS_HFCLKSTART, 1)
     chip.write(m0boot.UART0_TXD, 0x41)
