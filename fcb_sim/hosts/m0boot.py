@@ -219,8 +219,9 @@ RETURN = RAM  # a branch to itself, in the SoftDevice's RAM (the image never run
 
 class M0Image:
     """The image in an emulated nRF51822: flash written from the ELF, RAM filled with 0xA5, :class:`NRF51`'s
-    registers, the guards on the SoftDevice's RAM and on flash, the cycle count. :meth:`boot` runs it from reset;
-    :meth:`call` runs one of its functions (the toolchain's float routines, checked by the tests)."""
+    registers, the guards on the SoftDevice's RAM and on flash, the cycle count. :meth:`boot` or :meth:`run` runs
+    it from reset, once (a second run would start from the first one's RAM: make another image); :meth:`call` runs
+    one of its functions (the toolchain's routines lean_libs.c replaces, checked by the tests)."""
 
     def __init__(self, elf: Path | None = None) -> None:
         from unicorn import UC_ARCH_ARM, UC_HOOK_BLOCK, UC_HOOK_MEM_WRITE, UC_MODE_MCLASS, UC_MODE_THUMB, Uc
@@ -326,6 +327,8 @@ class M0Image:
         from unicorn.arm_const import UC_ARM_REG_PC, UC_ARM_REG_SP
 
         uc, run, chip = self.uc, self.result, self.chip
+        if run.reset_vector:
+            raise RuntimeError("M0Image.run: this image has run already (one run from reset per M0Image)")
         self.until = until or 0
         main = self.addr("qb_m0_main") & ~1
         uc.hook_add(UC_HOOK_CODE, self._at_main, begin=main, end=main)

@@ -15,6 +15,9 @@ states for the flash at 16 MHz; if it had any, every figure here is a lower boun
 these are the cycles of the task's own work, which Figure 14's rows hold together with the interrupts that hit
 it (docs/board.md, "Cycles from execution").
 
+fcb_sim.hosts.m0boot runs the whole board's nRF51822 image the same way (this cycle table, :func:`block_cost`),
+from its reset vector, with a model of the peripherals it starts.
+
 Needs ``unicorn`` (the bench and test extras, never the flying install) and arm-none-eabi-gcc; ``available()``
 says in one line why not, and the callers skip with that line.
 """
