@@ -1,7 +1,7 @@
 /* hal_m0.c: the Cortex-M0 backend of hal.h (nRF51822), and the firmware's entry point.
  *
  * make -C firmware board-m0 links it with m0/startup_nrf51.c (vector table, reset handler) and m0/nrf51822_s110.ld
- * (the application beside the S110 SoftDevice) into an image that boots: fcb_sim/hosts/m0emu.py runs it from the
+ * (the application beside the S110 SoftDevice) into an image that boots: fcb_sim/hosts/m0boot.py runs it from the
  * reset vector to its first Hello on UART0's TXD, and its loop on (tests/hosts/test_m0_boot.py). What runs for real:
  *   - the clocks: the 16 MHz crystal (HFXO: UART0's baud rate is only as good as the HFCLK, and the RC's is not good
  *     enough for 115200) and the 32.768 kHz LFCLK synthesised from it (every nRF51 module has the 16 MHz crystal; a
@@ -16,8 +16,8 @@
  * ms5611.c, adc.c, timers.c' PWM, spi_flash.c): the MPU6050 over TWI (hal_imu_read answers a craft standing still and
  * level), the DMP's FIFO (hal_dmp_read answers "no quaternion", never a made-up one: the DMP path's angles stay
  * where they started), the MS5611 (sea-level pressure, 20 degC), the battery ADC (12.00 V), the ESCs' pulses
- * (hal_motors_set drives nothing: no motor can spin), impacts (none) and the flash log's SPI NOR (refused: the log
- * answers as a full one). Those stubs are noipa so that the link keeps everything that reads them: the size
+ * (hal_motors_set drives nothing: no motor can spin), impacts (none) and the flash log's SPI NOR (every write and
+ * read refused: qb_log.c counts the flash errors and reads erased bytes back). Those stubs are noipa so that the link keeps everything that reads them: the size
  * figures are the real board's, not a board the optimiser emptied.
  *
  * Registers: nRF51 Series Reference Manual v3.0, the peripherals' register tables (CLOCK, RTC, UART, GPIO; base
