@@ -16,8 +16,8 @@
  * ms5611.c, adc.c, timers.c' PWM, spi_flash.c): the MPU6050 over TWI (hal_imu_read answers a craft standing still and
  * level), the DMP's FIFO (hal_dmp_read answers "no quaternion", never a made-up one: the DMP path's angles stay
  * where they started), the MS5611 (sea-level pressure, 20 degC), the battery ADC (12.00 V), the ESCs' pulses
- * (hal_motors_set drives nothing: no motor can spin), impacts (none) and the flash log's SPI NOR (every write and
- * read refused: qb_log.c counts the flash errors and reads erased bytes back). Those stubs are noipa so that the link keeps everything that reads them: the size
+ * (hal_motors_set drives nothing: no motor can spin), impacts (none) and the flash log's SPI NOR (every write
+ * and read refused: qb_log.c counts the flash errors and reads erased bytes back). Those stubs are noipa so that the link keeps everything that reads them: the size
  * figures are the real board's, not a board the optimiser emptied.
  *
  * Registers: nRF51 Series Reference Manual v3.0, the peripherals' register tables (CLOCK, RTC, UART, GPIO; base
