@@ -17,8 +17,9 @@
  * level), the DMP's FIFO (hal_dmp_read answers "no quaternion", never a made-up one: the DMP path's angles stay
  * where they started), the MS5611 (sea-level pressure, 20 degC), the battery ADC (12.00 V), the ESCs' pulses
  * (hal_motors_set drives nothing: no motor can spin), impacts (none) and the flash log's SPI NOR (every write
- * and read refused: qb_log.c counts the flash errors and reads erased bytes back). Those stubs are noipa so that the link keeps everything that reads them: the size
- * figures are the real board's, not a board the optimiser emptied.
+ * and read refused: qb_log.c counts the flash errors and reads erased bytes back). Those stubs are noipa so that
+ * the link keeps everything that reads them: the size figures are the real board's, not a board the optimiser
+ * emptied.
  *
  * Registers: nRF51 Series Reference Manual v3.0, the peripherals' register tables (CLOCK, RTC, UART, GPIO; base
  * addresses from its "Instantiation" table: CLOCK 0x40000000, UART0 0x40002000, RTC1 0x40011000, GPIO
