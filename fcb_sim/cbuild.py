@@ -34,7 +34,7 @@ from pathlib import Path
 ENV_BUILD_DIR = "QUADRUPEL_BUILD_DIR"
 # What the host builds read, relative to firmware/ (the wheel ships these: pyproject.toml's package-data says the
 # same, tests/packaging/test_wheel.py checks it). The tests, the examples and the generator stay in the clone.
-SOURCES = ("Makefile", "*.c", "*.h", "board/*.c", "board/*.h", "m0/*.c")
+SOURCES = ("Makefile", "*.c", "*.h", "board/*.c", "board/*.h", "m0/*.c", "m0/*.ld")
 # Settings the Makefile reads from the environment: a build with other ones is another build.
 BUILD_ENV = ("CC", "ARM_CC", "OPT", "CPPFLAGS", "CFLAGS", "LDFLAGS")
 _HERE = Path(__file__).resolve().parent

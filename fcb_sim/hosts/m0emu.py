@@ -15,6 +15,9 @@ states for the flash at 16 MHz; if it had any, every figure here is a lower boun
 these are the cycles of the task's own work, which Figure 14's rows hold together with the interrupts that hit
 it (docs/board.md, "Cycles from execution").
 
+fcb_sim.hosts.m0boot runs the whole board's nRF51822 image the same way (this cycle table, :func:`block_cost`),
+from its reset vector, with a model of the peripherals it starts.
+
 Needs ``unicorn`` (the bench and test extras, never the flying install) and arm-none-eabi-gcc; ``available()``
 says in one line why not, and the callers skip with that line.
 """
@@ -119,6 +122,23 @@ def thumb_cycles(hw: int, hw2: int = 0) -> int:
     return 1
 
 
+def block_cost(code: bytes, address: int) -> tuple[int, int, int]:
+    """(cycles without its last conditional branch, instructions, that branch's fall-through or 0) of the basic
+    block ``code`` at ``address``."""
+    cycles = n = i = end = 0
+    while i < len(code):
+        hw = code[i] | code[i + 1] << 8
+        wide = hw >> 11 in (0b11101, 0b11110, 0b11111)
+        c = thumb_cycles(hw)
+        i += 4 if wide else 2
+        n += 1
+        if c == COND_BRANCH:
+            end = address + i  # its fall-through; the block ends with it
+        else:
+            cycles += c
+    return cycles, n, end
+
+
 @dataclass
 class Run:
     """What one call executed."""
@@ -162,21 +182,7 @@ class M0Tasks:
         return self.symbols[symbol][0]
 
     def _block_cost(self, address: int, size: int) -> tuple[int, int, int]:
-        code = bytes(self.uc.mem_read(address, size))
-        cycles = n = 0
-        i = 0
-        end = 0
-        while i < size:
-            hw = code[i] | code[i + 1] << 8
-            wide = hw >> 11 in (0b11101, 0b11110, 0b11111)
-            c = thumb_cycles(hw)
-            i += 4 if wide else 2
-            n += 1
-            if c == COND_BRANCH:
-                end = address + i  # its fall-through; the block ends with it
-            else:
-                cycles += c
-        return cycles, n, end
+        return block_cost(bytes(self.uc.mem_read(address, size)), address)
 
     def _block(self, uc: Any, address: int, size: int, _user: Any) -> None:
         run = self._run

@@ -3,8 +3,8 @@
  * The core (firmware/board/qb_*.c) calls only these functions; a backend implements them:
  *   - hal_host.c: the host backend. Time, sensors and motors come from and go to fcb_sim's physics through
  *     callbacks (fcb_sim/hosts/cboard.py drives it in lockstep over ctypes); the UART is two byte queues.
- *   - hal_m0.c: the Cortex-M0 backend (nRF51822): links for the size figures; the register-level parts are
- *     marked TODO where a team's own drivers go.
+ *   - hal_m0.c: the Cortex-M0 backend (nRF51822): the clocks, RTC1 and UART0 for real (the image boots:
+ *     make -C firmware board-m0); the sensors, motors and flash are marked TODO where a team's own drivers go.
  * A team that writes its own board keeps this interface and swaps either side (docs/firmware.md).
  *
  * Units are the chips' and the protocol's: raw MPU6050 words (16.4 LSB per deg/s, 16384 LSB per g), the DMP's
