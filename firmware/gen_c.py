@@ -508,6 +508,39 @@ ESTIMATOR_CONSTANTS: tuple[tuple[str, str, str, str], ...] = (
 )
 
 
+# The report's two complementary estimators (firmware/board/qb_est_comp.c): Figure 10's time constants as
+# make_height_estimator("complementary") derives them, and libfixmath's atan2 with the report's correction table.
+_HCOMP = "make_height_estimator('complementary')"
+REPORT_ESTIMATOR_CONSTANTS: tuple[tuple[str, str, str, str], ...] = (
+    ("HC_TAU_V", "f", "fcb_sim.estimation.height", f"{_HCOMP}.tau_v"),
+    ("HC_TAU_P", "f", "fcb_sim.estimation.height", f"{_HCOMP}.tau_p"),
+    ("HC_TAU_HP_ACC", "f", "fcb_sim.estimation.height", f"{_HCOMP}.tau_hp_acc"),
+    ("HC_BARO_LOWPASS_S", "f", "fcb_sim.estimation.height", f"{_HCOMP}.baro_lowpass_s"),
+    ("FX_ONE", "i", "fcb_sim.estimation.fixed", "ONE"),
+    ("FX_PI", "i", "fcb_sim.estimation.fixed", "PI"),
+    ("FX_PI_DIV_4", "i", "fcb_sim.estimation.fixed", "PI_DIV_4"),
+    ("FX_THREE_PI_DIV_4", "i", "fcb_sim.estimation.fixed", "THREE_PI_DIV_4"),
+    ("FX_HALF_PI", "i", "fcb_sim.estimation.fixed", "_HALF_PI"),
+    ("FX_ATAN_C3", "i", "fcb_sim.estimation.fixed", "_ATAN_C3"),
+    ("FX_ATAN_C1", "i", "fcb_sim.estimation.fixed", "_ATAN_C1"),
+    ("FX_ATAN2_KNOTS", "a", "fcb_sim.estimation.fixed", "ATAN2_KNOTS"),
+    ("FX_ATAN2_CORRECTION", "a", "fcb_sim.estimation.fixed", "ATAN2_CORRECTION"),
+    ("FX_ATAN2_N", "i", "fcb_sim.estimation.fixed", "len(ATAN2_KNOTS)"),
+)
+
+
+def _check_report_height() -> None:
+    """qb_est_comp.c has Figure 10 as the board builds it: no median, no spike gate, no high-pass on the barometer's
+    paths (fcb_sim/board/flight.py says why). A change there needs the C too: stop here instead of drifting."""
+    import math
+
+    from fcb_sim.estimation.height import make_height_estimator
+
+    h = make_height_estimator("complementary")
+    if h.median3 or h.spike_gate_m > 0.0 or h.tau_hp_baro != math.inf or h.tau_hp_pos != math.inf:
+        raise SystemExit("gen_c: make_height_estimator('complementary') uses a path qb_est_comp.c does not have")
+
+
 def board_value(module: str, expr: str) -> object:
     """The value of ``expr`` in the namespace of ``module`` (a name, an index or a default of a dataclass)."""
     import importlib
@@ -516,6 +549,8 @@ def board_value(module: str, expr: str) -> object:
 
 
 def _c_literal(kind: str, value: object) -> str:
+    if kind == "a":  # a table of whole numbers, as an initialiser
+        return "{" + ", ".join(_c_literal("i", v) for v in value) + "}"  # type: ignore[attr-defined]
     if kind == "f":
         return repr(float(value))  # repr round-trips: the C double is the Python float, bit for bit
     if int(value) != value:
@@ -545,6 +580,10 @@ def estimator_header() -> str:
            " * then run `.venv/bin/python firmware/gen_c.py`.", " */",
            "#ifndef QB_ESTIMATOR_H", "#define QB_ESTIMATOR_H", ""]
     for name, kind, module, expr in ESTIMATOR_CONSTANTS:
+        out.append(f"#define {name} {_c_literal(kind, board_value(module, expr))} /* {module}: {expr} */")
+    _check_report_height()
+    out += ["", "/* The report's complementary estimators (qb_est_comp.c). */"]
+    for name, kind, module, expr in REPORT_ESTIMATOR_CONSTANTS:
         out.append(f"#define {name} {_c_literal(kind, board_value(module, expr))} /* {module}: {expr} */")
     out += ["", "#endif /* QB_ESTIMATOR_H */", ""]
     return "\n".join(out)

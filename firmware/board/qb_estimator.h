@@ -47,4 +47,20 @@
 #define HEADING_REPORT_CDEG 200 /* fcb_sim.board.flight: HEADING_REPORT_CDEG */
 #define HEADING_LIFTOFF_CDEG 50 /* fcb_sim.board.flight: HEADING_LIFTOFF_CDEG */
 
+/* The report's complementary estimators (qb_est_comp.c). */
+#define HC_TAU_V 0.4974999999999996 /* fcb_sim.estimation.height: make_height_estimator('complementary').tau_v */
+#define HC_TAU_P 0.12249999999999989 /* fcb_sim.estimation.height: make_height_estimator('complementary').tau_p */
+#define HC_TAU_HP_ACC 1.5915494309189535 /* fcb_sim.estimation.height: make_height_estimator('complementary').tau_hp_acc */
+#define HC_BARO_LOWPASS_S 0.3 /* fcb_sim.estimation.height: make_height_estimator('complementary').baro_lowpass_s */
+#define FX_ONE 65536 /* fcb_sim.estimation.fixed: ONE */
+#define FX_PI 205887 /* fcb_sim.estimation.fixed: PI */
+#define FX_PI_DIV_4 51471 /* fcb_sim.estimation.fixed: PI_DIV_4 */
+#define FX_THREE_PI_DIV_4 154415 /* fcb_sim.estimation.fixed: THREE_PI_DIV_4 */
+#define FX_HALF_PI 102944 /* fcb_sim.estimation.fixed: _HALF_PI */
+#define FX_ATAN_C3 12864 /* fcb_sim.estimation.fixed: _ATAN_C3 */
+#define FX_ATAN_C1 64336 /* fcb_sim.estimation.fixed: _ATAN_C1 */
+#define FX_ATAN2_KNOTS {0, 572, 1144, 2002, 2860, 4003, 5433, 7149, 9151, 11438, 14298, 17729, 21733, 26308, 32027, 38318, 44609, 51472} /* fcb_sim.estimation.fixed: ATAN2_KNOTS */
+#define FX_ATAN2_CORRECTION {0, 147, 260, 396, 494, 585, 647, 670, 647, 582, 468, 313, 139, -24, -149, -181, -122, 0} /* fcb_sim.estimation.fixed: ATAN2_CORRECTION */
+#define FX_ATAN2_N 18 /* fcb_sim.estimation.fixed: len(ATAN2_KNOTS) */
+
 #endif /* QB_ESTIMATOR_H */
