@@ -10,6 +10,8 @@ from __future__ import annotations
 import ctypes
 import math
 import shutil
+import subprocess
+from pathlib import Path
 
 import pytest
 from hypothesis import given, settings
@@ -17,7 +19,9 @@ from hypothesis import strategies as st
 
 from fcb_sim.estimation.complementary import ComplementaryFilter, ComplementaryFilterQ16
 from fcb_sim.estimation.height import make_height_estimator
-from fcb_sim.hosts.cboard import library_path
+from fcb_sim.board.parts import BoardConfig
+from fcb_sim.errors import UsageError
+from fcb_sim.hosts.cboard import FIRMWARE, CBoard, library_path
 from term.core.protocol import PARAMS, Joystick, Mode, Op, Param
 from tests.support.served_rig import served
 
@@ -124,3 +128,17 @@ async def test_fcb_sim_serve_board_c_flies_the_report_preset() -> None:
         app.send(Op.MODE, Mode.HEIGHT)
         await until(lambda: m.mode == Mode.HEIGHT, 30.0)
         assert not [e.text for e in m.events if e.source == "nak"]
+
+
+def test_a_board_built_without_them_refuses_the_preset_in_one_line(tmp_path: Path) -> None:
+    """QB_REPORT_EST=0, as the Cortex-M0 image is built (its flash budget): both values NOT_IMPLEMENTED, the
+    preset refused naming them; the same board takes the default preset."""
+    make = subprocess.run(["make", "-s", "-C", str(FIRMWARE), f"BUILD={tmp_path}", "CPPFLAGS=-DQB_REPORT_EST=0",
+                           "board"], capture_output=True, text=True)
+    assert make.returncode == 0, make.stderr
+    with pytest.raises(UsageError) as err:
+        CBoard(BoardConfig(preset="report"), build_dir=tmp_path)
+    assert str(err.value) == ("the C board cannot run preset 'report': est.attitude = complementary, est.height = "
+                              "complementary (docs/firmware.md)")
+    board = CBoard(BoardConfig(), build_dir=tmp_path)
+    assert board.param_raw(Param.ATTITUDE_FILTER) == 4 and board.param_raw(Param.HEIGHT_ESTIMATOR) == 1
