@@ -17,10 +17,10 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from fcb_sim.estimation.complementary import ComplementaryFilter, ComplementaryFilterQ16
-from fcb_sim.estimation.height import make_height_estimator
 from fcb_sim.board.parts import BoardConfig
 from fcb_sim.errors import UsageError
+from fcb_sim.estimation.complementary import ComplementaryFilter, ComplementaryFilterQ16
+from fcb_sim.estimation.height import make_height_estimator
 from fcb_sim.hosts.cboard import FIRMWARE, CBoard, library_path
 from term.core.protocol import PARAMS, Joystick, Mode, Op, Param
 from tests.support.served_rig import served
