@@ -189,8 +189,10 @@ typedef struct {
     qb_ikf_t ikf;     /* the RAW path's filter: runs on every IMU sample, so it is converged on entering RAW */
     uint8_t attitude; /* est.attitude: QB_ATTITUDE_IKF, or QB_ATTITUDE_COMPLEMENTARY (comp) */
     uint8_t height_comp; /* est.height complementary: hcomp (Figure 10) instead of hest */
+#if QB_REPORT_EST
     qb_comp_t comp;
     qb_hcomp_t hcomp;
+#endif
     uint32_t n_imu;
     uint8_t mode, calibrated, have_dmp, height_raw, sp_from_est, panic_landed;
     qb_real g_off[3], a_off[3];
