@@ -338,7 +338,7 @@ static uint16_t status_flags(const qb_board_t *b)
     f |= m->mode == QP_MODE_HEIGHT ? QP_FLAG_HEIGHT_HOLD : 0u;
     f |= m->crashed ? QP_FLAG_CRASHED : 0u;
     f |= b->mt.on ? QP_FLAG_MOTOR_TEST : 0u; /* qb_console.c */
-    f |= qb_height_unsure(&b->core.hest) ? QP_FLAG_HEIGHT_UNSURE : 0u;
+    f |= !b->core.height_comp && qb_height_unsure(&b->core.hest) ? QP_FLAG_HEIGHT_UNSURE : 0u; /* Figure 10: never */
     return f;
 }
 

@@ -12,13 +12,14 @@
  *     mixing with the integer square root (qb_flight.c, fcb_sim/board/flight.py, control.py);
  *   - the height estimator, HeightKalman (qb_height.c, fcb_sim/estimation/height.py);
  *   - the RAW path's attitude filter, ikf's fixed-point twin (ikf_q.c, fcb_sim/estimation/ikf_fixed.py; the
- *     board's set-up and dt in qb_flight.c);
+ *     board's set-up and dt in qb_flight.c), or the report's complementary filter (qb_est_comp.c, float or Q16.16);
+ *   - the report's Figure 10 height estimator, est.height complementary (qb_est_comp.c);
  *   - commands, telemetry, heartbeats, the link-loss failsafe, the parameter table generated from term's
  *     (qb_board.c, qb_params.c, qb_params.h; fcb_sim/board/commands.py, telemetry.py, param_bindings.py).
  *   - the task profile (qb_prof.c, fcb_sim/board/timing.py's Profiler) and the flash log (qb_log.c,
  *     fcb_sim/board/flash_log.py).
- * Not yet: the BLE handover, RAW filters other than ikf (and ikf in float: the C board's is always the fixed-point
- * twin), the report preset's complementary height estimator, the transmit side's answer budget. docs/firmware.md
+ * Not yet: the BLE handover, RAW filters kalman, kalman-cov and qgate (and ikf in float: the C board's is always the
+ * fixed-point twin), the report's estimators on the M0 image (flash), the transmit side's answer budget. docs/firmware.md
  * keeps the list of what is still different.
  *
  * Floating point: the flight core uses qb_real, as the Python board does (the differential test compares them);
@@ -41,6 +42,8 @@
 #define QM(fn) fn
 #endif
 typedef QB_REAL qb_real; /* qb_params.h: float with QB_FLOAT, else double */
+
+#include "qb_est_comp.h" /* the report's complementary estimators (qb_real) */
 
 #define QB_VERSION_MAJOR 0
 #define QB_VERSION_MINOR 2
@@ -184,6 +187,12 @@ typedef struct {
     qb_gains_t g;
     qb_height_t hest;
     qb_ikf_t ikf;     /* the RAW path's filter: runs on every IMU sample, so it is converged on entering RAW */
+    uint8_t attitude; /* est.attitude: QB_ATTITUDE_IKF, or QB_ATTITUDE_COMPLEMENTARY (comp) */
+    uint8_t height_comp; /* est.height complementary: hcomp (Figure 10) instead of hest */
+#if QB_REPORT_EST
+    qb_comp_t comp;
+    qb_hcomp_t hcomp;
+#endif
     uint32_t n_imu;
     uint8_t mode, calibrated, have_dmp, height_raw, sp_from_est, panic_landed;
     qb_real g_off[3], a_off[3];
@@ -211,6 +220,11 @@ typedef struct {
 } qb_flight_t;
 
 void qb_flight_init(qb_flight_t *fc);
+/* est.attitude (QB_ATTITUDE_*), est.fixed_point and est.k_gyro: the RAW filter afresh. est.height complementary or
+ * not: that estimator afresh at the calibration's pressure. Reset the height estimators at a pressure. */
+void qb_flight_set_filter(qb_flight_t *fc, int filter, int fixed, qb_real k_gyro);
+void qb_flight_set_height(qb_flight_t *fc, int complementary);
+void qb_flight_reset_height(qb_flight_t *fc, qb_real pressure);
 void qb_flight_set_calibration(qb_flight_t *fc, const qb_real gyro[3], const qb_real accel[3], qb_real dmp_phi,
                                qb_real dmp_theta, qb_real pressure);
 void qb_flight_imu(qb_flight_t *fc, const int16_t raw[6], qb_real dt);

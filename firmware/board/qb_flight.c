@@ -102,6 +102,86 @@ void qb_ikf_angles(const qb_ikf_t *f, qb_real out[3])
     out[2] = QM(atan2)(2.0 * (q[0] * q[3] + q[1] * q[2]), 1.0 - 2.0 * (q[2] * q[2] + q[3] * q[3]));
 }
 
+/* --- est.attitude and est.height: which filter runs (param_bindings.py builds a new one on each change) --- */
+
+void qb_flight_set_filter(qb_flight_t *fc, int filter, int fixed, qb_real k_gyro)
+{
+    fc->attitude = (uint8_t)filter;
+    qb_ikf_reset(&fc->ikf);
+#if QB_REPORT_EST
+    qb_comp_init(&fc->comp, k_gyro, fixed);
+#else
+    (void)fixed;
+    (void)k_gyro;
+#endif
+}
+
+void qb_flight_set_height(qb_flight_t *fc, int complementary)
+{
+    fc->height_comp = (uint8_t)complementary;
+    qb_flight_reset_height(fc, fc->calibrated ? fc->cal_pressure : SEA_LEVEL_PA);
+}
+
+void qb_flight_reset_height(qb_flight_t *fc, qb_real pressure)
+{
+    qb_height_reset(&fc->hest, pressure);
+#if QB_REPORT_EST
+    qb_hcomp_reset(&fc->hcomp, pressure);
+#endif
+    fc->height = fc->vz = 0.0;
+}
+
+#if QB_REPORT_EST
+#define COMP(fc) ((fc)->attitude == QB_ATTITUDE_COMPLEMENTARY)
+#define HCOMP(fc) ((fc)->height_comp)
+#else
+#define COMP(fc) 0
+#define HCOMP(fc) 0
+#endif
+
+static void filter_reset(qb_flight_t *fc)
+{
+    qb_ikf_reset(&fc->ikf);
+#if QB_REPORT_EST
+    qb_comp_reset(&fc->comp);
+#endif
+}
+
+static void filter_update(qb_flight_t *fc, qb_real gx, qb_real gy, qb_real gz, qb_real ax, qb_real ay, qb_real az,
+                          qb_real dt)
+{
+#if QB_REPORT_EST
+    if (COMP(fc)) {
+        qb_comp_update(&fc->comp, gx, gy, gz, ax, ay, az, dt);
+        return;
+    }
+#endif
+    qb_ikf_update(&fc->ikf, gx, gy, gz, ax, ay, az, dt);
+}
+
+static void filter_quaternion(const qb_flight_t *fc, qb_real q[4])
+{
+#if QB_REPORT_EST
+    if (COMP(fc)) {
+        qb_comp_quaternion(&fc->comp, q);
+        return;
+    }
+#endif
+    qb_ikf_quaternion(&fc->ikf, q);
+}
+
+/* The RAW filter's roll, pitch, yaw (rad, z up). */
+static void filter_angles(const qb_flight_t *fc, qb_real e[3])
+{
+#if QB_REPORT_EST
+    if (COMP(fc)) {
+        qb_comp_angles(&fc->comp, e);
+        return;
+    }
+#endif
+    qb_ikf_angles(&fc->ikf, e);
+}
+
 /* --- the flight core ------------------------------------------------------------------------------------- */
 
 static qb_real gain_default(int id)
@@ -121,6 +201,7 @@ void qb_flight_init(qb_flight_t *fc)
     fc->g.height_i = gain_default(QP_PARAM_HEIGHT_I);
     qb_height_init(&fc->hest);
     qb_ikf_reset(&fc->ikf);
+    fc->attitude = QB_ATTITUDE_IKF;
     fc->panic_ae = PANIC_AE;
     fc->panic_scale = 1.0;
     fc->mode = QP_MODE_SAFE;
@@ -227,8 +308,8 @@ void qb_flight_set_calibration(qb_flight_t *fc, const qb_real gyro[3], const qb_
     fc->cal_dmp_theta = dmp_theta;
     fc->cal_pressure = pressure;
     fc->calibrated = 1;
-    qb_ikf_reset(&fc->ikf);
-    qb_height_reset(&fc->hest, pressure);
+    filter_reset(fc);
+    qb_flight_reset_height(fc, pressure);
     heading_reset(&fc->heading_dmp);
     heading_reset(&fc->heading_raw);
     fc->drift_reported = 0;
@@ -260,15 +341,23 @@ void qb_flight_imu(qb_flight_t *fc, const int16_t raw[6], qb_real dt)
         fc->walls = 1;
         fc->wall_quiet = WALL_REPEAT_S;
     }
-    qb_ikf_update(&fc->ikf, cgx * RAD_S_PER_LSB, cgy * RAD_S_PER_LSB, cgz * RAD_S_PER_LSB, cax * s, cay * s,
-                  caz * s, dt);
+    filter_update(fc, cgx * RAD_S_PER_LSB, cgy * RAD_S_PER_LSB, cgz * RAD_S_PER_LSB, cax * s, cay * s, caz * s, dt);
     /* no DMP (RAW mode): the height estimator takes the filter's attitude at 100 Hz, as fast as the DMP's */
     fc->n_imu++;
     if (!fc->have_dmp && !(fc->n_imu & 3))
-        qb_ikf_quaternion(&fc->ikf, fc->q);
-    qb_height_update_imu(&fc->hest, cax * s, cay * s, caz * s, fc->q[0], fc->q[1], fc->q[2], fc->q[3], dt);
-    fc->height = fc->hest.height;
-    fc->vz = fc->hest.vz;
+        filter_quaternion(fc, fc->q);
+#if QB_REPORT_EST
+    if (HCOMP(fc)) {
+        qb_hcomp_update_imu(&fc->hcomp, cax * s, cay * s, caz * s, fc->q[0], fc->q[1], fc->q[2], fc->q[3], dt);
+        fc->height = fc->hcomp.height;
+        fc->vz = fc->hcomp.vz;
+    } else
+#endif
+    {
+        qb_height_update_imu(&fc->hest, cax * s, cay * s, caz * s, fc->q[0], fc->q[1], fc->q[2], fc->q[3], dt);
+        fc->height = fc->hest.height;
+        fc->vz = fc->hest.vz;
+    }
     heading_step(fc, cgx, cgy, cgz, dt);
 }
 
@@ -327,7 +416,7 @@ static void heading_step(qb_flight_t *fc, qb_real cgx, qb_real cgy, qb_real cgz,
                 cgz < STILL_LSB;
     int still;
     qb_real t, e[3];
-    fc->still_s = quiet && fc->hest.on_ground ? fc->still_s + dt : 0.0;
+    fc->still_s = quiet && !HCOMP(fc) && fc->hest.on_ground ? fc->still_s + dt : 0.0; /* Figure 10 has no ground test */
     fc->head_dt += dt;
     if (++fc->n_head < HEADING_EVERY)
         return;
@@ -343,7 +432,7 @@ static void heading_step(qb_flight_t *fc, qb_real cgx, qb_real cgy, qb_real cgz,
     fc->n_head = 0;
     fc->head_dt = 0.0;
     fc->hpsi_dmp = heading_update(&fc->heading_dmp, fc->dmp_psi, still, t);
-    qb_ikf_angles(&fc->ikf, e);
+    filter_angles(fc, e);
     fc->hpsi_raw = heading_update(&fc->heading_raw, -e[2], still, t);
 }
 
@@ -363,6 +452,12 @@ void qb_flight_dmp(qb_flight_t *fc, const float q[4])
 
 void qb_flight_baro(qb_flight_t *fc, qb_real pressure_pa, qb_real dt)
 {
+#if QB_REPORT_EST
+    if (HCOMP(fc)) {
+        qb_hcomp_update_baro(&fc->hcomp, pressure_pa, dt);
+        return;
+    }
+#endif
     qb_height_update_baro(&fc->hest, pressure_pa, dt);
 }
 
@@ -383,8 +478,8 @@ qb_real qb_flight_move_setpoint(qb_flight_t *fc, qb_real dm, qb_real lo, qb_real
 void qb_flight_enter_mode(qb_flight_t *fc, uint8_t mode, int32_t lift)
 {
     if (mode == QP_MODE_HEIGHT) {
-        fc->sp_from_est = 1;
-        fc->sp_cap0 = qb_height_capture(&fc->hest);
+        fc->sp_from_est = !HCOMP(fc); /* Figure 10 has no captured height */
+        fc->sp_cap0 = HCOMP(fc) ? 0.0 : qb_height_capture(&fc->hest);
         fc->sp_base = fc->height;
         fc->sp_offset = 0.0;
         fc->setpoint = fc->sp_base;
@@ -417,7 +512,7 @@ static void follow(qb_flight_t *fc, int filter)
 {
     if (filter) {
         qb_real e[3];
-        qb_ikf_angles(&fc->ikf, e);
+        filter_angles(fc, e);
         fc->phi = e[0];
         fc->theta = -e[1];
     } else {
@@ -546,7 +641,7 @@ int qb_flight_pending_heading_drift(qb_flight_t *fc, int32_t *cdeg)
 
 int32_t qb_flight_pending_contact(qb_flight_t *fc)
 {
-    if (fc->hest.stops != fc->stops_seen) {
+    if (!HCOMP(fc) && fc->hest.stops != fc->stops_seen) {
         qb_real mm = QM(lround)(fc->hest.stop_speed * 1000.0);
         fc->stops_seen = fc->hest.stops;
         return (int32_t)((uint32_t)(fc->hest.stop_kind == 2 ? QP_CONTACT_KIND_CEILING : QP_CONTACT_KIND_GROUND) << 16 |

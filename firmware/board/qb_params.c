@@ -76,17 +76,20 @@ int32_t qb_param_get(const qb_board_t *b, int id)
     }
 }
 
-/* The RAW filter: the C board has ikf's fixed-point twin only (est.fixed_point is kept and reported; the filter
- * is fixed point either way). A change starts the filter afresh, as the Python board builds a new one. */
-static uint8_t set_filter(qb_board_t *b, int32_t filter, int32_t fixed)
+/* The RAW filter: ikf's fixed-point twin (est.fixed_point is kept and reported; ikf is fixed point either way), or
+ * the report's complementary filter, in Q16.16 or in qb_real by est.fixed_point and with est.k_gyro's K_gyro, as
+ * param_bindings.build_filter (not on the M0 image: QB_REPORT_EST). A change starts the filter afresh, as the
+ * Python board builds a new one. */
+static uint8_t set_filter(qb_board_t *b, int32_t filter, int32_t fixed, int32_t k_gyro_raw)
 {
     if (fixed && filter == QB_ATTITUDE_QGATE)
         return QP_NAK_BAD_ARGUMENT; /* no fixed-point twin of this filter */
-    if (filter != QB_ATTITUDE_IKF)
+    if (filter != QB_ATTITUDE_IKF && (!QB_REPORT_EST || filter != QB_ATTITUDE_COMPLEMENTARY))
         return QP_NAK_NOT_IMPLEMENTED;
     b->attitude_filter = filter;
     b->fixed_point = fixed;
-    qb_ikf_reset(&b->core.ikf);
+    b->k_gyro_raw = k_gyro_raw;
+    qb_flight_set_filter(&b->core, filter, fixed, value_of(qb_param_spec(QP_PARAM_K_GYRO), k_gyro_raw));
     return QP_NAK_OK;
 }
 
@@ -111,18 +114,14 @@ static uint8_t set_bound(qb_board_t *b, int id, int32_t raw, qb_real v)
         b->log_scheme = raw;
         qb_log_init(&b->log, b->log.size, (uint8_t)raw);
         break;
-    case QP_PARAM_ATTITUDE_FILTER: return set_filter(b, raw, b->fixed_point);
-    case QP_PARAM_K_GYRO: /* the complementary filter's: kept; the filter starts afresh */
-        b->k_gyro_raw = raw;
-        qb_ikf_reset(&b->core.ikf);
-        break;
-    case QP_PARAM_FIXED_POINT: return set_filter(b, b->attitude_filter, raw);
+    case QP_PARAM_ATTITUDE_FILTER: return set_filter(b, raw, b->fixed_point, b->k_gyro_raw);
+    case QP_PARAM_K_GYRO: return set_filter(b, b->attitude_filter, b->fixed_point, raw); /* the filter afresh */
+    case QP_PARAM_FIXED_POINT: return set_filter(b, b->attitude_filter, raw, b->k_gyro_raw);
     case QP_PARAM_HEIGHT_ESTIMATOR:
-        if (raw != QB_HEIGHT_KALMAN)
-            return QP_NAK_NOT_IMPLEMENTED; /* the report's Figure 10 estimator is not in C yet */
+        if (raw != QB_HEIGHT_KALMAN && !QB_REPORT_EST)
+            return QP_NAK_NOT_IMPLEMENTED; /* the report's Figure 10 estimator: not on the M0 image (flash) */
         b->height_estimator = raw;
-        qb_height_reset(&b->core.hest, b->core.calibrated ? b->core.cal_pressure : 101325.0);
-        b->core.height = b->core.vz = 0.0;
+        qb_flight_set_height(&b->core, raw == QB_HEIGHT_COMPLEMENTARY); /* afresh at the calibration's pressure */
         break;
     case QP_PARAM_STICK_REACTION: b->stick_reaction = raw; break;
     case QP_PARAM_QUEUE_RULE: b->queue_rule = raw; break;
