@@ -93,7 +93,7 @@ test: $(STAMP)
 	$(BIN)/ruff check term fcb_sim tests bench
 	$(BIN)/ruff check firmware
 	@command -v cc >/dev/null || echo "no C compiler (cc): the firmware tests are skipped"
-	@command -v arm-none-eabi-gcc >/dev/null || echo "no arm-none-eabi-gcc: the Cortex-M0 size test is skipped"
+	@command -v arm-none-eabi-gcc >/dev/null || echo "no arm-none-eabi-gcc: the Cortex-M0 size and boot tests are skipped"
 	$(BIN)/python -m pytest
 
 # The suite on a busy machine, as a pilot's laptop is (issue 21): BUSY_PER_CORE processes per core beside it doing

@@ -435,8 +435,6 @@ def _check_c_board(args: argparse.Namespace) -> None:
     """--board c: only with --sim, and built before the simulator starts (one line if it cannot be)."""
     if not args.sim:
         raise UsageError("--board needs --sim")
-    if args.preset not in (None, "default"):
-        raise UsageError(f"--board c has the default preset only (docs/firmware.md), not {args.preset!r}")
     from term.session.sim import c_board_problem
 
     problem = c_board_problem()

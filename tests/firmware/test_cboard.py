@@ -86,7 +86,6 @@ def test_without_a_compiler_one_line_says_what_to_install(tmp_path: Path, monkey
 
 @pytest.mark.parametrize(("argv", "says"), [
     (["term", "--board", "c", "--serial", "/dev/null"], "--board needs --sim"),
-    (["term", "--sim", "--board", "c", "--preset", "report"], "--board c has the default preset only"),
     (["fcb_sim", "serve", "--pty", "--board", "c", "--ble-hci", "tcp-server:127.0.0.1:0"], "has no BLE radio yet"),
 ])
 def test_what_the_c_board_cannot_do_is_one_line(argv: list[str], says: str) -> None:
