@@ -89,12 +89,17 @@ demo: $(RUN_STAMP)
 		echo "make demo: the tour flew to its end"; \
 	fi
 
+# The suite on two workers (pytest-xdist): most tests wait on a real-time link, so two share two cores well; the
+# tests hold on a busy machine (make test-busy), which is what each worker is to the other. TEST_WORKERS=0: one process.
+TEST_WORKERS ?= 2
+PYTEST := $(BIN)/python -m pytest -n $(TEST_WORKERS)
+
 test: $(STAMP)
 	$(BIN)/ruff check term fcb_sim tests bench
 	$(BIN)/ruff check firmware
 	@command -v cc >/dev/null || echo "no C compiler (cc): the firmware tests are skipped"
 	@command -v arm-none-eabi-gcc >/dev/null || echo "no arm-none-eabi-gcc: the Cortex-M0 size and boot tests are skipped"
-	$(BIN)/python -m pytest
+	$(PYTEST)
 
 # The suite on a busy machine, as a pilot's laptop is (issue 21): BUSY_PER_CORE processes per core beside it doing
 # bursts of 5-50 ms of work with short sleeps. ../shared/tools/busy when it is there (CI has a copy of shared/ beside
@@ -104,11 +109,11 @@ BUSY_TOOL := $(wildcard ../shared/tools/busy)
 BUSY_LOOP := import random, time; exec("while 1:\n e = time.perf_counter() + random.uniform(0.005, 0.05)\n while \
 time.perf_counter() < e: pass\n time.sleep(random.uniform(0.0005, 0.003))")
 test-busy: $(STAMP)
-	@if [ -n "$(BUSY_TOOL)" ]; then $(BUSY_TOOL) -n $(BUSY_PER_CORE) -- $(BIN)/python -m pytest; else \
+	@if [ -n "$(BUSY_TOOL)" ]; then $(BUSY_TOOL) -n $(BUSY_PER_CORE) -- $(PYTEST); else \
 		n=$$(( $(BUSY_PER_CORE) * $$(nproc) )); pids=; \
 		for i in $$(seq 1 $$n); do $(BIN)/python -c '$(BUSY_LOOP)' & pids="$$pids $$!"; done; \
 		echo "test-busy: $$n busy processes beside the suite" >&2; \
-		$(BIN)/python -m pytest; rc=$$?; kill $$pids; exit $$rc; fi
+		$(PYTEST); rc=$$?; kill $$pids; exit $$rc; fi
 
 BENCHES := codec realtime flight filters profile log_compression pacing latency ui plots ble firmware download soak lessons keyboard foxglove long_work \
 	contention first_minute

@@ -25,7 +25,7 @@ async def test_f11_refuses_hostile_values_in_one_line_and_the_terminal_flies_on(
             await until(lambda: app.screen.query_one("#param-edit").has_class("editing"))
             await type_into(app, text)
             app.simulate_key("enter")
-            await pilot.pause(0.1)
+            await until(lambda: "ctrl.p1" in str(app.screen.query_one("#param-help").render()))
             said = str(app.screen.query_one("#param-help").render())
             assert "ctrl.p1" in said and "\n" not in said.strip(), (text, said)
             assert app.model.params["ctrl.p1"] == 0.4 and app.is_running
