@@ -21,15 +21,17 @@ must be 0); heartbeat gaps (the board's heartbeat counter, merged over both link
 and CRC-checked, failed with their reason); the resident memory of both processes (start after the first cycle,
 end, growth per minute); damaged frames. A line per cycle goes to stderr.
 
-With ``--flood`` (issue 36) the simulator's instructor channel is on too, and a flood process beside the flight
-keeps ``--idle`` idle TCP connections open to each of the instructor and the BLE HCI ports (more than select() can
-watch: those the simulator closes are opened again every 2 s) and logs in with wrong tokens as fast as one thread
-can. Printed beside the rest: LINK LOST (on the link in control: the other one's silence while it is not is
-the handover's, in ``link_lost``) and PANIC counts (goal 0), the board's and term's resident memory growth
-after the first ``--warmup`` minutes (goal at most 2 MB), the bytes the simulator wrote to its log (stderr), and
-the flood's own counts.
+With ``--flood`` (issue 36) the simulator's instructor channel is on too, the terminal serves its session live over
+Foxglove (``term --foxglove``: term/data/foxglove_server.py behind its door, fed as the app feeds it, with a client
+subscribed to every channel beside the flight; ``--no-foxglove`` leaves it out), and a flood process beside the
+flight keeps ``--idle`` idle TCP connections open to each of the instructor, the BLE HCI and the Foxglove ports
+(more than select() can watch: those a server closes are opened again every 2 s) and logs in with wrong tokens as
+fast as one thread can. Printed beside the rest: LINK LOST (on the link in control: the other one's silence while
+it is not is the handover's, in ``link_lost``) and PANIC counts (goal 0), the board's and term's resident memory
+growth after the first ``--warmup`` minutes (goal at most 2 MB), the bytes the simulator wrote to its log (stderr), and
+the flood's own counts, and the live server's (messages its client got, the door's refusals and log lines).
 
-``python -m bench.soak [--minutes 10] [--damage 0.02] [--seed 1] [--flood [--idle 1100] [--warmup 5]]``
+``python -m bench.soak [--minutes 10] [--damage 0.02] [--seed 1] [--flood [--idle 1100] [--warmup 5] [--no-foxglove]]``
 (the issue's run: ``python -m bench.soak --minutes 30 --flood``)
 """
 
@@ -374,7 +376,7 @@ class Soak:
 
 
 def _address(spec: str) -> tuple[str, int]:
-    """``tcp-client:HOST:PORT[#TOKEN]`` to (host, port)."""
+    """``tcp-client:HOST:PORT[#TOKEN]`` (or ``ws:HOST:PORT``) to (host, port)."""
     _, host, port = spec.split("#", 1)[0].split(":")
     return host, int(port)
 
@@ -406,7 +408,8 @@ def flood_main(argv: list[str]) -> int:
                 alive = []
                 for sk in socks:
                     try:
-                        gone = sk.recv(1, socket.MSG_PEEK | socket.MSG_DONTWAIT) == b""
+                        said = sk.recv(16, socket.MSG_PEEK | socket.MSG_DONTWAIT)
+                        gone = said == b"" or said.startswith(b"HTTP/1.1 503")  # (the Foxglove door's refusal)
                     except BlockingIOError:
                         gone = False
                     except OSError:
@@ -443,7 +446,55 @@ def flood_main(argv: list[str]) -> int:
     return 0
 
 
-async def soak(minutes: float, damage: float, seed: int, flood: int = 0, warmup: float = 5.0) -> dict[str, Any]:
+class _CountingClient:
+    """A Foxglove client subscribed to every channel that counts what it gets (keeps none: the soak measures
+    term's memory)."""
+
+    def __init__(self, url: str) -> None:
+        from tests.support.foxglove_client import Client
+
+        class Counting(Client):  # type: ignore[misc]
+            count = 0
+
+            def _data(self, msg: bytes) -> None:
+                self.count += 1
+
+        self.client = Counting(url)
+        self.stop = asyncio.Event()
+        self.task: asyncio.Task[None] | None = None
+        self.error = ""
+
+    def start(self) -> None:
+        self.task = asyncio.create_task(self._run())
+
+    async def _run(self) -> None:
+        try:
+            await self.client.run(self.stop)
+        except Exception as exc:  # (reported, never the soak's end)
+            self.error = repr(exc)[:200]
+
+    async def close(self) -> None:
+        self.stop.set()
+        if self.task is not None:
+            with contextlib.suppress(Exception):
+                await asyncio.wait_for(self.task, 5.0)
+
+
+def _live_figures(live: Any, client: _CountingClient | None) -> dict[str, Any] | None:
+    if live is None:
+        return None
+    front = live.front
+    return {"messages_to_client": None if client is None else client.client.count,
+            "client_error": None if client is None else client.error or None,
+            "published": live.published, "errors": live.errors, "accepted": front.accepted,
+            "refused": dict(front.refused), "clients_at_end": front.clients, "pending_at_end": front.pending,
+            "log_lines": front.refusals.lines}
+
+
+async def soak(minutes: float, damage: float, seed: int, flood: int = 0, warmup: float = 5.0,
+               foxglove: bool = True) -> dict[str, Any]:
+    from term.core.events import CABLE, RADIO
+    from term.data.recording import RecordingTransport
     from term.session.config import JOYSTICK_POLICIES
     from term.session.sim import SimBoard
     from term.session.station import Station
@@ -459,11 +510,26 @@ async def soak(minutes: float, damage: float, seed: int, flood: int = 0, warmup:
     t0 = time.monotonic()
     tally = Tally(t0)
     cable = FaultyTransport(SerialTransport(port), Faults(corrupt=damage), Faults(corrupt=damage), seed=seed)
-    radio = BleTransport(sim.ble_address, hci=sim.ble_hci, timeout=10.0)
+    radio: Any = BleTransport(sim.ble_address, hci=sim.ble_hci, timeout=10.0)
     model = Model(start=t0, link_name=cable.name, radio_name=radio.name)
-    st = Station(model, cable=cable, radio=radio,
+    live = viewer = None
+    on_event: Any = tally.on_event
+    cable_link: Any = cable
+    if flood and foxglove:  # term --foxglove: the transports tapped and the station's packets, as the app does
+        from term.data.foxglove_server import LiveServer
+
+        live = LiveServer("127.0.0.1", 0, t0=t0, start_ns=time.time_ns())
+        cable_link = RecordingTransport(cable, live, CABLE, time.monotonic)
+        radio = RecordingTransport(radio, live, RADIO, time.monotonic)
+
+        def on_event(ev: Any, _live: Any = live) -> None:
+            tally.on_event(ev)
+            _live.station_event(ev, time.monotonic())
+
+    st = Station(model, cable=cable_link, radio=radio,
                  cable_session={"link_timeout": 0.5, **JOYSTICK_POLICIES["stream"]},
-                 radio_session={"link_timeout": 0.5}, on_event=tally.on_event)
+                 radio_session={"link_timeout": 0.5}, on_event=on_event,
+                 on_packet=None if live is None else live.link_packet)
     crash: str | None = None
     cycles = 0
     stats = None
@@ -474,9 +540,13 @@ async def soak(minutes: float, damage: float, seed: int, flood: int = 0, warmup:
         s._stick_task = asyncio.create_task(s.sticks())
         await s.until(lambda: model.radio_up and model.mode is not None, 20.0)
         log_start = _log_bytes(sim)
+        if live is not None:  # a viewer beside the flight, before the flood (the door lets it in during one too)
+            viewer = _CountingClient(live.url)
+            viewer.start()
         if flood:  # beside the flight, once the radio's HCI host is attached (a waiting one would queue behind it)
+            targets = [sim.instructor_address, sim.ble_hci] + ([f"ws:127.0.0.1:{live.port}"] if live else [])
             flooder = subprocess.Popen([sys.executable, "-m", "bench.soak", "--flood-child", "--idle", str(flood),
-                                        sim.instructor_address, sim.ble_hci], stdout=subprocess.PIPE, text=True)
+                                        *targets], stdout=subprocess.PIPE, text=True)
         await s.calibrate()
         end = t0 + 60 * minutes
         while time.monotonic() < end:
@@ -515,8 +585,13 @@ async def soak(minutes: float, damage: float, seed: int, flood: int = 0, warmup:
                 out, _ = flooder.communicate(timeout=30)
                 flooded = json.loads(out.strip().splitlines()[-1])
         log_bytes = _log_bytes(sim) - log_start if "log_start" in locals() else None
+        if viewer is not None:
+            await viewer.close()
+        live_figures = _live_figures(live, viewer)
         with contextlib.suppress(Exception):
             await st.shutdown()
+        if live is not None:
+            live.close()
         sim.stop()
     done = [d for d in tally.downloads if d["state"] == "done"]
     return {
@@ -537,7 +612,7 @@ async def soak(minutes: float, damage: float, seed: int, flood: int = 0, warmup:
                       "bytes_mean": round(statistics.mean(d["bytes"] for d in done)) if done else None},
         "notable": dict(tally.notable),
         "LINK_LOST": tally.lost_in_control, "PANIC": tally.panics, "panic_asked_by_soak": tally.panics_sent,
-        "sim_log_bytes": log_bytes, "flood": flooded if flood else None,
+        "sim_log_bytes": log_bytes, "flood": flooded if flood else None, "foxglove": live_figures,
         "memory": tally.memory_figures(60 * warmup),
         "cable": {"bytes_damaged_up": cable.up.stats.bytes_corrupted,
                   "bytes_damaged_down": cable.down.stats.bytes_corrupted,
@@ -565,6 +640,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--flood", action="store_true", help="an idle-connection flood and a login flood beside the flight")
     ap.add_argument("--idle", type=int, default=1100, help="idle connections to each port with --flood (1100)")
+    ap.add_argument("--no-foxglove", action="store_true",
+                    help="with --flood: the terminal serves no live Foxglove (and its port is not flooded)")
     ap.add_argument("--warmup", type=float, default=5.0,
                     help="minutes before the memory growth is counted (default 5)")
     a = ap.parse_args(argv)
@@ -576,7 +653,8 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     if not os.path.exists("/proc/self/status"):
         print("bench.soak: memory figures need Linux (/proc)", file=sys.stderr)
-    result = asyncio.run(soak(a.minutes, a.damage, a.seed, a.idle if a.flood else 0, a.warmup))
+    result = asyncio.run(soak(a.minutes, a.damage, a.seed, a.idle if a.flood else 0, a.warmup,
+                              foxglove=not a.no_foxglove))
     print(json.dumps(result))
     return 0 if result["crash"] is None else 1
 

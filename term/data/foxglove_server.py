@@ -22,6 +22,10 @@ Contract:
 - Nothing is sent on a channel no client subscribes to. The board's parameters (from its ParamValue answers,
   F11's list) are the server's parameters, published as they change, read-only: a client's set is answered with
   the values as they are (a change goes through F11 and its guards).
+- Clients pass a door first (term/data/foxglove_front.py, ``guard`` its caps): the SDK keeps every connection it
+  accepts, so it listens on loopback at a port of its own and the door, on the address asked for, lets through
+  only connections that send their WebSocket upgrade in time, and at most so many clients: a flood of idle
+  connections costs the flight nothing.
 - ``close()`` stops the server (taps after it are ignored). ``port`` is the port bound (``0`` asks for any free one).
 """
 
@@ -40,8 +44,10 @@ from term.core.protocol import Decoder
 from term.core.protocol.params import PARAMS, Param
 from term.data.channels import Channels, ChannelSpec, console_message
 from term.data.export import DecodedFrame
+from term.data.foxglove_front import Front
 from term.data.recording import LoggedEvent
 
+UPSTREAM_HOST = "127.0.0.1"  # the SDK's own server, behind the front (term/data/foxglove_front.py)
 DEFAULT_HOST = "127.0.0.1"  # loopback: a flight's data leaves the machine only when the pilot names a host
 # The SDK's runtime (tokio) starts a worker thread per core; one is plenty for a few hundred small messages a second,
 # and two waking each other for every message cost more than the sending (bench.foxglove: 2.0 -> 1.2 % of a core).
@@ -128,7 +134,8 @@ class LiveServer:
 
     thread_safe = True  # its taps never block: the link's thread calls them as bytes pass (link_thread.post_taps)
 
-    def __init__(self, host: str, port: int, *, t0: float, start_ns: int, name: str = "quadrupel term") -> None:
+    def __init__(self, host: str, port: int, *, t0: float, start_ns: int, name: str = "quadrupel term",
+                 guard: dict[str, Any] | None = None) -> None:
         os.environ.setdefault("TOKIO_WORKER_THREADS", SDK_WORKER_THREADS)  # (read when the SDK's runtime starts)
         try:
             import foxglove
@@ -139,15 +146,22 @@ class LiveServer:
         self._foxglove = foxglove
         self._context = foxglove.Context()
         self._params = _listener(_Params, foxglove.websocket.ServerListener)()
-        try:
-            self._server = foxglove.start_server(name=name, host=host, port=port, context=self._context,
-                                                 capabilities=[Capability.Parameters],
-                                                 server_listener=self._params)
-        except Exception as exc:  # the SDK's own error (an address in use, a host not here): one line
+        try:  # the door first (it binds the address asked for), the SDK's server behind it on loopback
+            self._front = Front(host, port, **(guard or {}))
+        except Exception as exc:  # an address in use, a host not here: one line
             line = f"cannot serve Foxglove on {_shown(host, quoted=False)}:{port}: {exc}".splitlines()[0]
             raise FoxgloveError(line[:300]) from None
+        try:
+            self._server = foxglove.start_server(name=name, host=UPSTREAM_HOST, port=0, context=self._context,
+                                                 capabilities=[Capability.Parameters],
+                                                 server_listener=self._params)
+        except Exception as exc:  # the SDK's own error: one line
+            self._front.close()
+            line = f"cannot serve Foxglove on {_shown(host, quoted=False)}:{port}: {exc}".splitlines()[0]
+            raise FoxgloveError(line[:300]) from None
+        self._front.start((UPSTREAM_HOST, self._server.port))
         self.host = host
-        self.port = self._server.port
+        self.port = self._front.port
         self._channels: dict[str, tuple[Any, bool]] = {}
         self._decoders: dict[str, Decoder] = {}  # each link's written bytes' (one thread each)
         self._read_at: dict[str, float] = {}  # each link's last read: the time of the packets decoded from it
@@ -206,8 +220,14 @@ class LiveServer:
     def truth(self, truth: Any, now: float) -> None:
         self._serve(("truth", self.t_ns(now), truth))
 
+    @property
+    def front(self) -> Front:
+        """The door clients pass (its caps and counts: term/data/foxglove_front.py)."""
+        return self._front
+
     def close(self) -> None:
         self._closed = True
+        self._front.close()
         self._server.stop()
 
     # --- on the caller's thread ---------------------------------------------------------------------------------
