@@ -256,6 +256,7 @@ THRUST_TAU_S = 10.0  # s
 THRUST_FAST_S = 0.2  # s: the accelerometer's mean the gate compares
 THRUST_GATE = 0.6  # m/s²
 THRUST_MIN = 10000.0  # ae²: four motors at 50
+THRUST_ABOVE_M = 0.15  # m: nearer the floor than this the legs may carry it (a force the model does not know)
 MODEL_NOISE_DENSITY = 0.04  # m/s²/√Hz: the process noise with the thrust model (what c u misses)
 MODEL_BIAS_WALK = 0.02  # m/s²/√s: the bias walk with the thrust model (c's slow error goes to the bias state)
 # The thrust model is an experiment (issue 35), off by default: it lowers the vz noise at hover but not enough for
@@ -425,7 +426,7 @@ class HeightKalman:
         """The earth-up acceleration to integrate (m/s²): the thrust model's, c u r33 - g - bias, or the
         accelerometer's ``a`` when the motors are (nearly) off or the model is disabled (module constants)."""
         u = self._u
-        if not self.thrust_model or u < THRUST_MIN:
+        if not self.thrust_model or u < THRUST_MIN or self.height - self.ground_ref < THRUST_ABOVE_M:
             self.thrust_c = 0.0
             self.model_on = False
             return a

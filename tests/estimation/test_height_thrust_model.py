@@ -17,12 +17,14 @@ VIB = 0.15 * G  # m/s² rms per sample: the motors' vibration at hover
 
 
 def _fly(kf: HeightKalman, seconds: float, *, seed: int = 3, u_of_t=lambda t: HOVER_U,
-         support: float = 0.0) -> list[tuple[float, float, float]]:
+         support: float = 0.0, floor: float = -1.0) -> list[tuple[float, float, float]]:
     """Level flight where the specific force is G * u / HOVER_U (+ ``support``, a surface's push, m/s²), the true
-    height integrated from it; returns (t, estimated vz - true vz, estimated h - true h) per sample."""
+    height integrated from it, ``floor`` m below the reset point (1 m up: the model's height); returns
+    (t, estimated vz - true vz, estimated h - true h) per sample."""
     rnd = random.Random(seed)
     k = pa_per_metre(P0)
     kf.reset(P0)
+    kf.ground_ref = floor
     h = v = 0.0
     out = []
     for n in range(round(seconds / DT)):
@@ -69,3 +71,10 @@ def test_a_push_the_model_does_not_know_is_taken_from_the_accelerometer() -> Non
     rows = _fly(kf, 3.0, u_of_t=lambda t: 0.8 * HOVER_U, support=0.2 * G)
     assert abs(kf.thrust_c * 0.8 * HOVER_U - G) < 0.3
     assert _rms(rows, 1, 1.0) < 0.1
+
+
+def test_near_the_floor_the_accelerometer_is_integrated() -> None:
+    # the legs may carry it there (a take-off, a touch-down with the motors running): the model waits
+    kf = HeightKalman(thrust_model=True)
+    _fly(kf, 1.0, u_of_t=lambda t: 0.8 * HOVER_U, support=0.2 * G, floor=0.0)
+    assert not kf.model_on and kf.thrust_c == 0.0
