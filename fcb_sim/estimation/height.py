@@ -349,6 +349,7 @@ class HeightKalman:
         self.thrust_c = 0.0  # m/s² per ae²: the model's gain (0: not learnt yet)
         self._c_n = 0.0  # samples c was learnt from since it was last set at once
         self._az_fast = G  # the accelerometer's body-z reading over THRUST_FAST_S (m/s²)
+        self._u_fast = 0.0  # the lagged thrust hint over THRUST_FAST_S (ae²), to compare with _az_fast
         self.model_on = False  # the last sample integrated the thrust model (telemetry, tests)
 
     def capture(self) -> float:
@@ -390,7 +391,9 @@ class HeightKalman:
         if self.on_ground != (self._rest_s >= GROUND_REST_S):
             self._set_ground(not self.on_ground)
         self._u += (self.thrust_hint - self._u) * (dt / (MOTOR_LAG_S + dt))
-        self._az_fast += (az - self._az_fast) * (dt / (THRUST_FAST_S + dt))
+        kf = dt / (THRUST_FAST_S + dt)
+        self._az_fast += (az - self._az_fast) * kf
+        self._u_fast += (self._u - self._u_fast) * kf  # the model over the same mean as the accelerometer
         if self.on_ground:
             # Standing still: no speed, the height held; what the accelerometer reads is its bias.
             self.thrust_c = 0.0
@@ -431,8 +434,9 @@ class HeightKalman:
             self.model_on = False
             return a
         c = self.thrust_c
-        if c == 0.0 or abs(self._az_fast - c * u) > THRUST_GATE:
-            c = self._az_fast / u  # learnt again at once: the first sample with thrust, or a contact
+        uf = self._u_fast
+        if c == 0.0 or abs(self._az_fast - c * uf) > THRUST_GATE:
+            c = self._az_fast / max(uf, THRUST_MIN)  # learnt again at once: the first sample with thrust, a contact
             self._c_n = 1.0
         else:
             # a running mean of the samples since, until THRUST_TAU_S holds more of them
