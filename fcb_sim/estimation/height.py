@@ -18,7 +18,10 @@ height is re-anchored to the barometer (a trimmed mean over ``ANCHOR_S``) and th
 landing nor the barometer's drift moves it (``on_ground``, ``anchored``); on the floor it was calibrated on the
 height is 0 at once and the barometer's offset there goes into the reference. A hard stop (a jolt against the
 motion, over within 30 ms: the ceiling, a landing) zeroes the speed and makes the height ``unsure`` until the
-barometer has pulled it in (``stops``, ``stop_kind``, ``stop_speed``; docs/height.md "Contact").
+barometer has pulled it in (``stops``, ``stop_kind``, ``stop_speed``; docs/height.md "Contact"). The thrust model
+(``thrust_model``, ``THRUST_MODEL``; off on both boards, an experiment) integrates the motors' thrust (the flight
+core's ``thrust_hint``, the sum of ae²) scaled by a gain learnt from the accelerometer, instead of the
+accelerometer's vibration (docs/height.md "The thrust model").
 
 ``HeightEstimator``: the report's Figure 10, after Klas Löfstedt's altitude estimator: a velocity and a position
 complementary filter between the high-passed earth-frame acceleration and the low-passed barometer, with the
@@ -345,11 +348,11 @@ class HeightKalman:
         self.captured_height = 0.0
         self._c = [0.0, 0.0, 0.0, 0.0]  # its covariance with h, v, b, s
         self._c00 = 0.0
-        self._u = 0.0  # the thrust hint lagged as the rotors follow it (ae²)
+        self._u = self.thrust_hint  # the thrust hint lagged as the rotors follow it (ae²): at reset, where it is
         self.thrust_c = 0.0  # m/s² per ae²: the model's gain (0: not learnt yet)
         self._c_n = 0.0  # samples c was learnt from since it was last set at once
         self._az_fast = G  # the accelerometer's body-z reading over THRUST_FAST_S (m/s²)
-        self._u_fast = 0.0  # the lagged thrust hint over THRUST_FAST_S (ae²), to compare with _az_fast
+        self._u_fast = self._u  # the lagged thrust hint over THRUST_FAST_S (ae²), to compare with _az_fast
         self.model_on = False  # the last sample integrated the thrust model (telemetry, tests)
 
     def capture(self) -> float:
@@ -436,12 +439,14 @@ class HeightKalman:
         c = self.thrust_c
         uf = self._u_fast
         if c == 0.0 or abs(self._az_fast - c * uf) > THRUST_GATE:
-            c = self._az_fast / max(uf, THRUST_MIN)  # learnt again at once: the first sample with thrust, a contact
+            # learnt again at once (the first sample with thrust, a contact); this sample, the accelerometer's
+            self.thrust_c = self._az_fast / max(uf, THRUST_MIN)
             self._c_n = 1.0
-        else:
-            # a running mean of the samples since, until THRUST_TAU_S holds more of them
-            self._c_n += 1.0
-            c += (az / u - c) * max(dt / (self.thrust_tau_s + dt), 1.0 / self._c_n)
+            self.model_on = False
+            return a
+        # a running mean of the samples since, until THRUST_TAU_S holds more of them
+        self._c_n += 1.0
+        c += (az / u - c) * max(dt / (self.thrust_tau_s + dt), 1.0 / self._c_n)
         self.thrust_c = c
         self.model_on = True
         return c * u * r33 - G - self.bias
