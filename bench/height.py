@@ -10,14 +10,19 @@ DMP path as FULL flies it) in four short flights, and compares the estimate with
   ``ceiling_err_m``: the largest |height - truth| from 0.5 s after the hit (goal <= 0.3 m, or the estimate marked
   unsure: ``ceiling_unmarked_m`` is the largest error while the estimate was NOT marked unsure); ``ceiling_vz_rms``.
 - ``hover``: 20 s at 1 m: ``hover_vz_rms`` (the estimated vz against the true one, m/s) and ``hover_h_rms`` (height,
-  m); then a climb to 2 m: ``climb_vz_lag_s``, the delay of the estimated vz behind the true one that fits best
-  (0-0.3 s).
+  m); ``hover_vz_look_rms`` and ``hover_h_look_rms``: the change of that error from one look of a keyboard pilot to
+  the next (0.2 s apart, bench/keyboard.py), what a pilot who reads the screen is misled by; then a climb to 2 m:
+  ``climb_vz_lag_s`` and ``climb_h_lag_s``, the delay of the estimated vz and height (each from its value when the
+  climb began, so an offset does not count) behind the true ones that fits best (0-0.3 s).
 - ``rest``: calibration, then ``--rest`` s (600) in SAFE: ``rest_heading_drift_deg``: |psi - truth| at the end on the
   DMP path (the one SAFE shows) and ``rest_heading_drift_raw_deg`` on the RAW filter's (goal <= 1°).
 - ``flight``: calibration, 10 s on the pad, then ``--flight`` s (300) of FULL hover at 1 m:
   ``flight_heading_drift_deg`` at the end.
 
-    python -m bench.height [--seeds 8] [--rest 600] [--flight 300] [--quick] [--only hover ...]
+    python -m bench.height [--seeds 8] [--rest 600] [--flight 300] [--quick] [--only hover ...] [--thrust-model]
+
+``--thrust-model`` flies the height estimator's thrust model (an experiment, off on the boards:
+fcb_sim/estimation/height.py THRUST_MODEL, docs/height.md "The thrust model").
 
 ``--quick`` is 2 seeds, 120 s at rest and 60 s of flight (a run for development on shared cores). Prints a line per
 seed and, last, one JSON object: each figure's worst seed and mean, and ``touchdown_within_goal`` (seeds).
@@ -31,6 +36,7 @@ import math
 import statistics
 from collections.abc import Callable
 
+import fcb_sim.estimation.height as height_module
 from fcb_sim.lab.scenarios import Sim
 from term.core.protocol import Mode
 from term.core.protocol.instructor import ROOM_CEILING_M, ROOM_HALF_M
@@ -114,6 +120,8 @@ def hover(seed: int) -> dict[str, float]:
     herr: list[float] = []
     climb_est: list[float] = []
     climb_tru: list[float] = []
+    climb_h: list[float] = []
+    climb_h_tru: list[float] = []
 
     def tick(s: Sim) -> None:
         w = s.world
@@ -124,6 +132,8 @@ def hover(seed: int) -> dict[str, float]:
         else:  # the climb to 2 m: the estimated vz against the true one
             climb_est.append(s.fc.vz)
             climb_tru.append(-w.vd)
+            climb_h.append(s.fc.height)
+            climb_h_tru.append(w.truth.h)
 
     _watch(sim, tick)
     sim.run_until(26.0)
@@ -132,7 +142,18 @@ def hover(seed: int) -> dict[str, float]:
     n = len(est)
     vz_rms = math.sqrt(sum((a - b) ** 2 for a, b in zip(est, tru, strict=True)) / n)
     h_rms = math.sqrt(sum(e * e for e in herr) / n)
-    return {"hover_vz_rms": vz_rms, "hover_h_rms": h_rms, "climb_vz_lag_s": _lag_s(climb_est, climb_tru)}
+    verr = [a - b for a, b in zip(est, tru, strict=True)]
+    return {"hover_vz_rms": vz_rms, "hover_h_rms": h_rms,
+            "hover_vz_look_rms": _look_rms(verr), "hover_h_look_rms": _look_rms(herr),
+            "climb_vz_lag_s": _lag_s(climb_est, climb_tru),
+            "climb_h_lag_s": _lag_s([h - climb_h[0] for h in climb_h], [h - climb_h_tru[0] for h in climb_h_tru])}
+
+
+def _look_rms(err: list[float], rate_hz: float = 400.0, look_s: float = 0.2) -> float:
+    """The rms change of an error between two looks ``look_s`` apart (samples at ``rate_hz``)."""
+    k = round(look_s * rate_hz)
+    d = [err[i + k] - err[i] for i in range(0, len(err) - k, k)]
+    return math.sqrt(sum(x * x for x in d) / len(d)) if d else math.nan
 
 
 def rest(seed: int, seconds: float) -> dict[str, float]:
@@ -167,7 +188,9 @@ def main() -> None:
     ap.add_argument("--quick", action="store_true", help="2 seeds, 120 s at rest, 60 s of flight")
     ap.add_argument("--only", choices=("touchdown", "ceiling", "hover", "rest", "flight"), action="append",
                     help="run only these parts (repeatable)")
+    ap.add_argument("--thrust-model", action="store_true", help="fly the height estimator's thrust model")
     args = ap.parse_args()
+    height_module.THRUST_MODEL = args.thrust_model
     if args.quick:
         args.seeds, args.rest, args.flight = 2, 120.0, 60.0
     per_seed: list[dict[str, float]] = []
@@ -181,7 +204,8 @@ def main() -> None:
                 r.update(part(seed))
         per_seed.append(r)
         print(f"seed {seed}: " + "  ".join(f"{k} {v:.3f}" for k, v in r.items()), flush=True)
-    out: dict[str, float | int] = {"seeds": args.seeds, "rest_s": args.rest, "flight_s": args.flight}
+    out: dict[str, float | int] = {"seeds": args.seeds, "rest_s": args.rest, "flight_s": args.flight,
+                                   "thrust_model": args.thrust_model}
     for key in per_seed[0]:
         vals = [r[key] for r in per_seed]
         out[f"{key}_worst"] = round(max(vals), 4)

@@ -389,6 +389,7 @@ class FlightCore:
         self.ae = out
         # its on-the-ground test: no motor could lift the craft
         self.height_est.motors_off = max(out) < GROUND_AE
+        self.height_est.thrust_hint = float(out[0] * out[0] + out[1] * out[1] + out[2] * out[2] + out[3] * out[3])
         return out
 
     def pending_contact(self) -> tuple[int, int] | None:

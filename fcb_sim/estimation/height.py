@@ -18,7 +18,10 @@ height is re-anchored to the barometer (a trimmed mean over ``ANCHOR_S``) and th
 landing nor the barometer's drift moves it (``on_ground``, ``anchored``); on the floor it was calibrated on the
 height is 0 at once and the barometer's offset there goes into the reference. A hard stop (a jolt against the
 motion, over within 30 ms: the ceiling, a landing) zeroes the speed and makes the height ``unsure`` until the
-barometer has pulled it in (``stops``, ``stop_kind``, ``stop_speed``; docs/height.md "Contact").
+barometer has pulled it in (``stops``, ``stop_kind``, ``stop_speed``; docs/height.md "Contact"). The thrust model
+(``thrust_model``, ``THRUST_MODEL``; off on both boards, an experiment) integrates the motors' thrust (the flight
+core's ``thrust_hint``, the sum of ae²) scaled by a gain learnt from the accelerometer, instead of the
+accelerometer's vibration (docs/height.md "The thrust model").
 
 ``HeightEstimator``: the report's Figure 10, after Klas Löfstedt's altitude estimator: a velocity and a position
 complementary filter between the high-passed earth-frame acceleration and the low-passed barometer, with the
@@ -243,6 +246,27 @@ _SS_FLOOR = 1e-6  # m²: spike variance when no spike is running (keeps the filt
 TREND_GAIN = 0.2  # per baro reading (20 Hz): the innovations' running mean over about a quarter second
 TREND_SIGMA = 1.5  # a running mean of this many sigmas of one sign is a wrong speed, not noise
 TREND_VZ_VAR = 0.25  # (m/s)² added to the speed's variance at such a reading
+# The thrust model (docs/height.md "The thrust model"): the motors' commands, told by the flight core as
+# ``thrust_hint`` (the sum of ae² over the four motors), predict the specific force along the body's z axis as
+# c * u, u the hint lagged by the motors' MOTOR_LAG_S; c (m/s² per ae²) is learnt from the accelerometer over
+# THRUST_TAU_S. The filter integrates c u instead of the accelerometer's vibration (0.15 g rms at hover): what the
+# model misses (drag, a gust, the battery's sag) reaches the height through c within THRUST_TAU_S and through the
+# barometer. A contact (the floor, the ceiling: a force the model knows nothing of) shows as the accelerometer's
+# 20 ms mean leaving the model by THRUST_GATE: c is set to what the accelerometer reads at once. Below THRUST_MIN
+# (the motors off or near it) the accelerometer is integrated, as before.
+MOTOR_LAG_S = 0.03  # s: the rotors' time constant (fcb_sim/world/constants.py MOTOR_TAU)
+THRUST_TAU_S = 10.0  # s
+THRUST_FAST_S = 0.2  # s: the accelerometer's mean the gate compares
+THRUST_GATE = 0.6  # m/s²
+THRUST_MIN = 10000.0  # ae²: four motors at 50
+THRUST_ABOVE_M = 0.15  # m: nearer the floor than this the legs may carry it (a force the model does not know)
+MODEL_NOISE_DENSITY = 0.04  # m/s²/√Hz: the process noise with the thrust model (what c u misses)
+MODEL_BIAS_WALK = 0.02  # m/s²/√s: the bias walk with the thrust model (c's slow error goes to the bias state)
+# The thrust model is an experiment (issue 35), off by default: it lowers the vz noise at hover but not enough for
+# a keyboard pilot reading the screen (docs/height.md "The thrust model"), and the C board does not have it.
+# ``HeightKalman(thrust_model=True)`` turns it on, or this switch for every HeightKalman built after it is set
+# (bench.height and bench.keyboard --thrust-model).
+THRUST_MODEL = False
 
 
 class HeightKalman:
@@ -253,6 +277,9 @@ class HeightKalman:
         self,
         *,
         acc_noise_density: float = ACC_NOISE_DENSITY,
+        model_noise_density: float = MODEL_NOISE_DENSITY,
+        thrust_tau_s: float = THRUST_TAU_S,
+        thrust_model: bool | None = None,
         bias_walk: float = BIAS_WALK,
         baro_sigma_m: float = BARO_SIGMA_M,
         spike_tau_s: float = SPIKE_TAU_S,
@@ -264,6 +291,10 @@ class HeightKalman:
         temperature_k: float = T_ROOM,
     ) -> None:
         self.q_acc = acc_noise_density * acc_noise_density  # PSD, m²/s³
+        self.q_model = model_noise_density * model_noise_density  # PSD with the thrust model, m²/s³
+        self.q_model_bias = MODEL_BIAS_WALK * MODEL_BIAS_WALK
+        self.thrust_tau_s = thrust_tau_s
+        self.thrust_model = THRUST_MODEL if thrust_model is None else thrust_model
         self.q_bias = bias_walk * bias_walk  # PSD, m²/s⁵
         self.r = baro_sigma_m * baro_sigma_m
         self.spike_tau_s = spike_tau_s
@@ -274,6 +305,7 @@ class HeightKalman:
         self.rejump_window_s = rejump_window_s
         self.temperature_k = temperature_k
         self.motors_off = False  # told by the flight core at every control step: no thrust that could lift it
+        self.thrust_hint = 0.0  # told by the flight core at every control step: the sum of the motors' ae²
         self.reset(SEA_LEVEL_PA)
 
     def reset(self, pressure_pa: float) -> None:
@@ -316,6 +348,12 @@ class HeightKalman:
         self.captured_height = 0.0
         self._c = [0.0, 0.0, 0.0, 0.0]  # its covariance with h, v, b, s
         self._c00 = 0.0
+        self._u = self.thrust_hint  # the thrust hint lagged as the rotors follow it (ae²): at reset, where it is
+        self.thrust_c = 0.0  # m/s² per ae²: the model's gain (0: not learnt yet)
+        self._c_n = 0.0  # samples c was learnt from since it was last set at once
+        self._az_fast = G  # the accelerometer's body-z reading over THRUST_FAST_S (m/s²)
+        self._u_fast = self._u  # the lagged thrust hint over THRUST_FAST_S (ae²), to compare with _az_fast
+        self.model_on = False  # the last sample integrated the thrust model (telemetry, tests)
 
     def capture(self) -> float:
         """Remember the height of this instant (HEIGHT's set point) and return it. Unlike a copy of ``height``,
@@ -355,13 +393,19 @@ class HeightKalman:
         self._rest_s = self._rest_s + dt if rest else 0.0
         if self.on_ground != (self._rest_s >= GROUND_REST_S):
             self._set_ground(not self.on_ground)
+        self._u += (self.thrust_hint - self._u) * (dt / (MOTOR_LAG_S + dt))
+        kf = dt / (THRUST_FAST_S + dt)
+        self._az_fast += (az - self._az_fast) * kf
+        self._u_fast += (self._u - self._u_fast) * kf  # the model over the same mean as the accelerometer
         if self.on_ground:
             # Standing still: no speed, the height held; what the accelerometer reads is its bias.
+            self.thrust_c = 0.0
             self.bias += a * min(1.0, dt / GROUND_BIAS_TAU_S)
             self.vz = 0.0
             self.az_earth = 0.0
             return
         self.az_earth = a
+        a_in = self._thrust_accel(az, qw * qw - qx * qx - qy * qy + qz * qz, a, dt)
         v = self.vz
         if self._stop_hold > 0.0:  # the jolt of a stop: the craft stands at the surface
             self._stop_hold -= dt
@@ -380,9 +424,32 @@ class HeightKalman:
                 self._hard_stop()
                 self._t_pred += dt
                 return
-        self.height += (v + 0.5 * a * dt) * dt
-        self.vz = v + a * dt
+        self.height += (v + 0.5 * a_in * dt) * dt
+        self.vz = v + a_in * dt
         self._t_pred += dt
+
+    def _thrust_accel(self, az: float, r33: float, a: float, dt: float) -> float:
+        """The earth-up acceleration to integrate (m/s²): the thrust model's, c u r33 - g - bias, or the
+        accelerometer's ``a`` when the motors are (nearly) off or the model is disabled (module constants)."""
+        u = self._u
+        if not self.thrust_model or u < THRUST_MIN or self.height - self.ground_ref < THRUST_ABOVE_M:
+            self.thrust_c = 0.0
+            self.model_on = False
+            return a
+        c = self.thrust_c
+        uf = self._u_fast
+        if c == 0.0 or abs(self._az_fast - c * uf) > THRUST_GATE:
+            # learnt again at once (the first sample with thrust, a contact); this sample, the accelerometer's
+            self.thrust_c = self._az_fast / max(uf, THRUST_MIN)
+            self._c_n = 1.0
+            self.model_on = False
+            return a
+        # a running mean of the samples since, until THRUST_TAU_S holds more of them
+        self._c_n += 1.0
+        c += (az / u - c) * max(dt / (self.thrust_tau_s + dt), 1.0 / self._c_n)
+        self.thrust_c = c
+        self.model_on = True
+        return c * u * r33 - G - self.bias
 
     @property
     def unsure(self) -> bool:
@@ -427,7 +494,7 @@ class HeightKalman:
         bv = vv - t * vb
         bb_ = vb - t * bb
         bs_ = vs - t * bs
-        qa, qb = self.q_acc, self.q_bias
+        qa, qb = (self.q_model, self.q_model_bias) if self.model_on else (self.q_acc, self.q_bias)
         t3 = t * t * t
         ch, cv, cb, cs = self._c
         self._c = [ch + t * cv - c * cb, cv - t * cb, cb, phi * cs]
