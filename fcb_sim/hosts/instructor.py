@@ -89,6 +89,8 @@ class Instructor:
         self._last_tick: float | None = None
         self.applied = 0  # commands applied (for tests and the server's log)
         self.outage = 0.0  # s of cable and radio cuts asked for since the last reset (this attempt's)
+        self._touches, self._touch_seen = 0, -1.0  # ceiling and wall touches counted, the newest one's time
+        self._touched, self._touch_speed = "", 0.0  # the newest one's surface and speed
 
     # --- situations ---------------------------------------------------------------------------------------
 
@@ -229,6 +231,11 @@ class Instructor:
         own = {"t": now, "landings": len(w.landings), "touchdown": w.landings[-1][1] if w.landings else 0.0,
                "crashes": len(w.crashes), "cable": self.cable_open(now),
                "wind_n": w.wind_mean[0], "wind_e": w.wind_mean[1], "gust": w.gust_std, "contact": w.contact}
+        for c in w.contacts[-8:]:  # (the newest few: a truth comes every 50 ms, a contact at most every 0.5 s)
+            if c.where != "ground" and c.t > self._touch_seen:
+                self._touches += 1
+                self._touch_seen, self._touched, self._touch_speed = c.t, c.where, c.speed
+        own |= {"touches": self._touches, "touched": self._touched, "touch_speed": self._touch_speed}
         out: dict[str, Any] = {"kind": "truth"}
         for name in INSTRUCTOR_TRUTH:
             v = own[name] if name in own else getattr(tr, name)

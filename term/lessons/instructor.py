@@ -64,6 +64,9 @@ class Truth:
     wind_e: float = 0.0
     gust: float = 0.0
     contact: str = ""  # what it touches now: "ground", "ceiling", "wall" or ""
+    touches: int = 0  # touches of the ceiling or a wall so far (a short bounce between two truths too)
+    touched: str = ""  # the last one's surface: "ceiling", "wall" or ""
+    touch_speed: float = 0.0  # its speed into it (m/s)
 
     @property
     def vz(self) -> float:
@@ -125,7 +128,10 @@ def truth_from(obj: dict[str, Any]) -> Truth | None:
         elif name == "contact":
             if v not in ("", "ground", "ceiling", "wall"):
                 return None
-        elif name in ("landings", "crashes"):
+        elif name == "touched":
+            if v not in ("", "ceiling", "wall"):
+                return None
+        elif name in ("landings", "crashes", "touches"):
             if not isinstance(v, int) or isinstance(v, bool):
                 return None
         elif not isinstance(v, int | float) or isinstance(v, bool) or not math.isfinite(v):

@@ -133,9 +133,10 @@ def test_garbage_from_the_simulator_is_skipped(line: bytes) -> None:
 
 def test_a_truth_with_a_wrong_type_is_skipped_and_errors_and_hello_are_read() -> None:
     good = {"kind": "truth", **{k: 0.0 for k in INSTRUCTOR_TRUTH}, "on_ground": True, "cable": True,
-            "landings": 0, "crashes": 0, "contact": ""}
+            "landings": 0, "crashes": 0, "contact": "", "touches": 0, "touched": ""}
     assert isinstance(parse_line(json.dumps(good).encode()), Truth)
-    for field, bad in (("on_ground", 1), ("landings", 1.5), ("crashes", True), ("h", float("inf")), ("n", "0")):
+    for field, bad in (("on_ground", 1), ("landings", 1.5), ("crashes", True), ("h", float("inf")), ("n", "0"),
+                       ("touches", 1.5), ("touched", "floor")):
         assert parse_line(json.dumps({**good, field: bad}).encode()) is None, field
     assert parse_line(b'{"kind": "error", "do": "wind", "why": "no"}') == Refused("wind", "no")
     assert parse_line(b'{"kind": "hello", "version": 1, "hz": 50}') == Hello(1, 50.0)

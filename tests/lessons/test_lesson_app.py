@@ -205,3 +205,15 @@ async def test_show_me_stopped_in_flight_leaves_no_lift_behind_once_in_safe() ->
         app.simulate_key("2")
         await until(pilot, lambda: app.model.mode == Mode.MANUAL,
                     what=lambda: f"MANUAL after 2; the events: {[e.text for e in list(m.events)[-6:]]}")
+
+
+async def test_the_simulator_says_a_touch_of_the_ceiling_in_the_events() -> None:
+    """Issue 35: the room view said "at the ceiling" only while pressed there; a touch is an event too."""
+    async with sim_app(seed=3) as (app, pilot, board):
+        room = app.lessons.room
+        await until(pilot, lambda: room is not None and bool(room.truth))
+        world = board.world
+        world.on_ground, world.d, world.vd = False, -2.95, -1.5  # thrown up under the 3 m ceiling (SAFE: it falls)
+        await until(pilot, lambda: any("touched the ceiling" in e.text for e in app.model.events))
+        said = [e for e in app.model.events if "touched the ceiling" in e.text]
+        assert len(said) == 1 and said[0].severity == "warning" and " m/s" in said[0].text

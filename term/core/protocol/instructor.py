@@ -48,6 +48,8 @@ INSTRUCTOR_TRUTH: dict[str, str] = {  # field: unit and meaning (earth NED, body
     "cable": "bool: the cable carries bytes (false while the instructor cuts it)",
     "wind_n": "m/s: the mean wind towards north", "wind_e": "m/s: towards east", "gust": "m/s: gusts' std",
     "contact": "str: what the craft touches now: ground, ceiling, wall or empty",
+    "touches": "count: the craft's touches of the ceiling or a wall so far (one per contact, however short)",
+    "touched": "str: the last such touch's surface: ceiling, wall or empty", "touch_speed": "m/s: its speed into it",
 }
 INSTRUCTOR_SITUATIONS: dict[str, tuple[str, ...]] = {  # verb: its arguments (all optional)
     "reset": ("soc",),  # on the pad, nose north, fresh pack at soc, still air, no fault (on the floor in SAFE)

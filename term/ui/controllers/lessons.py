@@ -84,6 +84,7 @@ class LessonController:
         self._start_demo = demo
         self._autopilot_acting = False
         self._autopilot_stick = Joystick(0, 0, 0, 0, 0)  # the last stick the autopilot held
+        self._touches = 0  # the simulator's ceiling and wall touches said so far
         self._shown_attempt = False  # the attempt running is the autopilot's ("show me")
         self.lesson_results: list[Result] = []
 
@@ -109,6 +110,10 @@ class LessonController:
     def _on_truth(self, truth: Truth) -> None:
         if self.room is not None:
             self.room.update(truth)
+        if truth.touches > self._touches:  # the simulator says what the board can only guess from its accelerometer
+            self._touches = truth.touches
+            self.station.note("warning", "sim", f"the craft touched the {truth.touched} at "
+                              f"{truth.touch_speed:.1f} m/s (the simulator's room)")
         self.driver.truth(truth)
 
     def _on_refused(self, refused: Refused) -> None:
