@@ -147,9 +147,15 @@ class InertialKalmanFilterQL(InertialKalmanFilterQ):
             self.bx = m if self.bx > m else -m if self.bx < -m else self.bx
             self.by = m if self.by > m else -m if self.by < -m else self.by
             self.bz = m if self.bz > m else -m if self.bz < -m else self.bz
+        # the horizontal specific force in the earth frame, every sample, summed until the prediction takes it: the
+        # velocity integrates every sample's force (one sample's, times N dt, let a tap's spike in four times over
+        # or not at all: trial 25, tapping, 0.44° against float's 0.33°)
+        fx, fy = self._force(a)
+        self.fx, self.fy = _sat(self.fx + fx), _sat(self.fy + fy)
         if here[1]:
-            self._force(a)  # this sample's (the rate is the first piece's: 2.5 ms apart, the cost spread)
-            self._predict(self.fx, self.fy, self.rate, dtq, dt2q)  # 3.
+            sh = self.f.io + self.f.dt - self.f.vel - 1  # the sum times dt = 2 dthq: Q.io * Q.dt -> Q.vel
+            self._predict(mul(self.fx, dthq, sh), mul(self.fy, dthq, sh), self.rate, dtq, dt2q)  # 3.
+            self.fx = self.fy = 0
         if here[2]:
             self._correct(dtq)
         if here[3]:
@@ -166,13 +172,13 @@ class InertialKalmanFilterQL(InertialKalmanFilterQ):
         r2 = _sat(mul(wx, wx, 2 * bb - io) + mul(wy, wy, 2 * bb - io) + mul(wz, wz, 2 * bb - io))
         self.rate = math.isqrt(r2) << 8
 
-    def _force(self, a: tuple[int, int, int]) -> None:
+    def _force(self, a: tuple[int, int, int]) -> tuple[int, int]:
         """The horizontal specific force in the earth frame (Q.io), q (x) (0, a) (x) q*, for the prediction."""
         m = _R27 - 1  # 2048 m/s² (no sensor reads more): the sums stay far from 2^31
         v = (0, *(m if c > m else -m if c < -m else c for c in a))
         q = (self.qw, self.qx, self.qy, self.qz)
         e = qprod(qprod(q, v), (q[0], _wrap(-q[1]), _wrap(-q[2]), _wrap(-q[3])))  # type: ignore[arg-type]
-        self.fx, self.fy = e[1], e[2]
+        return e[1], e[2]
 
     def _rebase(self, w: int, x: int, y: int, z: int, gxh: int, gyh: int) -> None:
         """Step 4: q turned in the earth frame by the 2nd-order swing that makes (gxh, gyh, g0) vertical, then the

@@ -431,16 +431,17 @@ static void rest(ikfq_t *s, const int32_t g[3], const int32_t a[3])
         *b[i] = lowpass(*b[i], s->gl[i], s->kbq, cb);
 }
 
-/* Step 3: the Kalman filter on (V, G_h, D), fed the horizontal specific force and the turn rate (Q.io). In two
- * halves a spread filter runs apart (ikf_lite.py): the prediction leaves V, G_h and the covariance in the state. */
-static void predict(ikfq_t *s, int32_t fx, int32_t fy, int64_t rate)
+/* Step 3: the Kalman filter on (V, G_h, D), fed the horizontal specific force's integral over the step (dvx, dvy,
+ * Q.vel) and the turn rate (Q.io). In two halves a spread filter runs apart (ikf_lite.py): the prediction leaves
+ * V, G_h and the covariance in the state. */
+static void predict(ikfq_t *s, int32_t dvx, int32_t dvy, int64_t rate)
 {
     unsigned io = FMT(s).io, vb = FMT(s).vel, db = FMT(s).drift, cb = FMT(s).cov, sd = FMT(s).dt;
     int64_t dtq = s->dtq, dt2q = s->dt2q;
     int32_t e = ikfq_mul(rate, dtq, io + sd - cb);
     int32_t pvv = s->pvv, pvg = s->pvg, pvd = s->pvd, pgg = s->pgg, pgd = s->pgd, pdd = s->pdd, q_dt, noise;
-    s->vx = sat(s->vx + (int64_t)MUL(fx, dtq, io + sd - vb));
-    s->vy = sat(s->vy + (int64_t)MUL(fy, dtq, io + sd - vb));
+    s->vx = sat(s->vx + (int64_t)dvx);
+    s->vy = sat(s->vy + (int64_t)dvy);
     s->gxh = MUL(s->dx, e, db + cb - vb);
     s->gyh = MUL(s->dy, e, db + cb - vb);
     s->pvv = sat(pvv - 2 * (int64_t)MUL(pvg, dtq, sd) + MUL(pgg, dt2q, sd));
@@ -646,8 +647,8 @@ static void force_lite(ikfq_t *s, const int32_t a[3])
         v[1 + i] = clamp(a[i], R27 - 1);
     qprod(q, v, p); /* q (x) (0, a) (x) q*: the specific force in the earth frame, by the product's one copy */
     qprod(p, qc, e);
-    s->fx = e[1];
-    s->fy = e[2];
+    s->fx = sat((int64_t)s->fx + e[1]); /* summed over the samples until the prediction takes them */
+    s->fy = sat((int64_t)s->fy + e[2]);
 }
 
 /* q turned by the 2nd-order swing (1 - |u|^2/8, uy/2, -ux/2, 0), then the Newton normalisation */
@@ -728,9 +729,11 @@ static void step_lite(ikfq_t *s, const int32_t g[3], const int32_t a[3])
         s->by = clamp(s->by, s->bias_max);
         s->bz = clamp(s->bz, s->bias_max);
     }
+    force_lite(s, a); /* every sample: the velocity integrates every sample's force (ikf_lite.py says why) */
     if (here1) {
-        force_lite(s, a);
-        predict(s, s->fx, s->fy, s->rate); /* 3. */
+        unsigned sh = FMT(s).io + FMT(s).dt - FMT(s).vel - 1u; /* the sum times dt = 2 dthq, into Q.vel */
+        predict(s, MUL(s->fx, s->dthq, sh), MUL(s->fy, s->dthq, sh), s->rate); /* 3. */
+        s->fx = s->fy = 0;
     }
     if (here2)
         correct(s);
@@ -815,7 +818,7 @@ void ikfq_step(ikfq_t *s, const int32_t gq[3], const int32_t a[3])
     r12 = 2 * ((int64_t)MUL(q[2], q[3], qb) - MUL(q[0], q[1], qb));
     fx = sat((int64_t)ikfq_mul(r00, a[0], qb) + ikfq_mul(r01, a[1], qb) + ikfq_mul(r02, a[2], qb));
     fy = sat((int64_t)ikfq_mul(r10, a[0], qb) + ikfq_mul(r11, a[1], qb) + ikfq_mul(r12, a[2], qb));
-    predict(s, fx, fy, rate);
+    predict(s, MUL(fx, s->dtq, io + f->dt - f->vel), MUL(fy, s->dtq, io + f->dt - f->vel), rate);
     correct(s);
     rebase(s, q, s->gxh, s->gyh); /* 4. */
     s->bx = clamp(s->bx, s->bias_max);

@@ -44,7 +44,8 @@ typedef struct {
      * docs/attitude.md, "Decimation"): dtq, dt2q, krq and kbq are then of decim * dt, dthq of dt */
     int32_t decim, phase;
     /* the variant cut to fit the Cortex-M0 (ikfq_set_lite; fcb_sim/estimation/ikf_lite.py): its gravity part in
-     * four pieces over the decim samples, and what passes between them (also G_h, kept by the exact one too) */
+     * four pieces over the decim samples, and what passes between them (fx, fy: the earth-frame horizontal force
+     * summed over the samples since the last prediction; also G_h, kept by the exact one too) */
     int32_t lite, fx, fy, rate, gxh, gyh;
 } ikfq_t;
 
