@@ -130,8 +130,10 @@ class InertialKalmanFilterQ(QuaternionAnglesMixin):
         self.at_rest = False
         self._started = False
         self.phase = 0  # samples since the last gravity step
-        # between the pieces of a spread gravity step (ikf_lite): the sample's force and rate, and G_h
-        self.fx = self.fy = self.rate = self.gxh = self.gyh = 0
+        # between the pieces of a spread gravity step (ikf_lite): the body-frame specific force summed over the
+        # step's samples (Q.io), q at their middle, the rate, and G_h
+        self.fx = self.fy = self.fz = self.rate = self.gxh = self.gyh = 0
+        self.qm = [1 << 30, 0, 0, 0]  # Q2.30: the lite variant's only format
 
     # --- outputs (floats read back from the fixed-point state) ---
     def quaternion(self) -> tuple[float, float, float, float]:

@@ -27,7 +27,7 @@ from fcb_sim.estimation.ikf_lite import InertialKalmanFilterQL
 LIBRARY = "libikfq.so"
 STATE_FIELDS = ("qw", "qx", "qy", "qz", "vx", "vy", "dx", "dy", "pvv", "pvg", "pvd", "pgg", "pgd", "pdd", "bx", "by",
                 "bz", "rx", "ry", "rz", "gl0", "gl1", "gl2", "al0", "al1", "al2", "rest_t", "at_rest", "started",
-                "phase", "fx", "fy", "rate", "gxh", "gyh")
+                "phase", "fx", "fy", "fz", "qm0", "qm1", "qm2", "qm3", "rate", "gxh", "gyh")
 _LOCK = threading.Lock()
 _lib: ctypes.CDLL | None = None
 _why: str | None = None
@@ -270,7 +270,8 @@ def python_state(f: InertialKalmanFilterQ) -> dict[str, int]:
     out = {n: getattr(f, n) for n in STATE_FIELDS[:20] if n != "rest_t"}
     out.update(gl0=f.gl[0], gl1=f.gl[1], gl2=f.gl[2], al0=f.al[0], al1=f.al[1], al2=f.al[2], rest_t=f.rest_t,
                at_rest=int(f.at_rest), started=int(f._started))
-    out.update({n: getattr(f, n) for n in STATE_FIELDS[29:]})
+    out.update({n: getattr(f, n) for n in STATE_FIELDS[29:] if not n.startswith("qm")})
+    out.update(qm0=f.qm[0], qm1=f.qm[1], qm2=f.qm[2], qm3=f.qm[3])
     return {n: out[n] for n in STATE_FIELDS}
 
 

@@ -326,7 +326,9 @@ void ikfq_reset(ikfq_t *s)
     s->at_rest = 0;
     s->started = 0;
     s->phase = 0;
-    s->fx = s->fy = s->rate = s->gxh = s->gyh = 0;
+    s->fsum[0] = s->fsum[1] = s->fsum[2] = s->fsum[3] = s->rate = s->gxh = s->gyh = 0;
+    s->qm[0] = INT32_C(1) << 30;
+    s->qm[1] = s->qm[2] = s->qm[3] = 0;
 }
 
 void ikfq_set_dt(ikfq_t *s, double dt)
@@ -636,19 +638,22 @@ static void rate_lite(ikfq_t *s, int64_t wx, int64_t wy, int64_t wz)
     s->rate = (int32_t)(ikfq_isqrt32((uint32_t)r2) << 8);
 }
 
-static void force_lite(ikfq_t *s, const int32_t a[3])
+/* V plus the earth-frame horizontal specific force integrated over the decim samples: their body-frame sum (fsum)
+ * turned by q at their middle (qm), by the product's one copy, q (x) (0, sum) (x) q*, times dt; the sum restarts
+ * (ikf_lite.py's _force) */
+static void force_lite(ikfq_t *s)
 {
-    const int32_t q[4] = {s->qw, s->qx, s->qy, s->qz};
-    const int32_t qc[4] = {s->qw, (int32_t)(0u - (uint32_t)s->qx), (int32_t)(0u - (uint32_t)s->qy),
-                           (int32_t)(0u - (uint32_t)s->qz)};
-    int32_t v[4], p[4], e[4], i;
-    v[0] = 0;
-    for (i = 0; i < 3; i++) /* 2048 m/s^2 (no sensor reads more): the sums stay far from 2^31 */
-        v[1 + i] = clamp(a[i], R27 - 1);
-    qprod(q, v, p); /* q (x) (0, a) (x) q*: the specific force in the earth frame, by the product's one copy */
-    qprod(p, qc, e);
-    s->fx = sat((int64_t)s->fx + e[1]); /* summed over the samples until the prediction takes them */
-    s->fy = sat((int64_t)s->fy + e[2]);
+    int32_t q[4], p[4], e[4], i;
+    unsigned sh = FMT(s).io + FMT(s).dt - FMT(s).vel - 1u; /* times dt = 2 dthq: Q.io * Q.dt -> Q.vel */
+    qprod(s->qm, s->fsum, p);
+    q[0] = s->qm[0];
+    for (i = 1; i < 4; i++) { /* q*; the sum restarts */
+        q[i] = (int32_t)(0u - (uint32_t)s->qm[i]);
+        s->fsum[i] = 0;
+    }
+    qprod(p, q, e);
+    s->vx = sat((int64_t)s->vx + MUL(e[1], s->dthq, sh));
+    s->vy = sat((int64_t)s->vy + MUL(e[2], s->dthq, sh));
 }
 
 /* q turned by the 2nd-order swing (1 - |u|^2/8, uy/2, -ux/2, 0), then the Newton normalisation */
@@ -700,45 +705,51 @@ static void rebase_lite(ikfq_t *s)
 /* One sample of the lite variant: the strapdown every sample, the gravity part's piece p at phase p decim / 4 */
 static void step_lite(ikfq_t *s, const int32_t g[3], const int32_t a[3])
 {
-    int32_t n = s->decim, ph = s->phase, q[4];
+    int32_t n = s->decim, ph = s->phase, q[4], h[3], i;
     int here0 = 0 == ph, here1 = (1 * n) / PIECES == ph, here2 = (2 * n) / PIECES == ph;
     int here3 = (3 * n) / PIECES == ph;
-    int64_t wx, wy, wz;
+    int64_t w[3];
     if (here0)
         rest(s, g, a); /* 1. */
-    wx = (int64_t)g[0] - s->bx;
-    wy = (int64_t)g[1] - s->by;
-    wz = (int64_t)g[2] - s->bz;
-    s->rx = (int32_t)wx;
-    s->ry = (int32_t)wy;
-    s->rz = (int32_t)wz;
-    {
-        const int64_t w[3] = {wx, wy, wz};
-        int32_t h[3];
-        half_step(w, s->dthq, h);
-        rotate_lite(s, h[0], h[1], h[2], q);
-    }
+    w[0] = (int64_t)g[0] - s->bx;
+    w[1] = (int64_t)g[1] - s->by;
+    w[2] = (int64_t)g[2] - s->bz;
+    s->rx = (int32_t)w[0];
+    s->ry = (int32_t)w[1];
+    s->rz = (int32_t)w[2];
+    half_step(w, s->dthq, h);
+    rotate_lite(s, h[0], h[1], h[2], q);
     s->qw = q[0];
     s->qx = q[1];
     s->qy = q[2];
     s->qz = q[3];
     s->phase = ph + 1 >= n ? 0 : ph + 1;
     if (here0) {
-        rate_lite(s, wx, wy, wz);
+        rate_lite(s, w[0], w[1], w[2]);
         s->bx = clamp(s->bx, s->bias_max);
         s->by = clamp(s->by, s->bias_max);
         s->bz = clamp(s->bz, s->bias_max);
     }
-    force_lite(s, a); /* every sample: the velocity integrates every sample's force (ikf_lite.py says why) */
-    if (here1) {
-        unsigned sh = FMT(s).io + FMT(s).dt - FMT(s).vel - 1u; /* the sum times dt = 2 dthq, into Q.vel */
-        predict(s, MUL(s->fx, s->dthq, sh), MUL(s->fy, s->dthq, sh), s->rate); /* 3. */
-        s->fx = s->fy = 0;
+    /* 3. the velocity integrates every sample's force (ikf_lite.py says why): the body-frame sum over the step's
+     * samples, each held within 2048 m/s^2 (no sensor reads more), the sum within 16384, turned at the last by q at
+     * their middle (the mean of the middle samples') */
+    for (i = 0; i < 3; i++)
+        s->fsum[1 + i] = clamp(s->fsum[1 + i] + clamp(a[i], R27 - 1), ONE30 - 1);
+    for (i = 0; i < 4; i++) {
+        if (ph == (n - 1) / 2)
+            s->qm[i] = q[i];
+        if (ph == n / 2) /* the same sample for an odd n */
+            s->qm[i] = (s->qm[i] >> 1) + (q[i] >> 1);
     }
+    if (here1)
+        predict(s, 0, 0, s->rate); /* the force enters V at the last sample (below) */
     if (here2)
         correct(s);
-    if (here3)
+    if (ph == n - 1)
+        force_lite(s);
+    if (here3) {
         rebase_lite(s); /* 4. */
+    }
 }
 
 
@@ -874,11 +885,13 @@ int ikfq_state(const ikfq_t *s, int64_t out[IKFQ_STATE_N])
     out[27] = s->at_rest;
     out[28] = s->started;
     out[29] = s->phase;
-    out[30] = s->fx;
-    out[31] = s->fy;
-    out[32] = s->rate;
-    out[33] = s->gxh;
-    out[34] = s->gyh;
+    for (i = 0; i < 3; i++)
+        out[30 + i] = s->fsum[1 + i];
+    for (i = 0; i < 4; i++)
+        out[33 + i] = s->qm[i];
+    out[37] = s->rate;
+    out[38] = s->gxh;
+    out[39] = s->gyh;
     return IKFQ_STATE_N;
 }
 

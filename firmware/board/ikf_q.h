@@ -44,9 +44,10 @@ typedef struct {
      * docs/attitude.md, "Decimation"): dtq, dt2q, krq and kbq are then of decim * dt, dthq of dt */
     int32_t decim, phase;
     /* the variant cut to fit the Cortex-M0 (ikfq_set_lite; fcb_sim/estimation/ikf_lite.py): its gravity part in
-     * four pieces over the decim samples, and what passes between them (fx, fy: the earth-frame horizontal force
-     * summed over the samples since the last prediction; also G_h, kept by the exact one too) */
-    int32_t lite, fx, fy, rate, gxh, gyh;
+     * four pieces over the decim samples, and what passes between them (fsum: (0, the body-frame specific
+     * force summed over the step's samples, Q.io), a quaternion; qm: q at their middle; also G_h, kept by the exact
+     * one too) */
+    int32_t lite, fsum[4], qm[4], rate, gxh, gyh;
 } ikfq_t;
 
 /* floor(sqrt(n)), bit by bit: exact, no division (the filter's turn rate, the control's cos(pitch)) */
@@ -91,9 +92,9 @@ void ikfq_update_q(ikfq_t *s, double gx, double gy, double gz, double ax, double
                    double q[4]);
 
 /* The state in a fixed order, for the tests and the Python wrapper (fcb_sim/estimation/native.py): qw qx qy qz vx vy dx
- * dy pvv pvg pvd pgg pgd pdd bx by bz rx ry rz gl[3] al[3] rest_t at_rest started phase fx fy rate gxh gyh.
+ * dy pvv pvg pvd pgg pgd pdd bx by bz rx ry rz gl[3] al[3] rest_t at_rest started phase fsum[1..3] qm[4] rate gxh gyh.
  * Returns the count, IKFQ_STATE_N. */
-#define IKFQ_STATE_N 35
+#define IKFQ_STATE_N 40
 int ikfq_state(const ikfq_t *s, int64_t out[IKFQ_STATE_N]);
 unsigned ikfq_size(void);
 
