@@ -867,6 +867,24 @@ void ikfq_update_q(ikfq_t *s, double gx, double gy, double gz, double ax, double
     q[3] = p[3] * k;
 }
 
+void ikfq_run(ikfq_t *s, int32_t n, const double *rows, int32_t nlat, const int32_t *lat_half, double *out)
+{
+    int32_t i, j, keep = s->lat_half, p[4];
+    double k = ldexp(1.0, -(int)FMT(s).quat);
+    for (i = 0; i < n; i++, rows += 7) {
+        ikfq_update(s, rows[0], rows[1], rows[2], rows[3], rows[4], rows[5], rows[6]);
+        for (j = 0; j < nlat; j++, out += 4) {
+            s->lat_half = lat_half[j];
+            ikfq_predicted(s, p);
+            out[0] = p[0] * k;
+            out[1] = p[1] * k;
+            out[2] = p[2] * k;
+            out[3] = p[3] * k;
+        }
+    }
+    s->lat_half = keep;
+}
+
 int ikfq_state(const ikfq_t *s, int64_t out[IKFQ_STATE_N])
 {
     const int32_t v[20] = {s->qw, s->qx, s->qy, s->qz, s->vx, s->vy, s->dx, s->dy, s->pvv, s->pvg, s->pvd, s->pgg,

@@ -91,6 +91,11 @@ void ikfq_update(ikfq_t *s, double gx, double gy, double gz, double ax, double a
 void ikfq_update_q(ikfq_t *s, double gx, double gy, double gz, double ax, double ay, double az, double dt,
                    double q[4]);
 
+/* Host, for scoring (bench.filters): n samples (rows of gx gy gz ax ay az dt) through ikfq_update, and after each
+ * the attitude predicted at each of nlat latencies (their half, Q.dt: ikfq_consts' lat_half) as doubles,
+ * out[(i nlat + j) 4 + k]. The prediction never feeds back, so each is the filter's own output at that latency. */
+void ikfq_run(ikfq_t *s, int32_t n, const double *rows, int32_t nlat, const int32_t *lat_half, double *out);
+
 /* The state in a fixed order, for the tests and the Python wrapper (fcb_sim/estimation/native.py): qw qx qy qz vx vy dx
  * dy pvv pvg pvd pgg pgd pdd bx by bz rx ry rz gl[3] al[3] rest_t at_rest started phase fsum[1..3] qm[4] rate gxh gyh.
  * Returns the count, IKFQ_STATE_N. */
