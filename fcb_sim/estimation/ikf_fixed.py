@@ -130,8 +130,10 @@ class InertialKalmanFilterQ(QuaternionAnglesMixin):
         self.at_rest = False
         self._started = False
         self.phase = 0  # samples since the last gravity step
-        # between the pieces of a spread gravity step (ikf_lite): the sample's force and rate, and G_h
-        self.fx = self.fy = self.rate = self.gxh = self.gyh = 0
+        # between the pieces of a spread gravity step (ikf_lite): the body-frame specific force summed over the
+        # step's samples (Q.io), q at their middle, the rate, and G_h
+        self.fx = self.fy = self.fz = self.rate = self.gxh = self.gyh = 0
+        self.qm = [1 << 30, 0, 0, 0]  # Q2.30: the lite variant's only format
 
     # --- outputs (floats read back from the fixed-point state) ---
     def quaternion(self) -> tuple[float, float, float, float]:
@@ -259,17 +261,19 @@ class InertialKalmanFilterQ(QuaternionAnglesMixin):
         """Step 3: the Kalman filter on (V, G_h, D), fed the horizontal specific force (Q.io) and the turn rate
         (Q.io); returns G_h (Q.vel). In two halves (predict, correct) that a spread filter runs apart
         (:mod:`.ikf_lite`); between them the state holds the predicted V, G_h and covariance."""
-        self._predict(fx, fy, rate, dtq, dt2q)
+        sh = self.f.io + self.f.dt - self.f.vel
+        self._predict(mul(fx, dtq, sh), mul(fy, dtq, sh), rate, dtq, dt2q)
         self._correct(dtq)
         return self.gxh, self.gyh
 
-    def _predict(self, fx: int, fy: int, rate: int, dtq: int, dt2q: int) -> None:
-        """The Kalman filter's prediction: V, G_h and the covariance carried over the step, kept in the state."""
+    def _predict(self, dvx: int, dvy: int, rate: int, dtq: int, dt2q: int) -> None:
+        """The Kalman filter's prediction: V (plus the force's integral over the step, ``dvx``, ``dvy`` in Q.vel),
+        G_h and the covariance carried over the step, kept in the state."""
         F = self.f
         io, vb, db, cb = F.io, F.vel, F.drift, F.cov
         e = mul(rate, dtq, io + F.dt - cb)  # radians this step, Q.cov
-        self.vx = _sat(self.vx + mul(fx, dtq, io + F.dt - vb))
-        self.vy = _sat(self.vy + mul(fy, dtq, io + F.dt - vb))
+        self.vx = _sat(self.vx + dvx)
+        self.vy = _sat(self.vy + dvy)
         self.gxh = mul(self.dx, e, db + cb - vb)
         self.gyh = mul(self.dy, e, db + cb - vb)
         pvv, pvg, pvd, pgg, pgd, pdd = self.pvv, self.pvg, self.pvd, self.pgg, self.pgd, self.pdd

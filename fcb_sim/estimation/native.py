@@ -16,18 +16,19 @@ from __future__ import annotations
 import ctypes
 import os
 import threading
+from collections.abc import Sequence
 from pathlib import Path
 
 from fcb_sim import cbuild
 from fcb_sim.estimation.base import QuaternionAnglesMixin
 from fcb_sim.estimation.ikf import InertialKalmanFilter
-from fcb_sim.estimation.ikf_fixed import Formats, InertialKalmanFilterQ
+from fcb_sim.estimation.ikf_fixed import Formats, InertialKalmanFilterQ, to_q
 from fcb_sim.estimation.ikf_lite import InertialKalmanFilterQL
 
 LIBRARY = "libikfq.so"
 STATE_FIELDS = ("qw", "qx", "qy", "qz", "vx", "vy", "dx", "dy", "pvv", "pvg", "pvd", "pgg", "pgd", "pdd", "bx", "by",
                 "bz", "rx", "ry", "rz", "gl0", "gl1", "gl2", "al0", "al1", "al2", "rest_t", "at_rest", "started",
-                "phase", "fx", "fy", "rate", "gxh", "gyh")
+                "phase", "fx", "fy", "fz", "qm0", "qm1", "qm2", "qm3", "rate", "gxh", "gyh")
 _LOCK = threading.Lock()
 _lib: ctypes.CDLL | None = None
 _why: str | None = None
@@ -79,6 +80,8 @@ def _load(path: Path) -> ctypes.CDLL:
     lib.ikfq_update_q.argtypes = [vp, d, d, d, d, d, d, d, ctypes.POINTER(d)]
     lib.ikfq_update_q.restype = None
     lib.ikfq_predicted.argtypes = [vp, i32p]
+    lib.ikfq_run.argtypes = [vp, ctypes.c_int32, ctypes.POINTER(d), ctypes.c_int32, i32p, ctypes.POINTER(d)]
+    lib.ikfq_run.restype = None
     lib.ikfq_state.argtypes = [vp, i64p]
     lib.ikfq_set_dt.argtypes = [vp, d]
     lib.ikfq_set_decimation.argtypes = [vp, ctypes.c_int32]
@@ -223,6 +226,26 @@ class NativeIKFQ(QuaternionAnglesMixin):
         lib.ikfq_predicted(self._s, q)
         return q[0], q[1], q[2], q[3]
 
+    def run(self, rows: Sequence[Sequence[float]] | memoryview, latencies: Sequence[float]) -> memoryview:
+        """Every row (gx, gy, gz, ax, ay, az, dt) through ``update``, and after each the attitude predicted at each
+        of ``latencies`` (s), in one call (ikfq_run; scoring a latency grid in one run): n * len(latencies) * 4
+        doubles (w, x, y, z), row-major. ``rows``: a sequence of rows, or a C-contiguous buffer of n * 7 doubles
+        (a numpy array's memoryview)."""
+        m = len(latencies)
+        if isinstance(rows, memoryview):
+            flat = (ctypes.c_double * (rows.nbytes // 8)).from_buffer_copy(rows)
+        else:
+            flat = (ctypes.c_double * (7 * len(rows)))(*(v for r in rows for v in r))
+        n = len(flat) // 7
+        lat = (ctypes.c_int32 * m)(*(to_q(0.5 * x, self.f.dt) for x in latencies))
+        out = (ctypes.c_double * (4 * m * n))()
+        self._lib.ikfq_run(self._s, n, flat, m, lat, out)
+        p = (ctypes.c_int32 * 4)()
+        self._lib.ikfq_predicted(self._s, p)
+        k = 1.0 / (1 << self.f.quat)
+        self._q = (p[0] * k, p[1] * k, p[2] * k, p[3] * k)  # quaternion() at the filter's own latency
+        return memoryview(out).cast("B").cast("d")
+
     CONSTS = ("qg_shift", "q_g0", "k_rot", "drift_noise", "rest_r", "rest_g2", "rest_a2", "bias_max", "inv_g0",
               "lat_half", "pgg0", "pdd0", "g0_io", "swing_max", "swing_k", "rest_time", "dtq", "dt2q", "dthq", "krq",
               "kbq", "decim", "lite")
@@ -270,7 +293,8 @@ def python_state(f: InertialKalmanFilterQ) -> dict[str, int]:
     out = {n: getattr(f, n) for n in STATE_FIELDS[:20] if n != "rest_t"}
     out.update(gl0=f.gl[0], gl1=f.gl[1], gl2=f.gl[2], al0=f.al[0], al1=f.al[1], al2=f.al[2], rest_t=f.rest_t,
                at_rest=int(f.at_rest), started=int(f._started))
-    out.update({n: getattr(f, n) for n in STATE_FIELDS[29:]})
+    out.update({n: getattr(f, n) for n in STATE_FIELDS[29:] if not n.startswith("qm")})
+    out.update(qm0=f.qm[0], qm1=f.qm[1], qm2=f.qm[2], qm3=f.qm[3])
     return {n: out[n] for n in STATE_FIELDS}
 
 

@@ -326,7 +326,9 @@ void ikfq_reset(ikfq_t *s)
     s->at_rest = 0;
     s->started = 0;
     s->phase = 0;
-    s->fx = s->fy = s->rate = s->gxh = s->gyh = 0;
+    s->fsum[0] = s->fsum[1] = s->fsum[2] = s->fsum[3] = s->rate = s->gxh = s->gyh = 0;
+    s->qm[0] = INT32_C(1) << 30;
+    s->qm[1] = s->qm[2] = s->qm[3] = 0;
 }
 
 void ikfq_set_dt(ikfq_t *s, double dt)
@@ -431,16 +433,17 @@ static void rest(ikfq_t *s, const int32_t g[3], const int32_t a[3])
         *b[i] = lowpass(*b[i], s->gl[i], s->kbq, cb);
 }
 
-/* Step 3: the Kalman filter on (V, G_h, D), fed the horizontal specific force and the turn rate (Q.io). In two
- * halves a spread filter runs apart (ikf_lite.py): the prediction leaves V, G_h and the covariance in the state. */
-static void predict(ikfq_t *s, int32_t fx, int32_t fy, int64_t rate)
+/* Step 3: the Kalman filter on (V, G_h, D), fed the horizontal specific force's integral over the step (dvx, dvy,
+ * Q.vel) and the turn rate (Q.io). In two halves a spread filter runs apart (ikf_lite.py): the prediction leaves
+ * V, G_h and the covariance in the state. */
+static void predict(ikfq_t *s, int32_t dvx, int32_t dvy, int64_t rate)
 {
     unsigned io = FMT(s).io, vb = FMT(s).vel, db = FMT(s).drift, cb = FMT(s).cov, sd = FMT(s).dt;
     int64_t dtq = s->dtq, dt2q = s->dt2q;
     int32_t e = ikfq_mul(rate, dtq, io + sd - cb);
     int32_t pvv = s->pvv, pvg = s->pvg, pvd = s->pvd, pgg = s->pgg, pgd = s->pgd, pdd = s->pdd, q_dt, noise;
-    s->vx = sat(s->vx + (int64_t)MUL(fx, dtq, io + sd - vb));
-    s->vy = sat(s->vy + (int64_t)MUL(fy, dtq, io + sd - vb));
+    s->vx = sat(s->vx + (int64_t)dvx);
+    s->vy = sat(s->vy + (int64_t)dvy);
     s->gxh = MUL(s->dx, e, db + cb - vb);
     s->gyh = MUL(s->dy, e, db + cb - vb);
     s->pvv = sat(pvv - 2 * (int64_t)MUL(pvg, dtq, sd) + MUL(pgg, dt2q, sd));
@@ -635,19 +638,22 @@ static void rate_lite(ikfq_t *s, int64_t wx, int64_t wy, int64_t wz)
     s->rate = (int32_t)(ikfq_isqrt32((uint32_t)r2) << 8);
 }
 
-static void force_lite(ikfq_t *s, const int32_t a[3])
+/* V plus the earth-frame horizontal specific force integrated over the decim samples: their body-frame sum (fsum)
+ * turned by q at their middle (qm), by the product's one copy, q (x) (0, sum) (x) q*, times dt; the sum restarts
+ * (ikf_lite.py's _force) */
+static void force_lite(ikfq_t *s)
 {
-    const int32_t q[4] = {s->qw, s->qx, s->qy, s->qz};
-    const int32_t qc[4] = {s->qw, (int32_t)(0u - (uint32_t)s->qx), (int32_t)(0u - (uint32_t)s->qy),
-                           (int32_t)(0u - (uint32_t)s->qz)};
-    int32_t v[4], p[4], e[4], i;
-    v[0] = 0;
-    for (i = 0; i < 3; i++) /* 2048 m/s^2 (no sensor reads more): the sums stay far from 2^31 */
-        v[1 + i] = clamp(a[i], R27 - 1);
-    qprod(q, v, p); /* q (x) (0, a) (x) q*: the specific force in the earth frame, by the product's one copy */
-    qprod(p, qc, e);
-    s->fx = e[1];
-    s->fy = e[2];
+    int32_t q[4], p[4], e[4], i;
+    unsigned sh = FMT(s).io + FMT(s).dt - FMT(s).vel - 1u; /* times dt = 2 dthq: Q.io * Q.dt -> Q.vel */
+    qprod(s->qm, s->fsum, p);
+    q[0] = s->qm[0];
+    for (i = 1; i < 4; i++) { /* q*; the sum restarts */
+        q[i] = (int32_t)(0u - (uint32_t)s->qm[i]);
+        s->fsum[i] = 0;
+    }
+    qprod(p, q, e);
+    s->vx = sat((int64_t)s->vx + MUL(e[1], s->dthq, sh));
+    s->vy = sat((int64_t)s->vy + MUL(e[2], s->dthq, sh));
 }
 
 /* q turned by the 2nd-order swing (1 - |u|^2/8, uy/2, -ux/2, 0), then the Newton normalisation */
@@ -699,43 +705,51 @@ static void rebase_lite(ikfq_t *s)
 /* One sample of the lite variant: the strapdown every sample, the gravity part's piece p at phase p decim / 4 */
 static void step_lite(ikfq_t *s, const int32_t g[3], const int32_t a[3])
 {
-    int32_t n = s->decim, ph = s->phase, q[4];
+    int32_t n = s->decim, ph = s->phase, q[4], h[3], i;
     int here0 = 0 == ph, here1 = (1 * n) / PIECES == ph, here2 = (2 * n) / PIECES == ph;
     int here3 = (3 * n) / PIECES == ph;
-    int64_t wx, wy, wz;
+    int64_t w[3];
     if (here0)
         rest(s, g, a); /* 1. */
-    wx = (int64_t)g[0] - s->bx;
-    wy = (int64_t)g[1] - s->by;
-    wz = (int64_t)g[2] - s->bz;
-    s->rx = (int32_t)wx;
-    s->ry = (int32_t)wy;
-    s->rz = (int32_t)wz;
-    {
-        const int64_t w[3] = {wx, wy, wz};
-        int32_t h[3];
-        half_step(w, s->dthq, h);
-        rotate_lite(s, h[0], h[1], h[2], q);
-    }
+    w[0] = (int64_t)g[0] - s->bx;
+    w[1] = (int64_t)g[1] - s->by;
+    w[2] = (int64_t)g[2] - s->bz;
+    s->rx = (int32_t)w[0];
+    s->ry = (int32_t)w[1];
+    s->rz = (int32_t)w[2];
+    half_step(w, s->dthq, h);
+    rotate_lite(s, h[0], h[1], h[2], q);
     s->qw = q[0];
     s->qx = q[1];
     s->qy = q[2];
     s->qz = q[3];
     s->phase = ph + 1 >= n ? 0 : ph + 1;
     if (here0) {
-        rate_lite(s, wx, wy, wz);
+        rate_lite(s, w[0], w[1], w[2]);
         s->bx = clamp(s->bx, s->bias_max);
         s->by = clamp(s->by, s->bias_max);
         s->bz = clamp(s->bz, s->bias_max);
     }
-    if (here1) {
-        force_lite(s, a);
-        predict(s, s->fx, s->fy, s->rate); /* 3. */
+    /* 3. the velocity integrates every sample's force (ikf_lite.py says why): the body-frame sum over the step's
+     * samples, each held within 2048 m/s^2 (no sensor reads more), the sum within 16384, turned at the last by q at
+     * their middle (the mean of the middle samples') */
+    for (i = 0; i < 3; i++)
+        s->fsum[1 + i] = clamp(s->fsum[1 + i] + clamp(a[i], R27 - 1), ONE30 - 1);
+    for (i = 0; i < 4; i++) {
+        if (ph == (n - 1) / 2)
+            s->qm[i] = q[i];
+        if (ph == n / 2) /* the same sample for an odd n */
+            s->qm[i] = (s->qm[i] >> 1) + (q[i] >> 1);
     }
+    if (here1)
+        predict(s, 0, 0, s->rate); /* the force enters V at the last sample (below) */
     if (here2)
         correct(s);
-    if (here3)
+    if (ph == n - 1)
+        force_lite(s);
+    if (here3) {
         rebase_lite(s); /* 4. */
+    }
 }
 
 
@@ -815,7 +829,7 @@ void ikfq_step(ikfq_t *s, const int32_t gq[3], const int32_t a[3])
     r12 = 2 * ((int64_t)MUL(q[2], q[3], qb) - MUL(q[0], q[1], qb));
     fx = sat((int64_t)ikfq_mul(r00, a[0], qb) + ikfq_mul(r01, a[1], qb) + ikfq_mul(r02, a[2], qb));
     fy = sat((int64_t)ikfq_mul(r10, a[0], qb) + ikfq_mul(r11, a[1], qb) + ikfq_mul(r12, a[2], qb));
-    predict(s, fx, fy, rate);
+    predict(s, MUL(fx, s->dtq, io + f->dt - f->vel), MUL(fy, s->dtq, io + f->dt - f->vel), rate);
     correct(s);
     rebase(s, q, s->gxh, s->gyh); /* 4. */
     s->bx = clamp(s->bx, s->bias_max);
@@ -853,6 +867,24 @@ void ikfq_update_q(ikfq_t *s, double gx, double gy, double gz, double ax, double
     q[3] = p[3] * k;
 }
 
+void ikfq_run(ikfq_t *s, int32_t n, const double *rows, int32_t nlat, const int32_t *lat_half, double *out)
+{
+    int32_t i, j, keep = s->lat_half, p[4];
+    double k = ldexp(1.0, -(int)FMT(s).quat);
+    for (i = 0; i < n; i++, rows += 7) {
+        ikfq_update(s, rows[0], rows[1], rows[2], rows[3], rows[4], rows[5], rows[6]);
+        for (j = 0; j < nlat; j++, out += 4) {
+            s->lat_half = lat_half[j];
+            ikfq_predicted(s, p);
+            out[0] = p[0] * k;
+            out[1] = p[1] * k;
+            out[2] = p[2] * k;
+            out[3] = p[3] * k;
+        }
+    }
+    s->lat_half = keep;
+}
+
 int ikfq_state(const ikfq_t *s, int64_t out[IKFQ_STATE_N])
 {
     const int32_t v[20] = {s->qw, s->qx, s->qy, s->qz, s->vx, s->vy, s->dx, s->dy, s->pvv, s->pvg, s->pvd, s->pgg,
@@ -871,11 +903,13 @@ int ikfq_state(const ikfq_t *s, int64_t out[IKFQ_STATE_N])
     out[27] = s->at_rest;
     out[28] = s->started;
     out[29] = s->phase;
-    out[30] = s->fx;
-    out[31] = s->fy;
-    out[32] = s->rate;
-    out[33] = s->gxh;
-    out[34] = s->gyh;
+    for (i = 0; i < 3; i++)
+        out[30 + i] = s->fsum[1 + i];
+    for (i = 0; i < 4; i++)
+        out[33 + i] = s->qm[i];
+    out[37] = s->rate;
+    out[38] = s->gxh;
+    out[39] = s->gyh;
     return IKFQ_STATE_N;
 }
 

@@ -44,8 +44,10 @@ typedef struct {
      * docs/attitude.md, "Decimation"): dtq, dt2q, krq and kbq are then of decim * dt, dthq of dt */
     int32_t decim, phase;
     /* the variant cut to fit the Cortex-M0 (ikfq_set_lite; fcb_sim/estimation/ikf_lite.py): its gravity part in
-     * four pieces over the decim samples, and what passes between them (also G_h, kept by the exact one too) */
-    int32_t lite, fx, fy, rate, gxh, gyh;
+     * four pieces over the decim samples, and what passes between them (fsum: (0, the body-frame specific
+     * force summed over the step's samples, Q.io), a quaternion; qm: q at their middle; also G_h, kept by the exact
+     * one too) */
+    int32_t lite, fsum[4], qm[4], rate, gxh, gyh;
 } ikfq_t;
 
 /* floor(sqrt(n)), bit by bit: exact, no division (the filter's turn rate, the control's cos(pitch)) */
@@ -89,10 +91,15 @@ void ikfq_update(ikfq_t *s, double gx, double gy, double gz, double ax, double a
 void ikfq_update_q(ikfq_t *s, double gx, double gy, double gz, double ax, double ay, double az, double dt,
                    double q[4]);
 
+/* Host, for scoring (bench.filters): n samples (rows of gx gy gz ax ay az dt) through ikfq_update, and after each
+ * the attitude predicted at each of nlat latencies (their half, Q.dt: ikfq_consts' lat_half) as doubles,
+ * out[(i nlat + j) 4 + k]. The prediction never feeds back, so each is the filter's own output at that latency. */
+void ikfq_run(ikfq_t *s, int32_t n, const double *rows, int32_t nlat, const int32_t *lat_half, double *out);
+
 /* The state in a fixed order, for the tests and the Python wrapper (fcb_sim/estimation/native.py): qw qx qy qz vx vy dx
- * dy pvv pvg pvd pgg pgd pdd bx by bz rx ry rz gl[3] al[3] rest_t at_rest started phase fx fy rate gxh gyh.
+ * dy pvv pvg pvd pgg pgd pdd bx by bz rx ry rz gl[3] al[3] rest_t at_rest started phase fsum[1..3] qm[4] rate gxh gyh.
  * Returns the count, IKFQ_STATE_N. */
-#define IKFQ_STATE_N 35
+#define IKFQ_STATE_N 40
 int ikfq_state(const ikfq_t *s, int64_t out[IKFQ_STATE_N]);
 unsigned ikfq_size(void);
 

@@ -94,7 +94,7 @@ def test_excerpt_fast_rotation(fixed: bool) -> None:
 def test_fixed_point_twin_on_real_data() -> None:
     """The exact fixed-point twin within 0.01° RMS of the float ikf (measured 0.0002° on every trial); the variant
     that fits the M0, which make_filter gives in fixed point, within 0.25° RMS on this fast rotation (measured
-    0.17°; its gravity part spread over 4 samples: bench.filters scores it 0.52° mean against 0.51°)."""
+    0.17°; its gravity part spread over 4 samples: bench.filters scores it 0.5115° mean against 0.5108°)."""
     from fcb_sim.estimation.ikf_fixed import InertialKalmanFilterQ
 
     rows, truth = read_trial(EXCERPT)
