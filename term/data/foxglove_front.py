@@ -57,7 +57,9 @@ from collections.abc import Callable
 
 log = logging.getLogger("term.foxglove")
 
-MAX_PENDING = 16
+# A flood reopens what the door drops (hundreds a second here): a viewer that connected has until this many newer
+# connections arrive to send its upgrade, so the cap is its time to speak; 64 sockets are little to hold.
+MAX_PENDING = 64
 PENDING_TIMEOUT_S = 5.0
 MAX_CLIENTS = 16
 MAX_HEAD = 16 * 1024  # an upgrade request is a few hundred bytes; a browser's with cookies a few KB

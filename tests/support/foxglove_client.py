@@ -39,9 +39,21 @@ class Client:
     received: list[Received] = field(default_factory=list)
     server_info: dict[str, Any] = field(default_factory=dict)
     _subs: dict[int, str] = field(default_factory=dict)
+    retries: int = 0  # connections tried again (``run``'s tries)
 
-    async def run(self, stop: asyncio.Event) -> None:
-        """Connect, subscribe and collect until ``stop`` is set."""
+    async def run(self, stop: asyncio.Event, tries: int = 1) -> None:
+        """Connect, subscribe and collect until ``stop`` is set. ``tries``: connections to try (as Foxglove's app
+        reconnects by itself) while one ends before its handshake, as a door under a flood may end it."""
+        for left in range(tries - 1, -1, -1):
+            try:
+                await self._run(stop)
+                return
+            except (OSError, websockets.exceptions.InvalidHandshake, websockets.exceptions.ConnectionClosed):
+                if left == 0 or self.server_info:
+                    raise
+                self.retries += 1
+
+    async def _run(self, stop: asyncio.Event) -> None:
         async with websockets.connect(self.url, subprotocols=SUBPROTOCOLS,  # type: ignore[arg-type]
                                       max_size=None) as ws:
             while not stop.is_set():
