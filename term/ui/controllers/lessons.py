@@ -110,10 +110,11 @@ class LessonController:
     def _on_truth(self, truth: Truth) -> None:
         if self.room is not None:
             self.room.update(truth)
-        if truth.touches > self._touches:  # the simulator says what the board can only guess from its accelerometer
+        if truth.touches != self._touches:  # the simulator says what the board can only guess from its accelerometer
+            if truth.touches > self._touches:  # (fewer: a simulator started anew counts from zero)
+                self.station.note("warning", "sim", f"the craft touched the {truth.touched} at "
+                                  f"{truth.touch_speed:.1f} m/s (the simulator's room)")
             self._touches = truth.touches
-            self.station.note("warning", "sim", f"the craft touched the {truth.touched} at "
-                              f"{truth.touch_speed:.1f} m/s (the simulator's room)")
         self.driver.truth(truth)
 
     def _on_refused(self, refused: Refused) -> None:
