@@ -20,6 +20,7 @@ Comments and strings are blanked before the numeric rules look at the code, so p
 from __future__ import annotations
 
 import ast
+import functools
 import io
 import re
 import tokenize
@@ -86,14 +87,30 @@ RULES: dict[str, tuple[re.Pattern[str], bool, tuple[str, ...]]] = {
 }
 
 
+@functools.cache
+def _text(path: Path) -> str:
+    """A source's text, read once per run (the rules below look at every file many times; none changes meanwhile)."""
+    return path.read_text(encoding="utf-8")
+
+
+@functools.cache
+def _code_of(path: Path) -> str:
+    return _code_only(_text(path))
+
+
+@functools.cache
+def _parsed(path: Path) -> ast.Module:
+    return ast.parse(_text(path))
+
+
 def _violations(tree: str, rule: str) -> list[str]:
     pattern, raw, trees = RULES[rule]
     if tree not in trees:
         return []
     found = []
     for path in _sources(tree):
-        text = path.read_text(encoding="utf-8")
-        body = text if raw else _code_only(text)
+        text = _text(path)
+        body = text if raw else _code_of(path)
         for n, line in enumerate(body.splitlines(), start=1):
             if pattern.search(line):
                 found.append(f"{path.relative_to(ROOT)}:{n}: {text.splitlines()[n - 1].strip()}")
@@ -150,10 +167,11 @@ def _type_checking_only(tree: ast.AST) -> set[int]:
     return out
 
 
-def _imports(path: Path, type_checking: bool = True) -> set[str]:
+@functools.cache
+def _imports(path: Path, type_checking: bool = True) -> frozenset[str]:
     """Every module ``path`` imports, anywhere in it (a function-level import is a dependency too, and so is one
     under ``if TYPE_CHECKING:`` unless ``type_checking`` is False: a circle through annotations is still a circle)."""
-    tree = ast.parse(path.read_text(encoding="utf-8"))
+    tree = _parsed(path)
     package = _module_name(path).rsplit(".", 0 if path.name == "__init__.py" else 1)[0]
     skip = set() if type_checking else _type_checking_only(tree)
     out: set[str] = set()
@@ -170,7 +188,7 @@ def _imports(path: Path, type_checking: bool = True) -> set[str]:
                 base = ".".join([*parent, base] if base else parent)
             out.add(base)
             out.update(f"{base}.{alias.name}" for alias in node.names)  # `from term.core import protocol`
-    return out
+    return frozenset(out)
 
 
 def _all_modules(tree: str) -> dict[str, Path]:
@@ -345,7 +363,7 @@ def _reaches_fcb_sim(path: Path) -> list[str]:
     """The imports of fcb_sim in a module of term, and the fcb_sim imports inside its string literals (the code a
     child process is started with, ``python -c "from fcb_sim ..."``, which no import statement shows)."""
     found = sorted(m for m in _imports(path) if m.split(".")[0] == "fcb_sim")
-    tree = ast.parse(path.read_text(encoding="utf-8"))
+    tree = _parsed(path)
     prose = _docstrings(tree)
     for node in ast.walk(tree):
         if (isinstance(node, ast.Constant) and isinstance(node.value, str) and id(node) not in prose
@@ -406,10 +424,10 @@ MODULE_MAX_LINES = 800
 def _oversized(paths: list[Path], class_max: int = CLASS_MAX_LINES, module_max: int = MODULE_MAX_LINES) -> list[str]:
     out = []
     for path in paths:
-        text = path.read_text(encoding="utf-8")
+        text = _text(path)
         if (n := text.count("\n")) > module_max:
             out.append(f"{path.relative_to(ROOT)}: {n} lines (at most {module_max})")
-        for node in ast.walk(ast.parse(text)):
+        for node in ast.walk(_parsed(path)):
             if isinstance(node, ast.ClassDef) and (n := node.end_lineno - node.lineno + 1) > class_max:
                 out.append(f"{path.relative_to(ROOT)}: class {node.name} {n} lines (at most {class_max})")
     return out
