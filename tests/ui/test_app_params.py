@@ -57,9 +57,9 @@ async def test_the_parameter_screen_searches_edits_and_shows_refusals() -> None:
         await until(lambda: app.screen.query_one("#param-edit").has_class("editing"))
         await type_into(app, "99")
         app.simulate_key("enter")
-        await pilot.pause(0.1)
-        said = str(app.screen.query_one("#param-help").render())
-        assert "ctrl.p1 must be a number from 0 to 10" in said and app.model.params["ctrl.p1"] == 0.4
+        help_line = app.screen.query_one("#param-help")
+        await until(lambda: "ctrl.p1 must be a number from 0 to 10" in str(help_line.render()))
+        assert app.model.params["ctrl.p1"] == 0.4
         app.simulate_key("escape")  # closes the edit line (typing: the pilot's keys rest)
         await until(lambda: not app.screen.query_one("#param-edit").has_class("editing"))
         # the board's own refusal: the log scheme with a log in the flash

@@ -62,8 +62,8 @@ async def test_a_motor_spins_on_the_real_board_and_any_key_stops_it(board: str) 
             level = DEFAULT_LEVEL + LEVEL_STEP
             await until(pilot, lambda: m.motion is not None and m.motion.ae2 == level, 10)
             assert (m.motion.ae1, m.motion.ae3, m.motion.ae4) == (0, 0, 0) and m.mode == Mode.SAFE
-            await pilot.pause(0.2)
-            assert f"{level:4d}" in str(app.screen.query_one(MotorBars).render())  # the motors panel shows it
+            bars = app.screen.query_one(MotorBars)
+            await until(pilot, lambda: f"{level:4d}" in str(bars.render()))  # the motors panel shows it
             await until(pilot, lambda: any(line.text == f"motor test: mask 2 at {level} for 3000 ms"
                                            for _, line in m.console), 10)  # the board's qb_log, on the console
             app.simulate_key("x")  # any key
