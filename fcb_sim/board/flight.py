@@ -262,6 +262,11 @@ class FlightCore:
         if self.run_height:
             self.height_est.update_baro(pressure_pa, dt)
 
+    def battery_sample(self, volts_10mv: int) -> None:
+        """A battery reading (10 mV): the height estimator's thrust model scales the motors' commands by it."""
+        if hasattr(self.height_est, "supply_v"):
+            self.height_est.supply_v = volts_10mv * 0.01
+
     # ---- modes and control -----------------------------------------------------------------------------------
     def move_setpoint(self, dm: float, lo: float, hi: float) -> float:
         """HEIGHT: the set point moved by ``dm`` metres (the lift keys), kept in ``lo``..``hi``; the new one. A press

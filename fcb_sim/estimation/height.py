@@ -266,7 +266,24 @@ MODEL_BIAS_WALK = 0.02  # m/s²/√s: the bias walk with the thrust model (c's s
 # a keyboard pilot reading the screen (docs/height.md "The thrust model"), and the C board does not have it.
 # ``HeightKalman(thrust_model=True)`` turns it on, or this switch for every HeightKalman built after it is set
 # (bench.height and bench.keyboard --thrust-model).
-THRUST_MODEL = False
+THRUST_MODEL = True
+# The model's gain before the accelerometer has taught it one: the board's nominal hover (four motors at
+# AE_HOVER at a loaded pack of V_REF carry the craft's weight; fcb_sim/world/constants.py AE_HOVER_NOMINAL, V_REF).
+# The hint is scaled by (supply / V_REF)² (the ESCs' speed follows the pack's loaded voltage, the thrust its
+# square), so the gain is the same on a full pack and a tired one. A flight refines it (THRUST_TAU_S).
+AE_HOVER = 400.0
+V_REF = 11.4  # V
+THRUST_C0 = G / (4.0 * AE_HOVER * AE_HOVER)  # m/s² per ae²
+# On the legs (docs/height.md "On the legs"): motors running on the floor the craft stood on, their modelled thrust
+# below the weight: the floor carries it, the height is held and the speed is zero until the model's thrust
+# passes the weight (the lift-off: the model's acceleration is integrated from the floor at once, no lag); the
+# barometer's mean rising LEGS_BARO_M above the held height ends it too (a gain the model got wrong).
+LEGS_BARO_M = 0.25  # m
+# The airframe's vertical drag per unit mass (1/s): the specific force the accelerometer feels in a climb or a
+# descent besides the thrust (fcb_sim/world/constants.py DRAG_LINEAR / MASS: 0.25 N s/m on 0.65 kg; 0.2 m/s² at
+# 0.5 m/s, a quarter of g's 2 %): the model's acceleration and its gain's lesson take it out.
+DRAG_PER_S = 0.385
+LEGS_BARO_TAU_S = 0.5  # s
 
 
 class HeightKalman:
@@ -306,6 +323,7 @@ class HeightKalman:
         self.temperature_k = temperature_k
         self.motors_off = False  # told by the flight core at every control step: no thrust that could lift it
         self.thrust_hint = 0.0  # told by the flight core at every control step: the sum of the motors' ae²
+        self.supply_v = 0.0  # told by the board at every battery reading: the pack's loaded voltage (0: V_REF)
         self.reset(SEA_LEVEL_PA)
 
     def reset(self, pressure_pa: float) -> None:
@@ -349,8 +367,11 @@ class HeightKalman:
         self._c = [0.0, 0.0, 0.0, 0.0]  # its covariance with h, v, b, s
         self._c00 = 0.0
         self._u = self.thrust_hint  # the thrust hint lagged as the rotors follow it (ae²): at reset, where it is
-        self.thrust_c = 0.0  # m/s² per ae²: the model's gain (0: not learnt yet)
-        self._c_n = 0.0  # samples c was learnt from since it was last set at once
+        self.thrust_c = THRUST_C0  # m/s² per ae²: the model's gain (the nominal hover's until learnt)
+        self._c_n = THRUST_TAU_S * 400.0  # samples c was learnt from since it was last set (the prior's weight)
+        self.on_legs = False  # motors running on the floor, their thrust below the weight (update_imu)
+        self._legs_baro = 0.0  # on the legs: the barometer's mean above the held height (m)
+        self._lifting = False  # from the legs until THRUST_ABOVE_M: the model integrated, not re-learnt
         self._az_fast = G  # the accelerometer's body-z reading over THRUST_FAST_S (m/s²)
         self._u_fast = self._u  # the lagged thrust hint over THRUST_FAST_S (ae²), to compare with _az_fast
         self.model_on = False  # the last sample integrated the thrust model (telemetry, tests)
@@ -393,19 +414,27 @@ class HeightKalman:
         self._rest_s = self._rest_s + dt if rest else 0.0
         if self.on_ground != (self._rest_s >= GROUND_REST_S):
             self._set_ground(not self.on_ground)
-        self._u += (self.thrust_hint - self._u) * (dt / (MOTOR_LAG_S + dt))
+        sv = self.supply_v / V_REF if self.supply_v > 0.0 else 1.0
+        self._u += (self.thrust_hint * sv * sv - self._u) * (dt / (MOTOR_LAG_S + dt))
         kf = dt / (THRUST_FAST_S + dt)
         self._az_fast += (az - self._az_fast) * kf
         self._u_fast += (self._u - self._u_fast) * kf  # the model over the same mean as the accelerometer
         if self.on_ground:
             # Standing still: no speed, the height held; what the accelerometer reads is its bias.
-            self.thrust_c = 0.0
             self.bias += a * min(1.0, dt / GROUND_BIAS_TAU_S)
             self.vz = 0.0
             self.az_earth = 0.0
             return
+        r33 = qw * qw - qx * qx - qy * qy + qz * qz
+        if self.on_legs:
+            if self.thrust_c * self._u * r33 <= G and self._legs_baro < LEGS_BARO_M:
+                self.vz = 0.0  # the floor carries what the thrust does not
+                self.az_earth = 0.0
+                return
+            self.on_legs = False  # the thrust passes the weight: it lifts, from the floor, now
+            self._lifting = True
         self.az_earth = a
-        a_in = self._thrust_accel(az, qw * qw - qx * qx - qy * qy + qz * qz, a, dt)
+        a_in = self._thrust_accel(az, r33, a, dt)
         v = self.vz
         if self._stop_hold > 0.0:  # the jolt of a stop: the craft stands at the surface
             self._stop_hold -= dt
@@ -427,29 +456,38 @@ class HeightKalman:
         self.height += (v + 0.5 * a_in * dt) * dt
         self.vz = v + a_in * dt
         self._t_pred += dt
+        if self._lifting and self.height < self.ground_ref:
+            self.height = self.ground_ref  # just off the floor: not below it
+            self.vz = max(0.0, self.vz)
 
     def _thrust_accel(self, az: float, r33: float, a: float, dt: float) -> float:
         """The earth-up acceleration to integrate (m/s²): the thrust model's, c u r33 - g - bias, or the
         accelerometer's ``a`` when the motors are (nearly) off or the model is disabled (module constants)."""
         u = self._u
+        if self._lifting:
+            if u >= THRUST_MIN and self.height - self.ground_ref < THRUST_ABOVE_M:
+                self.model_on = True  # off the legs: the model's thrust, the floor's readings not learnt from
+                return self.thrust_c * u * r33 - DRAG_PER_S * self.vz - G - self.bias
+            self._lifting = False
         if not self.thrust_model or u < THRUST_MIN or self.height - self.ground_ref < THRUST_ABOVE_M:
-            self.thrust_c = 0.0
             self.model_on = False
             return a
         c = self.thrust_c
         uf = self._u_fast
-        if c == 0.0 or abs(self._az_fast - c * uf) > THRUST_GATE:
-            # learnt again at once (the first sample with thrust, a contact); this sample, the accelerometer's
-            self.thrust_c = self._az_fast / max(uf, THRUST_MIN)
+        drag = DRAG_PER_S * self.vz
+        thrust_fast = self._az_fast + drag * r33  # the accelerometer's mean without the drag: the thrust's
+        if abs(thrust_fast - c * uf) > THRUST_GATE:
+            # learnt again at once (a contact, a force the model does not know); this sample, the accelerometer's
+            self.thrust_c = thrust_fast / max(uf, THRUST_MIN)
             self._c_n = 1.0
             self.model_on = False
             return a
         # a running mean of the samples since, until THRUST_TAU_S holds more of them
         self._c_n += 1.0
-        c += (az / u - c) * max(dt / (self.thrust_tau_s + dt), 1.0 / self._c_n)
+        c += ((az + drag * r33) / u - c) * max(dt / (self.thrust_tau_s + dt), 1.0 / self._c_n)
         self.thrust_c = c
         self.model_on = True
-        return c * u * r33 - G - self.bias
+        return c * u * r33 - drag - G - self.bias
 
     @property
     def unsure(self) -> bool:
@@ -472,6 +510,7 @@ class HeightKalman:
         self.vz = 0.0
         self._stop_n = 0
         self._stop_hold = STOP_HOLD_S
+        self._lifting = False
         if self._t_pred > 0.0:
             self._propagate(self._t_pred)
             self._t_pred = 0.0
@@ -517,6 +556,10 @@ class HeightKalman:
 
     def _set_ground(self, on: bool) -> None:
         """Touch-down (at rest, no thrust) or lift-off (thrust, or moved): the state the filter carries on from."""
+        # the motors start on the floor it knows: on the legs until their thrust passes the weight
+        self.on_legs = not on and self.thrust_model and not self.motors_off and (self.anchored or self._snapped)
+        self._legs_baro = 0.0
+        self._lifting = False
         if not on:
             # lift-off: the covariance of a filter at rest, no spike running; a height not yet anchored is unsure
             sh, sv, _sb = INITIAL_SIGMA
@@ -572,6 +615,10 @@ class HeightKalman:
         if self.on_ground:
             self._t_pred = 0.0
             self._ground_baro_update(z, dt)
+            return
+        if self.on_legs:  # the height held: the barometer only watched (a climb the model missed ends it)
+            self._t_pred = 0.0
+            self._legs_baro += (z - self.height - self._legs_baro) * min(1.0, max(0.0, dt) / LEGS_BARO_TAU_S)
             return
         # the IMU's clock decides how far the state was predicted; dt only if no IMU sample came in between
         t = self._t_pred if self._t_pred > 0.0 else max(0.0, dt)
@@ -635,6 +682,9 @@ class HeightKalman:
         self.vz += kv * nu
         self.bias += kb * nu
         self.spike += ks * nu
+        if self._lifting and self.height < self.ground_ref:
+            self.height = self.ground_ref  # just off the floor: not below it
+            self.vz = max(0.0, self.vz)
         ch, cv, cb, cs = self._c
         g0 = ch + cs
         k0 = g0 / s

@@ -246,6 +246,7 @@ static void task_baro(qb_board_t *b)
     b->baro_t = b->now;
     b->baro_set = 1;
     qb_flight_baro(&b->core, b->pressure, dt);
+    b->core.hest.supply_v = b->battery * 0.01; /* the thrust model scales the motors' commands by the pack */
     b->modes.battery = b->battery;
     if (b->modes.mode == QP_MODE_CALIBRATION)
         qb_modes_cal_add(&b->modes, QB_CAL_PRESSURE, b->pressure);

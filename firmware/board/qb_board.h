@@ -144,6 +144,11 @@ typedef struct {
     uint8_t snapped, stop_n, stop_kind;      /* on the floor at ground_ref; a jolt's run; the last stop (1 down, 2 up) */
     qb_real stop_v, stop_hold, stop_speed;
     uint32_t stops;
+    /* the thrust model (docs/height.md "The thrust model"): the flight core's hint (sum of ae²) and the pack's
+     * voltage, the hint lagged as the rotors follow (u), the gain c, the fast means the gate compares; on the legs */
+    qb_real q_model, q_model_bias;
+    qb_real thrust_hint, supply_v, u, thrust_c, c_n, az_fast, u_fast, legs_baro;
+    uint8_t thrust_model, model_on, on_legs, lifting;
 } qb_height_t;
 
 void qb_height_init(qb_height_t *h);

@@ -20,6 +20,9 @@ void qb_height_init(qb_height_t *h)
     h->q_acc = ACC_NOISE_DENSITY * ACC_NOISE_DENSITY;
     h->q_bias = BIAS_WALK * BIAS_WALK;
     h->r = BARO_SIGMA_M * BARO_SIGMA_M;
+    h->q_model = MODEL_NOISE_DENSITY * MODEL_NOISE_DENSITY;
+    h->q_model_bias = MODEL_BIAS_WALK * MODEL_BIAS_WALK;
+    h->thrust_model = THRUST_MODEL;
     qb_height_reset(h, SEA_LEVEL_PA);
 }
 
@@ -56,6 +59,13 @@ void qb_height_reset(qb_height_t *h, qb_real pressure_pa)
     h->stop_v = h->stop_hold = h->stop_speed = 0.0;
     h->stops = 0;
     h->motors_off = motors_off;
+    h->u = h->thrust_hint; /* the hint lagged as the rotors follow it: at reset, where it is */
+    h->thrust_c = THRUST_C0;
+    h->c_n = THRUST_TAU_S * 400.0;
+    h->az_fast = G;
+    h->u_fast = h->u;
+    h->model_on = h->on_legs = h->lifting = 0;
+    h->legs_baro = 0.0;
 }
 
 static void propagate(qb_height_t *h, qb_real t)
@@ -67,7 +77,7 @@ static void propagate(qb_height_t *h, qb_real t)
     qb_real ah = hh + t * hv - c * hb, av = hv + t * vv - c * vb, ab = hb + t * vb - c * bb;
     qb_real as_ = hs + t * vs - c * bs;
     qb_real bv = vv - t * vb, bb_ = vb - t * bb, bs_ = vs - t * bs;
-    qb_real qa = h->q_acc, qb = h->q_bias, t3 = t * t * t;
+    qb_real qa = h->model_on ? h->q_model : h->q_acc, qb = h->model_on ? h->q_model_bias : h->q_bias, t3 = t * t * t;
     qb_real ch = h->c[0], cv = h->c[1], cb = h->c[2], cs = h->c[3];
     qb_real s, ds;
     h->c[0] = ch + t * cv - c * cb;
@@ -103,6 +113,10 @@ qb_real qb_height_capture(qb_height_t *h)
 
 static void set_ground(qb_height_t *h, int on)
 {
+    /* the motors start on the floor it knows: on the legs until their thrust passes the weight */
+    h->on_legs = (uint8_t)(!on && h->thrust_model && !h->motors_off && (h->anchored || h->snapped));
+    h->legs_baro = 0.0;
+    h->lifting = 0;
     if (!on) {
         qb_real var_h = INITIAL_SIGMA[0] * INITIAL_SIGMA[0];
         qb_real bb = h->p[7];
@@ -151,6 +165,7 @@ static void hard_stop(qb_height_t *h)
     h->vz = 0.0;
     h->stop_n = 0;
     h->stop_hold = STOP_HOLD_S;
+    h->lifting = 0;
     if (h->t_pred > 0.0) {
         propagate(h, h->t_pred);
         h->t_pred = 0.0;
@@ -164,10 +179,46 @@ static void hard_stop(qb_height_t *h)
     h->trend = 0.0;
 }
 
+/* The earth-up acceleration to integrate (m/s²): the thrust model's, c u r33 - drag - g - bias, or the
+ * accelerometer's a when the motors are (nearly) off or the model is disabled. */
+static qb_real thrust_accel(qb_height_t *h, qb_real az, qb_real r33, qb_real a, qb_real dt)
+{
+    qb_real u = h->u, c, uf, drag, thrust_fast, k;
+    if (h->lifting) {
+        if (u >= THRUST_MIN && h->height - h->ground_ref < THRUST_ABOVE_M) {
+            h->model_on = 1; /* off the legs: the model's thrust, the floor's readings not learnt from */
+            return h->thrust_c * u * r33 - DRAG_PER_S * h->vz - G - h->bias;
+        }
+        h->lifting = 0;
+    }
+    if (!h->thrust_model || u < THRUST_MIN || h->height - h->ground_ref < THRUST_ABOVE_M) {
+        h->model_on = 0;
+        return a;
+    }
+    c = h->thrust_c;
+    uf = h->u_fast;
+    drag = DRAG_PER_S * h->vz;
+    thrust_fast = h->az_fast + drag * r33; /* the accelerometer's mean without the drag: the thrust's */
+    if (QM(fabs)(thrust_fast - c * uf) > THRUST_GATE) { /* learnt again at once (a contact): this sample, the acc's */
+        h->thrust_c = thrust_fast / (uf > THRUST_MIN ? uf : THRUST_MIN);
+        h->c_n = 1.0;
+        h->model_on = 0;
+        return a;
+    }
+    h->c_n += 1.0;
+    k = dt / (THRUST_TAU_S + dt);
+    if (k < 1.0 / h->c_n)
+        k = 1.0 / h->c_n;
+    c += ((az + drag * r33) / u - c) * k;
+    h->thrust_c = c;
+    h->model_on = 1;
+    return c * u * r33 - drag - G - h->bias;
+}
+
 void qb_height_update_imu(qb_height_t *h, qb_real ax, qb_real ay, qb_real az, qb_real qw, qb_real qx, qb_real qy,
                           qb_real qz, qb_real dt)
 {
-    qb_real a, v;
+    qb_real a, v, r33, sv, kf, a_in;
     int rest, n;
     if (dt <= 0.0)
         return;
@@ -178,13 +229,29 @@ void qb_height_update_imu(qb_height_t *h, qb_real ax, qb_real ay, qb_real az, qb
     h->rest_s = rest ? h->rest_s + dt : 0.0;
     if (h->on_ground != (h->rest_s >= GROUND_REST_S))
         set_ground(h, !h->on_ground);
+    sv = h->supply_v > 0.0 ? h->supply_v / THRUST_V_REF : 1.0;
+    h->u += (h->thrust_hint * sv * sv - h->u) * (dt / (MOTOR_LAG_S + dt));
+    kf = dt / (THRUST_FAST_S + dt);
+    h->az_fast += (az - h->az_fast) * kf;
+    h->u_fast += (h->u - h->u_fast) * kf;
     if (h->on_ground) {
         h->bias += a * (dt / GROUND_BIAS_TAU_S < 1.0 ? dt / GROUND_BIAS_TAU_S : 1.0);
         h->vz = 0.0;
         h->az_earth = 0.0;
         return;
     }
+    r33 = qw * qw - qx * qx - qy * qy + qz * qz;
+    if (h->on_legs) {
+        if (h->thrust_c * h->u * r33 <= G && h->legs_baro < LEGS_BARO_M) {
+            h->vz = 0.0; /* the floor carries what the thrust does not */
+            h->az_earth = 0.0;
+            return;
+        }
+        h->on_legs = 0; /* the thrust passes the weight: it lifts, from the floor, now */
+        h->lifting = 1;
+    }
     h->az_earth = a;
+    a_in = thrust_accel(h, az, r33, a, dt);
     v = h->vz;
     if (h->stop_hold > 0.0) { /* the jolt of a stop: the craft stands at the surface */
         h->stop_hold -= dt;
@@ -207,9 +274,13 @@ void qb_height_update_imu(qb_height_t *h, qb_real ax, qb_real ay, qb_real az, qb
             return;
         }
     }
-    h->height += (v + 0.5 * a * dt) * dt;
-    h->vz = v + a * dt;
+    h->height += (v + 0.5 * a_in * dt) * dt;
+    h->vz = v + a_in * dt;
     h->t_pred += dt;
+    if (h->lifting && h->height < h->ground_ref) {
+        h->height = h->ground_ref; /* just off the floor: not below it */
+        h->vz = h->vz > 0.0 ? h->vz : 0.0;
+    }
 }
 
 static int cmp_double(const void *a, const void *b)
@@ -277,6 +348,10 @@ static void baro_correct(qb_height_t *h, const qb_real p[10], qb_real nu, qb_rea
     h->vz += kv * nu;
     h->bias += kb * nu;
     h->spike += ks * nu;
+    if (h->lifting && h->height < h->ground_ref) {
+        h->height = h->ground_ref; /* just off the floor: not below it */
+        h->vz = h->vz > 0.0 ? h->vz : 0.0;
+    }
     h->captured_height += k0 * nu;
     h->c[0] = ch - k0 * gh;
     h->c[1] = cv - k0 * gv;
@@ -341,6 +416,12 @@ void qb_height_update_baro(qb_height_t *h, qb_real pressure_pa, qb_real dt)
     if (h->on_ground) {
         h->t_pred = 0.0;
         ground_baro_update(h, z, dt);
+        return;
+    }
+    if (h->on_legs) { /* the height held: the barometer only watched (a climb the model missed ends it) */
+        qb_real k = (dt > 0.0 ? dt : 0.0) / LEGS_BARO_TAU_S;
+        h->t_pred = 0.0;
+        h->legs_baro += (z - h->height - h->legs_baro) * (k < 1.0 ? k : 1.0);
         return;
     }
     t = h->t_pred > 0.0 ? h->t_pred : (dt > 0.0 ? dt : 0.0);

@@ -610,7 +610,9 @@ def test_the_barometers_ground_re_reference_is_the_same_on_both_boards() -> None
         pair.step()
         heights.append((pair.py.core.height, pair.c.state()["height"], pair.py.core.height_est.p_ref))
     pair.check()
-    assert all(abs(py - c) < 1e-6 for py, c, _ in heights), max(abs(py - c) for py, c, _ in heights)
+    # the same arithmetic (1e-9 between the boards' samples), but the Python board's tasks run a few µs after the
+    # tick: climbing at 0.4 m/s from the pad (the thrust model lifts the estimate with the craft) that is 2e-6 m
+    assert all(abs(py - c) < 1e-5 for py, c, _ in heights), max(abs(py - c) for py, c, _ in heights)
     assert heights[1400][2] != heights[-1][2]  # the reference moved at lift-off: the drift taken out
 
 
