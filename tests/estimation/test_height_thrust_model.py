@@ -104,13 +104,14 @@ def _take_off(kf: HeightKalman, *, supply_v: float = V_REF, seed: int = 5, ramp_
     assert kf.on_ground
     kf.motors_off = False
     h = v = 0.0
+    u = 0.6 * HOVER_U  # the motors spun up on the pad (where the ramp starts)
     out = []
     s2 = (supply_v / V_REF) ** 2
     for n in range(round(seconds / DT)):
         t = n * DT
         cmd = HOVER_U * (0.6 + 0.7 * min(1.0, t / ramp_s))
         kf.thrust_hint = cmd
-        u = cmd if n == 0 else u + (cmd - u) * DT / (0.03 + DT)  # the rotors follow in 30 ms
+        u += (cmd - u) * DT / (0.03 + DT)  # the rotors follow in 30 ms
         f = G * u * s2 / HOVER_U - DRAG_PER_S * v
         acc = f - G
         if h <= 0.0 and acc < 0.0:
