@@ -64,9 +64,10 @@ def main() -> None:
     ap.add_argument("--eyes", choices=EYES, default="room", help="what the pilot reads the height from")
     ap.add_argument("--lift-step", type=int, default=None, help="stick units per press (default: the board's)")
     ap.add_argument("--first-seed", type=int, default=1, help="the first seed (101: the thrust model's tuning set)")
-    ap.add_argument("--thrust-model", action="store_true", help="fly the height estimator's thrust model")
+    ap.add_argument("--thrust-model", choices=("on", "off"), default="on",
+                    help="the height estimator's thrust model (on: the boards' default)")
     args = ap.parse_args()
-    height_module.THRUST_MODEL = args.thrust_model
+    height_module.THRUST_MODEL = args.thrust_model == "on"
     worst, presses = [], []
     for seed in range(args.first_seed, args.first_seed + args.seeds):
         track, n = keyboard_hover(seed, lift_step=args.lift_step, eyes=args.eyes)

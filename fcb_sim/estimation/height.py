@@ -19,9 +19,11 @@ landing nor the barometer's drift moves it (``on_ground``, ``anchored``); on the
 height is 0 at once and the barometer's offset there goes into the reference. A hard stop (a jolt against the
 motion, over within 30 ms: the ceiling, a landing) zeroes the speed and makes the height ``unsure`` until the
 barometer has pulled it in (``stops``, ``stop_kind``, ``stop_speed``; docs/height.md "Contact"). The thrust model
-(``thrust_model``, ``THRUST_MODEL``; off on both boards, an experiment) integrates the motors' thrust (the flight
-core's ``thrust_hint``, the sum of ae²) scaled by a gain learnt from the accelerometer, instead of the
-accelerometer's vibration (docs/height.md "The thrust model").
+(``thrust_model``, ``THRUST_MODEL``; on, on both boards) integrates the motors' thrust (the flight core's
+``thrust_hint``, the sum of ae², scaled by the pack's voltage ``supply_v`` squared) times a gain (the nominal hover's,
+then learnt from the accelerometer), less the airframe's drag, instead of the accelerometer's vibration; with the
+motors running on the pad the craft is ``on_legs`` (the height held, the speed zero) until that thrust passes the
+weight, and the climb is integrated from the floor at once (docs/height.md "The thrust model").
 
 ``HeightEstimator``: the report's Figure 10, after Klas Löfstedt's altitude estimator: a velocity and a position
 complementary filter between the high-passed earth-frame acceleration and the low-passed barometer, with the
@@ -252,8 +254,8 @@ TREND_VZ_VAR = 0.25  # (m/s)² added to the speed's variance at such a reading
 # THRUST_TAU_S. The filter integrates c u instead of the accelerometer's vibration (0.15 g rms at hover): what the
 # model misses (drag, a gust, the battery's sag) reaches the height through c within THRUST_TAU_S and through the
 # barometer. A contact (the floor, the ceiling: a force the model knows nothing of) shows as the accelerometer's
-# 20 ms mean leaving the model by THRUST_GATE: c is set to what the accelerometer reads at once. Below THRUST_MIN
-# (the motors off or near it) the accelerometer is integrated, as before.
+# 0.2 s mean (without the drag) leaving the model by THRUST_GATE: c is set to what the accelerometer reads at once.
+# Below THRUST_MIN (the motors off or near it) the accelerometer is integrated, as before.
 MOTOR_LAG_S = 0.03  # s: the rotors' time constant (fcb_sim/world/constants.py MOTOR_TAU)
 THRUST_TAU_S = 10.0  # s
 THRUST_FAST_S = 0.2  # s: the accelerometer's mean the gate compares
@@ -262,10 +264,9 @@ THRUST_MIN = 10000.0  # ae²: four motors at 50
 THRUST_ABOVE_M = 0.15  # m: nearer the floor than this the legs may carry it (a force the model does not know)
 MODEL_NOISE_DENSITY = 0.04  # m/s²/√Hz: the process noise with the thrust model (what c u misses)
 MODEL_BIAS_WALK = 0.02  # m/s²/√s: the bias walk with the thrust model (c's slow error goes to the bias state)
-# The thrust model is an experiment (issue 35), off by default: it lowers the vz noise at hover but not enough for
-# a keyboard pilot reading the screen (docs/height.md "The thrust model"), and the C board does not have it.
-# ``HeightKalman(thrust_model=True)`` turns it on, or this switch for every HeightKalman built after it is set
-# (bench.height and bench.keyboard --thrust-model).
+# The thrust model is on on both boards (issue 35; firmware/board/qb_height.c twins it): a keyboard pilot who reads
+# the screen holds 1 m with it (docs/height.md "The thrust model"). ``HeightKalman(thrust_model=False)`` turns it
+# off, or this switch for every HeightKalman built after it is set (bench.height and bench.keyboard --thrust-model).
 THRUST_MODEL = True
 # The model's gain before the accelerometer has taught it one: the board's nominal hover (four motors at
 # AE_HOVER at a loaded pack of V_REF carry the craft's weight; fcb_sim/world/constants.py AE_HOVER_NOMINAL, V_REF).
@@ -274,16 +275,14 @@ THRUST_MODEL = True
 AE_HOVER = 400.0
 V_REF = 11.4  # V
 THRUST_C0 = G / (4.0 * AE_HOVER * AE_HOVER)  # m/s² per ae²
-# On the legs (docs/height.md "On the legs"): motors running on the floor the craft stood on, their modelled thrust
-# below the weight: the floor carries it, the height is held and the speed is zero until the model's thrust
+# On the legs (docs/height.md "The thrust model"): motors running on the floor the craft stood on, their modelled
+# thrust below the weight: the floor carries it, the height is held and the speed is zero until the model's thrust
 # passes the weight (the lift-off: the model's acceleration is integrated from the floor at once, no lag); the
-# barometer's mean rising LEGS_BARO_M above the held height ends it too (a gain the model got wrong).
-LEGS_BARO_M = 0.25  # m
+# accelerometer's 0.2 s mean beyond g by THRUST_GATE ends it too (a climb the model's gain missed: a heavier craft).
 # The airframe's vertical drag per unit mass (1/s): the specific force the accelerometer feels in a climb or a
 # descent besides the thrust (fcb_sim/world/constants.py DRAG_LINEAR / MASS: 0.25 N s/m on 0.65 kg; 0.2 m/s² at
 # 0.5 m/s, a quarter of g's 2 %): the model's acceleration and its gain's lesson take it out.
 DRAG_PER_S = 0.385
-LEGS_BARO_TAU_S = 0.5  # s
 
 
 class HeightKalman:
@@ -322,8 +321,16 @@ class HeightKalman:
         self.rejump_window_s = rejump_window_s
         self.temperature_k = temperature_k
         self.motors_off = False  # told by the flight core at every control step: no thrust that could lift it
-        self.thrust_hint = 0.0  # told by the flight core at every control step: the sum of the motors' ae²
-        self.supply_v = 0.0  # told by the board at every battery reading: the pack's loaded voltage (0: V_REF)
+        self.thrust_hint = 0.0  # told by the flight core at every control step: the sum of ae², times supply_sq
+        self.supply_sq = 1.0  # (the pack's loaded voltage / V_REF)², told by the flight core at every battery reading
+        # the thrust model's state, kept by a reset (the craft's gain does not change with a calibration)
+        self._u = 0.0  # the thrust hint lagged as the rotors follow it (ae²)
+        self.thrust_c = THRUST_C0  # m/s² per ae²: the model's gain (the nominal hover's until learnt)
+        self._az_fast = G  # the accelerometer's body-z reading over THRUST_FAST_S (m/s²)
+        self._u_fast = 0.0  # the lagged thrust hint over THRUST_FAST_S (ae²), to compare with _az_fast
+        self.model_on = False  # the last sample integrated the thrust model (telemetry, tests)
+        self.on_legs = False  # motors running on the floor, their thrust below the weight (update_imu)
+        self._lifting = False  # from the legs until THRUST_ABOVE_M: the model integrated, not re-learnt
         self.reset(SEA_LEVEL_PA)
 
     def reset(self, pressure_pa: float) -> None:
@@ -366,15 +373,6 @@ class HeightKalman:
         self.captured_height = 0.0
         self._c = [0.0, 0.0, 0.0, 0.0]  # its covariance with h, v, b, s
         self._c00 = 0.0
-        self._u = self.thrust_hint  # the thrust hint lagged as the rotors follow it (ae²): at reset, where it is
-        self.thrust_c = THRUST_C0  # m/s² per ae²: the model's gain (the nominal hover's until learnt)
-        self._c_n = THRUST_TAU_S * 400.0  # samples c was learnt from since it was last set (the prior's weight)
-        self.on_legs = False  # motors running on the floor, their thrust below the weight (update_imu)
-        self._legs_baro = 0.0  # on the legs: the barometer's mean above the held height (m)
-        self._lifting = False  # from the legs until THRUST_ABOVE_M: the model integrated, not re-learnt
-        self._az_fast = G  # the accelerometer's body-z reading over THRUST_FAST_S (m/s²)
-        self._u_fast = self._u  # the lagged thrust hint over THRUST_FAST_S (ae²), to compare with _az_fast
-        self.model_on = False  # the last sample integrated the thrust model (telemetry, tests)
 
     def capture(self) -> float:
         """Remember the height of this instant (HEIGHT's set point) and return it. Unlike a copy of ``height``,
@@ -414,9 +412,8 @@ class HeightKalman:
         self._rest_s = self._rest_s + dt if rest else 0.0
         if self.on_ground != (self._rest_s >= GROUND_REST_S):
             self._set_ground(not self.on_ground)
-        sv = self.supply_v / V_REF if self.supply_v > 0.0 else 1.0
-        self._u += (self.thrust_hint * sv * sv - self._u) * (dt / (MOTOR_LAG_S + dt))
-        kf = dt / (THRUST_FAST_S + dt)
+        self._u += (self.thrust_hint - self._u) * (dt / (MOTOR_LAG_S + dt))
+        kf = dt * (1.0 / THRUST_FAST_S)
         self._az_fast += (az - self._az_fast) * kf
         self._u_fast += (self._u - self._u_fast) * kf  # the model over the same mean as the accelerometer
         if self.on_ground:
@@ -427,7 +424,7 @@ class HeightKalman:
             return
         r33 = qw * qw - qx * qx - qy * qy + qz * qz
         if self.on_legs:
-            if self.thrust_c * self._u * r33 <= G and self._legs_baro < LEGS_BARO_M:
+            if self.thrust_c * self._u * r33 <= G and self._az_fast <= G + THRUST_GATE:
                 self.vz = 0.0  # the floor carries what the thrust does not
                 self.az_earth = 0.0
                 return
@@ -457,34 +454,33 @@ class HeightKalman:
         self.vz = v + a_in * dt
         self._t_pred += dt
         if self._lifting and self.height < self.ground_ref:
-            self.height = self.ground_ref  # just off the floor: not below it
-            self.vz = max(0.0, self.vz)
+            self.height = self.ground_ref  # just off the floor (the barometer's pull too): not below it
+            if self.vz < 0.0:
+                self.vz = 0.0
 
     def _thrust_accel(self, az: float, r33: float, a: float, dt: float) -> float:
         """The earth-up acceleration to integrate (m/s²): the thrust model's, c u r33 - g - bias, or the
         accelerometer's ``a`` when the motors are (nearly) off or the model is disabled (module constants)."""
         u = self._u
-        if self._lifting:
-            if u >= THRUST_MIN and self.height - self.ground_ref < THRUST_ABOVE_M:
-                self.model_on = True  # off the legs: the model's thrust, the floor's readings not learnt from
-                return self.thrust_c * u * r33 - DRAG_PER_S * self.vz - G - self.bias
-            self._lifting = False
-        if not self.thrust_model or u < THRUST_MIN or self.height - self.ground_ref < THRUST_ABOVE_M:
-            self.model_on = False
-            return a
         c = self.thrust_c
-        uf = self._u_fast
-        drag = DRAG_PER_S * self.vz
-        thrust_fast = self._az_fast + drag * r33  # the accelerometer's mean without the drag: the thrust's
-        if abs(thrust_fast - c * uf) > THRUST_GATE:
-            # learnt again at once (a contact, a force the model does not know); this sample, the accelerometer's
-            self.thrust_c = thrust_fast / max(uf, THRUST_MIN)
-            self._c_n = 1.0
+        drag = DRAG_PER_S * self.vz  # (along the body's z: the same at the small tilts of a hover or a climb)
+        strong = u >= THRUST_MIN
+        near = self.height - self.ground_ref < THRUST_ABOVE_M
+        if self._lifting:
+            if strong and near:
+                self.model_on = True  # off the legs: the model's thrust, the floor's readings not learnt from
+                return c * u * r33 - drag - G - self.bias
+            self._lifting = False
+        if not self.thrust_model or not strong or near:
             self.model_on = False
             return a
-        # a running mean of the samples since, until THRUST_TAU_S holds more of them
-        self._c_n += 1.0
-        c += ((az + drag * r33) / u - c) * max(dt / (self.thrust_tau_s + dt), 1.0 / self._c_n)
+        thrust_fast = self._az_fast + drag  # the accelerometer's mean without the drag: the thrust's
+        if abs(thrust_fast - c * self._u_fast) > THRUST_GATE:
+            # learnt again at once (a contact, a force the model does not know); this sample, the accelerometer's
+            self.thrust_c = thrust_fast / self._u_fast  # (> 0: the hint has been on since u passed THRUST_MIN)
+            self.model_on = False
+            return a
+        c += ((az + drag) / u - c) * (dt * (1.0 / self.thrust_tau_s))  # a running mean over THRUST_TAU_S
         self.thrust_c = c
         self.model_on = True
         return c * u * r33 - drag - G - self.bias
@@ -558,7 +554,6 @@ class HeightKalman:
         """Touch-down (at rest, no thrust) or lift-off (thrust, or moved): the state the filter carries on from."""
         # the motors start on the floor it knows: on the legs until their thrust passes the weight
         self.on_legs = not on and self.thrust_model and not self.motors_off and (self.anchored or self._snapped)
-        self._legs_baro = 0.0
         self._lifting = False
         if not on:
             # lift-off: the covariance of a filter at rest, no spike running; a height not yet anchored is unsure
@@ -616,9 +611,8 @@ class HeightKalman:
             self._t_pred = 0.0
             self._ground_baro_update(z, dt)
             return
-        if self.on_legs:  # the height held: the barometer only watched (a climb the model missed ends it)
+        if self.on_legs:  # the height held: the barometer not needed (its noise would move it)
             self._t_pred = 0.0
-            self._legs_baro += (z - self.height - self._legs_baro) * min(1.0, max(0.0, dt) / LEGS_BARO_TAU_S)
             return
         # the IMU's clock decides how far the state was predicted; dt only if no IMU sample came in between
         t = self._t_pred if self._t_pred > 0.0 else max(0.0, dt)
@@ -682,9 +676,6 @@ class HeightKalman:
         self.vz += kv * nu
         self.bias += kb * nu
         self.spike += ks * nu
-        if self._lifting and self.height < self.ground_ref:
-            self.height = self.ground_ref  # just off the floor: not below it
-            self.vz = max(0.0, self.vz)
         ch, cv, cb, cs = self._c
         g0 = ch + cs
         k0 = g0 / s

@@ -123,7 +123,6 @@ int32_t qb_tilt_cdeg(int32_t phi_cdeg, int32_t theta_cdeg);
 #define QB_ANCHOR_MAX 64
 
 typedef struct {
-    qb_real q_acc, q_bias, r;
     qb_real p_ref, k_pa_per_m;
     qb_real height, vz, bias, spike, az_earth, baro_raw, innovation;
     qb_real p[10];
@@ -146,9 +145,8 @@ typedef struct {
     uint32_t stops;
     /* the thrust model (docs/height.md "The thrust model"): the flight core's hint (sum of ae²) and the pack's
      * voltage, the hint lagged as the rotors follow (u), the gain c, the fast means the gate compares; on the legs */
-    qb_real q_model, q_model_bias;
-    qb_real thrust_hint, supply_v, u, thrust_c, c_n, az_fast, u_fast, legs_baro;
-    uint8_t thrust_model, model_on, on_legs, lifting;
+    qb_real thrust_hint, supply_sq, u, thrust_c, az_fast, u_fast;
+    uint8_t model_on, on_legs, lifting; /* the model is on when THRUST_MODEL (qb_estimator.h) */
 } qb_height_t;
 
 void qb_height_init(qb_height_t *h);

@@ -48,10 +48,7 @@
 #define MODEL_NOISE_DENSITY 0.04 /* fcb_sim.estimation.height: MODEL_NOISE_DENSITY */
 #define MODEL_BIAS_WALK 0.02 /* fcb_sim.estimation.height: MODEL_BIAS_WALK */
 #define THRUST_MODEL 1 /* fcb_sim.estimation.height: THRUST_MODEL */
-#define THRUST_V_REF 11.4 /* fcb_sim.estimation.height: V_REF */
 #define THRUST_C0 1.5322890625e-05 /* fcb_sim.estimation.height: THRUST_C0 */
-#define LEGS_BARO_M 0.25 /* fcb_sim.estimation.height: LEGS_BARO_M */
-#define LEGS_BARO_TAU_S 0.5 /* fcb_sim.estimation.height: LEGS_BARO_TAU_S */
 #define DRAG_PER_S 0.385 /* fcb_sim.estimation.height: DRAG_PER_S */
 #define GROUND_AE 280 /* fcb_sim.board.flight: GROUND_AE */
 #define WALL_ACC 6.9 /* fcb_sim.board.flight: WALL_ACC */

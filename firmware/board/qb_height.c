@@ -17,12 +17,9 @@ static const qb_real INITIAL_SIGMA[3] = {0.03, 0.05, 0.1};
 void qb_height_init(qb_height_t *h)
 {
     memset(h, 0, sizeof *h);
-    h->q_acc = ACC_NOISE_DENSITY * ACC_NOISE_DENSITY;
-    h->q_bias = BIAS_WALK * BIAS_WALK;
-    h->r = BARO_SIGMA_M * BARO_SIGMA_M;
-    h->q_model = MODEL_NOISE_DENSITY * MODEL_NOISE_DENSITY;
-    h->q_model_bias = MODEL_BIAS_WALK * MODEL_BIAS_WALK;
-    h->thrust_model = THRUST_MODEL;
+    h->supply_sq = 1.0;
+    h->thrust_c = THRUST_C0; /* the model's gain, the nominal hover's until learnt (kept by a reset: the craft's) */
+    h->az_fast = G;
     qb_height_reset(h, SEA_LEVEL_PA);
 }
 
@@ -59,13 +56,6 @@ void qb_height_reset(qb_height_t *h, qb_real pressure_pa)
     h->stop_v = h->stop_hold = h->stop_speed = 0.0;
     h->stops = 0;
     h->motors_off = motors_off;
-    h->u = h->thrust_hint; /* the hint lagged as the rotors follow it: at reset, where it is */
-    h->thrust_c = THRUST_C0;
-    h->c_n = THRUST_TAU_S * 400.0;
-    h->az_fast = G;
-    h->u_fast = h->u;
-    h->model_on = h->on_legs = h->lifting = 0;
-    h->legs_baro = 0.0;
 }
 
 static void propagate(qb_height_t *h, qb_real t)
@@ -77,7 +67,9 @@ static void propagate(qb_height_t *h, qb_real t)
     qb_real ah = hh + t * hv - c * hb, av = hv + t * vv - c * vb, ab = hb + t * vb - c * bb;
     qb_real as_ = hs + t * vs - c * bs;
     qb_real bv = vv - t * vb, bb_ = vb - t * bb, bs_ = vs - t * bs;
-    qb_real qa = h->model_on ? h->q_model : h->q_acc, qb = h->model_on ? h->q_model_bias : h->q_bias, t3 = t * t * t;
+    /* the process noise: the accelerometer's vibration, or what the thrust model misses */
+    qb_real qa = h->model_on ? MODEL_NOISE_DENSITY * MODEL_NOISE_DENSITY : ACC_NOISE_DENSITY * ACC_NOISE_DENSITY;
+    qb_real qb = h->model_on ? MODEL_BIAS_WALK * MODEL_BIAS_WALK : BIAS_WALK * BIAS_WALK, t3 = t * t * t;
     qb_real ch = h->c[0], cv = h->c[1], cb = h->c[2], cs = h->c[3];
     qb_real s, ds;
     h->c[0] = ch + t * cv - c * cb;
@@ -114,8 +106,7 @@ qb_real qb_height_capture(qb_height_t *h)
 static void set_ground(qb_height_t *h, int on)
 {
     /* the motors start on the floor it knows: on the legs until their thrust passes the weight */
-    h->on_legs = (uint8_t)(!on && h->thrust_model && !h->motors_off && (h->anchored || h->snapped));
-    h->legs_baro = 0.0;
+    h->on_legs = (uint8_t)(!on && THRUST_MODEL && !h->motors_off && (h->anchored || h->snapped));
     h->lifting = 0;
     if (!on) {
         qb_real var_h = INITIAL_SIGMA[0] * INITIAL_SIGMA[0];
@@ -183,55 +174,46 @@ static void hard_stop(qb_height_t *h)
  * accelerometer's a when the motors are (nearly) off or the model is disabled. */
 static qb_real thrust_accel(qb_height_t *h, qb_real az, qb_real r33, qb_real a, qb_real dt)
 {
-    qb_real u = h->u, c, uf, drag, thrust_fast, k;
+    qb_real u = h->u, c = h->thrust_c, drag = DRAG_PER_S * h->vz, thrust_fast;
+    int strong = u >= THRUST_MIN, near = h->height - h->ground_ref < THRUST_ABOVE_M;
+    h->model_on = 1;
     if (h->lifting) {
-        if (u >= THRUST_MIN && h->height - h->ground_ref < THRUST_ABOVE_M) {
-            h->model_on = 1; /* off the legs: the model's thrust, the floor's readings not learnt from */
-            return h->thrust_c * u * r33 - DRAG_PER_S * h->vz - G - h->bias;
-        }
+        if (strong && near)
+            goto model; /* off the legs: the model's thrust, the floor's readings not learnt from */
         h->lifting = 0;
     }
-    if (!h->thrust_model || u < THRUST_MIN || h->height - h->ground_ref < THRUST_ABOVE_M) {
-        h->model_on = 0;
-        return a;
+    if (!THRUST_MODEL || !strong || near)
+        goto accelerometer;
+    thrust_fast = h->az_fast + drag; /* the accelerometer's mean without the drag: the thrust's */
+    if (QM(fabs)(thrust_fast - c * h->u_fast) > THRUST_GATE) { /* learnt again at once (a contact): the acc's */
+        h->thrust_c = thrust_fast / h->u_fast;
+        goto accelerometer;
     }
-    c = h->thrust_c;
-    uf = h->u_fast;
-    drag = DRAG_PER_S * h->vz;
-    thrust_fast = h->az_fast + drag * r33; /* the accelerometer's mean without the drag: the thrust's */
-    if (QM(fabs)(thrust_fast - c * uf) > THRUST_GATE) { /* learnt again at once (a contact): this sample, the acc's */
-        h->thrust_c = thrust_fast / (uf > THRUST_MIN ? uf : THRUST_MIN);
-        h->c_n = 1.0;
-        h->model_on = 0;
-        return a;
-    }
-    h->c_n += 1.0;
-    k = dt / (THRUST_TAU_S + dt);
-    if (k < 1.0 / h->c_n)
-        k = 1.0 / h->c_n;
-    c += ((az + drag * r33) / u - c) * k;
+    c += ((az + drag) / u - c) * (dt * (1.0 / THRUST_TAU_S)); /* a running mean over THRUST_TAU_S */
     h->thrust_c = c;
-    h->model_on = 1;
+model:
     return c * u * r33 - drag - G - h->bias;
+accelerometer:
+    h->model_on = 0;
+    return a;
 }
 
 void qb_height_update_imu(qb_height_t *h, qb_real ax, qb_real ay, qb_real az, qb_real qw, qb_real qx, qb_real qy,
                           qb_real qz, qb_real dt)
 {
-    qb_real a, v, r33, sv, kf, a_in;
+    qb_real a, v, r33, kf, a_in;
     int rest, n;
     if (dt <= 0.0)
         return;
-    a = 2.0 * (qx * qz - qw * qy) * ax + 2.0 * (qy * qz + qw * qx) * ay + (qw * qw - qx * qx - qy * qy + qz * qz) * az -
-        G - h->bias;
+    r33 = qw * qw - qx * qx - qy * qy + qz * qz;
+    a = 2.0 * (qx * qz - qw * qy) * ax + 2.0 * (qy * qz + qw * qx) * ay + r33 * az - G - h->bias;
     h->acc_lp += (QM(sqrt)(ax * ax + ay * ay + az * az) - G - h->acc_lp) * (dt / REST_TAU_S < 1.0 ? dt / REST_TAU_S : 1.0);
     rest = h->motors_off && QM(fabs)(h->acc_lp) < REST_ACC;
     h->rest_s = rest ? h->rest_s + dt : 0.0;
     if (h->on_ground != (h->rest_s >= GROUND_REST_S))
         set_ground(h, !h->on_ground);
-    sv = h->supply_v > 0.0 ? h->supply_v / THRUST_V_REF : 1.0;
-    h->u += (h->thrust_hint * sv * sv - h->u) * (dt / (MOTOR_LAG_S + dt));
-    kf = dt / (THRUST_FAST_S + dt);
+    h->u += (h->thrust_hint - h->u) * (dt / (MOTOR_LAG_S + dt));
+    kf = dt * (1.0 / THRUST_FAST_S);
     h->az_fast += (az - h->az_fast) * kf;
     h->u_fast += (h->u - h->u_fast) * kf;
     if (h->on_ground) {
@@ -240,9 +222,8 @@ void qb_height_update_imu(qb_height_t *h, qb_real ax, qb_real ay, qb_real az, qb
         h->az_earth = 0.0;
         return;
     }
-    r33 = qw * qw - qx * qx - qy * qy + qz * qz;
     if (h->on_legs) {
-        if (h->thrust_c * h->u * r33 <= G && h->legs_baro < LEGS_BARO_M) {
+        if (h->thrust_c * h->u * r33 <= G && h->az_fast <= G + THRUST_GATE) {
             h->vz = 0.0; /* the floor carries what the thrust does not */
             h->az_earth = 0.0;
             return;
@@ -277,9 +258,10 @@ void qb_height_update_imu(qb_height_t *h, qb_real ax, qb_real ay, qb_real az, qb
     h->height += (v + 0.5 * a_in * dt) * dt;
     h->vz = v + a_in * dt;
     h->t_pred += dt;
-    if (h->lifting && h->height < h->ground_ref) {
-        h->height = h->ground_ref; /* just off the floor: not below it */
-        h->vz = h->vz > 0.0 ? h->vz : 0.0;
+    if (h->lifting && h->height < h->ground_ref) { /* just off the floor (the barometer's pull too): not below it */
+        h->height = h->ground_ref;
+        if (h->vz < 0.0)
+            h->vz = 0.0;
     }
 }
 
@@ -348,10 +330,6 @@ static void baro_correct(qb_height_t *h, const qb_real p[10], qb_real nu, qb_rea
     h->vz += kv * nu;
     h->bias += kb * nu;
     h->spike += ks * nu;
-    if (h->lifting && h->height < h->ground_ref) {
-        h->height = h->ground_ref; /* just off the floor: not below it */
-        h->vz = h->vz > 0.0 ? h->vz : 0.0;
-    }
     h->captured_height += k0 * nu;
     h->c[0] = ch - k0 * gh;
     h->c[1] = cv - k0 * gv;
@@ -418,10 +396,8 @@ void qb_height_update_baro(qb_height_t *h, qb_real pressure_pa, qb_real dt)
         ground_baro_update(h, z, dt);
         return;
     }
-    if (h->on_legs) { /* the height held: the barometer only watched (a climb the model missed ends it) */
-        qb_real k = (dt > 0.0 ? dt : 0.0) / LEGS_BARO_TAU_S;
+    if (h->on_legs) { /* the height held: the barometer not needed (its noise would move it) */
         h->t_pred = 0.0;
-        h->legs_baro += (z - h->height - h->legs_baro) * (k < 1.0 ? k : 1.0);
         return;
     }
     t = h->t_pred > 0.0 ? h->t_pred : (dt > 0.0 ? dt : 0.0);
@@ -432,7 +408,7 @@ void qb_height_update_baro(qb_height_t *h, qb_real pressure_pa, qb_real dt)
     memcpy(p, h->p, sizeof p);
     nu = z - h->height - h->spike;
     h->innovation = nu;
-    r = h->r;
+    r = BARO_SIGMA_M * BARO_SIGMA_M;
     s = p[0] + 2.0 * p[3] + p[9] + r;
     r_sigma = QM(fabs)(nu) / QM(sqrt)(s);
     h->trend += TREND_GAIN * (QM(copysign)(r_sigma, nu) - h->trend);

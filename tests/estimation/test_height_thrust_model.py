@@ -27,8 +27,9 @@ def _fly(kf: HeightKalman, seconds: float, *, seed: int = 3, u_of_t=lambda t: HO
     (t, estimated vz - true vz, estimated h - true h) per sample."""
     rnd = random.Random(seed)
     k = pa_per_metre(P0)
-    kf.thrust_hint = u_of_t(0.0)  # flying already: the motors at their level
+    kf.thrust_hint = u_of_t(0.0)
     kf.reset(P0)
+    kf._u = kf._u_fast = kf.thrust_hint  # flying already: the rotors at their level
     kf.ground_ref = floor
     h = v = 0.0
     out = []
@@ -94,7 +95,7 @@ def _take_off(kf: HeightKalman, *, supply_v: float = V_REF, seed: int = 5, ramp_
     h, estimated h, estimated vz) per sample."""
     rnd = random.Random(seed)
     k = pa_per_metre(P0)
-    kf.supply_v = supply_v if told else 0.0
+    told_sq = (supply_v / V_REF) ** 2 if told else 1.0  # what the flight core scales the hint by
     kf.reset(P0)
     kf.motors_off = True
     for n in range(400):  # 1 s at rest: the ground state, anchored
@@ -110,7 +111,7 @@ def _take_off(kf: HeightKalman, *, supply_v: float = V_REF, seed: int = 5, ramp_
     for n in range(round(seconds / DT)):
         t = n * DT
         cmd = HOVER_U * (0.6 + 0.7 * min(1.0, t / ramp_s))
-        kf.thrust_hint = cmd
+        kf.thrust_hint = cmd * told_sq
         u += (cmd - u) * DT / (0.03 + DT)  # the rotors follow in 30 ms
         f = G * u * s2 / HOVER_U - DRAG_PER_S * v
         acc = f - G
