@@ -374,6 +374,13 @@ class HeightKalman:
         self._c = [0.0, 0.0, 0.0, 0.0]  # its covariance with h, v, b, s
         self._c00 = 0.0
 
+    def carry_thrust_model(self, other: HeightKalman) -> None:
+        """Take over ``other``'s thrust model (its gain, the lagged hint and the means, the pack's voltage, the flags):
+        what a reset keeps, for an estimator built anew in its place (the est.height parameter)."""
+        for name in ("thrust_hint", "supply_sq", "_u", "thrust_c", "_az_fast", "_u_fast", "model_on", "on_legs",
+                     "_lifting", "motors_off"):
+            setattr(self, name, getattr(other, name))
+
     def capture(self) -> float:
         """Remember the height of this instant (HEIGHT's set point) and return it. Unlike a copy of ``height``,
         ``captured_height`` keeps improving as later readings arrive (its covariance with the live states is
@@ -413,7 +420,7 @@ class HeightKalman:
         if self.on_ground != (self._rest_s >= GROUND_REST_S):
             self._set_ground(not self.on_ground)
         self._u += (self.thrust_hint - self._u) * (dt / (MOTOR_LAG_S + dt))
-        kf = dt * (1.0 / THRUST_FAST_S)
+        kf = dt / (THRUST_FAST_S + dt)
         self._az_fast += (az - self._az_fast) * kf
         self._u_fast += (self._u - self._u_fast) * kf  # the model over the same mean as the accelerometer
         if self.on_ground:
@@ -506,7 +513,6 @@ class HeightKalman:
         self.vz = 0.0
         self._stop_n = 0
         self._stop_hold = STOP_HOLD_S
-        self._lifting = False
         if self._t_pred > 0.0:
             self._propagate(self._t_pred)
             self._t_pred = 0.0
@@ -552,8 +558,9 @@ class HeightKalman:
 
     def _set_ground(self, on: bool) -> None:
         """Touch-down (at rest, no thrust) or lift-off (thrust, or moved): the state the filter carries on from."""
-        # the motors start on the floor it knows: on the legs until their thrust passes the weight
-        self.on_legs = not on and self.thrust_model and not self.motors_off and (self.anchored or self._snapped)
+        # the motors turn (idle's vibration or more thrust ended the rest) on the floor it knows: on the legs until
+        # their thrust passes the weight
+        self.on_legs = not on and self.thrust_model and self.thrust_hint > 0.0 and (self.anchored or self._snapped)
         self._lifting = False
         if not on:
             # lift-off: the covariance of a filter at rest, no spike running; a height not yet anchored is unsure

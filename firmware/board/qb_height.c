@@ -105,8 +105,9 @@ qb_real qb_height_capture(qb_height_t *h)
 
 static void set_ground(qb_height_t *h, int on)
 {
-    /* the motors start on the floor it knows: on the legs until their thrust passes the weight */
-    h->on_legs = (uint8_t)(!on && THRUST_MODEL && !h->motors_off && (h->anchored || h->snapped));
+    /* the motors turn (idle's vibration or more thrust ended the rest) on the floor it knows: on the legs until
+     * their thrust passes the weight */
+    h->on_legs = (uint8_t)(!on && THRUST_MODEL && h->thrust_hint > 0.0 && (h->anchored || h->snapped));
     h->lifting = 0;
     if (!on) {
         qb_real var_h = INITIAL_SIGMA[0] * INITIAL_SIGMA[0];
@@ -156,7 +157,6 @@ static void hard_stop(qb_height_t *h)
     h->vz = 0.0;
     h->stop_n = 0;
     h->stop_hold = STOP_HOLD_S;
-    h->lifting = 0;
     if (h->t_pred > 0.0) {
         propagate(h, h->t_pred);
         h->t_pred = 0.0;
@@ -213,7 +213,7 @@ void qb_height_update_imu(qb_height_t *h, qb_real ax, qb_real ay, qb_real az, qb
     if (h->on_ground != (h->rest_s >= GROUND_REST_S))
         set_ground(h, !h->on_ground);
     h->u += (h->thrust_hint - h->u) * (dt / (MOTOR_LAG_S + dt));
-    kf = dt * (1.0 / THRUST_FAST_S);
+    kf = dt / (THRUST_FAST_S + dt);
     h->az_fast += (az - h->az_fast) * kf;
     h->u_fast += (h->u - h->u_fast) * kf;
     if (h->on_ground) {
