@@ -483,8 +483,7 @@ class HeightKalman:
             return a
         thrust_fast = self._az_fast + drag  # the accelerometer's mean without the drag: the thrust's
         if abs(thrust_fast - c * self._u_fast) > THRUST_GATE:
-            # learnt again at once (a contact, a force the model does not know); this sample, the accelerometer's
-            self.thrust_c = thrust_fast / self._u_fast  # (> 0: the hint has been on since u passed THRUST_MIN)
+            # a force the model does not know (a contact, a hand): the accelerometer's, and nothing learnt from it
             self.model_on = False
             return a
         c += ((az + drag) / u - c) * (dt * (1.0 / self.thrust_tau_s))  # a running mean over THRUST_TAU_S

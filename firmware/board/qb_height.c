@@ -185,10 +185,8 @@ static qb_real thrust_accel(qb_height_t *h, qb_real az, qb_real r33, qb_real a, 
     if (!THRUST_MODEL || !strong || near)
         goto accelerometer;
     thrust_fast = h->az_fast + drag; /* the accelerometer's mean without the drag: the thrust's */
-    if (QM(fabs)(thrust_fast - c * h->u_fast) > THRUST_GATE) { /* learnt again at once (a contact): the acc's */
-        h->thrust_c = thrust_fast / h->u_fast;
+    if (QM(fabs)(thrust_fast - c * h->u_fast) > THRUST_GATE) /* a force the model does not know: the acc's */
         goto accelerometer;
-    }
     c += ((az + drag) / u - c) * (dt * (1.0 / THRUST_TAU_S)); /* a running mean over THRUST_TAU_S */
     h->thrust_c = c;
 model:
