@@ -257,10 +257,12 @@ class FlightCore:
         self._q = (w, x, y, z)
         self._have_dmp = True
 
-    def baro_sample(self, pressure_pa: float, dt: float) -> None:
-        """A barometer reading (Pa) and the time since the previous one (s)."""
+    def baro_sample(self, pressure_pa: float, dt: float, battery_10mv: int | None = None) -> None:
+        """A barometer reading (Pa) and the time since the previous one (s); the battery's, read with it (10 mV)."""
         if self.run_height:
             self.height_est.update_baro(pressure_pa, dt)
+        if battery_10mv is not None:
+            self.battery_sample(battery_10mv)
 
     def battery_sample(self, volts_10mv: int) -> None:
         """A battery reading (10 mV): the height estimator's thrust model scales the motors' commands by its square."""

@@ -249,13 +249,14 @@ TREND_GAIN = 0.2  # per baro reading (20 Hz): the innovations' running mean over
 TREND_SIGMA = 1.5  # a running mean of this many sigmas of one sign is a wrong speed, not noise
 TREND_VZ_VAR = 0.25  # (m/s)² added to the speed's variance at such a reading
 # The thrust model (docs/height.md "The thrust model"): the motors' commands, told by the flight core as
-# ``thrust_hint`` (the sum of ae² over the four motors), predict the specific force along the body's z axis as
-# c * u, u the hint lagged by the motors' MOTOR_LAG_S; c (m/s² per ae²) is learnt from the accelerometer over
-# THRUST_TAU_S. The filter integrates c u instead of the accelerometer's vibration (0.15 g rms at hover): what the
-# model misses (drag, a gust, the battery's sag) reaches the height through c within THRUST_TAU_S and through the
-# barometer. A contact (the floor, the ceiling: a force the model knows nothing of) shows as the accelerometer's
-# 0.2 s mean (without the drag) leaving the model by THRUST_GATE: c is set to what the accelerometer reads at once.
-# Below THRUST_MIN (the motors off or near it) the accelerometer is integrated, as before.
+# ``thrust_hint`` (the sum of ae² over the four motors times the pack's (V / V_REF)²), predict the specific force
+# along the body's z axis as c * u, u the hint lagged by the motors' MOTOR_LAG_S; c (m/s² per ae²) starts at the
+# nominal hover's and is learnt from the accelerometer over THRUST_TAU_S. The filter integrates c u (less the
+# airframe's drag) instead of the accelerometer's vibration (0.15 g rms at hover): what the model misses (a gust,
+# c's error) reaches the height through the bias state and the barometer. A contact (the ceiling, a hand: a force
+# the model knows nothing of) shows as the accelerometer's 0.2 s mean (without the drag) leaving the model's by
+# THRUST_GATE: that sample integrates the accelerometer and c learns nothing from it. Below THRUST_MIN (the motors
+# off or near it) the accelerometer is integrated, as before.
 MOTOR_LAG_S = 0.03  # s: the rotors' time constant (fcb_sim/world/constants.py MOTOR_TAU)
 THRUST_TAU_S = 10.0  # s
 THRUST_FAST_S = 0.2  # s: the accelerometer's mean the gate compares
