@@ -20,7 +20,7 @@ height is 0 at once and the barometer's offset there goes into the reference. A 
 motion, over within 30 ms: the ceiling, a landing) zeroes the speed and makes the height ``unsure`` until the
 barometer has pulled it in (``stops``, ``stop_kind``, ``stop_speed``; docs/height.md "Contact"). The thrust model
 (``thrust_model``, ``THRUST_MODEL``; on, on both boards) integrates the motors' thrust (the flight core's
-``thrust_hint``, the sum of ae², scaled by the pack's voltage ``supply_v`` squared) times a gain (the nominal hover's,
+``thrust_hint``, the sum of ae² times ``supply_sq``, the pack's (V / V_REF)²) times a gain (the nominal hover's,
 then learnt from the accelerometer), less the airframe's drag, instead of the accelerometer's vibration; with the
 motors running on the pad the craft is ``on_legs`` (the height held, the speed zero) until that thrust passes the
 weight, and the climb is integrated from the floor at once (docs/height.md "The thrust model").
