@@ -183,18 +183,20 @@ def flight(seed: int, seconds: float) -> dict[str, float]:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, default=8)
+    ap.add_argument("--first-seed", type=int, default=1, help="the first seed (101: the tuning seeds)")
     ap.add_argument("--rest", type=float, default=600.0, help="s in SAFE after calibration")
     ap.add_argument("--flight", type=float, default=300.0, help="s of hover for the flight's heading drift")
     ap.add_argument("--quick", action="store_true", help="2 seeds, 120 s at rest, 60 s of flight")
     ap.add_argument("--only", choices=("touchdown", "ceiling", "hover", "rest", "flight"), action="append",
                     help="run only these parts (repeatable)")
-    ap.add_argument("--thrust-model", action="store_true", help="fly the height estimator's thrust model")
+    ap.add_argument("--thrust-model", choices=("on", "off"), default="on",
+                    help="the height estimator's thrust model (on: the boards' default)")
     args = ap.parse_args()
-    height_module.THRUST_MODEL = args.thrust_model
+    height_module.THRUST_MODEL = args.thrust_model == "on"
     if args.quick:
         args.seeds, args.rest, args.flight = 2, 120.0, 60.0
     per_seed: list[dict[str, float]] = []
-    for seed in range(1, args.seeds + 1):
+    for seed in range(args.first_seed, args.first_seed + args.seeds):
         r: dict[str, float] = {}
         parts: dict[str, Callable[[int], dict[str, float]]] = {
             "touchdown": touchdown, "ceiling": ceiling, "hover": hover,
@@ -204,7 +206,8 @@ def main() -> None:
                 r.update(part(seed))
         per_seed.append(r)
         print(f"seed {seed}: " + "  ".join(f"{k} {v:.3f}" for k, v in r.items()), flush=True)
-    out: dict[str, float | int] = {"seeds": args.seeds, "rest_s": args.rest, "flight_s": args.flight,
+    out: dict[str, float | int | str] = {"seeds": args.seeds, "first_seed": args.first_seed, "rest_s": args.rest,
+                                         "flight_s": args.flight,
                                    "thrust_model": args.thrust_model}
     for key in per_seed[0]:
         vals = [r[key] for r in per_seed]

@@ -409,6 +409,7 @@ def params_header() -> str:
 # the Python module and the expression there). Kinds: "u" an unsigned literal, "i" an int, "f" a double literal.
 BOARD_CONSTANTS: tuple[tuple[str, str, str, str], ...] = (
     # units and scales (qb_flight.c, qb_board.c)
+    ("QB_THRUST_V_REF", "f", "fcb_sim.estimation.height", "V_REF"),
     ("ANGLE_LSB_PER_RAD", "f", "fcb_sim.board.control", "ANGLE_LSB_PER_RAD"),
     ("DMP_ANGLE_LSB", "f", "fcb_sim.board.control", "ANGLE_LSB_PER_RAD"),
     ("ACC_LSB_PER_G", "f", "term.core.protocol", "ACC_LSB_PER_G"),
@@ -497,6 +498,17 @@ ESTIMATOR_CONSTANTS: tuple[tuple[str, str, str, str], ...] = (
     ("UNSURE_SIGMA", "f", "fcb_sim.estimation.height", "UNSURE_SIGMA"),
     ("STOP_UP", "i", "fcb_sim.estimation.height", "STOP_UP"),
     ("STOP_DOWN", "i", "fcb_sim.estimation.height", "STOP_DOWN"),
+    ("MOTOR_LAG_S", "f", "fcb_sim.estimation.height", "MOTOR_LAG_S"),
+    ("THRUST_TAU_S", "f", "fcb_sim.estimation.height", "THRUST_TAU_S"),
+    ("THRUST_FAST_S", "f", "fcb_sim.estimation.height", "THRUST_FAST_S"),
+    ("THRUST_GATE", "f", "fcb_sim.estimation.height", "THRUST_GATE"),
+    ("THRUST_MIN", "f", "fcb_sim.estimation.height", "THRUST_MIN"),
+    ("THRUST_ABOVE_M", "f", "fcb_sim.estimation.height", "THRUST_ABOVE_M"),
+    ("MODEL_NOISE_DENSITY", "f", "fcb_sim.estimation.height", "MODEL_NOISE_DENSITY"),
+    ("MODEL_BIAS_WALK", "f", "fcb_sim.estimation.height", "MODEL_BIAS_WALK"),
+    ("THRUST_MODEL", "i", "fcb_sim.estimation.height", "THRUST_MODEL"),
+    ("THRUST_C0", "f", "fcb_sim.estimation.height", "THRUST_C0"),
+    ("DRAG_PER_S", "f", "fcb_sim.estimation.height", "DRAG_PER_S"),
     ("GROUND_AE", "i", "fcb_sim.board.flight", "GROUND_AE"),
     ("WALL_ACC", "f", "fcb_sim.board.flight", "WALL_ACC"),
     ("WALL_SAMPLES", "i", "fcb_sim.board.flight", "WALL_SAMPLES"),

@@ -463,7 +463,7 @@ class Board:
         self.battery = self.world.battery()
         dt = 0.05 if self._baro_t is None else (self.now - self._baro_t) / 1e6
         self._baro_t = self.now
-        self.core.baro_sample(self.pressure, dt)
+        self.core.baro_sample(self.pressure, dt, self.battery)
         self.modes.battery = self.battery
         if self.modes.mode == Mode.CALIBRATION:
             self.modes.calibration_sample({"pressure": self.pressure})

@@ -34,7 +34,7 @@ from fcb_sim.board import control as C
 from fcb_sim.board.calibration import Calibration
 from fcb_sim.estimation import BEST, HeightEstimator, make_filter, quaternion_to_euler
 from fcb_sim.estimation.heading import HeadingHold
-from fcb_sim.estimation.height import HEIGHT_BEST, STOP_UP, HeightKalman, make_height_estimator
+from fcb_sim.estimation.height import HEIGHT_BEST, STOP_UP, V_REF, HeightKalman, make_height_estimator
 from fcb_sim.world import constants as P
 from term.core.protocol import PARAMS, STICK_MAX, ContactKind, Mode, Param
 
@@ -257,10 +257,18 @@ class FlightCore:
         self._q = (w, x, y, z)
         self._have_dmp = True
 
-    def baro_sample(self, pressure_pa: float, dt: float) -> None:
-        """A barometer reading (Pa) and the time since the previous one (s)."""
+    def baro_sample(self, pressure_pa: float, dt: float, battery_10mv: int | None = None) -> None:
+        """A barometer reading (Pa) and the time since the previous one (s); the battery's, read with it (10 mV)."""
         if self.run_height:
             self.height_est.update_baro(pressure_pa, dt)
+        if battery_10mv is not None:
+            self.battery_sample(battery_10mv)
+
+    def battery_sample(self, volts_10mv: int) -> None:
+        """A battery reading (10 mV): the height estimator's thrust model scales the motors' commands by its square."""
+        if hasattr(self.height_est, "supply_sq"):
+            sv = volts_10mv * 0.01 / V_REF
+            self.height_est.supply_sq = sv * sv
 
     # ---- modes and control -----------------------------------------------------------------------------------
     def move_setpoint(self, dm: float, lo: float, hi: float) -> float:
@@ -389,7 +397,9 @@ class FlightCore:
         self.ae = out
         # its on-the-ground test: no motor could lift the craft
         self.height_est.motors_off = max(out) < GROUND_AE
-        self.height_est.thrust_hint = float(out[0] * out[0] + out[1] * out[1] + out[2] * out[2] + out[3] * out[3])
+        # the thrust model's hint: the sum of ae², scaled by the pack (the ESCs' speed follows its voltage)
+        self.height_est.thrust_hint = (float(out[0] * out[0] + out[1] * out[1] + out[2] * out[2] + out[3] * out[3])
+                                       * getattr(self.height_est, "supply_sq", 1.0))
         return out
 
     def pending_contact(self) -> tuple[int, int] | None:

@@ -96,7 +96,11 @@ def _height_name(b: BoardParts) -> Value:
 
 def _set_height(b: BoardParts, v: Value) -> Nak:
     core = b.core
+    old = core.height_est
     core.height_est = make_height_estimator(str(v))
+    carry = getattr(core.height_est, "carry_thrust_model", None)
+    if carry is not None and type(old) is type(core.height_est):
+        carry(old)  # the craft's thrust model goes on (the C board resets its one estimator, keeping it)
     core.height_name = str(v)
     if core.calibrated:
         core.height_est.reset(core.calibration.pressure)

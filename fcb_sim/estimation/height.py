@@ -19,9 +19,11 @@ landing nor the barometer's drift moves it (``on_ground``, ``anchored``); on the
 height is 0 at once and the barometer's offset there goes into the reference. A hard stop (a jolt against the
 motion, over within 30 ms: the ceiling, a landing) zeroes the speed and makes the height ``unsure`` until the
 barometer has pulled it in (``stops``, ``stop_kind``, ``stop_speed``; docs/height.md "Contact"). The thrust model
-(``thrust_model``, ``THRUST_MODEL``; off on both boards, an experiment) integrates the motors' thrust (the flight
-core's ``thrust_hint``, the sum of ae²) scaled by a gain learnt from the accelerometer, instead of the
-accelerometer's vibration (docs/height.md "The thrust model").
+(``thrust_model``, ``THRUST_MODEL``; on, on both boards) integrates the motors' thrust (the flight core's
+``thrust_hint``, the sum of ae² times ``supply_sq``, the pack's (V / V_REF)²) times a gain (the nominal hover's,
+then learnt from the accelerometer), less the airframe's drag, instead of the accelerometer's vibration; with the
+motors running on the pad the craft is ``on_legs`` (the height held, the speed zero) until that thrust passes the
+weight, and the climb is integrated from the floor at once (docs/height.md "The thrust model").
 
 ``HeightEstimator``: the report's Figure 10, after Klas Löfstedt's altitude estimator: a velocity and a position
 complementary filter between the high-passed earth-frame acceleration and the low-passed barometer, with the
@@ -247,13 +249,14 @@ TREND_GAIN = 0.2  # per baro reading (20 Hz): the innovations' running mean over
 TREND_SIGMA = 1.5  # a running mean of this many sigmas of one sign is a wrong speed, not noise
 TREND_VZ_VAR = 0.25  # (m/s)² added to the speed's variance at such a reading
 # The thrust model (docs/height.md "The thrust model"): the motors' commands, told by the flight core as
-# ``thrust_hint`` (the sum of ae² over the four motors), predict the specific force along the body's z axis as
-# c * u, u the hint lagged by the motors' MOTOR_LAG_S; c (m/s² per ae²) is learnt from the accelerometer over
-# THRUST_TAU_S. The filter integrates c u instead of the accelerometer's vibration (0.15 g rms at hover): what the
-# model misses (drag, a gust, the battery's sag) reaches the height through c within THRUST_TAU_S and through the
-# barometer. A contact (the floor, the ceiling: a force the model knows nothing of) shows as the accelerometer's
-# 20 ms mean leaving the model by THRUST_GATE: c is set to what the accelerometer reads at once. Below THRUST_MIN
-# (the motors off or near it) the accelerometer is integrated, as before.
+# ``thrust_hint`` (the sum of ae² over the four motors times the pack's (V / V_REF)²), predict the specific force
+# along the body's z axis as c * u, u the hint lagged by the motors' MOTOR_LAG_S; c (m/s² per ae²) starts at the
+# nominal hover's and is learnt from the accelerometer over THRUST_TAU_S. The filter integrates c u (less the
+# airframe's drag) instead of the accelerometer's vibration (0.15 g rms at hover): what the model misses (a gust,
+# c's error) reaches the height through the bias state and the barometer. A contact (the ceiling, a hand: a force
+# the model knows nothing of) shows as the accelerometer's 0.2 s mean (without the drag) leaving the model's by
+# THRUST_GATE: that sample integrates the accelerometer and c learns nothing from it. Below THRUST_MIN (the motors
+# off or near it) the accelerometer is integrated, as before.
 MOTOR_LAG_S = 0.03  # s: the rotors' time constant (fcb_sim/world/constants.py MOTOR_TAU)
 THRUST_TAU_S = 10.0  # s
 THRUST_FAST_S = 0.2  # s: the accelerometer's mean the gate compares
@@ -262,11 +265,25 @@ THRUST_MIN = 10000.0  # ae²: four motors at 50
 THRUST_ABOVE_M = 0.15  # m: nearer the floor than this the legs may carry it (a force the model does not know)
 MODEL_NOISE_DENSITY = 0.04  # m/s²/√Hz: the process noise with the thrust model (what c u misses)
 MODEL_BIAS_WALK = 0.02  # m/s²/√s: the bias walk with the thrust model (c's slow error goes to the bias state)
-# The thrust model is an experiment (issue 35), off by default: it lowers the vz noise at hover but not enough for
-# a keyboard pilot reading the screen (docs/height.md "The thrust model"), and the C board does not have it.
-# ``HeightKalman(thrust_model=True)`` turns it on, or this switch for every HeightKalman built after it is set
-# (bench.height and bench.keyboard --thrust-model).
-THRUST_MODEL = False
+# The thrust model is on on both boards (issue 35; firmware/board/qb_height.c twins it): a keyboard pilot who reads
+# the screen holds 1 m with it (docs/height.md "The thrust model"). ``HeightKalman(thrust_model=False)`` turns it
+# off, or this switch for every HeightKalman built after it is set (bench.height and bench.keyboard --thrust-model).
+THRUST_MODEL = True
+# The model's gain before the accelerometer has taught it one: the board's nominal hover (four motors at
+# AE_HOVER at a loaded pack of V_REF carry the craft's weight; fcb_sim/world/constants.py AE_HOVER_NOMINAL, V_REF).
+# The hint is scaled by (supply / V_REF)² (the ESCs' speed follows the pack's loaded voltage, the thrust its
+# square), so the gain is the same on a full pack and a tired one. A flight refines it (THRUST_TAU_S).
+AE_HOVER = 400.0
+V_REF = 11.4  # V
+THRUST_C0 = G / (4.0 * AE_HOVER * AE_HOVER)  # m/s² per ae²
+# On the legs (docs/height.md "The thrust model"): motors running on the floor the craft stood on, their modelled
+# thrust below the weight: the floor carries it, the height is held and the speed is zero until the model's thrust
+# passes the weight (the lift-off: the model's acceleration is integrated from the floor at once, no lag); the
+# accelerometer's 0.2 s mean beyond g by THRUST_GATE ends it too (a climb the model's gain missed: a heavier craft).
+# The airframe's vertical drag per unit mass (1/s): the specific force the accelerometer feels in a climb or a
+# descent besides the thrust (fcb_sim/world/constants.py DRAG_LINEAR / MASS: 0.25 N s/m on 0.65 kg; 0.2 m/s² at
+# 0.5 m/s, a quarter of g's 2 %): the model's acceleration and its gain's lesson take it out.
+DRAG_PER_S = 0.385
 
 
 class HeightKalman:
@@ -305,7 +322,16 @@ class HeightKalman:
         self.rejump_window_s = rejump_window_s
         self.temperature_k = temperature_k
         self.motors_off = False  # told by the flight core at every control step: no thrust that could lift it
-        self.thrust_hint = 0.0  # told by the flight core at every control step: the sum of the motors' ae²
+        self.thrust_hint = 0.0  # told by the flight core at every control step: the sum of ae², times supply_sq
+        self.supply_sq = 1.0  # (the pack's loaded voltage / V_REF)², told by the flight core at every battery reading
+        # the thrust model's state, kept by a reset (the craft's gain does not change with a calibration)
+        self._u = 0.0  # the thrust hint lagged as the rotors follow it (ae²)
+        self.thrust_c = THRUST_C0  # m/s² per ae²: the model's gain (the nominal hover's until learnt)
+        self._az_fast = G  # the accelerometer's body-z reading over THRUST_FAST_S (m/s²)
+        self._u_fast = 0.0  # the lagged thrust hint over THRUST_FAST_S (ae²), to compare with _az_fast
+        self.model_on = False  # the last sample integrated the thrust model (telemetry, tests)
+        self.on_legs = False  # motors running on the floor, their thrust below the weight (update_imu)
+        self._lifting = False  # from the legs until THRUST_ABOVE_M: the model integrated, not re-learnt
         self.reset(SEA_LEVEL_PA)
 
     def reset(self, pressure_pa: float) -> None:
@@ -348,12 +374,13 @@ class HeightKalman:
         self.captured_height = 0.0
         self._c = [0.0, 0.0, 0.0, 0.0]  # its covariance with h, v, b, s
         self._c00 = 0.0
-        self._u = self.thrust_hint  # the thrust hint lagged as the rotors follow it (ae²): at reset, where it is
-        self.thrust_c = 0.0  # m/s² per ae²: the model's gain (0: not learnt yet)
-        self._c_n = 0.0  # samples c was learnt from since it was last set at once
-        self._az_fast = G  # the accelerometer's body-z reading over THRUST_FAST_S (m/s²)
-        self._u_fast = self._u  # the lagged thrust hint over THRUST_FAST_S (ae²), to compare with _az_fast
-        self.model_on = False  # the last sample integrated the thrust model (telemetry, tests)
+
+    def carry_thrust_model(self, other: HeightKalman) -> None:
+        """Take over ``other``'s thrust model (its gain, the lagged hint and the means, the pack's voltage, the flags):
+        what a reset keeps, for an estimator built anew in its place (the est.height parameter)."""
+        for name in ("thrust_hint", "supply_sq", "_u", "thrust_c", "_az_fast", "_u_fast", "model_on", "on_legs",
+                     "_lifting", "motors_off"):
+            setattr(self, name, getattr(other, name))
 
     def capture(self) -> float:
         """Remember the height of this instant (HEIGHT's set point) and return it. Unlike a copy of ``height``,
@@ -399,13 +426,20 @@ class HeightKalman:
         self._u_fast += (self._u - self._u_fast) * kf  # the model over the same mean as the accelerometer
         if self.on_ground:
             # Standing still: no speed, the height held; what the accelerometer reads is its bias.
-            self.thrust_c = 0.0
             self.bias += a * min(1.0, dt / GROUND_BIAS_TAU_S)
             self.vz = 0.0
             self.az_earth = 0.0
             return
+        r33 = qw * qw - qx * qx - qy * qy + qz * qz
+        if self.on_legs:
+            if self.thrust_c * self._u * r33 <= G and self._az_fast <= G + THRUST_GATE:
+                self.vz = 0.0  # the floor carries what the thrust does not
+                self.az_earth = 0.0
+                return
+            self.on_legs = False  # the thrust passes the weight: it lifts, from the floor, now
+            self._lifting = True
         self.az_earth = a
-        a_in = self._thrust_accel(az, qw * qw - qx * qx - qy * qy + qz * qz, a, dt)
+        a_in = self._thrust_accel(az, r33, a, dt)
         v = self.vz
         if self._stop_hold > 0.0:  # the jolt of a stop: the craft stands at the surface
             self._stop_hold -= dt
@@ -427,29 +461,36 @@ class HeightKalman:
         self.height += (v + 0.5 * a_in * dt) * dt
         self.vz = v + a_in * dt
         self._t_pred += dt
+        if self._lifting and self.height < self.ground_ref:
+            self.height = self.ground_ref  # just off the floor (the barometer's pull too): not below it
+            if self.vz < 0.0:
+                self.vz = 0.0
 
     def _thrust_accel(self, az: float, r33: float, a: float, dt: float) -> float:
         """The earth-up acceleration to integrate (m/s²): the thrust model's, c u r33 - g - bias, or the
         accelerometer's ``a`` when the motors are (nearly) off or the model is disabled (module constants)."""
         u = self._u
-        if not self.thrust_model or u < THRUST_MIN or self.height - self.ground_ref < THRUST_ABOVE_M:
-            self.thrust_c = 0.0
-            self.model_on = False
-            return a
         c = self.thrust_c
-        uf = self._u_fast
-        if c == 0.0 or abs(self._az_fast - c * uf) > THRUST_GATE:
-            # learnt again at once (the first sample with thrust, a contact); this sample, the accelerometer's
-            self.thrust_c = self._az_fast / max(uf, THRUST_MIN)
-            self._c_n = 1.0
+        drag = DRAG_PER_S * self.vz  # (along the body's z: the same at the small tilts of a hover or a climb)
+        strong = u >= THRUST_MIN
+        near = self.height - self.ground_ref < THRUST_ABOVE_M
+        if self._lifting:
+            if strong and near:
+                self.model_on = True  # off the legs: the model's thrust, the floor's readings not learnt from
+                return c * u * r33 - drag - G - self.bias
+            self._lifting = False
+        if not self.thrust_model or not strong or near:
             self.model_on = False
             return a
-        # a running mean of the samples since, until THRUST_TAU_S holds more of them
-        self._c_n += 1.0
-        c += (az / u - c) * max(dt / (self.thrust_tau_s + dt), 1.0 / self._c_n)
+        thrust_fast = self._az_fast + drag  # the accelerometer's mean without the drag: the thrust's
+        if abs(thrust_fast - c * self._u_fast) > THRUST_GATE:
+            # a force the model does not know (a contact, a hand): the accelerometer's, and nothing learnt from it
+            self.model_on = False
+            return a
+        c += ((az + drag) / u - c) * (dt * (1.0 / self.thrust_tau_s))  # a running mean over THRUST_TAU_S
         self.thrust_c = c
         self.model_on = True
-        return c * u * r33 - G - self.bias
+        return c * u * r33 - drag - G - self.bias
 
     @property
     def unsure(self) -> bool:
@@ -517,6 +558,10 @@ class HeightKalman:
 
     def _set_ground(self, on: bool) -> None:
         """Touch-down (at rest, no thrust) or lift-off (thrust, or moved): the state the filter carries on from."""
+        # the motors turn (idle's vibration or more thrust ended the rest) on the floor it knows: on the legs until
+        # their thrust passes the weight
+        self.on_legs = not on and self.thrust_model and self.thrust_hint > 0.0 and (self.anchored or self._snapped)
+        self._lifting = False
         if not on:
             # lift-off: the covariance of a filter at rest, no spike running; a height not yet anchored is unsure
             sh, sv, _sb = INITIAL_SIGMA
@@ -572,6 +617,9 @@ class HeightKalman:
         if self.on_ground:
             self._t_pred = 0.0
             self._ground_baro_update(z, dt)
+            return
+        if self.on_legs:  # the height held: the barometer not needed (its noise would move it)
+            self._t_pred = 0.0
             return
         # the IMU's clock decides how far the state was predicted; dt only if no IMU sample came in between
         t = self._t_pred if self._t_pred > 0.0 else max(0.0, dt)

@@ -96,6 +96,7 @@ class Sim:
             if k % BARO_EVERY == 0:
                 pa = world.baro()[0]
                 fc.baro_sample(pa, baro_dt)
+                fc.battery_sample(round(world.volts * 100.0))  # the ADC without its noise (no draw from the rng)
                 if mode == cal_mode:
                     self.cal.add_baro(pa)
             if mode == cal_mode:

@@ -246,6 +246,10 @@ static void task_baro(qb_board_t *b)
     b->baro_t = b->now;
     b->baro_set = 1;
     qb_flight_baro(&b->core, b->pressure, dt);
+    {
+        qb_real sv = b->battery * 0.01 / QB_THRUST_V_REF; /* the thrust model scales the commands by the pack */
+        b->core.hest.supply_sq = sv * sv;
+    }
     b->modes.battery = b->battery;
     if (b->modes.mode == QP_MODE_CALIBRATION)
         qb_modes_cal_add(&b->modes, QB_CAL_PRESSURE, b->pressure);

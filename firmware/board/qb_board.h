@@ -123,7 +123,6 @@ int32_t qb_tilt_cdeg(int32_t phi_cdeg, int32_t theta_cdeg);
 #define QB_ANCHOR_MAX 64
 
 typedef struct {
-    qb_real q_acc, q_bias, r;
     qb_real p_ref, k_pa_per_m;
     qb_real height, vz, bias, spike, az_earth, baro_raw, innovation;
     qb_real p[10];
@@ -144,6 +143,10 @@ typedef struct {
     uint8_t snapped, stop_n, stop_kind;      /* on the floor at ground_ref; a jolt's run; the last stop (1 down, 2 up) */
     qb_real stop_v, stop_hold, stop_speed;
     uint32_t stops;
+    /* the thrust model (docs/height.md "The thrust model"): the flight core's hint (sum of ae²) and the pack's
+     * voltage, the hint lagged as the rotors follow (u), the gain c, the fast means the gate compares; on the legs */
+    qb_real thrust_hint, supply_sq, u, thrust_c, az_fast, u_fast;
+    uint8_t model_on, on_legs, lifting; /* the model is on when THRUST_MODEL (qb_estimator.h) */
 } qb_height_t;
 
 void qb_height_init(qb_height_t *h);

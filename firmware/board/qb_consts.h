@@ -7,6 +7,7 @@
 #ifndef QB_CONSTS_H
 #define QB_CONSTS_H
 
+#define QB_THRUST_V_REF 11.4 /* fcb_sim.estimation.height: V_REF */
 #define ANGLE_LSB_PER_RAD 10430.0 /* fcb_sim.board.control: ANGLE_LSB_PER_RAD */
 #define DMP_ANGLE_LSB 10430.0 /* fcb_sim.board.control: ANGLE_LSB_PER_RAD */
 #define ACC_LSB_PER_G 16384.0 /* term.core.protocol: ACC_LSB_PER_G */

@@ -39,6 +39,17 @@
 #define UNSURE_SIGMA 0.15 /* fcb_sim.estimation.height: UNSURE_SIGMA */
 #define STOP_UP 2 /* fcb_sim.estimation.height: STOP_UP */
 #define STOP_DOWN 1 /* fcb_sim.estimation.height: STOP_DOWN */
+#define MOTOR_LAG_S 0.03 /* fcb_sim.estimation.height: MOTOR_LAG_S */
+#define THRUST_TAU_S 10.0 /* fcb_sim.estimation.height: THRUST_TAU_S */
+#define THRUST_FAST_S 0.2 /* fcb_sim.estimation.height: THRUST_FAST_S */
+#define THRUST_GATE 0.6 /* fcb_sim.estimation.height: THRUST_GATE */
+#define THRUST_MIN 10000.0 /* fcb_sim.estimation.height: THRUST_MIN */
+#define THRUST_ABOVE_M 0.15 /* fcb_sim.estimation.height: THRUST_ABOVE_M */
+#define MODEL_NOISE_DENSITY 0.04 /* fcb_sim.estimation.height: MODEL_NOISE_DENSITY */
+#define MODEL_BIAS_WALK 0.02 /* fcb_sim.estimation.height: MODEL_BIAS_WALK */
+#define THRUST_MODEL 1 /* fcb_sim.estimation.height: THRUST_MODEL */
+#define THRUST_C0 1.5322890625e-05 /* fcb_sim.estimation.height: THRUST_C0 */
+#define DRAG_PER_S 0.385 /* fcb_sim.estimation.height: DRAG_PER_S */
 #define GROUND_AE 280 /* fcb_sim.board.flight: GROUND_AE */
 #define WALL_ACC 6.9 /* fcb_sim.board.flight: WALL_ACC */
 #define WALL_SAMPLES 2 /* fcb_sim.board.flight: WALL_SAMPLES */

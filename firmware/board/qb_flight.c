@@ -625,6 +625,9 @@ void qb_flight_control(qb_flight_t *fc, uint8_t mode, const int32_t sticks[4], q
     memcpy(fc->ae, out, sizeof fc->ae);
     /* the height estimator's on-the-ground test: no motor could lift the craft */
     fc->hest.motors_off = out[0] < GROUND_AE && out[1] < GROUND_AE && out[2] < GROUND_AE && out[3] < GROUND_AE;
+    /* the thrust model's hint: the sum of ae², scaled by the pack (the ESCs' speed follows its voltage) */
+    fc->hest.thrust_hint = (qb_real)(out[0] * out[0] + out[1] * out[1] + out[2] * out[2] + out[3] * out[3]) *
+                           fc->hest.supply_sq;
 }
 
 int qb_flight_pending_heading_drift(qb_flight_t *fc, int32_t *cdeg)

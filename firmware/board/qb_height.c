@@ -17,9 +17,9 @@ static const qb_real INITIAL_SIGMA[3] = {0.03, 0.05, 0.1};
 void qb_height_init(qb_height_t *h)
 {
     memset(h, 0, sizeof *h);
-    h->q_acc = ACC_NOISE_DENSITY * ACC_NOISE_DENSITY;
-    h->q_bias = BIAS_WALK * BIAS_WALK;
-    h->r = BARO_SIGMA_M * BARO_SIGMA_M;
+    h->supply_sq = 1.0;
+    h->thrust_c = THRUST_C0; /* the model's gain, the nominal hover's until learnt (kept by a reset: the craft's) */
+    h->az_fast = G;
     qb_height_reset(h, SEA_LEVEL_PA);
 }
 
@@ -67,7 +67,9 @@ static void propagate(qb_height_t *h, qb_real t)
     qb_real ah = hh + t * hv - c * hb, av = hv + t * vv - c * vb, ab = hb + t * vb - c * bb;
     qb_real as_ = hs + t * vs - c * bs;
     qb_real bv = vv - t * vb, bb_ = vb - t * bb, bs_ = vs - t * bs;
-    qb_real qa = h->q_acc, qb = h->q_bias, t3 = t * t * t;
+    /* the process noise: the accelerometer's vibration, or what the thrust model misses */
+    qb_real qa = h->model_on ? MODEL_NOISE_DENSITY * MODEL_NOISE_DENSITY : ACC_NOISE_DENSITY * ACC_NOISE_DENSITY;
+    qb_real qb = h->model_on ? MODEL_BIAS_WALK * MODEL_BIAS_WALK : BIAS_WALK * BIAS_WALK, t3 = t * t * t;
     qb_real ch = h->c[0], cv = h->c[1], cb = h->c[2], cs = h->c[3];
     qb_real s, ds;
     h->c[0] = ch + t * cv - c * cb;
@@ -103,6 +105,10 @@ qb_real qb_height_capture(qb_height_t *h)
 
 static void set_ground(qb_height_t *h, int on)
 {
+    /* the motors turn (idle's vibration or more thrust ended the rest) on the floor it knows: on the legs until
+     * their thrust passes the weight */
+    h->on_legs = (uint8_t)(!on && THRUST_MODEL && h->thrust_hint > 0.0 && (h->anchored || h->snapped));
+    h->lifting = 0;
     if (!on) {
         qb_real var_h = INITIAL_SIGMA[0] * INITIAL_SIGMA[0];
         qb_real bb = h->p[7];
@@ -164,27 +170,67 @@ static void hard_stop(qb_height_t *h)
     h->trend = 0.0;
 }
 
+/* The earth-up acceleration to integrate (m/s²): the thrust model's, c u r33 - drag - g - bias, or the
+ * accelerometer's a when the motors are (nearly) off or the model is disabled. */
+static qb_real thrust_accel(qb_height_t *h, qb_real az, qb_real r33, qb_real a, qb_real dt)
+{
+    qb_real u = h->u, c = h->thrust_c, drag = DRAG_PER_S * h->vz, thrust_fast;
+    int strong = u >= THRUST_MIN, near = h->height - h->ground_ref < THRUST_ABOVE_M;
+    h->model_on = 1;
+    if (h->lifting) {
+        if (strong && near)
+            goto model; /* off the legs: the model's thrust, the floor's readings not learnt from */
+        h->lifting = 0;
+    }
+    if (!THRUST_MODEL || !strong || near)
+        goto accelerometer;
+    thrust_fast = h->az_fast + drag; /* the accelerometer's mean without the drag: the thrust's */
+    if (QM(fabs)(thrust_fast - c * h->u_fast) > THRUST_GATE) /* a force the model does not know: the acc's */
+        goto accelerometer;
+    c += ((az + drag) / u - c) * (dt * (1.0 / THRUST_TAU_S)); /* a running mean over THRUST_TAU_S */
+    h->thrust_c = c;
+model:
+    return c * u * r33 - drag - G - h->bias;
+accelerometer:
+    h->model_on = 0;
+    return a;
+}
+
 void qb_height_update_imu(qb_height_t *h, qb_real ax, qb_real ay, qb_real az, qb_real qw, qb_real qx, qb_real qy,
                           qb_real qz, qb_real dt)
 {
-    qb_real a, v;
+    qb_real a, v, r33, kf, a_in;
     int rest, n;
     if (dt <= 0.0)
         return;
-    a = 2.0 * (qx * qz - qw * qy) * ax + 2.0 * (qy * qz + qw * qx) * ay + (qw * qw - qx * qx - qy * qy + qz * qz) * az -
-        G - h->bias;
+    r33 = qw * qw - qx * qx - qy * qy + qz * qz;
+    a = 2.0 * (qx * qz - qw * qy) * ax + 2.0 * (qy * qz + qw * qx) * ay + r33 * az - G - h->bias;
     h->acc_lp += (QM(sqrt)(ax * ax + ay * ay + az * az) - G - h->acc_lp) * (dt / REST_TAU_S < 1.0 ? dt / REST_TAU_S : 1.0);
     rest = h->motors_off && QM(fabs)(h->acc_lp) < REST_ACC;
     h->rest_s = rest ? h->rest_s + dt : 0.0;
     if (h->on_ground != (h->rest_s >= GROUND_REST_S))
         set_ground(h, !h->on_ground);
+    h->u += (h->thrust_hint - h->u) * (dt / (MOTOR_LAG_S + dt));
+    kf = dt / (THRUST_FAST_S + dt);
+    h->az_fast += (az - h->az_fast) * kf;
+    h->u_fast += (h->u - h->u_fast) * kf;
     if (h->on_ground) {
         h->bias += a * (dt / GROUND_BIAS_TAU_S < 1.0 ? dt / GROUND_BIAS_TAU_S : 1.0);
         h->vz = 0.0;
         h->az_earth = 0.0;
         return;
     }
+    if (h->on_legs) {
+        if (h->thrust_c * h->u * r33 <= G && h->az_fast <= G + THRUST_GATE) {
+            h->vz = 0.0; /* the floor carries what the thrust does not */
+            h->az_earth = 0.0;
+            return;
+        }
+        h->on_legs = 0; /* the thrust passes the weight: it lifts, from the floor, now */
+        h->lifting = 1;
+    }
     h->az_earth = a;
+    a_in = thrust_accel(h, az, r33, a, dt);
     v = h->vz;
     if (h->stop_hold > 0.0) { /* the jolt of a stop: the craft stands at the surface */
         h->stop_hold -= dt;
@@ -207,9 +253,14 @@ void qb_height_update_imu(qb_height_t *h, qb_real ax, qb_real ay, qb_real az, qb
             return;
         }
     }
-    h->height += (v + 0.5 * a * dt) * dt;
-    h->vz = v + a * dt;
+    h->height += (v + 0.5 * a_in * dt) * dt;
+    h->vz = v + a_in * dt;
     h->t_pred += dt;
+    if (h->lifting && h->height < h->ground_ref) { /* just off the floor (the barometer's pull too): not below it */
+        h->height = h->ground_ref;
+        if (h->vz < 0.0)
+            h->vz = 0.0;
+    }
 }
 
 static int cmp_double(const void *a, const void *b)
@@ -343,6 +394,10 @@ void qb_height_update_baro(qb_height_t *h, qb_real pressure_pa, qb_real dt)
         ground_baro_update(h, z, dt);
         return;
     }
+    if (h->on_legs) { /* the height held: the barometer not needed (its noise would move it) */
+        h->t_pred = 0.0;
+        return;
+    }
     t = h->t_pred > 0.0 ? h->t_pred : (dt > 0.0 ? dt : 0.0);
     h->t_pred = 0.0;
     if (t > 0.0)
@@ -351,7 +406,7 @@ void qb_height_update_baro(qb_height_t *h, qb_real pressure_pa, qb_real dt)
     memcpy(p, h->p, sizeof p);
     nu = z - h->height - h->spike;
     h->innovation = nu;
-    r = h->r;
+    r = BARO_SIGMA_M * BARO_SIGMA_M;
     s = p[0] + 2.0 * p[3] + p[9] + r;
     r_sigma = QM(fabs)(nu) / QM(sqrt)(s);
     h->trend += TREND_GAIN * (QM(copysign)(r_sigma, nu) - h->trend);

@@ -602,6 +602,7 @@ def test_the_barometers_ground_re_reference_is_the_same_on_both_boards() -> None
     pair.command(Op.MODE, Mode.CALIBRATION)
     pair.step(240)
     heights = []
+    legs = model = False
     for k in range(1700):  # 8.5 s on the pad in SAFE, then FULL with lift
         if k == 1500:
             pair.command(Op.MODE, Mode.FULL)
@@ -609,8 +610,12 @@ def test_the_barometers_ground_re_reference_is_the_same_on_both_boards() -> None
             _joystick(pair, 0 if k < 1510 else 16000)
         pair.step()
         heights.append((pair.py.core.height, pair.c.state()["height"], pair.py.core.height_est.p_ref))
+        legs, model = legs or pair.py.core.height_est.on_legs, model or pair.py.core.height_est.model_on
     pair.check()
-    assert all(abs(py - c) < 1e-6 for py, c, _ in heights), max(abs(py - c) for py, c, _ in heights)
+    assert legs and model  # the thrust model flown, from the legs to the climb (the same heights: the C board's too)
+    # the same arithmetic (1e-9 between the boards' samples), but the Python board's tasks run a few µs after the
+    # tick: climbing at 0.4 m/s from the pad (the thrust model lifts the estimate with the craft) that is 2e-6 m
+    assert all(abs(py - c) < 1e-5 for py, c, _ in heights), max(abs(py - c) for py, c, _ in heights)
     assert heights[1400][2] != heights[-1][2]  # the reference moved at lift-off: the drift taken out
 
 
