@@ -89,13 +89,10 @@ demo: $(RUN_STAMP)
 		echo "make demo: the tour flew to its end"; \
 	fi
 
-# The suite on two workers per core (pytest-xdist): most of its time is spent waiting on real-time links and
-# screens, not computing (tests/ui on 2 cores: 306 s on two workers, 210 s on four, the same CPU time). The tests
-# hold on a busy machine (make test-busy: two busy processes per core), which is what the workers are to each other.
-# worksteal: an idle worker takes queued tests from a busy one, so a long test near the end does not hold the run.
-# TEST_WORKERS=0: one process.
-TEST_WORKERS ?= $(shell echo $$(( 2 * $$(nproc 2>/dev/null || echo 1) )))
-PYTEST := $(BIN)/python -m pytest -n $(TEST_WORKERS) --dist worksteal
+# The suite on two workers (pytest-xdist): most tests wait on a real-time link, so two share two cores well; the
+# tests hold on a busy machine (make test-busy), which is what each worker is to the other. TEST_WORKERS=0: one process.
+TEST_WORKERS ?= 2
+PYTEST := $(BIN)/python -m pytest -n $(TEST_WORKERS)
 
 test: $(STAMP)
 	$(BIN)/ruff check term fcb_sim tests bench
