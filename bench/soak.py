@@ -121,6 +121,9 @@ class Tally:
     panics_sent: int = 0  # of them asked for by the script (a SAFE that would not come)
     phase: str = "start"  # what the script is doing, for the notable events
     notable: Counter[str] = field(default_factory=Counter)  # link timeouts and long heartbeat gaps, by phase
+    gaps: list[dict[str, Any]] = field(default_factory=list)  # the first 100 long heartbeat gaps and LINK LOSTs
+    loop_lag: Counter[str] = field(default_factory=Counter)  # term's event loop late by over 0.2 s, by phase
+    loop_lag_max_s: float = 0.0
 
     def on_event(self, ev: Any) -> None:
         now = time.monotonic()
@@ -148,6 +151,10 @@ class Tally:
                         self.hb_missing += max(0, (pkt.counter - self.hb_last - 1) & 0xFFFF)
                     if self.hb_times and now - self.hb_times[-1] > 0.5:
                         self.notable[f"heartbeat gap over 0.5 s: {self.phase}"] += 1
+                        if len(self.gaps) < 100:  # when, how long, over which link and what was missed
+                            self.gaps.append({"t_s": round(now - self.t0, 1), "phase": self.phase, "link": link,
+                                              "ms": round(1000 * (now - self.hb_times[-1])),
+                                              "counters_missed": (pkt.counter - self.hb_last - 1) & 0xFFFF})
                     self.hb_last = pkt.counter
                     self.hb_times.append(now)
             elif type(pkt) is Event:
@@ -168,7 +175,13 @@ class Tally:
                 self.failed[ev.reason.split(" (")[0] if ev.nak is None else f"NAK: {ev.reason}"] += 1
         elif kind is LinkLost:
             self.link_lost[link] += 1
-            self.lost_in_control += self.control is None or self.control() == link
+            in_control = self.control is None or self.control() == link
+            self.lost_in_control += in_control
+            if in_control:  # which step of the cycle, and how long the board had been silent
+                self.notable[f"LINK LOST on the link in control ({link}): {self.phase}"] += 1
+                if len(self.gaps) < 100:
+                    self.gaps.append({"t_s": round(now - self.t0, 1), "phase": self.phase, "link": link,
+                                      "link_lost_silent_ms": round(1000 * ev.silent_s)})
 
     def note_sent(self, link: str, cmd_id: int, what: str) -> None:
         self.sent += 1
@@ -245,7 +258,13 @@ class Soak:
             self.stick = Joystick(int(a * math.sin(1.1 * t)), int(a * math.cos(1.1 * t)), 0,
                                   int(self.lift * FLY_LIFT * HOVER_LIFT), 0)
             self.st.set_stick(self.stick)
+            before = time.monotonic()
             await asyncio.sleep(1.0 / STICK_HZ)
+            late = time.monotonic() - before - 1.0 / STICK_HZ  # term's own loop blocked (its deafness)
+            if late > self.tally.loop_lag_max_s:
+                self.tally.loop_lag_max_s = late
+            if late > 0.2:
+                self.tally.loop_lag[self.tally.phase] += 1
 
     async def until(self, cond: Any, timeout: float = STEP_TIMEOUT_S) -> bool:
         end = time.monotonic() + timeout
@@ -493,8 +512,22 @@ def _live_figures(live: Any, client: _CountingClient | None) -> dict[str, Any] |
             "log_lines": front.refusals.lines}
 
 
+def _top_growth(before: Any, after: Any, n: int = 15) -> list[str]:
+    """The ``n`` call sites whose live allocations grew most between two tracemalloc snapshots, largest first."""
+    import tracemalloc
+
+    keep = [tracemalloc.Filter(False, tracemalloc.__file__)]
+    stats = after.filter_traces(keep).compare_to(before.filter_traces(keep), "traceback")
+    out = []
+    for st in sorted(stats, key=lambda x: -x.size_diff)[:n]:
+        frames = list(st.traceback)[::-1][:4]  # the allocation first, then its callers
+        where = " < ".join(f"{os.path.relpath(f.filename)}:{f.lineno}" for f in frames)
+        out.append(f"{st.size_diff / 1024:+.1f} KiB {st.count_diff:+d} blocks: {where}")
+    return out
+
+
 async def soak(minutes: float, damage: float, seed: int, flood: int = 0, warmup: float = 5.0,
-               foxglove: bool = True) -> dict[str, Any]:
+               foxglove: bool = True, trace: bool = False) -> dict[str, Any]:
     from term.core.events import CABLE, RADIO
     from term.data.recording import RecordingTransport
     from term.session.config import JOYSTICK_POLICIES
@@ -534,6 +567,7 @@ async def soak(minutes: float, damage: float, seed: int, flood: int = 0, warmup:
                  on_packet=None if live is None else live.link_packet)
     crash: str | None = None
     cycles = 0
+    snap_warm = None  # with ``trace``: tracemalloc's snapshot at the first cycle's end after the warm-up
     stats = None
     s = Soak(st, tally, model)
     tally.control = lambda: getattr(st.control(), "role", None)
@@ -557,8 +591,13 @@ async def soak(minutes: float, damage: float, seed: int, flood: int = 0, warmup:
             now = time.monotonic()
             tally.memory["term"].append((now, rss_mb() or 0.0))
             tally.memory["sim"].append((now, rss_mb(sim_pid) or 0.0))
+            if trace and snap_warm is None and now - t0 >= 60 * warmup:
+                import tracemalloc
+
+                snap_warm = tracemalloc.take_snapshot()
             print(f"cycle {cycles} at {(now - t0) / 60:.1f} min: download {tally.downloads[-1]}, "
-                  f"rss term {tally.memory['term'][-1][1]:.1f} MB sim {tally.memory['sim'][-1][1]:.1f} MB",
+                  f"rss term {tally.memory['term'][-1][1]:.1f} MB sim {tally.memory['sim'][-1][1]:.1f} MB; "
+                  f"term keeps {len(model.events)} events, {len(model.console)} console lines",
                   file=sys.stderr, flush=True)
             if sim.proc is None or sim.proc.poll() is not None:
                 crash = f"the simulator exited ({None if sim.proc is None else sim.proc.returncode})"
@@ -595,6 +634,12 @@ async def soak(minutes: float, damage: float, seed: int, flood: int = 0, warmup:
         if live is not None:
             live.close()
         sim.stop()
+    growth = None
+    if snap_warm is not None:
+        import tracemalloc
+
+        growth = _top_growth(snap_warm, tracemalloc.take_snapshot())
+        print("term's allocations that grew after the warm-up:\n  " + "\n  ".join(growth), file=sys.stderr)
     done = [d for d in tally.downloads if d["state"] == "done"]
     return {
         "bench": "soak", "minutes": round((time.monotonic() - t0) / 60, 2), "damage_pct": 100 * damage,
@@ -612,10 +657,12 @@ async def soak(minutes: float, damage: float, seed: int, flood: int = 0, warmup:
                       "failed": [d.get("reason") for d in tally.downloads if d["state"] != "done"],
                       "time_mean_s": round(statistics.mean(d["s"] for d in done), 1) if done else None,
                       "bytes_mean": round(statistics.mean(d["bytes"] for d in done)) if done else None},
-        "notable": dict(tally.notable),
+        "notable": dict(tally.notable), "gaps": tally.gaps,
+        "term_loop_late": {"max_ms": round(1000 * tally.loop_lag_max_s), "over_200ms": dict(tally.loop_lag)},
         "LINK_LOST": tally.lost_in_control, "PANIC": tally.panics, "panic_asked_by_soak": tally.panics_sent,
         "sim_log_bytes": log_bytes, "flood": flooded if flood else None, "foxglove": live_figures,
         "memory": tally.memory_figures(60 * warmup),
+        "tracemalloc_growth_after_warmup": growth,
         "cable": {"bytes_damaged_up": cable.up.stats.bytes_corrupted,
                   "bytes_damaged_down": cable.down.stats.bytes_corrupted,
                   "frames_bad": None if stats is None else stats.frames_bad,
@@ -646,6 +693,8 @@ def main(argv: list[str] | None = None) -> int:
                     help="with --flood: the terminal serves no live Foxglove (and its port is not flooded)")
     ap.add_argument("--warmup", type=float, default=5.0,
                     help="minutes before the memory growth is counted (default 5)")
+    ap.add_argument("--tracemalloc", action="store_true",
+                    help="trace term's allocations and print the call sites that grew after the warm-up (slower)")
     a = ap.parse_args(argv)
     if not 0.1 <= a.minutes <= 24 * 60:
         print("bench.soak: --minutes must be between 0.1 and 1440", file=sys.stderr)
@@ -653,10 +702,14 @@ def main(argv: list[str] | None = None) -> int:
     if not 0.0 <= a.damage <= 0.5:
         print("bench.soak: --damage is a probability between 0 and 0.5", file=sys.stderr)
         return 2
+    if a.tracemalloc:
+        import tracemalloc
+
+        tracemalloc.start(6)
     if not os.path.exists("/proc/self/status"):
         print("bench.soak: memory figures need Linux (/proc)", file=sys.stderr)
     result = asyncio.run(soak(a.minutes, a.damage, a.seed, a.idle if a.flood else 0, a.warmup,
-                              foxglove=not a.no_foxglove))
+                              foxglove=not a.no_foxglove, trace=a.tracemalloc))
     print(json.dumps(result))
     return 0 if result["crash"] is None else 1
 
