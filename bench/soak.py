@@ -104,6 +104,7 @@ class Tally:
     hb_times: array[float] = field(default_factory=lambda: array("d"))  # (8 B a heartbeat: the bench's own memory
     # is in term's figure, so it keeps no object per heartbeat: 18,000 floats in a list were 0.6 MB in 30 minutes)
     hb_last: int | None = None
+    hb_board_ms: int = 0  # the last heartbeat's board time
     hb_missing: int = 0
     hb_by_link: Counter[str] = field(default_factory=Counter)
     board_events: Counter[str] = field(default_factory=Counter)
@@ -151,11 +152,15 @@ class Tally:
                         self.hb_missing += max(0, (pkt.counter - self.hb_last - 1) & 0xFFFF)
                     if self.hb_times and now - self.hb_times[-1] > 0.5:
                         self.notable[f"heartbeat gap over 0.5 s: {self.phase}"] += 1
-                        if len(self.gaps) < 100:  # when, how long, over which link and what was missed
+                        if len(self.gaps) < 100:  # when, how long, over which link, what was missed, and how
+                            # far the board's own clock moved (as far as the gap: the board ran and its frames
+                            # were lost or late; one period: the simulator's process was stalled)
                             self.gaps.append({"t_s": round(now - self.t0, 1), "phase": self.phase, "link": link,
                                               "ms": round(1000 * (now - self.hb_times[-1])),
-                                              "counters_missed": (pkt.counter - self.hb_last - 1) & 0xFFFF})
+                                              "counters_missed": (pkt.counter - self.hb_last - 1) & 0xFFFF,
+                                              "board_ms": (pkt.board_ms - self.hb_board_ms) & 0xFFFFFFFF})
                     self.hb_last = pkt.counter
+                    self.hb_board_ms = pkt.board_ms
                     self.hb_times.append(now)
             elif type(pkt) is Event:
                 try:
@@ -163,8 +168,10 @@ class Tally:
                 except ValueError:
                     name = str(pkt.code)
                 self.board_events[name] += 1
-                if name in ("LINK_TIMEOUT", "CRASH", "LOW_BATTERY", "TILT_LIMIT", "OVERFLOW"):
+                if name in ("LINK_TIMEOUT", "CRASH", "LOW_BATTERY", "TILT_LIMIT", "OVERFLOW", "SIM_LAG"):
                     self.notable[f"{name}: {self.phase}"] += 1
+                    if name == "SIM_LAG" and len(self.gaps) < 100:
+                        self.gaps.append({"t_s": round(now - self.t0, 1), "phase": self.phase, "sim_lag": pkt.arg})
         elif kind is CommandAcked or kind is CommandFailed:
             if self.pending.pop((link, ev.cmd_id), None) is None:
                 return

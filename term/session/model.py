@@ -443,6 +443,12 @@ class Model:
             self.radio_lost = False
             self.version += 1
             return
+        if kind is CommandAcked and event.op == Op.WIRELESS and event.arg == 0:
+            # The board acks the hand-back over BLE and goes DISCONNECTED at once, writing only to the cable from
+            # then on: its Ack is its word. Waiting for the cable to say so (damaged frames) let BLE's silence
+            # become a BLE LINK LOST on the link in control (issue 36's soak).
+            self.wireless = int(WirelessState.DISCONNECTED)
+            self.radio_lost = False
         self.apply(event, now)
 
     def set_stick(self, stick: Joystick) -> None:
