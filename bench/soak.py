@@ -64,6 +64,7 @@ from term.core.protocol import (
     Joystick,
     Mode,
     Op,
+    Status,
     WirelessState,
 )
 from term.session.download import RUNNING, LogDownloader
@@ -88,6 +89,42 @@ def rss_mb(pid: int | str = "self") -> float | None:
     return None
 
 
+def allocator_mb() -> dict[str, float]:
+    """Where this process's heap is (Linux, glibc; empty elsewhere): Python's own arenas in use (pymalloc, the small
+    objects), and glibc's heap in use, free inside it (fragments RSS keeps) and mmapped (large blocks). Which of
+    them grows tells objects that are kept from memory that is only held."""
+    import ctypes
+    import tempfile
+
+    out: dict[str, float] = {}
+    with contextlib.suppress(Exception), tempfile.TemporaryFile() as f:
+        saved = os.dup(2)
+        try:
+            sys.stderr.flush()
+            os.dup2(f.fileno(), 2)
+            sys._debugmallocstats()
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+        f.seek(0)
+        for line in f.read().decode("ascii", "replace").splitlines():
+            if line.startswith("# bytes in allocated blocks"):
+                out["pymalloc_used_mb"] = round(int(line.split("=")[1].replace(",", "")) / 2**20, 2)
+            elif line.startswith("# arenas allocated current"):
+                out["pymalloc_arenas_mb"] = int(line.split("=")[1].replace(",", ""))  # (1 MiB each on 3.10+)
+    with contextlib.suppress(Exception):
+        class MallInfo2(ctypes.Structure):
+            _fields_ = [(n, ctypes.c_size_t) for n in ("arena", "ordblks", "smblks", "hblks", "hblkhd", "usmblks",
+                                                         "fsmblks", "uordblks", "fordblks", "keepcost")]
+
+        libc = ctypes.CDLL("libc.so.6")
+        libc.mallinfo2.restype = MallInfo2
+        mi = libc.mallinfo2()
+        out |= {"malloc_used_mb": round(mi.uordblks / 2**20, 2), "malloc_free_mb": round(mi.fordblks / 2**20, 2),
+                "malloc_mmap_mb": round(mi.hblkhd / 2**20, 2)}
+    return out
+
+
 @dataclass
 class Tally:
     """What the soak saw: commands and their outcomes, heartbeats, board events, downloads, memory."""
@@ -105,6 +142,8 @@ class Tally:
     # is in term's figure, so it keeps no object per heartbeat: 18,000 floats in a list were 0.6 MB in 30 minutes)
     hb_last: int | None = None
     hb_board_ms: int = 0  # the last heartbeat's board time
+    handback_acked_at: float | None = None  # when the board acked WIRELESS 0 (over BLE)
+    handback_news: list[float] = field(default_factory=list)  # s from that Ack to the cable's DISCONNECTED
     hb_missing: int = 0
     hb_by_link: Counter[str] = field(default_factory=Counter)
     board_events: Counter[str] = field(default_factory=Counter)
@@ -114,6 +153,7 @@ class Tally:
     steps_failed: Counter[str] = field(default_factory=Counter)
     downloads: list[dict[str, Any]] = field(default_factory=list)
     memory: dict[str, list[tuple[float, float]]] = field(default_factory=lambda: {"term": [], "sim": []})
+    heap: list[dict[str, float]] = field(default_factory=list)  # term's allocators at each cycle's end
     download: LogDownloader | None = None
     crashes_acked: int = 0
     control: Any = None  # () -> the role of the link in control now (the station's), for ``lost_in_control``
@@ -145,6 +185,11 @@ class Tally:
             self.download.on_event(ev, now)  # (the model feeds it the LogStatus and LogChunk packets)
         if kind is PacketReceived:
             pkt = ev.packet
+            said = self._wireless_said(pkt)
+            if said is not None and link != "radio" and self.handback_acked_at is not None:
+                if said == WirelessState.DISCONNECTED:  # how long after the Ack the damaged cable said so
+                    self.handback_news.append(now - self.handback_acked_at)
+                    self.handback_acked_at = None
             if type(pkt) is Heartbeat:
                 self.hb_by_link[link] += 1
                 if self.hb_last is None or pkt.counter != self.hb_last:
@@ -173,6 +218,8 @@ class Tally:
                     if name == "SIM_LAG" and len(self.gaps) < 100:
                         self.gaps.append({"t_s": round(now - self.t0, 1), "phase": self.phase, "sim_lag": pkt.arg})
         elif kind is CommandAcked or kind is CommandFailed:
+            if kind is CommandAcked and ev.op == Op.WIRELESS and ev.arg == 0:
+                self.handback_acked_at = now  # the board's word over BLE: it writes to the cable from now on
             if self.pending.pop((link, ev.cmd_id), None) is None:
                 return
             self.outcome[(link, ev.cmd_id)] = "acked" if kind is CommandAcked else ev.reason
@@ -189,6 +236,25 @@ class Tally:
                 if len(self.gaps) < 100:
                     self.gaps.append({"t_s": round(now - self.t0, 1), "phase": self.phase, "link": link,
                                       "link_lost_silent_ms": round(1000 * ev.silent_s)})
+
+    @staticmethod
+    def _wireless_said(pkt: Any) -> int | None:
+        """The handover state a packet from the board states (Status, or Event WIRELESS_STATE), else None."""
+        if type(pkt) is Status:
+            return int(pkt.wireless)
+        if type(pkt) is Event and pkt.code == EventCode.WIRELESS_STATE:
+            return int(pkt.arg)
+        return None
+
+    def handback_figures(self) -> dict[str, Any]:
+        """From the board's Ack of WIRELESS 0 (over BLE) to the cable's first word of DISCONNECTED: before the
+        model took the Ack as the board's word, BLE's silence from the Ack on became a BLE LINK LOST in control
+        whenever this took longer than the link timeout (0.5 s)."""
+        xs = sorted(self.handback_news)
+        if not xs:
+            return {"n": 0}
+        return {"n": len(xs), "median_ms": round(1000 * statistics.median(xs)), "max_ms": round(1000 * xs[-1]),
+                "over_500ms": sum(1 for x in xs if x > 0.5)}
 
     def note_sent(self, link: str, cmd_id: int, what: str) -> None:
         self.sent += 1
@@ -598,13 +664,15 @@ async def soak(minutes: float, damage: float, seed: int, flood: int = 0, warmup:
             now = time.monotonic()
             tally.memory["term"].append((now, rss_mb() or 0.0))
             tally.memory["sim"].append((now, rss_mb(sim_pid) or 0.0))
+            heap = allocator_mb()
+            tally.heap.append(heap)
             if trace and snap_warm is None and now - t0 >= 60 * warmup:
                 import tracemalloc
 
                 snap_warm = tracemalloc.take_snapshot()
             print(f"cycle {cycles} at {(now - t0) / 60:.1f} min: download {tally.downloads[-1]}, "
                   f"rss term {tally.memory['term'][-1][1]:.1f} MB sim {tally.memory['sim'][-1][1]:.1f} MB; "
-                  f"term keeps {len(model.events)} events, {len(model.console)} console lines",
+                  f"term keeps {len(model.events)} events, {len(model.console)} console lines; heap {heap}",
                   file=sys.stderr, flush=True)
             if sim.proc is None or sim.proc.poll() is not None:
                 crash = f"the simulator exited ({None if sim.proc is None else sim.proc.returncode})"
@@ -658,7 +726,8 @@ async def soak(minutes: float, damage: float, seed: int, flood: int = 0, warmup:
         "heartbeats": tally.heartbeat_gaps(),
         "board_events": dict(tally.board_events),
         "link_lost": dict(tally.link_lost), "link_down": dict(tally.link_down),
-        "handovers": dict(tally.handovers), "steps_failed": dict(tally.steps_failed),
+        "handovers": dict(tally.handovers), "handback_cable_news": tally.handback_figures(),
+        "steps_failed": dict(tally.steps_failed),
         "downloads": {"runs": len(tally.downloads), "done": len(done),
                       "crc_ok": sum(1 for d in done if d.get("crc_ok")),
                       "failed": [d.get("reason") for d in tally.downloads if d["state"] != "done"],
@@ -670,6 +739,10 @@ async def soak(minutes: float, damage: float, seed: int, flood: int = 0, warmup:
         "sim_log_bytes": log_bytes, "flood": flooded if flood else None, "foxglove": live_figures,
         "memory": tally.memory_figures(60 * warmup),
         "tracemalloc_growth_after_warmup": growth,
+        "term_heap": {"first_cycle": tally.heap[0] if tally.heap else None,
+                      "at_warmup": next((h for (t, _), h in zip(tally.memory["term"], tally.heap, strict=False)
+                                         if t - t0 >= 60 * warmup), None),
+                      "end": tally.heap[-1] if tally.heap else None},
         "cable": {"bytes_damaged_up": cable.up.stats.bytes_corrupted,
                   "bytes_damaged_down": cable.down.stats.bytes_corrupted,
                   "frames_bad": None if stats is None else stats.frames_bad,
@@ -712,7 +785,7 @@ def main(argv: list[str] | None = None) -> int:
     if a.tracemalloc:
         import tracemalloc
 
-        tracemalloc.start(6)
+        tracemalloc.start(4)
     if not os.path.exists("/proc/self/status"):
         print("bench.soak: memory figures need Linux (/proc)", file=sys.stderr)
     result = asyncio.run(soak(a.minutes, a.damage, a.seed, a.idle if a.flood else 0, a.warmup,
