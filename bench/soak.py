@@ -56,6 +56,7 @@ from typing import Any
 
 from fcb_sim.board.control import z_to_lift
 from term.core.events import FromLink, LinkDown, NotSent
+from term.core.heap import PROCESS_HEAP
 from term.core.link import CommandAcked, CommandFailed, LinkLost, PacketReceived
 from term.core.protocol import (
     Event,
@@ -303,6 +304,7 @@ class Soak:
         self.lift = 0.0  # 0..1 of HOVER_LIFT
         self.circle = 0.0  # amplitude of the stick circles, 0..1
         self._stick_task: asyncio.Task[None] | None = None
+        self.heap = PROCESS_HEAP  # glibc's free pages given back once a minute, as the app does (term/core/heap.py)
 
     # --- plumbing ---------------------------------------------------------------------------------------------
 
@@ -323,6 +325,7 @@ class Soak:
             n += 1
             if n % 8 == 0:
                 self.st.sample()
+                self.heap.tick(time.monotonic())  # (the app's render tick does both)
             if self.model.mode != mode:
                 mode = self.model.mode
                 self.tally.panics += mode == Mode.PANIC
@@ -736,7 +739,8 @@ async def soak(minutes: float, damage: float, seed: int, flood: int = 0, warmup:
         "notable": dict(tally.notable), "gaps": tally.gaps,
         "term_loop_late": {"max_ms": round(1000 * tally.loop_lag_max_s), "over_200ms": dict(tally.loop_lag)},
         "LINK_LOST": tally.lost_in_control, "PANIC": tally.panics, "panic_asked_by_soak": tally.panics_sent,
-        "sim_log_bytes": log_bytes, "flood": flooded if flood else None, "foxglove": live_figures,
+        "heap_trims": s.heap.trims, "sim_log_bytes": log_bytes, "flood": flooded if flood else None,
+        "foxglove": live_figures,
         "memory": tally.memory_figures(60 * warmup),
         "tracemalloc_growth_after_warmup": growth,
         "term_heap": {"first_cycle": tally.heap[0] if tally.heap else None,
