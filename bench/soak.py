@@ -31,8 +31,18 @@ it is not is the handover's, in ``link_lost``) and PANIC counts (goal 0), the bo
 growth after the first ``--warmup`` minutes (goal at most 2 MB), the bytes the simulator wrote to its log (stderr), and
 the flood's own counts, and the live server's (messages its client got, the door's refusals and log lines).
 
-``python -m bench.soak [--minutes 10] [--damage 0.02] [--seed 1] [--flood [--idle 1100] [--warmup 5] [--no-foxglove]]``
-(the issue's run: ``python -m bench.soak --minutes 30 --flood``)
+Where a figure misses its goal (issue 36), the soak says why: each long heartbeat gap and each LINK LOST on the
+link in control with its time, its step of the cycle, the heartbeats missed and the board's own time across it (as
+long as the gap: the board ran and its frames were damaged; one period: the simulator's process was stalled), and
+each SIM_LAG (``gaps``); term's event loop lateness (``term_loop_late``); how long after the board's Ack of the
+hand-back (over BLE) the damaged cable said DISCONNECTED (``handback_cable_news``: the model no longer waits for it);
+term's heap by allocator at each cycle (``term_heap``: pymalloc's objects, glibc's blocks in use and free) and the
+app's once-a-minute ``malloc_trim`` (term/core/heap.py, ``heap_trims``). ``--tracemalloc`` traces term's allocations
+and prints the call sites that grew between the first cycle after the warm-up and the end (slow: a diagnosis, not
+a figure).
+
+``python -m bench.soak [--minutes 10] [--damage 0.02] [--seed 1] [--flood [--idle 1100] [--warmup 5] [--no-foxglove]]
+[--tracemalloc]`` (the issue's run: ``python -m bench.soak --minutes 30 --flood``)
 """
 
 from __future__ import annotations

@@ -1,10 +1,11 @@
 """Handing control back to the cable (issue 36): the board's Ack of WIRELESS 0 over BLE is its word that it is back on
 the cable, so the radio's silence that follows is the handover's, not a BLE LINK LOST on the link in control.
 
-The soak counted one LINK LOST in control in 30 minutes: the board acks WIRELESS 0 over BLE, goes DISCONNECTED and
-writes only to the cable from then on; the terminal kept BLE in control until the cable (2 % of its bytes damaged)
-brought a Status or the WIRELESS_STATE event, and when none of those came through within the link timeout the
-radio's silence was declared BLE LINK LOST while BLE still carried control."""
+How the soak's LINK LOST in control came about: the board acks WIRELESS 0 over BLE, goes DISCONNECTED and writes
+only to the cable from then on; the terminal kept BLE in control until the cable (2 % of its bytes damaged) brought
+a Status (5 Hz) or the WIRELESS_STATE event, a median 0.2 s later in the soak (``handback_cable_news``), and when
+none of those came through within the 0.5 s link timeout, the radio's silence was declared BLE LINK LOST while BLE
+still carried control."""
 
 from __future__ import annotations
 
