@@ -31,8 +31,18 @@ it is not is the handover's, in ``link_lost``) and PANIC counts (goal 0), the bo
 growth after the first ``--warmup`` minutes (goal at most 2 MB), the bytes the simulator wrote to its log (stderr), and
 the flood's own counts, and the live server's (messages its client got, the door's refusals and log lines).
 
-``python -m bench.soak [--minutes 10] [--damage 0.02] [--seed 1] [--flood [--idle 1100] [--warmup 5] [--no-foxglove]]``
-(the issue's run: ``python -m bench.soak --minutes 30 --flood``)
+Where a figure misses its goal (issue 36), the soak says why: each long heartbeat gap and each LINK LOST on the
+link in control with its time, its step of the cycle, the heartbeats missed and the board's own time across it (as
+long as the gap: the board ran and its frames were damaged; one period: the simulator's process was stalled), and
+each SIM_LAG (``gaps``); term's event loop lateness (``term_loop_late``); how long after the board's Ack of the
+hand-back (over BLE) the damaged cable said DISCONNECTED (``handback_cable_news``: the model no longer waits for it);
+term's heap by allocator at each cycle (``term_heap``: pymalloc's objects, glibc's blocks in use and free) and the
+app's once-a-minute ``malloc_trim`` (term/core/heap.py, ``heap_trims``). ``--tracemalloc`` traces term's allocations
+and prints the call sites that grew between the first cycle after the warm-up and the end (slow: a diagnosis, not
+a figure).
+
+``python -m bench.soak [--minutes 10] [--damage 0.02] [--seed 1] [--flood [--idle 1100] [--warmup 5] [--no-foxglove]]
+[--tracemalloc]`` (the issue's run: ``python -m bench.soak --minutes 30 --flood``)
 """
 
 from __future__ import annotations
@@ -56,6 +66,7 @@ from typing import Any
 
 from fcb_sim.board.control import z_to_lift
 from term.core.events import FromLink, LinkDown, NotSent
+from term.core.heap import PROCESS_HEAP
 from term.core.link import CommandAcked, CommandFailed, LinkLost, PacketReceived
 from term.core.protocol import (
     Event,
@@ -64,6 +75,7 @@ from term.core.protocol import (
     Joystick,
     Mode,
     Op,
+    Status,
     WirelessState,
 )
 from term.session.download import RUNNING, LogDownloader
@@ -88,6 +100,42 @@ def rss_mb(pid: int | str = "self") -> float | None:
     return None
 
 
+def allocator_mb() -> dict[str, float]:
+    """Where this process's heap is (Linux, glibc; empty elsewhere): Python's own arenas in use (pymalloc, the small
+    objects), and glibc's heap in use, free inside it (fragments RSS keeps) and mmapped (large blocks). Which of
+    them grows tells objects that are kept from memory that is only held."""
+    import ctypes
+    import tempfile
+
+    out: dict[str, float] = {}
+    with contextlib.suppress(Exception), tempfile.TemporaryFile() as f:
+        saved = os.dup(2)
+        try:
+            sys.stderr.flush()
+            os.dup2(f.fileno(), 2)
+            sys._debugmallocstats()
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+        f.seek(0)
+        for line in f.read().decode("ascii", "replace").splitlines():
+            if line.startswith("# bytes in allocated blocks"):
+                out["pymalloc_used_mb"] = round(int(line.split("=")[1].replace(",", "")) / 2**20, 2)
+            elif line.startswith("# arenas allocated current"):
+                out["pymalloc_arenas_mb"] = int(line.split("=")[1].replace(",", ""))  # (1 MiB each on 3.10+)
+    with contextlib.suppress(Exception):
+        class MallInfo2(ctypes.Structure):
+            _fields_ = [(n, ctypes.c_size_t) for n in ("arena", "ordblks", "smblks", "hblks", "hblkhd", "usmblks",
+                                                         "fsmblks", "uordblks", "fordblks", "keepcost")]
+
+        libc = ctypes.CDLL("libc.so.6")
+        libc.mallinfo2.restype = MallInfo2
+        mi = libc.mallinfo2()
+        out |= {"malloc_used_mb": round(mi.uordblks / 2**20, 2), "malloc_free_mb": round(mi.fordblks / 2**20, 2),
+                "malloc_mmap_mb": round(mi.hblkhd / 2**20, 2)}
+    return out
+
+
 @dataclass
 class Tally:
     """What the soak saw: commands and their outcomes, heartbeats, board events, downloads, memory."""
@@ -104,6 +152,9 @@ class Tally:
     hb_times: array[float] = field(default_factory=lambda: array("d"))  # (8 B a heartbeat: the bench's own memory
     # is in term's figure, so it keeps no object per heartbeat: 18,000 floats in a list were 0.6 MB in 30 minutes)
     hb_last: int | None = None
+    hb_board_ms: int = 0  # the last heartbeat's board time
+    handback_acked_at: float | None = None  # when the board acked WIRELESS 0 (over BLE)
+    handback_news: list[float] = field(default_factory=list)  # s from that Ack to the cable's DISCONNECTED
     hb_missing: int = 0
     hb_by_link: Counter[str] = field(default_factory=Counter)
     board_events: Counter[str] = field(default_factory=Counter)
@@ -113,6 +164,7 @@ class Tally:
     steps_failed: Counter[str] = field(default_factory=Counter)
     downloads: list[dict[str, Any]] = field(default_factory=list)
     memory: dict[str, list[tuple[float, float]]] = field(default_factory=lambda: {"term": [], "sim": []})
+    heap: list[dict[str, float]] = field(default_factory=list)  # term's allocators at each cycle's end
     download: LogDownloader | None = None
     crashes_acked: int = 0
     control: Any = None  # () -> the role of the link in control now (the station's), for ``lost_in_control``
@@ -121,6 +173,9 @@ class Tally:
     panics_sent: int = 0  # of them asked for by the script (a SAFE that would not come)
     phase: str = "start"  # what the script is doing, for the notable events
     notable: Counter[str] = field(default_factory=Counter)  # link timeouts and long heartbeat gaps, by phase
+    gaps: list[dict[str, Any]] = field(default_factory=list)  # the first 100 long heartbeat gaps and LINK LOSTs
+    loop_lag: Counter[str] = field(default_factory=Counter)  # term's event loop late by over 0.2 s, by phase
+    loop_lag_max_s: float = 0.0
 
     def on_event(self, ev: Any) -> None:
         now = time.monotonic()
@@ -141,6 +196,11 @@ class Tally:
             self.download.on_event(ev, now)  # (the model feeds it the LogStatus and LogChunk packets)
         if kind is PacketReceived:
             pkt = ev.packet
+            said = self._wireless_said(pkt)
+            if said is not None and link != "radio" and self.handback_acked_at is not None:
+                if said == WirelessState.DISCONNECTED:  # how long after the Ack the damaged cable said so
+                    self.handback_news.append(now - self.handback_acked_at)
+                    self.handback_acked_at = None
             if type(pkt) is Heartbeat:
                 self.hb_by_link[link] += 1
                 if self.hb_last is None or pkt.counter != self.hb_last:
@@ -148,7 +208,15 @@ class Tally:
                         self.hb_missing += max(0, (pkt.counter - self.hb_last - 1) & 0xFFFF)
                     if self.hb_times and now - self.hb_times[-1] > 0.5:
                         self.notable[f"heartbeat gap over 0.5 s: {self.phase}"] += 1
+                        if len(self.gaps) < 100:  # when, how long, over which link, what was missed, and how
+                            # far the board's own clock moved (as far as the gap: the board ran and its frames
+                            # were lost or late; one period: the simulator's process was stalled)
+                            self.gaps.append({"t_s": round(now - self.t0, 1), "phase": self.phase, "link": link,
+                                              "ms": round(1000 * (now - self.hb_times[-1])),
+                                              "counters_missed": (pkt.counter - self.hb_last - 1) & 0xFFFF,
+                                              "board_ms": (pkt.board_ms - self.hb_board_ms) & 0xFFFFFFFF})
                     self.hb_last = pkt.counter
+                    self.hb_board_ms = pkt.board_ms
                     self.hb_times.append(now)
             elif type(pkt) is Event:
                 try:
@@ -156,9 +224,13 @@ class Tally:
                 except ValueError:
                     name = str(pkt.code)
                 self.board_events[name] += 1
-                if name in ("LINK_TIMEOUT", "CRASH", "LOW_BATTERY", "TILT_LIMIT", "OVERFLOW"):
+                if name in ("LINK_TIMEOUT", "CRASH", "LOW_BATTERY", "TILT_LIMIT", "OVERFLOW", "SIM_LAG"):
                     self.notable[f"{name}: {self.phase}"] += 1
+                    if name == "SIM_LAG" and len(self.gaps) < 100:
+                        self.gaps.append({"t_s": round(now - self.t0, 1), "phase": self.phase, "sim_lag": pkt.arg})
         elif kind is CommandAcked or kind is CommandFailed:
+            if kind is CommandAcked and ev.op == Op.WIRELESS and ev.arg == 0:
+                self.handback_acked_at = now  # the board's word over BLE: it writes to the cable from now on
             if self.pending.pop((link, ev.cmd_id), None) is None:
                 return
             self.outcome[(link, ev.cmd_id)] = "acked" if kind is CommandAcked else ev.reason
@@ -168,7 +240,32 @@ class Tally:
                 self.failed[ev.reason.split(" (")[0] if ev.nak is None else f"NAK: {ev.reason}"] += 1
         elif kind is LinkLost:
             self.link_lost[link] += 1
-            self.lost_in_control += self.control is None or self.control() == link
+            in_control = self.control is None or self.control() == link
+            self.lost_in_control += in_control
+            if in_control:  # which step of the cycle, and how long the board had been silent
+                self.notable[f"LINK LOST on the link in control ({link}): {self.phase}"] += 1
+                if len(self.gaps) < 100:
+                    self.gaps.append({"t_s": round(now - self.t0, 1), "phase": self.phase, "link": link,
+                                      "link_lost_silent_ms": round(1000 * ev.silent_s)})
+
+    @staticmethod
+    def _wireless_said(pkt: Any) -> int | None:
+        """The handover state a packet from the board states (Status, or Event WIRELESS_STATE), else None."""
+        if type(pkt) is Status:
+            return int(pkt.wireless)
+        if type(pkt) is Event and pkt.code == EventCode.WIRELESS_STATE:
+            return int(pkt.arg)
+        return None
+
+    def handback_figures(self) -> dict[str, Any]:
+        """From the board's Ack of WIRELESS 0 (over BLE) to the cable's first word of DISCONNECTED: before the
+        model took the Ack as the board's word, BLE's silence from the Ack on became a BLE LINK LOST in control
+        whenever this took longer than the link timeout (0.5 s)."""
+        xs = sorted(self.handback_news)
+        if not xs:
+            return {"n": 0}
+        return {"n": len(xs), "median_ms": round(1000 * statistics.median(xs)), "max_ms": round(1000 * xs[-1]),
+                "over_500ms": sum(1 for x in xs if x > 0.5)}
 
     def note_sent(self, link: str, cmd_id: int, what: str) -> None:
         self.sent += 1
@@ -217,6 +314,7 @@ class Soak:
         self.lift = 0.0  # 0..1 of HOVER_LIFT
         self.circle = 0.0  # amplitude of the stick circles, 0..1
         self._stick_task: asyncio.Task[None] | None = None
+        self.heap = PROCESS_HEAP  # glibc's free pages given back once a minute, as the app does (term/core/heap.py)
 
     # --- plumbing ---------------------------------------------------------------------------------------------
 
@@ -237,6 +335,7 @@ class Soak:
             n += 1
             if n % 8 == 0:
                 self.st.sample()
+                self.heap.tick(time.monotonic())  # (the app's render tick does both)
             if self.model.mode != mode:
                 mode = self.model.mode
                 self.tally.panics += mode == Mode.PANIC
@@ -245,7 +344,13 @@ class Soak:
             self.stick = Joystick(int(a * math.sin(1.1 * t)), int(a * math.cos(1.1 * t)), 0,
                                   int(self.lift * FLY_LIFT * HOVER_LIFT), 0)
             self.st.set_stick(self.stick)
+            before = time.monotonic()
             await asyncio.sleep(1.0 / STICK_HZ)
+            late = time.monotonic() - before - 1.0 / STICK_HZ  # term's own loop blocked (its deafness)
+            if late > self.tally.loop_lag_max_s:
+                self.tally.loop_lag_max_s = late
+            if late > 0.2:
+                self.tally.loop_lag[self.tally.phase] += 1
 
     async def until(self, cond: Any, timeout: float = STEP_TIMEOUT_S) -> bool:
         end = time.monotonic() + timeout
@@ -493,8 +598,22 @@ def _live_figures(live: Any, client: _CountingClient | None) -> dict[str, Any] |
             "log_lines": front.refusals.lines}
 
 
+def _top_growth(before: Any, after: Any, n: int = 15) -> list[str]:
+    """The ``n`` call sites whose live allocations grew most between two tracemalloc snapshots, largest first."""
+    import tracemalloc
+
+    keep = [tracemalloc.Filter(False, tracemalloc.__file__)]
+    stats = after.filter_traces(keep).compare_to(before.filter_traces(keep), "traceback")
+    out = []
+    for st in sorted(stats, key=lambda x: -x.size_diff)[:n]:
+        frames = list(st.traceback)[::-1][:4]  # the allocation first, then its callers
+        where = " < ".join(f"{os.path.relpath(f.filename)}:{f.lineno}" for f in frames)
+        out.append(f"{st.size_diff / 1024:+.1f} KiB {st.count_diff:+d} blocks: {where}")
+    return out
+
+
 async def soak(minutes: float, damage: float, seed: int, flood: int = 0, warmup: float = 5.0,
-               foxglove: bool = True) -> dict[str, Any]:
+               foxglove: bool = True, trace: bool = False) -> dict[str, Any]:
     from term.core.events import CABLE, RADIO
     from term.data.recording import RecordingTransport
     from term.session.config import JOYSTICK_POLICIES
@@ -534,6 +653,7 @@ async def soak(minutes: float, damage: float, seed: int, flood: int = 0, warmup:
                  on_packet=None if live is None else live.link_packet)
     crash: str | None = None
     cycles = 0
+    snap_warm = None  # with ``trace``: tracemalloc's snapshot at the first cycle's end after the warm-up
     stats = None
     s = Soak(st, tally, model)
     tally.control = lambda: getattr(st.control(), "role", None)
@@ -557,8 +677,15 @@ async def soak(minutes: float, damage: float, seed: int, flood: int = 0, warmup:
             now = time.monotonic()
             tally.memory["term"].append((now, rss_mb() or 0.0))
             tally.memory["sim"].append((now, rss_mb(sim_pid) or 0.0))
+            heap = allocator_mb()
+            tally.heap.append(heap)
+            if trace and snap_warm is None and now - t0 >= 60 * warmup:
+                import tracemalloc
+
+                snap_warm = tracemalloc.take_snapshot()
             print(f"cycle {cycles} at {(now - t0) / 60:.1f} min: download {tally.downloads[-1]}, "
-                  f"rss term {tally.memory['term'][-1][1]:.1f} MB sim {tally.memory['sim'][-1][1]:.1f} MB",
+                  f"rss term {tally.memory['term'][-1][1]:.1f} MB sim {tally.memory['sim'][-1][1]:.1f} MB; "
+                  f"term keeps {len(model.events)} events, {len(model.console)} console lines; heap {heap}",
                   file=sys.stderr, flush=True)
             if sim.proc is None or sim.proc.poll() is not None:
                 crash = f"the simulator exited ({None if sim.proc is None else sim.proc.returncode})"
@@ -595,6 +722,12 @@ async def soak(minutes: float, damage: float, seed: int, flood: int = 0, warmup:
         if live is not None:
             live.close()
         sim.stop()
+    growth = None
+    if snap_warm is not None:
+        import tracemalloc
+
+        growth = _top_growth(snap_warm, tracemalloc.take_snapshot())
+        print("term's allocations that grew after the warm-up:\n  " + "\n  ".join(growth), file=sys.stderr)
     done = [d for d in tally.downloads if d["state"] == "done"]
     return {
         "bench": "soak", "minutes": round((time.monotonic() - t0) / 60, 2), "damage_pct": 100 * damage,
@@ -606,16 +739,24 @@ async def soak(minutes: float, damage: float, seed: int, flood: int = 0, warmup:
         "heartbeats": tally.heartbeat_gaps(),
         "board_events": dict(tally.board_events),
         "link_lost": dict(tally.link_lost), "link_down": dict(tally.link_down),
-        "handovers": dict(tally.handovers), "steps_failed": dict(tally.steps_failed),
+        "handovers": dict(tally.handovers), "handback_cable_news": tally.handback_figures(),
+        "steps_failed": dict(tally.steps_failed),
         "downloads": {"runs": len(tally.downloads), "done": len(done),
                       "crc_ok": sum(1 for d in done if d.get("crc_ok")),
                       "failed": [d.get("reason") for d in tally.downloads if d["state"] != "done"],
                       "time_mean_s": round(statistics.mean(d["s"] for d in done), 1) if done else None,
                       "bytes_mean": round(statistics.mean(d["bytes"] for d in done)) if done else None},
-        "notable": dict(tally.notable),
+        "notable": dict(tally.notable), "gaps": tally.gaps,
+        "term_loop_late": {"max_ms": round(1000 * tally.loop_lag_max_s), "over_200ms": dict(tally.loop_lag)},
         "LINK_LOST": tally.lost_in_control, "PANIC": tally.panics, "panic_asked_by_soak": tally.panics_sent,
-        "sim_log_bytes": log_bytes, "flood": flooded if flood else None, "foxglove": live_figures,
+        "heap_trims": s.heap.trims, "sim_log_bytes": log_bytes, "flood": flooded if flood else None,
+        "foxglove": live_figures,
         "memory": tally.memory_figures(60 * warmup),
+        "tracemalloc_growth_after_warmup": growth,
+        "term_heap": {"first_cycle": tally.heap[0] if tally.heap else None,
+                      "at_warmup": next((h for (t, _), h in zip(tally.memory["term"], tally.heap, strict=False)
+                                         if t - t0 >= 60 * warmup), None),
+                      "end": tally.heap[-1] if tally.heap else None},
         "cable": {"bytes_damaged_up": cable.up.stats.bytes_corrupted,
                   "bytes_damaged_down": cable.down.stats.bytes_corrupted,
                   "frames_bad": None if stats is None else stats.frames_bad,
@@ -646,6 +787,8 @@ def main(argv: list[str] | None = None) -> int:
                     help="with --flood: the terminal serves no live Foxglove (and its port is not flooded)")
     ap.add_argument("--warmup", type=float, default=5.0,
                     help="minutes before the memory growth is counted (default 5)")
+    ap.add_argument("--tracemalloc", action="store_true",
+                    help="trace term's allocations and print the call sites that grew after the warm-up (slower)")
     a = ap.parse_args(argv)
     if not 0.1 <= a.minutes <= 24 * 60:
         print("bench.soak: --minutes must be between 0.1 and 1440", file=sys.stderr)
@@ -653,10 +796,14 @@ def main(argv: list[str] | None = None) -> int:
     if not 0.0 <= a.damage <= 0.5:
         print("bench.soak: --damage is a probability between 0 and 0.5", file=sys.stderr)
         return 2
+    if a.tracemalloc:
+        import tracemalloc
+
+        tracemalloc.start(4)
     if not os.path.exists("/proc/self/status"):
         print("bench.soak: memory figures need Linux (/proc)", file=sys.stderr)
     result = asyncio.run(soak(a.minutes, a.damage, a.seed, a.idle if a.flood else 0, a.warmup,
-                              foxglove=not a.no_foxglove))
+                              foxglove=not a.no_foxglove, trace=a.tracemalloc))
     print(json.dumps(result))
     return 0 if result["crash"] is None else 1
 

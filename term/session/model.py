@@ -79,6 +79,7 @@ from term.core.protocol import (
     scaled,
 )
 from term.session.eventlog import REFUSAL_PAIR_S, LogEntry, deadline_miss, note
+from term.session.history import Series
 from term.session.texts import (  # (the pilot's words: imported from here by the widgets too)
     event_text,
     mode_name,
@@ -117,7 +118,7 @@ class Model:
     download_note: str = ""
     download_note_at: float | None = None  # when it was said (the panel shows it STATUS_LINE_S; None: always)
     events: deque[LogEntry] = field(default_factory=lambda: deque(maxlen=500))
-    history: dict[str, deque[tuple[float, float]]] = field(default_factory=dict)
+    history: dict[str, Series] = field(default_factory=dict)  # preallocated rings (term/session/history.py)
     pending: int = 0  # commands sent and not yet answered
     own: set[int] = field(default_factory=set)  # cmd_ids the terminal sent on its own: no error if they fail
     wireless: int = 0  # WirelessState, as the board last said
@@ -390,7 +391,7 @@ class Model:
         for name, v in values.items():
             d = h.get(name)
             if d is None:
-                d = h[name] = deque(maxlen=HISTORY)
+                d = h[name] = Series(HISTORY)
             d.append((t, v))
 
     def set_link_stats(self, stats: LinkStats, now: float) -> None:
@@ -442,6 +443,12 @@ class Model:
             self.radio_lost = False
             self.version += 1
             return
+        if kind is CommandAcked and event.op == Op.WIRELESS and event.arg == 0:
+            # The board acks the hand-back over BLE and goes DISCONNECTED at once, writing only to the cable from
+            # then on: its Ack is its word. Waiting for the cable to say so (damaged frames) let BLE's silence
+            # become a BLE LINK LOST on the link in control (issue 36's soak).
+            self.wireless = int(WirelessState.DISCONNECTED)
+            self.radio_lost = False
         self.apply(event, now)
 
     def set_stick(self, stick: Joystick) -> None:

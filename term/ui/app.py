@@ -36,6 +36,7 @@ from textual.screen import ModalScreen, Screen
 
 from term.core.errors import EXIT_USAGE
 from term.core.events import EventsCleared, Fatal, FromLink, NotSent, StationEvent
+from term.core.heap import PROCESS_HEAP
 from term.core.protocol import MODE_TABLE, Joystick, Mode, Op
 from term.data.recording import SessionRecorder
 from term.data.replay import Replay
@@ -295,8 +296,7 @@ class TermApp(App[int]):
         self.lessons.mount()
         self.outputs.recording_failed()  # a recording that could not start: said before the first flight
         self.render_now()
-        # The widget tree and the libraries are built: a full collection need not walk them again (it holds the
-        # GIL, and the link's thread with it, for as long as it walks). Undone at shutdown.
+        # Widgets and libraries built: no full collection walks them again (it holds the GIL). Undone at shutdown.
         gc.collect()
         gc.freeze()
 
@@ -366,6 +366,7 @@ class TermApp(App[int]):
             self.sub_title = self.replayer.step()
         now = self.clock()
         self.station.sample()
+        PROCESS_HEAP.tick(time.monotonic())  # glibc's free pages back to the system once a minute (term/core/heap.py)
         self.downloads.tick(now)
         if self.replay is None:
             for alarm in self.alarms.update(self.model, now):
