@@ -7,8 +7,9 @@
 - Both give ``ConsoleLine``s. Level: a Text packet's own; a printed line's from its words (``level_of``: assert,
   fault, panic, error ... error; warn ... warning; debug ... debug; else info).
 - Rate limit: a token bucket (``rate`` lines a second, bursts of ``burst``) over both sources together: a board
-  spewing text cannot flood the screen, the events list or an export. What it drops is counted (``dropped``) and
-  the next line that passes says how many went before it (``ConsoleLine.dropped``).
+  spewing text cannot flood the screen, the events list or an export. What it drops is counted (``dropped``), said
+  at once by a ``ConsoleDropped`` at the end of the feed that dropped it (a board that spews then falls silent has
+  no next line to say it), and the next line that passes says how many went before it (``ConsoleLine.dropped``).
 - Text from the board is hostile until read: bytes are decoded with replacement, control characters (escape
   sequences) become spaces, so nothing the board prints can drive the terminal.
 
@@ -45,6 +46,17 @@ class ConsoleLine:
     cut: bool = False  # longer than the console keeps: the rest was dropped
 
 
+@dataclass(frozen=True, slots=True)
+class ConsoleDropped:
+    """Lines one feed dropped by the rate limit (``count``), from ``source``."""
+
+    count: int
+    source: str
+
+
+ConsoleEvent = ConsoleLine | ConsoleDropped
+
+
 def level_of(text: str) -> int:
     """A printed line's level, from its words."""
     if _ERROR.search(text):
@@ -77,8 +89,9 @@ class Console:
         self._board = bytearray()
         self._board_level = LEVEL_INFO
 
-    def feed_bytes(self, data: bytes, now: float) -> list[ConsoleLine]:
-        out: list[ConsoleLine] = []
+    def feed_bytes(self, data: bytes, now: float) -> list[ConsoleEvent]:
+        out: list[ConsoleEvent] = []
+        before = self.dropped
         buf = self._uart
         for part in re.split(rb"(\n)", data):
             if part == b"\n":
@@ -94,10 +107,11 @@ class Console:
                 self._line(bytes(buf[: self.max_line]), None, UART, now, out, True)
                 buf.clear()
                 self._uart_cut = True
-        return out
+        return self._said_drops(out, before, UART)
 
-    def feed_packet(self, pkt: Text, now: float) -> list[ConsoleLine]:
-        out: list[ConsoleLine] = []
+    def feed_packet(self, pkt: Text, now: float) -> list[ConsoleEvent]:
+        out: list[ConsoleEvent] = []
+        before = self.dropped
         if not self._board:
             self._board_level = pkt.info & TEXT_LEVEL_MASK or LEVEL_INFO
         self._board += pkt.text.rstrip(b"\x00")
@@ -105,9 +119,14 @@ class Console:
         if not pkt.info & TEXT_MORE or cut:
             self._line(bytes(self._board), self._board_level, BOARD, now, out, cut)
             self._board.clear()
+        return self._said_drops(out, before, BOARD)
+
+    def _said_drops(self, out: list[ConsoleEvent], before: int, source: str) -> list[ConsoleEvent]:
+        if self.dropped > before:
+            out.append(ConsoleDropped(self.dropped - before, source))
         return out
 
-    def _line(self, raw: bytes, level: int | None, source: str, now: float, out: list[ConsoleLine],
+    def _line(self, raw: bytes, level: int | None, source: str, now: float, out: list[ConsoleEvent],
               cut: bool) -> None:
         text = clean(raw.decode("utf-8", "replace")).rstrip()
         if len(text) > self.max_line:

@@ -20,7 +20,8 @@ A ``LinkSession`` knows the protocol's rules for talking to a board and nothing 
   not call a loss for frames that waited in the OS;
 - it sends a ``Hello`` at connect and reports a board that speaks another protocol version;
 - it gives the board's text as ``ConsoleLine`` events (``term.core.console``): what the board prints between frames
-  (printf on the UART) and its ``Text`` packets (``qb_log``), as lines, rate-limited (``console``).
+  (printf on the UART) and its ``Text`` packets (``qb_log``), as lines, rate-limited (``console``); what the limit
+  drops, as ``ConsoleDropped``.
 
 Nothing here reads a clock: every call takes ``now`` (seconds, any monotonic origin). The caller (an asyncio
 pump in ``term.session.connection``, a test with a fake clock, a benchmark) owns time and I/O.
@@ -36,7 +37,7 @@ from collections import deque
 from dataclasses import dataclass
 from typing import Any
 
-from term.core.console import Console, ConsoleLine
+from term.core.console import Console, ConsoleDropped, ConsoleLine
 from term.core.protocol import (
     LINK_TIMEOUT_S,
     NAK_TEXT,
@@ -112,7 +113,8 @@ class VersionMismatch:
     our_version: int
 
 
-LinkEvent = PacketReceived | CommandAcked | CommandFailed | LinkLost | LinkRestored | VersionMismatch | ConsoleLine
+LinkEvent = (PacketReceived | CommandAcked | CommandFailed | LinkLost | LinkRestored | VersionMismatch | ConsoleLine
+             | ConsoleDropped)
 
 
 # --- statistics ---------------------------------------------------------------------------------------------

@@ -21,7 +21,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
-from term.core.console import ConsoleLine
+from term.core.console import ConsoleDropped, ConsoleLine
 from term.core.events import (
     RADIO,
     EventsCleared,
@@ -629,9 +629,14 @@ def _on_log_packet(m: Model, pkt: LogStatus | LogChunk, now: float) -> None:
 def _on_console(m: Model, line: ConsoleLine, now: float) -> None:
     """A line of the board's text (term.core.console): in the console; an error's in the events list too."""
     m.console.append((now - m.start, line))
-    m.console_dropped += line.dropped
     if line.level >= LEVEL_ERROR:
         m.note(now, "error", "board", f"console: {line.text}")
+    m.version += 1
+
+
+def _on_console_dropped(m: Model, ev: ConsoleDropped, now: float) -> None:
+    """Lines the link's rate limit dropped: counted as they go (the line after them may be long in coming)."""
+    m.console_dropped += ev.count
     m.version += 1
 
 
@@ -672,4 +677,5 @@ _HANDLERS: dict[type, Callable[[Model, Any, float], None]] = {
     JoystickNamed: Model._on_joystick,
     EventsCleared: Model._on_cleared,
     ConsoleLine: _on_console,
+    ConsoleDropped: _on_console_dropped,
 }

@@ -7,7 +7,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import term.core.protocol as p
-from term.core.console import BOARD, UART, Console, level_of
+from term.core.console import BOARD, UART, Console, ConsoleDropped, ConsoleLine, level_of
 from term.core.link import LinkSession
 
 FRAMES = [p.Heartbeat(i, 1000 * i) for i in range(1, 6)] + [p.Attitude(0, 1, -2, 3, 0, 0, 0)]
@@ -110,10 +110,19 @@ def test_levels_from_words() -> None:
 def test_rate_limit_drops_and_counts_then_says_so() -> None:
     c = Console(rate=10, burst=5)
     out = c.feed_bytes(b"".join(b"line %d\n" % i for i in range(100)), now=0.0)
-    assert [x.text for x in out] == [f"line {i}" for i in range(5)]
+    assert [x.text for x in out if isinstance(x, ConsoleLine)] == [f"line {i}" for i in range(5)]
     assert c.dropped == 95
+    assert out[-1] == ConsoleDropped(95, UART)  # said at once: the board may say nothing more for a long time
     later = c.feed_bytes(b"after\n", now=1.0)  # the bucket refilled
     assert later[0].text == "after" and later[0].dropped == 95 and later[0].source == UART
+    assert len(later) == 1  # the drops were counted when they happened, not again
+
+
+def test_dropped_text_packets_are_counted_as_they_are_dropped() -> None:
+    c = Console(rate=1, burst=2)
+    said = [ev for i in range(5) for ev in c.feed_packet(p.Text(p.LEVEL_INFO, b"t%d" % i), now=0.0)]
+    assert [type(ev) for ev in said] == [ConsoleLine, ConsoleLine] + [ConsoleDropped] * 3
+    assert sum(ev.count for ev in said if isinstance(ev, ConsoleDropped)) == c.dropped == 3
 
 
 def test_hostile_text_cannot_drive_the_terminal_and_long_lines_are_cut() -> None:

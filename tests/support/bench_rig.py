@@ -80,13 +80,13 @@ class Pc:
         data = self.board.uart_transmit()
         pkts = self.dec.feed(data)
         t = self.board.now / 1e6
-        self.lines += self.console.feed_bytes(self.dec.take_text(), t)
+        self.lines += [ev for ev in self.console.feed_bytes(self.dec.take_text(), t) if type(ev) is ConsoleLine]
         for p in pkts:
             self.packets.append(p)
             if type(p) is Heartbeat and self.answer:
                 self.send(HeartbeatAck(p.counter, p.board_ms))
             elif type(p) is Text:
-                self.lines += self.console.feed_packet(p, t)
+                self.lines += [ev for ev in self.console.feed_packet(p, t) if type(ev) is ConsoleLine]
 
     def of(self, kind: type) -> list[Any]:
         return [p for p in self.packets if type(p) is kind]
