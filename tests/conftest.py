@@ -69,6 +69,16 @@ def _term_log_in_a_temporary_directory(tmp_path_factory: pytest.TempPathFactory)
         os.environ["QUADRUPEL_LOG_DIR"] = old
 
 
+@pytest.fixture(autouse=True, scope="session")
+def _pilot_waits_on_queues() -> Iterator[None]:
+    """Textual's Pilot waits for the app's queues, not for an idle processor that a live link never gives
+    (tests/support/textual_drain.py)."""
+    from tests.support.textual_drain import pilot_waits_on_queues
+
+    with pilot_waits_on_queues():
+        yield
+
+
 # --- a real pseudo-terminal ---------------------------------------------------------------------------------
 
 
