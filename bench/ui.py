@@ -14,7 +14,11 @@ out and rendered at the app's render rate; only the bytes to a real terminal are
   with the bytes it wrote per second (``record_bytes_per_s``). ``--no-record`` measures without it;
 - ``plot_redraw_ms`` (plots screen): CPU time of one redraw of a live plot (term/ui/widgets/plots.py, the native
   braille widget: ``python -m bench.plots`` compares it with textual-plotext), with ``plot_redraws_per_s`` and
-  their share of a core, ``plot_cpu_pct``.
+  their share of a core, ``plot_cpu_pct``;
+- ``screen_change_ms``: the display thread's CPU for one change of screen by its F-key (F8, F9, F10, F11, F7 in
+  turn, each until the new screen is up and drawn; the same window's CPU with no key pressed taken off), with the
+  key bar at the foot of each screen (term/ui/widgets/keybar.py) and, in the same run, with Textual's own
+  ``Footer`` in its place (``screen_change_ms_textual_footer``, and the ratio).
 
     python -m bench.ui [--seconds 6] [--render-hz 20] [--no-record] [--no-link-thread]
 
@@ -25,10 +29,12 @@ from __future__ import annotations
 
 import argparse
 import asyncio
+import contextlib
 import json
 import resource
 import sys
 import time
+from collections.abc import Iterator
 from typing import Any
 
 
@@ -160,11 +166,63 @@ async def run(seconds: float, render_hz: float | None, seed: int, policy: str = 
             recorder.close()
             for p in recorder.paths:
                 p.unlink(missing_ok=True)
+        for footer in (False, True):  # a fresh app each: a screen is built once and kept
+            app = TermApp(SerialTransport(port), joystick=False, config=Config(joystick_policy=policy))
+            with _textual_footer(footer):
+                async with app.run_test(size=(120, 44), headless=True):
+                    async with asyncio.timeout(10):
+                        while app.model.attitude is None:
+                            await asyncio.sleep(0.02)
+                    key = "screen_change_ms_textual_footer" if footer else "screen_change_ms"
+                    out[key] = await _screen_changes(app)
     finally:
         untime_plots()
         sim.stop()
     out["render_hz"] = render_hz_used
     return out
+
+
+SCREEN_KEYS = (("f8", "PlotsScreen"), ("f9", "ProfileScreen"), ("f10", "WirelessScreen"), ("f11", "ParamsScreen"),
+               ("f7", "FlightScreen"))
+
+
+@contextlib.contextmanager
+def _textual_footer(on: bool) -> Iterator[None]:
+    """Textual's ``Footer`` at the foot of every screen in place of the key bar, for the screens built meanwhile."""
+    import importlib
+
+    from textual.widgets import Footer
+
+    from term.ui.widgets.keybar import KeyBar
+
+    modules = [importlib.import_module(f"term.ui.screens.{m}") for m in
+               ("flight", "plots", "profile", "wireless", "params", "joystick", "console", "motortest")]
+    for m in modules:
+        m.KeyBar = Footer if on else KeyBar  # type: ignore[attr-defined]
+    try:
+        yield
+    finally:
+        for m in modules:
+            m.KeyBar = KeyBar  # type: ignore[attr-defined]
+
+
+async def _screen_changes(app: Any, rounds: int = 6) -> float:
+    """The display thread's CPU (ms) for one screen change by its F-key, less the same window with no change."""
+    async def window(key: str | None, name: str) -> float:
+        t = time.thread_time()
+        if key is not None:
+            app.simulate_key(key)
+            async with asyncio.timeout(10):
+                while type(app.screen).__name__ != name:
+                    await asyncio.sleep(0.005)
+        await asyncio.sleep(0.2)  # (drawn: the render tick is 12 Hz)
+        return time.thread_time() - t
+
+    for key, name in SCREEN_KEYS:  # (each screen built first: a screen is made once and kept)
+        await window(key, name)
+    changes = [await window(key, name) for _ in range(rounds) for key, name in SCREEN_KEYS]
+    still = [await window(None, "FlightScreen") for _ in range(len(SCREEN_KEYS))]
+    return round(1e3 * (sum(changes) / len(changes) - sum(still) / len(still)), 1)
 
 
 def _size(recorder: Any) -> int:
@@ -188,6 +246,7 @@ def main(argv: list[str] | None = None) -> int:
     res = asyncio.run(run(args.seconds, args.render_hz, args.seed, args.policy, record=not args.no_record,
                           link_thread=not args.no_link_thread))
     hz = res.pop("render_hz")
+    change, change_footer = res.pop("screen_change_ms"), res.pop("screen_change_ms_textual_footer")
     worst_cpu = max(r["cpu_pct"] for r in res.values())
     worst_lag = max(r["lag_p99_ms"] for r in res.values())
     print(json.dumps({
@@ -198,6 +257,8 @@ def main(argv: list[str] | None = None) -> int:
            if not args.no_record else {}),
         "plot_redraw_ms": res["plots"].get("plot_redraw_ms"),
         "plot_widget": "native braille (term/ui/widgets/plots.py)",
+        "screen_change_ms": change, "screen_change_ms_textual_footer": change_footer,
+        "screen_change_ratio_to_textual_footer": round(change / change_footer, 2) if change_footer > 0 else None,
     }))
     return 0
 

@@ -51,15 +51,6 @@ async def test_a_nak_of_the_scripted_board_marks_the_item(scripted_board) -> Non
         assert sum(e.source == "nak" for e in app.model.events) == 1
 
 
-async def test_the_footer_starts_with_panic_and_the_modes(scripted_board) -> None:  # noqa: ANN001
-    from textual.widgets._footer import FooterKey
-
-    async with flying(scripted_board) as (app, pilot, board, peer):
-        await pilot.pause(0.1)
-        keys = [k.description for k in app.screen.query(FooterKey)]
-        assert keys[:8] == ["PANIC", "SAFE", "CALIB", "MANUAL", "YAW", "FULL", "RAW", "HEIGHT"], keys
-
-
 async def test_a_terminal_too_small_says_so(scripted_board) -> None:  # noqa: ANN001
     async with flying(scripted_board, size=(50, 16)) as (app, pilot, board, peer):  # 80x24 has a layout
         await pilot.pause(0.1)

@@ -4,11 +4,11 @@ from __future__ import annotations
 
 from textual.app import ComposeResult
 from textual.screen import Screen
-from textual.widgets import Footer
 
 from term.ui.screens.flight import panel
 from term.ui.widgets.console import ConsoleView
 from term.ui.widgets.events import EventsList
+from term.ui.widgets.keybar import KeyBar
 from term.ui.widgets.mode import ModeBanner
 
 
@@ -17,4 +17,4 @@ class ConsoleScreen(Screen[None]):
         yield ModeBanner(id="mode")
         yield panel(ConsoleView(), "console · the board's text", "console")
         yield panel(EventsList(), "events · errors", "events-small")
-        yield Footer()
+        yield KeyBar()

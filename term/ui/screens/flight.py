@@ -8,7 +8,7 @@ from textual import events
 from textual.app import ComposeResult
 from textual.containers import Horizontal, Vertical
 from textual.screen import Screen
-from textual.widgets import Footer, Static
+from textual.widgets import Static
 
 from term.input.keymap import KeyBinding
 from term.lessons.room import Room
@@ -18,6 +18,7 @@ from term.ui.widgets.controls import ControlsPanel
 from term.ui.widgets.download import DownloadPanel
 from term.ui.widgets.events import EventsList
 from term.ui.widgets.horizon import HeadingTape, Horizon
+from term.ui.widgets.keybar import KeyBar
 from term.ui.widgets.lesson import LessonBar
 from term.ui.widgets.link import LinkPanel
 from term.ui.widgets.mode import ModeBanner
@@ -74,7 +75,7 @@ class FlightScreen(Screen[None]):
         with Horizontal(id="bottom"):
             yield panel(ReadinessPanel(self.keymap), "ready to fly? (SAFE)", "readiness")
             yield panel(EventsList(), "events · errors", "events")
-        yield Footer()
+        yield KeyBar()
 
     def on_resize(self, event: events.Resize) -> None:
         w, h = event.size

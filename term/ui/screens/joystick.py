@@ -19,13 +19,14 @@ from textual.app import ComposeResult
 from textual.containers import Grid, Horizontal
 from textual.message import Message
 from textual.screen import Screen
-from textual.widgets import Button, Footer
+from textual.widgets import Button
 
 from term.input.joystick import JoystickPoller
 from term.input.mapping import AXIS_MAX, DEADZONE_MAX, FULL, AxisMap, StickMapping
 from term.session.model import Model
 from term.ui.widgets.bars import cbar, hbar
 from term.ui.widgets.base import ModelView
+from term.ui.widgets.keybar import KeyBar
 from term.ui.widgets.mode import ModeBanner
 
 AXES = ("roll", "pitch", "yaw", "lift")
@@ -135,7 +136,7 @@ class JoystickScreen(Screen[None]):
                                  compact=True)
         with Horizontal(id="js-bottom"):
             yield Button("save to the config", id="js-save", compact=True, variant="primary")
-        yield Footer()
+        yield KeyBar()
 
     def on_button_pressed(self, event: Button.Pressed) -> None:
         event.stop()

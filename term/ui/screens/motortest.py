@@ -16,7 +16,6 @@ from rich.text import Text
 from textual import events
 from textual.app import ComposeResult
 from textual.screen import Screen
-from textual.widgets import Footer
 
 from term.core.protocol import MOTOR_TEST_MAX_LEVEL, MOTOR_TEST_MAX_MS
 from term.session.model import Model
@@ -24,6 +23,7 @@ from term.ui.controllers.motortest import MotorTestController
 from term.ui.screens.flight import panel
 from term.ui.widgets.base import ModelView
 from term.ui.widgets.events import EventsList
+from term.ui.widgets.keybar import KeyBar
 from term.ui.widgets.mode import ModeBanner
 from term.ui.widgets.motors import MotorBars
 
@@ -89,7 +89,7 @@ class MotorTestScreen(Screen[None]):
         yield panel(MotorTestPanel(self), "motor test · props off", "motortest")
         yield panel(MotorBars(), "motors (what the board commands)", "motortest-motors")
         yield panel(EventsList(), "events · errors", "events-small")
-        yield Footer()
+        yield KeyBar()
 
     def on_key(self, event: events.Key) -> None:
         key = event.key

@@ -33,12 +33,13 @@ from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.message import Message
 from textual.screen import Screen
-from textual.widgets import DataTable, Footer, Input, Static
+from textual.widgets import DataTable, Input, Static
 
 from term.core.protocol import PARAM_BY_NAME, PARAMS, Param, ParamSpec, broken_rules
 from term.session.model import Model
 from term.session.param_client import ParamError, parse_text
 from term.ui.widgets.base import STATUS_LINE_S
+from term.ui.widgets.keybar import KeyBar
 from term.ui.widgets.mode import ModeBanner
 
 COLUMNS = ("parameter", "value", "unit", "default", "range", "in flight", "board says")
@@ -206,7 +207,7 @@ class ParamsScreen(Screen[None]):
         yield Input(id="param-edit")
         yield ParamStepper(id="param-step")
         yield Static("", id="param-help")
-        yield Footer()
+        yield KeyBar()
 
     def on_mount(self) -> None:
         table = self.query_one(ParamTable)

@@ -10,11 +10,12 @@ from textual.binding import Binding
 from textual.containers import Horizontal, Vertical
 from textual.screen import Screen
 from textual.widget import Widget
-from textual.widgets import Footer, SelectionList, Static
+from textual.widgets import SelectionList, Static
 from textual.widgets.selection_list import Selection
 
 from term.session.config import PLOT_SERIES
 from term.ui.widgets.events import EventsList
+from term.ui.widgets.keybar import KeyBar
 from term.ui.widgets.mode import ModeBanner
 from term.ui.widgets.plots import LivePlot, PlotView, group_by_unit
 
@@ -63,7 +64,7 @@ class PlotsScreen(Screen[None]):
         events = EventsList(id="events-small")
         events.border_title = "events · errors"
         yield events
-        yield Footer()
+        yield KeyBar()
 
     def _plots(self) -> list[Widget]:
         if not self.series:

@@ -4,10 +4,10 @@ from __future__ import annotations
 
 from textual.app import ComposeResult
 from textual.screen import Screen
-from textual.widgets import Footer
 
 from term.ui.screens.flight import panel
 from term.ui.widgets.events import EventsList
+from term.ui.widgets.keybar import KeyBar
 from term.ui.widgets.mode import ModeBanner
 from term.ui.widgets.profile import ProfileTable
 
@@ -17,4 +17,4 @@ class ProfileScreen(Screen[None]):
         yield ModeBanner(id="mode")
         yield panel(ProfileTable(), "profile", "profile")
         yield panel(EventsList(), "events · errors", "events-small")
-        yield Footer()
+        yield KeyBar()

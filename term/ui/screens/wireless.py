@@ -18,7 +18,7 @@ from textual.app import ComposeResult
 from textual.containers import Grid, Horizontal, Vertical
 from textual.message import Message
 from textual.screen import Screen
-from textual.widgets import Button, Footer
+from textual.widgets import Button
 
 from term.input.mapping import FULL
 from term.session.model import Model
@@ -29,6 +29,7 @@ from term.ui.widgets.base import STALE_STYLE, ModelView, figure
 from term.ui.widgets.battery import LEVEL_STYLE as BATTERY_STYLE
 from term.ui.widgets.battery import LOW_END_V
 from term.ui.widgets.events import EventsList
+from term.ui.widgets.keybar import KeyBar
 from term.ui.widgets.mode import ModeBanner
 
 LEVEL_STYLE = {"ok": "green", "active": "bold green", "info": "cyan", "warn": "yellow", "alarm": "bold white on red"}
@@ -277,7 +278,7 @@ class WirelessScreen(Screen[None]):
                 ev = EventsList(id="w-events")
                 ev.border_title = "events"
                 yield ev
-        yield Footer()
+        yield KeyBar()
 
     def on_button_pressed(self, event: Button.Pressed) -> None:
         event.stop()
