@@ -93,6 +93,7 @@ FOOTER_LABELS = {  # the mode table's labels (PANIC, then the ground's modes, th
     "log_download": "log",
 }
 FOOTER_ACTIONS = tuple(FOOTER_LABELS)
+_COLLECTED = [False]  # this process has made its one full collection before a freeze (on_mount)
 class TermApp(App[int]):
     CSS_PATH = str(Path(__file__).with_name("app.tcss"))
     TITLE = "quadrupel term"
@@ -297,7 +298,11 @@ class TermApp(App[int]):
         self.outputs.recording_failed()  # a recording that could not start: said before the first flight
         self.render_now()
         # Widgets and libraries built: no full collection walks them again (it holds the GIL). Undone at shutdown.
-        gc.collect()
+        # One full collection first, once a process: a later app in it (a test's) would walk the whole test run's
+        # heap again (140 ms an app) to keep a little garbage out of a freeze that its shutdown undoes.
+        if not _COLLECTED[0]:
+            gc.collect()
+            _COLLECTED[0] = True
         gc.freeze()
 
     def _on_station_event(self, ev: StationEvent) -> None:
