@@ -9,14 +9,19 @@ its heaps (madvise), without moving a live block. It runs in C without the GIL (
 thread is not held; on term's heap (a few MB free) it takes a millisecond or two.
 
 Elsewhere (macOS, Windows, musl) there is no ``malloc_trim``: ``HeapTrim`` does nothing there.
+
+And Python's own collector: ``freeze_startup()`` moves what start-up built (widgets, libraries) out of the full
+collections' reach (``gc.freeze``), since a full collection walks it all holding the GIL; ``thaw()`` undoes that at
+shutdown.
 """
 
 from __future__ import annotations
 
 import ctypes
+import gc
 from collections.abc import Callable
 
-__all__ = ["PROCESS_HEAP", "TRIM_EVERY_S", "HeapTrim", "malloc_trim"]
+__all__ = ["PROCESS_HEAP", "TRIM_EVERY_S", "HeapTrim", "freeze_startup", "malloc_trim", "thaw"]
 
 TRIM_EVERY_S = 60.0
 
@@ -64,3 +69,21 @@ class HeapTrim:
 
 
 PROCESS_HEAP = HeapTrim()  # one heap per process: the app's render tick (and bench/soak.py, in its place) tick this
+
+
+_collected = [False]  # this process has made its one full collection before a freeze
+
+
+def freeze_startup() -> None:
+    """What start-up built, out of the full collections' reach (module docstring). One full collection first, once
+    a process: a later app in it (a test's) would walk the whole test run's heap again (140 ms an app) to keep a
+    little garbage out of a freeze that its shutdown undoes."""
+    if not _collected[0]:
+        gc.collect()
+        _collected[0] = True
+    gc.freeze()
+
+
+def thaw() -> None:
+    """``freeze_startup`` undone (another app in this process, a test's, starts from a clean slate)."""
+    gc.unfreeze()

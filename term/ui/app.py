@@ -22,7 +22,6 @@ The routing rules, the reconnect policy and the model's two-link rules: docs/arc
 
 from __future__ import annotations
 
-import gc
 import sys
 import time
 from collections.abc import Callable, Iterable
@@ -36,7 +35,7 @@ from textual.screen import ModalScreen, Screen
 
 from term.core.errors import EXIT_USAGE
 from term.core.events import EventsCleared, Fatal, FromLink, NotSent, StationEvent
-from term.core.heap import PROCESS_HEAP
+from term.core.heap import PROCESS_HEAP, freeze_startup, thaw
 from term.core.protocol import MODE_TABLE, Joystick, Mode, Op
 from term.data.recording import SessionRecorder
 from term.data.replay import Replay
@@ -93,7 +92,6 @@ FOOTER_LABELS = {  # the mode table's labels (PANIC, then the ground's modes, th
     "log_download": "log",
 }
 FOOTER_ACTIONS = tuple(FOOTER_LABELS)
-_COLLECTED = [False]  # this process has made its one full collection before a freeze (on_mount)
 class TermApp(App[int]):
     CSS_PATH = str(Path(__file__).with_name("app.tcss"))
     TITLE = "quadrupel term"
@@ -297,13 +295,7 @@ class TermApp(App[int]):
         self.lessons.mount()
         self.outputs.recording_failed()  # a recording that could not start: said before the first flight
         self.render_now()
-        # Widgets and libraries built: no full collection walks them again (it holds the GIL). Undone at shutdown.
-        # One full collection first, once a process: a later app in it (a test's) would walk the whole test run's
-        # heap again (140 ms an app) to keep a little garbage out of a freeze that its shutdown undoes.
-        if not _COLLECTED[0]:
-            gc.collect()
-            _COLLECTED[0] = True
-        gc.freeze()
+        freeze_startup()  # widgets and libraries built: no full collection walks them again (term/core/heap.py)
 
     def _on_station_event(self, ev: StationEvent) -> None:
         """The app's reactions to the station's events (the model has them already)."""
@@ -358,7 +350,7 @@ class TermApp(App[int]):
     async def shutdown(self) -> None:
         await self.station.shutdown()
         self.joystick.close()
-        gc.unfreeze()  # (another app in this process, a test's, starts from a clean slate)
+        thaw()
 
     def _fatal(self, message: str, code: int = EXIT_USAGE) -> None:
         self.exit_message = message

@@ -30,3 +30,29 @@ def test_glibc_has_it_and_it_runs() -> None:
     h = HeapTrim(0.0)
     h.tick(0.0)
     assert h.tick(0.0) and h.trims == 1
+
+
+def test_startup_is_frozen_and_thawed_and_collected_in_full_once_a_process() -> None:
+    import gc
+
+    from term.core.heap import freeze_startup, thaw
+
+    full: list[int] = []
+
+    def seen(phase: str, info: dict[str, int]) -> None:
+        if phase == "start" and info["generation"] == 2:
+            full.append(1)
+
+    gc.callbacks.append(seen)
+    try:
+        freeze_startup()
+        assert gc.get_freeze_count() > 0
+        thaw()
+        assert gc.get_freeze_count() == 0
+        first = len(full)
+        freeze_startup()  # a second app in this process (a test's): frozen, not walked again
+        thaw()
+        assert first <= 1 and len(full) == first
+    finally:
+        gc.callbacks.remove(seen)
+        thaw()

@@ -13,6 +13,7 @@ that no terminal has spoken to yet never reports a timeout (and never PANICs).
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import json
 import subprocess
 import sys
@@ -24,7 +25,8 @@ from term.core.protocol import PROTOCOL_VERSION, Decoder, Encoder, Event, EventC
 from term.session.model import Model
 from tests.support.paths import ROOT
 
-WATCH_S = 3.0  # after the app mounted: the radio connects within about a second
+WATCH_S = 3.0  # after the app mounted, and until the radio is up (about a second; longer on a busy machine)
+RADIO_BOUND_S = 30.0
 # A little tighter than the default 0.5 s, which the old start-up's stall (0.5-0.8 s of silence) crossed only
 # now and then: at 0.45 s it always did. The start-up's longest silence now is 0.15-0.35 s (Textual's first frames).
 TERM_TIMEOUT_S = 0.45
@@ -47,6 +49,10 @@ async def _probe() -> dict[str, object]:
         async with app.run_test(size=(160, 50)) as pilot:
             await pilot.pause(WATCH_S)
             m = app.model
+            with contextlib.suppress(TimeoutError):  # (a radio that never comes up fails the test on radio_up)
+                async with asyncio.timeout(RADIO_BOUND_S):
+                    while not m.radio_up:
+                        await pilot.pause(0.05)
             return {
                 "events": [f"{e.source}: {e.text}" for e in m.events],
                 "link_errors": [e.text for e in m.events if e.source in ("link", "ble") and e.severity == "error"],
