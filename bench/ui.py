@@ -4,7 +4,7 @@ The board is served in real time by `fcb-sim serve --pty` in a child process (as
 for telemetry at 100 Hz (SET_PARAM TELEMETRY_HZ, the most it sends; Attitude and Motion at 100 Hz, the rest at their
 rates); the terminal is the real TermApp over the SerialTransport, run headless (the full widget tree is laid
 out and rendered at the app's render rate; only the bytes to a real terminal are not written). For each screen
-(flight, plots) the bench measures, over ``--seconds``:
+(flight, plots, parameters) the bench measures, over ``--seconds``:
 
 - ``cpu_pct``: CPU time of this process (all threads: Textual, the link's thread, the serial reader) over wall time,
   in % of one core;
@@ -129,7 +129,7 @@ async def run(seconds: float, render_hz: float | None, seed: int, policy: str = 
             full = PARAMS[Param.TELEMETRY_HZ].to_raw(100.0)  # a float parameter: raw is value / scale
             app.send(Op.SET_PARAM, param_arg(Param.TELEMETRY_HZ, full))  # telemetry at the board's full rate
             await asyncio.sleep(1.0)
-            for screen, key in (("flight", None), ("plots", "f8")):
+            for screen, key in (("flight", None), ("plots", "f8"), ("params", "f11")):
                 if key:
                     app.simulate_key(key)
                     await asyncio.sleep(0.5)

@@ -92,3 +92,35 @@ async def test_term_sim_preset_report_flies_the_reports_board() -> None:
         assert (p["est.attitude"], p["est.k_gyro"], p["est.height"]) == ("complementary", 0.999, "complementary")
         assert (p["ctrl.p1"], p["ctrl.p2"], p["ctrl.yaw_p"]) == (0.4, 111.0, 800.0)
         assert p["sched.scheduler"] == "round-robin" and p["sched.stick_reaction"] is False
+
+
+async def test_the_table_is_redrawn_only_where_a_value_changed() -> None:
+    """Each cell put in the table redraws all of it (about 90 ms): telemetry moves the model many times a second, and
+    the screen used to put every cell back each quarter second, a third of a core on F11 in flight."""
+    from term.core.protocol import Attitude, Param, ParamValue
+    from tests.support.waits import until
+
+    app = TermApp(joystick=False)
+    async with app.run_test(size=(160, 50)) as pilot:
+        p1 = PARAMS[Param.P1]
+        app.model.apply_packet(ParamValue(int(Param.P1), p1.to_raw(p1.default), 0, 1), app.clock())
+        app.simulate_key("f11")
+        await until(pilot, lambda: isinstance(app.screen, ParamsScreen))
+        screen = app.screen
+        table = screen.query_one(ParamTable)
+        put: list[tuple[object, object]] = []
+        update_cell = table.update_cell
+
+        def counted(row: object, col: object, value: object, **kw: object) -> None:
+            put.append((row, col))
+            update_cell(row, col, value, **kw)  # type: ignore[arg-type]
+
+        table.update_cell = counted  # type: ignore[method-assign]
+        for i in range(5):  # telemetry: the model moves, no parameter does
+            app.model.apply_packet(Attitude(0, i, 0, 0, 0, 0, 0), app.clock())
+            screen.refresh_values()
+        assert put == []
+        app.model.apply_packet(ParamValue(int(Param.P1), p1.to_raw(0.5), 0, 1), app.clock())
+        screen.refresh_values()
+        assert {row for row, _ in put} == {p1.name} and ("ctrl.p1", "value") in put
+        assert cell(app, p1.name, "value") == "0.5" and cell(app, p1.name, "parameter") == "* ctrl.p1"

@@ -170,6 +170,11 @@ def row_cells(spec: ParamSpec, model: Model, pending: bool) -> tuple[Text, ...]:
             Text("yes" if spec.in_flight else "SAFE only", style="" if spec.in_flight else "yellow"), note)
 
 
+def same_cell(a: Text, b: Text) -> bool:
+    """The same text drawn the same way (rich's ``==`` leaves out the text's own style)."""
+    return a.plain == b.plain and a.style == b.style and a.spans == b.spans
+
+
 class ParamsScreen(Screen[None]):
     DEFAULT_CSS = """
     ParamsScreen #param-search { height: 3; }
@@ -197,6 +202,7 @@ class ParamsScreen(Screen[None]):
         self._said_at: float | None = None  # when the help line last said something other than the hint
         self.pending: dict[str, tuple[float, object]] = {}  # name -> (when its set was sent, the value then)
         self._version = -1
+        self._cells: dict[str, tuple[Text, ...]] = {}  # each row as last put in the table
 
     def compose(self) -> ComposeResult:
         yield ModeBanner(id="mode")
@@ -224,8 +230,10 @@ class ParamsScreen(Screen[None]):
         table = self.query_one(ParamTable)
         table.clear()
         model = self.model()
+        self._cells.clear()
         for spec in self.shown:
-            table.add_row(*row_cells(spec, model, spec.name in self.pending), key=spec.name)
+            cells = self._cells[spec.name] = row_cells(spec, model, spec.name in self.pending)
+            table.add_row(*cells, key=spec.name)
         self._version = model.version
 
     def refresh_values(self) -> None:
@@ -247,9 +255,13 @@ class ParamsScreen(Screen[None]):
             if name in model.param_refused or model.params.get(name) != before or now - sent > PENDING_S:
                 del self.pending[name]
         table = self.query_one(ParamTable)
-        for spec in self.shown:
-            for col, cell in zip(COLUMNS, row_cells(spec, model, spec.name in self.pending), strict=True):
-                table.update_cell(spec.name, col, cell)
+        for spec in self.shown:  # only the cells that changed: each update redraws the whole table (90 ms)
+            cells = row_cells(spec, model, spec.name in self.pending)
+            before = self._cells.get(spec.name, ())
+            for i, (col, cell) in enumerate(zip(COLUMNS, cells, strict=True)):
+                if i >= len(before) or not same_cell(cell, before[i]):
+                    table.update_cell(spec.name, col, cell)
+            self._cells[spec.name] = cells
 
     def on_input_changed(self, event: Input.Changed) -> None:
         if event.input.id != "param-search":
