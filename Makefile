@@ -91,8 +91,9 @@ demo: $(RUN_STAMP)
 
 # The suite on two workers (pytest-xdist): most tests wait on a real-time link, so two share two cores well; the
 # tests hold on a busy machine (make test-busy), which is what each worker is to the other. TEST_WORKERS=0: one process.
+# worksteal: a worker that runs out takes tests queued for the other, so the run does not end on one long tail.
 TEST_WORKERS ?= 2
-PYTEST := $(BIN)/python -m pytest -n $(TEST_WORKERS)
+PYTEST := $(BIN)/python -m pytest -n $(TEST_WORKERS) --dist worksteal
 
 test: $(STAMP)
 	$(BIN)/ruff check term fcb_sim tests bench
