@@ -1,15 +1,15 @@
 """The first minute of a new user: a fresh clone, `make run`, the first screen.
 
 Clones this repository's committed HEAD into a temporary folder and runs `make run` there in a pseudo-terminal
-of 120x40 (as a user's terminal: pip draws its progress, term its screen), timing from the start to
+of 120x40 (as a user's terminal: the installer draws its progress, term its screen), timing from the start to
 
 - the first screen: term switches to the alternate screen (Textual's first draw);
 - flying: the link panel says ``cable OK`` (or ``link OK``): the simulated board answers over the pty;
 
 then quits term with Ctrl+Q and runs `make run` a second time in the same clone (everything installed: the
 goal is under 3 s to the first screen). The lines `make` printed for each step are shown with their times.
-pip's own cache is used as on any machine that has installed these wheels before (a first install ever also
-downloads them). Prints one JSON object on its last line.
+The installer's cache (uv's, or pip's with INSTALLER=pip) is used as on any machine that has installed these
+wheels before (a first install ever also downloads them). Prints one JSON object on its last line.
 
     .venv/bin/python -m bench.first_minute [--timeout S]
 """
@@ -94,16 +94,19 @@ def _drain_until_exit(master: int, proc: subprocess.Popen[bytes], timeout: float
                 time.sleep(0.05)
 
 
-# What `python -m venv` puts in every venv before we install anything (pip, and setuptools on Python < 3.12).
-VENV_SEEDS = ("pip", "setuptools", "pkg_resources", "_distutils_hack")
+# What `python -m venv` puts in every venv before we install anything (pip, and setuptools on Python < 3.12), and
+# the installer make adds beside pip (uv, its programs in bin/).
+VENV_SEEDS = ("pip", "setuptools", "pkg_resources", "_distutils_hack", "uv")
+SEED_PROGRAMS = ("uv", "uvx")
 
 
 def venv_size(clone: Path) -> dict[str, float | int]:
     """The installed environment's size (MiB, bytes on disk) and its distributions, quadrupel itself included; and
-    the same without the venv's own seeds (pip, setuptools), which are not ours to trim."""
+    the same without the venv's own seeds (pip, setuptools) and the installer (uv), which are not ours to trim."""
     venv = clone / ".venv"
     site = next(venv.glob("lib/python3*/site-packages"))
     seeds = [site / name for name in VENV_SEEDS] + [d for s in VENV_SEEDS for d in site.glob(f"{s}-*.dist-info")]
+    seeds += [venv / "bin" / name for name in SEED_PROGRAMS]
     total = _disk_bytes(venv)
     seeds_bytes = sum(_disk_bytes(p) for p in seeds if p.exists())
     dists = [d.name.split("-")[0] for d in site.glob("*.dist-info")]
