@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import random
 import statistics
 
 import pytest
@@ -82,6 +83,22 @@ def _trace(seed: int) -> list:
 def test_the_same_seed_gives_the_same_samples():
     assert _trace(7) == _trace(7)
     assert _trace(7) != _trace(8)
+
+
+def test_a_noise_table_drawn_again_is_the_same_as_a_fresh_draw(monkeypatch: pytest.MonkeyPatch):
+    """A table taken from the memo gives the same samples, and leaves the generator where a fresh draw leaves it."""
+    from fcb_sim.world import sensors
+
+    fresh_rng = random.Random(11)
+    monkeypatch.setattr(sensors, "_DRAWN", {})
+    fresh = sensors.NoiseTable(fresh_rng, bits=10)
+    again_rng = random.Random(11)
+    again = sensors.NoiseTable(again_rng, bits=10)  # from the memo
+    assert again.tab == fresh.tab and len(fresh.tab) == 1024
+    assert [again_rng.random() for _ in range(5)] == [fresh_rng.random() for _ in range(5)]
+    assert sensors.NoiseTable(random.Random(12), bits=10).tab != fresh.tab
+    monkeypatch.setattr(sensors, "_DRAWN", {})
+    assert sensors.NoiseTable(random.Random(11), bits=10).tab == fresh.tab  # (and drawn anew: the same)
 
 
 def test_dmp_rate_latency_and_convention():
