@@ -3,7 +3,6 @@ stays with it, its parts do what docs/attitude.md says, and the bench's leave-on
 
 from __future__ import annotations
 
-import csv
 import gzip
 import math
 import random
@@ -24,12 +23,13 @@ def read_trial(path: Path, every: int = 1) -> tuple[list[tuple[float, ...]], lis
     """(t, gx..az) rows and the true quaternion of the scored rows (None elsewhere)."""
     rows, truth = [], []
     with gzip.open(path, "rt", newline="") as fh:
-        r = csv.reader(fh)
-        next(r)
-        for i, row in enumerate(r):
-            rows.append(tuple(map(float, row[:7])))
-            scored = i % every == 0 and row[11] == "1" and row[7] != ""
-            truth.append(tuple(map(float, row[7:11])) if scored else None)
+        next(fh)
+        for i, line in enumerate(fh):  # (plain numbers, no quoting: split is a third cheaper than csv here)
+            row = line.split(",")
+            rows.append((float(row[0]), float(row[1]), float(row[2]), float(row[3]), float(row[4]), float(row[5]),
+                         float(row[6])))
+            scored = i % every == 0 and row[11].strip() == "1" and row[7] != ""
+            truth.append((float(row[7]), float(row[8]), float(row[9]), float(row[10])) if scored else None)
     return rows, truth
 
 
