@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import math
 import random
+import threading
 from collections import deque
 
 from fcb_sim.world import constants as P
@@ -29,6 +30,7 @@ _TABLE_BITS = 15
 # start from the same few seeds, and drawing 32k normals costs ~20 ms a world (15 s of CPU across the test suite).
 _DRAWN: dict[tuple[int, object], tuple[tuple[float, ...], object]] = {}
 _DRAWN_MAX = 8  # tables kept (about 1 MB each)
+_DRAWN_LOCK = threading.Lock()  # worlds are made on several threads (term --sim's board, a test's)
 
 
 class NoiseTable:
@@ -42,13 +44,15 @@ class NoiseTable:
         self.rng = rng
         n = 1 << bits
         key = (bits, rng.getstate())
-        drawn = _DRAWN.get(key)
+        with _DRAWN_LOCK:
+            drawn = _DRAWN.get(key)
         if drawn is None:
             gauss = rng.gauss
             drawn = (tuple([gauss(0.0, 1.0) for _ in range(n)]), rng.getstate())
-            if len(_DRAWN) >= _DRAWN_MAX:
-                del _DRAWN[next(iter(_DRAWN))]
-            _DRAWN[key] = drawn
+            with _DRAWN_LOCK:
+                if len(_DRAWN) >= _DRAWN_MAX:
+                    del _DRAWN[next(iter(_DRAWN))]
+                _DRAWN[key] = drawn
         else:
             rng.setstate(drawn[1])
         self.tab = drawn[0]
