@@ -15,15 +15,22 @@ LOWEST := .venv-lowest
 .PHONY: firmware dist docs
 
 # Each step says what it does in one line; the installer shows its own progress. uv installs (it downloads and
-# unpacks in parallel: the test set from nothing in 20 s here, where pip took 54 s); it is put into the venv by the
-# venv's own pip, pinned. INSTALLER=pip makes pip do it all (as when uv cannot be had: then pip takes over by itself).
-# uv reads no pip.conf: a mirror is given to it as UV_DEFAULT_INDEX (https://docs.astral.sh/uv/reference/environment/).
+# unpacks in parallel: the test set from nothing in 20 s here, where pip took 54 s). The venv is made without pip
+# (ensurepip took 8.6 s of a fresh set-up); uv goes into it by this Python's own pip (pip --python, pip >= 22.3),
+# pinned, and puts pip in beside the project, so .venv/bin/pip is there as in any venv. Where this Python has no
+# such pip, the venv gets its own by ensurepip first. INSTALLER=pip makes pip do it all (as when uv cannot be had:
+# then pip takes over by itself). uv reads no pip.conf: a mirror is given to it as UV_DEFAULT_INDEX
+# (https://docs.astral.sh/uv/reference/environment/).
 INSTALLER ?= uv
 UV_VERSION := 0.13.9
 $(BIN)/python:
 	@echo "make: making the virtual environment $(VENV) with $$($(PY) --version 2>&1)"
-	@$(PY) -m venv $(VENV) || { rm -rf $(VENV); echo "could not make $(VENV): needs Python >= 3.11 with venv" \
-		"(Debian/Ubuntu: sudo apt install python3-venv)" >&2; exit 1; }
+	@$(PY) -m venv --without-pip $(VENV) || { rm -rf $(VENV); echo "could not make $(VENV): needs Python >= 3.11 with" \
+		"venv (Debian/Ubuntu: sudo apt install python3-venv)" >&2; exit 1; }
+
+ENSURE_PIP := { test -x $(BIN)/pip || $(BIN)/python -m ensurepip >/dev/null; }
+GET_UV := { $(PY) -m pip --python $(BIN)/python install -q --disable-pip-version-check "uv==$(UV_VERSION)" \
+	2>/dev/null || { $(ENSURE_PIP) && $(PIP) install -q --disable-pip-version-check "uv==$(UV_VERSION)"; }; }
 
 # pygame-ce replaced pygame (both install the module 'pygame'): a venv from before drops pygame first.
 # The install is editable (-e): the sources are used where they are, so an edit needs no reinstall.
@@ -31,14 +38,13 @@ $(BIN)/python:
 define install
 	@if $(PIP) show -q pygame >/dev/null 2>&1; then $(PIP) uninstall -q -y pygame pygame-ce; fi
 	@echo "make: installing quadrupel$(patsubst .%,%,$(1)) and its dependencies (the versions in $(LOCK)) into $(VENV)"
-	@if [ "$(INSTALLER)" = uv ] && { test -x $(BIN)/uv || $(PIP) install -q --disable-pip-version-check \
-			"uv==$(UV_VERSION)"; }; then \
+	@if [ "$(INSTALLER)" = uv ] && { test -x $(BIN)/uv || $(GET_UV); }; then \
 		$(BIN)/uv pip install --python $(BIN)/python $(if $(filter compile,$(2)),--compile-bytecode) \
-			-c $(LOCK) -e '$(1)'; \
+			-c $(LOCK) pip -e '$(1)'; \
 	else \
 		if [ "$(INSTALLER)" = uv ]; then echo "make: uv could not be installed; pip installs instead"; fi; \
-		$(PIP) install --disable-pip-version-check --progress-bar on $(if $(filter no-compile,$(2)),--no-compile) \
-			-c $(LOCK) -e '$(1)'; \
+		$(ENSURE_PIP) && $(PIP) install --disable-pip-version-check --progress-bar on \
+			$(if $(filter no-compile,$(2)),--no-compile) -c $(LOCK) -e '$(1)'; \
 	fi
 	@# the editable sources' bytecode, which an environment with PYTHONDONTWRITEBYTECODE never writes: without it
 	@# every start compiles them again (a quarter of a second of term params --sim list, twice)
@@ -62,8 +68,10 @@ $(RUN_STAMP): pyproject.toml $(LOCK) | $(BIN)/python
 	$(call install,.,no-compile)
 	$(call compile_flight)
 
+# The test set is not byte-compiled at install (that took 14 s of uv's 20, for 3,954 modules): the suite runs with
+# PYTHONDONTWRITEBYTECODE unset (PYTEST below), so Python writes the bytecode of the 1,235 it imports as it goes.
 $(STAMP): pyproject.toml $(LOCK) | $(BIN)/python
-	$(call install,.[test],compile)
+	$(call install,.[test],no-compile)
 
 DOCS_STAMP := $(VENV)/.installed-docs
 $(DOCS_STAMP): pyproject.toml $(LOCK) | $(BIN)/python
@@ -107,8 +115,14 @@ demo: $(RUN_STAMP)
 # processes, as make test-busy runs it); the tests hold on a busy machine, which is what each worker is to the
 # others. TEST_WORKERS=0: one process.
 # worksteal: a worker that runs out takes tests queued for the other, so the run does not end on one long tail.
+# The plugins are named, not found by their entry points: pytest rewrites the asserts of every module of a plugin
+# it finds (all of hypothesis, on each worker: 1.4 s of its 5 s of collection here). A plugin the suite needs goes
+# into TEST_PLUGINS. Bytecode is written (in .venv and the checkout's __pycache__, both ignored by git) even where
+# the environment says PYTHONDONTWRITEBYTECODE: the test set is installed without it.
 TEST_WORKERS ?= 3
-PYTEST := $(BIN)/python -m pytest -n $(TEST_WORKERS) --dist worksteal
+TEST_PLUGINS := xdist.plugin xdist.looponfail pytest_asyncio.plugin _hypothesis_pytestplugin syrupy pytest_textual_snapshot
+PYTEST := env -u PYTHONDONTWRITEBYTECODE PYTEST_DISABLE_PLUGIN_AUTOLOAD=1 $(BIN)/python -m pytest \
+	$(addprefix -p ,$(TEST_PLUGINS)) -n $(TEST_WORKERS) --dist worksteal
 
 test: $(STAMP)
 	$(BIN)/ruff check term fcb_sim tests bench
