@@ -3,7 +3,9 @@ reference board on a pseudo-terminal. Used by tests/test_firmware*.py.
 
 ``build()`` runs `make -C firmware BUILD=<temporary dir> all` once (cached): the library, the reference board and
 the codec runner, each compiled twice with `-std=c99 -Wall -Wextra -Werror` (plain -O2, and ASan + UBSan with
-every finding fatal). Without a C compiler every test that needs it is skipped, all with the same one line.
+every finding fatal). Under pytest the folder is the run's (tests/conftest.py makes it and removes it), so the
+workers of ``make test`` build once between them. Without a C compiler every test that needs it is skipped, all
+with the same one line.
 """
 
 from __future__ import annotations
@@ -25,6 +27,7 @@ from typing import Any
 
 import pytest
 
+from fcb_sim import cbuild
 from term.core import protocol as p
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -43,15 +46,23 @@ class Build:
         return self.dir / "san" / name if sanitized else self.dir / name
 
 
+SHARED_BUILD_ENV = "QUADRUPEL_TEST_FIRMWARE_BUILD"  # the run's build folder, shared by its workers (conftest.py)
+
+
 @functools.cache
 def _build() -> Build | str:
     if shutil.which("cc") is None or shutil.which("make") is None:
         return NO_CC
-    out = Path(tempfile.mkdtemp(prefix="qp-firmware-"))
-    atexit.register(shutil.rmtree, out, True)
+    shared = os.environ.get(SHARED_BUILD_ENV)
+    if shared:  # one build for the run: the first worker builds under the lock, make finds the rest up to date
+        out = Path(shared)
+    else:
+        out = Path(tempfile.mkdtemp(prefix="qp-firmware-"))
+        atexit.register(shutil.rmtree, out, True)
     jobs = f"-j{min(4, os.cpu_count() or 1)}"
-    proc = subprocess.run(["make", "-s", jobs, "-C", str(FIRMWARE), f"BUILD={out}", "all"], capture_output=True,
-                          text=True)
+    with cbuild.file_lock(out / ".lock"):
+        proc = subprocess.run(["make", "-s", jobs, "-C", str(FIRMWARE), f"BUILD={out}", "all"], capture_output=True,
+                              text=True)
     if proc.returncode != 0:
         raise AssertionError(f"the firmware does not build:\n{proc.stdout}\n{proc.stderr}")
     return Build(out)
