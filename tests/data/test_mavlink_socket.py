@@ -12,8 +12,6 @@ import pytest
 
 pytest.importorskip("pymavlink", reason="the mavlink extra (pymavlink) is not installed")
 
-from pymavlink import mavutil  # noqa: E402
-
 from term.data.mavlink import DISPLAY_QUEUE_MAX, MavlinkEndpoint  # noqa: E402
 from term.data.mavlink_socket import MavlinkError, parse_address  # noqa: E402
 from tests.support.mavlink_gcs import Gcs  # noqa: E402
@@ -41,6 +39,8 @@ def test_the_address_is_loopback_unless_public_and_bad_ones_are_one_line() -> No
 
 
 def test_over_tcp_the_ground_station_gets_the_heartbeat_and_again_after_it_went_away() -> None:
+    from pymavlink import mavutil  # (here: its every dialect takes 0.7 s to import, on each worker)
+
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
         port = s.getsockname()[1]

@@ -27,8 +27,6 @@ from term.data.recording import SessionRecorder
 
 pytest.importorskip("pymavlink", reason="the mavlink extra (pymavlink) is not installed")
 
-from pymavlink import mavutil  # noqa: E402
-
 from term.data.export import ExportError, export  # noqa: E402
 from term.data.mavlink_map import (  # noqa: E402
     PARAM_BY_MAV,
@@ -63,6 +61,8 @@ def record(directory: Path) -> Path:
 
 
 def test_a_recording_is_a_telemetry_log_pymavlink_reads_with_its_times(tmp_path: Path) -> None:
+    from pymavlink import mavutil  # (here: its every dialect takes 0.7 s to import, on each worker)
+
     src = record(tmp_path / "rec")
     out = tmp_path / "flight.tlog"
     res = export(src, out)
