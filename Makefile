@@ -28,7 +28,7 @@ $(BIN)/python:
 	@$(PY) -m venv --without-pip $(VENV) || { rm -rf $(VENV); echo "could not make $(VENV): needs Python >= 3.11 with" \
 		"venv (Debian/Ubuntu: sudo apt install python3-venv)" >&2; exit 1; }
 
-ENSURE_PIP := { test -x $(BIN)/pip || $(BIN)/python -m ensurepip >/dev/null; }
+ENSURE_PIP := { test -x $(BIN)/pip || $(BIN)/python -m ensurepip --default-pip >/dev/null; }
 GET_UV := { $(PY) -m pip --python $(BIN)/python install -q --disable-pip-version-check "uv==$(UV_VERSION)" \
 	2>/dev/null || { $(ENSURE_PIP) && $(PIP) install -q --disable-pip-version-check "uv==$(UV_VERSION)"; }; }
 
