@@ -25,8 +25,9 @@ the simulator's and its terminal's alone. It listens on loopback only (another a
 at a time: a second is refused while the first is there. A flood holds no harm for the flight: connections pass the
 door of hosts/listeners.py (at most ``MAX_PENDING`` without the token, each dropped after its time, never a
 descriptor past what serve's select() watches); an address that gave a wrong token waits a delay that doubles with
-each wrong one before its next is looked at (``LoginThrottle``), and refusals are logged one line per interval.
-Then a hello line, and a truth line every
+each wrong one before its next is looked at (``LoginThrottle``), and refusals are logged one line per interval. A
+connection closed before it sent a byte guessed nothing and costs its address no delay: term's own client shares
+127.0.0.1 with every port scan and idle flood on this machine. Then a hello line, and a truth line every
 ``1 / INSTRUCTOR_TRUTH_HZ`` s; each command line is applied and a refusal (a malformed line included: bad JSON,
 2000 nested brackets, a 400-digit number) answered with one error line, never a traceback. A radio cut disconnects
 the BLE central and stops advertising for a while. Cable and radio cuts add up to at most ``MAX_OUTAGE_S`` per
@@ -376,6 +377,8 @@ class InstructorServer:
                          summary="a throttled address")
             return
         why = await self._auth(reader)
+        if why == WENT_WITHOUT_A_WORD:  # guessed nothing (a port scan, an idle flood): no failure, no answer
+            return
         if why is not None and why != TIMED_OUT_WHY:
             self.throttle.failed(address)
         elif why is None:
@@ -407,6 +410,8 @@ class InstructorServer:
             return TIMED_OUT_WHY
         except (ValueError, asyncio.LimitOverrunError):
             return "the first line must give the token"
+        if not line:
+            return WENT_WITHOUT_A_WORD
         msg = _json_object(line)
         token = msg.get("token") if isinstance(msg, dict) and msg.get("kind") == INSTRUCTOR_AUTH else None
         if not isinstance(token, str) or not hmac.compare_digest(token.encode(), self.token.encode()):
@@ -478,6 +483,7 @@ class InstructorServer:
 
 
 TIMED_OUT_WHY = f"no token within {AUTH_TIMEOUT_S:g} s"
+WENT_WITHOUT_A_WORD = "closed before it sent a byte"
 
 
 def _refusal_line(why: str) -> bytes:

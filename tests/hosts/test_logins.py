@@ -99,3 +99,28 @@ async def test_a_wrong_token_makes_the_address_wait_before_its_next_is_looked_at
         assert server.refused == 4
     finally:
         await server.close()
+
+
+async def test_a_client_that_goes_without_a_word_is_no_wrong_token() -> None:
+    """A connection closed before it sent a line guessed nothing: a port scan or a flood of idle connections on
+    loopback must not make term's own instructor client wait (it shares the address 127.0.0.1)."""
+    clock = Clock()
+    server = InstructorServer(Instructor(Board(BoardConfig(seed=2), world=World(2))), clock=clock)
+    host, port, token = parse_address(await server.start("tcp-server:127.0.0.1:0"))
+    try:
+        for _ in range(10):
+            reader, writer = await asyncio.open_connection(host, port)
+            writer.close()
+            async with asyncio.timeout(5):
+                await reader.read()  # the server has seen the end and closed its side
+        assert server.throttle.wait(host) == 0.0
+        assert (await _try(host, port, token))["kind"] == "hello"
+        reader, writer = await asyncio.open_connection(host, port)  # half a line, then the end: a wrong token
+        writer.write(b'{"kind": "auth", "tok')
+        writer.write_eof()
+        async with asyncio.timeout(5):
+            assert b"token" in await reader.readline()
+        writer.close()
+        assert server.throttle.wait(host) > 0.0
+    finally:
+        await server.close()
