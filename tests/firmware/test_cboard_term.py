@@ -66,9 +66,12 @@ async def test_term_flies_the_c_board_in_the_simulator(tmp_path: Path) -> None:
             assert (m.hello.protocol, m.hello.role, m.hello.major) == (PROTOCOL_VERSION, Role.BOARD, 0)
             await press("3", lambda: any("CALIBRATION → SAFE" in t for t in texts()))
             await press("2", lambda: m.mode == Mode.MANUAL)
-            await press("a", lambda: m.status is not None and m.status.trim_lift > LIFT_ZERO)  # more than zero lift
+            # two steps of lift trim (1 % each): more than what counts as zero lift (LIFT_ZERO)
+            await press("a", lambda: m.status is not None and m.status.trim_lift > 0)
+            await press("a", lambda: m.status is not None and m.status.trim_lift > LIFT_ZERO)
             lift_nak = f"NAK mode SAFE: {NAK_TEXT[Nak.LIFT_NOT_ZERO]}"
             await press("0", lambda: lift_nak in naks())  # the lift trim is not zero: refused, with the reason
+            await press("z", lambda: m.status is not None and 0 < m.status.trim_lift <= LIFT_ZERO)
             await press("z", lambda: m.status is not None and m.status.trim_lift == 0)
             await press("0", lambda: m.mode == Mode.SAFE)
             await press("5", lambda: m.mode == Mode.FULL)
@@ -86,7 +89,7 @@ async def test_term_flies_the_c_board_in_the_simulator(tmp_path: Path) -> None:
             with saved.open() as f:
                 rows = list(csv.reader(f))
             modes = {int(r[2]) for r in rows[1:]}
-            assert rows[0][:3] == ["segment", "t_us", "mode"] and len(rows) > 1000
+            assert rows[0][:3] == ["segment", "t_us", "mode"] and len(rows) > 500  # about 5 s of flight
             assert {Mode.SAFE, Mode.MANUAL, Mode.FULL, Mode.HEIGHT, Mode.PANIC} <= modes
             await press("f6", lambda: len(m.profiles) == 7)  # the profile: every task, its period the board's
             assert 4900 < m.profiles[2].period_us < 5100 and m.profiles[5].period_us > 90_000
