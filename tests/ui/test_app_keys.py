@@ -138,9 +138,9 @@ def is_text(w: Widget | None) -> bool:
 async def open_screen(app: TermApp, pilot, name: str) -> None:  # noqa: ANN001
     while len(app.screen_stack) > 1:
         app.close_top_screen()  # (the palette stops its search first, as an F-key's screen change does)
-        await pilot.pause(0.05)
+        await pilot.pause()
     SCREENS[name](app)
-    await pilot.pause(0.1)
+    await pilot.pause()  # (the queues drained: the screen is up; tests/support/textual_drain.py)
     if name in ("palette", "directory"):  # a text screen: its box takes the focus when it is up
         await settle(pilot, lambda: isinstance(app.focused, Input))
 
