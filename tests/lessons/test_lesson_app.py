@@ -117,8 +117,8 @@ async def test_a_lesson_flown_with_the_keys_is_scored_saved_and_summed_up() -> N
 async def test_the_demo_starts_through_the_app_and_a_key_of_the_pilot_takes_over() -> None:
     async with sim_app(seed=5, demo=True) as (app, pilot, board):
         bar = app.screen.query_one(LessonBar)
-        await until(pilot, lambda: bar.text.startswith("autopilot: 3: CALIBRATION"))
-        await until(pilot, lambda: app.model.mode == Mode.CALIBRATION)  # the autopilot pressed 3, as a key does
+        await until(pilot, lambda: bar.text.startswith("autopilot: F2"))  # after 4 s of welcome
+        await until(pilot, lambda: board.log.recording)  # the autopilot pressed F2, as a key does
         app.simulate_key("0")  # the pilot's own key
         await until(pilot, lambda: any("you have control" in e.text for e in app.model.events))
         assert not app.lessons.driver.flying and bar.text == "autopilot stopped: the pilot took over"
