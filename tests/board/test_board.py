@@ -49,6 +49,7 @@ from term.core.protocol import (
     Motion,
     Nak,
     Op,
+    Param,
     Profile,
     Status,
     WirelessState,
@@ -354,10 +355,16 @@ LIFT = st.sampled_from([0, 0, 0, 300, 3000, HOVER_LIFT, 30000])
 PANIC_MAX_S = 30.0  # the highest a random flight gets, at PANIC's 1 m/s, plus sensing the ground and the ramp
 
 
+# CALIBRATION as short as the board allows with its minimum of samples (Param.CALIBRATION_MS, as a pilot sets it):
+# the properties are the mode machine's, and a second of averaging per calibration was half the test's time.
+PROPERTY_CALIBRATION_MS = 300
+
+
 class BoardProperties(RuleBasedStateMachine):
     def __init__(self) -> None:
         super().__init__()
         self.board, self.pc = board_and_pc(seed=4, link_timeout_s=0.5)
+        assert self.pc.command(Op.SET_PARAM, param_arg(Param.CALIBRATION_MS, PROPERTY_CALIBRATION_MS)).status == Nak.OK
         self.leaves: list[tuple[ModeChange, Joystick, int]] = []
         self.board.modes.listeners.append(self._on_change)
 
@@ -385,7 +392,7 @@ class BoardProperties(RuleBasedStateMachine):
     def calibrate(self) -> None:
         self.pc.js = Joystick(0, 0, 0, 0, 0)
         self.pc.send(Command(3, Op.MODE, Mode.CALIBRATION))
-        self.pc.run(1.1)
+        self.pc.run(PROPERTY_CALIBRATION_MS / 1000 + 0.1)
 
     @rule(mode=st.sampled_from([Mode.MANUAL, Mode.YAW, Mode.FULL, Mode.RAW]), lift=LIFT, cal=st.booleans())
     def take_off(self, mode: Mode, lift: int, cal: bool) -> None:
