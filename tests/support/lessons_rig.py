@@ -223,16 +223,24 @@ class Rig:
 
     # --- lessons ------------------------------------------------------------------------------------------
 
-    def fly_lesson(self, lesson: Lesson, script: Any = None, limit_s: float = 300.0) -> Result:
-        """One attempt at ``lesson``, flown by ``script`` (default: the lesson's own [[show]]); its result."""
+    def fly_lesson(self, lesson: Lesson, script: Any = None, limit_s: float = 300.0, *,
+                   stop_when_flown: bool = False) -> Result:
+        """One attempt at ``lesson``, flown by ``script`` (default: the lesson's own [[show]]); its result.
+        ``stop_when_flown``: the pilot stops the lesson once the script has ended (the palette's "Lesson: stop"),
+        rather than waiting out a step's own time limit."""
         from term.lessons.autopilot import Autopilot
 
         d = self.driver
         n = len(self.results)
+        ended = len(self.autopilot_ended)
         d.start_lesson(lesson, self.now, show=script is None)
         if script is not None:
             d.autopilot = Autopilot(tuple(script), self.now, "test pilot")
-        self.run(limit_s, lambda: len(self.results) > n)
+        self.run(limit_s, lambda: len(self.results) > n or (stop_when_flown and len(self.autopilot_ended) > ended))
+        if len(self.results) == n and stop_when_flown:
+            result = d.stop(self.model, self.now)
+            if result is not None:
+                self.results.append(result)
         if len(self.results) == n:
             result = d.stop(self.model, self.now, f"no result within {limit_s:g} s")
             assert result is not None
