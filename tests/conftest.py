@@ -50,8 +50,8 @@ def _fewer_gc_passes() -> None:
     full collection walks it for about 0.5 s, and at Python's default thresholds one came every few tests: 26 a
     worker, 13 s of its CPU, in tests/ui and tests/lessons alone (gen 0 and 1 another 9 s). Collecting every 10,000
     allocations instead of 700 keeps the same garbage collected, 14 times less often (22 s of GC a worker there
-    became 5 s). term's own process keeps the defaults (its heap is the app's alone; term/core/heap.py freezes what
-    start-up built)."""
+    became 5 s). term's own process keeps the
+    defaults (its heap is the app's alone; term/core/heap.py freezes what start-up built)."""
     _, gen1, gen2 = gc.get_threshold()
     gc.set_threshold(GC_THRESHOLD0, gen1, gen2)
 
