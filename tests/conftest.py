@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
-import gc
 import os
 import shutil
 import tempfile
@@ -38,22 +37,6 @@ from term.core.protocol import (
 def pytest_configure(config: pytest.Config) -> None:
     _share_the_firmware_build(config)
     _one_gc_collection(config)
-    _fewer_gc_passes()
-
-
-# Generation 0's threshold for the test processes (Python's default 700): the suite's own choice, not term's.
-GC_THRESHOLD0 = 10_000
-
-
-def _fewer_gc_passes() -> None:
-    """A worker's heap holds the whole run (every test module, pytest's items, hypothesis, the apps' caches), so a
-    full collection walks it for about 0.5 s, and at Python's default thresholds one came every few tests: 26 a
-    worker, 13 s of its CPU, in tests/ui and tests/lessons alone (gen 0 and 1 another 9 s). Collecting every 10,000
-    allocations instead of 700 keeps the same garbage collected, 14 times less often (22 s of GC a worker there
-    became 5 s). term's own process keeps the
-    defaults (its heap is the app's alone; term/core/heap.py freezes what start-up built)."""
-    _, gen1, gen2 = gc.get_threshold()
-    gc.set_threshold(GC_THRESHOLD0, gen1, gen2)
 
 
 def _share_the_firmware_build(config: pytest.Config) -> None:
