@@ -116,8 +116,8 @@ def test_fixed_point_twin_on_real_data() -> None:
 def test_every_broad_trial_has_a_bounded_error() -> None:
     """The default filter over all 17 trials of ../shared/data/broad (every 4th scored row compared): no trial
     over 1.5° RMS (the issue's bound; the worst is 1.09°, trial 08) nor 6° at any instant. The filter is the one the
-    board flies: ikf_f.c where it builds (the same doubles as ikf.py, tests/estimation/test_ikf_native.py), a tenth
-    of the CPU of the Python reference's 920,000 updates."""
+    board flies: ikf_f.c where it builds (the same doubles as ikf.py, tests/estimation/test_ikf_native.py); its
+    920,000 updates cost under half the Python reference's CPU."""
     paths = sorted(BROAD.glob("*.csv.gz")) if BROAD.is_dir() else []
     if not paths:
         pytest.skip(f"the BROAD trials are not at {BROAD} (the team's shared data beside the checkout)")

@@ -40,7 +40,8 @@ async def test_the_autopilot_flies_over_the_tcp_link_with_the_instructor() -> No
             script = maneuvers([
                 {"press": "log_start", "say": "F2: the flash log"},
                 {"press": "mode_calibration", "say": "3: CALIBRATION"},
-                {"wait": "calibrations >= 1 and mode == 'SAFE'", "timeout": 10}, {"pause": 60}], "tcp")
+                {"wait": "calibrations >= 1 and mode == 'SAFE'", "timeout": 10},
+                {"pause": 60}], "tcp")  # (still flying when the pilot's key takes over)
             app.lessons.driver.start_script("tcp", "the demo's first keys", script, app.clock())
             await until(pilot, lambda: bar.text.startswith("autopilot: 3: CALIBRATION"))
             await until(pilot, lambda: board.mode == Mode.CALIBRATION)  # the autopilot's key reached the board
