@@ -202,7 +202,9 @@ def _battery(model: Model, now: float) -> Check:
         return Check("battery", "todo", f"{v:.2f} V: charge or swap it")
     if v < BATTERY_WARN_V:
         return Check("battery", "info", f"{v:.2f} V: low, a short flight only")
-    return Check("battery", "ok", f"{v:.2f} V")
+    # a tenth of a volt when all is well: the hundredths are the ADC's noise, and redrew the panel every frame (the
+    # battery gauge beside it has them)
+    return Check("battery", "ok", f"{v:.1f} V")
 
 
 def _crash(model: Model, now: float, keymap: tuple[KeyBinding, ...]) -> Check:
