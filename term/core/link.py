@@ -501,6 +501,8 @@ class LinkSession:
 
     def _deaf_since(self, start: float, now: float | None) -> float:
         """How long, since ``start`` (until ``now``; None: all of it), the caller could not listen."""
+        if not self._deaf:
+            return 0.0  # (the common case, at every poll: no list built)
         self._deaf = [(a, b) for a, b in self._deaf if b > start]
         end = math.inf if now is None else now
         return sum(max(0.0, min(b, end) - max(a, start)) for a, b in self._deaf)
@@ -540,6 +542,8 @@ class LinkSession:
             self.decoder.reset_sequence()  # frames missed while silent are not countable modulo 256
             events.append(LinkLost(silent, never_heard=self._last_frame is None))
             self._cancel_all(f"link lost: nothing from the board for {silent:.1f} s", events)
+            return
+        if not self._inflight:
             return
         expired = [
             p
