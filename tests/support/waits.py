@@ -20,8 +20,9 @@ async def until(first: Any, second: Any = None, timeout: float = TIMEOUT_S, *, s
     stepping the event loop with ``asyncio.sleep`` between the looks (the app's messages and timers run there); with
     a pilot, once ``cond`` holds, the app's and its screen's queues are drained once (``pilot.pause``), so nothing
     a test caused is still queued when the app shuts down. Not ``pilot.pause`` at every look: it posts a callback
-    to every widget of the screen and waits for all of them, about a hundred messages every 5 ms (tests/ui in one
-    process: 118 s of CPU with it, 110 s without), and more for every second a busy machine stretches a wait.
+    to the app and to every widget of the screen (24 on the flight screen) and waits for all of them, every 5 ms
+    (tests/ui in one process: 118 s of CPU with it, 110 s without), and more for every second a busy machine
+    stretches a wait.
     ``what`` (or what it returns, asked at the timeout) names the wait in the failure."""
     pilot = None
     if callable(first):
