@@ -1,8 +1,8 @@
 """The motor test screen through Textual's Pilot: against the real boards (`fcb-sim serve --pty`, the Python board
 and the C board) a motor turns in the motors panel after "props off?", the board's qb_log line is on the console,
 any key stops it, and (on the Python board: both boards' limit is tests/board/test_motortest.py's) it stops by itself;
-against the scripted board on a loopback link: refused out of SAFE,
-stopped on leaving the screen and on link loss, the pilot's keys spent on the screen, not on the craft."""
+against the scripted board on a loopback link: refused out of SAFE, stopped on leaving the screen and on link loss,
+the pilot's keys spent on the screen, not on the craft."""
 
 from __future__ import annotations
 
