@@ -19,7 +19,6 @@ import argparse
 import json
 import os
 import re
-import resource
 import shutil
 import subprocess
 import sys
@@ -46,11 +45,15 @@ def calibration_s() -> float:
 
 
 def children_cpu() -> tuple[float, float]:
+    import resource  # (POSIX: main() says so in one line elsewhere)
+
     r = resource.getrusage(resource.RUSAGE_CHILDREN)
     return r.ru_utime, r.ru_stime
 
 
 def run(keep: bool, durations: int) -> dict[str, object]:
+    if os.name != "posix":
+        raise SystemExit("bench.suite: runs make test as CI does, on a POSIX system (Linux, macOS)")
     if shutil.which("git") is None or shutil.which("make") is None:
         raise SystemExit("bench.suite: needs git and make on PATH")
     if not (ROOT / ".git").exists():
