@@ -33,7 +33,14 @@ def cbar(value: float, span: float, width: int, style: str = "cyan") -> Text:
             cells[i] = "█"
     if span > 0 and abs(value) > span:
         cells[-1 if value > 0 else 0] = "▶" if value > 0 else "◀"
+    # One span per run of a style, not per cell: Textual's cost of drawing a line grows with its spans.
     out = Text()
+    run, run_style = "", ""
     for c in cells:
-        out.append(c, style=style if c in "█▶◀" else "dim")
+        cell_style = style if c in "█▶◀" else "dim"
+        if cell_style != run_style and run:
+            out.append(run, style=run_style)
+            run = ""
+        run, run_style = run + c, cell_style
+    out.append(run, style=run_style)
     return out

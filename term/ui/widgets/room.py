@@ -60,15 +60,26 @@ class Canvas:
         self.glyph[(min(max(cx, 0), self.cols - 1), min(max(cy, 0), self.rows - 1))] = (glyph, style)
 
     def row(self, cy: int) -> Text:
+        """One row of cells, one span per run of a style (Textual's cost of drawing a line grows with its spans)."""
         t = Text()
+        bits, styles = self.bits[cy], self.style[cy]
+        run: list[str] = []
+        run_style = ""
         for cx in range(self.cols):
             g = self.glyph.get((cx, cy))
             if g is not None:
-                t.append(g[0], style=g[1])
-            elif self.bits[cy][cx]:
-                t.append(chr(0x2800 + self.bits[cy][cx]), style=self.style[cy][cx] or "")
+                char, style = g
+            elif bits[cx]:
+                char, style = chr(0x2800 + bits[cx]), styles[cx] or ""
             else:
-                t.append(" ")
+                char, style = " ", ""
+            if style != run_style and run:
+                t.append("".join(run), style=run_style)
+                run = []
+            run.append(char)
+            run_style = style
+        if run:
+            t.append("".join(run), style=run_style)
         return t
 
 
