@@ -16,6 +16,7 @@ attempt earns nothing for the step it failed in and the steps after; lesson-wide
 
 from __future__ import annotations
 
+import functools
 import math
 import re
 from collections.abc import Iterable
@@ -394,10 +395,11 @@ def load_lessons(dirs: Iterable[Path] = (), actions: Iterable[str] | None = None
                  ) -> tuple[dict[int, Lesson], list[str]]:
     """Every lesson of the built-in directory, then of ``dirs`` (a later one of the same number wins); the
     lessons by number and one line per file skipped."""
-    lessons: dict[int, Lesson] = {}
-    skipped: list[str] = []
     acts = tuple(actions) if actions is not None else None
-    for d in (BUILTIN, *dirs):
+    builtin, skipped_builtin = _builtin_lessons(acts)
+    lessons: dict[int, Lesson] = dict(builtin)
+    skipped: list[str] = list(skipped_builtin)
+    for d in dirs:
         if not d.is_dir():
             continue
         paths = sorted(p for p in d.glob("*.toml") if p.name != DEMO.name)
@@ -406,13 +408,28 @@ def load_lessons(dirs: Iterable[Path] = (), actions: Iterable[str] | None = None
             paths = paths[:MAX_FILES]
         else:
             skipped_files = 0
-        for path in paths:
-            try:
-                lesson = load_lesson(path, acts)
-            except LessonError as exc:
-                skipped.append(str(exc))
-                continue
-            lessons[lesson.number] = lesson
+        _load_into(lessons, skipped, paths, acts)
         if skipped_files:
             skipped.append(f"{d}: more than {MAX_FILES} lesson files; the last {skipped_files} were not read")
     return dict(sorted(lessons.items())), skipped
+
+
+def _load_into(lessons: dict[int, Lesson], skipped: list[str], paths: Iterable[Path],
+               acts: tuple[str, ...] | None) -> None:
+    for path in paths:
+        try:
+            lesson = load_lesson(path, acts)
+        except LessonError as exc:
+            skipped.append(str(exc))
+            continue
+        lessons[lesson.number] = lesson
+
+
+@functools.lru_cache(maxsize=8)
+def _builtin_lessons(acts: tuple[str, ...] | None) -> tuple[tuple[tuple[int, Lesson], ...], tuple[str, ...]]:
+    """The built-in lessons, read once per process (they ship with the package; a Lesson is frozen): each reload
+    of a teacher's folder reads only that folder."""
+    lessons: dict[int, Lesson] = {}
+    skipped: list[str] = []
+    _load_into(lessons, skipped, sorted(p for p in BUILTIN.glob("*.toml") if p.name != DEMO.name), acts)
+    return tuple(lessons.items()), tuple(skipped)
