@@ -69,6 +69,15 @@ def _one_gc_collection(config: pytest.Config) -> None:
     config.stash[gc_collect_iterations_key] = 1
 
 
+@pytest.hookimpl(tryfirst=True)
+def pytest_collection(session: pytest.Session) -> None:
+    """Each xdist worker imports the test modules from its own share on (tests/support/staggered_imports.py): a
+    fresh clone's workers compile the bytecode once between them."""
+    from tests.support.staggered_imports import import_this_workers_share_first
+
+    import_this_workers_share_first(session.config)
+
+
 @pytest.fixture(autouse=True, scope="session")
 def _the_c_filter_built_first() -> None:
     """The simulator's RAW filter is C built on first use (fcb_sim.estimation.native): built here, before any test
