@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+import functools
 import gzip
 import math
 from pathlib import Path
@@ -11,7 +12,13 @@ from hypothesis import strategies as st
 
 
 def _rows(path: Path, n: int) -> list[tuple[float, ...]]:
-    """(gx, gy, gz, ax, ay, az, dt) of the first ``n`` rows of a BROAD trial (gyro rad/s, specific force m/s²)."""
+    """(gx, gy, gz, ax, ay, az, dt) of the first ``n`` rows of a BROAD trial (gyro rad/s, specific force m/s²): a
+    new list each call, of rows read once per process (the properties take a slice of them for every example)."""
+    return list(_read_rows(path, n))
+
+
+@functools.lru_cache(maxsize=32)
+def _read_rows(path: Path, n: int) -> tuple[tuple[float, ...], ...]:
     out: list[tuple[float, ...]] = []
     with gzip.open(path, "rt", newline="") as fh:
         reader = csv.DictReader(fh)
@@ -23,7 +30,7 @@ def _rows(path: Path, n: int) -> list[tuple[float, ...]]:
             t_prev = t
             if len(out) >= n:
                 break
-    return out
+    return tuple(out)
 
 
 _wild = st.one_of(st.floats(allow_nan=True, allow_infinity=True, width=64),
