@@ -114,6 +114,11 @@ def _parts(cfg: BoardConfig, world: World | None, core: FlightCore | None, wirel
     return world, core, wireless, modes, log
 
 
+def _slack_budget(name: str) -> int:
+    """The slack rule's estimate of a task's duration (µs): its 99.9th percentile."""
+    return int(COSTS[name].figure[3])
+
+
 def _sensor_path(setting: str, modes: ModeMachine) -> str:
     """The sensor path to run: the setting (Param.SENSOR_PATH), or for "auto" RAW in RAW mode (and HEIGHT from
     RAW), else DMP."""
@@ -322,8 +327,7 @@ class Board:
             self.sched.flags["parse"] = True
 
     def _pick(self) -> str | None:
-        # The slack rule's estimate of a task's duration is its 99.9th percentile.
-        return self.sched.pick(self.now, lambda name: int(COSTS[name].figure[3]))
+        return self.sched.pick(self.now, _slack_budget)
 
     def _period(self, name: str) -> int:
         if name == "telemetry" and self.download.active:

@@ -70,6 +70,7 @@ class Scheduler:
             "telemetry": rng.randrange(1, rtc_ticks(20_000)),
             "heartbeat": rng.randrange(1, rtc_ticks(period("heartbeat")))}
         self.next = {name: rtc_us(tk) for name, tk in self.next_tk.items()}
+        self._soonest = min(self.next.values())  # the next expiry: most looks find nothing expired
         self.ticks_lost = {name: 0 for name in self.next}
         self.timer_isr_end = 0  # when the app_timer interrupt of the last expiry is over
         self.parse_limit = PARSE_MAX_BYTES
@@ -78,6 +79,8 @@ class Scheduler:
     def fire(self, now: int) -> None:
         """Set the flags of the timers that expired by ``now`` (one app_timer interrupt serves all that expire
         on the same tick)."""
+        if now < self._soonest:
+            return
         nxt = self.next
         at: dict[int, int] = {}  # expiry time -> timers expiring then
         for name, t in nxt.items():
@@ -96,20 +99,24 @@ class Scheduler:
                 at[t] = at.get(t, 0) + 1
         for t, n in at.items():
             self.timer_isr_end = max(self.timer_isr_end, t + APP_TIMER_ISR_US + APP_TIMER_EXTRA_US * (n - 1))
+        self._soonest = min(nxt.values())
 
     def restart(self, name: str, now: int) -> None:
         """Start timer ``name`` afresh from ``now`` with its current period (the sensor path changed)."""
         self.next_tk[name] = tk = us_to_ticks(now) + rtc_ticks(self.period(name))
         self.next[name] = rtc_us(tk)
+        self._soonest = min(self.next.values())
 
     def next_tick_us(self) -> int:
-        return min(self.next.values())
+        return self._soonest
 
     def pick(self, now: int, budget: Callable[[str], int]) -> str | None:
         """The task to run now, or None; the flag stays set (the loop clears it when the task starts)."""
         return self._pick_priority(now, budget) if self.priority else self._pick_round_robin()
 
     def _pick_round_robin(self) -> str | None:
+        if not any(self.flags.values()):
+            return None  # (most looks: the loop waits for the next interrupt)
         order = ROUND_ROBIN_ORDER
         n = len(order)
         for i in range(n):
