@@ -36,8 +36,9 @@ def _test_modules(config: pytest.Config) -> list[tuple[str, Path]]:
     """(module name, file) of every test module under what the run collects, in a package chain from the
     rootdir (so that the name is the one pytest's prepend import gives it), sorted by path."""
     root = Path(config.rootpath).resolve()
+    asked = _asked_for(config)
     files: set[Path] = set()
-    for path in _asked_for(config):
+    for path in asked:
         if path.is_file():
             files.add(path)
         elif path.is_dir():
@@ -47,8 +48,12 @@ def _test_modules(config: pytest.Config) -> list[tuple[str, Path]]:
         if not f.name.startswith("test_") or f.suffix != ".py" or root not in f.parents:
             continue
         parts = f.relative_to(root).with_suffix("").parts
-        if all((root.joinpath(*parts[:i]) / "__init__.py").is_file() for i in range(1, len(parts))):
-            out.append((".".join(parts), f))
+        folders = [root.joinpath(*parts[:i]) for i in range(1, len(parts))]
+        if not all((d / "__init__.py").is_file() for d in folders):
+            continue
+        if any((d / "conftest.py").is_file() and not any(d == a or d in a.parents for a in asked) for d in folders):
+            continue  # a conftest.py below what was asked for loads when collection gets there: left to collection
+        out.append((".".join(parts), f))
     return out
 
 
