@@ -173,8 +173,7 @@ async def test_zoom_by_keys_and_wheel_and_pan_a_paused_view() -> None:
 async def test_the_series_are_chosen_at_run_time_and_the_keys_still_fly(scripted_board) -> None:  # noqa: ANN001
     async with flying(scripted_board) as (app, pilot, board, _):
         await pilot.press("f8")
-        await pilot.pause(0.2)
-        assert [p.series for p in plots(app)] == [("phi", "theta", "psi"), ("height",)]
+        await until(pilot, lambda: [p.series for p in plots(app)] == [("phi", "theta", "psi"), ("height",)])
         await pilot.press("up")  # pitch trim while the list is closed
         await until(pilot, lambda: (Op.TRIM_PITCH, -1) in sent(board))
         await pilot.press("s")
@@ -184,8 +183,7 @@ async def test_the_series_are_chosen_at_run_time_and_the_keys_still_fly(scripted
         before = len(board.executed)
         await pilot.press("down", "down", "down", "enter")  # the fourth: roll rate p
         await pilot.press("up", "up", "up", "space")  # the first: roll, off
-        await pilot.pause(0.2)
-        assert [p.series for p in plots(app)] == [("theta", "psi"), ("sp",), ("height",)]
+        await until(pilot, lambda: [p.series for p in plots(app)] == [("theta", "psi"), ("sp",), ("height",)])
         assert len(board.executed) == before  # up and down moved in the list, trimmed nothing
         await pilot.press("1")  # PANIC goes out with the list open
         await until(pilot, lambda: (Op.MODE, Mode.PANIC) in sent(board))
@@ -200,21 +198,18 @@ async def test_the_series_are_chosen_at_run_time_and_the_keys_still_fly(scripted
         # machine slowed by two thirds during the run)
         await until(pilot, lambda: chooser.region.height > 0)
         await pilot.click(SeriesChooser, offset=(4, 2))  # the mouse: the second item, pitch, off
-        await pilot.pause(0.2)
-        assert [p.series for p in plots(app)] == [("psi",), ("sp",), ("height",)]
+        await until(pilot, lambda: [p.series for p in plots(app)] == [("psi",), ("sp",), ("height",)])
 
 
 async def test_no_series_says_how_to_choose_some() -> None:
     app = TermApp(joystick=False, config=Config(plot_series=("height",)))
     async with app.run_test(size=(100, 30)) as pilot:
         await pilot.press("f8", "s", "enter")  # the first item, roll: on
-        await pilot.pause(0.1)
-        assert [p.series for p in plots(app)] == [("phi",), ("height",)]
+        await until(pilot, lambda: [p.series for p in plots(app)] == [("phi",), ("height",)])
         screen = app.screen
         assert isinstance(screen, PlotsScreen)
         await screen.set_series(())
-        await pilot.pause(0.1)
-        assert not plots(app) and "press s" in str(app.screen.query_one("#no-series").render())
+        await until(pilot, lambda: not plots(app) and "press s" in str(app.screen.query_one("#no-series").render()))
 
 
 @pytest.mark.parametrize("size", [(40, 12), (200, 60)])

@@ -45,8 +45,8 @@ async def test_term_flies_the_c_reference_board() -> None:
             # the board dies: LINK LOST
             board.kill()
             await until(pilot, lambda: m.link_lost)
-            await pilot.pause(0.2)
-            assert any(t.startswith("LINK LOST") for t in texts())
+            await until(pilot, lambda: any(t.startswith("LINK LOST") for t in texts())
+                        and "LINK LOST" in str(app.screen.query_one("#mode").render()))
             assert "LINK LOST" in str(app.screen.query_one("#mode").render())
     finally:
         board.kill()

@@ -60,8 +60,8 @@ async def test_a_terminal_too_small_says_so(scripted_board) -> None:  # noqa: AN
         await pilot.press("1")  # the keys still work
         await until(pilot, lambda: (Op.MODE, Mode.PANIC) in sent(board))
         await pilot.resize_terminal(120, 44)
-        await pilot.pause(0.1)
-        assert not app.screen.query_one("#too-small").display and app.screen.query_one("#mode").display
+        await until(pilot, lambda: not app.screen.query_one("#too-small").display
+                    and app.screen.query_one("#mode").display)
 
 
 async def test_erasing_the_log_asks_first(scripted_board) -> None:  # noqa: ANN001
