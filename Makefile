@@ -1,6 +1,7 @@
 # Two commands do all the set-up: `make run` and `make test`.
 # Every install here takes the versions pinned in constraints.txt (the set the suite passed with); `make lock`
 # refreshes them, `make test-lowest` runs the suite at the lowest versions pyproject.toml allows.
+# PY: the Python the venv is made with (CI's .ci/run gives the distribution's: CONTRIBUTING.md, "Tests").
 PY ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
